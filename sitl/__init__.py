@@ -1,0 +1,1 @@
+"""A pure-Python MAVLink vehicle simulator that behaves like ArduCopter SITL."""

@@ -1,0 +1,86 @@
+"""The one error hierarchy of tml.
+
+Mission errors (what the author wrote) are apart from vehicle and link errors (what
+happened in flight). Every mission error carries the file, line and column it is about;
+every vehicle error carries the vehicle (MAVLink system id) it is about.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Location:
+    """A place in a source file: 1-based line and column (column 0 when unknown)."""
+
+    file: str
+    line: int
+    column: int = 0
+
+    def __str__(self) -> str:
+        if self.column:
+            return f"{self.file}:{self.line}:{self.column}"
+        return f"{self.file}:{self.line}"
+
+
+class TmlError(Exception):
+    """Root of every error tml raises on purpose."""
+
+
+class MissionError(TmlError):
+    """Something is wrong with a mission file; says where."""
+
+    def __init__(self, message: str, location: Location | None = None, code: str = "") -> None:
+        self.message = message
+        self.location = location
+        self.code = code
+        prefix = f"{location}: " if location else ""
+        tag = f"{code} " if code else ""
+        super().__init__(f"{prefix}{tag}{message}")
+
+
+class MissionSyntaxError(MissionError):
+    """The file is not well-formed, safe XML, or breaks the XML Schema."""
+
+
+class MissionSemanticError(MissionError):
+    """The file is valid XML but breaks a rule of the language."""
+
+
+class MissionInfeasibleError(MissionError):
+    """The mission cannot be flown within the vehicle's physical limits or the map."""
+
+
+class VehicleError(TmlError):
+    """A vehicle or its link did not do what was asked."""
+
+    def __init__(self, message: str, system_id: int | None = None) -> None:
+        self.system_id = system_id
+        who = f"vehicle {system_id}: " if system_id is not None else ""
+        super().__init__(f"{who}{message}")
+
+
+class CommandRejected(VehicleError):
+    """A COMMAND_LONG/COMMAND_INT was answered with a result other than ACCEPTED."""
+
+    def __init__(self, command: str, result: str, system_id: int | None = None) -> None:
+        self.command = command
+        self.result = result
+        super().__init__(f"{command} rejected: {result}", system_id)
+
+
+class VehicleTimeout(VehicleError):
+    """A vehicle did not answer or did not reach a state within its time limit."""
+
+
+class LinkLost(VehicleError):
+    """No heartbeat from a vehicle for longer than the link's limit."""
+
+
+class MissionTransferError(VehicleError):
+    """A mission, fence or rally upload/download/clear failed (MISSION_ACK result or timeout)."""
+
+    def __init__(self, message: str, result: str = "", system_id: int | None = None) -> None:
+        self.result = result
+        super().__init__(message, system_id)

@@ -1,0 +1,1 @@
+"""MAVLink: the only part of tml that imports pymavlink (lazily)."""

@@ -1,0 +1,227 @@
+"""The mission language as frozen dataclasses.
+
+Every node carries the :class:`~tml.errors.Location` (file, line, column) of the XML
+element it came from, so that every later stage (checks, verifier, interpreter, flight
+log) can point the author at the source. Nothing here knows about XML or MAVLink.
+
+Values are kept as the author wrote them (argument values are strings); the action
+catalogue (:mod:`tml.actions`) gives them types and units, and the semantic checks
+(:mod:`tml.check`) report what does not fit.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+import re
+from dataclasses import dataclass
+from enum import Enum
+
+from tml.errors import Location
+from tml.world import World
+
+
+class Comparison(str, Enum):
+    """The comparison words of TML conditions (the paper's, plus ``known`` and ``includes``)."""
+
+    EQUAL = "equal"
+    NOT_EQUAL = "not equal to"
+    LESS = "less than"
+    LESS_OR_EQUAL = "less than or equal to"
+    GREATER = "greater than"
+    GREATER_OR_EQUAL = "greater than or equal to"
+    KNOWN = "known"
+    INCLUDES = "includes"
+
+
+class TerminationMode(str, Enum):
+    """What the interpreter does after an event handler's actions have run."""
+
+    CONTINUE = "CONTINUE"
+    NEXT_TASK = "NEXT_TASK"
+    REPEAT_TASK = "REPEAT_TASK"
+    ABORT_TASK = "ABORT_TASK"
+    ABORT_MISSION = "ABORT_MISSION"
+    END_MISSION = "END_MISSION"
+    JUMP_TO_TASK = "JUMP_TO_TASK"
+
+
+class Dispatch(str, Enum):
+    """How a task's actions reach the vehicle."""
+
+    COMMAND = "command"  # each action sent as commands in GUIDED mode and watched
+    MISSION = "mission"  # the task's actions compiled to mission items, flown in AUTO
+
+
+class ConditionKind(str, Enum):
+    """What a condition reads: a parameter, a memorized label, or the current task."""
+
+    PARAMETER = "parameter"
+    LABEL = "label"
+    CURRENT_TASK = "current_task"
+
+
+class EventTrigger(str, Enum):
+    """When an event handler fires again while its conditions hold."""
+
+    EDGE = "edge"  # once each time the conditions become true
+    LEVEL = "level"  # on every evaluation while they are true
+
+
+@dataclass(frozen=True)
+class Argument:
+    """``<argument name=... value=...|label=.../>`` as written."""
+
+    name: str
+    value: str | None
+    label: str | None
+    location: Location
+
+
+@dataclass(frozen=True)
+class Action:
+    """``<action name=...>`` with its arguments, in a terminal task or an event handler."""
+
+    name: str
+    arguments: tuple[Argument, ...]
+    location: Location
+
+    def argument(self, *names: str) -> Argument | None:
+        """The first argument whose normalized name is one of ``names`` (normalized too)."""
+        wanted = {normalize_name(n) for n in names}
+        for argument in self.arguments:
+            if normalize_name(argument.name) in wanted:
+                return argument
+        return None
+
+
+@dataclass(frozen=True)
+class Condition:
+    """``<condition .../>``: reads a parameter, a label or the current task.
+
+    For ``current_task`` conditions ``subject`` is the task name or a ``/``-separated path
+    and ``comparison``/``value`` are unused (the test is "the task is running").
+    """
+
+    kind: ConditionKind
+    subject: str
+    comparison: Comparison | None
+    value: str | None
+    location: Location
+
+
+@dataclass(frozen=True)
+class Skill:
+    """``<skill name=.../>``: active for the whole task (or mission) that declares it."""
+
+    name: str
+    location: Location
+
+
+@dataclass(frozen=True)
+class Task:
+    """``<task name=...>``: a terminal task holds one action, others hold sub-tasks."""
+
+    name: str
+    path: tuple[str, ...]  # names from the top-level task down to this one
+    location: Location
+    skills: tuple[Skill, ...] = ()
+    conditions: tuple[Condition, ...] = ()
+    repeat: int = 1
+    action: Action | None = None
+    children: tuple[Task, ...] = ()
+    dispatch: Dispatch = Dispatch.COMMAND
+
+    @property
+    def is_terminal(self) -> bool:
+        """True when the task holds an action rather than sub-tasks."""
+        return self.action is not None
+
+    @property
+    def path_name(self) -> str:
+        """The task's path written as in ``currentTask="phase one/take off"``."""
+        return "/".join(self.path)
+
+    def walk(self) -> Iterator[Task]:
+        """This task and all its descendants, depth-first, in document order."""
+        yield self
+        for child in self.children:
+            yield from child.walk()
+
+
+@dataclass(frozen=True)
+class Termination:
+    """``<termination mode=... task=.../>`` of an event handler."""
+
+    mode: TerminationMode
+    location: Location
+    task: str | None = None  # target of JUMP_TO_TASK
+
+
+@dataclass(frozen=True)
+class Event:
+    """``<event name=...>``: conjunctive conditions, actions, and a termination."""
+
+    name: str
+    conditions: tuple[Condition, ...]
+    actions: tuple[Action, ...]
+    termination: Termination
+    location: Location
+    trigger: EventTrigger = EventTrigger.EDGE
+
+
+@dataclass(frozen=True)
+class ParameterDeclaration:
+    """``<parameter name=... type=.../>``: a detection parameter fed by a skill or companion."""
+
+    name: str
+    type: str  # "number", "string", "boolean" or "set"
+    location: Location
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class Mission:
+    """A whole mission file."""
+
+    name: str
+    location: Location
+    tasks: tuple[Task, ...]
+    skills: tuple[Skill, ...] = ()
+    events: tuple[Event, ...] = ()
+    parameters: tuple[ParameterDeclaration, ...] = ()
+    world: World | None = None
+    source: str = ""  # the file's text, kept to quote lines in diagnostics
+
+    @property
+    def file(self) -> str:
+        """The path the mission was read from."""
+        return self.location.file
+
+    def walk(self) -> Iterator[Task]:
+        """Every task, depth-first, in document order."""
+        for task in self.tasks:
+            yield from task.walk()
+
+    def actions(self) -> Iterator[tuple[Task | Event, Action]]:
+        """Every action with the task or event that holds it, in document order."""
+        for task in self.walk():
+            if task.action is not None:
+                yield task, task.action
+        for event in self.events:
+            for action in event.actions:
+                yield event, action
+
+
+_CAMEL_BOUNDARY = re.compile(r"(?<=[a-z0-9])(?=[A-Z])")
+
+
+def normalize_name(name: str) -> str:
+    """Canonical form of an argument or parameter name: lower case, words joined by ``_``.
+
+    ``"relative point"``, ``"Relative-Point"``, ``"relative_point"`` and ``"relativePoint"``
+    are one name.
+    """
+    spaced = _CAMEL_BOUNDARY.sub(" ", name)
+    words = spaced.replace("-", " ").replace("_", " ").split()
+    return "_".join(word.lower() for word in words)
+

@@ -1,0 +1,1 @@
+"""Physical feasibility of missions: vehicle profiles, the world, constraints, planning."""

@@ -1,0 +1,116 @@
+"""What the planner and the simulator know of the world, in the local frame.
+
+A world comes from an ``<environment>`` block inside a mission or from a separate world
+file (root ``<world>``, schema ``schemas/world.xsd``); :mod:`tml.parse` reads both. All
+coordinates here are local metres (see :mod:`tml.geo`): points given as latitude/longitude
+in the file are converted when the file is read, relative to the world's home.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+from tml.errors import Location
+
+Point2 = tuple[float, float]  # (north, east) in metres
+
+
+@dataclass(frozen=True)
+class Home:
+    """The home position: WGS84 latitude/longitude (degrees), altitude AMSL (m), heading."""
+
+    latitude: float
+    longitude: float
+    altitude: float
+    heading: float = 0.0  # degrees clockwise from north
+    location: Location | None = None
+
+
+# ArduPilot SITL's default location (CMAC, Canberra), used when a world names no home.
+DEFAULT_HOME = Home(latitude=-35.363261, longitude=149.165230, altitude=584.0, heading=353.0)
+
+
+@dataclass(frozen=True)
+class Geofence:
+    """An inclusion polygon (optional) and altitude limits above home, in metres."""
+
+    polygon: tuple[Point2, ...] = ()
+    min_altitude: float | None = None
+    max_altitude: float | None = None
+    location: Location | None = None
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """A vertical cylinder obstacle: centre, radius, and the altitudes it spans (m)."""
+
+    name: str
+    north: float
+    east: float
+    radius: float
+    bottom: float = 0.0
+    top: float = float("inf")
+    location: Location | None = None
+
+
+@dataclass(frozen=True)
+class Prism:
+    """A polygon extruded between two altitudes (a building, a no-fly block)."""
+
+    name: str
+    polygon: tuple[Point2, ...]
+    bottom: float = 0.0
+    top: float = float("inf")
+    location: Location | None = None
+
+
+Obstacle = Cylinder | Prism
+
+
+@dataclass(frozen=True)
+class WorldObject:
+    """Something a skill can recognise: a marker, an item, a bucket, a coloured frame.
+
+    ``kind`` is one of ``OBJECT_KINDS``; ``ident`` is the marker number or item name that
+    a detection reports; ``color`` is used by frames, items and buckets.
+    """
+
+    kind: str
+    ident: str
+    north: float
+    east: float
+    altitude: float = 0.0
+    color: str = ""
+    name: str = ""
+    location: Location | None = None
+
+
+OBJECT_KINDS = ("marker", "aruco", "item", "bucket", "frame", "subject")
+
+
+@dataclass(frozen=True)
+class World:
+    """Home, geofence, obstacles and recognisable objects."""
+
+    home: Home | None = None
+    geofence: Geofence | None = None
+    obstacles: tuple[Obstacle, ...] = ()
+    objects: tuple[WorldObject, ...] = ()
+    location: Location | None = None
+
+    @property
+    def home_or_default(self) -> Home:
+        """The declared home, or ArduPilot SITL's default location."""
+        return self.home or DEFAULT_HOME
+
+    def merged(self, other: World | None) -> World:
+        """This world with ``other`` laid over it: other's home and fence win, lists add up."""
+        if other is None:
+            return self
+        return replace(
+            self,
+            home=other.home or self.home,
+            geofence=other.geofence or self.geofence,
+            obstacles=self.obstacles + other.obstacles,
+            objects=self.objects + other.objects,
+        )

@@ -11,16 +11,16 @@ catalogue (:mod:`tml.actions`) gives them types and units, and the semantic chec
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 import re
+from collections.abc import Iterator
 from dataclasses import dataclass
-from enum import Enum
+from enum import StrEnum
 
 from tml.errors import Location
 from tml.world import World
 
 
-class Comparison(str, Enum):
+class Comparison(StrEnum):
     """The comparison words of TML conditions (the paper's, plus ``known`` and ``includes``)."""
 
     EQUAL = "equal"
@@ -33,7 +33,7 @@ class Comparison(str, Enum):
     INCLUDES = "includes"
 
 
-class TerminationMode(str, Enum):
+class TerminationMode(StrEnum):
     """What the interpreter does after an event handler's actions have run."""
 
     CONTINUE = "CONTINUE"
@@ -45,14 +45,14 @@ class TerminationMode(str, Enum):
     JUMP_TO_TASK = "JUMP_TO_TASK"
 
 
-class Dispatch(str, Enum):
+class Dispatch(StrEnum):
     """How a task's actions reach the vehicle."""
 
     COMMAND = "command"  # each action sent as commands in GUIDED mode and watched
     MISSION = "mission"  # the task's actions compiled to mission items, flown in AUTO
 
 
-class ConditionKind(str, Enum):
+class ConditionKind(StrEnum):
     """What a condition reads: a parameter, a memorized label, or the current task."""
 
     PARAMETER = "parameter"
@@ -60,7 +60,7 @@ class ConditionKind(str, Enum):
     CURRENT_TASK = "current_task"
 
 
-class EventTrigger(str, Enum):
+class EventTrigger(StrEnum):
     """When an event handler fires again while its conditions hold."""
 
     EDGE = "edge"  # once each time the conditions become true
@@ -127,9 +127,10 @@ class Task:
     skills: tuple[Skill, ...] = ()
     conditions: tuple[Condition, ...] = ()
     repeat: int = 1
+    repeat_location: Location | None = None
     action: Action | None = None
     children: tuple[Task, ...] = ()
-    dispatch: Dispatch = Dispatch.COMMAND
+    dispatch: Dispatch = Dispatch.COMMAND  # inherited from the parent task when not given
 
     @property
     def is_terminal(self) -> bool:

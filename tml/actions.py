@@ -1,0 +1,497 @@
+"""The action catalogue: every action tml can fly, with its arguments, types, units and defaults.
+
+It covers the actions of the TML paper and of Aerostack's TML v1 (TAKE_OFF, LAND, GO_TO_POINT,
+MOVE, MOVE_FORWARDS, ROTATE_YAW, STABILIZE, WAIT, FLIP, MEMORIZE_POINT and the IMAV 2016 ones)
+and every mission command of the Dolphin MAVLink plugin (go to a global position, move
+relative to the last position or to home, loiters, landing point, return home, speed,
+altitude, delay, survey area, camera, home).
+
+Names are matched after normalization (case, spaces, ``-`` and ``_`` do not matter), and each
+argument lists the spellings the paper and Aerostack use as aliases. Units are fixed per
+argument: metres, seconds, degrees, metres per second. Local points are ``(north, east, up)``
+metres from home (see :mod:`tml.geo`).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, replace
+from enum import StrEnum
+
+from tml.errors import MissionSemanticError
+from tml.model import Action, normalize_name
+
+
+class Category(StrEnum):
+    """Action categories; the verifier checks the constraints of an action's categories."""
+
+    TRANSLATION = "translation"
+    ROTATION = "rotation"
+    TAKE_OFF_LANDING = "take-off/landing"
+    HOVER = "hover"
+    CAMERA = "camera"
+    MEMORY = "memory"
+    PAYLOAD = "payload"
+    CONFIGURATION = "configuration"
+
+
+class ArgType(StrEnum):
+    """Types of argument values, each with one written form (see :func:`parse_value`)."""
+
+    NUMBER = "number"  # 2.5, -3, 1e2
+    INTEGER = "integer"  # 3
+    POINT = "point"  # (north, east, up) in metres, parentheses optional
+    STRING = "string"
+    CHOICE = "choice"  # one of ArgumentSpec.choices, case-insensitive
+    BOOLEAN = "boolean"  # yes/no, true/false, 1/0
+
+
+class LabelUse(StrEnum):
+    """How an argument given with ``label=`` uses the label."""
+
+    READ = "read"  # the argument's value is the point memorized under the label
+    WRITE = "write"  # the action memorizes a point under the label
+
+
+@dataclass(frozen=True)
+class ArgumentSpec:
+    """One argument of an action."""
+
+    name: str
+    type: ArgType
+    description: str
+    unit: str = ""
+    default: object = None  # None: no default (optional arguments are then simply absent)
+    required: bool = False
+    aliases: tuple[str, ...] = ()
+    choices: tuple[str, ...] = ()
+    minimum: float | None = None
+    maximum: float | None = None
+    positive: bool = False  # strictly greater than zero
+    label: LabelUse | None = None  # whether label= is accepted, and how
+
+    def matches(self, written: str) -> bool:
+        """True if ``written`` names this argument (its name or an alias)."""
+        key = normalize_name(written)
+        return key == self.name or key in {normalize_name(a) for a in self.aliases}
+
+
+@dataclass(frozen=True)
+class ActionSpec:
+    """One action: its name, category, arguments and argument rules."""
+
+    name: str
+    category: Category
+    description: str
+    arguments: tuple[ArgumentSpec, ...] = ()
+    aliases: tuple[str, ...] = ()
+    # Groups of argument names of which exactly one must be given.
+    exactly_one_of: tuple[tuple[str, ...], ...] = ()
+    # Groups of argument names of which at most one may be given.
+    at_most_one_of: tuple[tuple[str, ...], ...] = ()
+    # Arguments that must be given together (all or none).
+    together: tuple[tuple[str, ...], ...] = ()
+    # Vehicle capability the action needs ("gripper", "flip"); checked before anything is sent.
+    requires: str = ""
+    # Whether the action can be compiled to MAVLink mission items (dispatch="mission").
+    mission_item: bool = True
+
+    def argument(self, written: str) -> ArgumentSpec | None:
+        """The argument spec that ``written`` names, or None."""
+        for spec in self.arguments:
+            if spec.matches(written):
+                return spec
+        return None
+
+
+def _number(name: str, description: str, unit: str, **kw: object) -> ArgumentSpec:
+    return ArgumentSpec(name, ArgType.NUMBER, description, unit, **kw)  # type: ignore[arg-type]
+
+
+def _point(name: str, description: str, **kw: object) -> ArgumentSpec:
+    return ArgumentSpec(name, ArgType.POINT, description, "m", **kw)  # type: ignore[arg-type]
+
+
+_LATITUDE = _number("latitude", "WGS84 latitude", "deg", minimum=-90.0, maximum=90.0)
+_LONGITUDE = _number("longitude", "WGS84 longitude", "deg", minimum=-180.0, maximum=180.0)
+_ALTITUDE = _number("altitude", "altitude, by default above home (see altitude_reference)", "m")
+_ALTITUDE_REFERENCE = ArgumentSpec(
+    "altitude_reference", ArgType.CHOICE,
+    "what altitude is measured from: home (relative), mean sea level (amsl) or terrain",
+    default="relative", choices=("relative", "amsl", "terrain"),
+)
+_RADIUS = _number("radius", "loiter circle radius", "m", default=15.0, positive=True)
+_YAW = _number(
+    "yaw", "heading to land with, clockwise from north; absent: the vehicle chooses", "deg",
+    minimum=-360.0, maximum=360.0,
+)
+_PRECISION = ArgumentSpec(
+    "precision_mode", ArgType.CHOICE,
+    "precision landing: disabled, opportunistic (use a target if seen) or required",
+    default="disabled", choices=("disabled", "opportunistic", "required"),
+    aliases=("land_mode", "landMode"),
+)
+_GLOBAL = (_LATITUDE, _LONGITUDE, _ALTITUDE, _ALTITUDE_REFERENCE)
+_DURATION = _number("duration", "how long", "s", minimum=0.0)
+_INTERVAL = _number("interval", "time between photos", "s", default=2.0, positive=True)
+_LOITER_POSITION = (
+    _point("coordinates", "centre as a local point; absent: where the vehicle is",
+           aliases=("point",), label=LabelUse.READ),
+    _point("relative_coordinates", "centre relative to the last position (Dolphin move)",
+           aliases=("relative_point", "relative coordinates")),
+    _point("from_home", "centre relative to home (Dolphin ...FromHome)"),
+    *_GLOBAL,
+)
+_LOITER_GROUPS = (("coordinates", "relative_coordinates", "from_home", "latitude"),)
+_LOITER_TOGETHER = (("latitude", "longitude", "altitude"),)
+
+
+CATALOGUE: tuple[ActionSpec, ...] = (
+    # --- TML paper and Aerostack -------------------------------------------------------
+    ActionSpec(
+        "TAKE_OFF", Category.TAKE_OFF_LANDING,
+        "Arm and climb from the current location to the take-off altitude. "
+        "Ignored when the vehicle is already flying.",
+        (
+            _number("altitude", "altitude above home to climb to", "m", default=10.0,
+                    positive=True, aliases=("height",)),
+            _number("pitch", "take-off pitch for fixed-wing vehicles (Dolphin takeOff)", "deg",
+                    default=15.0, minimum=0.0, maximum=90.0),
+        ),
+    ),
+    ActionSpec("LAND", Category.TAKE_OFF_LANDING,
+               "Descend vertically where the vehicle is until it touches the ground; "
+               "the vehicle disarms after landing."),
+    ActionSpec(
+        "GO_TO_POINT", Category.TRANSLATION,
+        "Fly to a point given in the local frame (coordinates, or a memorized label) or "
+        "relative to the vehicle's current position (relative_coordinates).",
+        (
+            _point("coordinates", "destination (north, east, up) from home",
+                   aliases=("point",), label=LabelUse.READ),
+            _point("relative_coordinates", "displacement (north, east, up) from where the "
+                   "vehicle is", aliases=("relative_point",)),
+        ),
+        exactly_one_of=(("coordinates", "relative_coordinates"),),
+    ),
+    ActionSpec(
+        "MOVE", Category.TRANSLATION,
+        "Move relative to the current position: by a displacement (coordinates, as "
+        "Dolphin's move north, east, up) or a distance in a direction relative to the heading.",
+        (
+            _point("coordinates", "displacement (north, east, up)",
+                   aliases=("relative_coordinates", "displacement")),
+            ArgumentSpec("direction", ArgType.CHOICE, "direction relative to the heading",
+                         default="forward",
+                         choices=("forward", "backward", "left", "right", "up", "down")),
+            _number("distance", "distance to move in the direction", "m", positive=True),
+        ),
+        exactly_one_of=(("coordinates", "distance"),),
+    ),
+    ActionSpec(
+        "MOVE_FORWARDS", Category.TRANSLATION,
+        "Move straight ahead along the current heading.",
+        (_number("distance", "distance to move", "m", required=True, positive=True),),
+        aliases=("MOVE_FORWARD",),
+    ),
+    ActionSpec(
+        "MOVE_FROM_HOME", Category.TRANSLATION,
+        "Fly to a point given relative to home (Dolphin moveFromHome north, east, up).",
+        (_point("coordinates", "offset (north, east, up) from home", required=True),),
+    ),
+    ActionSpec(
+        "ROTATE_YAW", Category.ROTATION,
+        "Turn in place: by an angle relative to the current heading, or to an absolute "
+        "heading (orientation_angle, clockwise from north).",
+        (
+            _number("angle", "turn, positive clockwise", "deg", minimum=-360.0, maximum=360.0,
+                    aliases=("rotation_angle",)),
+            _number("orientation_angle", "heading to face, clockwise from north", "deg",
+                    minimum=0.0, maximum=360.0, aliases=("heading", "orientation")),
+        ),
+        exactly_one_of=(("angle", "orientation_angle"),),
+    ),
+    ActionSpec("STABILIZE", Category.HOVER,
+               "Stop all motion and hold position (ArduPilot BRAKE, then hold in GUIDED)."),
+    ActionSpec(
+        "WAIT", Category.HOVER,
+        "Hover where the vehicle is for a time (Dolphin delay).",
+        (_number("duration", "time to wait", "s", required=True, minimum=0.0,
+                 aliases=("time", "seconds")),),
+        aliases=("DELAY",),
+    ),
+    ActionSpec(
+        "FLIP", Category.ROTATION,
+        "Perform a flip (ArduCopter FLIP mode). Needs a vehicle that has the flip mode.",
+        (ArgumentSpec("direction", ArgType.CHOICE, "direction of the flip", default="front",
+                      choices=("front", "back", "left", "right")),),
+        requires="flip", mission_item=False,
+    ),
+    ActionSpec(
+        "MEMORIZE_POINT", Category.MEMORY,
+        "Remember the vehicle's current position under a label, for GO_TO_POINT and "
+        "conditions to read.",
+        (_point("coordinates", "the label to store the current position under",
+                required=True, aliases=("point",), label=LabelUse.WRITE),),
+        mission_item=False,
+    ),
+    ActionSpec(
+        "GO_TO_RECTANGLE", Category.TRANSLATION,
+        "Fly to the coloured frame (a door or window) recognised by the camera (IMAV 2016).",
+        (ArgumentSpec("frame_color", ArgType.STRING, "colour of the frame to fly to",
+                      required=True, aliases=("color", "colour", "frame_colour")),),
+        mission_item=False,
+    ),
+    ActionSpec(
+        "EXPLORE_SPACE", Category.TRANSLATION,
+        "Search the space around the current position in an expanding square, with the "
+        "active recognition skills reporting what they see (IMAV 2016).",
+        (
+            ArgumentSpec("build_map", ArgType.BOOLEAN, "record a map while exploring",
+                         default=False),
+            _number("radius", "half-width of the square to explore", "m", default=10.0,
+                    positive=True),
+            _number("spacing", "distance between passes", "m", default=2.0, positive=True),
+        ),
+    ),
+    ActionSpec(
+        "PICK_UP_ITEM", Category.PAYLOAD,
+        "Descend on the item below and close the gripper (IMAV 2016). Needs a gripper.",
+        (ArgumentSpec("item", ArgType.STRING, "name of the item, for the log"),),
+        requires="gripper",
+    ),
+    ActionSpec(
+        "DROP_ITEM", Category.PAYLOAD,
+        "Open the gripper and release the item carried (IMAV 2016). Needs a gripper.",
+        requires="gripper",
+    ),
+    # --- Dolphin MAVLink plugin ----------------------------------------------------------
+    ActionSpec(
+        "GO_TO_POSITION", Category.TRANSLATION,
+        "Fly to a WGS84 position (Dolphin goPos).",
+        (*(replace(s, required=True) for s in _GLOBAL[:3]), _ALTITUDE_REFERENCE),
+    ),
+    ActionSpec(
+        "LOITER", Category.HOVER,
+        "Fly to a centre and circle it: forever, for a number of turns, or for a time "
+        "(Dolphin loiterPos/Turns/Time and moveAndLoiter...). Without a centre, circle "
+        "where the vehicle is.",
+        (*_LOITER_POSITION,
+         ArgumentSpec("turns", ArgType.INTEGER, "number of circles", positive=True),
+         _number("duration", "time to circle", "s", positive=True, aliases=("time",)),
+         _RADIUS),
+        at_most_one_of=(*_LOITER_GROUPS, ("turns", "duration")),
+        together=_LOITER_TOGETHER,
+    ),
+    ActionSpec(
+        "LANDING_POINT", Category.TAKE_OFF_LANDING,
+        "Fly to a point and land there (Dolphin landingPoint), optionally with a yaw and "
+        "precision landing.",
+        (
+            _point("coordinates", "landing point as a local point", aliases=("point",),
+                   label=LabelUse.READ),
+            *_GLOBAL, _YAW, _PRECISION,
+        ),
+        exactly_one_of=(("coordinates", "latitude"),),
+        together=_LOITER_TOGETHER,
+        aliases=("LAND_AT",),
+    ),
+    ActionSpec("RETURN_HOME", Category.TRANSLATION,
+               "Fly back to home at the current altitude and hold there (Dolphin returnHome)."),
+    ActionSpec(
+        "RETURN_HOME_AND_LOITER", Category.HOVER,
+        "Fly back to home and circle it (Dolphin returnHomeAndLoiter).", (_RADIUS,),
+    ),
+    ActionSpec(
+        "RETURN_HOME_AND_LAND", Category.TAKE_OFF_LANDING,
+        "Return to launch and land there (ArduPilot RTL; Dolphin returnHomeAndLand).",
+        (_YAW, _PRECISION),
+        aliases=("RETURN_TO_LAUNCH", "RTL"),
+    ),
+    ActionSpec(
+        "SET_SPEED", Category.CONFIGURATION,
+        "Change the speed used by the following moves (Dolphin speed).",
+        (
+            _number("speed", "new speed", "m/s", required=True, positive=True),
+            ArgumentSpec("speed_type", ArgType.CHOICE, "which speed to change",
+                         default="airspeed",
+                         choices=("airspeed", "ground", "climb", "descent"),
+                         aliases=("type",)),
+        ),
+        aliases=("CHANGE_SPEED", "SPEED"),
+    ),
+    ActionSpec(
+        "SET_ALTITUDE", Category.TRANSLATION,
+        "Climb or descend to an altitude where the vehicle is (Dolphin altitude).",
+        (replace(_ALTITUDE, required=True), _ALTITUDE_REFERENCE),
+        aliases=("CHANGE_ALTITUDE", "ALTITUDE"),
+    ),
+    ActionSpec(
+        "SURVEY_AREA", Category.TRANSLATION,
+        "Fly a lawnmower pattern over a rectangle of length x width metres that starts at "
+        "the base point (default: where the vehicle is) and extends towards direction "
+        "(Dolphin surveyArea).",
+        (
+            _number("length", "extent along the first axis of direction (north/south)", "m",
+                    required=True, positive=True),
+            _number("width", "extent along the second axis (east/west)", "m",
+                    required=True, positive=True),
+            _number("spacing", "distance between passes", "m", default=50.0, positive=True,
+                    aliases=("direction_change",)),
+            ArgumentSpec("direction", ArgType.CHOICE, "quadrant the area extends into",
+                         default="NORTH_WEST",
+                         choices=("NORTH_WEST", "NORTH_EAST", "SOUTH_WEST", "SOUTH_EAST")),
+            _point("coordinates", "base point as a local point", aliases=("point",),
+                   label=LabelUse.READ),
+            _LATITUDE, _LONGITUDE,
+            _number("altitude", "survey altitude above home; absent: the current altitude",
+                    "m", positive=True),
+        ),
+        at_most_one_of=(("coordinates", "latitude"),),
+        together=(("latitude", "longitude"),),
+    ),
+    ActionSpec("CAPTURE_PHOTO", Category.CAMERA, "Take one photo (Dolphin capturePhoto)."),
+    ActionSpec(
+        "CAPTURE_PHOTOS", Category.CAMERA,
+        "Take a number of photos at an interval (Dolphin captureSeveralPhotos).",
+        (ArgumentSpec("count", ArgType.INTEGER, "number of photos", required=True,
+                      positive=True, aliases=("photo_count",)),
+         _INTERVAL),
+    ),
+    ActionSpec(
+        "START_CAPTURING", Category.CAMERA,
+        "Take photos at an interval until STOP_CAPTURING (Dolphin captureUntilStop).",
+        (_INTERVAL,), aliases=("CAPTURE_UNTIL_STOPPED", "CAPTURE_UNTIL_STOP"),
+    ),
+    ActionSpec("STOP_CAPTURING", Category.CAMERA,
+               "Stop the photos started by START_CAPTURING (Dolphin stopCapturing)."),
+    ActionSpec(
+        "SET_HOME", Category.CONFIGURATION,
+        "Set the home position to the vehicle's current position, or to a WGS84 position "
+        "(Dolphin home).",
+        (_LATITUDE, _LONGITUDE,
+         _number("altitude", "altitude above mean sea level", "m")),
+        together=(("latitude", "longitude", "altitude"),),
+        aliases=("HOME",),
+    ),
+)
+
+
+def _key(name: str) -> str:
+    return re.sub(r"[\s_\-]+", "_", name.strip()).upper()
+
+
+_BY_NAME: dict[str, ActionSpec] = {}
+for _spec in CATALOGUE:
+    for _name in (_spec.name, *_spec.aliases):
+        _BY_NAME[_key(_name)] = _spec
+
+
+def lookup(name: str) -> ActionSpec | None:
+    """The action spec for a written action name (case and separators ignored), or None."""
+    return _BY_NAME.get(_key(name))
+
+
+def action_names() -> list[str]:
+    """Every accepted action name and alias, canonical spelling."""
+    return sorted(_BY_NAME)
+
+
+_BOOLEAN_WORDS = {"yes": True, "true": True, "1": True, "on": True,
+                  "no": False, "false": False, "0": False, "off": False}
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_POINT = re.compile(rf"^\(?\s*({_NUMBER})\s*,\s*({_NUMBER})\s*,\s*({_NUMBER})\s*\)?$")
+
+
+def parse_value(spec: ArgumentSpec, raw: str) -> object:
+    """The typed value of ``raw`` for ``spec``; raises ValueError saying what was expected."""
+    text = raw.strip()
+    if spec.type is ArgType.POINT:
+        match = _POINT.match(text)
+        if not match:
+            raise ValueError("expected a point '(north, east, up)' of three numbers in metres")
+        return tuple(float(g) for g in match.groups())
+    if spec.type is ArgType.BOOLEAN:
+        if text.lower() not in _BOOLEAN_WORDS:
+            raise ValueError("expected yes or no")
+        return _BOOLEAN_WORDS[text.lower()]
+    if spec.type is ArgType.CHOICE:
+        for choice in spec.choices:
+            if text.lower() == choice.lower():
+                return choice
+        raise ValueError("expected one of " + ", ".join(spec.choices))
+    if spec.type is ArgType.STRING:
+        if not text:
+            raise ValueError("expected a non-empty text")
+        return text
+    if spec.type is ArgType.INTEGER:
+        if not re.fullmatch(r"[-+]?\d+", text):
+            raise ValueError("expected a whole number")
+        value: float = int(text)
+    else:
+        if not re.fullmatch(_NUMBER, text):
+            raise ValueError(f"expected a number{' in ' + spec.unit if spec.unit else ''}")
+        value = float(text)
+        if not math.isfinite(value):
+            raise ValueError("expected a finite number")
+    _check_range(spec, value)
+    return value
+
+
+def _check_range(spec: ArgumentSpec, value: float) -> None:
+    unit = f" {spec.unit}" if spec.unit else ""
+    if spec.positive and value <= 0:
+        raise ValueError(f"must be greater than 0{unit}")
+    if spec.minimum is not None and value < spec.minimum:
+        raise ValueError(f"must be at least {spec.minimum:g}{unit}")
+    if spec.maximum is not None and value > spec.maximum:
+        raise ValueError(f"must be at most {spec.maximum:g}{unit}")
+
+
+@dataclass(frozen=True)
+class BoundAction:
+    """An action with its arguments typed, named canonically, and defaults filled in."""
+
+    spec: ActionSpec
+    action: Action
+    values: dict[str, object]  # canonical argument name -> typed value
+    labels: dict[str, str]  # canonical argument name -> label given with label=
+
+    @property
+    def name(self) -> str:
+        """The canonical action name."""
+        return self.spec.name
+
+    def get(self, name: str, default: object = None) -> object:
+        """The typed value of an argument, or ``default`` when absent and without default."""
+        return self.values.get(name, default)
+
+
+def bind(action: Action) -> BoundAction:
+    """Type an action's arguments. For actions that passed :mod:`tml.check`; raises
+    :class:`MissionSemanticError` on the first problem otherwise."""
+    spec = lookup(action.name)
+    if spec is None:
+        raise MissionSemanticError(f"unknown action {action.name!r}", action.location, "E201")
+    values: dict[str, object] = {}
+    labels: dict[str, str] = {}
+    for argument in action.arguments:
+        arg_spec = spec.argument(argument.name)
+        if arg_spec is None:
+            raise MissionSemanticError(
+                f"{spec.name} has no argument {argument.name!r}", argument.location, "E210")
+        if argument.label is not None:
+            labels[arg_spec.name] = argument.label
+        elif argument.value is not None:
+            try:
+                values[arg_spec.name] = parse_value(arg_spec, argument.value)
+            except ValueError as exc:
+                raise MissionSemanticError(
+                    f"argument {argument.name!r} = {argument.value!r}: {exc}",
+                    argument.location, "E212") from None
+    for arg_spec in spec.arguments:
+        if arg_spec.name not in values and arg_spec.name not in labels \
+                and arg_spec.default is not None:
+            values[arg_spec.name] = arg_spec.default
+    return BoundAction(spec, action, values, labels)

@@ -1,0 +1,393 @@
+"""Semantic checks: the rules of the language that XSD 1.0 cannot express.
+
+Every check runs and every finding is reported (not only the first): unknown action and
+skill names, argument names, types, ranges and units, required and mutually exclusive
+arguments, conditions that read unknown or misspelt parameters or compare them in a way
+that does not fit their type, labels read before any MEMORIZE_POINT can have set them,
+``current_task`` and JUMP_TO_TASK naming tasks that do not exist (or ambiguously), sibling
+tasks with the same name, repeat counts below one, and actions that cannot be compiled to
+mission items in a ``dispatch="mission"`` task.
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections import defaultdict
+from collections.abc import Iterable
+
+from tml import actions, parameters, skills
+from tml.diagnostics import Diagnostic, error, warning
+from tml.model import (
+    Action,
+    Comparison,
+    Condition,
+    ConditionKind,
+    Dispatch,
+    Mission,
+    Skill,
+    Task,
+    TerminationMode,
+)
+from tml.parameters import ParamType
+
+
+def _did_you_mean(word: str, candidates: Iterable[str]) -> str:
+    guess = difflib.get_close_matches(word, list(candidates), n=1, cutoff=0.6)
+    return f"did you mean {guess[0]!r}?" if guess else ""
+
+
+def check(mission: Mission) -> list[Diagnostic]:
+    """All semantic problems of a mission (errors and warnings)."""
+    return _Checker(mission).run()
+
+
+class _Checker:
+    def __init__(self, mission: Mission) -> None:
+        self.mission = mission
+        self.found: list[Diagnostic] = []
+        self.tasks = list(mission.walk())
+        self.by_name: dict[str, list[Task]] = defaultdict(list)
+        for task in self.tasks:
+            self.by_name[task.name].append(task)
+        self.declared = {p.name: p for p in mission.parameters}
+
+    def run(self) -> list[Diagnostic]:
+        self.check_declarations()
+        self.check_skills(self.mission.skills)
+        self.check_tasks(self.mission.tasks)
+        for event in self.mission.events:
+            for condition in event.conditions:
+                self.check_condition(condition)
+            for action in event.actions:
+                self.check_action(action, Dispatch.COMMAND)
+            self.check_termination(event.termination)
+        self.check_labels()
+        return self.found
+
+    # --- declarations and skills -----------------------------------------------------------
+
+    def check_declarations(self) -> None:
+        seen: set[str] = set()
+        for declaration in self.mission.parameters:
+            builtin = parameters.lookup(declaration.name)
+            if builtin is not None:
+                self.found.append(error(
+                    declaration.location, "E254",
+                    f"parameter {declaration.name!r} is built in ({builtin.name}); "
+                    "only detection parameters are declared"))
+            elif declaration.name in seen:
+                self.found.append(error(declaration.location, "E254",
+                                        f"parameter {declaration.name!r} is declared twice"))
+            seen.add(declaration.name)
+
+    def check_skills(self, declared: Iterable[Skill]) -> None:
+        names: set[str] = set()
+        for skill in declared:
+            spec = skills.lookup(skill.name)
+            if spec is None:
+                self.found.append(error(
+                    skill.location, "E202", f"unknown skill {skill.name!r}",
+                    _did_you_mean(skill.name.upper(), skills.skill_names())
+                    or "known skills: " + ", ".join(s.name for s in skills.CATALOGUE)))
+            elif spec.name in names:
+                self.found.append(warning(skill.location, "W303",
+                                          f"skill {spec.name} is declared twice here"))
+            else:
+                names.add(spec.name)
+
+    # --- tasks -----------------------------------------------------------------------------
+
+    def check_tasks(self, siblings: tuple[Task, ...]) -> None:
+        seen: dict[str, Task] = {}
+        for task in siblings:
+            if task.name in seen:
+                self.found.append(error(
+                    task.location, "E244",
+                    f"two sibling tasks are named {task.name!r} (the first at line "
+                    f"{seen[task.name].location.line})",
+                    "sibling tasks need different names so current_task and "
+                    "JUMP_TO_TASK can tell them apart"))
+            seen.setdefault(task.name, task)
+            self.check_skills(task.skills)
+            if task.repeat < 1:
+                self.found.append(error(
+                    task.repeat_location or task.location, "E250",
+                    f"repeat times={task.repeat} in task {task.name!r}; it must be 1 or more",
+                    "remove the task, or repeat it at least once"))
+            for condition in task.conditions:
+                self.check_condition(condition)
+            if task.action is not None:
+                self.check_action(task.action, task.dispatch)
+            self.check_tasks(task.children)
+
+    # --- actions ---------------------------------------------------------------------------
+
+    def check_action(self, action: Action, dispatch: Dispatch) -> None:
+        spec = actions.lookup(action.name)
+        if spec is None:
+            self.found.append(error(
+                action.location, "E201", f"unknown action {action.name!r}",
+                _did_you_mean(action.name.upper().replace(" ", "_"), actions.action_names())
+                or "see docs/language.md for the action catalogue"))
+            return
+        given: dict[str, str] = {}
+        for argument in action.arguments:
+            arg_spec = spec.argument(argument.name)
+            if arg_spec is None:
+                known = [a.name for a in spec.arguments]
+                self.found.append(error(
+                    argument.location, "E210",
+                    f"{spec.name} has no argument {argument.name!r}",
+                    _did_you_mean(argument.name, known)
+                    or (f"{spec.name} takes: {', '.join(known)}" if known
+                        else f"{spec.name} takes no arguments")))
+                continue
+            if arg_spec.name in given:
+                self.found.append(error(
+                    argument.location, "E217",
+                    f"argument {arg_spec.name!r} of {spec.name} is given twice"))
+                continue
+            given[arg_spec.name] = argument.name
+            if argument.label is not None:
+                if arg_spec.label is None:
+                    self.found.append(error(
+                        argument.location, "E214",
+                        f"argument {argument.name!r} of {spec.name} takes a value, not a label",
+                        f'write value="..." ({arg_spec.type.value}'
+                        + (f" in {arg_spec.unit}" if arg_spec.unit else "") + ")"))
+            elif argument.value is not None:
+                if arg_spec.label is actions.LabelUse.WRITE:
+                    self.found.append(error(
+                        argument.location, "E214",
+                        f"argument {argument.name!r} of {spec.name} names the label to "
+                        "memorize", f'write label="{argument.value}"'))
+                    continue
+                try:
+                    actions.parse_value(arg_spec, argument.value)
+                except ValueError as exc:
+                    self.found.append(error(
+                        argument.location, "E212",
+                        f"argument {argument.name!r} of {spec.name} = {argument.value!r}: "
+                        f"{exc}", arg_spec.description + (f" ({arg_spec.unit})"
+                                                          if arg_spec.unit else "")))
+        for arg_spec in spec.arguments:
+            if arg_spec.required and arg_spec.name not in given:
+                self.found.append(error(
+                    action.location, "E211",
+                    f"{spec.name} needs argument {arg_spec.name!r}",
+                    f"{arg_spec.name}: {arg_spec.description}"
+                    + (f" ({arg_spec.unit})" if arg_spec.unit else "")))
+        for group in spec.exactly_one_of:
+            present = [n for n in group if n in given]
+            if len(present) != 1:
+                self.found.append(error(
+                    action.location, "E215",
+                    f"{spec.name} needs exactly one of {', '.join(group)}; "
+                    f"{'got ' + ', '.join(present) if present else 'none given'}"))
+        for group in spec.at_most_one_of:
+            present = [n for n in group if n in given]
+            if len(present) > 1:
+                self.found.append(error(
+                    action.location, "E215",
+                    f"{spec.name} takes at most one of {', '.join(group)}; "
+                    f"got {', '.join(present)}"))
+        for group in spec.together:
+            present = [n for n in group if n in given]
+            if present and len(present) != len(group):
+                missing = [n for n in group if n not in given]
+                self.found.append(error(
+                    action.location, "E216",
+                    f"{spec.name}: {', '.join(group)} go together; missing "
+                    f"{', '.join(missing)}"))
+        if dispatch is Dispatch.MISSION and not spec.mission_item:
+            self.found.append(error(
+                action.location, "E260",
+                f"{spec.name} cannot be flown as a mission item (dispatch=\"mission\")",
+                'move it to a task with dispatch="command"'))
+
+    # --- conditions ------------------------------------------------------------------------
+
+    def check_condition(self, condition: Condition) -> None:
+        if not condition.subject:
+            return  # the builder already reported the missing subject
+        if condition.kind is ConditionKind.CURRENT_TASK:
+            self.resolve_task(condition.subject, condition, "current_task")
+            return
+        if condition.comparison is None:
+            self.found.append(error(
+                condition.location, "E221", "the condition has no comparison=",
+                "one of: " + ", ".join(c.value for c in Comparison)))
+            return
+        if condition.kind is ConditionKind.LABEL:
+            if condition.comparison is not Comparison.KNOWN:
+                self.found.append(error(
+                    condition.location, "E223",
+                    f"a label is tested with comparison=\"known\", not "
+                    f"{condition.comparison.value!r}"))
+            self.check_known_value(condition)
+            return
+        param_type = self.parameter_type(condition)
+        if condition.comparison is Comparison.KNOWN:
+            self.check_known_value(condition)
+            return
+        if condition.value is None:
+            self.found.append(error(condition.location, "E222",
+                                    "the condition has no value=", "add value=\"...\""))
+            return
+        if param_type is None:
+            return
+        if condition.comparison not in parameters.COMPARISONS[param_type]:
+            fitting = sorted(c.value for c in parameters.COMPARISONS[param_type])
+            self.found.append(error(
+                condition.location, "E223",
+                f"{condition.subject!r} is a {param_type.value}; comparison "
+                f"{condition.comparison.value!r} does not apply",
+                "use one of: " + ", ".join(fitting)))
+            return
+        self.check_value(condition, param_type)
+
+    def parameter_type(self, condition: Condition) -> ParamType | None:
+        spec = parameters.lookup(condition.subject)
+        if spec is not None:
+            return spec.type
+        declared = self.declared.get(condition.subject)
+        if declared is not None:
+            return ParamType(declared.type)
+        guess = parameters.suggest(condition.subject)
+        if guess is not None:
+            self.found.append(error(
+                condition.location, "E225",
+                f"unknown parameter {condition.subject!r}", f"did you mean {guess!r}?"))
+        else:
+            self.found.append(warning(
+                condition.location, "W301",
+                f"{condition.subject!r} is not a built-in parameter; it is taken as a "
+                "detection parameter fed by a skill or a companion computer",
+                f'declare it: <parameter name="{condition.subject}" type="string"/>'))
+        return None
+
+    def check_known_value(self, condition: Condition) -> None:
+        if condition.value is not None and parameters.parse_boolean(condition.value) is None:
+            self.found.append(error(
+                condition.location, "E224",
+                f"comparison \"known\" takes value \"yes\" or \"no\", not {condition.value!r}"))
+
+    def check_value(self, condition: Condition, param_type: ParamType) -> None:
+        value = condition.value or ""
+        if param_type is ParamType.NUMBER or (
+                param_type is ParamType.SET and condition.comparison is Comparison.INCLUDES
+                and self.numeric_set(condition)):
+            try:
+                float(value)
+            except ValueError:
+                self.found.append(error(
+                    condition.location, "E224",
+                    f"{condition.subject!r} is a number; value {value!r} is not"))
+        elif param_type is ParamType.BOOLEAN:
+            if parameters.parse_boolean(value) is None:
+                self.found.append(error(
+                    condition.location, "E224",
+                    f"{condition.subject!r} is yes/no; value {value!r} is neither"))
+        elif param_type is ParamType.STRING:
+            spec = parameters.lookup(condition.subject)
+            if spec is not None and spec.values and value not in spec.values:
+                self.found.append(error(
+                    condition.location, "E226",
+                    f"{spec.name} is never {value!r}",
+                    "its values are: " + ", ".join(spec.values)))
+            if spec is not None and spec.name == "CURRENT_TASK":
+                self.resolve_task(value, condition, "value")
+
+    @staticmethod
+    def numeric_set(condition: Condition) -> bool:
+        spec = parameters.lookup(condition.subject)
+        return spec is not None and "MARKERS" in spec.name
+
+    # --- task references -------------------------------------------------------------------
+
+    def resolve_task(self, reference: str, where: Condition | object, what: str) -> None:
+        location = getattr(where, "location")  # noqa: B009 - conditions and terminations
+        if "/" in reference:
+            path = tuple(part.strip() for part in reference.split("/"))
+            if any(task.path == path for task in self.tasks):
+                return
+            self.found.append(error(
+                location, "E240", f"{what} {reference!r}: no task has this path",
+                _did_you_mean(reference, [t.path_name for t in self.tasks])))
+            return
+        matches = self.by_name.get(reference.strip(), [])
+        if len(matches) == 1:
+            return
+        if not matches:
+            self.found.append(error(
+                location, "E240", f"{what} {reference!r}: no task has this name",
+                _did_you_mean(reference, list(self.by_name))))
+        else:
+            self.found.append(error(
+                location, "E244",
+                f"{what} {reference!r} is ambiguous: {len(matches)} tasks have this name",
+                "write the path instead: " + " or ".join(repr(t.path_name) for t in matches)))
+
+    def check_termination(self, termination: object) -> None:
+        mode = termination.mode
+        if mode is TerminationMode.JUMP_TO_TASK:
+            if not termination.task:
+                self.found.append(error(
+                    termination.location, "E242", "JUMP_TO_TASK needs task=\"...\"",
+                    "name the task to jump to"))
+            else:
+                self.resolve_task(termination.task, termination, "JUMP_TO_TASK target")
+        elif termination.task:
+            self.found.append(warning(
+                termination.location, "W304",
+                f"task= is only used by JUMP_TO_TASK; ignored with {mode.value}"))
+
+    # --- labels ----------------------------------------------------------------------------
+
+    def check_labels(self) -> None:
+        order = {id(task): index for index, task in enumerate(self.tasks)}
+        set_in_tasks: dict[str, list[int]] = defaultdict(list)
+        set_by_events: set[str] = set()
+        reads: list[tuple[str, int | None, object]] = []
+        for holder, action in self.mission.actions():
+            bound = self.label_arguments(action)
+            index = order.get(id(holder))
+            for label, use, argument in bound:
+                if use is actions.LabelUse.WRITE:
+                    if index is None:
+                        set_by_events.add(label)
+                    else:
+                        set_in_tasks[label].append(index)
+                else:
+                    reads.append((label, index, argument))
+        loops_back = any(task.repeat > 1 for task in self.tasks) or any(
+            e.termination.mode in (TerminationMode.JUMP_TO_TASK, TerminationMode.REPEAT_TASK)
+            for e in self.mission.events)
+        known = set(set_in_tasks) | set_by_events
+        for label, index, argument in reads:
+            if label not in known:
+                self.found.append(error(
+                    argument.location, "E230",
+                    f"label {label!r} is read but no MEMORIZE_POINT ever stores it",
+                    _did_you_mean(label, known) or
+                    f'memorize it first: <action name="MEMORIZE_POINT"><argument '
+                    f'name="coordinates" label="{label}"/></action>'))
+            elif (index is not None and label not in set_by_events and not loops_back
+                  and min(set_in_tasks[label]) > index):
+                self.found.append(error(
+                    argument.location, "E231",
+                    f"label {label!r} is read before the MEMORIZE_POINT that stores it "
+                    f"(task at line {self.tasks[min(set_in_tasks[label])].location.line})",
+                    "memorize the point in an earlier task"))
+
+    @staticmethod
+    def label_arguments(action: Action) -> list[tuple[str, actions.LabelUse, object]]:
+        spec = actions.lookup(action.name)
+        if spec is None:
+            return []
+        found = []
+        for argument in action.arguments:
+            arg_spec = spec.argument(argument.name)
+            if arg_spec is not None and arg_spec.label is not None and argument.label:
+                found.append((argument.label, arg_spec.label, argument))
+        return found

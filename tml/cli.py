@@ -1,0 +1,122 @@
+"""The ``tml`` command: ``tml validate``, ``tml sim`` ...; ``main(argv)`` returns the exit code.
+
+Exit codes of ``tml validate``: 0 every file valid, 1 some file invalid, 2 usage or I/O error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from tml import __version__
+
+EXIT_OK, EXIT_INVALID, EXIT_USAGE = 0, 1, 2
+
+
+def _mission_files(paths: Sequence[str]) -> tuple[list[Path], list[str]]:
+    """Files named, and the .xml files under directories named; plus problems found."""
+    files: list[Path] = []
+    problems: list[str] = []
+    for name in paths:
+        path = Path(name)
+        if path.is_dir():
+            found = sorted(p for p in path.rglob("*.xml") if p.is_file())
+            if not found:
+                problems.append(f"{name}: no .xml files in this directory")
+            files.extend(found)
+        elif path.is_file():
+            files.append(path)
+        else:
+            problems.append(f"{name}: no such file or directory")
+    return files, problems
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    """Validate mission files and print every problem."""
+    from tml.diagnostics import format_github, format_human, format_json
+    from tml.validation import validate_file
+
+    files, problems = _mission_files(args.paths)
+    for problem in problems:
+        print(f"tml validate: {problem}", file=sys.stderr)
+    results = []
+    io_error = bool(problems)
+    for path in files:
+        try:
+            results.append(validate_file(path))
+        except OSError as exc:
+            print(f"tml validate: {path}: {exc.strerror or exc}", file=sys.stderr)
+            io_error = True
+    invalid = [r for r in results if not r.valid(args.strict)]
+    if args.format == "json":
+        print(format_json((r.file, r.valid(args.strict), r.diagnostics) for r in results))
+    elif args.format == "github":
+        for result in results:
+            for diagnostic in result.diagnostics:
+                print(format_github(diagnostic))
+    else:
+        sources = {r.file: r.source for r in results}
+        for result in results:
+            for diagnostic in result.diagnostics:
+                print(format_human(diagnostic, sources))
+        if not args.quiet:
+            errors = sum(len(r.errors) for r in results)
+            warnings = sum(len(r.diagnostics) - len(r.errors) for r in results)
+            print(f"{len(results)} file(s) checked: {len(results) - len(invalid)} valid, "
+                  f"{len(invalid)} invalid ({errors} error(s), {warnings} warning(s))")
+    if io_error:
+        return EXIT_USAGE
+    return EXIT_INVALID if invalid else EXIT_OK
+
+
+def cmd_sim(args: argparse.Namespace) -> int:
+    """Run the embedded simulator (same options as ``python -m sitl``)."""
+    from sitl.cli import main as sim_main
+
+    return sim_main(args.sim_args)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``tml`` command."""
+    parser = argparse.ArgumentParser(
+        prog="tml", description="Validate, verify and fly TML mission files on MAVLink drones.")
+    parser.add_argument("--version", action="version", version=f"tml {__version__}")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    validate = commands.add_parser(
+        "validate", help="check mission files against the schema and the language rules",
+        description="Check mission files (or every .xml file under directories) against "
+                    "the XML Schema and the language's semantic rules. Exit 0 when all are "
+                    "valid, 1 when some are invalid, 2 on usage or I/O errors.")
+    validate.add_argument("paths", nargs="+", metavar="FILE|DIR")
+    validate.add_argument("--format", choices=("human", "json", "github"), default="human",
+                          help="output format (github: workflow annotations)")
+    validate.add_argument("--strict", action="store_true",
+                          help="treat warnings as errors (exit 1)")
+    validate.add_argument("-q", "--quiet", action="store_true",
+                          help="print problems only, no summary line")
+    validate.set_defaults(handler=cmd_validate)
+
+    sim = commands.add_parser(
+        "sim", help="run the embedded MAVLink vehicle simulator", add_help=False,
+        description="Run the embedded simulator; see `python -m sitl --help`.")
+    sim.add_argument("sim_args", nargs=argparse.REMAINDER)
+    sim.set_defaults(handler=cmd_sim)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``tml`` command with ``argv``; return the exit code."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse exits 2 on usage errors, 0 on --help
+        return int(exc.code or 0)
+    return int(args.handler(args))
+
+
+def entry_point() -> None:
+    """Console-script entry point."""
+    sys.exit(main())

@@ -1,0 +1,406 @@
+"""The MAVLink mission protocol as a pure state machine (no sockets, no clock).
+
+Theory of operation
+-------------------
+A transfer (:class:`Upload`, :class:`Download` or :class:`Clear`) talks to one vehicle about
+one mission type (mission, fence or rally). It never touches a socket or reads a clock, in
+the manner of h11: the caller
+
+* calls ``start(now)`` and sends the messages it returns,
+* feeds every mission-protocol message from that vehicle to ``receive(msg, now)`` and sends
+  what comes back,
+* calls ``tick(now)`` no later than ``deadline`` and sends what comes back (retransmissions),
+
+until ``done`` is true; then ``items`` (download) holds the result, or ``error`` holds a
+:class:`~tml.errors.MissionTransferError` naming the MISSION_ACK result or the timeout.
+
+Messages are plain frozen dataclasses (:class:`MissionItem`, :class:`MissionCount`, ...);
+``tml.mavlink.codec`` translates them to and from pymavlink, so this module and its callers
+(the interpreter compiles actions to :class:`MissionItem`) never import pymavlink.
+
+Timeouts and retries follow the mission protocol: 1500 ms for the answer to the opening
+message (MISSION_COUNT, MISSION_REQUEST_LIST, MISSION_CLEAR_ALL), 250 ms per item, 5 retries.
+The retries bound the *silence* a transfer tolerates rather than the number of
+retransmissions: it fails once the vehicle has said nothing about it for (5 + 1) x 1500 ms,
+the time an opening exchange with 5 retries at the default timeout takes (ArduPilot itself
+gives up after 8 s). Within that window the last message is retransmitted whenever 250 ms
+pass unanswered; only the first answer to the opening message is given the full 1500 ms,
+for a vehicle that needs time to prepare. Counting retries per message instead cannot work
+over a poor link: with 30 % loss each way one round trip succeeds with probability 0.49,
+six attempts all fail with probability 0.51**6 = 1.8 %, and a 100-item upload would fail
+five times in six. Any message from the vehicle (even a duplicate request) restarts the
+window.
+
+Requests may come out of order or twice; each is answered with the item asked for. The
+legacy MISSION_REQUEST (ArduPilot asks with it) is answered with MISSION_ITEM_INT like
+MISSION_REQUEST_INT. ArduPilot keeps home in mission item 0 and overwrites it:
+:func:`with_home_placeholder` shifts N real items to seq 1..N behind a placeholder, and
+:func:`same_items` compares a read-back from item 1 on.
+"""
+
+from __future__ import annotations
+
+import enum
+import struct
+from dataclasses import dataclass, replace
+from typing import Union
+
+from tml.errors import MissionTransferError
+
+DEFAULT_TIMEOUT = 1.5
+"""Seconds to wait for the answer to MISSION_COUNT / MISSION_REQUEST_LIST / CLEAR_ALL."""
+ITEM_TIMEOUT = 0.25
+"""Seconds to wait for the next request or item once items flow."""
+RETRIES = 5
+"""Retries of the opening message; (RETRIES + 1) * DEFAULT_TIMEOUT is the silence tolerated."""
+
+
+class MissionType(enum.IntEnum):
+    """MAV_MISSION_TYPE: which of the vehicle's lists a transfer is about."""
+
+    MISSION = 0
+    FENCE = 1
+    RALLY = 2
+    ALL = 255
+
+
+class MissionResult(enum.IntEnum):
+    """MAV_MISSION_RESULT, the result field of MISSION_ACK (names as in the MAVLink XML)."""
+
+    MAV_MISSION_ACCEPTED = 0
+    MAV_MISSION_ERROR = 1
+    MAV_MISSION_UNSUPPORTED_FRAME = 2
+    MAV_MISSION_UNSUPPORTED = 3
+    MAV_MISSION_NO_SPACE = 4
+    MAV_MISSION_INVALID = 5
+    MAV_MISSION_INVALID_PARAM1 = 6
+    MAV_MISSION_INVALID_PARAM2 = 7
+    MAV_MISSION_INVALID_PARAM3 = 8
+    MAV_MISSION_INVALID_PARAM4 = 9
+    MAV_MISSION_INVALID_PARAM5_X = 10
+    MAV_MISSION_INVALID_PARAM6_Y = 11
+    MAV_MISSION_INVALID_PARAM7 = 12
+    MAV_MISSION_INVALID_SEQUENCE = 13
+    MAV_MISSION_DENIED = 14
+    MAV_MISSION_OPERATION_CANCELLED = 15
+
+
+def result_name(result: int) -> str:
+    """The MAV_MISSION_RESULT name of ``result`` (``MAV_MISSION_RESULT_<n>`` if unknown)."""
+    try:
+        return MissionResult(result).name
+    except ValueError:
+        return f"MAV_MISSION_RESULT_{result}"
+
+
+@dataclass(frozen=True)
+class MissionItem:
+    """One MISSION_ITEM_INT, as plain data.
+
+    ``x``/``y`` are latitude/longitude in degrees * 1e7 for global frames (metres * 1e4
+    for local ones, as the MAVLink message says); ``z`` is altitude in metres.
+    """
+
+    seq: int
+    frame: int
+    command: int
+    current: int = 0
+    autocontinue: int = 1
+    param1: float = 0.0
+    param2: float = 0.0
+    param3: float = 0.0
+    param4: float = 0.0
+    x: int = 0
+    y: int = 0
+    z: float = 0.0
+    mission_type: int = MissionType.MISSION
+
+
+@dataclass(frozen=True)
+class MissionCount:
+    """MISSION_COUNT: the sender announces how many items follow."""
+
+    count: int
+    mission_type: int = MissionType.MISSION
+
+
+@dataclass(frozen=True)
+class MissionRequest:
+    """MISSION_REQUEST_INT, or the legacy MISSION_REQUEST when ``legacy`` is true."""
+
+    seq: int
+    mission_type: int = MissionType.MISSION
+    legacy: bool = False
+
+
+@dataclass(frozen=True)
+class MissionRequestList:
+    """MISSION_REQUEST_LIST: start of a download."""
+
+    mission_type: int = MissionType.MISSION
+
+
+@dataclass(frozen=True)
+class MissionClearAll:
+    """MISSION_CLEAR_ALL."""
+
+    mission_type: int = MissionType.MISSION
+
+
+@dataclass(frozen=True)
+class MissionAck:
+    """MISSION_ACK: end of a transfer, with a MAV_MISSION_RESULT."""
+
+    result: int
+    mission_type: int = MissionType.MISSION
+
+
+MissionMessage = Union[  # noqa: UP007 -- a runtime alias used in isinstance-free annotations
+    MissionItem, MissionCount, MissionRequest, MissionRequestList, MissionClearAll, MissionAck
+]
+
+
+@dataclass(frozen=True)
+class Progress:
+    """How far a transfer is: ``done`` of ``total`` items (total 0 until known)."""
+
+    done: int
+    total: int
+
+
+class Transfer:
+    """What upload, download and clear share: the timer, the retry count, the outcome."""
+
+    operation = "transfer"
+
+    def __init__(
+        self,
+        mission_type: int = MissionType.MISSION,
+        *,
+        system_id: int | None = None,
+        timeout: float = DEFAULT_TIMEOUT,
+        item_timeout: float = ITEM_TIMEOUT,
+        retries: int = RETRIES,
+    ) -> None:
+        self.mission_type = int(mission_type)
+        self.system_id = system_id
+        self.timeout = timeout
+        self.item_timeout = item_timeout
+        self.retries = retries
+        self.deadline = float("inf")
+        self.error: MissionTransferError | None = None
+        self.succeeded = False
+        self.retransmissions = 0
+        self._heard_at = 0.0
+        self._last_sent: list[MissionMessage] = []
+
+    @property
+    def done(self) -> bool:
+        """True once the transfer has succeeded or failed."""
+        return self.succeeded or self.error is not None
+
+    @property
+    def progress(self) -> Progress:
+        """Items moved so far; subclasses with items override."""
+        return Progress(1 if self.succeeded else 0, 1)
+
+    def start(self, now: float) -> list[MissionMessage]:
+        """Begin the transfer; returns the messages to send."""
+        self._heard_at = now
+        return self._send(now, self._opening())
+
+    def _opening(self) -> MissionMessage:
+        raise NotImplementedError
+
+    def receive(self, msg: MissionMessage, now: float) -> list[MissionMessage]:
+        """Feed one message from the vehicle; returns the messages to send."""
+        if self.done or getattr(msg, "mission_type", self.mission_type) != self.mission_type:
+            return []
+        self._heard_at = now
+        return self._handle(msg, now)
+
+    def tick(self, now: float) -> list[MissionMessage]:
+        """Advance the clock; returns retransmissions once the deadline has passed."""
+        if self.done or now < self.deadline:
+            return []
+        if now >= self._give_up_at():
+            self._fail(f"no answer for {now - self._heard_at:.1f} s", "TIMEOUT")
+            return []
+        self.retransmissions += 1
+        self.deadline = min(now + self.item_timeout, self._give_up_at())
+        return list(self._last_sent)
+
+    def _give_up_at(self) -> float:
+        return self._heard_at + (self.retries + 1) * self.timeout
+
+    def _handle(self, msg: MissionMessage, now: float) -> list[MissionMessage]:
+        raise NotImplementedError
+
+    def _current_timeout(self) -> float:
+        return self.timeout
+
+    def _send(self, now: float, *msgs: MissionMessage) -> list[MissionMessage]:
+        self._last_sent = list(msgs)
+        self.deadline = min(now + self._current_timeout(), self._give_up_at())
+        return list(msgs)
+
+    def _succeed(self) -> None:
+        self.succeeded = True
+        self.deadline = float("inf")
+
+    def _fail(self, why: str, result: str) -> None:
+        kind = MissionType(self.mission_type).name.lower()
+        self.error = MissionTransferError(f"{kind} {self.operation} failed: {why}", result,
+                                          self.system_id)
+        self.deadline = float("inf")
+
+    def _ack_failure(self, ack: MissionAck) -> None:
+        name = result_name(ack.result)
+        self._fail(name, name)
+
+
+class Upload(Transfer):
+    """Send ``items`` (seq 0..N-1, in order) to the vehicle."""
+
+    operation = "upload"
+
+    def __init__(self, items: list[MissionItem], mission_type: int = MissionType.MISSION,
+                 **options: float | int | None) -> None:
+        super().__init__(mission_type, **options)  # type: ignore[arg-type]
+        for index, item in enumerate(items):
+            if item.seq != index:
+                raise ValueError(f"item {index} has seq {item.seq}; items must be numbered 0..N-1")
+        self.items = [replace(item, mission_type=self.mission_type) for item in items]
+        self._requested: set[int] = set()
+
+    @property
+    def progress(self) -> Progress:
+        """Distinct items the vehicle has asked for (all of them once it acknowledged)."""
+        total = len(self.items)
+        return Progress(total if self.succeeded else len(self._requested), total)
+
+    def _opening(self) -> MissionMessage:
+        # MISSION_COUNT announces the number of items.
+        return MissionCount(len(self.items), self.mission_type)
+
+    def _current_timeout(self) -> float:
+        return self.item_timeout if self._requested else self.timeout
+
+    def _handle(self, msg: MissionMessage, now: float) -> list[MissionMessage]:
+        if isinstance(msg, MissionRequest):
+            if not 0 <= msg.seq < len(self.items):
+                return []  # a request outside the mission: nothing sensible to send back
+            self._requested.add(msg.seq)
+            return self._send(now, self.items[msg.seq])
+        if isinstance(msg, MissionAck):
+            if msg.result != MissionResult.MAV_MISSION_ACCEPTED:
+                self._ack_failure(msg)
+            elif len(self._requested) == len(self.items):
+                self._succeed()
+            # An ACCEPTED before every item was asked for is a late answer to an earlier
+            # transfer; wait for the vehicle to go on asking.
+        return []
+
+
+class Download(Transfer):
+    """Read the vehicle's items of one mission type; the result is ``items``."""
+
+    operation = "download"
+
+    def __init__(self, mission_type: int = MissionType.MISSION,
+                 **options: float | int | None) -> None:
+        super().__init__(mission_type, **options)  # type: ignore[arg-type]
+        self.count: int | None = None
+        self._received: dict[int, MissionItem] = {}
+
+    @property
+    def items(self) -> list[MissionItem]:
+        """The items received so far, in seq order (all of them once ``succeeded``)."""
+        return [self._received[seq] for seq in sorted(self._received)]
+
+    @property
+    def progress(self) -> Progress:
+        """Items received of the count the vehicle announced."""
+        return Progress(len(self._received), self.count or 0)
+
+    def _opening(self) -> MissionMessage:
+        return MissionRequestList(self.mission_type)
+
+    def _current_timeout(self) -> float:
+        return self.timeout if self.count is None else self.item_timeout
+
+    def _next_missing(self) -> int | None:
+        assert self.count is not None
+        return next((seq for seq in range(self.count) if seq not in self._received), None)
+
+    def _request_next_or_finish(self, now: float) -> list[MissionMessage]:
+        missing = self._next_missing()
+        if missing is None:
+            self._succeed()
+            return [MissionAck(MissionResult.MAV_MISSION_ACCEPTED, self.mission_type)]
+        return self._send(now, MissionRequest(missing, self.mission_type))
+
+    def _handle(self, msg: MissionMessage, now: float) -> list[MissionMessage]:
+        if isinstance(msg, MissionCount):
+            if self.count is None:
+                self.count = msg.count
+            return self._request_next_or_finish(now)
+        if isinstance(msg, MissionItem) and self.count is not None:
+            if 0 <= msg.seq < self.count:
+                self._received.setdefault(msg.seq, msg)
+            return self._request_next_or_finish(now)
+        if isinstance(msg, MissionAck) and msg.result != MissionResult.MAV_MISSION_ACCEPTED:
+            self._ack_failure(msg)
+        return []
+
+
+class Clear(Transfer):
+    """Delete the vehicle's items of one mission type (MISSION_CLEAR_ALL)."""
+
+    operation = "clear"
+
+    def _opening(self) -> MissionMessage:
+        return MissionClearAll(self.mission_type)
+
+    def _handle(self, msg: MissionMessage, now: float) -> list[MissionMessage]:
+        if isinstance(msg, MissionAck):
+            if msg.result == MissionResult.MAV_MISSION_ACCEPTED:
+                self._succeed()
+            else:
+                self._ack_failure(msg)
+        return []
+
+
+def with_home_placeholder(items: list[MissionItem], home: MissionItem | None = None
+                          ) -> list[MissionItem]:
+    """Renumber ``items`` to seq 1..N behind an item 0 for ArduPilot to overwrite with home.
+
+    ``home`` defaults to a NAV_WAYPOINT at 0, 0 in the global frame; ArduPilot ignores its
+    contents and keeps its own home there.
+    """
+    placeholder = home or MissionItem(seq=0, frame=0, command=16)  # MAV_CMD_NAV_WAYPOINT
+    shifted = [replace(item, seq=index + 1) for index, item in enumerate(items)]
+    return [replace(placeholder, seq=0), *shifted]
+
+
+def same_items(sent: list[MissionItem], read_back: list[MissionItem], *,
+               skip_home: bool = False) -> bool:
+    """True if ``read_back`` holds what ``sent`` held (from item 1 on with ``skip_home``).
+
+    Floats are compared as the wire's float32 carries them; ``current`` is left out because
+    vehicles report their own current item.
+    """
+    start = 1 if skip_home else 0
+    if len(sent) != len(read_back):
+        return False
+    return all(_key(a) == _key(b) for a, b in zip(sent[start:], read_back[start:], strict=True))
+
+
+def _f32(value: float) -> float:
+    return struct.unpack("<f", struct.pack("<f", value))[0]
+
+
+def _key(item: MissionItem) -> tuple[object, ...]:
+    return (item.seq, item.frame, item.command, item.autocontinue, _f32(item.param1),
+            _f32(item.param2), _f32(item.param3), _f32(item.param4), item.x, item.y,
+            _f32(item.z), item.mission_type)

@@ -1,0 +1,112 @@
+"""The parameters a condition may read, with their types and units.
+
+Built-in parameters come from the vehicle's telemetry and the interpreter's own state. Any
+other name is a *detection* parameter, fed by a skill or a companion computer (the paper's
+"observed color" or "Item A found"); a mission may declare those with ``<parameter>``.
+A name close to a built-in one but not equal to it is almost certainly a typo, and is
+reported with a did-you-mean hint.
+"""
+
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass
+from enum import StrEnum
+
+from tml.model import Comparison, normalize_name
+
+
+class ParamType(StrEnum):
+    """What a parameter's values are, which decides the comparisons that fit."""
+
+    NUMBER = "number"
+    STRING = "string"
+    BOOLEAN = "boolean"
+    SET = "set"  # a set of numbers or names, tested with "includes"
+
+
+COMPARISONS: dict[ParamType, frozenset[Comparison]] = {
+    ParamType.NUMBER: frozenset({
+        Comparison.EQUAL, Comparison.NOT_EQUAL, Comparison.LESS, Comparison.LESS_OR_EQUAL,
+        Comparison.GREATER, Comparison.GREATER_OR_EQUAL, Comparison.KNOWN}),
+    ParamType.STRING: frozenset({Comparison.EQUAL, Comparison.NOT_EQUAL, Comparison.KNOWN}),
+    ParamType.BOOLEAN: frozenset({Comparison.EQUAL, Comparison.NOT_EQUAL, Comparison.KNOWN}),
+    ParamType.SET: frozenset({Comparison.INCLUDES, Comparison.EQUAL, Comparison.NOT_EQUAL,
+                              Comparison.KNOWN}),
+}
+
+
+@dataclass(frozen=True)
+class ParameterSpec:
+    """A built-in parameter."""
+
+    name: str
+    type: ParamType
+    description: str
+    unit: str = ""
+    aliases: tuple[str, ...] = ()
+    values: tuple[str, ...] = ()  # the closed set of values of a string parameter, if any
+
+
+BUILT_IN: tuple[ParameterSpec, ...] = (
+    ParameterSpec("BATTERY_CHARGE_PERCENTAGE", ParamType.NUMBER,
+                  "remaining battery charge (100 is full)", "%",
+                  ("PERCENTAGE_BATTERY_CHARGE", "batteryCharge", "BATTERY", "battery_remaining")),
+    ParameterSpec("ALTITUDE", ParamType.NUMBER, "altitude above home", "m",
+                  ("relative_altitude", "height")),
+    ParameterSpec("GROUND_SPEED", ParamType.NUMBER, "horizontal speed over ground", "m/s",
+                  ("groundspeed", "speed")),
+    ParameterSpec("DISTANCE_TO_HOME", ParamType.NUMBER, "horizontal distance to home", "m",
+                  ("home_distance",)),
+    ParameterSpec("HEADING", ParamType.NUMBER, "heading, clockwise from north", "deg",
+                  ("yaw",)),
+    ParameterSpec("FLIGHT_MODE", ParamType.STRING,
+                  "autopilot flight mode name (GUIDED, AUTO, RTL, LAND, ...)", "", ("mode",)),
+    ParameterSpec("ARMED", ParamType.BOOLEAN, "motors armed"),
+    ParameterSpec("LANDED", ParamType.BOOLEAN, "on the ground", "", ("on_ground",)),
+    ParameterSpec("LINK_STATE", ParamType.STRING,
+                  "state of the link to the vehicle", "", ("link",), ("ok", "degraded", "lost")),
+    ParameterSpec("GPS_FIX", ParamType.NUMBER,
+                  "GPS fix type (0-1 none, 2 2D, 3 3D, 4+ DGPS/RTK)", ""),
+    ParameterSpec("MISSION_ELAPSED_TIME", ParamType.NUMBER, "time since the mission started",
+                  "s", ("mission_time", "elapsed_time")),
+    ParameterSpec("TASK_ELAPSED_TIME", ParamType.NUMBER,
+                  "time since the current task started", "s", ("task_time",)),
+    ParameterSpec("ACTION_FAILURE", ParamType.STRING,
+                  "why the last action failed; absent while no action has failed", "", (),
+                  ("timeout", "rejected", "infeasible", "unsupported", "general")),
+    ParameterSpec("CURRENT_TASK", ParamType.STRING,
+                  "path of the running task, names joined by '/'", "", ("currentTask",)),
+    ParameterSpec("CURRENT_ACTION", ParamType.STRING, "name of the running action"),
+    ParameterSpec("RECOGNIZED_ARUCO_MARKERS", ParamType.SET,
+                  "ids of the ArUco markers recognised (skill RECOGNIZE_ARUCO_MARKERS)"),
+    ParameterSpec("RECOGNIZED_VISUAL_MARKERS", ParamType.SET,
+                  "ids of the visual markers recognised (skill RECOGNIZE_VISUAL_MARKERS)",
+                  "", ("visualMarker", "visual_markers")),
+    ParameterSpec("RECOGNIZED_ITEMS", ParamType.SET,
+                  "names of the items recognised (skill RECOGNIZE_ITEMS)"),
+    ParameterSpec("RECOGNIZED_BUCKETS", ParamType.SET,
+                  "names of the buckets recognised (skill RECOGNIZE_BUCKETS)"),
+    ParameterSpec("RECOGNIZED_FRAMES", ParamType.SET,
+                  "colours of the frames recognised (skill RECOGNIZE_FRAMES)"),
+)
+
+_BY_KEY = {normalize_name(n): p for p in BUILT_IN for n in (p.name, *p.aliases)}
+
+
+def lookup(name: str) -> ParameterSpec | None:
+    """The built-in parameter a written name denotes (case and separators ignored), or None."""
+    return _BY_KEY.get(normalize_name(name))
+
+
+def suggest(name: str) -> str | None:
+    """The built-in name a misspelt ``name`` most likely meant, or None if nothing is close."""
+    key = normalize_name(name)
+    close = difflib.get_close_matches(key, list(_BY_KEY), n=1, cutoff=0.8)
+    return _BY_KEY[close[0]].name if close else None
+
+
+def parse_boolean(text: str) -> bool | None:
+    """yes/no, true/false, 1/0 (any case) as a bool; None if it is none of those."""
+    return {"yes": True, "true": True, "1": True, "no": False, "false": False,
+            "0": False}.get(text.strip().lower())

@@ -1,0 +1,189 @@
+"""XML Schema validation of mission and world files.
+
+libxml2 (through lxml) validates: it is fast and reports every violation with its line and
+element path. Its messages are then made precise: each becomes a diagnostic with a stable
+code, placed on the offending attribute's column, with a hint listing what the schema
+allows there (read from the XSD once with xmlschema) and a did-you-mean for near misses.
+
+The XSD files ship inside the wheel as the package ``tml.schemas``; from a source checkout
+that is not installed they are read from the repository's ``schemas/`` directory.
+"""
+
+from __future__ import annotations
+
+import difflib
+import functools
+import importlib.resources
+import re
+from pathlib import Path
+
+from lxml import etree
+
+from tml.diagnostics import Diagnostic, error
+from tml.errors import Location
+from tml.parse import XmlDocument
+
+ROOTS = {"mission": "tml.xsd", "world": "world.xsd"}
+
+
+def schema_path(name: str = "tml.xsd") -> Path:
+    """The path of a shipped XSD file (``tml.xsd``, ``world.xsd``, ``environment.xsd``)."""
+    try:
+        resource = importlib.resources.files("tml.schemas") / name
+        if resource.is_file():
+            return Path(str(resource))
+    except ModuleNotFoundError:
+        pass
+    return Path(__file__).resolve().parent.parent / "schemas" / name
+
+
+@functools.cache
+def _lxml_schema(name: str) -> etree.XMLSchema:
+    return etree.XMLSchema(etree.parse(str(schema_path(name))))
+
+
+@functools.cache
+def _vocabulary(name: str) -> dict[str, tuple[set[str], set[str]]]:
+    """For each element name: (allowed attribute names, allowed child element names)."""
+    import xmlschema  # slower to import; only needed when a file is invalid
+
+    schema = xmlschema.XMLSchema(str(schema_path(name)))
+    vocabulary: dict[str, tuple[set[str], set[str]]] = {}
+
+    def visit(element: object, seen: set[int]) -> None:
+        if id(element) in seen:
+            return
+        seen.add(id(element))
+        attributes, children = vocabulary.setdefault(element.name, (set(), set()))
+        element_type = element.type
+        attributes.update(a for a in getattr(element_type, "attributes", {}) if a)
+        if element_type.has_complex_content():
+            for child in element_type.content.iter_elements():
+                children.add(child.name)
+                visit(child, seen)
+
+    for element in schema.elements.values():
+        visit(element, set())
+    return vocabulary
+
+
+def validate(doc: XmlDocument, expected_root: str = "mission") -> list[Diagnostic]:
+    """All schema violations of ``doc``, as diagnostics (empty when valid)."""
+    root = doc.root
+    if root.tag != expected_root:
+        other = "a world file" if root.tag == "world" else f"<{root.tag}>"
+        return [error(doc.location(root), "E007",
+                      f"expected a <{expected_root}> document, found {other}",
+                      f"the root element must be <{expected_root}>")]
+    schema_name = ROOTS[expected_root]
+    schema = _lxml_schema(schema_name)
+    if schema.validate(root.getroottree()):
+        return []
+    diagnostics: list[Diagnostic] = []
+    seen: set[tuple[int, int, str]] = set()
+    for entry in schema.error_log:
+        diagnostic = _translate(doc, entry, schema_name)
+        key = (diagnostic.location.line, diagnostic.location.column, diagnostic.code)
+        if key not in seen:  # libxml2 reports a bad value twice (facet, then type)
+            seen.add(key)
+            diagnostics.append(diagnostic)
+    return diagnostics
+
+
+_ATTRIBUTE = re.compile(r"^Element '([^']+)', attribute '([^']+)': (.*)$", re.S)
+_ELEMENT = re.compile(r"^Element '([^']+)': (.*)$", re.S)
+
+
+def _translate(doc: XmlDocument, entry: etree._LogEntry, schema_name: str) -> Diagnostic:
+    element = doc.element_at(entry.path) if entry.path else None
+    message = entry.message.strip()
+    match = _ATTRIBUTE.match(message)
+    if match and element is not None:
+        return _attribute_problem(doc, element, match.group(2), match.group(3), schema_name)
+    match = _ELEMENT.match(message)
+    if match and element is not None:
+        return _element_problem(doc, element, match.group(2), schema_name)
+    location = doc.location(element) if element is not None else Location(doc.file, entry.line)
+    return error(location, "E100", message)
+
+
+def _attribute_problem(doc: XmlDocument, element: etree._Element, attribute: str,
+                       detail: str, schema_name: str) -> Diagnostic:
+    tag = element.tag
+    allowed = sorted(_vocabulary(schema_name).get(tag, (set(), set()))[0])
+    if "is not allowed" in detail:
+        guess = difflib.get_close_matches(attribute, allowed, n=1)
+        hint = (f"did you mean {guess[0]!r}? " if guess else "") + \
+            f"<{tag}> accepts: {', '.join(allowed) or 'no attributes'}"
+        return error(doc.location(element, attribute), "E103",
+                     f"<{tag}> has no attribute {attribute!r}", hint)
+    if "is required but missing" in detail:
+        return error(doc.location(element), "E104",
+                     f"<{tag}> is missing the required attribute {attribute!r}",
+                     f'add {attribute}="..."')
+    value = element.get(attribute, "")
+    enumeration = re.search(r"set \{(.*)\}", detail)
+    if enumeration:
+        choices = re.findall(r"'([^']*)'", enumeration.group(1))
+        guess = difflib.get_close_matches(value, choices, n=1)
+        hint = (f"did you mean {guess[0]!r}? " if guess else "") + \
+            "expected one of: " + ", ".join(choices)
+        return error(doc.location(element, attribute), "E105",
+                     f"<{tag} {attribute}={value!r}> is not an accepted value", hint)
+    expected = _expected_type(detail)
+    return error(doc.location(element, attribute), "E105",
+                 f"<{tag} {attribute}={value!r}> is not {expected}",
+                 f"give {attribute}= as {expected}")
+
+
+def _expected_type(detail: str) -> str:
+    if "xs:double" in detail or "xs:decimal" in detail:
+        return "a number"
+    if "xs:integer" in detail:
+        return "a whole number"
+    if "minInclusive" in detail or "maxInclusive" in detail or "minExclusive" in detail:
+        bound = re.search(r"'(-?[\d.]+)'\.?$", detail.strip())
+        return "within range" + (f" (limit {bound.group(1)})" if bound else "")
+    if "NameType" in detail or "minLength" in detail or "pattern" in detail:
+        return "a non-empty name"
+    return "a valid value"
+
+
+def _element_problem(doc: XmlDocument, element: etree._Element, detail: str,
+                     schema_name: str) -> Diagnostic:
+    tag = element.tag
+    parent = element.getparent()
+    if "This element is not expected" in detail:
+        context = parent.tag if parent is not None else ""
+        allowed = sorted(_vocabulary(schema_name).get(context, (set(), set()))[1])
+        guess = difflib.get_close_matches(str(tag), allowed, n=1)
+        expected = re.search(r"Expected is (?:one of )?\( ([^)]*) \)", detail)
+        if expected:
+            here = "expected here: " + expected.group(1)
+        else:
+            here = "nothing more is expected here"
+        hint = (f"did you mean <{guess[0]}>? " if guess and guess[0] != tag else "") + here
+        if tag == "action" and parent is not None and parent.tag == "task":
+            hint = ("a terminal task holds exactly one <action>, after its skills, "
+                    "repeat and conditions, and no sub-tasks")
+        elif tag == "task" and parent is not None and parent.tag == "task":
+            hint = "a task holds either one <action> or sub-tasks, not both"
+        return error(doc.location(element), "E101",
+                     f"<{tag}> is not allowed here (inside <{context}>)", hint)
+    if "Missing child element" in detail:
+        if tag == "task":
+            return error(doc.location(element), "E102",
+                         f"task {element.get('name', '')!r} holds neither an <action> "
+                         "nor sub-tasks", "a terminal task holds one <action>; "
+                         "a non-terminal task holds <task>s")
+        if tag == "mission":
+            return error(doc.location(element), "E102", "the mission has no <task>",
+                         "add at least one <task>")
+        if tag == "event":
+            return error(doc.location(element), "E102",
+                         f"event {element.get('name', '')!r} has no <termination>",
+                         'end it with <termination mode="CONTINUE"/> (or another mode)')
+        expected = re.search(r"Expected is (?:one of )?\( ([^)]*) \)", detail)
+        return error(doc.location(element), "E102", f"<{tag}> is missing child elements",
+                     f"expected: {expected.group(1)}" if expected else "")
+    return error(doc.location(element), "E100", f"<{tag}>: {detail}")

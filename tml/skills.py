@@ -1,0 +1,58 @@
+"""The skill catalogue: abilities a task switches on for its whole duration.
+
+Skills come from the TML paper (IMAV 2016) and Aerostack's TML v1. How each binds to a
+vehicle (autopilot parameters, a companion computer) is the interpreter's business; here
+they have a name, a description and the detection parameters they feed.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class SkillSpec:
+    """A skill: its name, what it does, and the parameters it feeds while active."""
+
+    name: str
+    description: str
+    feeds: tuple[str, ...] = ()
+    aliases: tuple[str, ...] = ()
+
+
+CATALOGUE: tuple[SkillSpec, ...] = (
+    SkillSpec("AVOID_OBSTACLES", "Keep clear of obstacles while moving (proximity avoidance)."),
+    SkillSpec("RECOGNIZE_VISUAL_MARKERS", "Recognise numbered visual markers in the camera.",
+              ("RECOGNIZED_VISUAL_MARKERS",)),
+    SkillSpec("RECOGNIZE_ARUCO_MARKERS", "Recognise the id numbers of ArUco markers.",
+              ("RECOGNIZED_ARUCO_MARKERS",)),
+    SkillSpec("SELF_LOCATE_BY_MARKERS", "Locate the vehicle from known visual markers.",
+              aliases=("SELF_LOCALIZE_BY_ARUCO_MARKERS", "SELF_LOCALIZE_BY_MARKERS")),
+    SkillSpec("RECOGNIZE_ITEMS", "Recognise the items to transport (IMAV 2016).",
+              ("RECOGNIZED_ITEMS",)),
+    SkillSpec("RECOGNIZE_BUCKETS", "Recognise the buckets to drop items in (IMAV 2016).",
+              ("RECOGNIZED_BUCKETS",)),
+    SkillSpec("RECOGNIZE_FRAMES", "Recognise coloured frames (doors and windows).",
+              ("RECOGNIZED_FRAMES",)),
+    SkillSpec("DETECT_OBSTACLES_BY_ARUCO_MARKERS",
+              "Treat ArUco markers as obstacles (Aerostack)."),
+    SkillSpec("SAY_OUT_LOUD_CURRENT_TASK", "Announce the current task (Aerostack)."),
+)
+
+
+def _key(name: str) -> str:
+    return re.sub(r"[\s_\-]+", "_", name.strip()).upper()
+
+
+_BY_NAME = {_key(n): s for s in CATALOGUE for n in (s.name, *s.aliases)}
+
+
+def lookup(name: str) -> SkillSpec | None:
+    """The skill spec for a written skill name (case and separators ignored), or None."""
+    return _BY_NAME.get(_key(name))
+
+
+def skill_names() -> list[str]:
+    """Every accepted skill name and alias."""
+    return sorted(_BY_NAME)

@@ -1,0 +1,73 @@
+"""The validation pipeline: safe read, XML Schema, model building, semantic checks.
+
+Schema violations stop a file there (the model cannot be built from a document of the
+wrong shape); otherwise structural and semantic findings are all reported together.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from tml import check, parse, schema
+from tml.diagnostics import Diagnostic, error, sort_key
+from tml.errors import Location, MissionError, MissionSemanticError, MissionSyntaxError
+from tml.model import Mission
+
+
+@dataclass
+class ValidationResult:
+    """The outcome of validating one file."""
+
+    file: str
+    mission: Mission | None
+    diagnostics: list[Diagnostic] = field(default_factory=list)
+    source: str = ""
+
+    @property
+    def errors(self) -> list[Diagnostic]:
+        """The diagnostics that are errors."""
+        return [d for d in self.diagnostics if d.is_error]
+
+    def valid(self, strict: bool = False) -> bool:
+        """No errors (and, when strict, no warnings either)."""
+        return not (self.diagnostics if strict else self.errors)
+
+
+def validate_file(path: str | Path, data: bytes | None = None) -> ValidationResult:
+    """Validate one mission file; I/O errors (missing file) raise OSError."""
+    file = str(path)
+    try:
+        doc = parse.read_xml(file, data)
+    except MissionSyntaxError as exc:
+        location = exc.location or Location(file, 1, 1)
+        source = _text_of(path, data)
+        return ValidationResult(file, None, [error(location, exc.code, exc.message)], source)
+    problems = schema.validate(doc, "mission")
+    if problems:
+        return ValidationResult(file, None, sorted(problems, key=sort_key), doc.text)
+    mission, structural = parse.build_mission(doc)
+    found = structural + check.check(mission)
+    return ValidationResult(file, mission, sorted(found, key=sort_key), doc.text)
+
+
+def load_mission(path: str | Path) -> Mission:
+    """A valid mission, or a :class:`MissionError` naming the first error and the count."""
+    result = validate_file(path)
+    if result.errors or result.mission is None:
+        first = result.errors[0]
+        more = f" (and {len(result.errors) - 1} more)" if len(result.errors) > 1 else ""
+        kind = MissionSyntaxError if first.code < "E200" else MissionSemanticError
+        raise kind(first.message + more, first.location, first.code)
+    return result.mission
+
+
+def _text_of(path: str | Path, data: bytes | None) -> str:
+    try:
+        raw = data if data is not None else Path(path).read_bytes()
+    except OSError:
+        return ""
+    return raw.decode("utf-8", "replace")
+
+
+__all__ = ["MissionError", "ValidationResult", "load_mission", "validate_file"]

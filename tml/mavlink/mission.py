@@ -43,7 +43,6 @@ from __future__ import annotations
 import enum
 import struct
 from dataclasses import dataclass, replace
-from typing import Union
 
 from tml.errors import MissionTransferError
 
@@ -155,9 +154,10 @@ class MissionAck:
     mission_type: int = MissionType.MISSION
 
 
-MissionMessage = Union[  # noqa: UP007 -- a runtime alias used in isinstance-free annotations
-    MissionItem, MissionCount, MissionRequest, MissionRequestList, MissionClearAll, MissionAck
-]
+MissionMessage = (
+    MissionItem | MissionCount | MissionRequest | MissionRequestList | MissionClearAll | MissionAck
+)
+"""Any message of the mission protocol, as plain data."""
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,376 @@
+"""The mission-transfer state machine against a fake vehicle over a deterministic lossy link.
+
+Time is simulated: the link delivers messages after a fixed latency and drops each one with
+a seeded probability, so the tests neither sleep nor touch sockets.
+"""
+
+from __future__ import annotations
+
+import heapq
+import random
+from dataclasses import replace
+
+import pytest
+
+from tml.errors import MissionTransferError
+from tml.mavlink.mission import (
+    Clear,
+    Download,
+    MissionAck,
+    MissionClearAll,
+    MissionCount,
+    MissionItem,
+    MissionMessage,
+    MissionRequest,
+    MissionRequestList,
+    MissionResult,
+    MissionType,
+    Transfer,
+    Upload,
+    result_name,
+    same_items,
+    with_home_placeholder,
+)
+
+ACCEPTED = MissionResult.MAV_MISSION_ACCEPTED
+
+
+class FakeVehicle:
+    """The vehicle's side of the mission protocol, as ArduPilot plays it.
+
+    It asks for items with the legacy MISSION_REQUEST, asks again every ``rerequest``
+    seconds while an upload is open, gives up after ``give_up`` seconds of silence, and
+    answers a repeated last item with the ACK again. With ``home_slot`` it overwrites item
+    0 of a mission with its own home, as ArduPilot does.
+    """
+
+    def __init__(self, rerequest: float = 1.0, give_up: float = 8.0, home_slot: bool = False,
+                 refuse: int | None = None, capacity: int = 10_000) -> None:
+        self.lists: dict[int, list[MissionItem]] = {}
+        self.rerequest = rerequest
+        self.give_up = give_up
+        self.home_slot = home_slot
+        self.refuse = refuse
+        self.capacity = capacity
+        self._incoming: list[MissionItem] | None = None
+        self._type = 0
+        self._next = 0
+        self._count = 0
+        self._last_request = 0.0
+        self._last_heard = 0.0
+
+    def deadline(self) -> float:
+        if self._incoming is None:
+            return float("inf")
+        return min(self._last_request + self.rerequest, self._last_heard + self.give_up)
+
+    def tick(self, now: float) -> list[MissionMessage]:
+        if self._incoming is None:
+            return []
+        if now >= self._last_heard + self.give_up:
+            self._incoming = None
+            return [MissionAck(MissionResult.MAV_MISSION_OPERATION_CANCELLED, self._type)]
+        if now >= self._last_request + self.rerequest:
+            return [self._request(now)]
+        return []
+
+    def _request(self, now: float) -> MissionRequest:
+        self._last_request = now
+        return MissionRequest(self._next, self._type, legacy=True)
+
+    def receive(self, msg: MissionMessage, now: float) -> list[MissionMessage]:
+        self._last_heard = now
+        if isinstance(msg, MissionCount):
+            if self.refuse is not None:
+                return [MissionAck(self.refuse, msg.mission_type)]
+            if msg.count > self.capacity:
+                return [MissionAck(MissionResult.MAV_MISSION_NO_SPACE, msg.mission_type)]
+            if msg.count == 0:
+                self.lists[msg.mission_type] = []
+                return [MissionAck(ACCEPTED, msg.mission_type)]
+            self._incoming, self._type, self._next = [], msg.mission_type, 0
+            self._count = msg.count
+            return [self._request(now)]
+        if isinstance(msg, MissionItem):
+            return self._receive_item(msg, now)
+        if isinstance(msg, MissionRequestList):
+            return [MissionCount(len(self.lists.get(msg.mission_type, [])), msg.mission_type)]
+        if isinstance(msg, MissionRequest):
+            items = self.lists.get(msg.mission_type, [])
+            return [items[msg.seq]] if msg.seq < len(items) else []
+        if isinstance(msg, MissionClearAll):
+            self.lists[msg.mission_type] = []
+            return [MissionAck(ACCEPTED, msg.mission_type)]
+        return []
+
+    def _receive_item(self, item: MissionItem, now: float) -> list[MissionMessage]:
+        if self._incoming is None:
+            done = self.lists.get(item.mission_type, [])
+            if done and item.seq == len(done) - 1:
+                return [MissionAck(ACCEPTED, item.mission_type)]  # our ACK was lost
+            return [MissionAck(MissionResult.MAV_MISSION_ERROR, item.mission_type)]
+        if item.seq != self._next:
+            return [self._request(now)]
+        self._incoming.append(item)
+        self._next += 1
+        if self._next < self._count:
+            return [self._request(now)]
+        received, self._incoming = self._incoming, None
+        if self.home_slot and item.mission_type == MissionType.MISSION:
+            received[0] = MissionItem(seq=0, frame=0, command=16, x=-353632621, y=1491652374,
+                                      z=584.0)
+        self.lists[item.mission_type] = received
+        return [MissionAck(ACCEPTED, item.mission_type)]
+
+
+class LossyLink:
+    """Carries messages both ways with a fixed latency, dropping each with probability loss."""
+
+    def __init__(self, rng: random.Random, loss_up: float, loss_down: float,
+                 latency: float = 0.005) -> None:
+        self.rng = rng
+        self.loss_up = loss_up
+        self.loss_down = loss_down
+        self.latency = latency
+        self.queue: list[tuple[float, int, str, MissionMessage]] = []
+        self._order = 0
+        self.sent = 0
+
+    def post(self, now: float, to: str, msgs: list[MissionMessage]) -> None:
+        loss = self.loss_up if to == "vehicle" else self.loss_down
+        for msg in msgs:
+            self.sent += 1
+            if self.rng.random() >= loss:
+                self._order += 1
+                heapq.heappush(self.queue, (now + self.latency, self._order, to, msg))
+
+
+def run(transfer: Transfer, vehicle: FakeVehicle, link: LossyLink, limit: float = 600.0
+        ) -> float:
+    """Drive ``transfer`` against ``vehicle`` until it ends; returns the simulated duration."""
+    now = 0.0
+    link.post(now, "vehicle", transfer.start(now))
+    while not transfer.done:
+        next_delivery = link.queue[0][0] if link.queue else float("inf")
+        now = min(next_delivery, transfer.deadline, vehicle.deadline())
+        assert now < limit, "the transfer neither finished nor failed"
+        if link.queue and link.queue[0][0] <= now:
+            _, _, to, msg = heapq.heappop(link.queue)
+            if to == "vehicle":
+                link.post(now, "gcs", vehicle.receive(msg, now))
+            else:
+                link.post(now, "vehicle", transfer.receive(msg, now))
+        link.post(now, "vehicle", transfer.tick(now))
+        link.post(now, "gcs", vehicle.tick(now))
+    # Let the last messages land (a re-sent ACK, the vehicle's copy of our final ACK).
+    while link.queue:
+        when, _, to, msg = heapq.heappop(link.queue)
+        if to == "vehicle":
+            vehicle.receive(msg, when)
+    return now
+
+
+def mission(n: int, mission_type: int = MissionType.MISSION) -> list[MissionItem]:
+    return [MissionItem(seq=i, frame=6, command=16, param1=0.5 * i, x=-353632621 + 1000 * i,
+                        y=1491652374 - 700 * i, z=10.0 + i, mission_type=mission_type)
+            for i in range(n)]
+
+
+def test_hundred_uploads_of_hundred_items_survive_30_percent_loss_each_way() -> None:
+    rng = random.Random(20250601)
+    results = []
+    for _ in range(100):
+        vehicle = FakeVehicle(rerequest=1.0)
+        items = mission(100)
+        upload = Upload(items, system_id=1)
+        run(upload, vehicle, LossyLink(rng, 0.3, 0.3))
+        download = Download(system_id=1)
+        run(download, vehicle, LossyLink(rng, 0.3, 0.3))
+        results.append((upload.succeeded, download.succeeded, same_items(items, download.items)))
+    assert results == [(True, True, True)] * 100
+
+
+@pytest.mark.parametrize("mission_type", [MissionType.MISSION, MissionType.FENCE,
+                                          MissionType.RALLY])
+def test_upload_download_and_clear_each_mission_type(mission_type: MissionType) -> None:
+    vehicle = FakeVehicle()
+    vehicle.lists[MissionType.MISSION] = mission(3)
+    items = mission(5, mission_type)
+    rng = random.Random(1)
+    upload = Upload(items, mission_type)
+    run(upload, vehicle, LossyLink(rng, 0, 0))
+    assert upload.succeeded and vehicle.lists[mission_type] == items
+    download = Download(mission_type)
+    run(download, vehicle, LossyLink(rng, 0, 0))
+    assert download.items == items
+    clear = Clear(mission_type)
+    run(clear, vehicle, LossyLink(rng, 0, 0))
+    assert clear.succeeded and vehicle.lists[mission_type] == []
+    if mission_type != MissionType.MISSION:
+        assert vehicle.lists[MissionType.MISSION] == mission(3)  # other lists untouched
+
+
+def test_upload_sends_items_with_the_transfer_mission_type() -> None:
+    upload = Upload(mission(2), MissionType.FENCE)
+    upload.start(0.0)
+    (item,) = upload.receive(MissionRequest(1, MissionType.FENCE), 0.1)
+    assert isinstance(item, MissionItem) and item.mission_type == MissionType.FENCE
+
+
+def test_ardupilot_home_slot_is_placeholder_and_read_back_compares_from_item_one() -> None:
+    vehicle = FakeVehicle(home_slot=True)
+    real = mission(4)
+    sent = with_home_placeholder(real)
+    assert [item.seq for item in sent] == [0, 1, 2, 3, 4]
+    assert sent[1:] == [replace(item, seq=item.seq + 1) for item in real]
+    rng = random.Random(2)
+    run(Upload(sent), vehicle, LossyLink(rng, 0, 0))
+    download = Download()
+    run(download, vehicle, LossyLink(rng, 0, 0))
+    assert download.items[0] != sent[0]  # the vehicle put its home there
+    assert same_items(sent, download.items, skip_home=True)
+    assert not same_items(sent, download.items)
+
+
+def test_same_items_sees_a_changed_item_and_a_missing_one() -> None:
+    items = mission(3)
+    assert not same_items(items, [*items[:2], replace(items[2], z=11.5)])
+    assert not same_items(items, items[:2])
+    assert same_items(items, [replace(items[0], current=1), *items[1:]])
+
+
+REFUSALS = [r for r in MissionResult if r != MissionResult.MAV_MISSION_ACCEPTED]
+
+
+@pytest.mark.parametrize("result", REFUSALS, ids=lambda r: r.name)
+def test_every_refusal_becomes_a_transfer_error_naming_the_result(result: MissionResult
+                                                                  ) -> None:
+    upload = Upload(mission(2), system_id=7)
+    run(upload, FakeVehicle(refuse=result), LossyLink(random.Random(3), 0, 0))
+    assert not upload.succeeded
+    assert isinstance(upload.error, MissionTransferError)
+    assert upload.error.result == result.name
+    assert upload.error.system_id == 7
+    assert result.name in str(upload.error) and "vehicle 7" in str(upload.error)
+
+
+def test_refusal_during_download_and_unknown_result_number() -> None:
+    download = Download()
+    download.start(0.0)
+    download.receive(MissionCount(3), 0.1)
+    download.receive(MissionAck(99), 0.2)
+    assert download.error is not None and download.error.result == "MAV_MISSION_RESULT_99"
+    assert result_name(4) == "MAV_MISSION_NO_SPACE"
+
+
+def test_result_names_are_those_of_the_mavlink_definition() -> None:
+    from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+    defined = {entry.name: value for value, entry
+               in mavlink.enums["MAV_MISSION_RESULT"].items() if not entry.name.endswith("_END")}
+    assert {r.name: r.value for r in MissionResult} == defined
+    types = {entry.name: value for value, entry in mavlink.enums["MAV_MISSION_TYPE"].items()
+             if not entry.name.endswith("_END")}
+    assert {f"MAV_MISSION_TYPE_{t.name}": t.value for t in MissionType} == types
+
+
+def test_silent_vehicle_times_out_after_six_default_timeouts_of_silence() -> None:
+    upload = Upload(mission(3), system_id=2)
+    link = LossyLink(random.Random(4), loss_up=1.0, loss_down=1.0)
+    took = run(upload, FakeVehicle(), link)
+    assert upload.error is not None and upload.error.result == "TIMEOUT"
+    assert took == pytest.approx(6 * 1.5)
+    # The first answer is awaited 1.5 s, then MISSION_COUNT goes out every 250 ms.
+    assert upload.retransmissions == 30 and link.sent == 31
+
+
+def test_items_are_retransmitted_every_item_timeout_while_the_vehicle_is_silent() -> None:
+    upload = Upload(mission(3))
+    upload.start(0.0)
+    assert upload.receive(MissionRequest(0, legacy=True), 0.1) == [mission(3)[0]]
+    assert upload.deadline == pytest.approx(0.35)
+    assert upload.tick(0.3) == []
+    assert upload.tick(0.35) == [mission(3)[0]]
+    resent = 0
+    now = 0.35
+    while not upload.done:
+        now = upload.deadline
+        resent += len(upload.tick(now))
+    assert now == pytest.approx(0.1 + 6 * 1.5)  # silence is measured from the last request
+    assert 1 + resent == 35  # every 250 ms from 0.35 s until 9.1 s
+
+
+def test_out_of_order_and_duplicate_requests_are_answered_with_the_item_asked_for() -> None:
+    items = mission(3)
+    upload = Upload(items)
+    assert upload.start(0.0) == [MissionCount(3)]
+    answers = [upload.receive(MissionRequest(seq, legacy=seq == 1), 0.1 * k)
+               for k, seq in enumerate([2, 0, 0, 1, 7])]
+    assert answers == [[items[2]], [items[0]], [items[0]], [items[1]], []]
+    assert upload.progress.done == 3 and not upload.done
+    upload.receive(MissionAck(ACCEPTED), 0.6)
+    assert upload.succeeded
+
+
+def test_early_accept_from_a_previous_transfer_does_not_end_the_upload() -> None:
+    upload = Upload(mission(2))
+    upload.start(0.0)
+    upload.receive(MissionAck(ACCEPTED), 0.01)
+    assert not upload.done
+
+
+def test_messages_of_another_mission_type_are_ignored() -> None:
+    upload = Upload(mission(2))
+    upload.start(0.0)
+    assert upload.receive(MissionRequest(0, MissionType.FENCE), 0.1) == []
+    upload.receive(MissionAck(MissionResult.MAV_MISSION_DENIED, MissionType.RALLY), 0.2)
+    assert not upload.done
+
+
+def test_progress_is_reported_as_items_move() -> None:
+    vehicle = FakeVehicle()
+    upload = Upload(mission(10))
+    seen = []
+    link = LossyLink(random.Random(5), 0, 0)
+    now = 0.0
+    link.post(now, "vehicle", upload.start(now))
+    while not upload.done:
+        now, _, to, msg = heapq.heappop(link.queue)
+        if to == "vehicle":
+            link.post(now, "gcs", vehicle.receive(msg, now))
+        else:
+            link.post(now, "vehicle", upload.receive(msg, now))
+            seen.append(upload.progress.done)
+    assert seen == sorted(seen) and seen[-1] == 10 and upload.progress.total == 10
+    assert len(set(seen)) == 10
+
+
+def test_download_of_an_empty_list_acknowledges_at_once() -> None:
+    download = Download(MissionType.RALLY)
+    assert download.start(0.0) == [MissionRequestList(MissionType.RALLY)]
+    out = download.receive(MissionCount(0, MissionType.RALLY), 0.1)
+    assert out == [MissionAck(ACCEPTED, MissionType.RALLY)]
+    assert download.succeeded and download.items == [] and download.progress.total == 0
+
+
+def test_download_keeps_the_first_copy_and_asks_for_what_is_missing() -> None:
+    items = mission(3)
+    download = Download()
+    download.start(0.0)
+    assert download.receive(MissionCount(3), 0.1) == [MissionRequest(0)]
+    assert download.receive(items[1], 0.2) == [MissionRequest(0)]
+    assert download.receive(items[0], 0.3) == [MissionRequest(2)]
+    assert download.receive(replace(items[0], z=99.0), 0.4) == [MissionRequest(2)]
+    assert download.receive(items[2], 0.5) == [MissionAck(ACCEPTED)]
+    assert download.items == items
+
+
+def test_items_must_be_numbered_from_zero() -> None:
+    with pytest.raises(ValueError, match="seq"):
+        Upload([replace(item, seq=item.seq + 1) for item in mission(2)])
+
+
+def test_empty_upload_succeeds_on_the_ack() -> None:
+    upload = Upload([])
+    run(upload, FakeVehicle(), LossyLink(random.Random(6), 0, 0))
+    assert upload.succeeded and upload.progress.total == 0

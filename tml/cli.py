@@ -71,6 +71,13 @@ def cmd_validate(args: argparse.Namespace) -> int:
     return EXIT_INVALID if invalid else EXIT_OK
 
 
+def cmd_verify(args: argparse.Namespace) -> int:
+    """Check a mission's physical feasibility (see :mod:`tml.verify.command`)."""
+    from tml.verify.command import run
+
+    return run(args)
+
+
 def cmd_sim(args: argparse.Namespace) -> int:
     """Run the embedded simulator (same options as ``python -m sitl``)."""
     from sitl.cli import main as sim_main
@@ -98,6 +105,17 @@ def build_parser() -> argparse.ArgumentParser:
     validate.add_argument("-q", "--quiet", action="store_true",
                           help="print problems only, no summary line")
     validate.set_defaults(handler=cmd_validate)
+
+    verify = commands.add_parser(
+        "verify", help="check a mission's physical feasibility before flight",
+        description="Predict position, time and battery after every action of a mission "
+                    "and check them against a vehicle profile and a world. Exit 0 when "
+                    "feasible, 1 when a constraint fails or the mission is invalid, 2 on "
+                    "usage or I/O errors.")
+    from tml.verify.command import add_arguments
+
+    add_arguments(verify)
+    verify.set_defaults(handler=cmd_verify)
 
     sim = commands.add_parser(
         "sim", help="run the embedded MAVLink vehicle simulator", add_help=False,

@@ -1,0 +1,154 @@
+"""Translation between tml's plain MAVLink data and pymavlink messages.
+
+The only module of tml that builds or parses pymavlink message objects; the protocol state
+machines (``mission``, ``command``) and the telemetry tracker work on plain dataclasses or
+read attributes. MAVLink 2 is set before pymavlink's ``mavutil`` is first imported, and the
+ardupilotmega dialect (a superset of common) is used throughout.
+"""
+
+from __future__ import annotations
+
+import os
+
+# mavutil picks the protocol version when first imported: MAVLink 2, explicitly.
+os.environ.setdefault("MAVLINK20", "1")
+
+from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from tml.mavlink.command import Command, CommandAck, CommandInt, CommandLong
+from tml.mavlink.mission import (
+    MissionAck,
+    MissionClearAll,
+    MissionCount,
+    MissionItem,
+    MissionMessage,
+    MissionRequest,
+    MissionRequestList,
+)
+
+__all__ = ["decode", "encode", "mavlink", "mavutil"]
+
+GCS_SYSTEM_ID = 255
+"""The system id tml uses on the wire, as ground stations customarily do."""
+GCS_COMPONENT_ID = mavlink.MAV_COMP_ID_MISSIONPLANNER
+
+# Message objects are built with the encode methods of an encoder that never writes:
+# pymavlink stamps sequence numbers and signatures when the link's own encoder sends them.
+_BUILD = mavlink.MAVLink(None)
+
+Plain = MissionMessage | Command | CommandAck
+
+
+def encode(msg: Plain, target_system: int, target_component: int) -> mavlink.MAVLink_message:
+    """The pymavlink message for plain ``msg`` addressed to one system and component."""
+    ts, tc = target_system, target_component
+    match msg:
+        case MissionItem():
+            return _BUILD.mission_item_int_encode(
+                ts, tc, msg.seq, msg.frame, msg.command, msg.current, msg.autocontinue,
+                msg.param1, msg.param2, msg.param3, msg.param4, msg.x, msg.y, msg.z,
+                msg.mission_type)
+        case MissionCount():
+            return _BUILD.mission_count_encode(ts, tc, msg.count, msg.mission_type)
+        case MissionRequest(legacy=True):
+            return _BUILD.mission_request_encode(ts, tc, msg.seq, msg.mission_type)
+        case MissionRequest():
+            return _BUILD.mission_request_int_encode(ts, tc, msg.seq, msg.mission_type)
+        case MissionRequestList():
+            return _BUILD.mission_request_list_encode(ts, tc, msg.mission_type)
+        case MissionClearAll():
+            return _BUILD.mission_clear_all_encode(ts, tc, msg.mission_type)
+        case MissionAck():
+            return _BUILD.mission_ack_encode(ts, tc, msg.result, msg.mission_type)
+        case CommandLong():
+            return _BUILD.command_long_encode(
+                ts, tc, msg.command, msg.confirmation, msg.param1, msg.param2, msg.param3,
+                msg.param4, msg.param5, msg.param6, msg.param7)
+        case CommandInt():
+            return _BUILD.command_int_encode(
+                ts, tc, msg.frame, msg.command, msg.current, msg.autocontinue, msg.param1,
+                msg.param2, msg.param3, msg.param4, msg.x, msg.y, msg.z)
+        case CommandAck():
+            return _BUILD.command_ack_encode(msg.command, msg.result, msg.progress, 0, ts, tc)
+    raise TypeError(f"cannot encode {msg!r}")
+
+
+def decode(msg: mavlink.MAVLink_message) -> Plain | None:
+    """The plain form of a mission-protocol message or COMMAND_ACK; None for anything else."""
+    kind = msg.get_type()
+    if kind == "MISSION_ITEM_INT":
+        return _item(msg, msg.x, msg.y)
+    if kind == "MISSION_ITEM":
+        # The legacy float form: global coordinates come as degrees.
+        scale = 1e7 if msg.frame in _GLOBAL_FRAMES else 1
+        return _item(msg, round(msg.x * scale), round(msg.y * scale))
+    if kind == "MISSION_COUNT":
+        return MissionCount(msg.count, msg.mission_type)
+    if kind in ("MISSION_REQUEST", "MISSION_REQUEST_INT"):
+        return MissionRequest(msg.seq, msg.mission_type, legacy=kind == "MISSION_REQUEST")
+    if kind == "MISSION_REQUEST_LIST":
+        return MissionRequestList(msg.mission_type)
+    if kind == "MISSION_CLEAR_ALL":
+        return MissionClearAll(msg.mission_type)
+    if kind == "MISSION_ACK":
+        return MissionAck(msg.type, msg.mission_type)
+    if kind == "COMMAND_ACK":
+        return CommandAck(msg.command, msg.result, msg.progress)
+    return None
+
+
+_GLOBAL_FRAMES = frozenset({
+    mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+    mavlink.MAV_FRAME_GLOBAL_INT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+    mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT, mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT,
+})
+
+
+def _item(msg: mavlink.MAVLink_message, x: int, y: int) -> MissionItem:
+    return MissionItem(
+        seq=msg.seq, frame=msg.frame, command=msg.command, current=msg.current,
+        autocontinue=msg.autocontinue, param1=msg.param1, param2=msg.param2,
+        param3=msg.param3, param4=msg.param4, x=int(x), y=int(y), z=msg.z,
+        mission_type=msg.mission_type)
+
+
+def enum_name(enum: str, value: int) -> str:
+    """The name of ``value`` in MAVLink enum ``enum`` (``<enum>_<value>`` if undefined)."""
+    entry = mavlink.enums.get(enum, {}).get(value)
+    return entry.name if entry is not None else f"{enum}_{value}"
+
+
+def command_name(command: int) -> str:
+    """The MAV_CMD name of a command number, e.g. 22 -> ``MAV_CMD_NAV_TAKEOFF``."""
+    return enum_name("MAV_CMD", command)
+
+
+def gcs_heartbeat() -> mavlink.MAVLink_message:
+    """The HEARTBEAT a ground station sends (type GCS, no autopilot)."""
+    return _BUILD.heartbeat_encode(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                                   mavlink.MAV_STATE_ACTIVE)
+
+
+def request_data_stream(target_system: int, target_component: int, rate_hz: int
+                        ) -> mavlink.MAVLink_message:
+    """REQUEST_DATA_STREAM for all streams, the fallback for SET_MESSAGE_INTERVAL."""
+    return _BUILD.request_data_stream_encode(target_system, target_component,
+                                             mavlink.MAV_DATA_STREAM_ALL, rate_hz, 1)
+
+
+def position_target(target_system: int, target_component: int, lat_e7: int, lon_e7: int,
+                    alt: float, yaw: float | None = None) -> mavlink.MAVLink_message:
+    """SET_POSITION_TARGET_GLOBAL_INT for a position (relative altitude), GUIDED mode."""
+    ignore = (mavlink.POSITION_TARGET_TYPEMASK_VX_IGNORE
+              | mavlink.POSITION_TARGET_TYPEMASK_VY_IGNORE
+              | mavlink.POSITION_TARGET_TYPEMASK_VZ_IGNORE
+              | mavlink.POSITION_TARGET_TYPEMASK_AX_IGNORE
+              | mavlink.POSITION_TARGET_TYPEMASK_AY_IGNORE
+              | mavlink.POSITION_TARGET_TYPEMASK_AZ_IGNORE
+              | mavlink.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE)
+    if yaw is None:
+        ignore |= mavlink.POSITION_TARGET_TYPEMASK_YAW_IGNORE
+    return _BUILD.set_position_target_global_int_encode(
+        0, target_system, target_component, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, ignore,
+        lat_e7, lon_e7, alt, 0, 0, 0, 0, 0, 0, yaw or 0.0, 0)

@@ -1,0 +1,170 @@
+"""The MAVLink command protocol as a pure state machine (no sockets, no clock).
+
+A :class:`CommandSender` carries one COMMAND_LONG or COMMAND_INT to one vehicle. Like the
+mission transfer it is driven by its caller: ``start(now)`` returns the message to send,
+``receive(ack, now)`` takes each COMMAND_ACK from that vehicle, ``tick(now)`` (due at
+``deadline``) returns retransmissions. A COMMAND_LONG is retransmitted with its confirmation
+field incremented, so the vehicle can tell a retry from a new command; COMMAND_INT has no
+such field and goes out unchanged.
+
+An ACK with MAV_RESULT_IN_PROGRESS stops the retransmissions (the vehicle has the command)
+and extends the wait to ``progress_timeout`` after each such ACK; the final ACK ends it.
+``error`` is the one place where an outcome becomes an exception: every result other than
+ACCEPTED becomes :class:`~tml.errors.CommandRejected` with the command's name, the result's
+name and the vehicle; silence becomes :class:`~tml.errors.VehicleTimeout`.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, replace
+
+from tml.errors import CommandRejected, VehicleError, VehicleTimeout
+
+TIMEOUT = 1.5
+"""Seconds to wait for a COMMAND_ACK before retransmitting."""
+RETRIES = 5
+"""Retransmissions before giving up."""
+PROGRESS_TIMEOUT = 10.0
+"""Seconds to wait for the final ACK after an IN_PROGRESS one."""
+
+
+class CommandResult(enum.IntEnum):
+    """MAV_RESULT, the result field of COMMAND_ACK (names as in the MAVLink XML)."""
+
+    MAV_RESULT_ACCEPTED = 0
+    MAV_RESULT_TEMPORARILY_REJECTED = 1
+    MAV_RESULT_DENIED = 2
+    MAV_RESULT_UNSUPPORTED = 3
+    MAV_RESULT_FAILED = 4
+    MAV_RESULT_IN_PROGRESS = 5
+    MAV_RESULT_CANCELLED = 6
+    MAV_RESULT_COMMAND_LONG_ONLY = 7
+    MAV_RESULT_COMMAND_INT_ONLY = 8
+    MAV_RESULT_COMMAND_UNSUPPORTED_MAV_FRAME = 9
+
+
+def result_name(result: int) -> str:
+    """The MAV_RESULT name of ``result`` (``MAV_RESULT_<n>`` if unknown)."""
+    try:
+        return CommandResult(result).name
+    except ValueError:
+        return f"MAV_RESULT_{result}"
+
+
+@dataclass(frozen=True)
+class CommandLong:
+    """COMMAND_LONG: a command with seven float parameters."""
+
+    command: int
+    param1: float = 0.0
+    param2: float = 0.0
+    param3: float = 0.0
+    param4: float = 0.0
+    param5: float = 0.0
+    param6: float = 0.0
+    param7: float = 0.0
+    confirmation: int = 0
+
+
+@dataclass(frozen=True)
+class CommandInt:
+    """COMMAND_INT: a command with a frame and integer position (degrees * 1e7)."""
+
+    command: int
+    frame: int = 0
+    param1: float = 0.0
+    param2: float = 0.0
+    param3: float = 0.0
+    param4: float = 0.0
+    x: int = 0
+    y: int = 0
+    z: float = 0.0
+    current: int = 0
+    autocontinue: int = 0
+
+
+@dataclass(frozen=True)
+class CommandAck:
+    """COMMAND_ACK: the vehicle's answer to a command."""
+
+    command: int
+    result: int
+    progress: int = 0
+
+
+Command = CommandLong | CommandInt
+"""A command as plain data, ready for the codec."""
+
+
+class CommandSender:
+    """Send one command until it is acknowledged, refused, or the vehicle stays silent."""
+
+    def __init__(self, command: Command, name: str = "", *, system_id: int | None = None,
+                 timeout: float = TIMEOUT, retries: int = RETRIES,
+                 progress_timeout: float = PROGRESS_TIMEOUT) -> None:
+        self.command = command
+        self.name = name or f"MAV_CMD_{command.command}"
+        self.system_id = system_id
+        self.timeout = timeout
+        self.retries = retries
+        self.progress_timeout = progress_timeout
+        self.deadline = float("inf")
+        self.result: int | None = None
+        self.progress: int | None = None
+        self.timed_out = False
+        self.attempts = 0
+
+    @property
+    def done(self) -> bool:
+        """True once a final ACK arrived or the sender gave up."""
+        return self.result is not None or self.timed_out
+
+    @property
+    def accepted(self) -> bool:
+        """True if the vehicle accepted the command."""
+        return self.result == CommandResult.MAV_RESULT_ACCEPTED
+
+    @property
+    def error(self) -> VehicleError | None:
+        """The exception this outcome amounts to, or None if accepted or still running."""
+        if self.timed_out:
+            return VehicleTimeout(f"{self.name}: no COMMAND_ACK after {self.attempts} attempts",
+                                  self.system_id)
+        if self.result is None or self.accepted:
+            return None
+        return CommandRejected(self.name, result_name(self.result), self.system_id)
+
+    def start(self, now: float) -> list[Command]:
+        """The first transmission."""
+        return self._transmit(now)
+
+    def receive(self, ack: CommandAck, now: float) -> list[Command]:
+        """Feed a COMMAND_ACK from the vehicle (ACKs for other commands are ignored)."""
+        if self.done or ack.command != self.command.command:
+            return []
+        if ack.result == CommandResult.MAV_RESULT_IN_PROGRESS:
+            self.progress = ack.progress
+            self.deadline = now + self.progress_timeout
+            return []
+        self.result = ack.result
+        self.deadline = float("inf")
+        return []
+
+    def tick(self, now: float) -> list[Command]:
+        """Retransmit or give up once the deadline has passed."""
+        if self.done or now < self.deadline:
+            return []
+        if self.progress is not None or self.attempts > self.retries:
+            self.timed_out = True
+            self.deadline = float("inf")
+            return []
+        return self._transmit(now)
+
+    def _transmit(self, now: float) -> list[Command]:
+        message = self.command
+        if isinstance(message, CommandLong):
+            message = replace(message, confirmation=min(self.attempts, 255))
+        self.attempts += 1
+        self.deadline = now + self.timeout
+        return [message]

@@ -139,12 +139,13 @@ def read_xml(source: str | Path, data: bytes | None = None) -> XmlDocument:
         raise MissionSyntaxError(f"not well-formed XML: {message}",
                                  Location(file, line, column), "E002") from None
     elements = [e for e in root.iter() if isinstance(e.tag, str)]
-    for element in elements:
+    for index, element in enumerate(elements):
         depth = sum(1 for _ in element.iterancestors())
         if depth >= MAX_DEPTH:
             raise MissionSyntaxError(
                 f"elements nest {depth + 1} deep; the limit is {MAX_DEPTH}",
-                Location(file, element.sourceline or 1, 0), "E006")
+                at(tag_offsets[index]) if len(tag_offsets) == len(elements)
+                else Location(file, element.sourceline or 1, 0), "E006")
     starts = dict(zip(elements, tag_offsets, strict=False)) \
         if len(elements) == len(tag_offsets) else {}
     return XmlDocument(file, text, root, data, line_starts, starts)

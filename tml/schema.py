@@ -136,15 +136,27 @@ def _attribute_problem(doc: XmlDocument, element: etree._Element, attribute: str
                  f"give {attribute}= as {expected}")
 
 
+_TYPE_WORDS = {
+    "xs:double": "a number",
+    "xs:integer": "a whole number",
+    "LatitudeType": "a latitude in degrees, -90 to 90",
+    "LongitudeType": "a longitude in degrees, -180 to 180",
+    "PositiveType": "a number greater than 0",
+    "NonNegativeType": "a number, 0 or more",
+    "NameType": "a non-empty name",
+}
+
+
 def _expected_type(detail: str) -> str:
-    if "xs:double" in detail or "xs:decimal" in detail:
-        return "a number"
-    if "xs:integer" in detail:
-        return "a whole number"
-    if "minInclusive" in detail or "maxInclusive" in detail or "minExclusive" in detail:
-        bound = re.search(r"'(-?[\d.]+)'\.?$", detail.strip())
-        return "within range" + (f" (limit {bound.group(1)})" if bound else "")
-    if "NameType" in detail or "minLength" in detail or "pattern" in detail:
+    atomic = re.search(r"atomic type '([^']+)'", detail)
+    if atomic and atomic.group(1) in _TYPE_WORDS:
+        return _TYPE_WORDS[atomic.group(1)]
+    bound = re.search(r"\[facet '(\w+)'\].*'([^']+)'\)?\.?$", detail.strip())
+    if bound:
+        relation = {"maxInclusive": "at most", "minInclusive": "at least",
+                    "minExclusive": "greater than", "maxExclusive": "less than"}
+        return f"{relation.get(bound.group(1), 'within')} {bound.group(2)}"
+    if "minLength" in detail or "pattern" in detail:
         return "a non-empty name"
     return "a valid value"
 
@@ -170,6 +182,9 @@ def _element_problem(doc: XmlDocument, element: etree._Element, detail: str,
             hint = "a task holds either one <action> or sub-tasks, not both"
         return error(doc.location(element), "E101",
                      f"<{tag}> is not allowed here (inside <{context}>)", hint)
+    required = re.search(r"The attribute '([^']+)' is required but missing", detail)
+    if required:
+        return _attribute_problem(doc, element, required.group(1), detail, schema_name)
     if "Missing child element" in detail:
         if tag == "task":
             return error(doc.location(element), "E102",

@@ -67,6 +67,8 @@ def _text_of(path: str | Path, data: bytes | None) -> str:
         raw = data if data is not None else Path(path).read_bytes()
     except OSError:
         return ""
+    if b"\x00" in raw:  # UTF-16 and binary files: no source line is worth quoting
+        return ""
     return raw.decode("utf-8", "replace")
 
 

@@ -1,0 +1,123 @@
+"""The action catalogue (tml.actions)."""
+
+from __future__ import annotations
+
+import pytest
+
+from tml import actions
+from tml.actions import ArgType, LabelUse
+from tml.errors import Location, MissionSemanticError
+from tml.model import Action, Argument
+
+HERE = Location("a.xml", 1, 1)
+
+
+def action(name: str, **values: str) -> Action:
+    return Action(name, tuple(Argument(k, v, None, HERE) for k, v in values.items()), HERE)
+
+
+def test_catalogue_covers_the_paper_aerostack_and_dolphin() -> None:
+    names = {spec.name for spec in actions.CATALOGUE}
+    assert {"TAKE_OFF", "LAND", "GO_TO_POINT", "MOVE", "MOVE_FORWARDS", "ROTATE_YAW",
+            "STABILIZE", "WAIT", "FLIP", "MEMORIZE_POINT", "GO_TO_RECTANGLE", "EXPLORE_SPACE",
+            "PICK_UP_ITEM", "DROP_ITEM"} <= names
+    assert {"GO_TO_POSITION", "MOVE_FROM_HOME", "LOITER", "LANDING_POINT", "RETURN_HOME",
+            "RETURN_HOME_AND_LOITER", "RETURN_HOME_AND_LAND", "SET_SPEED", "SET_ALTITUDE",
+            "SURVEY_AREA", "CAPTURE_PHOTO", "CAPTURE_PHOTOS", "START_CAPTURING",
+            "STOP_CAPTURING", "SET_HOME"} <= names
+    assert actions.lookup("DELAY").name == "WAIT"
+
+
+def test_catalogue_is_consistent() -> None:
+    for spec in actions.CATALOGUE:
+        names = [a.name for a in spec.arguments]
+        assert len(names) == len(set(names)), spec.name
+        for group in (*spec.exactly_one_of, *spec.at_most_one_of, *spec.together):
+            assert set(group) <= set(names), (spec.name, group)
+        for argument in spec.arguments:
+            assert argument.description, (spec.name, argument.name)
+            if argument.type in (ArgType.NUMBER, ArgType.POINT) and argument.name not in (
+                    "pitch",):
+                assert argument.unit, (spec.name, argument.name)
+            if argument.type is ArgType.CHOICE:
+                assert argument.default is None or argument.default in argument.choices
+            if argument.required:
+                assert argument.default is None, (spec.name, argument.name)
+
+
+@pytest.mark.parametrize("written", ["GO_TO_POINT", "go to point", "Go-To-Point", "GO TO POINT"])
+def test_action_names_ignore_case_and_separators(written: str) -> None:
+    assert actions.lookup(written).name == "GO_TO_POINT"
+
+
+def test_argument_aliases_as_the_paper_and_aerostack_spell_them() -> None:
+    go = actions.lookup("GO_TO_POINT")
+    assert go.argument("point").name == "coordinates"
+    assert go.argument("relative coordinates").name == "relative_coordinates"
+    assert go.argument("relative point").name == "relative_coordinates"
+    assert actions.lookup("WAIT").argument("time").name == "duration"
+    assert actions.lookup("ROTATE_YAW").argument("rotation angle").name == "angle"
+    assert actions.lookup("GO_TO_RECTANGLE").argument("frame color").name == "frame_color"
+    assert actions.lookup("MEMORIZE_POINT").argument("coordinates").label is LabelUse.WRITE
+
+
+@pytest.mark.parametrize(
+    ("action_name", "argument", "raw", "expected"),
+    [
+        ("GO_TO_POINT", "coordinates", "(3.0,4.0,1.5)", (3.0, 4.0, 1.5)),
+        ("GO_TO_POINT", "coordinates", " 1, -2 , 3e1 ", (1.0, -2.0, 30.0)),
+        ("WAIT", "duration", "2.5", 2.5),
+        ("CAPTURE_PHOTOS", "count", "4", 4),
+        ("EXPLORE_SPACE", "build_map", "Yes", True),
+        ("FLIP", "direction", "BACK", "back"),
+        ("SURVEY_AREA", "direction", "north_east", "NORTH_EAST"),
+        ("GO_TO_RECTANGLE", "frame_color", " red ", "red"),
+    ],
+)
+def test_parse_value(action_name: str, argument: str, raw: str, expected: object) -> None:
+    spec = actions.lookup(action_name).argument(argument)
+    assert actions.parse_value(spec, raw) == expected
+
+
+@pytest.mark.parametrize(
+    ("action_name", "argument", "raw", "message"),
+    [
+        ("GO_TO_POINT", "coordinates", "(1, 2)", "three numbers"),
+        ("GO_TO_POINT", "coordinates", "here", "three numbers"),
+        ("WAIT", "duration", "soon", "expected a number in s"),
+        ("WAIT", "duration", "-1", "at least 0 s"),
+        ("WAIT", "duration", "nan", "expected a number"),
+        ("CAPTURE_PHOTOS", "count", "2.5", "whole number"),
+        ("CAPTURE_PHOTOS", "count", "0", "greater than 0"),
+        ("GO_TO_POSITION", "latitude", "91", "at most 90 deg"),
+        ("EXPLORE_SPACE", "build_map", "maybe", "yes or no"),
+        ("FLIP", "direction", "up", "one of front, back, left, right"),
+    ],
+)
+def test_parse_value_rejects(action_name: str, argument: str, raw: str, message: str) -> None:
+    spec = actions.lookup(action_name).argument(argument)
+    with pytest.raises(ValueError, match=message):
+        actions.parse_value(spec, raw)
+
+
+def test_bind_types_arguments_and_fills_defaults() -> None:
+    bound = actions.bind(action("LOITER", turns="3", point="(1, 2, 10)"))
+    assert bound.name == "LOITER"
+    assert bound.values == {"turns": 3, "coordinates": (1.0, 2.0, 10.0), "radius": 15.0,
+                            "altitude_reference": "relative"}
+    assert bound.get("duration") is None
+
+
+def test_bind_keeps_labels() -> None:
+    memorize = Action("MEMORIZE_POINT", (Argument("coordinates", None, "door", HERE),), HERE)
+    assert actions.bind(memorize).labels == {"coordinates": "door"}
+
+
+def test_bind_raises_with_location_on_bad_actions() -> None:
+    with pytest.raises(MissionSemanticError, match="unknown action"):
+        actions.bind(action("FLY"))
+    with pytest.raises(MissionSemanticError, match="no argument 'speed'"):
+        actions.bind(action("WAIT", speed="3"))
+    with pytest.raises(MissionSemanticError) as info:
+        actions.bind(action("WAIT", duration="x"))
+    assert info.value.location == HERE and info.value.code == "E212"

@@ -1,0 +1,103 @@
+"""XML Schema validation and its diagnostics (tml.schema)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tml import parse, schema
+
+
+def problems(xml: str, root: str = "mission"):
+    return schema.validate(parse.read_xml("s.xml", xml.encode()), root)
+
+
+def test_schema_files_are_found() -> None:
+    for name in ("tml.xsd", "world.xsd", "environment.xsd"):
+        assert schema.schema_path(name).is_file()
+
+
+def test_installed_package_ships_the_schemas(tmp_path) -> None:
+    # Run from an empty directory so the import comes from the installed distribution.
+    code = ("import json, importlib.metadata as m, importlib.resources as r\n"
+            "from tml.schema import schema_path\n"
+            "url = m.distribution('tml').read_text('direct_url.json') or '{}'\n"
+            "editable = json.loads(url).get('dir_info', {}).get('editable', False)\n"
+            "shipped = [] if editable else sorted(\n"
+            "    p.name for p in r.files('tml.schemas').iterdir() if p.name.endswith('.xsd'))\n"
+            "print(json.dumps([str(schema_path()), editable, shipped]))")
+    out = subprocess.run([sys.executable, "-I", "-c", code], cwd=tmp_path,
+                         capture_output=True, text=True, check=True).stdout
+    path, editable, shipped = json.loads(out)
+    assert path.endswith("tml.xsd") and Path(path).is_file()
+    if not editable:  # a real install: the XSDs are inside the package
+        assert shipped == ["environment.xsd", "tml.xsd", "world.xsd"]
+        assert Path(path).parent.name == "schemas" and Path(path).parent.parent.name == "tml"
+
+
+def test_valid_paper_constructs_pass() -> None:
+    xml = ('<mission name="m"><skill name="AVOID_OBSTACLES"/>'
+           '<task name="t"><skill name="RECOGNIZE_ITEMS"/><repeat times="3"/>'
+           '<condition parameter="p" comparison="greater than or equal to" value="1"/>'
+           '<action name="FLIP"/></task>'
+           '<event_handling><event name="e"><condition currentTask="t"/>'
+           '<termination mode="END_MISSION"/></event></event_handling></mission>')
+    assert problems(xml) == []
+
+
+def test_unknown_attribute_points_at_the_attribute_with_suggestion() -> None:
+    found = problems('<mission name="m">\n  <task name="t" dispach="mission">'
+                     '<action name="LAND"/></task></mission>')
+    assert [(p.code, p.location.line, p.location.column) for p in found] == [("E103", 2, 18)]
+    assert "did you mean 'dispatch'" in found[0].hint
+
+
+def test_bad_enumeration_value_suggests_the_closest() -> None:
+    found = problems('<mission name="m"><task name="t"><action name="LAND"/></task>'
+                     '<event_handling><event name="e">'
+                     '<termination mode="ABORT_MISION"/></event></event_handling></mission>')
+    assert [p.code for p in found] == ["E105"]
+    assert "did you mean 'ABORT_MISSION'" in found[0].hint
+
+
+def test_value_of_wrong_type() -> None:
+    found = problems('<world><home latitude="north" longitude="8" altitude="0"/></world>',
+                     "world")
+    assert [p.code for p in found] == ["E105"]
+    assert "is not a latitude in degrees" in found[0].message
+
+
+def test_range_violation() -> None:
+    found = problems('<world><home latitude="91" longitude="8" altitude="0"/></world>', "world")
+    assert [p.code for p in found] == ["E105"]
+    assert "at most 90" in found[0].message
+
+
+@pytest.mark.parametrize(
+    ("xml", "code", "words"),
+    [
+        ('<mission name="m"/>', "E102", "no <task>"),
+        ('<mission name="m"><task name="t"/></mission>', "E102", "neither an <action>"),
+        ('<mission name="m"><task name="t"><action name="LAND"/><action name="LAND"/></task>'
+         '</mission>', "E101", "exactly one <action>"),
+        ('<mission name="m"><task name="t"><action name="LAND"/></task><landing/></mission>',
+         "E101", "<landing> is not allowed"),
+        ('<mission><task name="t"><action name="LAND"/></task></mission>', "E104", "'name'"),
+        ('<mission name=" "><task name="t"><action name="LAND"/></task></mission>', "E105",
+         "non-empty name"),
+    ],
+)
+def test_structure_errors(xml: str, code: str, words: str) -> None:
+    found = problems(xml)
+    assert found and found[0].code == code
+    assert words in found[0].message + found[0].hint
+
+
+def test_wrong_root() -> None:
+    found = problems('<world/>')
+    assert [p.code for p in found] == ["E007"]
+    assert "world file" in found[0].message

@@ -151,7 +151,7 @@ def _expected_type(detail: str) -> str:
     atomic = re.search(r"atomic type '([^']+)'", detail)
     if atomic and atomic.group(1) in _TYPE_WORDS:
         return _TYPE_WORDS[atomic.group(1)]
-    bound = re.search(r"\[facet '(\w+)'\].*'([^']+)'\)?\.?$", detail.strip())
+    bound = re.search(r"\[facet '((?:min|max)\w+)'\].*'([^']+)'\)?\.?$", detail.strip())
     if bound:
         relation = {"maxInclusive": "at most", "minInclusive": "at least",
                     "minExclusive": "greater than", "maxExclusive": "less than"}

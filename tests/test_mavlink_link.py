@@ -1,0 +1,256 @@
+"""The link over loopback UDP against a small fake autopilot written with pymavlink.
+
+The fake answers heartbeats, commands and the vehicle side of the mission protocol; it
+binds 127.0.0.1 port 0 and every wait in these tests is bounded.
+"""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+
+from tml.errors import LinkLost
+from tml.mavlink.codec import mavlink
+from tml.mavlink.link import Link
+
+KEY = bytes(range(32))
+
+
+class FakeAutopilot:
+    """An ArduCopter-like endpoint: system ``system_id``, component 1, on a UDP socket."""
+
+    def __init__(self, system_id: int = 1, key: bytes | None = None,
+                 command_results: dict[int, int] | None = None) -> None:
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.settimeout(0.02)
+        self.port = self.sock.getsockname()[1]
+        self.peer: tuple[str, int] | None = None
+        self.system_id = system_id
+        self.command_results = command_results or {}
+        self.mavs: dict[tuple[int, int], mavlink.MAVLink] = {}
+        self.parser = mavlink.MAVLink(None)
+        if key is not None:
+            self.parser.signing.secret_key = key
+            self.parser.signing.allow_unsigned_callback = lambda _m, _i: False
+        self.key = key
+        self.received: list[Any] = []
+        self.commands: list[Any] = []
+        self.missions: dict[int, list[Any]] = {}
+        self.mode = 0
+        self.store_altitude: float | None = None
+        self._incoming: list[Any] | None = None
+        self._count = 0
+        self._type = 0
+        self._running = True
+        self._thread = threading.Thread(target=self._loop, daemon=True)
+
+    def __enter__(self) -> FakeAutopilot:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._running = False
+        self._thread.join(2.0)
+        self.sock.close()
+
+    def send(self, msg: Any, system_id: int | None = None, component: int = 1,
+             key: bytes | None = None) -> None:
+        """Send ``msg`` as ``system_id``/``component``, signed with ``key`` if given."""
+        ident = (self.system_id if system_id is None else system_id, component)
+        mav = self.mavs.get(ident)
+        if mav is None:
+            mav = self.mavs[ident] = mavlink.MAVLink(None, srcSystem=ident[0],
+                                                     srcComponent=ident[1])
+        signing_key = key if key is not None else self.key
+        if signing_key is not None:
+            mav.signing.secret_key = signing_key
+            mav.signing.sign_outgoing = True
+            mav.signing.link_id = 1
+            mav.signing.timestamp = max(mav.signing.timestamp, int(time.time() * 1e5))
+        else:
+            mav.signing.sign_outgoing = False
+        data = msg.pack(mav)
+        mav.seq = (mav.seq + 1) % 256
+        if self.peer is not None:
+            self.sock.sendto(data, self.peer)
+
+    def heartbeat(self, **ids: Any) -> None:
+        self.send(mavlink.MAVLink_heartbeat_message(
+            mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
+            mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, self.mode, 4, 3), **ids)
+
+    def _loop(self) -> None:
+        next_beat = 0.0
+        while self._running:
+            if time.monotonic() >= next_beat and self.peer is not None:
+                self.heartbeat()
+                next_beat = time.monotonic() + 0.1
+            try:
+                data, self.peer = self.sock.recvfrom(65536)
+            except (TimeoutError, OSError):
+                continue
+            for msg in self.parser.parse_buffer(data) or []:
+                if msg.get_type() != "BAD_DATA":
+                    self.received.append(msg)
+                    self._answer(msg)
+
+    def _answer(self, msg: Any) -> None:
+        kind = msg.get_type()
+        b = mavlink.MAVLink(None)
+        if kind in ("COMMAND_LONG", "COMMAND_INT"):
+            self.commands.append(msg)
+            result = self.command_results.get(msg.command, mavlink.MAV_RESULT_ACCEPTED)
+            if result is None:
+                return  # this command is never answered
+            if msg.command == mavlink.MAV_CMD_DO_SET_MODE and result == 0:
+                self.mode = int(msg.param2)
+            self.send(b.command_ack_encode(msg.command, result, 0, 0, 255, 190))
+        elif kind == "MISSION_COUNT":
+            self._incoming, self._count, self._type = [], msg.count, msg.mission_type
+            self._ask_or_finish()
+        elif kind == "MISSION_ITEM_INT" and self._incoming is not None:
+            if msg.seq == len(self._incoming):
+                self._incoming.append(msg)
+            self._ask_or_finish()
+        elif kind == "MISSION_REQUEST_LIST":
+            items = self.missions.get(msg.mission_type, [])
+            self.send(b.mission_count_encode(255, 190, len(items), msg.mission_type))
+        elif kind in ("MISSION_REQUEST_INT", "MISSION_REQUEST"):
+            item = self.missions.get(msg.mission_type, [])[msg.seq]
+            self.send(b.mission_item_int_encode(
+                255, 190, item.seq, item.frame, item.command, item.current, item.autocontinue,
+                item.param1, item.param2, item.param3, item.param4, item.x, item.y, item.z,
+                msg.mission_type))
+        elif kind == "MISSION_CLEAR_ALL":
+            self.missions[msg.mission_type] = []
+            self.send(b.mission_ack_encode(255, 190, 0, msg.mission_type))
+
+    def _ask_or_finish(self) -> None:
+        b = mavlink.MAVLink(None)
+        assert self._incoming is not None
+        if len(self._incoming) < self._count:
+            self.send(b.mission_request_encode(255, 190, len(self._incoming), self._type))
+            return
+        if self.store_altitude is not None:
+            for item in self._incoming:
+                item.z = self.store_altitude
+        if self._type == 0 and self._incoming:  # ArduPilot puts its home in item 0
+            home = self._incoming[0]
+            home.frame, home.x, home.y, home.z = 0, -353632621, 1491652374, 584.0
+        self.missions[self._type], self._incoming = self._incoming, None
+        self.send(b.mission_ack_encode(255, 190, 0, self._type))
+
+
+def eventually(check: Callable[[], bool], timeout: float = 5.0) -> bool:
+    """Poll ``check`` until true or ``timeout`` (a bound on waiting, not a timing assertion)."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if check():
+            return True
+        time.sleep(0.01)
+    return check()
+
+
+def test_discovers_the_vehicle_and_sends_gcs_heartbeats() -> None:
+    with FakeAutopilot(system_id=3) as ap, Link(f"udpout:127.0.0.1:{ap.port}") as link:
+        info = link.wait_vehicle(timeout=5)
+        assert (info.system_id, info.component_id, info.vehicle_type, info.autopilot) == (
+            3, 1, mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA)
+        beats = [m for m in ap.received if m.get_type() == "HEARTBEAT"]
+        assert beats and beats[0].type == mavlink.MAV_TYPE_GCS
+        assert beats[0].get_srcSystem() == 255
+        assert link.telemetry(3).mode == "STABILIZE"
+
+
+def test_several_vehicles_on_one_link_are_kept_apart() -> None:
+    with FakeAutopilot(system_id=1) as ap, Link(f"udpout:127.0.0.1:{ap.port}") as link:
+        link.wait_vehicle(1, timeout=5)
+        ap.heartbeat(system_id=2)
+        companion = mavlink.MAVLink_heartbeat_message(
+            mavlink.MAV_TYPE_ONBOARD_CONTROLLER, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3)
+        ap.send(companion, system_id=2, component=191)
+        ap.send(mavlink.MAVLink_mission_current_message(7), system_id=2)
+        assert eventually(lambda: link.telemetry(2).mission_current == 7)
+        vehicles = link.vehicles()
+        assert sorted(vehicles) == [1, 2] and vehicles[2].components == frozenset({1, 191})
+        assert link.telemetry(1).mission_current is None
+
+
+def test_unexpected_system_ids_are_dropped_and_counted() -> None:
+    with FakeAutopilot(system_id=1) as ap, \
+            Link(f"udpout:127.0.0.1:{ap.port}", system_ids=[1]) as link:
+        link.wait_vehicle(1, timeout=5)
+        for _ in range(5):
+            ap.heartbeat(system_id=9)
+        assert eventually(lambda: link.stats.unexpected_system >= 5)
+        assert sorted(link.vehicles()) == [1]
+        assert link.telemetry(9).received == 0
+
+
+def test_listeners_hear_each_message_with_the_fresh_snapshot() -> None:
+    heard: list[tuple[int, int | None]] = []
+    with FakeAutopilot() as ap, Link(f"udpout:127.0.0.1:{ap.port}") as link:
+        link.listen(lambda sysid, snap, msg: heard.append((sysid, snap.mission_current))
+                    if msg.get_type() == "MISSION_CURRENT" else None)
+        link.wait_vehicle(1, timeout=5)
+        ap.send(mavlink.MAVLink_mission_current_message(4))
+        assert eventually(lambda: heard == [(1, 4)])
+
+
+def test_output_forwarding_copies_vehicle_messages_to_a_watcher() -> None:
+    watcher = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    watcher.bind(("127.0.0.1", 0))
+    watcher.settimeout(5.0)
+    port = watcher.getsockname()[1]
+    with FakeAutopilot(system_id=4) as ap, Link(f"udpout:127.0.0.1:{ap.port}",
+                                                outputs=[f"udpout:127.0.0.1:{port}"]) as link:
+        link.wait_vehicle(4, timeout=5)
+        data, _ = watcher.recvfrom(65536)
+        (msg,) = mavlink.MAVLink(None).parse_buffer(data)
+        assert (msg.get_type(), msg.get_srcSystem()) == ("HEARTBEAT", 4)
+    watcher.close()
+
+
+def test_signing_accepts_only_correctly_signed_messages_and_signs_its_own() -> None:
+    with FakeAutopilot(system_id=1, key=KEY) as ap, \
+            Link(f"udpout:127.0.0.1:{ap.port}", signing_key=KEY) as link:
+        link.wait_vehicle(1, timeout=5)  # heard: the fake could verify our heartbeat
+        assert all(m.get_signed() for m in ap.received)
+        for _ in range(3):
+            ap.send(mavlink.MAVLink_mission_current_message(5), key=bytes(32))
+        ap.key = None
+        for _ in range(4):
+            ap.send(mavlink.MAVLink_mission_current_message(6))
+        ap.key = KEY
+        ap.send(mavlink.MAVLink_mission_current_message(8))
+        assert eventually(lambda: link.telemetry(1).mission_current == 8)
+        unsigned, bad = link.signing_counts
+        assert (unsigned, bad) == (4, 3)
+        assert link.stats.bad_data == 7
+
+
+def test_signing_key_must_be_32_bytes() -> None:
+    from tml.errors import VehicleError
+
+    with pytest.raises(VehicleError, match="32 bytes"):
+        Link("udpout:127.0.0.1:9", signing_key=b"short")
+
+
+def test_no_vehicle_is_a_clear_link_lost() -> None:
+    silent = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    silent.bind(("127.0.0.1", 0))
+    with Link(f"udpout:127.0.0.1:{silent.getsockname()[1]}") as link, \
+            pytest.raises(LinkLost, match="no heartbeat from vehicle 5"):
+        link.wait_vehicle(5, timeout=0.3)
+    silent.close()
+
+
+def test_an_address_that_cannot_be_opened_is_a_clear_error() -> None:
+    with pytest.raises(LinkLost, match="cannot open"):
+        Link("/dev/tml-no-such-serial-port,57600")

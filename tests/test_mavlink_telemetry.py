@@ -1,0 +1,113 @@
+"""The telemetry tracker folds a vehicle's messages, and only its own, into snapshots."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from tml.mavlink.codec import mavlink
+from tml.mavlink.telemetry import TelemetryTracker
+
+
+class Source:
+    """Packs messages as a vehicle component would, sequence numbers included."""
+
+    def __init__(self, system: int = 1, component: int = 1) -> None:
+        self.mav = mavlink.MAVLink(None, srcSystem=system, srcComponent=component)
+
+    def __call__(self, name: str, *fields: Any) -> Any:
+        msg = getattr(self.mav, f"{name}_encode")(*fields)
+        (parsed,) = mavlink.MAVLink(None).parse_buffer(msg.pack(self.mav))
+        self.mav.seq = (self.mav.seq + 1) % 256
+        return parsed
+
+
+def heartbeat(source: Source, custom_mode: int = 4, armed: bool = True) -> Any:
+    base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (128 if armed else 0)
+    return source("heartbeat", mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                  base, custom_mode, mavlink.MAV_STATE_ACTIVE)
+
+
+def test_state_from_the_autopilot_messages() -> None:
+    tracker = TelemetryTracker(1)
+    ap = Source()
+    for when, msg in enumerate([
+        heartbeat(ap),
+        ap("global_position_int", 1000, -353632621, 1491652374, 594000, 10000, 150, -50, 20, 0),
+        ap("local_position_ned", 1000, 3.0, 4.0, -10.0, 0.0, 0.0, 0.0),
+        ap("home_position", -353632621, 1491652374, 584000, 0, 0, 0, [1, 0, 0, 0], 0, 0, 0),
+        ap("attitude", 1000, 0.1, -0.2, 1.5, 0, 0, 0),
+        ap("sys_status", 0, 0, 0, 500, 12600, -1, 87, 0, 0, 0, 0, 0, 0),
+        ap("extended_sys_state", 0, 2),
+        ap("gps_raw_int", 0, 3, 0, 0, 0, 0, 0, 0, 0, 10),
+        ap("ekf_status_report", 8 | 2 | 512, 0, 0, 0, 0, 0),
+        ap("mission_current", 3),
+        ap("mission_item_reached", 2),
+        ap("mission_item_reached", 3),
+        ap("statustext", 6, b"Mission: 3 WP"),
+    ]):
+        assert tracker.apply(msg, float(when))
+    t = tracker.snapshot
+    assert (t.mode, t.armed, t.vehicle_type, t.last_heartbeat) == ("GUIDED", True, 2, 0.0)
+    assert t.position is not None
+    assert (t.position.latitude, t.position.relative_altitude) == (-35.3632621, 10.0)
+    assert t.velocity == (1.5, -0.5, 0.2) and t.local_position == (3.0, 4.0, -10.0)
+    assert t.home is not None and t.home.altitude == 584.0
+    assert t.attitude == pytest.approx((0.1, -0.2, 1.5))
+    assert (t.battery_voltage, t.battery_remaining) == (12.6, 87)
+    assert (t.landed_state, t.gps_fix, t.satellites, t.position_ready) == (2, 3, 10, True)
+    assert (t.mission_current, t.items_reached) == (3, (2, 3))
+    assert [s.text for s in t.status_texts] == ["Mission: 3 WP"]
+    assert t.time == 12.0 and t.heartbeat_age(12.5) == 12.5
+
+
+def test_not_ready_before_the_ekf_uses_gps_and_unknown_battery() -> None:
+    tracker = TelemetryTracker(1)
+    ap = Source()
+    tracker.apply(ap("ekf_status_report", 2, 0, 0, 0, 0, 0), 0.0)
+    tracker.apply(ap("sys_status", 0, 0, 0, 500, 12600, -1, -1, 0, 0, 0, 0, 0, 0), 0.0)
+    assert not tracker.snapshot.position_ready
+    assert tracker.snapshot.battery_remaining is None
+    assert tracker.snapshot.heartbeat_age(5.0) == float("inf")
+
+
+def test_other_systems_never_reach_the_state() -> None:
+    tracker = TelemetryTracker(1)
+    intruder = Source(system=2)
+    assert not tracker.apply(heartbeat(intruder, custom_mode=9), 0.0)
+    assert tracker.snapshot.mode == "" and tracker.snapshot.received == 0
+
+
+def test_detections_come_from_the_companion_computer_only() -> None:
+    tracker = TelemetryTracker(1)
+    companion = Source(component=191)
+    gimbal = Source(component=154)
+    tracker.apply(companion("named_value_float", 0, b"marker_7", 2.5), 0.0)
+    tracker.apply(companion("named_value_int", 0, b"aruco", 12), 0.1)
+    tracker.apply(gimbal("named_value_int", 0, b"aruco", 99), 0.2)
+    tracker.apply(companion("heartbeat", mavlink.MAV_TYPE_ONBOARD_CONTROLLER,
+                            mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0), 0.3)
+    assert dict(tracker.snapshot.detections) == {"marker_7": 2.5, "aruco": 12}
+    assert tracker.snapshot.mode == ""  # a companion's heartbeat is not the vehicle's
+
+
+def test_loss_is_estimated_from_sequence_gaps() -> None:
+    tracker = TelemetryTracker(1)
+    ap = Source()
+    for n in range(300):
+        msg = ap("attitude", n, 0, 0, 0, 0, 0, 0)
+        if n % 4 != 3:  # one in four lost on the way, across the sequence wrap
+            tracker.apply(msg, n * 0.01)
+    assert tracker.snapshot.received == 225
+    assert tracker.snapshot.lost == 74  # the last one lost is not yet visible as a gap
+    assert tracker.snapshot.loss == pytest.approx(74 / 299)
+
+
+def test_status_texts_are_bounded() -> None:
+    tracker = TelemetryTracker(1)
+    ap = Source()
+    for n in range(80):
+        tracker.apply(ap("statustext", 6, f"line {n}".encode()), float(n))
+    texts = tracker.snapshot.status_texts
+    assert len(texts) == 50 and texts[-1].text == "line 79" and texts[0].text == "line 30"

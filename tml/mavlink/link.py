@@ -1,0 +1,328 @@
+"""A MAVLink connection: sockets, the receive thread, heartbeats, routing, forwarding, signing.
+
+Theory of operation
+-------------------
+A :class:`Link` owns one pymavlink connection (any address pymavlink understands, see
+docs/connections.md) and one daemon thread. The thread blocks in ``select`` on the socket,
+so a message is handled as soon as it arrives, and for each message it
+
+1. drops it if signing is on and the signature is missing or wrong (counted), or if its
+   system id is not one of the expected ones (counted);
+2. forwards its raw bytes to every output address (QGroundControl, MAVProxy ...);
+3. records the sender's HEARTBEAT for discovery and folds the message into that vehicle's
+   :class:`~tml.mavlink.telemetry.TelemetryTracker` -- a vehicle's state only ever sees
+   its own system id;
+4. feeds mission-protocol messages and COMMAND_ACKs to the sans-IO state machines running
+   for that vehicle (:meth:`run`) and sends their answers at once, from the same thread:
+   the time from an item request to the item on the wire is one Python call;
+5. calls the listeners (:meth:`listen`), e.g. a runner that wakes the interpreter on fresh
+   telemetry, with the new snapshot.
+
+It also sends the ground-station HEARTBEAT at 1 Hz. The calling thread uses the link
+through snapshots (:meth:`telemetry`), :meth:`send`, and :meth:`run`, which starts a state
+machine, then sleeps on a condition until an answer or the machine's deadline and ticks it.
+Threads rather than a poll(now) API because the link must answer the vehicle (mission item
+requests, heartbeats) while the interpreter is busy; the interpreter itself stays I/O-free
+and reads snapshots.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import threading
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from tml.errors import LinkLost, VehicleError, VehicleTimeout
+from tml.mavlink import codec
+from tml.mavlink.codec import mavlink, mavutil
+from tml.mavlink.command import CommandAck, CommandSender
+from tml.mavlink.telemetry import Telemetry, TelemetryTracker
+
+HEARTBEAT_PERIOD = 1.0
+GCS_TYPES = frozenset({mavlink.MAV_TYPE_GCS})
+
+
+class Machine(Protocol):
+    """What :meth:`Link.run` drives: a transfer or a command sender."""
+
+    deadline: float
+
+    @property
+    def done(self) -> bool: ...
+
+    def start(self, now: float) -> list[Any]: ...
+
+    def receive(self, msg: Any, now: float) -> list[Any]: ...
+
+    def tick(self, now: float) -> list[Any]: ...
+
+
+@dataclass(frozen=True)
+class VehicleInfo:
+    """A vehicle seen on the link: its ids and what its HEARTBEAT says it is."""
+
+    system_id: int
+    component_id: int
+    vehicle_type: int
+    autopilot: int
+    components: frozenset[int]
+
+
+@dataclass
+class LinkStats:
+    """Counters of what the link dropped."""
+
+    unexpected_system: int = 0
+    unsigned_rejected: int = 0
+    bad_signature: int = 0
+    bad_data: int = 0
+
+
+Listener = Callable[[int, Telemetry, Any], None]
+
+
+class Link:
+    """One MAVLink connection shared by every vehicle on it.
+
+    ``system_ids`` lists the vehicles expected (others are dropped and counted; None
+    accepts any). ``outputs`` are extra addresses that receive a copy of every message from
+    the vehicles. With ``signing_key`` (32 bytes) outgoing messages are signed and incoming
+    ones without a valid signature are dropped.
+    """
+
+    def __init__(self, address: str, *, outputs: Iterable[str] = (),
+                 system_ids: Iterable[int] | None = None, signing_key: bytes | None = None,
+                 source_system: int = codec.GCS_SYSTEM_ID,
+                 source_component: int = codec.GCS_COMPONENT_ID, baud: int = 57600) -> None:
+        self.address = address
+        self.stats = LinkStats()
+        self._expected = None if system_ids is None else frozenset(system_ids)
+        self._conn = _connect(address, baud, source_system, source_component)
+        self._outputs = [_connect(out, baud, source_system, source_component)
+                         for out in outputs]
+        if signing_key is not None:
+            if len(signing_key) != 32:
+                raise VehicleError("a MAVLink 2 signing key is 32 bytes")
+            self._conn.setup_signing(signing_key, sign_outgoing=True,
+                                     allow_unsigned_callback=lambda _mav, _msgid: False)
+        self._lock = threading.Condition()
+        self._send_lock = threading.Lock()
+        self._vehicles: dict[int, VehicleInfo] = {}
+        self._trackers: dict[int, TelemetryTracker] = {}
+        self._machines: dict[int, list[Machine]] = {}
+        self._listeners: list[Listener] = []
+        self._running = False
+        self._thread: threading.Thread | None = None
+
+    # -- life cycle -------------------------------------------------------------------
+
+    def start(self) -> Link:
+        """Start the receive thread (and the heartbeat); returns self."""
+        if not self._running:
+            self._running = True
+            self._thread = threading.Thread(target=self._loop, name=f"mavlink {self.address}",
+                                            daemon=True)
+            self._thread.start()
+        return self
+
+    def close(self) -> None:
+        """Stop the thread and close the sockets."""
+        self._running = False
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+        for conn in (self._conn, *self._outputs):
+            conn.close()
+
+    def __enter__(self) -> Link:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- what the caller reads ----------------------------------------------------------
+
+    def vehicles(self) -> dict[int, VehicleInfo]:
+        """The vehicles discovered so far, by system id."""
+        with self._lock:
+            return dict(self._vehicles)
+
+    def wait_vehicle(self, system_id: int | None = None, timeout: float = 10.0) -> VehicleInfo:
+        """Wait for a HEARTBEAT from ``system_id`` (any vehicle if None) and describe it."""
+        end = time.monotonic() + timeout
+        with self._lock:
+            while True:
+                found = [v for v in self._vehicles.values()
+                         if system_id is None or v.system_id == system_id]
+                if found:
+                    return min(found, key=lambda v: v.system_id)
+                left = end - time.monotonic()
+                if left <= 0:
+                    who = "a vehicle" if system_id is None else f"vehicle {system_id}"
+                    raise LinkLost(f"no heartbeat from {who} on {self.address} "
+                                   f"within {timeout:g} s", system_id)
+                self._lock.wait(left)
+
+    def telemetry(self, system_id: int) -> Telemetry:
+        """The latest snapshot of one vehicle (empty if nothing was heard from it yet)."""
+        with self._lock:
+            tracker = self._trackers.get(system_id)
+            return tracker.snapshot if tracker else Telemetry(system_id)
+
+    def wait_telemetry(self, system_id: int, until: Callable[[Telemetry], bool],
+                       timeout: float) -> Telemetry:
+        """Wait until ``until(snapshot)`` holds; raises VehicleTimeout after ``timeout``."""
+        end = time.monotonic() + timeout
+        with self._lock:
+            while True:
+                snapshot = self.telemetry(system_id)
+                if until(snapshot):
+                    return snapshot
+                left = end - time.monotonic()
+                if left <= 0:
+                    raise VehicleTimeout(f"condition not reached within {timeout:g} s",
+                                         system_id)
+                self._lock.wait(left)
+
+    def listen(self, listener: Listener) -> None:
+        """Call ``listener(system_id, snapshot, msg)`` from the receive thread on each message.
+
+        Listeners must return quickly: they hold up the link.
+        """
+        self._listeners.append(listener)
+
+    @property
+    def signing_counts(self) -> tuple[int, int]:
+        """(messages dropped for a missing signature, for a wrong one)."""
+        signing = self._conn.mav.signing
+        return signing.reject_count - signing.badsig_count, signing.badsig_count
+
+    # -- what the caller sends ----------------------------------------------------------
+
+    def send(self, msg: Any, system_id: int = 0, component_id: int = 0) -> None:
+        """Send a plain message (addressed here) or a ready pymavlink message."""
+        if not isinstance(msg, mavlink.MAVLink_message):
+            msg = codec.encode(msg, system_id, component_id)
+        with self._send_lock:
+            self._conn.mav.send(msg)
+
+    def run(self, machine: Machine, system_id: int, component_id: int,
+            on_progress: Callable[[Machine], None] | None = None) -> Machine:
+        """Drive a sans-IO ``machine`` with this vehicle until it is done; returns it."""
+        with self._lock:
+            self._machines.setdefault(system_id, []).append(machine)
+            self._send_all(machine.start(time.monotonic()), system_id, component_id)
+        try:
+            with self._lock:
+                while not machine.done:
+                    wait = machine.deadline - time.monotonic()
+                    if wait > 0:
+                        self._lock.wait(min(wait, 1.0))
+                    self._send_all(machine.tick(time.monotonic()), system_id, component_id)
+                    if on_progress is not None:
+                        on_progress(machine)
+        finally:
+            with self._lock:
+                self._machines[system_id].remove(machine)
+        return machine
+
+    def _send_all(self, msgs: list[Any], system_id: int, component_id: int) -> None:
+        for msg in msgs:
+            self.send(msg, system_id, component_id)
+
+    # -- the receive thread ------------------------------------------------------------
+
+    def _loop(self) -> None:
+        next_heartbeat = 0.0
+        while self._running:
+            now = time.monotonic()
+            if now >= next_heartbeat:
+                self._heartbeat()
+                next_heartbeat = now + HEARTBEAT_PERIOD
+            try:
+                msg = self._conn.recv_match(blocking=True, timeout=0.1)
+            except (OSError, ValueError):
+                if not self._running:
+                    return
+                raise
+            if msg is not None:
+                self._handle(msg, time.monotonic())
+
+    def _heartbeat(self) -> None:
+        # udpin before any peer, or a TCP peer gone: nothing to send to yet.
+        with contextlib.suppress(OSError):
+            self.send(codec.gcs_heartbeat())
+
+    def _handle(self, msg: Any, now: float) -> None:
+        if msg.get_type() == "BAD_DATA":
+            self.stats.bad_data += 1
+            return
+        sysid = msg.get_srcSystem()
+        if self._expected is not None and sysid not in self._expected:
+            self.stats.unexpected_system += 1
+            return
+        raw = msg.get_msgbuf()
+        for out in self._outputs:
+            with contextlib.suppress(OSError):  # a watcher that went away must not stop a flight
+                out.write(raw)
+        with self._lock:
+            self._discover(msg, sysid)
+            tracker = self._trackers.get(sysid)
+            if tracker is None or not tracker.apply(msg, now):
+                self._lock.notify_all()
+                return
+            plain = codec.decode(msg)
+            if plain is not None and self._for_us(msg, tracker):
+                for machine in list(self._machines.get(sysid, [])):
+                    if isinstance(plain, CommandAck) == _is_command(machine):
+                        info = self._vehicles[sysid]
+                        self._send_all(machine.receive(plain, now), sysid, info.component_id)
+            snapshot = tracker.snapshot
+            self._lock.notify_all()
+        for listener in self._listeners:
+            listener(sysid, snapshot, msg)
+
+    def _for_us(self, msg: Any, tracker: TelemetryTracker) -> bool:
+        # Another ground station on the same link has its own transfers with the vehicle.
+        target = getattr(msg, "target_system", 0)
+        return (msg.get_srcComponent() == tracker.autopilot_component
+                and target in (0, self._conn.mav.srcSystem))
+
+    def _discover(self, msg: Any, sysid: int) -> None:
+        if msg.get_type() != "HEARTBEAT" or msg.type in GCS_TYPES:
+            return
+        component = msg.get_srcComponent()
+        known = self._vehicles.get(sysid)
+        if msg.autopilot == mavlink.MAV_AUTOPILOT_INVALID:
+            # A camera, gimbal or companion computer of a vehicle: a component, not a vehicle.
+            if known is not None:
+                self._vehicles[sysid] = _with_component(known, component)
+            return
+        if known is None:
+            self._vehicles[sysid] = VehicleInfo(sysid, component, msg.type, msg.autopilot,
+                                                frozenset({component}))
+            self._trackers[sysid] = TelemetryTracker(sysid, autopilot_component=component)
+        else:
+            self._vehicles[sysid] = _with_component(known, component)
+
+
+def _with_component(info: VehicleInfo, component: int) -> VehicleInfo:
+    if component in info.components:
+        return info
+    return VehicleInfo(info.system_id, info.component_id, info.vehicle_type, info.autopilot,
+                       info.components | {component})
+
+
+def _is_command(machine: Machine) -> bool:
+    return isinstance(machine, CommandSender)
+
+
+def _connect(address: str, baud: int, source_system: int, source_component: int) -> Any:
+    try:
+        return mavutil.mavlink_connection(address, baud=baud, source_system=source_system,
+                                          source_component=source_component,
+                                          dialect="ardupilotmega", autoreconnect=True)
+    except (OSError, ValueError) as error:
+        raise LinkLost(f"cannot open MAVLink connection {address!r}: {error}") from error

@@ -1,0 +1,181 @@
+"""Per-vehicle telemetry: a tracker that folds MAVLink messages into immutable snapshots.
+
+:class:`TelemetryTracker` is pure: ``apply(msg, now)`` reads the fields of one pymavlink
+message (duck-typed, by ``get_type()``) from its own vehicle and updates the state; the
+``snapshot`` is a frozen :class:`Telemetry` the interpreter can keep, compare and read
+without locks while the link goes on receiving. Messages from another system id are
+refused here too, as a second guard behind the link's routing.
+
+Vehicle state (position, attitude, mode ...) is taken only from the autopilot component;
+detections come as NAMED_VALUE_FLOAT / NAMED_VALUE_INT from the companion computer
+(component 191, MAV_COMP_ID_ONBOARD_COMPUTER). Link health counts the messages received and
+the ones missing from the gaps in each component's sequence numbers.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from types import MappingProxyType
+from typing import Any
+
+from tml.mavlink.modes import mode_name
+
+COMPANION_COMPONENT = 191
+"""MAV_COMP_ID_ONBOARD_COMPUTER: where detections come from."""
+ARMED_FLAG = 128
+"""MAV_MODE_FLAG_SAFETY_ARMED in HEARTBEAT.base_mode."""
+EKF_POSITION_FLAGS = 8 | 2 | 512
+"""EKF_POS_HORIZ_ABS | EKF_VELOCITY_HORIZ | EKF_PRED_POS_HORIZ_ABS: ArduPilot can arm in GUIDED."""
+STATUS_TEXTS_KEPT = 50
+
+
+@dataclass(frozen=True)
+class GlobalPosition:
+    """WGS84 latitude/longitude in degrees, altitude above mean sea level and above home (m)."""
+
+    latitude: float
+    longitude: float
+    altitude: float
+    relative_altitude: float = 0.0
+
+
+@dataclass(frozen=True)
+class StatusText:
+    """A STATUSTEXT: severity (MAV_SEVERITY, 0 worst) and text, with the time it arrived."""
+
+    time: float
+    severity: int
+    text: str
+
+
+@dataclass(frozen=True)
+class Telemetry:
+    """What is known of one vehicle at ``time`` (None: not reported yet)."""
+
+    system_id: int
+    time: float = 0.0
+    vehicle_type: int | None = None
+    autopilot: int | None = None
+    mode: str = ""
+    armed: bool = False
+    position: GlobalPosition | None = None
+    local_position: tuple[float, float, float] | None = None
+    """North, east, down in metres from the EKF origin (LOCAL_POSITION_NED)."""
+    home: GlobalPosition | None = None
+    attitude: tuple[float, float, float] | None = None
+    """Roll, pitch, yaw in radians."""
+    velocity: tuple[float, float, float] | None = None
+    """North, east, down in m/s."""
+    battery_voltage: float | None = None
+    battery_remaining: int | None = None
+    """Percent; None when the vehicle does not know."""
+    landed_state: int | None = None
+    """MAV_LANDED_STATE: 1 on ground, 2 in air, 3 taking off, 4 landing."""
+    gps_fix: int | None = None
+    satellites: int | None = None
+    ekf_flags: int | None = None
+    mission_current: int | None = None
+    items_reached: tuple[int, ...] = ()
+    status_texts: tuple[StatusText, ...] = ()
+    detections: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
+    last_heartbeat: float | None = None
+    received: int = 0
+    lost: int = 0
+
+    @property
+    def position_ready(self) -> bool:
+        """True once the EKF reports an absolute horizontal position (arming is possible)."""
+        flags = self.ekf_flags or 0
+        return flags & EKF_POSITION_FLAGS == EKF_POSITION_FLAGS
+
+    @property
+    def loss(self) -> float:
+        """Fraction of this vehicle's messages that never arrived (from sequence gaps)."""
+        total = self.received + self.lost
+        return self.lost / total if total else 0.0
+
+    def heartbeat_age(self, now: float) -> float:
+        """Seconds since the last HEARTBEAT (infinite if none yet)."""
+        return float("inf") if self.last_heartbeat is None else now - self.last_heartbeat
+
+
+class TelemetryTracker:
+    """Folds one vehicle's messages into :class:`Telemetry` snapshots."""
+
+    def __init__(self, system_id: int, autopilot_component: int = 1,
+                 companion_component: int = COMPANION_COMPONENT) -> None:
+        self.autopilot_component = autopilot_component
+        self.companion_component = companion_component
+        self.snapshot = Telemetry(system_id)
+        self._last_seq: dict[int, int] = {}
+
+    def apply(self, msg: Any, now: float) -> bool:
+        """Fold ``msg`` in; returns whether it was this vehicle's and changed the snapshot."""
+        if msg.get_srcSystem() != self.snapshot.system_id:
+            return False
+        component = msg.get_srcComponent()
+        changes = self._count(component, msg.get_seq())
+        if component == self.autopilot_component:
+            changes.update(self._vehicle_state(msg, now))
+        elif component == self.companion_component:
+            changes.update(self._detection(msg))
+        self.snapshot = replace(self.snapshot, time=now, **changes)
+        return True
+
+    def _count(self, component: int, seq: int) -> dict[str, Any]:
+        last = self._last_seq.get(component)
+        self._last_seq[component] = seq
+        gap = 0 if last is None else (seq - last - 1) % 256
+        return {"received": self.snapshot.received + 1, "lost": self.snapshot.lost + gap}
+
+    def _vehicle_state(self, msg: Any, now: float) -> dict[str, Any]:
+        kind = msg.get_type()
+        s = self.snapshot
+        if kind == "HEARTBEAT":
+            return {"vehicle_type": msg.type, "autopilot": msg.autopilot,
+                    "armed": bool(msg.base_mode & ARMED_FLAG), "last_heartbeat": now,
+                    "mode": mode_name(msg.type, msg.autopilot, msg.base_mode, msg.custom_mode)}
+        if kind == "GLOBAL_POSITION_INT":
+            return {"position": GlobalPosition(msg.lat / 1e7, msg.lon / 1e7, msg.alt / 1000,
+                                               msg.relative_alt / 1000),
+                    "velocity": (msg.vx / 100, msg.vy / 100, msg.vz / 100)}
+        if kind == "LOCAL_POSITION_NED":
+            return {"local_position": (msg.x, msg.y, msg.z)}
+        if kind == "HOME_POSITION":
+            return {"home": GlobalPosition(msg.latitude / 1e7, msg.longitude / 1e7,
+                                           msg.altitude / 1000)}
+        if kind == "ATTITUDE":
+            return {"attitude": (msg.roll, msg.pitch, msg.yaw)}
+        if kind == "SYS_STATUS":
+            remaining = msg.battery_remaining
+            return {"battery_voltage": msg.voltage_battery / 1000,
+                    "battery_remaining": None if remaining < 0 else remaining}
+        if kind == "EXTENDED_SYS_STATE":
+            return {"landed_state": msg.landed_state}
+        if kind == "GPS_RAW_INT":
+            return {"gps_fix": msg.fix_type, "satellites": msg.satellites_visible}
+        if kind == "EKF_STATUS_REPORT":
+            return {"ekf_flags": msg.flags}
+        if kind == "MISSION_CURRENT":
+            return {"mission_current": msg.seq}
+        if kind == "MISSION_ITEM_REACHED":
+            return {"items_reached": (*s.items_reached, msg.seq)}
+        if kind == "STATUSTEXT":
+            text = StatusText(now, msg.severity, _text(msg.text))
+            return {"status_texts": (*s.status_texts, text)[-STATUS_TEXTS_KEPT:]}
+        return {}
+
+    def _detection(self, msg: Any) -> dict[str, Any]:
+        if msg.get_type() not in ("NAMED_VALUE_FLOAT", "NAMED_VALUE_INT"):
+            return {}
+        detections = dict(self.snapshot.detections)
+        detections[_text(msg.name)] = msg.value
+        return {"detections": MappingProxyType(detections)}
+
+
+def _text(value: str | bytes) -> str:
+    # pymavlink gives char arrays as str, or bytes when they are not valid UTF-8.
+    if isinstance(value, bytes):
+        value = value.decode("utf-8", "replace")
+    return value.rstrip("\x00")

@@ -1,0 +1,222 @@
+"""A handle on one vehicle of a :class:`~tml.mavlink.link.Link`: commands and missions.
+
+Every method builds plain messages (``command``, ``mission``, ``modes``), lets the link
+drive the sans-IO machine, and turns the outcome into the error hierarchy at one place
+(:meth:`Vehicle.command`, :meth:`Vehicle.upload`): a refusal is CommandRejected or
+MissionTransferError naming the result, silence is VehicleTimeout. Methods return when the
+vehicle has *acknowledged*; that it then flies where it was told is watched from telemetry.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+from tml.errors import CommandRejected, MissionTransferError, VehicleTimeout
+from tml.mavlink import codec
+from tml.mavlink.codec import mavlink
+from tml.mavlink.command import Command, CommandInt, CommandLong, CommandResult, CommandSender
+from tml.mavlink.link import Link, VehicleInfo
+from tml.mavlink.mission import (
+    Clear,
+    Download,
+    MissionItem,
+    MissionType,
+    Progress,
+    Transfer,
+    Upload,
+    same_items,
+    with_home_placeholder,
+)
+from tml.mavlink.modes import set_mode_command
+from tml.mavlink.telemetry import Telemetry
+
+DEFAULT_RATES = {
+    "HEARTBEAT": 1.0, "GLOBAL_POSITION_INT": 10.0, "LOCAL_POSITION_NED": 10.0,
+    "ATTITUDE": 10.0, "SYS_STATUS": 2.0, "EXTENDED_SYS_STATE": 2.0, "GPS_RAW_INT": 2.0,
+    "EKF_STATUS_REPORT": 2.0, "MISSION_CURRENT": 2.0, "HOME_POSITION": 0.5,
+}
+"""Messages and rates (Hz) :meth:`Vehicle.request_rates` asks for by default."""
+FORCE = 21196.0
+"""The magic param2 of COMPONENT_ARM_DISARM that skips the pre-arm checks."""
+
+
+class Vehicle:
+    """Commands and mission transfers for the vehicle ``info`` on ``link``."""
+
+    def __init__(self, link: Link, info: VehicleInfo, *, command_timeout: float = 1.5,
+                 command_retries: int = 5) -> None:
+        self.link = link
+        self.info = info
+        self.command_timeout = command_timeout
+        self.command_retries = command_retries
+        self.system_id = info.system_id
+        self.component_id = info.component_id
+
+    @classmethod
+    def connect(cls, link: Link, system_id: int | None = None, timeout: float = 10.0
+                ) -> Vehicle:
+        """Wait for the vehicle's HEARTBEAT on ``link`` and return its handle."""
+        return cls(link, link.wait_vehicle(system_id, timeout))
+
+    @property
+    def telemetry(self) -> Telemetry:
+        """The latest telemetry snapshot."""
+        return self.link.telemetry(self.system_id)
+
+    # -- commands ---------------------------------------------------------------------
+
+    def command(self, command: Command) -> None:
+        """Send ``command`` until acknowledged; raises CommandRejected or VehicleTimeout."""
+        sender = CommandSender(command, codec.command_name(command.command),
+                               system_id=self.system_id, timeout=self.command_timeout,
+                               retries=self.command_retries)
+        self.link.run(sender, self.system_id, self.component_id)
+        if sender.error is not None:
+            raise sender.error
+
+    def set_mode(self, name: str) -> None:
+        """Switch to flight mode ``name`` (e.g. GUIDED, AUTO, LAND, RTL for ArduCopter)."""
+        self.command(set_mode_command(self.info.vehicle_type, self.info.autopilot, name,
+                                      self.system_id))
+
+    def arm(self, force: bool = False) -> None:
+        """Arm the motors (``force`` skips the pre-arm checks)."""
+        self.command(CommandLong(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, FORCE if force else 0))
+
+    def disarm(self, force: bool = False) -> None:
+        """Disarm the motors (``force`` also in flight)."""
+        self.command(CommandLong(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, FORCE if force else 0))
+
+    def takeoff(self, altitude: float) -> None:
+        """Take off to ``altitude`` metres above home (GUIDED, armed)."""
+        self.command(CommandLong(mavlink.MAV_CMD_NAV_TAKEOFF, param7=altitude))
+
+    def land(self) -> None:
+        """Land where the vehicle is."""
+        self.command(CommandLong(mavlink.MAV_CMD_NAV_LAND))
+
+    def return_to_launch(self) -> None:
+        """Fly home and land (RTL)."""
+        self.command(CommandLong(mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH))
+
+    def change_speed(self, speed: float, ground: bool = True) -> None:
+        """Set the horizontal speed in m/s (ground speed, or airspeed with ground=False)."""
+        self.command(CommandLong(mavlink.MAV_CMD_DO_CHANGE_SPEED, 1 if ground else 0, speed, -1))
+
+    def yaw(self, heading: float, rate: float = 0.0, relative: bool = False,
+            clockwise: bool = True) -> None:
+        """Turn to ``heading`` degrees (from north, or by that much with ``relative``)."""
+        self.command(CommandLong(mavlink.MAV_CMD_CONDITION_YAW, heading, rate,
+                                 1 if clockwise else -1, 1 if relative else 0))
+
+    def reposition(self, latitude: float, longitude: float, altitude: float,
+                   speed: float = -1) -> None:
+        """Fly to a point (altitude above home) in GUIDED with DO_REPOSITION, acknowledged."""
+        self.command(CommandInt(mavlink.MAV_CMD_DO_REPOSITION,
+                                mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, speed,
+                                mavlink.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE, 0, math.nan,
+                                round(latitude * 1e7), round(longitude * 1e7), altitude))
+
+    def position_target(self, latitude: float, longitude: float, altitude: float,
+                        yaw: float | None = None) -> None:
+        """Stream a GUIDED position target (SET_POSITION_TARGET_GLOBAL_INT; not acknowledged).
+
+        ``yaw`` in degrees from north; None keeps the vehicle's own choice.
+        """
+        self.link.send(codec.position_target(
+            self.system_id, self.component_id, round(latitude * 1e7), round(longitude * 1e7),
+            altitude, None if yaw is None else math.radians(yaw)))
+
+    def set_home(self, latitude: float | None = None, longitude: float | None = None,
+                 altitude: float = 0.0) -> None:
+        """Set home to a point (altitude above mean sea level), or to here if none given."""
+        if latitude is None or longitude is None:
+            self.command(CommandLong(mavlink.MAV_CMD_DO_SET_HOME, 1))
+        else:
+            self.command(CommandInt(mavlink.MAV_CMD_DO_SET_HOME, mavlink.MAV_FRAME_GLOBAL_INT,
+                                    0, x=round(latitude * 1e7), y=round(longitude * 1e7),
+                                    z=altitude))
+
+    def start_mission(self, first: int = 0, last: int = 0) -> None:
+        """Start the uploaded mission (MISSION_START; ArduPilot needs AUTO and arming)."""
+        self.command(CommandLong(mavlink.MAV_CMD_MISSION_START, first, last))
+
+    def set_current(self, seq: int) -> None:
+        """Make mission item ``seq`` the one flown next."""
+        self.command(CommandLong(mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, seq))
+
+    def take_photo(self) -> None:
+        """Trigger the camera once (DO_DIGICAM_CONTROL shoot)."""
+        self.command(CommandLong(mavlink.MAV_CMD_DO_DIGICAM_CONTROL, param5=1))
+
+    def gripper(self, grab: bool, instance: int = 1) -> None:
+        """Close (``grab``) or open the gripper."""
+        action = mavlink.GRIPPER_ACTION_GRAB if grab else mavlink.GRIPPER_ACTION_RELEASE
+        self.command(CommandLong(mavlink.MAV_CMD_DO_GRIPPER, instance, action))
+
+    def request_rates(self, rates: dict[str, float] | None = None) -> bool:
+        """Ask for messages at rates (Hz) with SET_MESSAGE_INTERVAL.
+
+        Falls back to REQUEST_DATA_STREAM at the highest rate asked for when the vehicle
+        does not support the command; returns whether SET_MESSAGE_INTERVAL was used.
+        """
+        rates = DEFAULT_RATES if rates is None else rates
+        fallback = (CommandResult.MAV_RESULT_UNSUPPORTED.name, CommandResult.MAV_RESULT_DENIED.name)
+        try:
+            for name, hz in rates.items():
+                message_id = getattr(mavlink, f"MAVLINK_MSG_ID_{name}")
+                self.command(CommandLong(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, message_id,
+                                         1e6 / hz if hz > 0 else -1))
+        except (CommandRejected, VehicleTimeout) as error:
+            if isinstance(error, CommandRejected) and error.result not in fallback:
+                raise
+            top = max(rates.values(), default=1.0)
+            self.link.send(codec.request_data_stream(self.system_id, self.component_id,
+                                                     max(1, round(top))))
+            return False
+        return True
+
+    # -- missions ---------------------------------------------------------------------
+
+    @property
+    def keeps_home_in_item_zero(self) -> bool:
+        """ArduPilot stores home as mission item 0; PX4 does not."""
+        return self.info.autopilot == mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
+
+    def upload(self, items: list[MissionItem], mission_type: int = MissionType.MISSION, *,
+               verify: bool = True, on_progress: Callable[[Progress], None] | None = None
+               ) -> list[MissionItem]:
+        """Upload ``items`` (seq 0..N-1) and, with ``verify``, read them back and compare.
+
+        On ArduPilot a mission's items go to seq 1..N behind a home placeholder. Returns
+        the items as sent.
+        """
+        skip_home = mission_type == MissionType.MISSION and self.keeps_home_in_item_zero
+        sent = with_home_placeholder(items) if skip_home else list(items)
+        self._transfer(Upload(sent, mission_type, system_id=self.system_id), on_progress)
+        if verify:
+            read_back = self.download(mission_type)
+            if not same_items(sent, read_back, skip_home=skip_home):
+                raise MissionTransferError(
+                    f"{MissionType(mission_type).name.lower()} read back differs from the "
+                    f"upload ({len(read_back)} items read, {len(sent)} sent)", "MISMATCH",
+                    self.system_id)
+        return sent
+
+    def download(self, mission_type: int = MissionType.MISSION) -> list[MissionItem]:
+        """The vehicle's items of ``mission_type`` (ArduPilot's home included as item 0)."""
+        download = Download(mission_type, system_id=self.system_id)
+        self._transfer(download)
+        return download.items
+
+    def clear(self, mission_type: int = MissionType.MISSION) -> None:
+        """Delete the vehicle's items of ``mission_type``."""
+        self._transfer(Clear(mission_type, system_id=self.system_id))
+
+    def _transfer(self, transfer: Transfer,
+                  on_progress: Callable[[Progress], None] | None = None) -> None:
+        report = None if on_progress is None else (lambda m: on_progress(m.progress))
+        self.link.run(transfer, self.system_id, self.component_id, report)
+        if transfer.error is not None:
+            raise transfer.error

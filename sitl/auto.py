@@ -1,0 +1,285 @@
+"""The AUTO-mode mission executor, after ArduPilot's AP_Mission.
+
+Two cursors walk the item list. The *navigation* cursor holds one NAV command (take off,
+waypoint, loiter, land, RTL, delay) that moves the vehicle; when it completes, the vehicle
+sends MISSION_ITEM_REACHED and the cursor moves to the next NAV command, following DO_JUMP
+(with its repeat count) on the way. The *do* cursor runs the DO and CONDITION commands
+that follow the current NAV command: DO commands act at once, a CONDITION command (delay,
+yaw) holds back the DO commands after it until it is satisfied, and whatever the do
+cursor has not reached when the next NAV command starts is dropped, as on ArduPilot.
+Every command started is announced with STATUSTEXT "Mission: N <name>"; commands the
+executor does not know are skipped with "Skipping invalid cmd #<id>".
+
+The executor moves nothing itself: it tells the vehicle what to do through the
+:class:`Pilot` interface (fly to, circle, land, return home) and asks it where it is.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+from tml.mavlink.mission import MissionItem
+
+# MAV_CMD ids the executor knows.
+NAV_WAYPOINT, NAV_LOITER_UNLIM, NAV_LOITER_TURNS, NAV_LOITER_TIME = 16, 17, 18, 19
+NAV_RETURN_TO_LAUNCH, NAV_LAND, NAV_TAKEOFF, NAV_DELAY = 20, 21, 22, 93
+CONDITION_DELAY, CONDITION_YAW = 112, 115
+DO_JUMP, DO_CHANGE_SPEED, DO_SET_HOME, DO_CHANGE_ALTITUDE = 177, 178, 179, 186
+DO_DIGICAM_CONTROL, DO_SET_CAM_TRIGG_DIST, DO_GRIPPER = 203, 206, 211
+IMAGE_START_CAPTURE, IMAGE_STOP_CAPTURE = 2000, 2001
+
+NAMES = {
+    NAV_WAYPOINT: "WP", NAV_LOITER_UNLIM: "LoitUnlim", NAV_LOITER_TURNS: "LoitTurns",
+    NAV_LOITER_TIME: "LoitTime", NAV_RETURN_TO_LAUNCH: "RTL", NAV_LAND: "Land",
+    NAV_TAKEOFF: "Takeoff", NAV_DELAY: "Delay", CONDITION_DELAY: "CondDelay",
+    CONDITION_YAW: "CondYaw", DO_JUMP: "Jump", DO_CHANGE_SPEED: "ChangeSpeed",
+    DO_SET_HOME: "SetHome", DO_CHANGE_ALTITUDE: "ChangeAlt", DO_DIGICAM_CONTROL: "DigiCam",
+    DO_SET_CAM_TRIGG_DIST: "CamTrigDist", DO_GRIPPER: "Gripper",
+    IMAGE_START_CAPTURE: "ImageStart", IMAGE_STOP_CAPTURE: "ImageStop",
+}
+NAV_COMMANDS = frozenset({
+    NAV_WAYPOINT, NAV_LOITER_UNLIM, NAV_LOITER_TURNS, NAV_LOITER_TIME, NAV_RETURN_TO_LAUNCH,
+    NAV_LAND, NAV_TAKEOFF, NAV_DELAY,
+})
+# Below this id a MAV_CMD is a navigation command in ArduPilot's numbering.
+NAV_LAST = 95
+
+Vector = tuple[float, float, float]
+
+
+class Pilot(Protocol):
+    """What the executor needs from the vehicle."""
+
+    time: float
+    control_period: float  # seconds per control step
+    position: Vector
+    heading: float
+
+    def item_position(self, item: MissionItem) -> Vector: ...
+    def fly_to(self, target: Vector) -> None: ...
+    def hold(self) -> None: ...
+    def land_at(self, north: float, east: float) -> None: ...
+    def return_home(self) -> None: ...
+    def has_landed(self) -> bool: ...
+    def arrived(self, target: Vector, radius: float) -> bool: ...
+    def set_speed(self, speed: float) -> None: ...
+    def set_yaw(self, heading: float, rate: float) -> None: ...
+    def yaw_settled(self) -> bool: ...
+    def set_home_from(self, item: MissionItem) -> None: ...
+    def do_command(self, item: MissionItem) -> None: ...
+    def text(self, severity: int, message: str) -> None: ...
+    def reached(self, seq: int) -> None: ...
+
+
+@dataclass
+class _Nav:
+    index: int
+    target: Vector
+    phase: str = "go"  # go -> hold/circle/descend -> done
+    since: float = 0.0
+    angle: float = 0.0  # loiter turns: degrees travelled
+
+
+class AutoMission:
+    """Runs the items (seq 0 = home, never flown) for one AUTO session."""
+
+    def __init__(self, items: list[MissionItem], pilot: Pilot, waypoint_radius: float) -> None:
+        self.items = items
+        self.pilot = pilot
+        self.waypoint_radius = waypoint_radius
+        self.nav: _Nav | None = None
+        self.finished = False
+        self._dos: list[int] = []
+        self._condition_started: float | None = None
+        self._jumps: dict[int, int] = {}
+
+    @property
+    def current(self) -> int:
+        """The seq MISSION_CURRENT reports: the NAV command in progress."""
+        if self.nav is not None:
+            return self.nav.index
+        return max(0, len(self.items) - 1) if self.finished else 0
+
+    def start(self, index: int = 1) -> None:
+        """Begin (or resume) at ``index``."""
+        self.finished = False
+        self._jumps.clear()
+        self._advance(max(1, index))
+
+    def update(self) -> None:
+        """One control step: progress the NAV command, then the DO cursor."""
+        if self.finished or self.nav is None:
+            return
+        if self._update_nav(self.nav):
+            done = self.nav.index
+            self.pilot.reached(done)
+            self._advance(done + 1)
+        self._run_dos()
+
+    def _advance(self, index: int) -> None:
+        pending: list[int] = []
+        while index < len(self.items):
+            item = self.items[index]
+            if item.command == DO_JUMP:
+                index = self._jump(index, item)
+                continue
+            if item.command in NAV_COMMANDS:
+                self._announce(item)
+                self.nav = _Nav(index, self.pilot.item_position(item), since=self.pilot.time)
+                self._start_nav(self.nav, item)
+                self._dos = pending + self._dos_after(index)
+                self._condition_started = None
+                return
+            if item.command < NAV_LAST:
+                self.pilot.text(4, f"Skipping invalid cmd #{item.command}")
+            else:
+                pending.append(index)
+            index += 1
+        self.nav = None
+        self._dos = pending
+        self._run_dos()
+        self.finished = True
+        if self.pilot.has_landed():
+            return
+        self.pilot.hold()
+
+    def _jump(self, index: int, item: MissionItem) -> int:
+        repeats = int(item.param2)
+        done = self._jumps.get(index, 0)
+        target = int(item.param1)
+        if (repeats < 0 or done < repeats) and 1 <= target < len(self.items):
+            self._jumps[index] = done + 1
+            return target
+        return index + 1
+
+    def _dos_after(self, index: int) -> list[int]:
+        out = []
+        for later in range(index + 1, len(self.items)):
+            command = self.items[later].command
+            if command in NAV_COMMANDS or command == DO_JUMP:
+                break
+            if command >= NAV_LAST:
+                out.append(later)
+        return out
+
+    def _announce(self, item: MissionItem) -> None:
+        name = NAMES.get(item.command, str(item.command))
+        self.pilot.text(6, f"Mission: {item.seq} {name}")
+
+    def _start_nav(self, nav: _Nav, item: MissionItem) -> None:
+        pilot = self.pilot
+        if item.command == NAV_TAKEOFF:
+            here = pilot.position
+            nav.target = (here[0], here[1], nav.target[2])
+        elif item.command == NAV_RETURN_TO_LAUNCH:
+            pilot.return_home()
+            return
+        elif item.command == NAV_DELAY:
+            nav.target = pilot.position
+            pilot.hold()
+            nav.phase = "hold"
+            return
+        elif item.command == NAV_LAND and item.x == 0 and item.y == 0:
+            pilot.land_at(pilot.position[0], pilot.position[1])
+            nav.phase = "descend"
+            return
+        pilot.fly_to(nav.target)
+
+    def _update_nav(self, nav: _Nav) -> bool:
+        item, pilot = self.items[nav.index], self.pilot
+        command = item.command
+        if command == NAV_RETURN_TO_LAUNCH:
+            return pilot.has_landed()
+        if command == NAV_DELAY:
+            return pilot.time - nav.since >= item.param1
+        if nav.phase == "descend":
+            return pilot.has_landed()
+        radius = item.param2 if command == NAV_WAYPOINT and item.param2 > 0 else (
+            self.waypoint_radius
+        )
+        if command == NAV_TAKEOFF:
+            return abs(pilot.position[2] - nav.target[2]) < 0.2
+        if nav.phase == "go":
+            if not pilot.arrived(nav.target, radius if command == NAV_WAYPOINT else 1.0):
+                return False
+            nav.phase, nav.since = "hold", pilot.time
+            if command == NAV_LAND:
+                pilot.land_at(nav.target[0], nav.target[1])
+                nav.phase = "descend"
+                return False
+            if command == NAV_LOITER_TURNS:
+                nav.phase = "circle"
+        if command == NAV_WAYPOINT:
+            return pilot.time - nav.since >= item.param1
+        if command == NAV_LOITER_TIME:
+            return pilot.time - nav.since >= item.param1
+        if command == NAV_LOITER_TURNS:
+            return self._circle(nav, item)
+        return False  # NAV_LOITER_UNLIM: until the mode changes or the mission is moved on
+
+    def _circle(self, nav: _Nav, item: MissionItem) -> bool:
+        radius = abs(item.param3) or 10.0
+        clockwise = item.param3 >= 0
+        rate = min(20.0, math.degrees(5.0 / radius))  # ArduCopter's CIRCLE_RATE, 5 m/s cap
+        nav.angle += rate * self.pilot.control_period
+        if nav.angle >= 360.0 * max(item.param1, 0.0):
+            self.pilot.fly_to(nav.target)
+            return True
+        bearing = math.radians(nav.angle if clockwise else -nav.angle)
+        centre = nav.target
+        self.pilot.fly_to((
+            centre[0] + radius * math.cos(bearing), centre[1] + radius * math.sin(bearing),
+            centre[2],
+        ))
+        return False
+
+    def _run_dos(self) -> None:
+        while self._dos:
+            item = self.items[self._dos[0]]
+            if item.command in (CONDITION_DELAY, CONDITION_YAW):
+                if self._condition_started is None:
+                    self._announce(item)
+                    self._condition_started = self.pilot.time
+                    if item.command == CONDITION_YAW:
+                        self._start_yaw(item)
+                if not self._condition_done(item):
+                    return
+                self._condition_started = None
+                self._dos.pop(0)
+                continue
+            self._dos.pop(0)
+            self._announce(item)
+            self._run_do(item)
+
+    def _start_yaw(self, item: MissionItem) -> None:
+        heading = item.param1
+        if item.param4:
+            direction = -1.0 if item.param3 < 0 else 1.0
+            heading = self.pilot.heading + direction * item.param1
+        self.pilot.set_yaw(heading % 360.0, item.param2 or 60.0)
+
+    def _condition_done(self, item: MissionItem) -> bool:
+        assert self._condition_started is not None
+        if item.command == CONDITION_DELAY:
+            return self.pilot.time - self._condition_started >= item.param1
+        return self.pilot.yaw_settled()
+
+    def _run_do(self, item: MissionItem) -> None:
+        pilot = self.pilot
+        if item.command == DO_CHANGE_SPEED:
+            if item.param2 > 0:
+                pilot.set_speed(item.param2)
+        elif item.command == DO_CHANGE_ALTITUDE:
+            if self.nav is not None:
+                target = self.nav.target
+                self.nav.target = (target[0], target[1], item.param1)
+                if self.nav.phase == "go":
+                    pilot.fly_to(self.nav.target)
+        elif item.command == DO_SET_HOME:
+            pilot.set_home_from(item)
+        elif item.command in NAMES:
+            pilot.do_command(item)
+        else:
+            pilot.text(4, f"Skipping invalid cmd #{item.command}")

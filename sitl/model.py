@@ -1,0 +1,1104 @@
+"""One simulated ArduCopter: physics, flight modes, commands, streams and failsafes, no I/O.
+
+Theory of operation. The model is a state machine driven from outside: ``handle(msg)``
+takes one decoded MAVLink message and returns the replies; ``step(dt)`` advances vehicle
+time by ``dt`` seconds and returns what became due (telemetry streams, STATUSTEXT,
+MISSION_ITEM_REACHED, companion reports). Time advances in fixed control ticks of
+:data:`TICK` seconds whatever the sizes of the steps, so a run is the same for the same
+seed, the same messages and the same total time.
+
+Each tick: the sensors age (GPS lock after ``SIM_GPS_LOCKTIME`` s, the EKF uses GPS after
+``SIM_EKF_GPS_TIME`` s, faults strike), failsafes are checked, the flight mode turns its
+goal into a motion demand (a position target, a velocity, or a landing), the body moves
+within its limits (:mod:`sitl.physics`), touch-down, collisions and the fence are
+detected, the battery drains, and due stream messages are built.
+
+What a ground station sees follows ArduCopter: HEARTBEAT type QUADROTOR, autopilot
+ARDUPILOTMEGA, ``custom_mode`` = mode number; arming refused with "PreArm: ..." and
+COMMAND_ACK FAILED until the position estimate exists; GLOBAL_POSITION_INT with lat = lon
+= 0 until then; auto-disarm ``DISARM_DELAY`` s after landing or when idle on the ground;
+the mission protocol of :mod:`sitl.missions` and the AUTO executor of :mod:`sitl.auto`.
+
+Positions are metres north/east/up of the position the vehicle booted at (the EKF origin,
+which is also the first home); ``home`` moves with DO_SET_HOME and at arming, as on
+ArduPilot, and RTL flies to it.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from dataclasses import replace
+from typing import Any
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+from shapely.geometry import Point, Polygon
+
+from sitl import auto
+from sitl.companion import Companion
+from sitl.faults import Faults
+from sitl.messages import AUTOPILOT, COMPANION, stamp, statustext, targets
+from sitl.missions import FENCE, MISSION, MissionItem, MissionServer
+from sitl.params import AUTOPILOT_DEFAULTS, Params, param_replies
+from sitl.physics import Battery, Body, Limits, flight_current
+from tml.geo import to_global, to_local
+from tml.world import Cylinder, Home, World
+
+TICK = 0.05  # seconds of vehicle time per control step
+
+MODES = {"STABILIZE": 0, "AUTO": 3, "GUIDED": 4, "LOITER": 5, "RTL": 6, "LAND": 9, "BRAKE": 17}
+MODE_NAMES = {number: name for name, number in MODES.items()}
+ARMABLE = frozenset({"STABILIZE", "GUIDED", "LOITER"})
+NEEDS_POSITION = frozenset({"AUTO", "GUIDED", "LOITER", "RTL", "BRAKE"})
+GUIDED_FLAG_MODES = frozenset({"AUTO", "GUIDED", "RTL", "LAND", "LOITER", "BRAKE"})
+
+M = mavlink
+# Default stream rates in Hz (message id -> rate); SET_MESSAGE_INTERVAL and
+# REQUEST_DATA_STREAM change them per vehicle.
+DEFAULT_RATES = {
+    M.MAVLINK_MSG_ID_HEARTBEAT: 1.0,
+    M.MAVLINK_MSG_ID_SYS_STATUS: 1.0,
+    M.MAVLINK_MSG_ID_BATTERY_STATUS: 1.0,
+    M.MAVLINK_MSG_ID_GPS_RAW_INT: 1.0,
+    M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 4.0,
+    M.MAVLINK_MSG_ID_LOCAL_POSITION_NED: 4.0,
+    M.MAVLINK_MSG_ID_ATTITUDE: 4.0,
+    M.MAVLINK_MSG_ID_VFR_HUD: 4.0,
+    M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 1.0,
+    M.MAVLINK_MSG_ID_MISSION_CURRENT: 1.0,
+    M.MAVLINK_MSG_ID_EKF_STATUS_REPORT: 1.0,
+    M.MAVLINK_MSG_ID_HOME_POSITION: 0.0,  # sent when home changes and on request
+}
+# REQUEST_DATA_STREAM groups (MAV_DATA_STREAM) as ArduPilot maps them.
+DATA_STREAMS = {
+    M.MAV_DATA_STREAM_RAW_SENSORS: (M.MAVLINK_MSG_ID_GPS_RAW_INT,),
+    M.MAV_DATA_STREAM_EXTENDED_STATUS: (
+        M.MAVLINK_MSG_ID_SYS_STATUS, M.MAVLINK_MSG_ID_GPS_RAW_INT,
+        M.MAVLINK_MSG_ID_MISSION_CURRENT,
+    ),
+    M.MAV_DATA_STREAM_POSITION: (
+        M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, M.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
+    ),
+    M.MAV_DATA_STREAM_EXTRA1: (M.MAVLINK_MSG_ID_ATTITUDE,),
+    M.MAV_DATA_STREAM_EXTRA2: (M.MAVLINK_MSG_ID_VFR_HUD,),
+    M.MAV_DATA_STREAM_EXTRA3: (
+        M.MAVLINK_MSG_ID_BATTERY_STATUS, M.MAVLINK_MSG_ID_EKF_STATUS_REPORT,
+        M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
+    ),
+}
+EKF_BEFORE_GPS = 0xA7  # attitude, velocities, vertical position, constant-position mode
+EKF_WITH_GPS = 0x33F  # ... plus horizontal position, relative and absolute, and predicted
+FORCE_ARM = (2989, 21196)  # param2 magic numbers that skip the checks
+FLIGHT_SW_VERSION = (4 << 24) | (6 << 16) | (0 << 8) | 255  # 4.6.0 official
+CAPABILITIES = (
+    M.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT | M.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
+    | M.MAV_PROTOCOL_CAPABILITY_MISSION_INT | M.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+    | M.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
+    | M.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
+    | M.MAV_PROTOCOL_CAPABILITY_MAVLINK2 | M.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
+    | M.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY
+)
+LANDED_AFTER = 1.0  # seconds on the ground before touch-down counts (ArduCopter's detector)
+GUIDED_VELOCITY_TIMEOUT = 3.0  # a velocity target older than this stops the vehicle
+
+Vector = tuple[float, float, float]
+
+
+class VehicleModel:
+    """An ArduCopter-like vehicle with system id ``system_id`` booted at ``home``.
+
+    ``params`` overrides parameter defaults (``SIM_GPS_LOCKTIME`` and ``SIM_EKF_GPS_TIME``
+    shorten the start-up delays); ``faults`` supplies command rejection, GPS loss and
+    battery failure. State for inspection: ``mode``, ``armed``, ``landed``, ``position``,
+    ``battery_remaining``, ``time``, ``mission_items``, ``home``.
+    """
+
+    def __init__(
+        self, system_id: int, home: Home, world: World | None = None, seed: int = 0,
+        params: dict[str, float] | None = None, faults: Faults | None = None,
+    ) -> None:
+        self.system_id = system_id
+        self.origin = home
+        self.home = home
+        self.world = world or World(home=home)
+        self.faults = faults or Faults(seed=seed)
+        self.params = Params(
+            AUTOPILOT_DEFAULTS, {"MAV_SYSID": system_id, "SYSID_THISMAV": system_id,
+                                 **(params or {})}
+        )
+        if self.world.geofence is not None and "FENCE_ENABLE" not in (params or {}):
+            self.params.set("FENCE_ENABLE", 1)
+        self._rng = random.Random(f"{seed}/{system_id}")
+        self.body = Body(heading=home.heading)
+        self.battery = Battery(self.params["BATT_CAPACITY"], self.params["SIM_BATT_VOLTAGE"])
+        self.missions = MissionServer(self._home_item, self._list_changed)
+        self.companion = Companion(system_id, self.world, self._nearest_obstacle)
+        self.mode = "STABILIZE"
+        self.armed = False
+        self.landed = True
+        self.time = 0.0
+        self.step_count = 0
+        self.control_period = TICK
+        self.gripper_closed = False
+        self.images_captured = 0
+        self._pending = 0.0
+        self._outbox: list[Any] = []
+        self._intervals = {msg_id: _interval(rate) for msg_id, rate in DEFAULT_RATES.items()}
+        self._next_due = dict.fromkeys(self._intervals, 0.0)
+        self._speed: float | None = None
+        self._target: Vector | None = None
+        self._velocity: tuple[Vector, float] | None = None  # (velocity, expiry time)
+        self._landing: tuple[float, float] | None = None
+        self._yaw: tuple[float, float] | None = None  # (heading, rate)
+        self._rtl_phase = ""
+        self._rtl_since = 0.0
+        self.auto: auto.AutoMission | None = None
+        self._mission_current = 0
+        self._ground_since = 0.0
+        self._idle_since = 0.0
+        self._gcs_seen: float | None = None
+        self._failsafes: set[str] = set()
+        self._low_voltage_since: float | None = None
+        self._colliding = False
+        self._capture: tuple[float, int, float] | None = None  # (interval, left, next time)
+        self._trigger_distance = 0.0
+        self._last_trigger: Vector | None = None
+        self._obstacles = [_footprint(obstacle) for obstacle in self.world.obstacles]
+        self._fence_polygon: Polygon | None = _fence_polygon(self.world)
+        self._home_changed()
+
+    # ----------------------------------------------------------------- public state
+    @property
+    def position(self) -> Vector:
+        """(north, east, up) in metres from the boot position."""
+        return self.body.position
+
+    @property
+    def heading(self) -> float:
+        """Heading in degrees clockwise from north."""
+        return self.body.heading
+
+    @property
+    def battery_remaining(self) -> int:
+        """Battery charge left in percent."""
+        return self.battery.remaining
+
+    @property
+    def mission_items(self) -> list[MissionItem]:
+        """The stored mission, seq 0 being home (empty when no mission is loaded)."""
+        return self.missions.items(MISSION)
+
+    @property
+    def gps_fixed(self) -> bool:
+        """True once the GPS has a 3D fix (and has not lost it)."""
+        return self.time >= self.params["SIM_GPS_LOCKTIME"] and not self._gps_lost
+
+    @property
+    def position_ok(self) -> bool:
+        """True while the EKF has an absolute horizontal position."""
+        return self.gps_fixed and self.time >= self.params["SIM_EKF_GPS_TIME"]
+
+    @property
+    def _gps_lost(self) -> bool:
+        at = self.faults.gps_loss_at
+        return at is not None and self.time >= at
+
+    # ------------------------------------------------------------------- interface
+    def handle(self, msg: Any) -> list[Any]:
+        """Replies to one decoded MAVLink message."""
+        kind = msg.get_type()
+        if kind == "HEARTBEAT":
+            if msg.type == M.MAV_TYPE_GCS:
+                self._gcs_seen = self.time
+            return []
+        if getattr(msg, "target_component", 0) == COMPANION:
+            if targets(msg, self.system_id, COMPANION):
+                return self.companion.handle(msg)
+            return []
+        if not targets(msg, self.system_id, AUTOPILOT):
+            return []
+        replies = self._dispatch(kind, msg)
+        replies.extend(self._flush())
+        return [stamp(reply, self.system_id, AUTOPILOT) if reply._header.srcSystem == 0
+                else reply for reply in replies]
+
+    def step(self, dt: float) -> list[Any]:
+        """Advance ``dt`` seconds of vehicle time; returns the messages that became due."""
+        self._pending += dt
+        out: list[Any] = []
+        while self._pending >= TICK - 1e-9:
+            self._pending -= TICK
+            self.step_count += 1
+            self.time = self.step_count * TICK
+            self._tick()
+            out.extend(self._streams())
+            out.extend(self._flush())
+            out.extend(self.companion.step(self.time, self.position, self.heading))
+        return out
+
+    # ---------------------------------------------------------------- dispatching
+    def _dispatch(self, kind: str, msg: Any) -> list[Any]:
+        if kind.startswith("PARAM_"):
+            replies = param_replies(self.params, msg)
+            if kind == "PARAM_SET" and replies:
+                self.battery.capacity_mah = self.params["BATT_CAPACITY"]
+            return replies
+        if kind.startswith("MISSION_") and kind not in ("MISSION_SET_CURRENT", "MISSION_ACK"):
+            return self.missions.handle(msg, self.time)
+        if kind == "MISSION_SET_CURRENT":
+            self._set_current(msg.seq)
+            return [self._build(M.MAVLINK_MSG_ID_MISSION_CURRENT)]
+        if kind in ("COMMAND_LONG", "COMMAND_INT"):
+            return self._command(msg)
+        if kind == "SET_MODE":
+            ok = self.set_mode(MODE_NAMES.get(msg.custom_mode, ""))
+            result = M.MAV_RESULT_ACCEPTED if ok else M.MAV_RESULT_FAILED
+            return [M.MAVLink_command_ack_message(M.MAVLINK_MSG_ID_SET_MODE, result)]
+        if kind == "SET_POSITION_TARGET_LOCAL_NED":
+            self._local_target(msg)
+        elif kind == "SET_POSITION_TARGET_GLOBAL_INT":
+            self._global_target(msg)
+        elif kind == "REQUEST_DATA_STREAM":
+            self._data_stream(msg)
+        return []
+
+    def _command(self, msg: Any) -> list[Any]:
+        command = msg.command
+        p = [msg.param1, msg.param2, msg.param3, msg.param4]
+        if msg.get_type() == "COMMAND_INT":
+            p += [msg.x / 1e7, msg.y / 1e7, msg.z]
+        else:
+            p += [msg.param5, msg.param6, msg.param7]
+        extra: list[Any] = []
+        if command in self.faults.reject_commands:
+            result = self.faults.reject_commands[command]
+        else:
+            result = self._execute(command, p, extra)
+        ack = M.MAVLink_command_ack_message(
+            command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()
+        )
+        return [ack, *extra]
+
+    def _execute(self, command: int, p: list[float], extra: list[Any]) -> int:
+        ok, failed = M.MAV_RESULT_ACCEPTED, M.MAV_RESULT_FAILED
+        if command == M.MAV_CMD_COMPONENT_ARM_DISARM:
+            forced = round(p[1]) in FORCE_ARM
+            return self._arm(forced) if p[0] >= 0.5 else self._disarm(forced)
+        if command == M.MAV_CMD_DO_SET_MODE:
+            if not round(p[0]) & M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+                return M.MAV_RESULT_UNSUPPORTED
+            return ok if self.set_mode(MODE_NAMES.get(round(p[1]), "")) else failed
+        if command == M.MAV_CMD_NAV_TAKEOFF:
+            return ok if self._takeoff(p[6]) else failed
+        if command == M.MAV_CMD_NAV_LAND:
+            return ok if self.set_mode("LAND") else failed
+        if command == M.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+            return ok if self.set_mode("RTL") else failed
+        if command == M.MAV_CMD_DO_CHANGE_SPEED:
+            if p[1] <= 0:
+                return failed
+            self._speed = p[1]
+            return ok
+        if command == M.MAV_CMD_CONDITION_YAW:
+            if not 0 <= p[0] <= 360 or p[3] not in (0, 1):
+                return failed
+            heading = self.heading + (-p[0] if p[2] < 0 else p[0]) if p[3] else p[0]
+            self.set_yaw(heading % 360.0, p[1] or 60.0)
+            return ok
+        if command == M.MAV_CMD_DO_REPOSITION:
+            return self._reposition(p)
+        if command == M.MAV_CMD_DO_SET_HOME:
+            if not self.position_ok:
+                return failed
+            if p[0] >= 0.5:
+                self._set_home_here()
+            else:
+                self.home = Home(p[4], p[5], p[6], self.home.heading)
+                self._home_changed()
+            return ok
+        if command == M.MAV_CMD_MISSION_START:
+            if not self.set_mode("AUTO"):
+                return failed
+            if p[0] >= 1 and self.auto is not None:
+                self.auto.start(round(p[0]))
+            return ok
+        if command == M.MAV_CMD_DO_SET_MISSION_CURRENT:
+            return ok if self._set_current(round(p[0])) else failed
+        if command in (M.MAV_CMD_DO_DIGICAM_CONTROL, M.MAV_CMD_IMAGE_START_CAPTURE,
+                       M.MAV_CMD_IMAGE_STOP_CAPTURE, M.MAV_CMD_DO_SET_CAM_TRIGG_DIST):
+            self._camera(command, p)
+            return ok
+        if command == M.MAV_CMD_DO_GRIPPER:
+            if not self.params["GRIP_ENABLE"]:
+                return failed
+            self._gripper(p[1])
+            return ok
+        if command == M.MAV_CMD_SET_MESSAGE_INTERVAL:
+            msg_id, interval = round(p[0]), p[1]
+            if msg_id not in self._intervals:
+                return failed
+            if interval < 0:
+                self._intervals[msg_id] = None
+            elif interval == 0:
+                self._intervals[msg_id] = _interval(DEFAULT_RATES[msg_id])
+            else:
+                self._intervals[msg_id] = interval / 1e6
+            self._next_due[msg_id] = self.time
+            return ok
+        if command == M.MAV_CMD_REQUEST_MESSAGE:
+            built = self._build(round(p[0]))
+            if built is None:
+                return failed
+            extra.append(built)
+            return ok
+        if command == M.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
+            extra.append(self._build(M.MAVLINK_MSG_ID_AUTOPILOT_VERSION))
+            return ok
+        if command == M.MAV_CMD_GET_HOME_POSITION:
+            built = self._build(M.MAVLINK_MSG_ID_HOME_POSITION)
+            if built is None:
+                return failed
+            extra.append(built)
+            return ok
+        return M.MAV_RESULT_UNSUPPORTED
+
+    # ------------------------------------------------------------ modes and arming
+    def set_mode(self, name: str) -> bool:
+        """Change flight mode as ArduCopter would; False (with a STATUSTEXT) when refused."""
+        if name not in MODES:
+            return False
+        if name in NEEDS_POSITION and not self.position_ok:
+            self._text(M.MAV_SEVERITY_WARNING, f"Flight mode change failed: {name}")
+            return False
+        if name == "AUTO" and self.armed and self.landed and not self._starts_with_takeoff():
+            self._text(M.MAV_SEVERITY_WARNING, "Auto: Missing Takeoff Cmd")
+            return False
+        self.mode = name
+        self._target, self._velocity, self._landing, self.auto = None, None, None, None
+        self._rtl_phase = ""
+        flying = self.armed and not self.landed
+        if name in ("GUIDED", "LOITER", "BRAKE") and flying:
+            self._target = self._stopping_point()
+        elif name == "LAND":
+            self._landing = self.position[:2]
+        elif name == "RTL" and flying:
+            self._start_rtl()
+        elif name == "AUTO":
+            self._start_auto(self._mission_current or 1)
+        return True
+
+    def _starts_with_takeoff(self) -> bool:
+        for item in self.mission_items[1:]:
+            if item.command in auto.NAV_COMMANDS:
+                return item.command == auto.NAV_TAKEOFF
+        return False
+
+    def _start_auto(self, index: int) -> None:
+        if not self.armed or len(self.mission_items) < 2:
+            return
+        self.auto = auto.AutoMission(
+            self.mission_items, self, self.params["WPNAV_RADIUS"] / 100.0
+        )
+        self.auto.start(index)
+
+    def _arm(self, forced: bool) -> int:
+        if self.armed:
+            return M.MAV_RESULT_ACCEPTED
+        if not forced:
+            problem = self._prearm_problem()
+            if problem:
+                self._text(M.MAV_SEVERITY_CRITICAL, problem)
+                return M.MAV_RESULT_FAILED
+        self.armed = True
+        self._idle_since = self.time
+        self._text(M.MAV_SEVERITY_INFO, "Arming motors")
+        if self.position_ok:
+            self._set_home_here()
+        return M.MAV_RESULT_ACCEPTED
+
+    def _prearm_problem(self) -> str:
+        if self.mode not in ARMABLE:
+            return "Arm: Mode not armable"
+        if self.mode in NEEDS_POSITION and not self.position_ok:
+            return "PreArm: Need Position Estimate"
+        if not self.gps_fixed:
+            return "PreArm: GPS 1: Bad fix"
+        if self._failsafes & {"battery", "battery critical"}:
+            return "PreArm: Battery failsafe"
+        if self.params["FENCE_ENABLE"] and self._fence_breach(self.position):
+            return "PreArm: Vehicle breaching fence"
+        return ""
+
+    def _disarm(self, forced: bool) -> int:
+        if not self.armed:
+            return M.MAV_RESULT_ACCEPTED
+        if not self.landed and not forced:
+            return M.MAV_RESULT_FAILED
+        self.disarm()
+        return M.MAV_RESULT_ACCEPTED
+
+    def disarm(self) -> None:
+        """Stop the motors (a forced disarm in flight drops the vehicle)."""
+        self.armed = False
+        self._target, self._velocity, self._landing, self.auto = None, None, None, None
+        self._text(M.MAV_SEVERITY_INFO, "Disarming motors")
+
+    def _takeoff(self, altitude: float) -> bool:
+        if not self.armed or not self.landed or self.mode not in ("GUIDED", "LOITER"):
+            return False
+        here = self.position
+        self._target = (here[0], here[1], max(altitude, 1.0))
+        return True
+
+    # ------------------------------------------------------------ guided targets
+    def _reposition(self, p: list[float]) -> int:
+        change_mode = round(p[1]) & M.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE
+        if self.mode != "GUIDED" and not change_mode:
+            return M.MAV_RESULT_DENIED
+        if not self.armed or self.landed:
+            return M.MAV_RESULT_FAILED
+        if self.mode != "GUIDED" and not self.set_mode("GUIDED"):
+            return M.MAV_RESULT_FAILED
+        here = self.position
+        north, east = here[:2]
+        if p[4] or p[5]:
+            north, east, _ = self._local(p[4], p[5], self.origin.altitude)
+        up = here[2] if math.isnan(p[6]) else p[6]
+        if p[0] > 0:
+            self._speed = p[0]
+        self._go((north, east, up))
+        return M.MAV_RESULT_ACCEPTED
+
+    def _guided_ready(self) -> bool:
+        return self.mode == "GUIDED" and self.armed and not self.landed
+
+    def _local_target(self, msg: Any) -> None:
+        if not self._guided_ready():
+            return
+        mask, frame = msg.type_mask, msg.coordinate_frame
+        here = self.position
+        north, east, down = msg.x, msg.y, msg.z
+        vn, ve, vd = msg.vx, msg.vy, msg.vz
+        if frame in (M.MAV_FRAME_BODY_NED, M.MAV_FRAME_BODY_OFFSET_NED):
+            yaw = math.radians(self.heading)
+            north, east = (north * math.cos(yaw) - east * math.sin(yaw),
+                           north * math.sin(yaw) + east * math.cos(yaw))
+            vn, ve = (vn * math.cos(yaw) - ve * math.sin(yaw),
+                      vn * math.sin(yaw) + ve * math.cos(yaw))
+        if frame in (M.MAV_FRAME_LOCAL_OFFSET_NED, M.MAV_FRAME_BODY_NED,
+                     M.MAV_FRAME_BODY_OFFSET_NED):
+            north, east, down = north + here[0], east + here[1], down - here[2]
+        self._apply_target(mask, (north, east, -down), (vn, ve, -vd), msg.yaw)
+
+    def _global_target(self, msg: Any) -> None:
+        if not self._guided_ready():
+            return
+        base = self.origin.altitude
+        altitude = msg.alt + (0.0 if msg.coordinate_frame in (0, 5) else base)
+        target = self._local(msg.lat_int / 1e7, msg.lon_int / 1e7, altitude)
+        self._apply_target(msg.type_mask, target, (msg.vx, msg.vy, -msg.vz), msg.yaw)
+
+    def _apply_target(self, mask: int, position: Vector, velocity: Vector, yaw: float) -> None:
+        if not mask & 0b111:
+            self._go(position)
+        elif not mask & 0b111000:
+            self._target = None
+            self._velocity = (velocity, self.time + GUIDED_VELOCITY_TIMEOUT)
+        if not mask & 1024:
+            self.set_yaw(math.degrees(yaw) % 360.0, self.params["ATC_RATE_Y_MAX"])
+
+    def _go(self, target: Vector) -> None:
+        self._velocity, self._landing = None, None
+        self._target = target
+
+    # ------------------------------------------------------------------- Pilot API
+    def item_position(self, item: MissionItem) -> Vector:
+        """Where a mission item points, in the local frame (lat = lon = 0: here)."""
+        here = self.position
+        if item.frame not in (0, 3, 5, 6, 10, 11):
+            return here
+        absolute = item.frame in (0, 5)
+        altitude = item.z if absolute else item.z + self.home.altitude
+        if item.x == 0 and item.y == 0:
+            return here[0], here[1], altitude - self.origin.altitude
+        return self._local(item.x / 1e7, item.y / 1e7, altitude)
+
+    def fly_to(self, target: Vector) -> None:
+        """Fly to ``target`` and hold there."""
+        self._go(target)
+
+    def hold(self) -> None:
+        """Stop and hold the present position."""
+        self._go(self._stopping_point())
+
+    def land_at(self, north: float, east: float) -> None:
+        """Descend to the ground at (north, east)."""
+        self._target, self._velocity = None, None
+        self._landing = (north, east)
+
+    def return_home(self) -> None:
+        """Run the RTL sequence (climb, return, loiter, land)."""
+        self._start_rtl()
+
+    def has_landed(self) -> bool:
+        """True once touch-down has been detected."""
+        return self.landed
+
+    def arrived(self, target: Vector, radius: float) -> bool:
+        """True when within ``radius`` metres of ``target``."""
+        return math.dist(self.position, target) <= radius
+
+    def set_speed(self, speed: float) -> None:
+        """Horizontal speed for waypoints and guided targets (m/s)."""
+        self._speed = speed
+
+    def set_yaw(self, heading: float, rate: float) -> None:
+        """Turn to ``heading`` degrees at ``rate`` degrees per second, and keep it."""
+        self._yaw = (heading, min(rate, self.params["ATC_RATE_Y_MAX"]))
+
+    def yaw_settled(self) -> bool:
+        """True when the heading has reached the yaw target."""
+        if self._yaw is None:
+            return True
+        return abs((self._yaw[0] - self.heading + 180.0) % 360.0 - 180.0) < 1.0
+
+    def set_home_from(self, item: MissionItem) -> None:
+        """DO_SET_HOME as a mission item."""
+        if item.param1 >= 0.5 or (item.x == 0 and item.y == 0):
+            self._set_home_here()
+        else:
+            self.home = Home(item.x / 1e7, item.y / 1e7, item.z, self.home.heading)
+            self._home_changed()
+
+    def do_command(self, item: MissionItem) -> None:
+        """Camera and gripper items of a mission."""
+        params = [item.param1, item.param2, item.param3, item.param4, float(item.x),
+                  float(item.y), item.z]
+        if item.command == auto.DO_GRIPPER:
+            self._gripper(item.param2)
+        else:
+            self._camera(item.command, params)
+
+    def text(self, severity: int, message: str) -> None:
+        """Queue a STATUSTEXT."""
+        self._text(severity, message)
+
+    def reached(self, seq: int) -> None:
+        """Queue MISSION_ITEM_REACHED for ``seq``."""
+        self._outbox.append(M.MAVLink_mission_item_reached_message(seq))
+
+    # ------------------------------------------------------------------ the tick
+    def _tick(self) -> None:
+        failure_at = self.faults.battery_failure_at
+        if failure_at is not None and self.time >= failure_at:
+            self.battery.failed = True
+        self._check_failsafes()
+        if self.mode == "RTL" or self._rtl_phase:
+            self._update_rtl()
+        if self.auto is not None:
+            self.auto.update()
+        self._fly()
+        self._check_landed()
+        self._update_camera()
+        wind = self.params["SIM_WIND_SPD"]
+        self.battery.drain(TICK, flight_current(
+            self.armed, not self.landed, self.body.velocity, wind))
+        if self.armed and self.landed and self._target is None and self._landing is None:
+            if self.time - self._idle_since >= self.params["DISARM_DELAY"] > 0:
+                self.disarm()
+        elif self.armed:
+            self._idle_since = self.time
+
+    def _limits(self) -> Limits:
+        p = self.params
+        speed = self._speed or p["WPNAV_SPEED"] / 100.0
+        if self.mode == "RTL" and p["RTL_SPEED"] > 0:
+            speed = p["RTL_SPEED"] / 100.0
+        accel = p["WPNAV_ACCEL"] / 100.0 * (2.0 if self.mode == "BRAKE" else 1.0)
+        return Limits(speed, p["WPNAV_SPEED_UP"] / 100.0, p["WPNAV_SPEED_DN"] / 100.0,
+                      accel, p["WPNAV_ACCEL_Z"] / 100.0, p["ATC_RATE_Y_MAX"])
+
+    def _wind(self) -> tuple[float, float]:
+        # SIM_WIND_DIR is where the wind comes from; it blows toward the opposite side.
+        speed = self.params["SIM_WIND_SPD"]
+        towards = math.radians(self.params["SIM_WIND_DIR"] + 180)
+        return speed * math.cos(towards), speed * math.sin(towards)
+
+    def _fly(self) -> None:
+        body = self.body
+        if not self.armed:
+            if self.landed:
+                body.stop()
+                return
+            body.move((0.0, 0.0, -3.0), Limits(accel_z=9.8, descent=10.0), TICK)  # falling
+            return
+        if self.landed and not self._wants_climb():
+            body.stop()
+            return
+        limits = self._limits()
+        before = body.position
+        if self._landing is not None:
+            up = body.position[2]
+            low = up <= self.params["LAND_ALT_LOW"] / 100.0
+            speed = self.params["LAND_SPEED"] if low else (
+                self.params["LAND_SPEED_HIGH"] or self.params["WPNAV_SPEED_DN"])
+            north, east = self._landing
+            demand = body.velocity_toward((north, east, up), limits)
+            body.move((demand[0], demand[1], -speed / 100.0),
+                      replace(limits, descent=speed / 100.0), TICK)
+        elif self._velocity is not None and self.time < self._velocity[1]:
+            body.move(self._velocity[0], limits, TICK)
+        elif self._target is not None:
+            body.move(body.velocity_toward(self._target, limits), limits, TICK,
+                      target=self._target)
+        else:
+            body.move((0.0, 0.0, 0.0), limits, TICK, self._wind(), hold=self.mode != "STABILIZE")
+        if self._blocked(body.position):
+            body.position = before
+            body.stop()
+        if self.landed and body.position[2] > 0.05:
+            self.landed = False
+            self._text(M.MAV_SEVERITY_INFO, "Takeoff")
+        self._turn(before)
+
+    def _turn(self, before: Vector) -> None:
+        if self._yaw is not None:
+            self.body.turn(self._yaw[0], self._yaw[1], TICK)
+            return
+        dn, de = self.position[0] - before[0], self.position[1] - before[1]
+        if self.mode in ("AUTO", "GUIDED", "RTL") and math.hypot(dn, de) > 1.0 * TICK:
+            course = math.degrees(math.atan2(de, dn))
+            self.body.turn(course, self.params["ATC_RATE_Y_MAX"], TICK)
+
+    def _wants_climb(self) -> bool:
+        if self._target is not None:
+            return self._target[2] > 0.3
+        return self._velocity is not None and self._velocity[0][2] > 0.1
+
+    def _check_landed(self) -> None:
+        body = self.body
+        if body.position[2] > 0.0 or self.landed:
+            self._ground_since = self.time
+            return
+        body.position = (body.position[0], body.position[1], 0.0)
+        body.stop()
+        if self.time - self._ground_since < LANDED_AFTER:
+            return
+        self.landed = True
+        self._idle_since = self.time
+        landing = self._landing is not None
+        self._target, self._velocity, self._landing = None, None, None
+        if self.auto is not None:
+            self.auto.update()  # lets NAV_LAND / RTL items complete and be reported
+        if self.armed and (landing or self.mode in ("LAND", "RTL")):
+            self.disarm()
+
+    # --------------------------------------------------------------------- RTL
+    def _start_rtl(self) -> None:
+        here = self.position
+        altitude = max(here[2], self.params["RTL_ALT"] / 100.0)
+        self._rtl_phase = "climb"
+        self._go((here[0], here[1], altitude))
+
+    def _update_rtl(self) -> None:
+        if not self._rtl_phase or not self.armed:
+            return
+        home = self._home_local()
+        target = self._target
+        if self._rtl_phase == "climb" and target is not None and self.arrived(target, 0.3):
+            self._rtl_phase = "return"
+            self._go((home[0], home[1], target[2]))
+        elif self._rtl_phase == "return" and target is not None and self.arrived(target, 1.0):
+            self._rtl_phase, self._rtl_since = "loiter", self.time
+        elif self._rtl_phase == "loiter" and (
+            self.time - self._rtl_since >= self.params["RTL_LOIT_TIME"] / 1000.0
+        ):
+            self._rtl_phase = "land"
+            self.land_at(home[0], home[1])
+
+    # ---------------------------------------------------------------- failsafes
+    def _check_failsafes(self) -> None:
+        self._battery_failsafe()
+        if self.params["FS_GCS_ENABLE"] and self._gcs_seen is not None:
+            lost = self.time - self._gcs_seen > self.params["FS_GCS_TIMEOUT"]
+            if lost and "gcs" not in self._failsafes and self.armed:
+                self._failsafes.add("gcs")
+                self._text(M.MAV_SEVERITY_CRITICAL, "GCS Failsafe")
+                action = round(self.params["FS_GCS_ENABLE"])
+                if not (action == 2 and self.mode == "AUTO"):
+                    self._failsafe_action(5 if action in (4, 5) else 2)
+            elif not lost and "gcs" in self._failsafes:
+                self._failsafes.discard("gcs")
+                self._text(M.MAV_SEVERITY_CRITICAL, "GCS Failsafe Cleared")
+        if self._gps_lost and "ekf" not in self._failsafes:
+            self._failsafes.add("ekf")
+            self._text(M.MAV_SEVERITY_CRITICAL, "GPS Glitch or Compass error")
+            if self.armed and not self.landed and self.mode in NEEDS_POSITION:
+                self._text(M.MAV_SEVERITY_CRITICAL, "EKF Failsafe: changed to LAND Mode")
+                self.mode = "LAND"
+                self._target, self._velocity, self.auto, self._rtl_phase = None, None, None, ""
+                self._landing = self.position[:2]
+        if self.params["FENCE_ENABLE"] and self.armed and not self.landed:
+            breach = self._fence_breach(self.position)
+            if breach and "fence" not in self._failsafes:
+                self._failsafes.add("fence")
+                self._text(M.MAV_SEVERITY_CRITICAL, f"Fence Breached: {breach}")
+                action = round(self.params["FENCE_ACTION"])
+                if action and self.mode not in ("RTL", "LAND"):
+                    self._failsafe_action({1: 2, 2: 1, 3: 2, 4: 4, 5: 2}.get(action, 2))
+            elif not breach:
+                self._failsafes.discard("fence")
+
+    def _battery_failsafe(self) -> None:
+        p, battery = self.params, self.battery
+        voltage = battery.voltage
+        if voltage < p["BATT_LOW_VOLT"]:
+            self._low_voltage_since = self._low_voltage_since or self.time
+        else:
+            self._low_voltage_since = None
+        remaining_mah = battery.capacity_mah - battery.consumed_mah
+        critical = battery.failed or (0 < voltage < p["BATT_CRT_VOLT"])
+        low = critical or (
+            self._low_voltage_since is not None
+            and self.time - self._low_voltage_since >= p["BATT_LOW_TIMER"]
+        ) or (p["BATT_LOW_MAH"] > 0 and remaining_mah < p["BATT_LOW_MAH"])
+        for level, active, action in (("battery", low, p["BATT_FS_LOW_ACT"]),
+                                      ("battery critical", critical, p["BATT_FS_CRT_ACT"])):
+            if not active or level in self._failsafes:
+                continue
+            self._failsafes.add(level)
+            word = "critical" if level == "battery critical" else "low"
+            self._text(M.MAV_SEVERITY_CRITICAL,
+                       f"Battery 1 is {word} {voltage:.2f}V used {battery.consumed_mah:.0f} mAh")
+            if self.armed:
+                self._failsafe_action(round(action))
+
+    def _failsafe_action(self, action: int) -> None:
+        """ArduCopter's failsafe actions: 1 land, 2/3/4 RTL (land if RTL fails), 5 disarm."""
+        if not self.armed:
+            return
+        if self.landed:
+            self.disarm()
+        elif action == 1:
+            self.set_mode("LAND")
+        elif action in (2, 3, 4):
+            if not self.set_mode("RTL"):
+                self.set_mode("LAND")
+        elif action == 5:
+            self.disarm()
+
+    def _fence_breach(self, position: Vector) -> str:
+        p = self.params
+        kinds = round(p["FENCE_TYPE"])
+        fence = self.world.geofence
+        max_alt = p["FENCE_ALT_MAX"]
+        if fence is not None and fence.max_altitude is not None:
+            max_alt = min(max_alt, fence.max_altitude)
+        if kinds & 1 and position[2] > max_alt:
+            return "maximum altitude"
+        home = self._home_local()
+        from_home = math.hypot(position[0] - home[0], position[1] - home[1])
+        if kinds & 2 and from_home > p["FENCE_RADIUS"]:
+            return "circle"
+        polygon = self._fence_polygon
+        if kinds & 4 and polygon is not None and not polygon.contains(Point(position[:2])):
+            return "polygon"
+        return ""
+
+    # ------------------------------------------------------------- obstacles
+    def _blocked(self, position: Vector) -> bool:
+        """True when ``position`` hits an obstacle; reported once per approach."""
+        margin = self.params["AVOID_MARGIN"] if (
+            self.companion.avoiding and self.params["AVOID_ENABLE"]) else 0.0
+        clear = True
+        for name, shape, bottom, top in self._obstacles:
+            if not bottom - margin <= position[2] <= top + margin:
+                continue
+            distance = shape.distance(Point(position[:2]))
+            clear = clear and distance > margin + 1.0
+            if distance <= margin:
+                if not self._colliding:
+                    self._colliding = True
+                    message = f"Avoid: stopped at {name}" if margin else f"Collision with {name}"
+                    severity = M.MAV_SEVERITY_WARNING if margin else M.MAV_SEVERITY_CRITICAL
+                    self._text(severity, message)
+                return True
+        if clear:  # a metre away: the next contact is a new one
+            self._colliding = False
+        return False
+
+    def _nearest_obstacle(self, position: Vector) -> float | None:
+        distances = [shape.distance(Point(position[:2]))
+                     for _, shape, bottom, top in self._obstacles if bottom <= position[2] <= top]
+        return min(distances) if distances else None
+
+    # ---------------------------------------------------------- camera, gripper
+    def _camera(self, command: int, p: list[float]) -> None:
+        if command == M.MAV_CMD_DO_DIGICAM_CONTROL:
+            if p[4] >= 0.5:
+                self._capture_image()
+        elif command == M.MAV_CMD_IMAGE_START_CAPTURE:
+            interval, count = p[1], round(p[2])
+            self._capture_image()
+            if count != 1:
+                self._capture = (max(interval, 0.1), count - 1 if count > 1 else -1,
+                                 self.time + max(interval, 0.1))
+        elif command == M.MAV_CMD_IMAGE_STOP_CAPTURE:
+            self._capture = None
+        elif command == M.MAV_CMD_DO_SET_CAM_TRIGG_DIST:
+            self._trigger_distance = max(p[0], 0.0)
+            self._last_trigger = self.position
+            if p[2] >= 0.5 and self._trigger_distance:
+                self._capture_image()
+
+    def _update_camera(self) -> None:
+        if self._capture is not None and self.time >= self._capture[2] - 1e-9:
+            interval, left, _ = self._capture
+            self._capture_image()
+            left -= 1 if left > 0 else 0
+            self._capture = None if left == 0 else (interval, left, self.time + interval)
+        last = self._last_trigger
+        if (self._trigger_distance > 0 and last is not None and not self.landed
+                and math.dist(self.position[:2], last[:2]) >= self._trigger_distance):
+            self._last_trigger = self.position
+            self._capture_image()
+
+    def _capture_image(self) -> None:
+        lat, lon, alt = self._global(self.position)
+        yaw = math.radians(self.heading)
+        self._outbox.append(M.MAVLink_camera_image_captured_message(
+            int(self.time * 1000), 0, 0, round(lat * 1e7), round(lon * 1e7), round(alt * 1000),
+            round(self.position[2] * 1000), [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)],
+            self.images_captured, 1, b"",
+        ))
+        self.images_captured += 1
+
+    def _gripper(self, action: float) -> None:
+        self.gripper_closed = action >= 0.5
+        self._text(M.MAV_SEVERITY_INFO,
+                   "Gripper load grabbed" if self.gripper_closed else "Gripper load released")
+
+    # ----------------------------------------------------------------- helpers
+    def _local(self, latitude: float, longitude: float, altitude: float) -> Vector:
+        o = self.origin
+        return to_local(latitude, longitude, altitude, o.latitude, o.longitude, o.altitude)
+
+    def _global(self, position: Vector) -> Vector:
+        o = self.origin
+        return to_global(*position, o.latitude, o.longitude, o.altitude)
+
+    def _home_local(self) -> Vector:
+        h = self.home
+        return self._local(h.latitude, h.longitude, h.altitude)
+
+    def _set_home_here(self) -> None:
+        lat, lon, alt = self._global(self.position)
+        self.home = Home(lat, lon, alt, self.heading)
+        self._home_changed()
+
+    def _home_changed(self) -> None:
+        if self.position_ok:
+            self._outbox.append(self._build(M.MAVLINK_MSG_ID_HOME_POSITION))
+
+    def _home_item(self) -> MissionItem:
+        h = self.home
+        return MissionItem(0, M.MAV_FRAME_GLOBAL, M.MAV_CMD_NAV_WAYPOINT, 0, 1,
+                           x=round(h.latitude * 1e7), y=round(h.longitude * 1e7), z=h.altitude)
+
+    def _list_changed(self, mission_type: int) -> None:
+        if mission_type == MISSION:
+            count = len(self.mission_items)
+            self.params.set("MIS_TOTAL", max(count - 1, 0))
+            if self._mission_current >= count:
+                self._mission_current = 0
+            if self.auto is not None:
+                self._start_auto(self.auto.current if self.auto.current < count else 1)
+        elif mission_type == FENCE:
+            items = self.missions.items(FENCE)
+            self.params.set("FENCE_TOTAL", len(items))
+            vertices = [self._local(i.x / 1e7, i.y / 1e7, self.origin.altitude)[:2]
+                        for i in items if i.command == M.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION]
+            self._fence_polygon = Polygon(vertices) if len(vertices) >= 3 else _fence_polygon(
+                self.world)
+        else:
+            self.params.set("RALLY_TOTAL", len(self.missions.items(mission_type)))
+
+    def _set_current(self, seq: int) -> bool:
+        if not 0 <= seq < max(len(self.mission_items), 1) and seq != 0:
+            return False
+        self._mission_current = seq
+        if self.auto is not None:
+            self.auto.start(seq)
+        return True
+
+    def _stopping_point(self) -> Vector:
+        (n, e, u), (vn, ve, _) = self.position, self.body.velocity
+        accel = self.params["WPNAV_ACCEL"] / 100.0
+        speed = math.hypot(vn, ve)
+        if speed < 1e-6:
+            return n, e, max(u, 0.0)
+        stop = speed / (2.0 * accel)
+        return n + vn * stop, e + ve * stop, max(u, 0.0)
+
+    def _text(self, severity: int, message: str) -> None:
+        self._outbox.append(statustext(severity, message))
+
+    def _flush(self) -> list[Any]:
+        out, self._outbox = self._outbox, []
+        return [stamp(msg, self.system_id, AUTOPILOT) for msg in out]
+
+    # ---------------------------------------------------------------- streams
+    def _data_stream(self, msg: Any) -> None:
+        groups = list(DATA_STREAMS) if msg.req_stream_id == M.MAV_DATA_STREAM_ALL else [
+            msg.req_stream_id]
+        for group in groups:
+            for msg_id in DATA_STREAMS.get(group, ()):
+                on = msg.start_stop and msg.req_message_rate > 0
+                self._intervals[msg_id] = 1.0 / msg.req_message_rate if on else None
+                self._next_due[msg_id] = self.time
+
+    def _streams(self) -> list[Any]:
+        out = []
+        for msg_id, interval in self._intervals.items():
+            if interval is None or self.time + 1e-9 < self._next_due[msg_id]:
+                continue
+            self._next_due[msg_id] = max(self._next_due[msg_id] + interval, self.time)
+            built = self._build(msg_id)
+            if built is not None:
+                out.append(stamp(built, self.system_id, AUTOPILOT))
+        return out
+
+    def _build(self, msg_id: int) -> Any | None:
+        """The message ``msg_id`` describing the present state (None if not available)."""
+        builder = getattr(self, f"_msg_{msg_id}", None)
+        return builder() if builder is not None else None
+
+    def _msg_0(self) -> Any:  # HEARTBEAT
+        base = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | M.MAV_MODE_FLAG_STABILIZE_ENABLED
+        if self.mode in GUIDED_FLAG_MODES:
+            base |= M.MAV_MODE_FLAG_GUIDED_ENABLED
+        if self.armed:
+            base |= M.MAV_MODE_FLAG_SAFETY_ARMED
+        state = M.MAV_STATE_CRITICAL if self._failsafes else (
+            M.MAV_STATE_ACTIVE if self.armed else M.MAV_STATE_STANDBY)
+        return M.MAVLink_heartbeat_message(M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                                           base, MODES[self.mode], state, 3)
+
+    def _msg_1(self) -> Any:  # SYS_STATUS
+        sensors = (M.MAV_SYS_STATUS_SENSOR_3D_GYRO | M.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+                   | M.MAV_SYS_STATUS_SENSOR_3D_MAG | M.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+                   | M.MAV_SYS_STATUS_SENSOR_GPS | M.MAV_SYS_STATUS_SENSOR_BATTERY)
+        healthy = sensors if self.gps_fixed else sensors & ~M.MAV_SYS_STATUS_SENSOR_GPS
+        b = self.battery
+        return M.MAVLink_sys_status_message(
+            sensors, sensors, healthy, 200, round(b.voltage * 1000), round(b.current * 100),
+            b.remaining, 0, 0, 0, 0, 0, 0)
+
+    def _msg_147(self) -> Any:  # BATTERY_STATUS
+        b = self.battery
+        cells = [round(b.voltage * 1000)] + [65535] * 9
+        return M.MAVLink_battery_status_message(
+            0, M.MAV_BATTERY_FUNCTION_ALL, M.MAV_BATTERY_TYPE_LIPO, 32767, cells,
+            round(b.current * 100), round(b.consumed_mah), -1, b.remaining)
+
+    def _msg_24(self) -> Any:  # GPS_RAW_INT
+        if not self.gps_fixed:
+            return M.MAVLink_gps_raw_int_message(int(self.time * 1e6), 1, 0, 0, 0, 9999, 9999,
+                                                 0, 0, 0)
+        lat, lon, alt = self._global(self.position)
+        noise = 1e-7 * self._rng.uniform(-3.0, 3.0)  # ~0.3 m of receiver noise
+        vn, ve, _ = self.body.velocity
+        return M.MAVLink_gps_raw_int_message(
+            int(self.time * 1e6), 3, round((lat + noise) * 1e7), round((lon + noise) * 1e7),
+            round(alt * 1000), 121, 200, round(math.hypot(vn, ve) * 100),
+            round(math.degrees(math.atan2(ve, vn)) % 360 * 100), 10)
+
+    def _msg_33(self) -> Any:  # GLOBAL_POSITION_INT
+        u = self.position[2]
+        vn, ve, vu = self.body.velocity
+        lat = lon = 0
+        alt = round((self.origin.altitude + u) * 1000)
+        if self.position_ok:
+            la, lo, al = self._global(self.position)
+            lat, lon, alt = round(la * 1e7), round(lo * 1e7), round(al * 1000)
+        home_up = self._home_local()[2]
+        return M.MAVLink_global_position_int_message(
+            int(self.time * 1000), lat, lon, alt, round((u - home_up) * 1000),
+            round(vn * 100), round(ve * 100), round(-vu * 100), round(self.heading * 100) % 36000)
+
+    def _msg_32(self) -> Any:  # LOCAL_POSITION_NED
+        (n, e, u), (vn, ve, vu) = self.position, self.body.velocity
+        return M.MAVLink_local_position_ned_message(int(self.time * 1000), n, e, -u, vn, ve, -vu)
+
+    def _msg_30(self) -> Any:  # ATTITUDE
+        yaw = math.radians(self.heading)
+        yaw = yaw - 2 * math.pi if yaw > math.pi else yaw
+        return M.MAVLink_attitude_message(int(self.time * 1000), 0.0, 0.0, yaw, 0.0, 0.0, 0.0)
+
+    def _msg_74(self) -> Any:  # VFR_HUD
+        vn, ve, vu = self.body.velocity
+        ground = math.hypot(vn, ve)
+        throttle = 0 if not self.armed else (15 if self.landed else 50)
+        return M.MAVLink_vfr_hud_message(ground, ground, round(self.heading) % 360, throttle,
+                                         self.origin.altitude + self.position[2], vu)
+
+    def _msg_245(self) -> Any:  # EXTENDED_SYS_STATE
+        if self.landed:
+            state = M.MAV_LANDED_STATE_ON_GROUND
+        elif self._landing is not None:
+            state = M.MAV_LANDED_STATE_LANDING
+        elif self.body.velocity[2] > 0.2 and self.position[2] < 2.0:
+            state = M.MAV_LANDED_STATE_TAKEOFF
+        else:
+            state = M.MAV_LANDED_STATE_IN_AIR
+        return M.MAVLink_extended_sys_state_message(M.MAV_VTOL_STATE_UNDEFINED, state)
+
+    def _msg_42(self) -> Any:  # MISSION_CURRENT
+        total = max(len(self.mission_items) - 1, 0)
+        if self.auto is not None:
+            seq = self.auto.current
+            state = M.MISSION_STATE_COMPLETE if self.auto.finished else M.MISSION_STATE_ACTIVE
+        else:
+            seq = self._mission_current
+            state = M.MISSION_STATE_NOT_STARTED if total else M.MISSION_STATE_NO_MISSION
+        return M.MAVLink_mission_current_message(seq, total, state, 0)
+
+    def _msg_193(self) -> Any:  # EKF_STATUS_REPORT
+        flags = EKF_WITH_GPS if self.position_ok else EKF_BEFORE_GPS
+        return M.MAVLink_ekf_status_report_message(flags, 0.01, 0.01, 0.01, 0.01, 0.0, 0.0)
+
+    def _msg_242(self) -> Any | None:  # HOME_POSITION
+        if not self.position_ok:
+            return None
+        h = self.home
+        x, y, z = self._home_local()
+        yaw = math.radians(h.heading)
+        return M.MAVLink_home_position_message(
+            round(h.latitude * 1e7), round(h.longitude * 1e7), round(h.altitude * 1000),
+            x, y, -z, [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)], 0.0, 0.0, 0.0,
+            int(self.time * 1e6))
+
+    def _msg_148(self) -> Any:  # AUTOPILOT_VERSION
+        return M.MAVLink_autopilot_version_message(
+            CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0x1209, 0x5740,
+            self.system_id)
+
+
+def _interval(rate: float) -> float | None:
+    return 1.0 / rate if rate > 0 else None
+
+
+def _footprint(obstacle: Any) -> tuple[str, Any, float, float]:
+    """(name, ground shape, bottom, top) of a world obstacle."""
+    if isinstance(obstacle, Cylinder):
+        shape = Point(obstacle.north, obstacle.east).buffer(obstacle.radius)
+    else:
+        shape = Polygon(obstacle.polygon)
+    return obstacle.name, shape, obstacle.bottom, obstacle.top
+
+
+def _fence_polygon(world: World) -> Polygon | None:
+    fence = world.geofence
+    if fence is None or len(fence.polygon) < 3:
+        return None
+    return Polygon(fence.polygon)

@@ -1,0 +1,179 @@
+"""The parameter table of a simulated vehicle and of its companion computer.
+
+Names, defaults and units follow ArduCopter (centimetres and centimetres per second where
+ArduCopter uses them) so that a ground station that reads or writes them sees what it
+expects. ``SIM_*`` parameters shape the simulation itself: ``SIM_GPS_LOCKTIME``,
+``SIM_WIND_SPD`` and ``SIM_WIND_DIR`` are ArduPilot SITL's own names; ``SIM_EKF_GPS_TIME``
+(seconds from boot until the EKF uses GPS) is ours, with the delay ArduCopter SITL shows.
+
+:class:`Params` keeps the values in table order (the order PARAM_VALUE indices refer to)
+and remembers each value's MAVLink type: PARAM_SET carries a float whatever the type,
+and ArduPilot answers with the value rounded to the parameter's type.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping
+from typing import Any
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+# MAV_PARAM_TYPE values used here.
+INT8, INT16, INT32, REAL32 = 2, 4, 6, 9
+
+AUTOPILOT_DEFAULTS: tuple[tuple[str, float, int], ...] = (
+    ("MAV_SYSID", 1, INT16),
+    ("SYSID_THISMAV", 1, INT16),
+    ("SYSID_MYGCS", 255, INT16),
+    ("FRAME_CLASS", 1, INT8),
+    ("FRAME_TYPE", 1, INT8),
+    ("ARMING_CHECK", 1, INT32),
+    ("DISARM_DELAY", 10, INT8),
+    ("WPNAV_SPEED", 1000, REAL32),
+    ("WPNAV_SPEED_UP", 250, REAL32),
+    ("WPNAV_SPEED_DN", 150, REAL32),
+    ("WPNAV_ACCEL", 250, REAL32),
+    ("WPNAV_ACCEL_Z", 100, REAL32),
+    ("WPNAV_RADIUS", 200, REAL32),
+    ("LOIT_SPEED", 1250, REAL32),
+    ("ATC_SLEW_YAW", 6000, REAL32),
+    ("ATC_RATE_Y_MAX", 90, REAL32),
+    ("PILOT_SPEED_UP", 250, INT16),
+    ("LAND_SPEED", 50, INT16),
+    ("LAND_SPEED_HIGH", 0, INT16),
+    ("LAND_ALT_LOW", 1000, INT16),
+    ("RTL_ALT", 1500, INT32),
+    ("RTL_ALT_FINAL", 0, INT32),
+    ("RTL_LOIT_TIME", 5000, INT32),
+    ("RTL_SPEED", 0, INT16),
+    ("CIRCLE_RADIUS", 1000, REAL32),
+    ("BATT_MONITOR", 4, INT8),
+    ("BATT_CAPACITY", 3300, INT32),
+    ("BATT_LOW_VOLT", 10.5, REAL32),
+    ("BATT_LOW_MAH", 0, INT32),
+    ("BATT_LOW_TIMER", 10, INT8),
+    ("BATT_CRT_VOLT", 0, REAL32),
+    ("BATT_FS_LOW_ACT", 0, INT8),
+    ("BATT_FS_CRT_ACT", 0, INT8),
+    ("FS_GCS_ENABLE", 0, INT8),
+    ("FS_GCS_TIMEOUT", 5, REAL32),
+    ("FS_EKF_ACTION", 1, INT8),
+    ("FENCE_ENABLE", 0, INT8),
+    ("FENCE_TYPE", 7, INT8),
+    ("FENCE_ACTION", 1, INT8),
+    ("FENCE_ALT_MAX", 100, REAL32),
+    ("FENCE_ALT_MIN", -10, REAL32),
+    ("FENCE_RADIUS", 300, REAL32),
+    ("FENCE_MARGIN", 2, REAL32),
+    ("FENCE_TOTAL", 0, INT8),
+    ("RALLY_TOTAL", 0, INT8),
+    ("MIS_TOTAL", 0, INT16),
+    ("AVOID_ENABLE", 3, INT8),
+    ("AVOID_MARGIN", 2, REAL32),
+    ("GRIP_ENABLE", 1, INT8),
+    ("CAM_TRIGG_DIST", 0, REAL32),
+    ("SIM_GPS_LOCKTIME", 20, REAL32),
+    ("SIM_EKF_GPS_TIME", 41, REAL32),
+    ("SIM_WIND_SPD", 0, REAL32),
+    ("SIM_WIND_DIR", 180, REAL32),
+    ("SIM_BATT_VOLTAGE", 12.6, REAL32),
+)
+
+# The companion computer (component 191): one switch per TML skill, and its camera.
+COMPANION_DEFAULTS: tuple[tuple[str, float, int], ...] = (
+    ("AVOID_OBST", 0, INT8),
+    ("RECOG_MARKERS", 0, INT8),
+    ("RECOG_ARUCO", 0, INT8),
+    ("SELF_LOCATE", 0, INT8),
+    ("RECOG_ITEMS", 0, INT8),
+    ("RECOG_BUCKETS", 0, INT8),
+    ("CAM_HFOV", 70, REAL32),
+    ("CAM_VFOV", 55, REAL32),
+    ("CAM_RANGE", 40, REAL32),
+    ("DET_RATE", 2, REAL32),
+)
+
+
+class UnknownParameter(KeyError):
+    """A parameter name the table does not hold."""
+
+
+class Params:
+    """An ordered table of named float values with their MAVLink types."""
+
+    def __init__(
+        self,
+        defaults: tuple[tuple[str, float, int], ...],
+        overrides: Mapping[str, float] | None = None,
+    ) -> None:
+        self._values: dict[str, float] = {name: float(value) for name, value, _ in defaults}
+        self._types: dict[str, int] = {name: kind for name, _, kind in defaults}
+        for name, value in (overrides or {}).items():
+            self.set(name, value)
+
+    def __getitem__(self, name: str) -> float:
+        return self._values[name]
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._values
+
+    def __len__(self) -> int:
+        return len(self._values)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._values)
+
+    def index(self, name: str) -> int:
+        """Position of ``name`` in the table (PARAM_VALUE.param_index)."""
+        return list(self._values).index(name)
+
+    def name_at(self, index: int) -> str | None:
+        """The name at ``index``, or None when out of range."""
+        names = list(self._values)
+        return names[index] if 0 <= index < len(names) else None
+
+    def type_of(self, name: str) -> int:
+        """The MAV_PARAM_TYPE of ``name``."""
+        return self._types[name]
+
+    def set(self, name: str, value: float) -> float:
+        """Store ``value`` rounded to the parameter's type; returns what was stored."""
+        if name not in self._values:
+            raise UnknownParameter(name)
+        stored = float(value) if self._types[name] == REAL32 else float(round(value))
+        self._values[name] = stored
+        return stored
+
+
+def param_value(params: Params, name: str) -> Any:
+    """The PARAM_VALUE that reports ``name``."""
+    return mavlink.MAVLink_param_value_message(
+        name.encode(), params[name], params.type_of(name), len(params), params.index(name)
+    )
+
+
+def param_replies(params: Params, msg: Any) -> list[Any]:
+    """Answer PARAM_REQUEST_LIST, PARAM_REQUEST_READ and PARAM_SET as ArduPilot does.
+
+    Unknown names get no answer (the client times out); a set is echoed with the stored
+    value. Other messages give an empty list.
+    """
+    kind = msg.get_type()
+    if kind == "PARAM_REQUEST_LIST":
+        return [param_value(params, name) for name in params]
+    if kind == "PARAM_REQUEST_READ":
+        name = params.name_at(msg.param_index) if msg.param_index >= 0 else _name(msg)
+        return [param_value(params, name)] if name in params else []
+    if kind == "PARAM_SET":
+        name = _name(msg)
+        if name not in params:
+            return []
+        params.set(name, msg.param_value)
+        return [param_value(params, name)]
+    return []
+
+
+def _name(msg: Any) -> str:
+    raw = msg.param_id
+    text = raw.decode(errors="replace") if isinstance(raw, bytes) else str(raw)
+    return text.rstrip("\x00")

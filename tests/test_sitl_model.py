@@ -1,0 +1,290 @@
+"""The vehicle model alone: no sockets, time stepped by hand."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import pytest
+from pymavlink.dialects.v20 import ardupilotmega as M
+
+from sitl.faults import Faults
+from sitl.model import TICK, VehicleModel
+from tml.world import DEFAULT_HOME, Cylinder, Geofence, World
+
+FAST = {"SIM_GPS_LOCKTIME": 1, "SIM_EKF_GPS_TIME": 2}
+
+
+def vehicle(**kwargs) -> VehicleModel:
+    params = {**FAST, **kwargs.pop("params", {})}
+    return VehicleModel(1, DEFAULT_HOME, params=params, **kwargs)
+
+
+def command(v: VehicleModel, cmd: int, *params: float) -> tuple[int, list]:
+    values = [*params, *[0.0] * (7 - len(params))]
+    replies = v.handle(M.MAVLink_command_long_message(1, 1, cmd, 0, *values))
+    acks = [r for r in replies if r.get_type() == "COMMAND_ACK"]
+    assert len(acks) == 1 and acks[0].command == cmd
+    return acks[0].result, replies
+
+
+def texts(messages: list) -> list[str]:
+    return [m.text for m in messages if m.get_type() == "STATUSTEXT"]
+
+
+def run_until(v: VehicleModel, condition, limit: float) -> list:
+    out: list = []
+    start = v.time
+    while not condition():
+        assert v.time - start < limit, f"not reached within {limit} s of vehicle time"
+        out += v.step(TICK)
+    return out
+
+
+def flying(altitude: float = 10.0, **kwargs) -> VehicleModel:
+    v = vehicle(**kwargs)
+    v.step(3)
+    assert v.set_mode("GUIDED")
+    assert command(v, M.MAV_CMD_COMPONENT_ARM_DISARM, 1)[0] == M.MAV_RESULT_ACCEPTED
+    assert command(v, M.MAV_CMD_NAV_TAKEOFF, *[0] * 6, altitude)[0] == M.MAV_RESULT_ACCEPTED
+    run_until(v, lambda: v.position[2] > altitude - 0.1, 30)
+    return v
+
+
+def test_heartbeat_says_quadrotor_ardupilot_with_custom_mode():
+    v = vehicle()
+    v.step(0.5)
+    beats = [m for m in v.step(10) if m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1]
+    assert len(beats) == 10  # 1 Hz
+    assert {(b.type, b.autopilot, b.custom_mode) for b in beats} == {(2, 3, 0)}
+    v.step(1)
+    v.set_mode("GUIDED")
+    beat = next(m for m in v.step(1) if m.get_type() == "HEARTBEAT")
+    assert beat.custom_mode == 4 and beat.get_srcSystem() == 1 and beat.get_srcComponent() == 1
+
+
+def test_default_delays_are_arducopters_and_position_is_zero_before_the_fix():
+    v = VehicleModel(1, DEFAULT_HOME)
+    early = v.step(19)
+    assert {m.fix_type for m in early if m.get_type() == "GPS_RAW_INT"} == {1}
+    positions = [m for m in v.step(21) if m.get_type() == "GLOBAL_POSITION_INT"]
+    assert positions and all(p.lat == 0 and p.lon == 0 for p in positions)
+    assert v.gps_fixed and not v.position_ok
+    assert v.set_mode("GUIDED") is False
+    after = v.step(1.5)
+    fix = [m for m in after if m.get_type() == "GLOBAL_POSITION_INT"][-1]
+    assert fix.lat == round(DEFAULT_HOME.latitude * 1e7)
+    ekf = [m for m in after if m.get_type() == "EKF_STATUS_REPORT"][-1]
+    needed = M.EKF_POS_HORIZ_ABS | M.EKF_VELOCITY_HORIZ | M.EKF_PRED_POS_HORIZ_ABS
+    assert ekf.flags & needed == needed
+
+
+def test_arming_waits_for_gps_and_the_position_estimate():
+    v = VehicleModel(1, DEFAULT_HOME, params={"SIM_GPS_LOCKTIME": 5, "SIM_EKF_GPS_TIME": 30})
+    v.step(2)
+    result, replies = command(v, M.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+    assert result == M.MAV_RESULT_FAILED and texts(replies) == ["PreArm: GPS 1: Bad fix"]
+    v.step(4)
+    v.mode = "LOITER"  # set directly: a GCS cannot select it before the position exists
+    result, replies = command(v, M.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+    assert result == M.MAV_RESULT_FAILED and not v.armed
+    assert texts(replies) == ["PreArm: Need Position Estimate"]
+    v.step(25)
+    assert command(v, M.MAV_CMD_COMPONENT_ARM_DISARM, 1)[0] == M.MAV_RESULT_ACCEPTED
+    assert v.armed
+
+
+@pytest.mark.parametrize("mode", ["AUTO", "LAND", "RTL", "BRAKE"])
+def test_modes_that_cannot_arm(mode):
+    v = vehicle()
+    v.step(3)
+    assert command(v, M.MAV_CMD_DO_SET_MODE, 1, {"AUTO": 3, "LAND": 9, "RTL": 6, "BRAKE": 17}[
+        mode])[0] == M.MAV_RESULT_ACCEPTED
+    result, replies = command(v, M.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+    assert result == M.MAV_RESULT_FAILED and texts(replies) == ["Arm: Mode not armable"]
+
+
+def test_command_results():
+    v = vehicle()
+    v.step(3)
+    assert command(v, M.MAV_CMD_NAV_TAKEOFF, *[0] * 6, 10)[0] == M.MAV_RESULT_FAILED
+    assert command(v, M.MAV_CMD_DO_CHANGE_SPEED, 1, 0)[0] == M.MAV_RESULT_FAILED
+    assert command(v, M.MAV_CMD_DO_CHANGE_SPEED, 1, 5)[0] == M.MAV_RESULT_ACCEPTED
+    assert command(v, M.MAV_CMD_DO_SET_MODE, 1, 99)[0] == M.MAV_RESULT_FAILED
+    assert command(v, M.MAV_CMD_DO_SET_MODE, 0, 4)[0] == M.MAV_RESULT_UNSUPPORTED
+    assert command(v, M.MAV_CMD_DO_REPOSITION, -1, 0, 0, 0, 1, 1, 10)[0] == M.MAV_RESULT_DENIED
+    assert command(v, 31337)[0] == M.MAV_RESULT_UNSUPPORTED
+    assert command(v, M.MAV_CMD_CONDITION_YAW, 400)[0] == M.MAV_RESULT_FAILED
+    result, replies = command(v, M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
+    assert result == M.MAV_RESULT_ACCEPTED
+    assert any(r.get_type() == "AUTOPILOT_VERSION" for r in replies)
+
+
+def test_takeoff_and_flight_stay_within_the_speed_limits():
+    v = flying(params={"WPNAV_SPEED": 500})
+    samples = []
+    lat, lon, _ = v._global((60.0, 0.0, 10.0))
+    v.handle(M.MAVLink_set_position_target_global_int_message(
+        0, 1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, 0b110111111000, round(lat * 1e7),
+        round(lon * 1e7), 10, 0, 0, 0, 0, 0, 0, 0, 0))
+    while math.dist(v.position, (60.0, 0.0, 10.0)) > 0.5:
+        assert v.time < 60
+        samples.append(math.hypot(*v.body.velocity[:2]))
+        v.step(TICK)
+    assert max(samples) == pytest.approx(5.0, abs=0.05)  # WPNAV_SPEED 500 cm/s
+    steps = [b - a for a, b in itertools.pairwise(samples)]
+    assert max(steps) <= 2.5 * TICK + 1e-9  # WPNAV_ACCEL 250 cm/s²
+
+
+def test_land_lands_slowly_below_land_alt_low_and_disarms():
+    v = flying(12.0)
+    assert command(v, M.MAV_CMD_NAV_LAND)[0] == M.MAV_RESULT_ACCEPTED
+    descents = []
+    out = []
+    while v.armed:
+        assert v.time < 80
+        out += v.step(TICK)
+        descents.append((v.position[2], -v.body.velocity[2]))
+    assert v.landed and v.position[2] == 0.0 and "Disarming motors" in texts(out)
+    assert max(s for up, s in descents if up < 8.0) <= 0.5 + 1e-9  # LAND_SPEED 50 cm/s
+    assert max(s for up, s in descents if up > 10.5) > 1.0  # faster up high
+
+
+def test_idle_on_the_ground_disarms_after_disarm_delay():
+    v = vehicle()
+    v.step(3)
+    v.set_mode("GUIDED")
+    command(v, M.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+    armed_at = v.time
+    run_until(v, lambda: not v.armed, 20)
+    assert v.time - armed_at == pytest.approx(10.0, abs=0.1)
+
+
+def test_rtl_climbs_returns_and_lands_home():
+    v = flying(5.0)
+    v.fly_to((30.0, 20.0, 5.0))
+    run_until(v, lambda: v.arrived((30.0, 20.0, 5.0), 0.2), 30)
+    assert command(v, M.MAV_CMD_NAV_RETURN_TO_LAUNCH)[0] == M.MAV_RESULT_ACCEPTED
+    top = 0.0
+
+    def landed_home() -> bool:
+        nonlocal top
+        top = max(top, v.position[2])
+        return not v.armed
+
+    run_until(v, landed_home, 120)
+    assert top == pytest.approx(15.0, abs=0.2)  # RTL_ALT 1500 cm
+    assert math.hypot(*v.position[:2]) < 1.0
+
+
+def test_message_interval_and_data_stream_requests():
+    v = vehicle()
+    command(v, M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 100_000)
+    v.step(1)
+    count = sum(m.get_type() == "GLOBAL_POSITION_INT" for m in v.step(2))
+    assert count == 20
+    command(v, M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, -1)
+    assert not any(m.get_type() == "GLOBAL_POSITION_INT" for m in v.step(2))
+    v.handle(M.MAVLink_request_data_stream_message(1, 1, M.MAV_DATA_STREAM_POSITION, 2, 1))
+    v.step(1)
+    assert sum(m.get_type() == "GLOBAL_POSITION_INT" for m in v.step(2)) == 4
+    v.handle(M.MAVLink_request_data_stream_message(1, 1, M.MAV_DATA_STREAM_ALL, 0, 0))
+    kinds = {m.get_type() for m in v.step(2)}
+    assert kinds <= {"HEARTBEAT", "HOME_POSITION", "STATUSTEXT"}
+
+
+def test_parameter_protocol():
+    v = VehicleModel(3, DEFAULT_HOME)
+    values = v.handle(M.MAVLink_param_request_list_message(3, 1))
+    names = {p.param_id for p in values}
+    assert {"WPNAV_SPEED", "RTL_ALT", "BATT_FS_LOW_ACT", "FS_GCS_ENABLE", "FENCE_ENABLE",
+            "AVOID_ENABLE", "SYSID_THISMAV", "MAV_SYSID"} <= names
+    assert len(values) == values[0].param_count and sorted(p.param_index for p in values) == list(
+        range(len(values)))
+    sysid = next(p for p in values if p.param_id == "MAV_SYSID")
+    assert sysid.param_value == 3
+    (echo,) = v.handle(M.MAVLink_param_set_message(3, 1, b"WPNAV_SPEED", 750.0, 9))
+    assert echo.param_value == 750.0
+    (read,) = v.handle(M.MAVLink_param_request_read_message(3, 1, b"WPNAV_SPEED", -1))
+    assert read.param_value == 750.0
+    assert v.handle(M.MAVLink_param_request_read_message(3, 1, b"NO_SUCH_PARAM", -1)) == []
+    assert v.handle(M.MAVLink_param_request_list_message(2, 1)) == []  # another vehicle's
+
+
+def test_same_seed_same_messages():
+    def run(seed: int) -> list[bytes]:
+        v = vehicle(seed=seed)
+        mav = M.MAVLink(None, 1, 1)
+        out = v.step(3)
+        v.set_mode("GUIDED")
+        command(v, M.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+        command(v, M.MAV_CMD_NAV_TAKEOFF, *[0] * 6, 5)
+        out += v.step(10)
+        return [m.pack(mav) for m in out]
+
+    assert run(7) == run(7)
+    assert run(7) != run(8)  # the GPS noise differs
+
+
+def test_rejected_command_fault():
+    v = vehicle(faults=Faults(reject_commands={M.MAV_CMD_COMPONENT_ARM_DISARM: 1}))
+    v.step(3)
+    v.set_mode("GUIDED")
+    result, _ = command(v, M.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+    assert result == M.MAV_RESULT_TEMPORARILY_REJECTED and not v.armed
+
+
+def test_battery_drains_and_failure_triggers_the_failsafe():
+    v = flying(10.0, params={"BATT_FS_LOW_ACT": 2},
+               faults=Faults(battery_failure_at=30.0))
+    full = v.battery_remaining
+    v.step(15)
+    assert v.battery_remaining < full and v.mode == "GUIDED"
+    out = v.step(15)
+    assert v.mode == "RTL"
+    assert any(t.startswith("Battery 1 is low") for t in texts(out))
+
+
+def test_gcs_link_loss_failsafe():
+    v = flying(10.0, params={"FS_GCS_ENABLE": 1})
+    v.handle(M.MAVLink_heartbeat_message(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
+    out = v.step(4.9)
+    assert v.mode == "GUIDED"
+    out = v.step(0.5)
+    assert v.mode == "RTL" and "GCS Failsafe" in texts(out)
+
+
+def test_gps_loss_lands():
+    v = flying(10.0, faults=Faults(gps_loss_at=20.0))
+    out = run_until(v, lambda: v.mode == "LAND", 30)
+    assert "EKF Failsafe: changed to LAND Mode" in texts(out)
+    assert not v.gps_fixed
+
+
+def test_fence_breach_returns():
+    world = World(home=DEFAULT_HOME, geofence=Geofence(max_altitude=20.0))
+    v = flying(10.0, world=world)
+    v.fly_to((0.0, 0.0, 30.0))
+    out = run_until(v, lambda: v.mode == "RTL", 30)
+    assert "Fence Breached: maximum altitude" in texts(out)
+
+
+def test_collision_stops_the_vehicle_and_is_reported():
+    world = World(home=DEFAULT_HOME, obstacles=(Cylinder("mast", 20.0, 0.0, 3.0),))
+    v = flying(5.0, world=world)
+    v.fly_to((40.0, 0.0, 5.0))
+    out = v.step(20)
+    assert texts(out).count("Collision with mast") == 1
+    assert 16.0 < v.position[0] <= 17.0  # stopped at the mast's surface
+
+
+def test_gripper_and_camera():
+    v = vehicle()
+    result, replies = command(v, M.MAV_CMD_DO_GRIPPER, 1, 1)
+    assert result == M.MAV_RESULT_ACCEPTED and v.gripper_closed
+    assert texts(replies) == ["Gripper load grabbed"]
+    result, replies = command(v, M.MAV_CMD_IMAGE_START_CAPTURE, 0, 1, 3)
+    out = replies + v.step(5)
+    images = [m for m in out if m.get_type() == "CAMERA_IMAGE_CAPTURED"]
+    assert [m.image_index for m in images] == [0, 1, 2]
+    assert command(v, M.MAV_CMD_IMAGE_STOP_CAPTURE)[0] == M.MAV_RESULT_ACCEPTED

@@ -14,6 +14,7 @@ metres from home (see :mod:`tml.geo`).
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from dataclasses import dataclass, replace
@@ -71,11 +72,6 @@ class ArgumentSpec:
     positive: bool = False  # strictly greater than zero
     label: LabelUse | None = None  # whether label= is accepted, and how
 
-    def matches(self, written: str) -> bool:
-        """True if ``written`` names this argument (its name or an alias)."""
-        key = normalize_name(written)
-        return key == self.name or key in {normalize_name(a) for a in self.aliases}
-
 
 @dataclass(frozen=True)
 class ActionSpec:
@@ -99,10 +95,12 @@ class ActionSpec:
 
     def argument(self, written: str) -> ArgumentSpec | None:
         """The argument spec that ``written`` names, or None."""
-        for spec in self.arguments:
-            if spec.matches(written):
-                return spec
-        return None
+        return self._argument_index.get(normalize_name(written))
+
+    @functools.cached_property
+    def _argument_index(self) -> dict[str, ArgumentSpec]:
+        return {normalize_name(name): spec for spec in self.arguments
+                for name in (spec.name, *spec.aliases)}
 
 
 def _number(name: str, description: str, unit: str, **kw: object) -> ArgumentSpec:
@@ -388,6 +386,7 @@ for _spec in CATALOGUE:
         _BY_NAME[_key(_name)] = _spec
 
 
+@functools.lru_cache(maxsize=1024)
 def lookup(name: str) -> ActionSpec | None:
     """The action spec for a written action name (case and separators ignored), or None."""
     return _BY_NAME.get(_key(name))

@@ -6,13 +6,21 @@ Exit codes of ``tml validate``: 0 every file valid, 1 some file invalid, 2 usage
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from tml import __version__
 
+if TYPE_CHECKING:
+    from tml.validation import ValidationResult
+
 EXIT_OK, EXIT_INVALID, EXIT_USAGE = 0, 1, 2
+# Files per worker task when validating many files on several cores; below twice this
+# many files, forking workers costs more than it saves.
+PARALLEL_BATCH = 50
 
 
 def _mission_files(paths: Sequence[str]) -> tuple[list[Path], list[str]]:
@@ -33,22 +41,45 @@ def _mission_files(paths: Sequence[str]) -> tuple[list[Path], list[str]]:
     return files, problems
 
 
+def _validate_for_report(path: Path) -> ValidationResult | str:
+    """Validate one file for printing: its diagnostics, or the text of an I/O error."""
+    from tml.validation import ValidationResult, validate_file
+
+    try:
+        result = validate_file(path)
+    except OSError as exc:
+        return f"{path}: {exc.strerror or exc}"
+    # The model stays in the worker; quoting source lines needs the text only on problems.
+    return ValidationResult(result.file, None, result.diagnostics,
+                            result.source if result.diagnostics else "")
+
+
+def _validate_all(files: list[Path]) -> list[ValidationResult | str]:
+    """Validate files in order, on every core when there are many."""
+    workers = min(os.cpu_count() or 1, len(files) // PARALLEL_BATCH)
+    if workers < 2:
+        return [_validate_for_report(path) for path in files]
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(workers) as pool:
+        return list(pool.map(_validate_for_report, files, chunksize=PARALLEL_BATCH))
+
+
 def cmd_validate(args: argparse.Namespace) -> int:
     """Validate mission files and print every problem."""
     from tml.diagnostics import format_github, format_human, format_json
-    from tml.validation import validate_file
 
     files, problems = _mission_files(args.paths)
     for problem in problems:
         print(f"tml validate: {problem}", file=sys.stderr)
     results = []
     io_error = bool(problems)
-    for path in files:
-        try:
-            results.append(validate_file(path))
-        except OSError as exc:
-            print(f"tml validate: {path}: {exc.strerror or exc}", file=sys.stderr)
+    for outcome in _validate_all(files):
+        if isinstance(outcome, str):
+            print(f"tml validate: {outcome}", file=sys.stderr)
             io_error = True
+        else:
+            results.append(outcome)
     invalid = [r for r in results if not r.valid(args.strict)]
     if args.format == "json":
         print(format_json((r.file, r.valid(args.strict), r.diagnostics) for r in results))

@@ -7,12 +7,15 @@ every vehicle error carries the vehicle (MAVLink system id) it is about.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import NamedTuple
 
 
-@dataclass(frozen=True)
-class Location:
-    """A place in a source file: 1-based line and column (column 0 when unknown)."""
+class Location(NamedTuple):
+    """A place in a source file: 1-based line and column (column 0 when unknown).
+
+    A named tuple rather than a dataclass because every model node carries one and a
+    large mission has hundreds of thousands: construction cost matters.
+    """
 
     file: str
     line: int

@@ -10,14 +10,14 @@ from __future__ import annotations
 
 import math
 
-import pymap3d
-
 
 def to_local(
     latitude: float, longitude: float, altitude_amsl: float,
     home_latitude: float, home_longitude: float, home_altitude_amsl: float,
 ) -> tuple[float, float, float]:
     """(north, east, up) in metres of a WGS84 point relative to home."""
+    import pymap3d  # imports numpy: only when a conversion is needed
+
     east, north, up = pymap3d.geodetic2enu(
         latitude, longitude, altitude_amsl, home_latitude, home_longitude, home_altitude_amsl
     )
@@ -29,6 +29,8 @@ def to_global(
     home_latitude: float, home_longitude: float, home_altitude_amsl: float,
 ) -> tuple[float, float, float]:
     """(latitude, longitude, altitude AMSL) of a local point relative to home."""
+    import pymap3d
+
     latitude, longitude, altitude = pymap3d.enu2geodetic(
         east, north, up, home_latitude, home_longitude, home_altitude_amsl
     )

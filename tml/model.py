@@ -11,6 +11,7 @@ catalogue (:mod:`tml.actions`) gives them types and units, and the semantic chec
 
 from __future__ import annotations
 
+import functools
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -216,6 +217,7 @@ class Mission:
 _CAMEL_BOUNDARY = re.compile(r"(?<=[a-z0-9])(?=[A-Z])")
 
 
+@functools.lru_cache(maxsize=4096)
 def normalize_name(name: str) -> str:
     """Canonical form of an argument or parameter name: lower case, words joined by ``_``.
 

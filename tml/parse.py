@@ -49,7 +49,7 @@ MAX_BYTES = 8 * 1024 * 1024
 MAX_DEPTH = 64
 
 _MARKUP = re.compile(
-    rb"<!--.*?-->|<!\[CDATA\[.*?\]\]>|<\?.*?\?>|<!DOCTYPE|<(?P<tag>[A-Za-z_][\w.\-:]*)",
+    r"<!--.*?-->|<!\[CDATA\[.*?\]\]>|<\?.*?\?>|<!DOCTYPE|<(?P<tag>[A-Za-z_][\w.\-:]*)",
     re.S,
 )
 _ENCODING_DECL = re.compile(rb"^\s*<\?xml[^>]*encoding\s*=\s*[\"']([^\"']+)[\"']")
@@ -62,16 +62,13 @@ class XmlDocument:
     file: str
     text: str
     root: etree._Element
-    _data: bytes = field(repr=False)
     _line_starts: list[int] = field(repr=False)
     _starts: dict[etree._Element, int] = field(repr=False)
 
     def location_of_offset(self, offset: int) -> Location:
-        """Line and column (1-based, in characters) of a byte offset."""
+        """Line and column (1-based, in characters) of a character offset in the text."""
         index = bisect.bisect_right(self._line_starts, offset) - 1
-        line_start = self._line_starts[index]
-        column = len(self._data[line_start:offset].decode("utf-8", "replace")) + 1
-        return Location(self.file, index + 1, column)
+        return Location(self.file, index + 1, offset - self._line_starts[index] + 1)
 
     def location(self, element: etree._Element, attribute: str | None = None) -> Location:
         """Where an element's start tag (or one of its attributes) begins."""
@@ -79,9 +76,9 @@ class XmlDocument:
         if start is None:
             return Location(self.file, element.sourceline or 0, 0)
         if attribute is not None:
-            end = self._data.find(b">", start)
-            tag_text = self._data[start:end if end >= 0 else len(self._data)]
-            match = re.search(rb"\s(" + re.escape(attribute.encode()) + rb")\s*=", tag_text)
+            end = self.text.find(">", start)
+            tag_text = self.text[start:end if end >= 0 else len(self.text)]
+            match = re.search(r"\s(" + re.escape(attribute) + r")\s*=", tag_text)
             if match:
                 return self.location_of_offset(start + match.start(1))
         return self.location_of_offset(start)
@@ -112,16 +109,15 @@ def read_xml(source: str | Path, data: bytes | None = None) -> XmlDocument:
     if not data.strip():
         raise MissionSyntaxError("file is empty; expected a <mission> document", start, "E001")
     text = _decode(file, data)
-    line_starts = [0] + [m.end() for m in re.finditer(rb"\n", data)]
+    line_starts = [0] + [m.end() for m in re.finditer("\n", text)]
 
     def at(offset: int) -> Location:
         index = bisect.bisect_right(line_starts, offset) - 1
-        column = len(data[line_starts[index]:offset].decode("utf-8", "replace")) + 1
-        return Location(file, index + 1, column)
+        return Location(file, index + 1, offset - line_starts[index] + 1)
 
     tag_offsets: list[int] = []
-    for match in _MARKUP.finditer(data):
-        if match.group(0) == b"<!DOCTYPE":
+    for match in _MARKUP.finditer(text):
+        if match.group(0) == "<!DOCTYPE":
             raise MissionSyntaxError(
                 "DOCTYPE declarations are not accepted (no DTDs or entities in mission files)",
                 at(match.start()), "E003")
@@ -139,8 +135,10 @@ def read_xml(source: str | Path, data: bytes | None = None) -> XmlDocument:
         raise MissionSyntaxError(f"not well-formed XML: {message}",
                                  Location(file, line, column), "E002") from None
     elements = [e for e in root.iter() if isinstance(e.tag, str)]
+    depths = {root: 0}
     for index, element in enumerate(elements):
-        depth = sum(1 for _ in element.iterancestors())
+        parent = element.getparent()
+        depth = depths[element] = depths[parent] + 1 if parent is not None else 0
         if depth >= MAX_DEPTH:
             raise MissionSyntaxError(
                 f"elements nest {depth + 1} deep; the limit is {MAX_DEPTH}",
@@ -148,7 +146,7 @@ def read_xml(source: str | Path, data: bytes | None = None) -> XmlDocument:
                 else Location(file, element.sourceline or 1, 0), "E006")
     starts = dict(zip(elements, tag_offsets, strict=False)) \
         if len(elements) == len(tag_offsets) else {}
-    return XmlDocument(file, text, root, data, line_starts, starts)
+    return XmlDocument(file, text, root, line_starts, starts)
 
 
 def _decode(file: str, data: bytes) -> str:
@@ -180,12 +178,18 @@ class _Builder:
     def __init__(self, doc: XmlDocument) -> None:
         self.doc = doc
         self.diagnostics: list[Diagnostic] = []
+        self._children: dict[etree._Element, dict[str, list[etree._Element]]] = {}
 
     def loc(self, element: etree._Element, attribute: str | None = None) -> Location:
         return self.doc.location(element, attribute)
 
     def children(self, element: etree._Element, tag: str) -> list[etree._Element]:
-        return [c for c in element if c.tag == tag]
+        groups = self._children.get(element)
+        if groups is None:  # group once: the builder asks each element for several tags
+            groups = self._children[element] = {}
+            for child in element:
+                groups.setdefault(child.tag, []).append(child)
+        return groups.get(tag, [])
 
     def mission(self, root: etree._Element) -> Mission:
         world: World | None = None
@@ -222,28 +226,43 @@ class _Builder:
         name = element.get("name", "").strip()
         path = (*parent, name)
         dispatch = Dispatch(element.get("dispatch", inherited.value))
-        repeats = self.children(element, "repeat")
+        skills: list[Skill] = []
+        conditions: list[Condition] = []
+        repeats: list[etree._Element] = []
+        action: Action | None = None
+        children: list[Task] = []
+        for child in element:  # one pass: tasks are the bulk of a mission
+            tag = child.tag
+            if tag == "task":
+                children.append(self.task(child, path, dispatch))
+            elif tag == "action":
+                action = self.action(child)
+            elif tag == "condition":
+                conditions.append(self.condition(child))
+            elif tag == "skill":
+                skills.append(self.skill(child))
+            elif tag == "repeat":
+                repeats.append(child)
         for extra in repeats[1:]:
             self.diagnostics.append(error(
                 self.loc(extra), "E251", f"task {name!r} has more than one <repeat>",
                 "keep one <repeat times=...>"))
-        actions = self.children(element, "action")
         return Task(
             name=name,
             path=path,
             location=self.loc(element),
-            skills=tuple(self.skill(s) for s in self.children(element, "skill")),
-            conditions=tuple(self.condition(c) for c in self.children(element, "condition")),
+            skills=tuple(skills),
+            conditions=tuple(conditions),
             repeat=int(repeats[0].get("times", "1")) if repeats else 1,
             repeat_location=self.loc(repeats[0], "times") if repeats else None,
-            action=self.action(actions[0]) if actions else None,
-            children=tuple(self.task(t, path, dispatch) for t in self.children(element, "task")),
+            action=action,
+            children=tuple(children),
             dispatch=dispatch,
         )
 
     def action(self, element: etree._Element) -> Action:
         arguments = []
-        for arg in self.children(element, "argument"):
+        for arg in element:  # the schema allows only <argument> children here
             value, label = arg.get("value"), arg.get("label")
             if (value is None) == (label is None):
                 which = "both" if value is not None else "neither"

@@ -1,0 +1,121 @@
+"""The tml command line (tml.cli)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tml.cli import main
+
+VALID = ('<mission name="m">\n  <task name="Take off"><action name="TAKE_OFF"/></task>\n'
+         '  <task name="Land"><action name="LAND"/></task>\n</mission>\n')
+WARNS = VALID.replace('<action name="LAND"/>',
+                      '<condition parameter="colour" comparison="equal" value="red"/>'
+                      '<action name="LAND"/>')
+INVALID = VALID.replace("LAND", "LANDD")
+
+
+@pytest.fixture
+def files(tmp_path: Path) -> Path:
+    (tmp_path / "valid.xml").write_text(VALID)
+    (tmp_path / "warns.xml").write_text(WARNS)
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "invalid.xml").write_text(INVALID)
+    (tmp_path / "notes.txt").write_text("not a mission")
+    return tmp_path
+
+
+def test_valid_file_exits_0(files: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["validate", str(files / "valid.xml")]) == 0
+    assert "1 file(s) checked: 1 valid, 0 invalid" in capsys.readouterr().out
+
+
+def test_directory_is_searched_recursively(files: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["validate", str(files)]) == 1
+    out = capsys.readouterr().out
+    assert "3 file(s) checked: 2 valid, 1 invalid" in out
+    assert f"{files / 'sub' / 'invalid.xml'}:3:" in out and "E201" in out
+    assert "notes.txt" not in out
+
+
+def test_warnings_fail_only_when_strict(files: Path) -> None:
+    assert main(["validate", "-q", str(files / "warns.xml")]) == 0
+    assert main(["validate", "-q", "--strict", str(files / "warns.xml")]) == 1
+
+
+def test_missing_file_is_a_usage_error(files: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["validate", str(files / "nope.xml"), str(files / "valid.xml")]) == 2
+    assert "nope.xml: no such file or directory" in capsys.readouterr().err
+
+
+def test_unreadable_file_is_an_io_error(files: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    target = files / "dir.xml"
+    target.mkdir()
+    (target / "x.xml").write_text(VALID)
+    assert main(["validate", str(files / "valid.xml"), str(target)]) == 0
+    bad = files / "unreadable.xml"
+    bad.symlink_to(files / "missing-target.xml")
+    assert main(["validate", str(bad)]) == 2
+
+
+def test_json_format(files: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["validate", "--format", "json", str(files)]) == 1
+    report = {Path(r["file"]).name: r for r in json.loads(capsys.readouterr().out)}
+    assert report["valid.xml"] == {"file": str(files / "valid.xml"), "valid": True,
+                                   "diagnostics": []}
+    [problem] = report["invalid.xml"]["diagnostics"]
+    assert (problem["code"], problem["line"], problem["severity"]) == ("E201", 3, "error")
+    assert report["warns.xml"]["valid"] is True
+
+
+def test_github_format(files: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["validate", "--format", "github", str(files / "sub")]) == 1
+    out = capsys.readouterr().out.strip()
+    assert out.startswith(f"::error file={files / 'sub' / 'invalid.xml'},line=3,col=")
+    assert "title=E201::unknown action 'LANDD'" in out
+
+
+def test_usage_errors_exit_2(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main([]) == 2
+    assert main(["validate"]) == 2
+    assert main(["frobnicate"]) == 2
+    assert main(["--version"]) == 0
+    assert "tml 0.1.0" in capsys.readouterr().out
+
+
+def test_python_dash_m_and_console_script(files: Path) -> None:
+    done = subprocess.run([sys.executable, "-m", "tml", "validate", str(files / "valid.xml")],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert "1 valid" in done.stdout
+
+
+def test_validate_does_not_load_pymavlink(files: Path) -> None:
+    code = ("import sys; from tml.cli import main; rc = main(['validate', '-q', sys.argv[1]]);"
+            "print(rc, 'pymavlink' in sys.modules)")
+    done = subprocess.run([sys.executable, "-c", code, str(files / "valid.xml")],
+                          capture_output=True, text=True, check=True)
+    assert done.stdout.split() == ["0", "False"]
+
+
+def test_many_files_are_validated_in_parallel_with_the_same_output(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import tml.cli
+
+    for index in range(120):
+        (tmp_path / f"m{index:03d}.xml").write_text(INVALID if index % 40 == 7 else VALID)
+    monkeypatch.setattr(tml.cli, "PARALLEL_BATCH", 10)
+    monkeypatch.setattr(tml.cli.os, "cpu_count", lambda: 2)
+    assert main(["validate", str(tmp_path)]) == 1
+    parallel = capsys.readouterr().out
+    monkeypatch.setattr(tml.cli, "PARALLEL_BATCH", 10**6)
+    assert main(["validate", str(tmp_path)]) == 1
+    serial = capsys.readouterr().out
+    assert parallel == serial
+    assert "120 file(s) checked: 117 valid, 3 invalid" in serial

@@ -1,0 +1,462 @@
+"""Abstract execution of one action: where the vehicle goes, how long it takes, what it costs.
+
+The variables of the feasibility model (the paper's x_i) are a :class:`VehicleState`:
+position, battery, time, heading, the speeds set so far, whether the vehicle is flying and
+where home is. :meth:`FlightModel.step` takes a state and a bound action and predicts the
+state after it, with the paths flown, without looking at any constraint; the constraints
+(:mod:`tml.verify.constraints`) judge the :class:`Step` it returns.
+
+Energy model: a leg costs the larger of ``battery_per_metre`` times its length and
+``battery_per_second`` times its duration (a multicopter draws at least its hover power);
+hovering costs ``battery_per_second``. Time: each straight segment takes the longer of its
+ground distance at the current speed and its climb or descent at the profile's rates;
+turning in place takes the angle at ``yaw_rate``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from itertools import pairwise
+
+from tml import geo
+from tml.actions import BoundAction
+from tml.verify.planner import Planner, Point3, Trajectory, straight
+from tml.verify.profile import VehicleProfile
+from tml.world import DEFAULT_HOME, World
+
+Labels = dict[str, Point3]
+
+
+@dataclass(frozen=True)
+class VehicleState:
+    """The variables: what the vehicle is and has at one moment."""
+
+    position: Point3 = (0.0, 0.0, 0.0)  # local metres from home
+    battery: float = 100.0  # percent
+    time: float = 0.0  # s since the mission started
+    heading: float = 0.0  # degrees clockwise from north
+    flying: bool = False
+    home: Point3 = (0.0, 0.0, 0.0)  # where RETURN_HOME goes (SET_HOME moves it)
+    speed: float | None = None  # m/s set by SET_SPEED; None: the profile's cruise speed
+    climb_rate: float | None = None  # m/s set by SET_SPEED speed_type=climb
+    descent_rate: float | None = None  # m/s set by SET_SPEED speed_type=descent
+
+
+@dataclass(frozen=True)
+class Loiter:
+    """A circle flown around a centre."""
+
+    centre: Point3
+    radius: float
+
+    def points(self) -> list[Point3]:
+        """The circle as a closed polygonal line at the centre's altitude."""
+        north, east, up = self.centre
+        return [(north + self.radius * math.cos(a), east + self.radius * math.sin(a), up)
+                for a in (2 * math.pi * k / 32 for k in range(33))]
+
+
+@dataclass(frozen=True)
+class Step:
+    """What one action does, as predicted from the state before it."""
+
+    before: VehicleState
+    after: VehicleState
+    legs: tuple[Trajectory, ...] = ()  # paths flown, in order
+    blocked: tuple[tuple[Point3, Point3], ...] = ()  # legs with no collision-free path
+    destination: Point3 | None = None  # the point the action flies to (checked by c1)
+    loiter: Loiter | None = None
+    circle_metres: float = 0.0  # metres flown around the loiter circle
+    requested_speed: tuple[str, float] | None = None  # (speed_type, m/s) of SET_SPEED
+    cruise: bool = False  # a translation leg, held to the cruise altitude limits
+    labels: Labels = field(default_factory=dict)  # labels after the action
+    unknown_label: str = ""  # a label read that holds no point at this point
+    notes: tuple[str, ...] = ()
+
+    @property
+    def distance(self) -> float:
+        """Metres flown (loiter circles included)."""
+        return sum(leg.length for leg in self.legs) + self.circle_metres
+
+    @property
+    def duration(self) -> float:
+        """Seconds the action takes."""
+        return self.after.time - self.before.time
+
+    @property
+    def energy(self) -> float:
+        """Percent of the battery the action uses."""
+        return self.before.battery - self.after.battery
+
+    def path_points(self) -> list[Point3]:
+        """Every vertex of the paths flown and of the loiter circle."""
+        points = [p for leg in self.legs for p in leg.points]
+        return points + (self.loiter.points() if self.loiter is not None else [])
+
+    def waypoints(self) -> list[tuple[Point3, float]]:
+        """Every vertex of the paths flown with the battery predicted there; the battery
+        falls in proportion to the distance flown along the legs."""
+        total = sum(leg.length for leg in self.legs)
+        flown = 0.0
+        found: list[tuple[Point3, float]] = []
+        for leg in self.legs:
+            previous = leg.points[0]
+            for point in leg.points:
+                flown += math.dist(previous, point)
+                previous = point
+                share = flown / total if total else 1.0
+                found.append((point, self.before.battery - self.energy * share))
+        return found
+
+
+class FlightModel:
+    """The vehicle profile and the world, ready to predict actions (the paper's k_i)."""
+
+    def __init__(self, profile: VehicleProfile, world: World | None = None) -> None:
+        self.profile = profile
+        self.world = world or World()
+        self.home = self.world.home_or_default
+        self.planner = Planner(self.world.obstacles, profile.min_clearance)
+
+    # --- the pieces every action is made of --------------------------------------------------
+
+    def leg_time(self, state: VehicleState, trajectory: Trajectory) -> float:
+        """Seconds to fly a trajectory from ``state`` at its speed and climb/descent rates."""
+        speed = min(state.speed or self.profile.cruise_speed, self.profile.max_speed)
+        climb = state.climb_rate or self.profile.climb_rate
+        descent = state.descent_rate or self.profile.descent_rate
+        seconds = 0.0
+        for a, b in pairwise(trajectory.points):
+            ground = math.hypot(b[0] - a[0], b[1] - a[1]) / speed
+            rise = b[2] - a[2]
+            vertical = rise / climb if rise > 0 else -rise / descent
+            seconds += max(ground, vertical)
+        return seconds
+
+    def energy(self, metres: float, seconds: float) -> float:
+        """Percent of the battery used to fly ``metres`` in ``seconds``."""
+        return max(self.profile.battery_per_metre * metres,
+                   self.profile.battery_per_second * seconds)
+
+    def plan(self, start: Point3, end: Point3) -> tuple[Trajectory, bool]:
+        """The planned path from ``start`` to ``end``; the straight line and False when the
+        obstacles leave no way (so that prediction can go on)."""
+        found = self.planner.trajectory(start, end)
+        return (found, True) if found is not None else (straight(start, end), False)
+
+    def fly(self, state: VehicleState, targets: list[Point3]) -> tuple[
+            VehicleState, list[Trajectory], list[tuple[Point3, Point3]]]:
+        """Fly through ``targets`` in order; the state at the end, the legs and the legs
+        that had no collision-free path."""
+        legs: list[Trajectory] = []
+        blocked: list[tuple[Point3, Point3]] = []
+        position, seconds, energy = state.position, 0.0, 0.0
+        for target in targets:
+            leg, planned = self.plan(position, target)
+            if not planned:
+                blocked.append((position, target))
+            leg_seconds = self.leg_time(state, leg)
+            seconds += leg_seconds
+            energy += self.energy(leg.length, leg_seconds)
+            legs.append(leg)
+            position = target
+        after = replace(state, position=position, time=state.time + seconds,
+                        battery=state.battery - energy)
+        return after, legs, blocked
+
+    def hover(self, state: VehicleState, seconds: float) -> VehicleState:
+        """The state after hovering in place."""
+        return replace(state, time=state.time + seconds,
+                       battery=state.battery - self.profile.battery_per_second * seconds)
+
+    def return_home_energy(self, point: Point3, home: Point3) -> float:
+        """Percent of the battery needed to come home from ``point`` and land there the way
+        ArduPilot's RTL does: climb to the return altitude if lower, fly home, descend."""
+        altitude = max(point[2], self.profile.return_altitude)
+        probe = VehicleState(position=point, flying=True)
+        targets = [(point[0], point[1], altitude), (home[0], home[1], altitude),
+                   (home[0], home[1], home[2])]
+        after, _, _ = self.fly(probe, targets)
+        return probe.battery - after.battery
+
+    def local(self, latitude: float, longitude: float, altitude: float,
+              reference: str) -> Point3:
+        """A WGS84 position as a local point; ``reference`` says what ``altitude`` is
+        measured from (terrain is taken as home: no terrain model)."""
+        home = self.home if self.home is not None else DEFAULT_HOME
+        north, east, _ = geo.to_local(latitude, longitude, home.altitude,
+                                      home.latitude, home.longitude, home.altitude)
+        up = altitude - home.altitude if reference == "amsl" else altitude
+        return (north, east, up)
+
+    # --- the actions ----------------------------------------------------------------------
+
+    def step(self, bound: BoundAction, state: VehicleState,
+             labels: Labels | None = None) -> Step:
+        """Predict one action from ``state`` (pure: neither argument is changed)."""
+        labels = dict(labels or {})
+        handler = getattr(self, "_" + bound.name.lower(), None)
+        if handler is None:
+            return Step(state, state, labels=labels,
+                        notes=(f"{bound.name} takes no time or battery in the model",))
+        return handler(bound, state, labels)
+
+    def _point(self, bound: BoundAction, labels: Labels, name: str = "coordinates") -> tuple[
+            Point3 | None, str]:
+        """The point an argument gives (value or label); (None, label) for an unknown label."""
+        if name in bound.labels:
+            label = bound.labels[name]
+            return labels.get(label), ("" if label in labels else label)
+        value = bound.get(name)
+        return (tuple(value), "") if value is not None else (None, "")  # type: ignore[arg-type]
+
+    def _go(self, bound: BoundAction, state: VehicleState, labels: Labels,
+            targets: list[Point3], **extra: object) -> Step:
+        after, legs, blocked = self.fly(state, targets)
+        destination = targets[-1] if targets else None
+        fields_: dict[str, object] = {"destination": destination, "cruise": True, **extra}
+        return Step(state, after, tuple(legs), tuple(blocked), labels=labels,
+                    **fields_)  # type: ignore[arg-type]
+
+    def _unknown(self, state: VehicleState, labels: Labels, label: str) -> Step:
+        return Step(state, state, labels=labels, unknown_label=label,
+                    notes=(f"label {label!r} holds no point here; the move is not predicted",))
+
+    def _take_off(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+        if state.flying:
+            return Step(state, state, labels=labels, notes=("already flying: ignored",))
+        written = bound.action.argument("altitude", "height") is not None
+        altitude = float(bound.get("altitude")) if written else self.profile.takeoff_altitude
+        target = (state.position[0], state.position[1], altitude)
+        step = self._go(bound, replace(state, flying=True), labels, [target], cruise=False)
+        return replace(step, before=state)
+
+    def _land(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+        target = (state.position[0], state.position[1], 0.0)
+        step = self._go(bound, state, labels, [target], cruise=False)
+        return replace(step, after=replace(step.after, flying=False))
+
+    def _go_to_point(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+        point, unknown = self._point(bound, labels)
+        if unknown:
+            return self._unknown(state, labels, unknown)
+        if point is None:
+            offset = bound.get("relative_coordinates")
+            point = _add(state.position, tuple(offset))  # type: ignore[arg-type]
+        return self._go(bound, state, labels, [point])
+
+    def _move(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+        offset = bound.get("coordinates")
+        if offset is not None:
+            return self._go(bound, state, labels, [_add(state.position, tuple(offset))])
+        direction = str(bound.get("direction"))
+        distance = float(bound.get("distance"))
+        if direction in ("up", "down"):
+            rise = distance if direction == "up" else -distance
+            target = (state.position[0], state.position[1], state.position[2] + rise)
+        else:
+            turn = {"forward": 0.0, "right": 90.0, "backward": 180.0, "left": 270.0}[direction]
+            target = _ahead(state.position, state.heading + turn, distance)
+        return self._go(bound, state, labels, [target])
+
+    def _move_forwards(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+        target = _ahead(state.position, state.heading, float(bound.get("distance")))
+        return self._go(bound, state, labels, [target])
+
+    def _move_from_home(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+        offset = tuple(bound.get("coordinates"))  # type: ignore[arg-type]
+        return self._go(bound, state, labels, [_add(state.home, offset)])
+
+    def _go_to_position(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+        target = self.local(float(bound.get("latitude")), float(bound.get("longitude")),
+                            float(bound.get("altitude")), str(bound.get("altitude_reference")))
+        return self._go(bound, state, labels, [target])
+
+    def _set_altitude(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+        altitude = float(bound.get("altitude"))
+        if bound.get("altitude_reference") == "amsl":
+            altitude -= self.home.altitude
+        return self._go(bound, state, labels, [(*state.position[:2], altitude)])
+
+    def _return_home(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+        return self._go(bound, state, labels, [(*state.home[:2], state.position[2])])
+
+    def _return_home_and_land(self, bound: BoundAction, state: VehicleState,
+                              labels: Labels) -> Step:
+        altitude = max(state.position[2], self.profile.return_altitude)
+        targets = [(*state.position[:2], altitude), (*state.home[:2], altitude), state.home]
+        step = self._go(bound, state, labels, targets, cruise=False)
+        return replace(step, after=replace(step.after, flying=False))
+
+    def _return_home_and_loiter(self, bound: BoundAction, state: VehicleState,
+                                labels: Labels) -> Step:
+        centre = (*state.home[:2], state.position[2])
+        step = self._go(bound, state, labels, [centre])
+        return replace(step, loiter=Loiter(centre, float(bound.get("radius"))),
+                       notes=("circles home until an event ends it; no time counted for it",))
+
+    def _landing_point(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+        point, unknown = self._point(bound, labels)
+        if unknown:
+            return self._unknown(state, labels, unknown)
+        if point is None:
+            point = self.local(float(bound.get("latitude")), float(bound.get("longitude")),
+                               float(bound.get("altitude")),
+                               str(bound.get("altitude_reference")))
+        targets = [(point[0], point[1], state.position[2]), (point[0], point[1], 0.0)]
+        step = self._go(bound, state, labels, targets, cruise=False)
+        return replace(step, after=replace(step.after, flying=False))
+
+    def _loiter(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+        centre, unknown = self._point(bound, labels)
+        if unknown:
+            return self._unknown(state, labels, unknown)
+        if centre is None and bound.get("relative_coordinates") is not None:
+            centre = _add(state.position, tuple(bound.get("relative_coordinates")))  # type: ignore[arg-type]
+        elif centre is None and bound.get("from_home") is not None:
+            centre = _add(state.home, tuple(bound.get("from_home")))  # type: ignore[arg-type]
+        elif centre is None and bound.get("latitude") is not None:
+            centre = self.local(float(bound.get("latitude")), float(bound.get("longitude")),
+                                float(bound.get("altitude")),
+                                str(bound.get("altitude_reference")))
+        centre = centre or state.position
+        radius = float(bound.get("radius"))
+        # The vehicle flies to the nearest point of the circle, not to its centre (which
+        # is often the very thing it circles around).
+        entry = _on_circle(centre, radius, state.position)
+        step = self._go(bound, state, labels, [entry] if entry != state.position else [])
+        step = replace(step, destination=centre, loiter=Loiter(centre, radius))
+        turns, duration = bound.get("turns"), bound.get("duration")
+        speed = min(state.speed or self.profile.cruise_speed, self.profile.max_speed)
+        if turns is None and duration is None:
+            return replace(step, notes=("circles until an event ends it; no time counted",))
+        metres = 2 * math.pi * radius * int(turns) if turns is not None else \
+            speed * float(duration)
+        seconds = metres / speed if turns is not None else float(duration)
+        after = replace(step.after, time=step.after.time + seconds,
+                        battery=step.after.battery - self.energy(metres, seconds))
+        return replace(step, after=after, circle_metres=metres)
+
+    def _survey_area(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+        base, unknown = self._point(bound, labels)
+        if unknown:
+            return self._unknown(state, labels, unknown)
+        if base is None and bound.get("latitude") is not None:
+            base = self.local(float(bound.get("latitude")), float(bound.get("longitude")),
+                              0.0, "relative")
+        base = base or state.position
+        altitude = float(bound.get("altitude") or state.position[2])
+        targets = survey_pattern((base[0], base[1], altitude), float(bound.get("length")),
+                                 float(bound.get("width")), float(bound.get("spacing")),
+                                 str(bound.get("direction")))
+        return self._go(bound, state, labels, targets)
+
+    def _explore_space(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+        targets = explore_pattern(state.position, float(bound.get("radius")),
+                                  float(bound.get("spacing")))
+        return self._go(bound, state, labels, targets)
+
+    def _go_to_rectangle(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+        colour = str(bound.get("frame_color")).lower()
+        frames = [o for o in self.world.objects if o.kind == "frame" and o.color.lower() == colour]
+        if not frames:
+            return Step(state, state, labels=labels, notes=(
+                f"no {colour} frame in the world: where it is is known only in flight",))
+        frame = frames[0]
+        return self._go(bound, state, labels, [(frame.north, frame.east, frame.altitude)])
+
+    def _rotate_yaw(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+        if bound.get("angle") is not None:
+            turn = float(bound.get("angle"))
+        else:
+            turn = (float(bound.get("orientation_angle")) - state.heading + 180.0) % 360.0 - 180.0
+        after = self.hover(state, abs(turn) / self.profile.yaw_rate)
+        return Step(state, replace(after, heading=(state.heading + turn) % 360.0), labels=labels)
+
+    def _wait(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+        return Step(state, self.hover(state, float(bound.get("duration"))), labels=labels)
+
+    def _capture_photos(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+        seconds = (int(bound.get("count")) - 1) * float(bound.get("interval"))
+        return Step(state, self.hover(state, seconds), labels=labels)
+
+    def _memorize_point(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+        label = bound.labels.get("coordinates")
+        if label:
+            labels[label] = state.position
+        return Step(state, state, labels=labels)
+
+    def _set_speed(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+        kind, value = str(bound.get("speed_type")), float(bound.get("speed"))
+        if kind == "climb":
+            after = replace(state, climb_rate=min(value, self.profile.climb_rate))
+        elif kind == "descent":
+            after = replace(state, descent_rate=min(value, self.profile.descent_rate))
+        else:
+            after = replace(state, speed=value)
+        return Step(state, after, labels=labels, requested_speed=(kind, value))
+
+    def _set_home(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+        if bound.get("latitude") is None:
+            home = state.position
+        else:
+            home = self.local(float(bound.get("latitude")), float(bound.get("longitude")),
+                              float(bound.get("altitude")), "amsl")
+        return Step(state, replace(state, home=home), labels=labels)
+
+
+def _add(a: Point3, b: tuple[float, ...]) -> Point3:
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
+
+
+def _on_circle(centre: Point3, radius: float, position: Point3) -> Point3:
+    dn, de = position[0] - centre[0], position[1] - centre[1]
+    ground = math.hypot(dn, de)
+    if ground == 0:
+        return (centre[0] + radius, centre[1], centre[2])
+    return (centre[0] + radius * dn / ground, centre[1] + radius * de / ground, centre[2])
+
+
+def _ahead(position: Point3, heading: float, distance: float) -> Point3:
+    angle = math.radians(heading)
+    return (position[0] + distance * math.cos(angle), position[1] + distance * math.sin(angle),
+            position[2])
+
+
+def survey_pattern(base: Point3, length: float, width: float, spacing: float,
+                   direction: str) -> list[Point3]:
+    """The lawnmower points of SURVEY_AREA: from the base point, passes ``length`` metres
+    long along north/south, ``spacing`` apart across ``width`` metres east/west, into the
+    quadrant ``direction`` names; the last pass lies on the far edge."""
+    north_sign = 1.0 if direction.startswith("NORTH") else -1.0
+    east_sign = 1.0 if direction.endswith("EAST") else -1.0
+    offsets = [spacing * k for k in range(int(width // spacing) + 1)]
+    if width - offsets[-1] > 1e-9:
+        offsets.append(width)
+    points = [base]
+    for index, across in enumerate(offsets):
+        ends = (0.0, length) if index % 2 == 0 else (length, 0.0)
+        for along in ends:
+            point = (base[0] + north_sign * along, base[1] + east_sign * across, base[2])
+            if point != points[-1]:
+                points.append(point)
+    return points
+
+
+def explore_pattern(centre: Point3, radius: float, spacing: float) -> list[Point3]:
+    """The expanding-square points of EXPLORE_SPACE around ``centre``: legs north, east,
+    south, west of 1, 1, 2, 2, 3, 3 ... times ``spacing``, while inside ``radius``."""
+    points: list[Point3] = []
+    north, east = 0.0, 0.0
+    directions = ((1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0))
+    leg = 0
+    while True:
+        size = spacing * (leg // 2 + 1)
+        dn, de = directions[leg % 4]
+        north, east = north + dn * size, east + de * size
+        if max(abs(north), abs(east)) > radius + 1e-9:
+            break
+        points.append((centre[0] + north, centre[1] + east, centre[2]))
+        leg += 1
+    return points

@@ -1,0 +1,223 @@
+"""The trajectory planner: shortest collision-free paths around known obstacles.
+
+Obstacles are vertical extrusions (cylinders and prisms, :mod:`tml.world`), so a leg from
+``a`` to ``b`` is planned in the ground plane: an obstacle matters to the leg only when its
+altitude band, widened by the clearance, meets the altitudes the leg flies through (a leg
+above a building's top plus the clearance flies straight over it). The altitude is then
+interpolated along the planned path.
+
+Each obstacle that matters is inflated by the clearance into a polygon that *contains* the
+true inflated shape: a shapely buffer with ``quad_segs`` segments per quarter circle puts its
+vertices on the circle, so the buffer distance is divided by ``cos(pi / (4 * quad_segs))``
+to push every chord out to the clearance. The shortest path among polygons runs through
+their vertices (a visibility graph); the vertices used as graph nodes come from the inflated
+polygon grown by a further ``MARGIN``, so that a path along a polygon's edge does not touch
+the polygon it is tested against.
+
+The visibility graph is built lazily: first only the obstacles the straight line crosses,
+then, while the shortest path found crosses further obstacles, those are added and the path
+planned again. Free space only shrinks as obstacles are added, so when the graph has no path
+no path exists; when the path found crosses nothing else it is the shortest one.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from itertools import pairwise
+
+import numpy as np
+import shapely
+from shapely.geometry import LineString, Point, Polygon
+
+from tml.world import Cylinder, Obstacle
+
+Point3 = tuple[float, float, float]  # (north, east, up) in metres from home
+QUAD_SEGS = 3
+MARGIN = 0.01  # m between a test polygon and the graph nodes around it
+_COVER = 1.0 / math.cos(math.pi / (4 * QUAD_SEGS))
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """A path of straight segments in the local frame, from its first point to its last."""
+
+    points: tuple[Point3, ...]
+
+    @property
+    def length(self) -> float:
+        """Length in metres, climbs and descents included (the paper's Length)."""
+        return sum(math.dist(a, b) for a, b in pairwise(self.points))
+
+    @property
+    def horizontal_length(self) -> float:
+        """Length in metres over the ground."""
+        return sum(math.hypot(b[0] - a[0], b[1] - a[1])
+                   for a, b in pairwise(self.points))
+
+
+def straight(a: Point3, b: Point3) -> Trajectory:
+    """The straight segment from ``a`` to ``b``."""
+    return Trajectory((a, b)) if a != b else Trajectory((a,))
+
+
+class Planner:
+    """Plans legs among fixed obstacles with a fixed clearance; caches the legs it plans."""
+
+    def __init__(self, obstacles: Sequence[Obstacle], clearance: float) -> None:
+        self.obstacles = tuple(obstacles)
+        self.clearance = clearance
+        cores, radii = [], []
+        for obstacle in self.obstacles:
+            if isinstance(obstacle, Cylinder):
+                cores.append(Point(obstacle.north, obstacle.east))
+                radii.append(obstacle.radius)
+            else:
+                cores.append(Polygon(obstacle.polygon))
+                radii.append(0.0)
+        # The true footprint is ``core`` grown by ``radius``; distances use it exactly.
+        self.cores = np.array(cores, dtype=object)
+        self.radii = np.array(radii, dtype=float)
+        self.bottoms = np.array([o.bottom for o in self.obstacles], dtype=float)
+        self.tops = np.array([o.top for o in self.obstacles], dtype=float)
+        self.inflated = np.array(
+            [core.buffer((radius + clearance) * _COVER, quad_segs=QUAD_SEGS)
+             for core, radius in zip(cores, radii, strict=True)], dtype=object)
+        self.tree = shapely.STRtree(self.inflated)
+        self._nodes: dict[int, np.ndarray] = {}
+        self._cache: dict[tuple[Point3, Point3], Trajectory | None] = {}
+
+    def band(self, low: float, high: float) -> np.ndarray:
+        """Mask of the obstacles whose altitudes, widened by the clearance, meet [low, high]."""
+        return (self.bottoms - self.clearance < high) & (self.tops + self.clearance > low)
+
+    def trajectory(self, start: Point3, end: Point3) -> Trajectory | None:
+        """The shortest collision-free path from ``start`` to ``end`` (the paper's
+        Trajectory), or None when the obstacles close every way.
+
+        Obstacles whose inflated shape holds ``start`` or ``end`` are left out: the
+        constraints report a point too close to an obstacle on their own (c1).
+        """
+        key = (start, end)
+        if key not in self._cache:
+            self._cache[key] = self._plan(start, end)
+        return self._cache[key]
+
+    def _plan(self, start: Point3, end: Point3) -> Trajectory | None:
+        a2, b2 = (start[0], start[1]), (end[0], end[1])
+        if a2 == b2 or not self.obstacles:
+            return straight(start, end)
+        usable = self.band(min(start[2], end[2]), max(start[2], end[2]))
+        for held in self.tree.query([Point(a2), Point(b2)], predicate="intersects")[1]:
+            usable[held] = False
+        active: set[int] = set()
+        path = [a2, b2]
+        while True:
+            crossed = {int(i) for i in self.tree.query(LineString(path), predicate="intersects")
+                       if usable[i]} - active
+            if not crossed:
+                break
+            active |= crossed
+            found = self._shortest(a2, b2, sorted(active))
+            if found is None:
+                return None
+            path = found
+        return _with_altitudes(path, start[2], end[2])
+
+    def _node_points(self, index: int) -> np.ndarray:
+        if index not in self._nodes:
+            grown = self.inflated[index].buffer(MARGIN, join_style="mitre")
+            self._nodes[index] = np.asarray(grown.exterior.coords)[:-1]
+        return self._nodes[index]
+
+    def _shortest(self, a2: tuple[float, float], b2: tuple[float, float],
+                  active: list[int]) -> list[tuple[float, float]] | None:
+        polygons = self.inflated[active]
+        tree = shapely.STRtree(polygons)
+        candidates = np.concatenate([self._node_points(i) for i in active])
+        inside = tree.query(shapely.points(candidates), predicate="intersects")[0]
+        keep = np.ones(len(candidates), dtype=bool)
+        keep[inside] = False
+        nodes = np.vstack([np.array([a2, b2]), candidates[keep]])
+        count = len(nodes)
+        first, second = np.triu_indices(count, k=1)
+        segments = shapely.linestrings(np.stack([nodes[first], nodes[second]], axis=1))
+        blocked = np.zeros(len(segments), dtype=bool)
+        blocked[tree.query(segments, predicate="intersects")[0]] = True
+        lengths = np.hypot(*(nodes[first] - nodes[second]).T)
+        neighbours: list[list[tuple[int, float]]] = [[] for _ in range(count)]
+        for i, j, length in zip(first[~blocked], second[~blocked], lengths[~blocked],
+                                strict=True):
+            neighbours[i].append((int(j), float(length)))
+            neighbours[j].append((int(i), float(length)))
+        order = _dijkstra(neighbours, 0, 1)
+        if order is None:
+            return None
+        return [(float(nodes[i][0]), float(nodes[i][1])) for i in order]
+
+    def clearance_of(self, points: Sequence[Point3]) -> float:
+        """Smallest distance in metres from a path (or a point) to any obstacle's surface,
+        counting the vertical gap to obstacles the path passes over or under; inf without
+        obstacles. The paper's DistanceObstacle for a single point."""
+        if not self.obstacles:
+            return math.inf
+        pieces = list(pairwise(points)) or \
+                 [(points[0], points[0])]
+        best = math.inf
+        for a, b in pieces:
+            geometry = Point(a[0], a[1]) if a[:2] == b[:2] else LineString([a[:2], b[:2]])
+            flat = np.maximum(shapely.distance(self.cores, geometry) - self.radii, 0.0)
+            low, high = min(a[2], b[2]), max(a[2], b[2])
+            gap = np.maximum(np.maximum(self.bottoms - high, low - self.tops), 0.0)
+            best = min(best, float(np.min(np.hypot(flat, gap))))
+        return best
+
+    def nearest(self, point: Point3) -> tuple[float, str]:
+        """Distance from a point to the nearest obstacle's surface, and that obstacle's name."""
+        if not self.obstacles:
+            return math.inf, ""
+        geometry = Point(point[0], point[1])
+        flat = np.maximum(shapely.distance(self.cores, geometry) - self.radii, 0.0)
+        gap = np.maximum(np.maximum(self.bottoms - point[2], point[2] - self.tops), 0.0)
+        distances = np.hypot(flat, gap)
+        index = int(np.argmin(distances))
+        return float(distances[index]), self.obstacles[index].name
+
+
+def _dijkstra(neighbours: list[list[tuple[int, float]]], source: int,
+              target: int) -> list[int] | None:
+    best = {source: 0.0}
+    previous: dict[int, int] = {}
+    queue = [(0.0, source)]
+    while queue:
+        cost, node = heapq.heappop(queue)
+        if node == target:
+            order = [target]
+            while order[-1] != source:
+                order.append(previous[order[-1]])
+            return order[::-1]
+        if cost > best[node]:
+            continue
+        for other, length in neighbours[node]:
+            total = cost + length
+            if total < best.get(other, math.inf):
+                best[other] = total
+                previous[other] = node
+                heapq.heappush(queue, (total, other))
+    return None
+
+
+def _with_altitudes(path: Sequence[tuple[float, float]], up_a: float,
+                    up_b: float) -> Trajectory:
+    # The altitude changes evenly with the distance flown over the ground.
+    total = sum(math.dist(p, q) for p, q in pairwise(path))
+    points: list[Point3] = []
+    flown = 0.0
+    for index, (north, east) in enumerate(path):
+        if index:
+            flown += math.dist(path[index - 1], path[index])
+        share = flown / total if total else 1.0
+        points.append((north, east, up_a + (up_b - up_a) * share))
+    return Trajectory(tuple(points))

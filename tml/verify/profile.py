@@ -1,0 +1,177 @@
+"""Vehicle profiles: the parameters (the paper's k_i) of the feasibility model.
+
+A profile is a flat TOML table of numbers in fixed units (metres, m/s, deg/s, percent of a
+full battery, seconds). Two profiles ship with tml (``quadcopter`` and ``fixed-wing``); a
+file may name one of them as ``base`` and give only the keys it changes. The same numbers
+can be read from a connected ArduPilot vehicle's parameters (:func:`profile_from_parameters`),
+which convert the autopilot's units (cm/s, cm, mAh) into the profile's.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, fields, replace
+from importlib import resources
+from pathlib import Path
+
+from tml.errors import TmlError
+
+SHIPPED = ("quadcopter", "fixed-wing")
+
+
+@dataclass(frozen=True)
+class VehicleProfile:
+    """The vehicle-specific parameters of the feasibility model (units in the comments)."""
+
+    name: str
+    cruise_speed: float  # m/s, speed of moves until SET_SPEED changes it
+    max_speed: float  # m/s, the paper's k3
+    climb_rate: float  # m/s
+    descent_rate: float  # m/s
+    yaw_rate: float  # deg/s
+    battery_capacity: float  # mAh the consumption figures below are measured with
+    battery_per_metre: float  # percent per metre flown, the paper's k1
+    battery_per_second: float  # percent per second hovering (loitering for a fixed-wing)
+    battery_reserve: float  # percent that must be left when back home
+    min_clearance: float  # m, the paper's k2
+    min_altitude: float  # m above home, lowest altitude of a cruise leg
+    max_altitude: float  # m above home
+    max_range: float  # m, farthest horizontal distance from home
+    takeoff_altitude: float  # m, used by TAKE_OFF when no altitude is written
+    return_altitude: float  # m, RETURN_HOME_AND_LAND climbs to it first (ArduPilot RTL_ALT)
+    min_turn_radius: float  # m, smallest loiter circle (0 for a multicopter)
+    max_flight_time: float  # s from the start of the mission to its end; 0: no limit
+
+
+# Keys that may be zero; every other number must be strictly positive.
+_MAY_BE_ZERO = frozenset({"min_altitude", "min_turn_radius", "max_flight_time",
+                          "battery_reserve", "min_clearance", "battery_per_second"})
+NUMBER_KEYS = tuple(f.name for f in fields(VehicleProfile) if f.name != "name")
+
+
+def _problem(file: str, key: str, why: str) -> TmlError:
+    return TmlError(f"{file}: key {key!r}: {why}")
+
+
+def profile_from_mapping(data: Mapping[str, object], file: str,
+                         base: VehicleProfile | None = None) -> VehicleProfile:
+    """A profile from a parsed TOML table; keys missing here come from ``base``.
+
+    Raises :class:`TmlError` naming the file and the key on an unknown key, a missing key,
+    a value that is not a number, or a number out of range.
+    """
+    values: dict[str, object] = {} if base is None else {
+        f.name: getattr(base, f.name) for f in fields(VehicleProfile)}
+    for key, value in data.items():
+        if key == "base":
+            continue
+        if key == "name":
+            if not isinstance(value, str) or not value.strip():
+                raise _problem(file, key, "expected a non-empty string")
+            values[key] = value
+            continue
+        if key not in NUMBER_KEYS:
+            raise _problem(file, key, "unknown key; known keys: " + ", ".join(NUMBER_KEYS))
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise _problem(file, key, f"expected a number, got {value!r}")
+        number = float(value)
+        if not math.isfinite(number) or number < 0 or (number == 0 and key not in _MAY_BE_ZERO):
+            bound = "at least 0" if key in _MAY_BE_ZERO else "greater than 0"
+            raise _problem(file, key, f"must be a finite number {bound}, got {value!r}")
+        values[key] = number
+    values.setdefault("name", Path(file).stem)
+    for key in NUMBER_KEYS:
+        if key not in values:
+            raise _problem(file, key, "missing (or name a shipped profile with base = "
+                                      f"\"{SHIPPED[0]}\" to take the rest from it)")
+    profile = VehicleProfile(**values)  # type: ignore[arg-type]
+    if profile.cruise_speed > profile.max_speed:
+        raise _problem(file, "cruise_speed", f"{profile.cruise_speed:g} m/s is above "
+                                             f"max_speed {profile.max_speed:g} m/s")
+    if profile.min_altitude >= profile.max_altitude:
+        raise _problem(file, "min_altitude", f"{profile.min_altitude:g} m is not below "
+                                             f"max_altitude {profile.max_altitude:g} m")
+    if profile.battery_reserve >= 100:
+        raise _problem(file, "battery_reserve", "must be below 100 percent")
+    return profile
+
+
+def load_profile(source: str | Path) -> VehicleProfile:
+    """A shipped profile by name (``quadcopter``, ``fixed-wing``) or a profile file.
+
+    Raises :class:`TmlError` on bad TOML or bad keys (naming the file and the key), and
+    OSError when the file cannot be read.
+    """
+    text_source = str(source)
+    if text_source in SHIPPED:
+        data = resources.files("tml.verify").joinpath(f"profiles/{text_source}.toml")
+        return profile_from_mapping(tomllib.loads(data.read_text("utf-8")), text_source)
+    path = Path(source)
+    try:
+        data = tomllib.loads(path.read_text("utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise TmlError(f"{path}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError:
+        raise TmlError(f"{path}: not a UTF-8 text file") from None
+    base = None
+    if "base" in data:
+        if data["base"] not in SHIPPED:
+            raise _problem(str(path), "base", f"{data['base']!r} is not a shipped profile "
+                                              f"({', '.join(SHIPPED)})")
+        base = load_profile(str(data["base"]))
+    return profile_from_mapping(data, str(path), base)
+
+
+def _positive(params: Mapping[str, float], name: str) -> float | None:
+    value = params.get(name)
+    if value is None or not math.isfinite(value) or value <= 0:
+        return None
+    return float(value)
+
+
+def profile_from_parameters(params: Mapping[str, float], base: VehicleProfile) -> VehicleProfile:
+    """``base`` with the values an ArduPilot vehicle's parameters give, in profile units.
+
+    Pure: takes the parameter table as read from the vehicle (names as ArduPilot spells
+    them, values as it sends them) and returns a new profile. Parameters absent, zero or
+    negative (ArduPilot's "not set" / "disabled") leave the base value. Read:
+    WPNAV_SPEED, WPNAV_SPEED_UP, WPNAV_SPEED_DN, RTL_ALT, ALT_HOLD_RTL, TRIM_ARSPD_CM (cm/s
+    or cm); AIRSPEED_CRUISE, AIRSPEED_MAX, ARSPD_FBW_MAX, FENCE_ALT_MAX, FENCE_ALT_MIN,
+    FENCE_RADIUS, TKOFF_ALT (m); ATC_RATE_Y_MAX (deg/s); BATT_CAPACITY and BATT_LOW_MAH
+    (mAh). A larger battery than the profile's ``battery_capacity`` scales the consumption
+    per metre and per second down in proportion.
+    """
+    changes: dict[str, float] = {}
+    centimetres = {"WPNAV_SPEED": "cruise_speed", "TRIM_ARSPD_CM": "cruise_speed",
+                   "WPNAV_SPEED_UP": "climb_rate", "WPNAV_SPEED_DN": "descent_rate",
+                   "RTL_ALT": "return_altitude", "ALT_HOLD_RTL": "return_altitude"}
+    metres = {"AIRSPEED_CRUISE": "cruise_speed", "ARSPD_FBW_MAX": "max_speed",
+              "AIRSPEED_MAX": "max_speed", "FENCE_ALT_MAX": "max_altitude",
+              "FENCE_RADIUS": "max_range", "TKOFF_ALT": "takeoff_altitude",
+              "ATC_RATE_Y_MAX": "yaw_rate"}
+    for name, key in centimetres.items():
+        value = _positive(params, name)
+        if value is not None:
+            changes[key] = value / 100.0
+    for name, key in metres.items():
+        value = _positive(params, name)
+        if value is not None:
+            changes[key] = value
+    fence_min = _positive(params, "FENCE_ALT_MIN")
+    if fence_min is not None:
+        changes["min_altitude"] = fence_min
+    capacity = _positive(params, "BATT_CAPACITY")
+    if capacity is not None:
+        scale = base.battery_capacity / capacity
+        changes.update(battery_capacity=capacity,
+                       battery_per_metre=base.battery_per_metre * scale,
+                       battery_per_second=base.battery_per_second * scale)
+        low = _positive(params, "BATT_LOW_MAH")
+        if low is not None and low < capacity:
+            changes["battery_reserve"] = 100.0 * low / capacity
+    profile = replace(base, **changes)
+    if profile.max_speed < profile.cruise_speed:
+        profile = replace(profile, max_speed=profile.cruise_speed)
+    return profile

@@ -119,3 +119,13 @@ def test_many_files_are_validated_in_parallel_with_the_same_output(
     serial = capsys.readouterr().out
     assert parallel == serial
     assert "120 file(s) checked: 117 valid, 3 invalid" in serial
+
+
+def test_pre_commit_hook_entry_is_a_working_command(files: Path) -> None:
+    hooks = (Path(__file__).parent.parent / ".pre-commit-hooks.yaml").read_text()
+    entry = next(line.split(":", 1)[1].split() for line in hooks.splitlines()
+                 if line.strip().startswith("entry:"))
+    assert entry[0] == "tml"
+    # pre-commit appends the staged file names to the entry.
+    assert main([*entry[1:], str(files / "valid.xml")]) == 0
+    assert main([*entry[1:], str(files / "valid.xml"), str(files / "sub" / "invalid.xml")]) == 1

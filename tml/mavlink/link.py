@@ -42,6 +42,7 @@ from tml.mavlink.command import CommandAck, CommandSender
 from tml.mavlink.telemetry import Telemetry, TelemetryTracker
 
 HEARTBEAT_PERIOD = 1.0
+PROGRESS_PERIOD = 0.1
 GCS_TYPES = frozenset({mavlink.MAV_TYPE_GCS})
 
 
@@ -109,6 +110,9 @@ class Link:
             self._conn.setup_signing(signing_key, sign_outgoing=True,
                                      allow_unsigned_callback=lambda _mav, _msgid: False)
         self._lock = threading.Condition()
+        # Woken only when a machine finishes, so that a transfer's caller does not wake
+        # (and take the GIL from the receive thread) on every message.
+        self._machine_done = threading.Condition(self._lock)
         self._send_lock = threading.Lock()
         self._vehicles: dict[int, VehicleInfo] = {}
         self._trackers: dict[int, TelemetryTracker] = {}
@@ -210,7 +214,12 @@ class Link:
 
     def run(self, machine: Machine, system_id: int, component_id: int,
             on_progress: Callable[[Machine], None] | None = None) -> Machine:
-        """Drive a sans-IO ``machine`` with this vehicle until it is done; returns it."""
+        """Drive a sans-IO ``machine`` with this vehicle until it is done; returns it.
+
+        The receive thread feeds the machine and sends its answers; this thread only
+        sleeps until the machine is done or its deadline passes (then ticks it), waking
+        every ``PROGRESS_PERIOD`` to report progress if ``on_progress`` is given.
+        """
         with self._lock:
             self._machines.setdefault(system_id, []).append(machine)
             self._send_all(machine.start(time.monotonic()), system_id, component_id)
@@ -218,8 +227,10 @@ class Link:
             with self._lock:
                 while not machine.done:
                     wait = machine.deadline - time.monotonic()
+                    if on_progress is not None:
+                        wait = min(wait, PROGRESS_PERIOD)
                     if wait > 0:
-                        self._lock.wait(min(wait, 1.0))
+                        self._machine_done.wait(min(wait, 1.0))
                     self._send_all(machine.tick(time.monotonic()), system_id, component_id)
                     if on_progress is not None:
                         on_progress(machine)
@@ -279,6 +290,8 @@ class Link:
                     if isinstance(plain, CommandAck) == _is_command(machine):
                         info = self._vehicles[sysid]
                         self._send_all(machine.receive(plain, now), sysid, info.component_id)
+                        if machine.done:
+                            self._machine_done.notify_all()
             snapshot = tracker.snapshot
             self._lock.notify_all()
         for listener in self._listeners:

@@ -1,0 +1,187 @@
+"""``python -m sitl``: run simulated vehicles until interrupted.
+
+Prints one line per vehicle saying where it listens, then serves until SIGINT or SIGTERM
+and exits 0. Bad arguments or an unusable world file give one clear line on stderr and
+exit status 2; a port already in use gives exit status 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+from collections.abc import Sequence
+
+from sitl.faults import Faults
+from tml.errors import TmlError
+from tml.world import Home, World
+
+
+def _home(text: str) -> Home:
+    parts = text.split(",")
+    try:
+        values = [float(part) for part in parts]
+    except ValueError:
+        values = []
+    if len(values) not in (3, 4):
+        raise argparse.ArgumentTypeError(f"expected lat,lon,alt[,heading], got {text!r}")
+    lat, lon, alt = values[:3]
+    if not (-90 <= lat <= 90 and -180 <= lon <= 180):
+        raise argparse.ArgumentTypeError(f"latitude/longitude out of range in {text!r}")
+    return Home(lat, lon, alt, values[3] if len(values) == 4 else 0.0)
+
+
+def _probability(text: str) -> float:
+    value = _non_negative(text)
+    if value > 1:
+        raise argparse.ArgumentTypeError(f"expected a probability between 0 and 1, got {text}")
+    return value
+
+
+def _non_negative(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative number, got {text}")
+    return value
+
+
+def _positive(text: str) -> float:
+    value = _non_negative(text)
+    if value == 0:
+        raise argparse.ArgumentTypeError("expected a positive number, got 0")
+    return value
+
+
+def _count(text: str) -> int:
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {text!r}")
+    return int(text)
+
+
+def _window(text: str) -> tuple[float, float]:
+    start, _, end = text.partition(":")
+    try:
+        window = float(start), float(end)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected START:END in seconds, got {text!r}") from None
+    if window[1] < window[0]:
+        raise argparse.ArgumentTypeError(f"outage {text!r} ends before it starts")
+    return window
+
+
+def _rejection(text: str) -> tuple[int, int]:
+    command, _, result = text.partition(":")
+    if not command.isdigit() or (result and not result.isdigit()):
+        raise argparse.ArgumentTypeError(f"expected CMD_ID[:RESULT], got {text!r}")
+    return int(command), int(result or 4)
+
+
+def _udp(text: str) -> str:
+    from sitl.server import parse_udp_address
+
+    try:
+        parse_udp_address(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+    return text
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``python -m sitl`` (also used by ``tml sim``)."""
+    parser = argparse.ArgumentParser(
+        prog="python -m sitl",
+        description="Simulated ArduCopter vehicles speaking MAVLink 2 over TCP and UDP.",
+    )
+    parser.add_argument("--vehicles", type=_count, default=1, help="number of vehicles (ids 1..N)")
+    parser.add_argument("--home", type=_home, help="lat,lon,alt[,heading] of vehicle 1")
+    parser.add_argument("--speedup", type=_positive, default=1.0, help="times faster than real")
+    parser.add_argument("--world", help="world file (obstacles, geofence, objects, home)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of every random choice")
+    parser.add_argument("--tcp-base-port", type=int, default=5760,
+                        help="TCP port of vehicle 1; vehicle i listens on base + 10*(i-1); "
+                             "0 = any free port")
+    parser.add_argument("--bind", default="127.0.0.1", help="address to listen on")
+    parser.add_argument("--out", action="append", type=_udp, default=[],
+                        metavar="udp:HOST:PORT", help="also stream to a ground station (repeat)")
+    faults = parser.add_argument_group("faults")
+    faults.add_argument("--loss-in", type=_probability, default=0.0,
+                        help="probability a message to the vehicle is lost")
+    faults.add_argument("--loss-out", type=_probability, default=0.0,
+                        help="probability a message from the vehicle is lost")
+    faults.add_argument("--latency", type=_non_negative, default=0.0, help="seconds of delay")
+    faults.add_argument("--jitter", type=_non_negative, default=0.0, help="extra random delay")
+    faults.add_argument("--duplicate", type=_probability, default=0.0,
+                        help="probability a message is delivered twice")
+    faults.add_argument("--reorder", type=_probability, default=0.0,
+                        help="probability a message is overtaken by later ones")
+    faults.add_argument("--outage", type=_window, action="append", default=[],
+                        metavar="START:END", help="no link between these vehicle times (s)")
+    faults.add_argument("--reject", type=_rejection, action="append", default=[],
+                        metavar="CMD[:RESULT]", help="answer command CMD with RESULT (4 FAILED)")
+    faults.add_argument("--gps-loss-at", type=_non_negative, help="vehicle time the GPS fails")
+    faults.add_argument("--battery-failure-at", type=_non_negative,
+                        help="vehicle time the battery fails")
+    return parser
+
+
+def _load_world(path: str) -> World:
+    from tml.parse import load_world
+
+    return load_world(path)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the simulator; returns the exit status."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exit_:
+        return int(exit_.code or 0)
+    try:
+        world = _load_world(args.world) if args.world else None
+    except (TmlError, OSError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    faults = Faults(
+        seed=args.seed, loss_in=args.loss_in, loss_out=args.loss_out, latency=args.latency,
+        jitter=args.jitter, duplicate=args.duplicate, reorder=args.reorder,
+        outages=tuple(args.outage), reject_commands=dict(args.reject),
+        gps_loss_at=args.gps_loss_at, battery_failure_at=args.battery_failure_at,
+    )
+    from sitl.server import Simulator
+
+    simulator = Simulator(
+        vehicles=args.vehicles, home=args.home, speedup=args.speedup, seed=args.seed,
+        world=world, faults=faults, tcp_base_port=args.tcp_base_port, udp_out=args.out,
+        bind=args.bind,
+    )
+    try:
+        simulator.start()
+    except OSError as error:
+        print(f"error: cannot open the vehicle ports: {error}", file=sys.stderr)
+        return 1
+    stop = threading.Event()
+    previous = {sig: signal.signal(sig, lambda *_: stop.set())
+                for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        tcp = simulator.tcp_ports
+        udp = simulator.udp_ports
+        for index, model in enumerate(simulator.vehicles):
+            where = [f"tcp:{args.bind}:{tcp[index]}"] if tcp else []
+            if udp:
+                where += [f"udp out {a} from port {udp[index]}" for a in args.out]
+            home = model.home
+            print(f"vehicle {model.system_id}: {', '.join(where) or 'no link'} "
+                  f"(home {home.latitude:.7f},{home.longitude:.7f},{home.altitude:.1f}; "
+                  f"speedup {args.speedup:g})", flush=True)
+        while not stop.wait(0.2):
+            pass
+    finally:
+        simulator.stop()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    return 0

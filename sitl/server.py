@@ -1,0 +1,359 @@
+"""Serve simulated vehicles over TCP and UDP, like ArduPilot SITL instances.
+
+Theory of operation. One thread owns every socket and every vehicle model. Each vehicle
+(system id i, 1-based) listens on its own TCP port (``tcp_base_port + 10 * (i - 1)``, as
+several ArduPilot SITL instances do, or an OS-assigned port with ``tcp_base_port=0``) and
+optionally sends to ground-station UDP addresses (``udp_out``) from its own UDP socket,
+reading the replies that come back to it. Everything a vehicle emits goes to every client
+of that vehicle; bytes received are parsed with pymavlink's MAVLink 2 parser (one parser
+per connection) and handed to the vehicle's model.
+
+All vehicles share one clock that advances in the model's control ticks. With
+``realtime=True`` a background thread keeps vehicle time at ``speedup`` times wall-clock
+time (falling behind instead of skipping when the machine cannot keep up). With
+``realtime=False`` nothing moves until :meth:`Simulator.advance` is called, which steps
+time deterministically and serves the sockets between ticks: a test sends, advances,
+and reads the replies.
+
+Link faults (:class:`sitl.faults.Faults`) act here, on decoded messages going in and on
+encoded packets going out, timed in vehicle time so they replay from the seed.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import selectors
+import socket
+import threading
+import time
+from dataclasses import replace
+from typing import Any
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from sitl.faults import Faults, WireChannel
+from sitl.messages import AUTOPILOT
+from sitl.model import TICK, VehicleModel
+from tml.geo import to_global
+from tml.world import Home, World
+
+MAX_BACKLOG = 1 << 20  # bytes queued for a client that does not read before we drop
+VEHICLE_SPACING = 5.0  # metres east between the boot positions of consecutive vehicles
+
+
+def parse_udp_address(text: str) -> tuple[str, int]:
+    """``udp:HOST:PORT`` (or ``HOST:PORT``) -> (host, port); ValueError when malformed."""
+    body = text[4:] if text.startswith("udp:") else text
+    host, _, port = body.rpartition(":")
+    if not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise ValueError(f"not a UDP address (udp:HOST:PORT): {text!r}")
+    return host, int(port)
+
+
+class _Peer:
+    """One connection (a TCP client, or a UDP address) and its parser and send queue."""
+
+    def __init__(self, sock: socket.socket, address: tuple[str, int] | None = None) -> None:
+        self.sock = sock
+        self.address = address  # UDP destination; None for TCP
+        self.parser = mavlink.MAVLink(None)
+        self.parser.robust_parsing = True
+        self.backlog = bytearray()
+
+    def send(self, data: bytes) -> None:
+        if self.address is not None:
+            with contextlib.suppress(OSError):
+                self.sock.sendto(data, self.address)
+            return
+        if len(self.backlog) < MAX_BACKLOG:
+            self.backlog += data
+
+    def flush(self) -> bool:
+        """Send what the socket takes; False when the connection is gone."""
+        if not self.backlog or self.address is not None:
+            return True
+        try:
+            sent = self.sock.send(self.backlog)
+        except BlockingIOError:
+            return True
+        except OSError:
+            return False
+        del self.backlog[:sent]
+        return True
+
+
+class _Endpoint:
+    """A vehicle with its sockets, encoders and fault channels."""
+
+    def __init__(self, model: VehicleModel, faults: Faults) -> None:
+        self.model = model
+        self.listener: socket.socket | None = None
+        self.udp: socket.socket | None = None
+        self.tcp_peers: list[_Peer] = []
+        self.udp_peers: list[_Peer] = []
+        self.encoders: dict[int, Any] = {}
+        wire = faults.affects_wire
+        sid = model.system_id
+        self.incoming: WireChannel[Any] | None = (
+            WireChannel(faults, faults.loss_in, f"{sid}/in") if wire else None)
+        self.outgoing: WireChannel[bytes] | None = (
+            WireChannel(faults, faults.loss_out, f"{sid}/out") if wire else None)
+
+    def encode(self, msg: Any) -> bytes:
+        component = msg._header.srcComponent or AUTOPILOT
+        encoder = self.encoders.get(component)
+        if encoder is None:
+            encoder = mavlink.MAVLink(None, self.model.system_id, component)
+            self.encoders[component] = encoder
+        packet = msg.pack(encoder)
+        encoder.seq = (encoder.seq + 1) % 256  # pack() leaves counting to send()
+        return packet
+
+    def peers(self) -> list[_Peer]:
+        return self.tcp_peers + self.udp_peers
+
+
+class Simulator:
+    """N simulated ArduCopters served on loopback (see the module docstring)."""
+
+    def __init__(
+        self, vehicles: int = 1, home: Home | None = None, speedup: float = 1.0, seed: int = 0,
+        world: World | None = None, faults: Faults | None = None,
+        tcp_base_port: int | None = 5760, udp_out: list[str] | tuple[str, ...] = (),
+        bind: str = "127.0.0.1", realtime: bool = True, params: dict[str, float] | None = None,
+    ) -> None:
+        if vehicles < 1:
+            raise ValueError("at least one vehicle is needed")
+        if speedup <= 0:
+            raise ValueError("speedup must be positive")
+        self.speedup = speedup
+        self.realtime = realtime
+        self.bind = bind
+        self.tcp_base_port = tcp_base_port
+        self.udp_out = [parse_udp_address(address) for address in udp_out]
+        self.faults = faults or Faults(seed=seed)
+        world = world or World()
+        base = home or world.home_or_default
+        self._endpoints: list[_Endpoint] = []
+        for index in range(vehicles):
+            lat, lon, alt = to_global(0.0, VEHICLE_SPACING * index, 0.0,
+                                      base.latitude, base.longitude, base.altitude)
+            own_home = replace(base, latitude=lat, longitude=lon, altitude=alt)
+            model = VehicleModel(index + 1, own_home, world, seed, params, self.faults)
+            self._endpoints.append(_Endpoint(model, self.faults))
+        self.time = 0.0
+        self._ticks = 0
+        self._selector = selectors.DefaultSelector()
+        self._thread: threading.Thread | None = None
+        self._running = threading.Event()
+        self._started = False
+
+    # ------------------------------------------------------------------ API
+    @property
+    def tcp_ports(self) -> list[int]:
+        """The TCP port of each vehicle (index 0 = system id 1); empty without TCP."""
+        return [e.listener.getsockname()[1] for e in self._endpoints if e.listener is not None]
+
+    @property
+    def udp_ports(self) -> list[int]:
+        """The local port each vehicle sends its UDP stream from."""
+        return [e.udp.getsockname()[1] for e in self._endpoints if e.udp is not None]
+
+    def vehicle(self, system_id: int) -> VehicleModel:
+        """The model of vehicle ``system_id`` (1-based)."""
+        if not 1 <= system_id <= len(self._endpoints):
+            raise KeyError(f"no vehicle with system id {system_id}")
+        return self._endpoints[system_id - 1].model
+
+    @property
+    def vehicles(self) -> list[VehicleModel]:
+        """All vehicle models, by system id."""
+        return [e.model for e in self._endpoints]
+
+    def start(self) -> Simulator:
+        """Open the sockets; in real time, also start the loop thread. Returns self."""
+        if self._started:
+            return self
+        try:
+            for index, endpoint in enumerate(self._endpoints):
+                self._open(endpoint, index)
+        except OSError:
+            self._close()
+            raise
+        self._started = True
+        if self.realtime:
+            self._running.set()
+            self._thread = threading.Thread(target=self._loop, name="sitl", daemon=True)
+            self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        """Stop the loop and close every socket."""
+        self._running.clear()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+            self._thread = None
+        self._close()
+        self._started = False
+
+    def __enter__(self) -> Simulator:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def advance(self, seconds: float) -> None:
+        """Step vehicle time by ``seconds`` (realtime=False), serving I/O between ticks."""
+        if self.realtime:
+            raise RuntimeError("advance() is for realtime=False simulators")
+        if not self._started:
+            self.start()
+        for _ in range(max(0, round(seconds / TICK))):
+            self._serve(0.0)
+            self._tick()
+        self._serve(0.0)
+
+    # --------------------------------------------------------------- sockets
+    def _open(self, endpoint: _Endpoint, index: int) -> None:
+        if self.tcp_base_port is not None:
+            port = self.tcp_base_port + 10 * index if self.tcp_base_port else 0
+            listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            listener.bind((self.bind, port))
+            listener.listen(4)
+            listener.setblocking(False)
+            endpoint.listener = listener
+            self._selector.register(listener, selectors.EVENT_READ, (endpoint, None))
+        if self.udp_out:
+            udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            udp.bind((self.bind, 0))
+            udp.setblocking(False)
+            endpoint.udp = udp
+            endpoint.udp_peers = [_Peer(udp, address) for address in self.udp_out]
+            self._selector.register(udp, selectors.EVENT_READ, (endpoint, "udp"))
+
+    def _close(self) -> None:
+        for endpoint in self._endpoints:
+            sockets = [p.sock for p in endpoint.tcp_peers]
+            sockets += [s for s in (endpoint.listener, endpoint.udp) if s is not None]
+            for sock in sockets:
+                with contextlib.suppress(KeyError, ValueError):
+                    self._selector.unregister(sock)
+                sock.close()
+            endpoint.tcp_peers, endpoint.udp_peers = [], []
+            endpoint.listener = endpoint.udp = None
+
+    def _serve(self, timeout: float) -> None:
+        for key, _ in self._selector.select(timeout):
+            endpoint, peer = key.data
+            if peer is None:
+                self._accept(endpoint)
+            elif peer == "udp":
+                self._read_udp(endpoint)
+            else:
+                self._read_tcp(endpoint, peer)
+        self._deliver_due()
+        for endpoint in self._endpoints:
+            for peer in list(endpoint.tcp_peers):
+                if not peer.flush():
+                    self._drop(endpoint, peer)
+
+    def _accept(self, endpoint: _Endpoint) -> None:
+        assert endpoint.listener is not None
+        try:
+            sock, _ = endpoint.listener.accept()
+        except BlockingIOError:
+            return
+        sock.setblocking(False)
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        peer = _Peer(sock)
+        endpoint.tcp_peers.append(peer)
+        self._selector.register(sock, selectors.EVENT_READ, (endpoint, peer))
+
+    def _drop(self, endpoint: _Endpoint, peer: _Peer) -> None:
+        with contextlib.suppress(KeyError, ValueError):
+            self._selector.unregister(peer.sock)
+        peer.sock.close()
+        if peer in endpoint.tcp_peers:
+            endpoint.tcp_peers.remove(peer)
+
+    def _read_tcp(self, endpoint: _Endpoint, peer: _Peer) -> None:
+        try:
+            data = peer.sock.recv(65536)
+        except BlockingIOError:
+            return
+        except OSError:
+            data = b""
+        if not data:
+            self._drop(endpoint, peer)
+            return
+        self._received(endpoint, peer.parser, data)
+
+    def _read_udp(self, endpoint: _Endpoint) -> None:
+        assert endpoint.udp is not None
+        while True:
+            try:
+                data, address = endpoint.udp.recvfrom(65536)
+            except (BlockingIOError, ConnectionRefusedError):
+                return
+            except OSError:
+                return
+            peer = next((p for p in endpoint.udp_peers if p.address == address), None)
+            if peer is None:  # a ground station answering from another port: serve it too
+                peer = _Peer(endpoint.udp, address)
+                endpoint.udp_peers.append(peer)
+            self._received(endpoint, peer.parser, data)
+
+    def _received(self, endpoint: _Endpoint, parser: Any, data: bytes) -> None:
+        try:
+            messages = parser.parse_buffer(data) or []
+        except mavlink.MAVError:
+            return
+        for msg in messages:
+            if msg.get_type() == "BAD_DATA":
+                continue
+            if endpoint.incoming is not None:
+                endpoint.incoming.send(self.time, msg)
+            else:
+                self._emit(endpoint, endpoint.model.handle(msg))
+
+    def _deliver_due(self) -> None:
+        for endpoint in self._endpoints:
+            if endpoint.incoming is not None:
+                for msg in endpoint.incoming.due(self.time):
+                    self._emit(endpoint, endpoint.model.handle(msg))
+            if endpoint.outgoing is not None:
+                for packet in endpoint.outgoing.due(self.time):
+                    for peer in endpoint.peers():
+                        peer.send(packet)
+
+    def _emit(self, endpoint: _Endpoint, messages: list[Any]) -> None:
+        peers = endpoint.peers()
+        if not peers:
+            return  # nobody listens: skip the encoding work
+        for msg in messages:
+            packet = endpoint.encode(msg)
+            if endpoint.outgoing is not None:
+                endpoint.outgoing.send(self.time, packet)
+            else:
+                for peer in peers:
+                    peer.send(packet)
+
+    # ------------------------------------------------------------------ clock
+    def _tick(self) -> None:
+        self._ticks += 1
+        self.time = self._ticks * TICK
+        for endpoint in self._endpoints:
+            self._emit(endpoint, endpoint.model.step(TICK))
+
+    def _loop(self) -> None:
+        wall_start, time_start = time.monotonic(), self.time
+        while self._running.is_set():
+            target = time_start + (time.monotonic() - wall_start) * self.speedup
+            if target - self.time > 1.0:  # too slow: run behind instead of bursting
+                wall_start, time_start = time.monotonic(), self.time
+            while self.time + TICK <= target and self._running.is_set():
+                self._tick()
+                self._serve(0.0)
+            wait = (self.time + TICK - target) / self.speedup
+            self._serve(min(max(wait, 0.0), 0.01))

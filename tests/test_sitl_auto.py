@@ -1,0 +1,105 @@
+"""The AUTO executor, through the vehicle model: upload, arm, fly, watch what it reports."""
+
+from __future__ import annotations
+
+import math
+
+from pymavlink.dialects.v20 import ardupilotmega as M
+
+from sitl.model import TICK, VehicleModel
+from tml.geo import to_global
+from tml.world import DEFAULT_HOME
+
+FAST = {"SIM_GPS_LOCKTIME": 1, "SIM_EKF_GPS_TIME": 2}
+H = DEFAULT_HOME
+
+
+def at(north: float, east: float) -> tuple[int, int]:
+    lat, lon, _ = to_global(north, east, 0.0, H.latitude, H.longitude, H.altitude)
+    return round(lat * 1e7), round(lon * 1e7)
+
+
+def item(command: int, *params: float, north: float | None = None, east: float = 0.0,
+         alt: float = 10.0, frame: int = 6) -> tuple:
+    x, y = at(north, east) if north is not None else (0, 0)
+    values = [*params, *[0.0] * (4 - len(params))]
+    return frame, command, values, x, y, alt
+
+
+def load(v: VehicleModel, items: list[tuple]) -> None:
+    everything = [item(16, alt=0), *items]  # seq 0: home, replaced by the vehicle
+    replies = v.handle(M.MAVLink_mission_count_message(1, 1, len(everything), 0))
+    while replies[-1].get_type() == "MISSION_REQUEST":
+        frame, command, p, x, y, z = everything[replies[-1].seq]
+        replies = v.handle(M.MAVLink_mission_item_int_message(
+            1, 1, replies[-1].seq, frame, command, 0, 1, *p, x, y, z, 0))
+    assert replies[-1].type == M.MAV_MISSION_ACCEPTED
+
+
+def fly(items: list[tuple], limit: float = 300.0) -> tuple[VehicleModel, list]:
+    v = VehicleModel(1, H, params=FAST)
+    v.step(3)
+    load(v, items)
+    assert v.set_mode("GUIDED")
+    v.handle(M.MAVLink_command_long_message(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0))
+    assert v.armed and v.set_mode("AUTO")
+    out: list = []
+    while v.armed:
+        assert v.time < limit
+        out += v.step(TICK)
+    return v, out
+
+
+def reached(out: list) -> list[int]:
+    return [m.seq for m in out if m.get_type() == "MISSION_ITEM_REACHED"]
+
+
+def texts(out: list) -> list[str]:
+    return [m.text for m in out if m.get_type() == "STATUSTEXT"]
+
+
+def test_takeoff_waypoints_land_reports_every_item_and_disarms():
+    v, out = fly([
+        item(22, alt=10), item(16, north=40), item(16, north=40, east=40),
+        item(16, north=0, east=40), item(21, north=0, east=40, alt=0),
+    ])
+    assert reached(out) == [1, 2, 3, 4, 5]
+    assert "Mission: 2 WP" in texts(out) and "Mission: 5 Land" in texts(out)
+    assert math.dist(v.position, (0.0, 40.0, 0.0)) < 0.5 and v.landed and not v.armed
+    currents = {m.seq for m in out if m.get_type() == "MISSION_CURRENT"}
+    assert currents >= {1, 2, 3, 4, 5}
+
+
+def test_do_jump_repeats_and_unknown_items_are_skipped():
+    _, out = fly([
+        item(22, alt=5), item(16, north=10, alt=5), item(16, north=0, alt=5),
+        item(177, 2, 2), item(31000), item(21, alt=0),
+    ])
+    assert reached(out) == [1, 2, 3, 2, 3, 2, 3, 6]
+    assert "Skipping invalid cmd #31000" in texts(out)
+
+
+def test_hold_time_delays_and_conditions():
+    _, out = fly([
+        item(22, alt=5), item(112, 4), item(2000, 0, 1, 1), item(16, 3, north=5, alt=5),
+        item(93, 2), item(21, alt=0),
+    ])
+    assert reached(out) == [1, 4, 5, 6]
+    assert texts(out).index("Mission: 2 CondDelay") < texts(out).index("Mission: 3 ImageStart")
+    assert sum(m.get_type() == "CAMERA_IMAGE_CAPTURED" for m in out) == 1
+
+
+def test_loiter_turns_circles_and_rtl_ends_the_mission():
+    v, out = fly([item(22, alt=10), item(18, 1, 0, 8, north=20), item(20)], limit=400)
+    assert reached(out) == [1, 2, 3]
+    assert math.hypot(*v.position[:2]) < 1.0 and not v.armed
+
+
+def test_auto_needs_a_takeoff_first_when_on_the_ground():
+    v = VehicleModel(1, H, params=FAST)
+    v.step(3)
+    load(v, [item(16, north=10)])
+    v.set_mode("GUIDED")
+    v.handle(M.MAVLink_command_long_message(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0))
+    assert v.set_mode("AUTO") is False and v.mode == "GUIDED"
+    assert "Auto: Missing Takeoff Cmd" in texts(v.step(TICK))

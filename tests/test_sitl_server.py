@@ -1,0 +1,165 @@
+"""The simulator over loopback sockets, stepped by hand (realtime=False) unless said otherwise."""
+
+from __future__ import annotations
+
+import os
+import socket
+
+import pytest
+
+os.environ.setdefault("MAVLINK20", "1")
+from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as M
+
+from sitl.faults import Faults
+from sitl.server import Simulator, parse_udp_address
+
+FAST = {"SIM_GPS_LOCKTIME": 1, "SIM_EKF_GPS_TIME": 2}
+
+
+class Link:
+    """A bare MAVLink 2 client over TCP: what arrived so far, and a way to send."""
+
+    def __init__(self, port: int) -> None:
+        self.sock = socket.create_connection(("127.0.0.1", port), timeout=5)
+        self.sock.setblocking(False)
+        self.mav = M.MAVLink(None, 255, 190)
+        self.mav.robust_parsing = True
+
+    def send(self, msg) -> None:
+        self.sock.sendall(msg.pack(self.mav))
+
+    def drain(self) -> list:
+        out = []
+        while True:
+            try:
+                data = self.sock.recv(65536)
+            except BlockingIOError:
+                return out
+            if not data:
+                return out
+            out += [m for m in self.mav.parse_buffer(data) or [] if m.get_type() != "BAD_DATA"]
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+def connect(port: int) -> Link:
+    return Link(port)
+
+
+def drain(link: Link) -> list:
+    return link.drain()
+
+
+def settle(sim: Simulator, conn, seconds: float) -> list:
+    """Advance and read everything the vehicle sent meanwhile."""
+    out = []
+    for _ in range(round(seconds / 0.5)):
+        sim.advance(0.5)
+        out += drain(conn)
+    return out
+
+
+def test_each_vehicle_has_its_own_port_and_system_id():
+    with Simulator(vehicles=2, tcp_base_port=0, realtime=False) as sim:
+        ports = sim.tcp_ports
+        assert len(set(ports)) == 2
+        links = [connect(port) for port in ports]
+        for expected, link in enumerate(links, start=1):
+            beats = [m for m in settle(sim, link, 2) if m.get_type() == "HEARTBEAT"]
+            assert {(b.get_srcSystem(), b.get_srcComponent()) for b in beats} == {
+                (expected, 1), (expected, 191)}
+            link.close()
+        assert sim.vehicle(2).system_id == 2
+        with pytest.raises(KeyError):
+            sim.vehicle(3)
+
+
+def test_commands_over_tcp_are_acknowledged():
+    with Simulator(tcp_base_port=0, realtime=False, params=FAST) as sim:
+        link = connect(sim.tcp_ports[0])
+        settle(sim, link, 3)
+        link.send(M.MAVLink_command_long_message(1, 1, 176, 0, 1, 4, 0, 0, 0, 0, 0))
+        link.send(M.MAVLink_command_long_message(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0))
+        acks = [m for m in settle(sim, link, 1) if m.get_type() == "COMMAND_ACK"]
+        assert [(a.command, a.result, a.target_system) for a in acks] == [
+            (176, 0, 255), (400, 0, 255)]
+        assert sim.vehicle(1).armed and sim.vehicle(1).mode == "GUIDED"
+        link.close()
+
+
+def sequence_numbers(faults: Faults) -> list[int]:
+    with Simulator(tcp_base_port=0, realtime=False, faults=faults) as sim:
+        link = connect(sim.tcp_ports[0])
+        got = [m.get_seq() for m in settle(sim, link, 5) if m.get_srcComponent() == 1]
+        link.close()
+        return got
+
+
+def test_lossy_link_is_reproducible_from_the_seed():
+    clean = sequence_numbers(Faults())
+    lossy = sequence_numbers(Faults(seed=3, loss_out=0.3))
+    assert lossy == sequence_numbers(Faults(seed=3, loss_out=0.3))
+    assert lossy != sequence_numbers(Faults(seed=4, loss_out=0.3))
+    assert 0.5 * len(clean) < len(lossy) < 0.9 * len(clean)
+    assert set(lossy) < set(clean)
+
+
+def test_outage_window_silences_the_link():
+    with Simulator(tcp_base_port=0, realtime=False, faults=Faults(outages=((1.0, 3.2),))) as sim:
+        link = connect(sim.tcp_ports[0])
+        assert settle(sim, link, 1)
+        assert settle(sim, link, 2) == []
+        assert settle(sim, link, 1)
+        link.close()
+
+
+def test_duplicates_reordering_and_latency():
+    faults = Faults(duplicate=1.0, latency=0.5)
+    with Simulator(tcp_base_port=0, realtime=False, faults=faults) as sim:
+        link = connect(sim.tcp_ports[0])
+        sim.advance(0.45)
+        assert drain(link) == []  # nothing has arrived yet: half a second of latency
+        got = [m.get_seq() for m in settle(sim, link, 3) if m.get_srcComponent() == 1]
+        assert got and all(got.count(seq) == 2 for seq in got)
+        link.close()
+    with Simulator(tcp_base_port=0, realtime=False, faults=Faults(seed=1, reorder=0.3)) as sim:
+        link = connect(sim.tcp_ports[0])
+        got = [m.get_seq() for m in settle(sim, link, 3) if m.get_srcComponent() == 1]
+        assert got != sorted(got) and len(set(got)) == len(got)  # reordered, none lost
+        link.close()
+
+
+def test_udp_out_streams_and_accepts_commands():
+    gcs = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    gcs.bind(("127.0.0.1", 0))
+    gcs.settimeout(0)
+    address = f"udp:127.0.0.1:{gcs.getsockname()[1]}"
+    parser = M.MAVLink(None, 255, 190)
+    with Simulator(tcp_base_port=None, udp_out=[address], realtime=False, params=FAST) as sim:
+        assert sim.tcp_ports == []
+        sim.advance(3)
+        data, source = gcs.recvfrom(65536)
+        assert any(m.get_type() == "HEARTBEAT" for m in parser.parse_buffer(data) or [])
+        command = M.MAVLink_command_long_message(1, 1, M.MAV_CMD_DO_SET_MODE, 0, 1, 4, 0, 0, 0,
+                                                 0, 0)
+        gcs.sendto(command.pack(parser), source)
+        sim.advance(0.5)
+        assert sim.vehicle(1).mode == "GUIDED"
+    gcs.close()
+
+
+def test_realtime_loop_serves_and_stops():
+    with Simulator(tcp_base_port=0, speedup=20) as sim:
+        link = mavutil.mavlink_connection(f"tcp:127.0.0.1:{sim.tcp_ports[0]}")
+        beat = link.recv_match(type="HEARTBEAT", blocking=True, timeout=10)
+        assert beat is not None and beat.type == M.MAV_TYPE_QUADROTOR
+        link.close()
+    assert sim.tcp_ports == []
+
+
+@pytest.mark.parametrize("text", ["udp:localhost", "udp::14550", "udp:host:99999", "host:port"])
+def test_bad_udp_addresses(text):
+    with pytest.raises(ValueError, match="UDP address"):
+        parse_udp_address(text)

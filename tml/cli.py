@@ -109,6 +109,13 @@ def cmd_verify(args: argparse.Namespace) -> int:
     return run(args)
 
 
+def cmd_run(args: argparse.Namespace) -> int:
+    """Fly a mission (see :mod:`tml.run_command`)."""
+    from tml.run_command import run
+
+    return run(args)
+
+
 def cmd_sim(args: argparse.Namespace) -> int:
     """Run the embedded simulator (same options as ``python -m sitl``)."""
     from sitl.cli import main as sim_main
@@ -147,6 +154,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_arguments(verify)
     verify.set_defaults(handler=cmd_verify)
+
+    run = commands.add_parser(
+        "run", help="fly a mission on the embedded simulator or a MAVLink vehicle",
+        description="Validate, verify and fly a mission. Exit 0 completed, 1 invalid "
+                    "mission, 3 mission aborted, 4 vehicle or link failure.")
+    from tml.run_command import add_arguments as add_run_arguments
+
+    add_run_arguments(run)
+    run.set_defaults(handler=cmd_run)
 
     sim = commands.add_parser(
         "sim", help="run the embedded MAVLink vehicle simulator", add_help=False,

@@ -1,0 +1,411 @@
+"""The vehicle interface the interpreter talks to, and a scriptable fake vehicle.
+
+The engine (:mod:`tml.engine`) never touches a link. It reads :class:`VehicleState`
+snapshots and emits :class:`Request` objects; a :class:`Vehicle` carries the requests out
+(on MAVLink: :mod:`tml.mavlink.adapter`; in tests: :class:`FakeVehicle`) and reports each
+one's outcome as a :class:`RequestResult`. Positions are local metres (north, east, up)
+from home, headings degrees clockwise from north, speeds metres per second.
+
+Requests are asynchronous: ``submit`` returns at once; the outcome comes later through
+``poll``. A request is *done* when the vehicle accepted it (for commands, an ACCEPTED
+COMMAND_ACK); whether the vehicle then gets where it was sent is for the engine to watch
+in the state.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from types import MappingProxyType
+from typing import Protocol
+
+from tml.actions import BoundAction
+from tml.world import DEFAULT_HOME, Home
+
+Point = tuple[float, float, float]
+
+_EMPTY: Mapping[str, object] = MappingProxyType({})
+
+
+@dataclass(frozen=True)
+class MissionProgress:
+    """How far the vehicle is in a mission plan uploaded with :class:`FlyMission`."""
+
+    plan_id: int
+    action_index: int  # index into FlyMission.actions of the action being flown
+    finished: bool = False
+
+
+@dataclass(frozen=True)
+class VehicleState:
+    """What the engine knows of one vehicle at ``time``."""
+
+    vehicle_id: int
+    time: float
+    link: str = "ok"  # "ok", "degraded" (messages missing) or "lost" (no heartbeat)
+    ready: bool = True  # position estimate good enough to arm (ArduPilot EKF flags)
+    armed: bool = False
+    landed: bool = True
+    mode: str = ""
+    position: Point | None = None
+    heading: float = 0.0
+    ground_speed: float = 0.0
+    battery: float | None = None  # percent remaining
+    gps_fix: int = 0
+    home: Home | None = None
+    mission: MissionProgress | None = None
+    detections: Mapping[str, object] = field(default_factory=lambda: _EMPTY)
+    capabilities: frozenset[str] = frozenset()  # "gripper", "flip", "camera"
+    status_text: str = ""  # the last STATUSTEXT, for the log and the display
+
+    @property
+    def flying(self) -> bool:
+        """Armed and off the ground."""
+        return self.armed and not self.landed
+
+    @property
+    def altitude(self) -> float:
+        """Altitude above home in metres (0 when the position is unknown)."""
+        return self.position[2] if self.position else 0.0
+
+
+# --- requests -------------------------------------------------------------------------------
+
+_ids = itertools.count(1)
+
+
+@dataclass(frozen=True)
+class Request:
+    """Something the engine asks a vehicle to do. ``request_id`` is unique in the process."""
+
+    vehicle_id: int
+    request_id: int = field(default_factory=lambda: next(_ids), kw_only=True)
+
+    @property
+    def name(self) -> str:
+        """The request's kind, for logs."""
+        return type(self).__name__
+
+
+@dataclass(frozen=True)
+class SetMode(Request):
+    """Switch flight mode (ArduPilot names: GUIDED, AUTO, LOITER, RTL, LAND, BRAKE ...)."""
+
+    mode: str
+
+
+@dataclass(frozen=True)
+class Arm(Request):
+    """Arm the motors."""
+
+
+@dataclass(frozen=True)
+class Disarm(Request):
+    """Disarm the motors (refused in flight by the autopilot)."""
+
+
+@dataclass(frozen=True)
+class TakeOff(Request):
+    """Climb to ``altitude`` metres above home (GUIDED, armed)."""
+
+    altitude: float
+
+
+@dataclass(frozen=True)
+class GoTo(Request):
+    """Fly to a local point (GUIDED position target); ``speed`` None keeps the current one."""
+
+    target: Point
+    speed: float | None = None
+
+
+@dataclass(frozen=True)
+class SetYaw(Request):
+    """Turn to ``heading`` degrees (or by it, when ``relative``), clockwise from north."""
+
+    heading: float
+    relative: bool = False
+
+
+@dataclass(frozen=True)
+class Hold(Request):
+    """Stop and hold the current position (the running action is being stopped)."""
+
+
+@dataclass(frozen=True)
+class Land(Request):
+    """Land where the vehicle is."""
+
+
+@dataclass(frozen=True)
+class ReturnToLaunch(Request):
+    """Return home and land (ArduPilot RTL)."""
+
+
+@dataclass(frozen=True)
+class SetSpeed(Request):
+    """Change speed: ``kind`` is airspeed, ground, climb or descent."""
+
+    speed: float
+    kind: str = "ground"
+
+
+@dataclass(frozen=True)
+class Camera(Request):
+    """``photo`` (``count`` photos, ``interval`` s apart), ``start`` (until stopped), ``stop``."""
+
+    operation: str
+    count: int = 1
+    interval: float = 0.0
+
+
+@dataclass(frozen=True)
+class Gripper(Request):
+    """Close (``grab``) or open the gripper."""
+
+    grab: bool
+
+
+@dataclass(frozen=True)
+class SetHome(Request):
+    """Set home to the current position (``position`` None) or to a WGS84 position."""
+
+    position: tuple[float, float, float] | None = None  # latitude, longitude, altitude AMSL
+
+
+@dataclass(frozen=True)
+class SetSkill(Request):
+    """Switch a skill on or off (autopilot parameters or the companion computer)."""
+
+    skill: str
+    enabled: bool
+
+
+@dataclass(frozen=True)
+class FlyMission(Request):
+    """Compile ``actions`` to mission items, upload them and fly them in AUTO.
+
+    ``start`` is where the vehicle is expected to be when the mission starts (for actions
+    relative to the last position). Progress is reported in ``VehicleState.mission``.
+    """
+
+    plan_id: int
+    actions: tuple[BoundAction, ...]
+    start: Point
+
+
+@dataclass(frozen=True)
+class RequestResult:
+    """The outcome of a request: ``ok``, or the failure's ``reason`` and ``detail``.
+
+    Reasons are the values of the ACTION_FAILURE parameter: ``rejected`` (the vehicle
+    refused), ``timeout`` (no answer), ``unsupported`` (the vehicle cannot do it) or
+    ``general``.
+    """
+
+    vehicle_id: int
+    request_id: int
+    ok: bool
+    reason: str = ""
+    detail: str = ""
+
+
+class Vehicle(Protocol):
+    """What the runner needs of a vehicle."""
+
+    vehicle_id: int
+
+    def state(self) -> VehicleState:
+        """The latest state."""
+        ...
+
+    def submit(self, request: Request) -> None:
+        """Start carrying out a request; must not block."""
+        ...
+
+    def poll(self) -> list[RequestResult]:
+        """Outcomes that arrived since the last poll."""
+        ...
+
+
+# --- a fake vehicle for tests ------------------------------------------------------------
+
+
+@dataclass
+class FakeVehicle:
+    """A scriptable kinematic vehicle for engine tests, driven by an injected clock.
+
+    ``advance(dt)`` moves it toward its target at ``speed`` (horizontal) and ``climb_rate``
+    (vertical), drains the battery, and lands it when told. Scripting knobs: ``reject``
+    (request kinds answered with a failure), ``ignore`` (request kinds never answered),
+    ``stuck`` (accepts moves but never moves), ``ready``, ``capabilities``,
+    ``detections`` (set by the test), and ``battery``.
+    """
+
+    vehicle_id: int = 1
+    home: Home = DEFAULT_HOME
+    speed: float = 5.0
+    climb_rate: float = 2.5
+    yaw_rate: float = 90.0
+    drain_per_second: float = 0.05
+    battery: float = 100.0
+    ready: bool = True
+    capabilities: frozenset[str] = frozenset({"camera"})
+    reject: dict[str, str] = field(default_factory=dict)  # request name -> reason
+    ignore: set[str] = field(default_factory=set)
+    stuck: bool = False
+    time: float = 0.0
+    position: Point = (0.0, 0.0, 0.0)
+    heading: float = 0.0
+    armed: bool = False
+    mode: str = "STABILIZE"
+    detections: dict[str, object] = field(default_factory=dict)
+    skills: set[str] = field(default_factory=set)
+    gripping: bool = False
+    photos: int = 0
+    submitted: list[Request] = field(default_factory=list)
+    mission: MissionProgress | None = None
+    _target: Point | None = None
+    _target_heading: float | None = None
+    _landing: bool = False
+    _results: list[RequestResult] = field(default_factory=list)
+    _mission_points: list[Point] = field(default_factory=list)
+
+    def state(self) -> VehicleState:
+        """The current state."""
+        return VehicleState(
+            vehicle_id=self.vehicle_id, time=self.time, ready=self.ready, armed=self.armed,
+            landed=self.position[2] <= 0.05, mode=self.mode, position=self.position,
+            heading=self.heading, ground_speed=self.speed if self._moving() else 0.0,
+            battery=self.battery, gps_fix=3, home=self.home, mission=self.mission,
+            detections=MappingProxyType(dict(self.detections)),
+            capabilities=self.capabilities)
+
+    def submit(self, request: Request) -> None:
+        """Record and carry out a request (answered at the next ``poll``)."""
+        self.submitted.append(request)
+        if request.name in self.ignore:
+            return
+        if request.name in self.reject:
+            self._answer(request, False, self.reject[request.name])
+            return
+        failure = self._apply(request)
+        self._answer(request, failure is None, failure or "")
+
+    def poll(self) -> list[RequestResult]:
+        """Outcomes since the last poll."""
+        results, self._results = self._results, []
+        return results
+
+    def _answer(self, request: Request, ok: bool, reason: str) -> None:
+        self._results.append(RequestResult(self.vehicle_id, request.request_id, ok, reason))
+
+    def _apply(self, request: Request) -> str | None:  # noqa: PLR0911 - one branch a kind
+        n, e, u = self.position
+        if isinstance(request, SetMode):
+            self.mode = request.mode
+            if request.mode == "RTL":
+                self._target, self._landing = (0.0, 0.0, max(u, 15.0)), True
+            elif request.mode == "LAND":
+                self._target, self._landing = None, True
+        elif isinstance(request, Arm):
+            if not self.ready:
+                return "rejected"
+            self.armed = True
+        elif isinstance(request, Disarm):
+            if u > 0.05:
+                return "rejected"
+            self.armed = False
+        elif isinstance(request, TakeOff):
+            if not self.armed:
+                return "rejected"
+            self._target, self._landing = (n, e, request.altitude), False
+        elif isinstance(request, GoTo):
+            if not self.armed:
+                return "rejected"
+            self._target, self._landing = request.target, False
+            if request.speed:
+                self.speed = request.speed
+        elif isinstance(request, SetYaw):
+            self._target_heading = (request.heading + (self.heading if request.relative
+                                                       else 0.0)) % 360
+        elif isinstance(request, Hold):
+            self._target, self._landing, self.mission = (n, e, u), False, None
+        elif isinstance(request, Land):
+            self.mode, self._target, self._landing = "LAND", None, True
+        elif isinstance(request, ReturnToLaunch):
+            self.mode, self._target, self._landing = "RTL", (0.0, 0.0, max(u, 15.0)), True
+        elif isinstance(request, SetSpeed):
+            if request.kind in ("airspeed", "ground"):
+                self.speed = request.speed
+        elif isinstance(request, Camera):
+            self.photos += request.count if request.operation == "photo" else 0
+        elif isinstance(request, Gripper):
+            if "gripper" not in self.capabilities:
+                return "unsupported"
+            self.gripping = request.grab
+        elif isinstance(request, SetSkill):
+            (self.skills.add if request.enabled else self.skills.discard)(request.skill)
+        elif isinstance(request, FlyMission):
+            self.mode = "AUTO"
+            self.mission = MissionProgress(request.plan_id, 0)
+            self._mission_points = [_mission_point(a, request.start, self.position)
+                                    for a in request.actions]
+            self._target = self._mission_points[0] if self._mission_points else None
+        return None
+
+    def _moving(self) -> bool:
+        return self._target is not None and not self.stuck and \
+            math.dist(self._target, self.position) > 0.01
+
+    def advance(self, dt: float) -> None:
+        """Move the clock and the vehicle on by ``dt`` seconds."""
+        self.time += dt
+        if self.armed:
+            self.battery = max(0.0, self.battery - self.drain_per_second * dt)
+        if self._target_heading is not None:
+            delta = (self._target_heading - self.heading + 540) % 360 - 180
+            step = max(-self.yaw_rate * dt, min(self.yaw_rate * dt, delta))
+            self.heading = (self.heading + step) % 360
+            if abs(delta) <= self.yaw_rate * dt:
+                self._target_heading = None
+        if self._moving():
+            self.position = _towards(self.position, self._target, self.speed * dt,
+                                     self.climb_rate * dt)
+        elif self.mission is not None and not self.mission.finished:
+            index = self.mission.action_index + 1
+            if index < len(self._mission_points):
+                self.mission = replace(self.mission, action_index=index)
+                self._target = self._mission_points[index]
+            else:
+                self.mission = replace(self.mission, finished=True)
+        elif self._landing and not self.stuck:
+            n, e, u = self.position
+            self.position = (n, e, max(0.0, u - self.climb_rate * dt))
+            if self.position[2] <= 0.0:
+                self._landing, self.armed, self._target = False, False, None
+                self.mode = "LAND" if self.mode != "RTL" else self.mode
+
+
+def _towards(position: Point, target: Point, horizontal: float, vertical: float) -> Point:
+    n, e, u = position
+    tn, te, tu = target
+    distance = math.hypot(tn - n, te - e)
+    if distance <= horizontal:
+        n, e = tn, te
+    else:
+        n, e = n + (tn - n) / distance * horizontal, e + (te - e) / distance * horizontal
+    u = tu if abs(tu - u) <= vertical else u + math.copysign(vertical, tu - u)
+    return (n, e, u)
+
+
+def _mission_point(action: BoundAction, start: Point, here: Point) -> Point:
+    """Where a mission action leads, for the fake vehicle (a crude stand-in for AUTO)."""
+    point = action.values.get("coordinates")
+    if isinstance(point, tuple):
+        return point  # type: ignore[return-value]
+    if action.name == "TAKE_OFF":
+        return (start[0], start[1], float(action.values.get("altitude", 10.0)))  # type: ignore[arg-type]
+    return here

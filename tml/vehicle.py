@@ -302,7 +302,7 @@ class FakeVehicle:
     def _answer(self, request: Request, ok: bool, reason: str) -> None:
         self._results.append(RequestResult(self.vehicle_id, request.request_id, ok, reason))
 
-    def _apply(self, request: Request) -> str | None:  # noqa: PLR0911 - one branch a kind
+    def _apply(self, request: Request) -> str | None:
         n, e, u = self.position
         if isinstance(request, SetMode):
             self.mode = request.mode

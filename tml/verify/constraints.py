@@ -7,13 +7,14 @@ to c1. The paper's three constraints, with x1 the current point, x2 the destinat
 battery charge and x4 the planned arrival time:
 
 - c1: DistanceObstacle(x2) >= k2 (the minimum clearance);
-- c2: Length(Trajectory(x1, x2)) <= DistanceBattery(x3 - reserve, k1);
+- c2: Length(Trajectory(x1, x2)) <= DistanceBattery(x3, k1);
 - c3: Speed(x1, x2, x4) <= k3 (the maximum speed), and a SET_SPEED within the vehicle's.
 
 and the others: a collision-free path exists (``path``), the geofence polygon and the
 altitude limits hold (``geofence``, ``altitude``), the vehicle stays within its range of
 home (``range``), at every point of the path there is battery to come home and land with
-the reserve left (``return-reserve``), the flight time and deadlines are met (``time``),
+the reserve left (``return-reserve``; not asked of the actions that go home, which are what
+the reserve is for), the flight time and deadlines are met (``time``),
 motion needs a flying vehicle (``airborne``), loiter circles are not tighter than the
 vehicle can fly (``turn-radius``), labels read hold a point (``label``).
 
@@ -146,7 +147,7 @@ def check_step(bound: BoundAction, step: Step, model: FlightModel,
         fail(_C.LABEL, f"label {step.unknown_label!r} holds no point on some way to here",
              0.0, ">=", 1.0, "points")
     _obstacles(step, model, fail)
-    _battery(step, model, fail)
+    _battery(step, model, bound.name.startswith("RETURN_HOME"), fail)
     _speed(step, model, deadline, fail)
     _limits(step, model, fail)
     if profile.max_flight_time > 0 and after.time > profile.max_flight_time:
@@ -175,28 +176,28 @@ def _obstacles(step: Step, model: FlightModel, fail: _Fail) -> None:
                       "straight line passes too close", clear, ">=", k2, "m")
 
 
-def _battery(step: Step, model: FlightModel, fail: _Fail) -> None:
+def _battery(step: Step, model: FlightModel, homeward: bool, fail: _Fail) -> None:
     profile, before, after = model.profile, step.before, step.after
-    available = before.battery - profile.battery_reserve
-    if step.energy > max(available, 0.0) + 1e-9:
+    if step.energy > max(before.battery, 0.0) + 1e-9:
         if step.distance > 0:
             rate = step.energy / step.distance
             fail(_C.C2, f"Length(Trajectory) exceeds DistanceBattery(battery "
-                        f"{before.battery:.1f}% - reserve {profile.battery_reserve:.1f}%, "
-                        f"{rate:.4f}%/m)", step.distance, "<=",
-                 functions.distance_battery(available, rate), "m")
+                        f"{before.battery:.1f}%, {rate:.4f}%/m)", step.distance, "<=",
+                 functions.distance_battery(before.battery, rate), "m")
         else:
-            fail(_C.C2, f"the action needs more battery than the "
-                        f"{before.battery:.1f}% - reserve {profile.battery_reserve:.1f}% left",
-                 step.energy, "<=", available, "%")
-    worst: tuple[float, Point3] | None = None
+            fail(_C.C2, f"the action needs more than the {before.battery:.1f}% battery left",
+                 step.energy, "<=", before.battery, "%")
+    if homeward:
+        return  # going home is what the reserve is kept for
     points = step.waypoints()
     if not after.flying and points:
         points = points[:-1]  # the action ends on the ground: no need to come home
     if after.flying:
         points.append((after.position, after.battery))
+    worst: tuple[float, Point3] | None = None
     for point, battery in points:
-        if not _airborne(point, before, after):
+        # The point the action starts from was judged with the action before.
+        if point == before.position or not _airborne(point, before, after):
             continue
         left = battery - model.return_home_energy(point, after.home)
         if worst is None or left < worst[0]:
@@ -228,7 +229,8 @@ def _speed(step: Step, model: FlightModel, deadline: float | None, fail: _Fail) 
 
 def _limits(step: Step, model: FlightModel, fail: _Fail) -> None:
     profile, fence = model.profile, model.world.geofence
-    points = step.path_points()
+    # The point the action starts from was judged with the action before.
+    points = [p for p in step.path_points() if p != step.before.position]
     if step.loiter is not None and step.loiter.radius < profile.min_turn_radius:
         fail(_C.TURN_RADIUS, "the loiter circle is tighter than the vehicle can turn",
              step.loiter.radius, ">=", profile.min_turn_radius, "m")

@@ -124,7 +124,7 @@ class Planner:
             if found is None:
                 return None
             path = found
-        return _with_altitudes(path, start[2], end[2])
+        return _with_altitudes(path, start, end)
 
     def _node_points(self, index: int) -> np.ndarray:
         if index not in self._nodes:
@@ -209,15 +209,16 @@ def _dijkstra(neighbours: list[list[tuple[int, float]]], source: int,
     return None
 
 
-def _with_altitudes(path: Sequence[tuple[float, float]], up_a: float,
-                    up_b: float) -> Trajectory:
-    # The altitude changes evenly with the distance flown over the ground.
+def _with_altitudes(path: Sequence[tuple[float, float]], start: Point3,
+                    end: Point3) -> Trajectory:
+    # The altitude changes evenly with the distance flown over the ground; the ends are
+    # kept exactly as given.
     total = sum(math.dist(p, q) for p, q in pairwise(path))
-    points: list[Point3] = []
+    points: list[Point3] = [start]
     flown = 0.0
-    for index, (north, east) in enumerate(path):
-        if index:
-            flown += math.dist(path[index - 1], path[index])
-        share = flown / total if total else 1.0
-        points.append((north, east, up_a + (up_b - up_a) * share))
+    for index in range(1, len(path) - 1):
+        flown += math.dist(path[index - 1], path[index])
+        up = start[2] + (end[2] - start[2]) * flown / total
+        points.append((path[index][0], path[index][1], up))
+    points.append(end)
     return Trajectory(tuple(points))

@@ -1,0 +1,125 @@
+"""``tml verify``: exit codes, messages with file:line, JSON output, the corpus of
+infeasible examples."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from tml.cli import main
+
+ROOT = Path(__file__).parent.parent
+FEASIBLE = ROOT / "missions" / "verify_obstacles.xml"
+INFEASIBLE = Path(__file__).parent / "data" / "infeasible"
+EXPECTED = tomllib.loads((INFEASIBLE / "expected.toml").read_text())
+
+
+def test_corpus_is_complete() -> None:
+    assert {p.name for p in INFEASIBLE.glob("*.xml")} == set(EXPECTED)
+
+
+def test_feasible_mission_exits_0_with_a_table(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["verify", str(FEASIBLE)]) == 0
+    out = capsys.readouterr().out
+    for heading in ("task", "action", "distance m", "time s", "battery %", "clearance m"):
+        assert heading in out
+    assert "SURVEY_AREA" in out
+    assert f"{FEASIBLE}: feasible" in out
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED))
+def test_infeasible_mission_exits_1_naming_constraint_and_line(
+        name: str, capsys: pytest.CaptureFixture[str]) -> None:
+    expected = EXPECTED[name]
+    path = INFEASIBLE / name
+    assert main(["verify", str(path)]) == 1
+    out, err = capsys.readouterr()
+    assert f"{path}:{expected['line']}:" in out
+    assert f": {expected['constraint']}: " in out
+    assert "must be" in out
+    assert "INFEASIBLE" in out
+    assert "Traceback" not in out + err
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED))
+def test_json_lists_the_violation(name: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["verify", str(INFEASIBLE / name), "--format", "json"]) == 1
+    data = json.loads(capsys.readouterr().out)
+    assert data["feasible"] is False
+    found = {(v["constraint"], v["line"]) for v in data["violations"]}
+    assert (EXPECTED[name]["constraint"], EXPECTED[name]["line"]) in found
+    for violation in data["violations"]:
+        assert {"value", "limit", "relation", "unit", "message", "file"} <= set(violation)
+
+
+def test_json_of_a_feasible_mission(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["verify", str(FEASIBLE), "--format", "json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["feasible"] is True and data["violations"] == []
+    assert data["profile"] == "quadcopter"
+    assert [a["action"] for a in data["actions"]][:2] == ["TAKE_OFF", "GO_TO_POINT"]
+    assert data["end"]["flying"] is False
+    assert data["end"]["battery"] == pytest.approx(data["actions"][-2]["battery"])
+
+
+def test_profile_option_changes_the_verdict(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["verify", str(FEASIBLE), "--profile", "fixed-wing"]) == 1
+    assert "turn-radius" in capsys.readouterr().out
+
+
+def test_low_start_battery_makes_it_infeasible(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["verify", str(FEASIBLE), "--battery", "30"]) == 1
+    assert "return-reserve" in capsys.readouterr().out
+
+
+def test_world_file_adds_obstacles(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    world = tmp_path / "world.xml"
+    world.write_text('<?xml version="1.0"?>\n<world>\n'
+                     '  <cylinder name="crane" north="100" east="2" radius="1"/>\n</world>\n')
+    assert main(["verify", str(FEASIBLE), "--world", str(world)]) == 1
+    assert "'crane'" in capsys.readouterr().out
+
+
+def test_invalid_mission_exits_1_with_the_validation_errors(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "bad.xml"
+    path.write_text('<?xml version="1.0"?>\n<mission name="m">\n  <task name="t">\n'
+                    '    <action name="FLY_TO_MARS"/>\n  </task>\n</mission>\n')
+    assert main(["verify", str(path)]) == 1
+    out = capsys.readouterr().out
+    assert f"{path}:4:" in out
+    assert "not verified" in out
+
+
+@pytest.mark.parametrize("arguments", [
+    ["verify", "no/such/mission.xml"],
+    ["verify", str(FEASIBLE), "--profile", "no/such/profile.toml"],
+    ["verify", str(FEASIBLE), "--world", "no/such/world.xml"],
+    ["verify", str(FEASIBLE), "--battery", "150"],
+    ["verify"],
+])
+def test_usage_and_io_errors_exit_2(arguments: list[str],
+                                    capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(arguments) == 2
+    out, err = capsys.readouterr()
+    assert "Traceback" not in out + err
+
+
+def test_bad_profile_exits_2_naming_file_and_key(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    profile = tmp_path / "p.toml"
+    profile.write_text('base = "quadcopter"\nmax_speed = "fast"\n')
+    assert main(["verify", str(FEASIBLE), "--profile", str(profile)]) == 2
+    assert f"{profile}: key 'max_speed'" in capsys.readouterr().err
+
+
+def test_bad_world_file_exits_2_with_its_line(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    world = tmp_path / "world.xml"
+    world.write_text('<?xml version="1.0"?>\n<world>\n  <cylinder north="1" east="1"/>\n'
+                     '</world>\n')
+    assert main(["verify", str(FEASIBLE), "--world", str(world)]) == 2
+    assert f"{world}:3" in capsys.readouterr().err

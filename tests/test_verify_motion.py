@@ -1,0 +1,181 @@
+"""Abstract execution of single actions: positions, times and battery predicted."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from tml import geo
+from tml.actions import BoundAction, bind
+from tml.errors import Location
+from tml.model import Action, Argument
+from tml.verify.motion import FlightModel, VehicleState, explore_pattern, survey_pattern
+from tml.verify.profile import load_profile
+from tml.world import DEFAULT_HOME, World
+
+# Round numbers: 5 m/s, climb 2.5 m/s, descent 1.5 m/s, yaw 90 deg/s.
+PROFILE = load_profile("quadcopter")
+MODEL = FlightModel(PROFILE, World())
+HERE = Location("test.xml", 3)
+FLYING = VehicleState(position=(0.0, 0.0, 10.0), flying=True)
+
+
+def action(name: str, labels: dict[str, str] | None = None, **values: str) -> BoundAction:
+    arguments = [Argument(k, v, None, HERE) for k, v in values.items()]
+    arguments += [Argument(k, None, v, HERE) for k, v in (labels or {}).items()]
+    return bind(Action(name, tuple(arguments), HERE))
+
+
+def test_take_off_climbs_to_the_profile_altitude_at_the_climb_rate() -> None:
+    step = MODEL.step(action("TAKE_OFF"), VehicleState())
+    assert step.after.position == (0.0, 0.0, PROFILE.takeoff_altitude)
+    assert step.after.flying
+    assert step.duration == pytest.approx(PROFILE.takeoff_altitude / PROFILE.climb_rate)
+    assert step.energy == pytest.approx(max(PROFILE.battery_per_metre * 10,
+                                            PROFILE.battery_per_second * step.duration))
+
+
+def test_take_off_with_an_altitude_and_when_flying() -> None:
+    assert MODEL.step(action("TAKE_OFF", altitude="25"), VehicleState()).after.position[2] == 25
+    step = MODEL.step(action("TAKE_OFF", altitude="25"), FLYING)
+    assert step.after == FLYING and step.notes
+
+
+def test_go_to_point_costs_per_metre_at_cruise_speed() -> None:
+    step = MODEL.step(action("GO_TO_POINT", coordinates="(30, 40, 10)"), FLYING)
+    assert step.after.position == (30.0, 40.0, 10.0)
+    assert step.distance == pytest.approx(50.0)
+    assert step.duration == pytest.approx(50.0 / PROFILE.cruise_speed)
+    assert step.energy == pytest.approx(50.0 * PROFILE.battery_per_metre)
+
+
+def test_set_speed_changes_the_following_legs_capped_at_max_speed() -> None:
+    fast = MODEL.step(action("SET_SPEED", speed="100"), FLYING).after
+    step = MODEL.step(action("GO_TO_POINT", relative_coordinates="(150, 0, 0)"), fast)
+    assert step.duration == pytest.approx(150.0 / PROFILE.max_speed)
+
+
+def test_move_directions_follow_the_heading() -> None:
+    facing_east = VehicleState(position=(0.0, 0.0, 10.0), flying=True, heading=90.0)
+    ahead = MODEL.step(action("MOVE_FORWARDS", distance="10"), facing_east).after.position
+    left = MODEL.step(action("MOVE", direction="left", distance="10"), facing_east).after.position
+    up = MODEL.step(action("MOVE", direction="up", distance="5"), facing_east).after.position
+    assert ahead == pytest.approx((0.0, 10.0, 10.0))
+    assert left == pytest.approx((10.0, 0.0, 10.0))
+    assert up == pytest.approx((0.0, 0.0, 15.0))
+
+
+def test_rotate_yaw_takes_the_short_way_at_the_yaw_rate() -> None:
+    state = VehicleState(position=(0.0, 0.0, 10.0), flying=True, heading=350.0)
+    step = MODEL.step(action("ROTATE_YAW", orientation_angle="10"), state)
+    assert step.after.heading == pytest.approx(10.0)
+    assert step.duration == pytest.approx(20.0 / PROFILE.yaw_rate)
+
+
+def test_wait_hovers() -> None:
+    step = MODEL.step(action("WAIT", duration="60"), FLYING)
+    assert step.duration == 60.0
+    assert step.energy == pytest.approx(60.0 * PROFILE.battery_per_second)
+
+
+def test_labels_are_memorized_and_read() -> None:
+    here = VehicleState(position=(20.0, 5.0, 10.0), flying=True)
+    memorized = MODEL.step(action("MEMORIZE_POINT", labels={"coordinates": "spot"}), here)
+    assert memorized.labels == {"spot": (20.0, 5.0, 10.0)}
+    back = MODEL.step(action("GO_TO_POINT", labels={"coordinates": "spot"}), FLYING,
+                      memorized.labels)
+    assert back.after.position == (20.0, 5.0, 10.0)
+    unknown = MODEL.step(action("GO_TO_POINT", labels={"coordinates": "spot"}), FLYING, {})
+    assert unknown.unknown_label == "spot"
+    assert unknown.after == FLYING
+
+
+def test_go_to_position_converts_from_wgs84() -> None:
+    latitude, longitude, _ = geo.to_global(100.0, -50.0, 0.0, DEFAULT_HOME.latitude,
+                                           DEFAULT_HOME.longitude, DEFAULT_HOME.altitude)
+    step = MODEL.step(action("GO_TO_POSITION", latitude=str(latitude), longitude=str(longitude),
+                             altitude="20"), FLYING)
+    assert step.after.position == pytest.approx((100.0, -50.0, 20.0), abs=0.01)
+
+
+def test_return_home_and_land_climbs_to_the_return_altitude_first() -> None:
+    state = VehicleState(position=(100.0, 0.0, 10.0), flying=True)
+    step = MODEL.step(action("RETURN_HOME_AND_LAND"), state)
+    assert not step.after.flying
+    assert step.after.position == (0.0, 0.0, 0.0)
+    rise = PROFILE.return_altitude - 10.0
+    assert step.distance == pytest.approx(rise + 100.0 + PROFILE.return_altitude)
+
+
+def test_set_home_moves_where_return_home_goes() -> None:
+    state = VehicleState(position=(40.0, 40.0, 10.0), flying=True)
+    moved = MODEL.step(action("SET_HOME"), state).after
+    away = MODEL.step(action("GO_TO_POINT", coordinates="(0, 0, 10)"), moved).after
+    assert MODEL.step(action("RETURN_HOME"), away).after.position == (40.0, 40.0, 10.0)
+
+
+def test_loiter_enters_the_circle_at_its_nearest_point_and_flies_the_turns() -> None:
+    step = MODEL.step(action("LOITER", coordinates="(50, 0, 10)", radius="10", turns="2"),
+                      FLYING)
+    assert step.legs[0].points[-1] == pytest.approx((40.0, 0.0, 10.0))
+    assert step.distance == pytest.approx(40.0 + 2 * 2 * math.pi * 10)
+
+
+def test_loiter_without_an_end_counts_only_the_way_to_the_circle() -> None:
+    step = MODEL.step(action("LOITER", radius="15"), FLYING)
+    assert step.loiter is not None and step.loiter.centre == FLYING.position
+    assert step.duration == pytest.approx(15.0 / PROFILE.cruise_speed)
+    assert step.notes
+
+
+def test_survey_pattern_passes() -> None:
+    points = survey_pattern((0.0, 0.0, 20.0), 100.0, 50.0, 20.0, "NORTH_EAST")
+    assert points == [(0, 0, 20), (100, 0, 20), (100, 20, 20), (0, 20, 20), (0, 40, 20),
+                      (100, 40, 20), (100, 50, 20), (0, 50, 20)]
+    south_west = survey_pattern((0.0, 0.0, 20.0), 100.0, 40.0, 20.0, "SOUTH_WEST")
+    assert south_west[-1] == (-100, -40, 20)
+
+
+def test_survey_area_flies_to_the_base_then_the_passes() -> None:
+    step = MODEL.step(action("SURVEY_AREA", length="100", width="40", spacing="20",
+                             direction="NORTH_EAST", coordinates="(0, 30, 10)"), FLYING)
+    # 30 m to the base, three passes of 100 m, two 20 m steps across.
+    assert step.distance == pytest.approx(30 + 300 + 40)
+
+
+def test_explore_pattern_is_an_expanding_square_within_the_radius() -> None:
+    points = explore_pattern((0.0, 0.0, 5.0), 4.0, 2.0)
+    assert points == [(2, 0, 5), (2, 2, 5), (-2, 2, 5), (-2, -2, 5), (4, -2, 5), (4, 4, 5),
+                      (-4, 4, 5), (-4, -4, 5)]
+    assert all(max(abs(n), abs(e)) <= 4 for n, e, _ in points)
+
+
+def test_capture_photos_hovers_between_photos() -> None:
+    step = MODEL.step(action("CAPTURE_PHOTOS", count="5", interval="3"), FLYING)
+    assert step.duration == pytest.approx(12.0)
+
+
+def test_go_to_rectangle_uses_a_known_frame() -> None:
+    from tml.world import WorldObject
+
+    world = World(objects=(WorldObject("frame", "1", 30.0, 0.0, 3.0, "red"),))
+    step = FlightModel(PROFILE, world).step(action("GO_TO_RECTANGLE", frame_color="red"),
+                                            FLYING)
+    assert step.after.position == (30.0, 0.0, 3.0)
+    unknown = MODEL.step(action("GO_TO_RECTANGLE", frame_color="red"), FLYING)
+    assert unknown.after == FLYING and unknown.notes
+
+
+def test_blocked_leg_is_flown_straight_and_reported() -> None:
+    from tml.world import Prism
+
+    walls = (Prism("n", ((20, -20), (22, -20), (22, 22), (20, 22))),
+             Prism("s", ((-22, -22), (-20, -22), (-20, 20), (-22, 20))),
+             Prism("e", ((-20, 20), (22, 20), (22, 22), (-20, 22))),
+             Prism("w", ((-22, -22), (20, -22), (20, -20), (-22, -20))))
+    model = FlightModel(PROFILE, World(obstacles=walls))
+    start = VehicleState(position=(100.0, 0.0, 10.0), flying=True)
+    step = model.step(action("GO_TO_POINT", coordinates="(0, 0, 10)"), start)
+    assert step.blocked == (((100.0, 0.0, 10.0), (0.0, 0.0, 10.0)),)
+    assert step.distance == pytest.approx(100.0)

@@ -1,0 +1,131 @@
+"""Static verification of whole missions: repeats, conditions, labels, events."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+
+from tml.model import Mission
+from tml.validation import validate_file
+from tml.verify.constraints import Constraint
+from tml.verify.motion import VehicleState
+from tml.verify.profile import load_profile
+from tml.verify.static import verify_mission
+from tml.world import Cylinder, World
+
+PROFILE = replace(load_profile("quadcopter"), battery_per_metre=0.1, battery_per_second=0.1,
+                  cruise_speed=5.0, climb_rate=2.0, descent_rate=1.0, return_altitude=10.0,
+                  takeoff_altitude=10.0, battery_reserve=20.0, min_clearance=5.0)
+
+
+def mission(tasks: str, events: str = "", environment: str = "") -> Mission:
+    text = f"""<?xml version="1.0"?>
+<mission name="m">
+{environment}
+{tasks}
+<event_handling>{events}</event_handling>
+</mission>
+"""
+    result = validate_file("m.xml", text.encode())
+    assert result.mission is not None and not result.errors, result.diagnostics
+    return result.mission
+
+
+TAKE_OFF = '<task name="up"><action name="TAKE_OFF"/></task>'
+
+
+def go(name: str, point: str, extra: str = "") -> str:
+    return (f'<task name="{name}">{extra}<action name="GO_TO_POINT">'
+            f'<argument name="coordinates" value="{point}"/></action></task>')
+
+
+def test_repeats_are_unrolled() -> None:
+    report = verify_mission(mission(TAKE_OFF + """
+        <task name="hop"><repeat times="3"/>
+          <action name="MOVE"><argument name="coordinates" value="(10, 0, 0)"/></action>
+        </task>"""), PROFILE)
+    assert [r.task for r in report.rows] == ["up", "hop #1", "hop #2", "hop #3"]
+    assert report.end is not None
+    assert report.end.position == (30.0, 0.0, 10.0)
+    # 10 m climb (5 s) and 30 m flown: per metre dominates the climb? 10 m * 0.1 = 1 %.
+    assert report.end.battery == pytest.approx(100 - 1.0 - 3.0)
+    assert report.feasible
+
+
+def test_a_conditioned_task_may_or_may_not_run() -> None:
+    condition = '<condition parameter="GROUND_SPEED" comparison="less than" value="3"/>'
+    report = verify_mission(mission(TAKE_OFF + go("maybe far", "(300, 0, 10)", condition)
+                                    + go("back", "(0, 0, 10)")), PROFILE)
+    back = [r for r in report.rows if r.task == "back"]
+    assert len(back) == 1
+    # The worst way is the one that flew out: 1 + 30 + 30 % used.
+    assert back[0].battery == pytest.approx(100 - 1 - 30 - 30)
+    assert back[0].distance == pytest.approx(300.0)
+
+
+def test_label_memorized_only_on_one_branch_is_a_violation() -> None:
+    condition = '<condition parameter="GROUND_SPEED" comparison="less than" value="3"/>'
+    tasks = TAKE_OFF + f"""
+        <task name="mark">{condition}
+          <action name="MEMORIZE_POINT"><argument name="coordinates" label="spot"/></action>
+        </task>
+        {go("away", "(50, 0, 10)")}
+        <task name="return"><action name="GO_TO_POINT">
+          <argument name="coordinates" label="spot"/></action></task>"""
+    report = verify_mission(mission(tasks), PROFILE)
+    labels = [v for v in report.violations if v.constraint is Constraint.LABEL]
+    assert len(labels) == 1
+    assert labels[0].location is not None and labels[0].location.line == 9
+    assert labels[0].task == "return"
+
+
+def test_event_actions_are_checked_from_where_they_can_fire() -> None:
+    events = """<event name="photo spot">
+        <condition parameter="GROUND_SPEED" comparison="less than" value="1"/>
+        <action name="GO_TO_POINT"><argument name="coordinates" value="(0, 57, 10)"/></action>
+        <termination mode="CONTINUE"/></event>"""
+    environment = '<environment><cylinder name="mast" north="0" east="60" radius="1"/>' \
+                  '</environment>'
+    report = verify_mission(mission(TAKE_OFF + go("out", "(100, 0, 10)"), events,
+                                    environment), PROFILE)
+    event_violations = [v for v in report.violations if v.task.startswith("event photo spot")]
+    assert [v.constraint for v in event_violations] == [Constraint.C1]
+    assert event_violations[0].value == pytest.approx(2.0)
+    assert [r.event for r in report.rows if r.event] == ["photo spot"]
+
+
+def test_return_home_event_is_judged_from_the_worst_point() -> None:
+    events = """<event name="low battery">
+        <condition parameter="BATTERY_CHARGE_PERCENTAGE" comparison="less than" value="30"/>
+        <action name="RETURN_HOME_AND_LAND"/><termination mode="END_MISSION"/></event>"""
+    tasks = TAKE_OFF + go("far", "(250, 0, 10)") + go("near", "(10, 0, 10)") + \
+        '<task name="land"><action name="LAND"/></task>'
+    report = verify_mission(mission(tasks, events), PROFILE,
+                            start=VehicleState(battery=60.0))
+    worst = [r for r in report.rows if r.event == "low battery"]
+    # From 250 m out: 60 - 1 - 25 = 34 % there, then 250 m home and 10 m down = 26 %.
+    assert worst[0].battery == pytest.approx(34 - 26)
+    assert not report.feasible
+    reserve = [v for v in report.violations if v.constraint is Constraint.RETURN_RESERVE]
+    assert [v.task for v in reserve] == ["far", "near"]
+    # The event's own RETURN_HOME_AND_LAND is not held to the reserve, only to c2.
+    assert [r.battery for r in worst] == [pytest.approx(8.0)]
+
+
+def test_world_file_is_laid_over_the_environment() -> None:
+    world = World(obstacles=(Cylinder("tree", 100, 2, 1),))
+    report = verify_mission(mission(TAKE_OFF + go("out", "(100, 0, 10)")), PROFILE, world)
+    assert [v.constraint for v in report.violations] == [Constraint.C1]
+    assert verify_mission(mission(TAKE_OFF + go("out", "(100, 0, 10)")), PROFILE).feasible
+
+
+def test_many_independent_conditions_stay_bounded() -> None:
+    condition = '<condition parameter="GROUND_SPEED" comparison="less than" value="3"/>'
+    tasks = TAKE_OFF + "".join(
+        f'<task name="mark {i}">{condition}<action name="MEMORIZE_POINT">'
+        f'<argument name="coordinates" label="spot {i}"/></action></task>' for i in range(6))
+    report = verify_mission(mission(tasks), PROFILE)
+    # 2**6 sets of labels are possible; the walk keeps a bounded number of them.
+    assert report.approximate
+    assert len(report.rows) == 7

@@ -1,0 +1,431 @@
+"""Compile a run of actions (``dispatch="mission"``) to MAVLink mission items.
+
+Theory of operation
+-------------------
+:func:`compile_mission` walks the actions of a :class:`~tml.vehicle.FlyMission` in order
+with a *cursor*: where the vehicle is expected to be (local north, east, up from home) and
+which way it faces once the items so far have been flown. Actions relative to the last
+position (MOVE, relative GO_TO_POINT, LOITER without a centre, SURVEY_AREA without a base
+point, SET_ALTITUDE) are resolved against the cursor, so the items always carry explicit
+coordinates and the autopilot never has to guess what "here" meant.
+
+Every local point is converted to WGS84 with :mod:`tml.geo` against the vehicle's home.
+Altitudes go in frame GLOBAL_RELATIVE_ALT_INT (above home), GLOBAL_INT when the author gave
+``altitude_reference="amsl"`` and GLOBAL_TERRAIN_ALT_INT for ``terrain``. Items are numbered
+from 0; :meth:`tml.mavlink.vehicle.Vehicle.upload` shifts them behind ArduPilot's home
+item. ``action_index[i]`` says which action item ``i`` came from, so that MISSION_CURRENT
+and MISSION_ITEM_REACHED tell the interpreter which action is being flown.
+
+The table of what each action becomes is in docs/run.md. The module is pure: no I/O, no
+clock; pymavlink is used for the MAV_CMD and MAV_FRAME numbers only.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from tml.actions import BoundAction
+from tml.geo import to_global, to_local
+from tml.mavlink.codec import mavlink
+from tml.mavlink.mission import MissionItem
+from tml.world import Home
+
+Point = tuple[float, float, float]
+
+FRAMES = {
+    "relative": mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+    "amsl": mavlink.MAV_FRAME_GLOBAL_INT,
+    "terrain": mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT,
+}
+SPEED_TYPES = {"airspeed": 0, "ground": 1, "climb": 2, "descent": 3}
+PRECISION_MODES = {"disabled": 0, "opportunistic": 1, "required": 2}
+# Directions of MOVE, as (forward, right, up) unit steps in the body frame.
+BODY_DIRECTIONS = {
+    "forward": (1.0, 0.0, 0.0), "backward": (-1.0, 0.0, 0.0), "right": (0.0, 1.0, 0.0),
+    "left": (0.0, -1.0, 0.0), "up": (0.0, 0.0, 1.0), "down": (0.0, 0.0, -1.0),
+}
+# SURVEY_AREA quadrants as (north sign, east sign).
+QUADRANTS = {"NORTH_WEST": (1, -1), "NORTH_EAST": (1, 1), "SOUTH_WEST": (-1, -1),
+             "SOUTH_EAST": (-1, 1)}
+
+
+class CompileError(ValueError):
+    """An action that cannot become mission items (says which and why)."""
+
+
+@dataclass(frozen=True)
+class CompiledMission:
+    """Mission items (seq 0..N-1) and, for each, the index of the action it came from."""
+
+    items: tuple[MissionItem, ...]
+    action_index: tuple[int, ...]
+
+    def action_at(self, seq: int) -> int | None:
+        """The action index of item ``seq`` (0-based, as compiled), or None if out of range."""
+        return self.action_index[seq] if 0 <= seq < len(self.action_index) else None
+
+
+@dataclass
+class _Cursor:
+    """Where the vehicle will be, and facing, when the items so far are flown."""
+
+    position: Point
+    heading: float
+
+
+@dataclass
+class _Builder:
+    home: Home
+    cursor: _Cursor
+    items: list[MissionItem] = field(default_factory=list)
+    owners: list[int] = field(default_factory=list)
+    action: int = 0
+
+    def add(self, command: int, *, point: Point | None = None, reference: str = "relative",
+            params: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0),
+            altitude: float | None = None, raw: tuple[int, int, float] | None = None,
+            frame: int = mavlink.MAV_FRAME_MISSION) -> None:
+        """Append an item; ``point`` (local) becomes its position in the reference's frame,
+        ``altitude`` alone means "here, at that altitude", ``raw`` is (x, y, z) as sent."""
+        x, y, z = raw or (0, 0, 0.0)
+        if point is not None:
+            latitude, longitude, amsl = to_global(*point, self.home.latitude,
+                                                  self.home.longitude, self.home.altitude)
+            x, y = round(latitude * 1e7), round(longitude * 1e7)
+            frame = FRAMES[reference]
+            z = amsl if reference == "amsl" else point[2]
+        elif altitude is not None:  # a position "here" (lat = lon = 0) at an altitude
+            frame, z = FRAMES["relative"], altitude
+        self.items.append(MissionItem(seq=len(self.items), frame=frame, command=command,
+                                      param1=params[0], param2=params[1], param3=params[2],
+                                      param4=params[3], x=x, y=y, z=z))
+        self.owners.append(self.action)
+
+    def waypoint(self, point: Point, reference: str = "relative") -> None:
+        """Fly to ``point`` and move the cursor there."""
+        self.add(mavlink.MAV_CMD_NAV_WAYPOINT, point=point, reference=reference)
+        self.cursor.position = point
+
+
+def compile_mission(actions: tuple[BoundAction, ...] | list[BoundAction], home: Home,
+                    start: Point, heading: float = 0.0) -> CompiledMission:
+    """Mission items for ``actions`` flown from ``start`` (local) facing ``heading``.
+
+    Raises :class:`CompileError` for an action that has no mission-item form or whose
+    argument is a label the interpreter did not resolve.
+    """
+    builder = _Builder(home, _Cursor(tuple(start), heading))  # type: ignore[arg-type]
+    for index, action in enumerate(actions):
+        builder.action = index
+        if action.labels.keys() - action.values.keys():
+            missing = sorted(action.labels.keys() - action.values.keys())
+            raise CompileError(f"{action.name}: argument {missing[0]!r} reads label "
+                               f"{action.labels[missing[0]]!r}, which has no value yet")
+        compiler = _COMPILERS.get(action.name)
+        if compiler is None:
+            raise CompileError(f"{action.name} cannot be flown as a mission item")
+        compiler(builder, action)
+    return CompiledMission(tuple(builder.items), tuple(builder.owners))
+
+
+# --- one function per action ------------------------------------------------------------
+
+def _number(action: BoundAction, name: str, default: float = 0.0) -> float:
+    value = action.get(name)
+    return default if value is None else float(value)  # type: ignore[arg-type]
+
+
+def _point(action: BoundAction, name: str) -> Point | None:
+    value = action.get(name)
+    return tuple(float(v) for v in value) if value is not None else None  # type: ignore[return-value,union-attr]
+
+
+def _plus(a: Point, b: Point) -> Point:
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
+
+
+def _global_point(b: _Builder, action: BoundAction) -> tuple[Point, str]:
+    """The local point of latitude/longitude/altitude arguments, and the altitude reference."""
+    reference = str(action.get("altitude_reference", "relative"))
+    altitude = _number(action, "altitude", b.cursor.position[2])
+    amsl = altitude if reference == "amsl" else b.home.altitude + altitude
+    north, east, up = to_local(_number(action, "latitude"), _number(action, "longitude"), amsl,
+                               b.home.latitude, b.home.longitude, b.home.altitude)
+    return (north, east, up if reference == "amsl" else altitude), reference
+
+
+def _take_off(b: _Builder, action: BoundAction) -> None:
+    altitude = _number(action, "altitude", 10.0)
+    b.add(mavlink.MAV_CMD_NAV_TAKEOFF, altitude=altitude,
+          params=(_number(action, "pitch"), 0.0, 0.0, 0.0))
+    n, e, _ = b.cursor.position
+    b.cursor.position = (n, e, altitude)
+
+
+def _land(b: _Builder, action: BoundAction) -> None:
+    b.add(mavlink.MAV_CMD_NAV_LAND, point=(*b.cursor.position[:2], 0.0))
+    b.cursor.position = (*b.cursor.position[:2], 0.0)
+
+
+def _go_to_point(b: _Builder, action: BoundAction) -> None:
+    point = _point(action, "coordinates")
+    if point is None:
+        point = _plus(b.cursor.position, _point(action, "relative_coordinates") or (0, 0, 0))
+    b.waypoint(point)
+
+
+def _body_offset(heading: float, forward: float, right: float, up: float) -> Point:
+    yaw = math.radians(heading)
+    return (forward * math.cos(yaw) - right * math.sin(yaw),
+            forward * math.sin(yaw) + right * math.cos(yaw), up)
+
+
+def _move(b: _Builder, action: BoundAction) -> None:
+    displacement = _point(action, "coordinates")
+    if displacement is None:
+        unit = BODY_DIRECTIONS[str(action.get("direction", "forward"))]
+        distance = _number(action, "distance")
+        displacement = _body_offset(b.cursor.heading, *(distance * u for u in unit))
+    b.waypoint(_plus(b.cursor.position, displacement))
+
+
+def _move_forwards(b: _Builder, action: BoundAction) -> None:
+    offset = _body_offset(b.cursor.heading, _number(action, "distance"), 0.0, 0.0)
+    b.waypoint(_plus(b.cursor.position, offset))
+
+
+def _move_from_home(b: _Builder, action: BoundAction) -> None:
+    b.waypoint(_point(action, "coordinates") or (0.0, 0.0, b.cursor.position[2]))
+
+
+def _go_to_position(b: _Builder, action: BoundAction) -> None:
+    point, reference = _global_point(b, action)
+    b.waypoint(point, reference)
+
+
+def _loiter_centre(b: _Builder, action: BoundAction) -> tuple[Point, str]:
+    if action.get("latitude") is not None:
+        return _global_point(b, action)
+    point = _point(action, "coordinates")
+    if point is not None:
+        return point, "relative"
+    relative = _point(action, "relative_coordinates")
+    if relative is not None:
+        return _plus(b.cursor.position, relative), "relative"
+    return _point(action, "from_home") or b.cursor.position, "relative"
+
+
+def _loiter_at(b: _Builder, action: BoundAction, centre: Point, reference: str) -> None:
+    radius = _number(action, "radius", 15.0)
+    turns, duration = action.get("turns"), action.get("duration")
+    if turns is not None:
+        b.add(mavlink.MAV_CMD_NAV_LOITER_TURNS, point=centre, reference=reference,
+              params=(float(turns), 0.0, radius, 0.0))  # type: ignore[arg-type]
+    elif duration is not None:
+        b.add(mavlink.MAV_CMD_NAV_LOITER_TIME, point=centre, reference=reference,
+              params=(float(duration), 0.0, radius, 0.0))  # type: ignore[arg-type]
+    else:
+        b.add(mavlink.MAV_CMD_NAV_LOITER_UNLIM, point=centre, reference=reference,
+              params=(0.0, 0.0, radius, 0.0))
+    b.cursor.position = centre
+
+
+def _loiter(b: _Builder, action: BoundAction) -> None:
+    _loiter_at(b, action, *_loiter_centre(b, action))
+
+
+def _landing_point(b: _Builder, action: BoundAction) -> None:
+    if action.get("latitude") is not None:
+        point, reference = _global_point(b, action)
+    else:
+        point, reference = _point(action, "coordinates") or b.cursor.position, "relative"
+        point = (point[0], point[1], 0.0)
+    _land_at(b, action, point, reference)
+
+
+def _land_at(b: _Builder, action: BoundAction, point: Point, reference: str) -> None:
+    precision = PRECISION_MODES[str(action.get("precision_mode", "disabled"))]
+    yaw = action.get("yaw")
+    if yaw is not None:
+        # ArduCopter keeps its heading while it descends: turn first, then land facing yaw.
+        _yaw_item(b, float(yaw) % 360.0, relative=False)  # type: ignore[arg-type]
+    b.add(mavlink.MAV_CMD_NAV_LAND, point=point, reference=reference,
+          params=(0.0, float(precision), 0.0, 0.0 if yaw is None else float(yaw)))  # type: ignore[arg-type]
+    b.cursor.position = (point[0], point[1], 0.0)
+
+
+def _return_home(b: _Builder, action: BoundAction) -> None:
+    b.waypoint((0.0, 0.0, b.cursor.position[2]))
+
+
+def _return_home_and_loiter(b: _Builder, action: BoundAction) -> None:
+    _loiter_at(b, action, (0.0, 0.0, b.cursor.position[2]), "relative")
+
+
+def _return_home_and_land(b: _Builder, action: BoundAction) -> None:
+    if action.get("yaw") is None and action.get("precision_mode", "disabled") == "disabled":
+        b.add(mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH)
+        b.cursor.position = (0.0, 0.0, 0.0)
+        return
+    # RTL carries neither a heading nor a precision-landing mode: fly home, then land.
+    b.waypoint((0.0, 0.0, b.cursor.position[2]))
+    _land_at(b, action, (0.0, 0.0, 0.0), "relative")
+
+
+def _set_speed(b: _Builder, action: BoundAction) -> None:
+    kind = SPEED_TYPES[str(action.get("speed_type", "airspeed"))]
+    b.add(mavlink.MAV_CMD_DO_CHANGE_SPEED, params=(kind, _number(action, "speed"), -1.0, 0.0))
+
+
+def _set_altitude(b: _Builder, action: BoundAction) -> None:
+    reference = str(action.get("altitude_reference", "relative"))
+    altitude = _number(action, "altitude")
+    up = altitude - b.home.altitude if reference == "amsl" else altitude
+    n, e, _ = b.cursor.position
+    # A waypoint above the expected position: ArduCopter's DO_CHANGE_ALTITUDE only changes
+    # the altitude of the navigation command in progress, which may already be done.
+    b.waypoint((n, e, up), reference)
+
+
+def _wait(b: _Builder, action: BoundAction) -> None:
+    # NAV_DELAY param1 is seconds; params 2-4 (a time of day) are -1: not used.
+    b.add(mavlink.MAV_CMD_NAV_DELAY, params=(_number(action, "duration"), -1.0, -1.0, -1.0))
+
+
+def _stabilize(b: _Builder, action: BoundAction) -> None:
+    b.add(mavlink.MAV_CMD_NAV_DELAY, params=(0.0, -1.0, -1.0, -1.0))
+
+
+def _yaw_item(b: _Builder, angle: float, relative: bool) -> None:
+    direction = -1.0 if angle < 0 else 1.0
+    b.add(mavlink.MAV_CMD_CONDITION_YAW,
+          params=(abs(angle), 0.0, direction, 1.0 if relative else 0.0))
+    b.cursor.heading = (b.cursor.heading + angle if relative else angle) % 360.0
+
+
+def _rotate_yaw(b: _Builder, action: BoundAction) -> None:
+    if action.get("angle") is not None:
+        _yaw_item(b, _number(action, "angle"), relative=True)
+    else:
+        _yaw_item(b, _number(action, "orientation_angle") % 360.0, relative=False)
+
+
+def survey_legs(base: Point, length: float, width: float, spacing: float,
+                direction: str) -> list[Point]:
+    """The lawnmower waypoints of SURVEY_AREA: passes along north/south ``length`` metres,
+    ``spacing`` apart across ``width``, from ``base`` into the ``direction`` quadrant."""
+    north_sign, east_sign = QUADRANTS[direction]
+    passes = math.ceil(width / spacing - 1e-9) + 1
+    points: list[Point] = []
+    for index in range(passes):
+        across = min(index * spacing, width) * east_sign
+        ends = (0.0, length * north_sign)
+        if index % 2:
+            ends = ends[::-1]
+        points.extend((base[0] + along, base[1] + across, base[2]) for along in ends)
+    return points
+
+
+def _survey_area(b: _Builder, action: BoundAction) -> None:
+    if action.get("latitude") is not None:
+        base, _ = _global_point(b, action)
+    else:
+        base = _point(action, "coordinates") or b.cursor.position
+    altitude = _number(action, "altitude", b.cursor.position[2])
+    for point in survey_legs((base[0], base[1], altitude), _number(action, "length"),
+                             _number(action, "width"), _number(action, "spacing", 50.0),
+                             str(action.get("direction", "NORTH_WEST"))):
+        b.waypoint(point)
+
+
+def explore_square(centre: Point, radius: float, spacing: float) -> list[Point]:
+    """An expanding square around ``centre``: legs grow by ``spacing`` up to ``radius``."""
+    points: list[Point] = []
+    n, e = 0.0, 0.0
+    steps = ((1, 0), (0, 1), (-1, 0), (0, -1))
+    leg, turn = spacing, 0
+    while True:
+        dn, de = steps[turn % 4]
+        n = max(-radius, min(radius, n + dn * leg))
+        e = max(-radius, min(radius, e + de * leg))
+        points.append((centre[0] + n, centre[1] + e, centre[2]))
+        if leg >= 2 * radius:
+            return points
+        turn += 1
+        if turn % 2 == 0:
+            leg += spacing
+
+
+def _explore_space(b: _Builder, action: BoundAction) -> None:
+    centre = b.cursor.position
+    for point in explore_square(centre, _number(action, "radius", 10.0),
+                                _number(action, "spacing", 2.0)):
+        b.waypoint(point)
+    b.waypoint(centre)
+
+
+def _capture_photo(b: _Builder, action: BoundAction) -> None:
+    # param5 (shoot) travels in the item's x field.
+    b.add(mavlink.MAV_CMD_DO_DIGICAM_CONTROL, raw=(1, 0, 0.0))
+
+
+def _capture_photos(b: _Builder, action: BoundAction) -> None:
+    b.add(mavlink.MAV_CMD_IMAGE_START_CAPTURE,
+          params=(0.0, _number(action, "interval", 2.0), _number(action, "count", 1.0), 0.0))
+
+
+def _start_capturing(b: _Builder, action: BoundAction) -> None:
+    b.add(mavlink.MAV_CMD_IMAGE_START_CAPTURE,
+          params=(0.0, _number(action, "interval", 2.0), 0.0, 0.0))
+
+
+def _stop_capturing(b: _Builder, action: BoundAction) -> None:
+    b.add(mavlink.MAV_CMD_IMAGE_STOP_CAPTURE)
+
+
+def _pick_up_item(b: _Builder, action: BoundAction) -> None:
+    b.add(mavlink.MAV_CMD_DO_GRIPPER, params=(1.0, mavlink.GRIPPER_ACTION_GRAB, 0.0, 0.0))
+
+
+def _drop_item(b: _Builder, action: BoundAction) -> None:
+    b.add(mavlink.MAV_CMD_DO_GRIPPER, params=(1.0, mavlink.GRIPPER_ACTION_RELEASE, 0.0, 0.0))
+
+
+def _set_home(b: _Builder, action: BoundAction) -> None:
+    if action.get("latitude") is None:
+        b.add(mavlink.MAV_CMD_DO_SET_HOME, params=(1.0, 0.0, 0.0, 0.0))
+        return
+    b.add(mavlink.MAV_CMD_DO_SET_HOME, frame=mavlink.MAV_FRAME_GLOBAL_INT,
+          raw=(round(_number(action, "latitude") * 1e7),
+               round(_number(action, "longitude") * 1e7), _number(action, "altitude")))
+
+
+_COMPILERS = {
+    "TAKE_OFF": _take_off,
+    "LAND": _land,
+    "GO_TO_POINT": _go_to_point,
+    "MOVE": _move,
+    "MOVE_FORWARDS": _move_forwards,
+    "MOVE_FROM_HOME": _move_from_home,
+    "GO_TO_POSITION": _go_to_position,
+    "ROTATE_YAW": _rotate_yaw,
+    "STABILIZE": _stabilize,
+    "WAIT": _wait,
+    "EXPLORE_SPACE": _explore_space,
+    "PICK_UP_ITEM": _pick_up_item,
+    "DROP_ITEM": _drop_item,
+    "LOITER": _loiter,
+    "LANDING_POINT": _landing_point,
+    "RETURN_HOME": _return_home,
+    "RETURN_HOME_AND_LOITER": _return_home_and_loiter,
+    "RETURN_HOME_AND_LAND": _return_home_and_land,
+    "SET_SPEED": _set_speed,
+    "SET_ALTITUDE": _set_altitude,
+    "SURVEY_AREA": _survey_area,
+    "CAPTURE_PHOTO": _capture_photo,
+    "CAPTURE_PHOTOS": _capture_photos,
+    "START_CAPTURING": _start_capturing,
+    "STOP_CAPTURING": _stop_capturing,
+    "SET_HOME": _set_home,
+}

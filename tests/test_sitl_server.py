@@ -2,8 +2,16 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
+import queue
+import re
+import shutil
 import socket
+import subprocess
+import sys
+import threading
+import time
 
 import pytest
 
@@ -163,3 +171,72 @@ def test_realtime_loop_serves_and_stops():
 def test_bad_udp_addresses(text):
     with pytest.raises(ValueError, match="UDP address"):
         parse_udp_address(text)
+
+
+def _lines(stream, sink: queue.Queue) -> None:
+    for line in stream:
+        sink.put(line)
+
+
+def _wait_for(sink: queue.Queue, seen: list[str], pattern: str, deadline: float) -> None:
+    while not any(re.search(pattern, line) for line in seen):
+        remaining = deadline - time.monotonic()
+        assert remaining > 0, f"MAVProxy never printed {pattern!r}; got:\n{''.join(seen[-40:])}"
+        with contextlib.suppress(queue.Empty):
+            seen.append(sink.get(timeout=min(remaining, 0.5)))
+
+
+def test_mavproxy_uploads_arms_and_flies_the_mission_in_auto(tmp_path):
+    """MAVProxy (an independent ground station) flies a mission and sees every item reached."""
+    mavproxy = shutil.which("mavproxy.py", path=os.path.dirname(sys.executable))
+    assert mavproxy, "MAVProxy is part of the test extra"
+    home = (-35.363261, 149.165230, 584.0)
+    points = [(-35.363081, 149.165230), (-35.363081, 149.165450)]  # ~20 m north, then east
+    rows = [f"0\t1\t0\t16\t0\t0\t0\t0\t{home[0]}\t{home[1]}\t{home[2]}\t1",
+            "1\t0\t3\t22\t0\t0\t0\t0\t0\t0\t10\t1"]
+    rows += [f"{i}\t0\t3\t16\t0\t0\t0\t0\t{lat}\t{lon}\t10\t1"
+             for i, (lat, lon) in enumerate(points, start=2)]
+    rows.append(f"4\t0\t3\t21\t0\t0\t0\t0\t{points[-1][0]}\t{points[-1][1]}\t0\t1")
+    mission = tmp_path / "mission.txt"
+    mission.write_text("QGC WPL 110\n" + "\n".join(rows) + "\n")
+    with Simulator(tcp_base_port=0, speedup=10, params=FAST) as sim:
+        process = subprocess.Popen(
+            [sys.executable, mavproxy, f"--master=tcp:127.0.0.1:{sim.tcp_ports[0]}",
+             "--target-system=1", "--target-component=1", "--no-state",
+             "--default-modules=wp,mode,arm", f"--state-basedir={tmp_path}"],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+            cwd=tmp_path, env={**os.environ, "MAVLINK20": "1"})
+        sink: queue.Queue = queue.Queue()
+        threading.Thread(target=_lines, args=(process.stdout, sink), daemon=True).start()
+        seen: list[str] = []
+        deadline = time.monotonic() + 60
+
+        def say(command: str) -> None:
+            process.stdin.write(command + "\n")
+            process.stdin.flush()
+
+        try:
+            while not sim.vehicle(1).position_ok:  # the vehicle's own start-up, not MAVProxy's
+                assert time.monotonic() < deadline
+                time.sleep(0.05)
+            _wait_for(sink, seen, r"Detected vehicle 1:1 ", deadline)  # the autopilot
+            say("watch MISSION_ITEM_REACHED")
+            say(f"wp load {mission}")
+            _wait_for(sink, seen, r"Sent all 5 waypoints|Loaded 5 waypoints? in", deadline)
+            say("mode guided")
+            _wait_for(sink, seen, r"GUIDED", deadline)
+            say("arm throttle")
+            _wait_for(sink, seen, r"ARMED|Arming motors", deadline)
+            say("mode auto")
+            for seq in range(1, 5):
+                _wait_for(sink, seen, rf"MISSION_ITEM_REACHED \{{seq : {seq}\}}", deadline)
+            _wait_for(sink, seen, r"DISARMED|Disarming motors", deadline)
+        finally:
+            with contextlib.suppress(OSError):
+                process.stdin.close()
+            try:
+                process.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait()
+        assert [item.command for item in sim.vehicle(1).mission_items] == [16, 22, 16, 16, 21]

@@ -7,6 +7,8 @@ from collections.abc import Iterator
 import pytest
 from test_mavlink_link import FakeAutopilot, eventually
 
+from sitl.faults import Faults
+from sitl.server import Simulator
 from tml.errors import CommandRejected, MissionTransferError, VehicleTimeout
 from tml.mavlink.codec import mavlink
 from tml.mavlink.link import Link
@@ -120,3 +122,73 @@ def test_read_back_mismatch_is_a_transfer_error(fake: FakeAutopilot, vehicle: Ve
     with pytest.raises(MissionTransferError) as caught:
         vehicle.upload(items(2))
     assert caught.value.result == "MISMATCH" and "read back differs" in str(caught.value)
+
+
+# -- against the simulator over loopback ------------------------------------------------
+
+
+@pytest.fixture
+def sim_link() -> Iterator[tuple[Simulator, Link]]:
+    with Simulator(vehicles=1, tcp_base_port=0, speedup=20.0) as sim, \
+            Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}") as link:
+        yield sim, link
+
+
+def test_simulated_copter_is_discovered_takes_off_and_reports_it(
+        sim_link: tuple[Simulator, Link]) -> None:
+    sim, link = sim_link
+    vehicle = Vehicle.connect(link, 1, timeout=10)
+    assert (vehicle.info.vehicle_type, vehicle.info.autopilot) == (
+        mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA)
+    assert vehicle.request_rates() is True
+    with pytest.raises(CommandRejected):  # not armable before the EKF uses GPS
+        vehicle.arm()
+    link.wait_telemetry(1, lambda t: t.position_ready, timeout=30)
+    vehicle.set_mode("GUIDED")
+    vehicle.arm()
+    vehicle.takeoff(10.0)
+    flying = link.wait_telemetry(
+        1, lambda t: t.position is not None and t.position.relative_altitude > 9.0, timeout=30)
+    assert flying.armed and flying.mode == "GUIDED"
+    assert sim.vehicle(1).armed and sim.vehicle(1).mode == "GUIDED"
+    vehicle.land()
+    link.wait_telemetry(1, lambda t: not t.armed, timeout=60)
+
+
+def test_simulated_copter_keeps_an_uploaded_mission_in_items_1_to_n(
+        sim_link: tuple[Simulator, Link]) -> None:
+    sim, link = sim_link
+    vehicle = Vehicle.connect(link, 1, timeout=10)
+    assert eventually(lambda: sim.time > 1.5)  # uploads are refused for a second after boot
+    sent = vehicle.upload(items(50))  # read back and compared from item 1 on
+    stored = sim.vehicle(1).mission_items
+    assert len(stored) == 51
+    assert [(m.x, m.y, m.z) for m in stored[1:]] == [(i.x, i.y, i.z) for i in items(50)]
+    assert sent[0] != vehicle.download()[0]  # home, written by the vehicle
+    vehicle.clear()
+    assert len(vehicle.download()) <= 1
+
+
+def test_upload_survives_the_simulators_message_loss() -> None:
+    # 10 % each way: the simulator ignores repeated items and re-requests a missing one
+    # five times, 1.5 s apart, so its own budget (not tml's) sets the loss it can take.
+    faults = Faults(seed=7, loss_in=0.1, loss_out=0.1)
+    with Simulator(vehicles=1, tcp_base_port=0, speedup=1.0, faults=faults) as sim, \
+            Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}") as link:
+        vehicle = Vehicle.connect(link, 1, timeout=20)
+        assert eventually(lambda: sim.time > 1.5)  # uploads are refused a second after boot
+        vehicle.upload(items(30))
+        assert [(m.x, m.z) for m in sim.vehicle(1).mission_items[1:]] == [
+            (i.x, i.z) for i in items(30)]
+        assert link.telemetry(1).lost > 0  # the loss was real, and seen in the sequence gaps
+
+
+def test_two_simulated_vehicles_on_two_links_are_kept_apart() -> None:
+    with Simulator(vehicles=2, tcp_base_port=0, speedup=20.0) as sim, \
+            Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}") as one, \
+            Link(f"tcp:127.0.0.1:{sim.tcp_ports[1]}") as two:
+        first, second = Vehicle.connect(one, 1, timeout=10), Vehicle.connect(two, 2, timeout=10)
+        second.set_mode("LAND")
+        assert eventually(lambda: second.telemetry.mode == "LAND")
+        assert sim.vehicle(2).mode == "LAND" and sim.vehicle(1).mode != "LAND"
+        assert first.telemetry.mode != "LAND" and sorted(one.vehicles()) == [1]

@@ -110,8 +110,9 @@ class Link:
             self._conn.setup_signing(signing_key, sign_outgoing=True,
                                      allow_unsigned_callback=lambda _mav, _msgid: False)
         self._lock = threading.Condition()
-        # Woken only when a machine finishes, so that a transfer's caller does not wake
-        # (and take the GIL from the receive thread) on every message.
+        # Woken only when a machine finishes or its deadline comes closer, so that a
+        # transfer's caller does not wake (and take the GIL from the receive thread) on
+        # every message.
         self._machine_done = threading.Condition(self._lock)
         self._send_lock = threading.Lock()
         self._vehicles: dict[int, VehicleInfo] = {}
@@ -289,8 +290,9 @@ class Link:
                 for machine in list(self._machines.get(sysid, [])):
                     if isinstance(plain, CommandAck) == _is_command(machine):
                         info = self._vehicles[sysid]
+                        deadline = machine.deadline
                         self._send_all(machine.receive(plain, now), sysid, info.component_id)
-                        if machine.done:
+                        if machine.done or machine.deadline < deadline:
                             self._machine_done.notify_all()
             snapshot = tracker.snapshot
             self._lock.notify_all()

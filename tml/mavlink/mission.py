@@ -31,6 +31,14 @@ six attempts all fail with probability 0.51**6 = 1.8 %, and a 100-item upload wo
 five times in six. Any message from the vehicle (even a duplicate request) restarts the
 window.
 
+A request lost on its way is the hard case: the vehicle holds the item and waits for the
+next, repeating the item cannot help (ArduPilot answers a repeat with MISSION_ACK
+INVALID_SEQUENCE, which therefore ends nothing), and ArduPilot asks again only once a
+second, giving up after 8 s. So unanswered timeouts offer, in turn, the last item asked for
+and the two after it; vehicles accept the item they expect whether asked for or not. When
+the final ACK is lost, ArduPilot never repeats it: the upload ends ``unconfirmed`` and a
+read-back settles it (``Vehicle.upload`` does).
+
 Requests may come out of order or twice; each is answered with the item asked for. The
 legacy MISSION_REQUEST (ArduPilot asks with it) is answered with MISSION_ITEM_INT like
 MISSION_REQUEST_INT. ArduPilot keeps home in mission item 0 and overwrites it:
@@ -228,6 +236,9 @@ class Transfer:
             return []
         self.retransmissions += 1
         self.deadline = min(now + self.item_timeout, self._give_up_at())
+        return self._retransmission()
+
+    def _retransmission(self) -> list[MissionMessage]:
         return list(self._last_sent)
 
     def _give_up_at(self) -> float:
@@ -265,19 +276,31 @@ class Upload(Transfer):
     operation = "upload"
 
     def __init__(self, items: list[MissionItem], mission_type: int = MissionType.MISSION,
-                 **options: float | int | None) -> None:
+                 offer_next: bool = True, **options: float | int | None) -> None:
         super().__init__(mission_type, **options)  # type: ignore[arg-type]
+        self.offer_next = offer_next
+        self._round = 0
         for index, item in enumerate(items):
             if item.seq != index:
                 raise ValueError(f"item {index} has seq {item.seq}; items must be numbered 0..N-1")
         self.items = [replace(item, mission_type=self.mission_type) for item in items]
         self._requested: set[int] = set()
+        self._sent: set[int] = set()
 
     @property
     def progress(self) -> Progress:
-        """Distinct items the vehicle has asked for (all of them once it acknowledged)."""
+        """Distinct items sent so far (all of them once the vehicle acknowledged)."""
         total = len(self.items)
-        return Progress(total if self.succeeded else len(self._requested), total)
+        return Progress(total if self.succeeded else len(self._sent), total)
+
+    @property
+    def unconfirmed(self) -> bool:
+        """True if every item went out but no final ACK came (ArduPilot does not resend it).
+
+        Only reading the mission back can tell whether the vehicle has it all.
+        """
+        return (self.error is not None and self.error.result == "TIMEOUT"
+                and len(self._sent) == len(self.items) > 0)
 
     def _opening(self) -> MissionMessage:
         # MISSION_COUNT announces the number of items.
@@ -291,15 +314,45 @@ class Upload(Transfer):
             if not 0 <= msg.seq < len(self.items):
                 return []  # a request outside the mission: nothing sensible to send back
             self._requested.add(msg.seq)
-            return self._send(now, self.items[msg.seq])
+            self._round = 0
+            return self._send_item(now, msg.seq)
         if isinstance(msg, MissionAck):
-            if msg.result != MissionResult.MAV_MISSION_ACCEPTED:
+            if msg.result == MissionResult.MAV_MISSION_INVALID_SEQUENCE and self._requested:
+                # ArduPilot's answer to an item other than the one it waits for (a repeat,
+                # or an offer, see _retransmission): not an end, the vehicle is still there.
+                pass
+            elif msg.result != MissionResult.MAV_MISSION_ACCEPTED:
                 self._ack_failure(msg)
-            elif len(self._requested) == len(self.items):
+            elif len(self._requested) == len(self.items) or self._sent_last():
                 self._succeed()
-            # An ACCEPTED before every item was asked for is a late answer to an earlier
-            # transfer; wait for the vehicle to go on asking.
+            # An ACCEPTED before any item went out is a late answer to an earlier transfer;
+            # wait for the vehicle to go on asking.
         return []
+
+    def _send_item(self, now: float, seq: int) -> list[MissionMessage]:
+        self._sent.add(seq)
+        return self._send(now, self.items[seq])
+
+    def _sent_last(self) -> bool:
+        return len(self.items) - 1 in self._sent
+
+    def _retransmission(self) -> list[MissionMessage]:
+        # A request lost on its way leaves the vehicle holding every item sent so far and
+        # waiting for the next, which it never asks for again if it does not re-request
+        # (and ArduPilot only does so once a second); repeating the last item cannot help.
+        # The item it waits for is, nearly always, the last one asked for or one of the two
+        # after it (an offer accepted whose request was lost), so each unanswered timeout
+        # sends the next of those in turn:
+        # vehicles accept the item they expect whether or not their request got through,
+        # and answer the others with INVALID_SEQUENCE or not at all.
+        if self.offer_next and self._requested:
+            first = max(self._requested)
+            last = min(first + 2, max(self._sent) + 1, len(self.items) - 1)
+            seq = first + self._round % (last - first + 1)
+            self._round += 1
+            self._sent.add(seq)
+            self._last_sent = [self.items[seq]]
+        return list(self._last_sent)
 
 
 class Download(Transfer):

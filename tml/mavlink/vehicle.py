@@ -189,13 +189,15 @@ class Vehicle:
                ) -> list[MissionItem]:
         """Upload ``items`` (seq 0..N-1) and, with ``verify``, read them back and compare.
 
-        On ArduPilot a mission's items go to seq 1..N behind a home placeholder. Returns
+        On ArduPilot a mission's items go to seq 1..N behind a home placeholder. An upload
+        whose final ACK was lost is settled by reading it back, ``verify`` or not. Returns
         the items as sent.
         """
         skip_home = mission_type == MissionType.MISSION and self.keeps_home_in_item_zero
         sent = with_home_placeholder(items) if skip_home else list(items)
-        self._transfer(Upload(sent, mission_type, system_id=self.system_id), on_progress)
-        if verify:
+        upload = Upload(sent, mission_type, system_id=self.system_id)
+        self._transfer(upload, on_progress, raise_error=_lost_for_good)
+        if verify or upload.unconfirmed:
             read_back = self.download(mission_type)
             if not same_items(sent, read_back, skip_home=skip_home):
                 raise MissionTransferError(
@@ -215,8 +217,14 @@ class Vehicle:
         self._transfer(Clear(mission_type, system_id=self.system_id))
 
     def _transfer(self, transfer: Transfer,
-                  on_progress: Callable[[Progress], None] | None = None) -> None:
+                  on_progress: Callable[[Progress], None] | None = None, *,
+                  raise_error: Callable[[Transfer], bool] = lambda _: True) -> None:
         report = None if on_progress is None else (lambda m: on_progress(m.progress))
         self.link.run(transfer, self.system_id, self.component_id, report)
-        if transfer.error is not None:
+        if transfer.error is not None and raise_error(transfer):
             raise transfer.error
+
+
+def _lost_for_good(transfer: Transfer) -> bool:
+    """Whether a failed upload is lost for good (not merely missing its final ACK)."""
+    return not (isinstance(transfer, Upload) and transfer.unconfirmed)

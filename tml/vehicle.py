@@ -374,6 +374,8 @@ class FakeVehicle:
         if self._moving():
             self.position = _towards(self.position, self._target, self.speed * dt,
                                      self.climb_rate * dt)
+        elif self._landing and self._target is not None:
+            self._target = None  # over the landing point: descend from here
         elif self.mission is not None and not self.mission.finished:
             index = self.mission.action_index + 1
             if index < len(self._mission_points):

@@ -1,0 +1,442 @@
+"""The interpreter (tml.engine.interpreter), driven by a FakeVehicle and an injected clock."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from collections.abc import Callable
+
+import pytest
+
+from tml.engine import Interpreter, Options, Status, TaskState
+from tml.validation import validate_file
+from tml.vehicle import (
+    Disarm,
+    FakeVehicle,
+    FlyMission,
+    GoTo,
+    Gripper,
+    Hold,
+    Land,
+    MissionProgress,
+    ReturnToLaunch,
+    SetSkill,
+    TakeOff,
+)
+
+TAKE_OFF = '<task name="Take off"><action name="TAKE_OFF"><argument name="altitude" value="5"/>' \
+           '</action></task>\n'
+LAND = '<task name="Land"><action name="LAND"/></task>\n'
+
+
+def goto(name: str, point: str) -> str:
+    return (f'<task name="{name}"><action name="GO_TO_POINT">'
+            f'<argument name="coordinates" value="{point}"/></action></task>\n')
+
+
+def mission(body: str, events: str = "", extra: str = ""):
+    xml = f'<mission name="m">\n{extra}{body}'
+    if events:
+        xml += f"<event_handling>{events}</event_handling>\n"
+    result = validate_file("m.xml", (xml + "</mission>\n").encode())
+    assert result.errors == [], result.errors
+    return result.mission
+
+
+class Flight:
+    """Flies a mission on a FakeVehicle, 0.1 s a step, recording everything."""
+
+    def __init__(self, body: str, events: str = "", extra: str = "",
+                 vehicle: FakeVehicle | None = None, options: Options | None = None) -> None:
+        self.vehicle = vehicle or FakeVehicle()
+        self.interp = Interpreter(mission(body, events, extra), options=options)
+        self.records = []
+        self.requests = []
+        self.time = 0.0
+        self._take(self.interp.start(0.0, self.vehicle.state()))
+
+    def _take(self, out) -> None:
+        self.records += out.records
+        self.requests += out.requests
+        for request in out.requests:
+            self.vehicle.submit(request)
+
+    def run(self, seconds: float = 600.0,
+            each: Callable[[Flight], None] | None = None) -> Flight:
+        end = self.time + seconds
+        while self.interp.status is Status.RUNNING and self.time < end:
+            self.vehicle.advance(0.1)
+            self.time = round(self.time + 0.1, 6)
+            if each:
+                each(self)
+            self._take(self.interp.step(self.time, self.vehicle.state(), self.vehicle.poll()))
+        return self
+
+    def started(self) -> list[str]:
+        return [r.data["task"] for r in self.records
+                if r.kind == "action" and r.data["message"].endswith("started") and r.data["task"]]
+
+    def fired(self) -> list[str]:
+        return [r.data["event"] for r in self.records if r.kind == "event"]
+
+    def sent(self, kind: type) -> list:
+        return [r for r in self.requests if isinstance(r, kind)]
+
+
+def test_depth_first_order_and_completion() -> None:
+    body = TAKE_OFF + ('<task name="A"><task name="A1"><action name="WAIT"><argument '
+                       'name="duration" value="1"/></action></task>'
+                       '<task name="A2"><task name="A2a"><action name="STABILIZE"/></task></task>'
+                       '</task>\n') + goto("B", "(5, 0, 5)") + LAND
+    flight = Flight(body).run()
+    assert flight.interp.status is Status.COMPLETED
+    assert flight.started() == ["Take off", "A/A1", "A/A2/A2a", "B", "Land"]
+    assert flight.vehicle.position == pytest.approx((5, 0, 0), abs=0.55)
+    assert not flight.vehicle.armed
+    assert set(flight.interp.view().task_states.values()) == {TaskState.DONE}
+
+
+def test_repeat_of_terminal_and_non_terminal_tasks() -> None:
+    body = TAKE_OFF + ('<task name="Twice"><repeat times="2"/>'
+                       '<task name="Hop"><repeat times="3"/><action name="MOVE">'
+                       '<argument name="coordinates" value="(1, 0, 0)"/></action></task>'
+                       '<task name="Pause"><action name="WAIT"><argument name="duration" '
+                       'value="0.5"/></action></task></task>\n') + LAND
+    flight = Flight(body).run()
+    assert flight.started() == ["Take off"] + (["Twice/Hop"] * 3 + ["Twice/Pause"]) * 2 + ["Land"]
+    assert flight.vehicle.position[0] == pytest.approx(6.0, abs=0.55)
+
+
+def test_false_condition_skips_the_task_and_logs_the_value_read() -> None:
+    body = TAKE_OFF + ('<task name="High only"><condition parameter="ALTITUDE" '
+                       'comparison="greater than" value="20"/><action name="MOVE">'
+                       '<argument name="coordinates" value="(9, 0, 0)"/></action></task>\n'
+                       '<task name="Low only"><condition parameter="ALTITUDE" '
+                       'comparison="less than" value="20"/><action name="MOVE">'
+                       '<argument name="coordinates" value="(0, 2, 0)"/></action></task>\n') + LAND
+    flight = Flight(body).run()
+    assert flight.started() == ["Take off", "Low only", "Land"]
+    [skip] = [r for r in flight.records if r.kind == "decision" and "skipped" in r.data["message"]]
+    assert skip.data["task"] == "High only" and skip.data["read"] == pytest.approx(5.0, abs=0.6)
+    assert skip.data["expected"] == "20" and skip.data["line"] == 3
+    assert flight.interp.view().task_states["High only"] is TaskState.SKIPPED
+
+
+def test_take_off_when_flying_does_nothing() -> None:
+    flight = Flight(TAKE_OFF + TAKE_OFF.replace("Take off", "Again") + LAND).run()
+    assert len(flight.sent(TakeOff)) == 1
+    assert any("already flying" in r.data["message"] for r in flight.records)
+    assert flight.interp.status is Status.COMPLETED
+
+
+def hover(name: str = "Hover", seconds: int = 30) -> str:
+    return (f'<task name="{name}"><action name="WAIT"><argument name="duration" '
+            f'value="{seconds}"/></action></task>\n')
+
+
+SEEN = '<parameter name="seen" type="boolean"/>\n'
+
+
+def event(termination: str, actions: str = "", trigger: str = "edge",
+          conditions: str = '<condition parameter="seen" comparison="equal" value="yes"/>') -> str:
+    return (f'<event name="E" trigger="{trigger}">{conditions}{actions}'
+            f'<termination mode="{termination}"/></event>')
+
+
+def see_at(t: float, until: float = 1e9) -> Callable[[Flight], None]:
+    def script(flight: Flight) -> None:
+        flight.vehicle.detections["seen"] = t <= flight.time < until
+    return script
+
+
+def test_edge_triggered_event_fires_once_while_true() -> None:
+    flight = Flight(TAKE_OFF + hover() + LAND, event("CONTINUE", '<action name="MEMORIZE_POINT">'
+                    '<argument name="coordinates" label="p"/></action>'), SEEN)
+    flight.run(each=see_at(8.0))
+    assert flight.fired() == ["E"]
+    assert flight.interp.status is Status.COMPLETED
+
+
+def test_edge_triggered_event_fires_again_after_going_false() -> None:
+    def toggling(flight: Flight) -> None:
+        flight.vehicle.detections["seen"] = 8 <= flight.time < 9 or 12 <= flight.time < 13
+    flight = Flight(TAKE_OFF + hover() + LAND, event("CONTINUE", '<action name="MEMORIZE_POINT">'
+                    '<argument name="coordinates" label="p"/></action>'), SEEN)
+    flight.run(each=toggling)
+    assert flight.fired() == ["E", "E"]
+
+
+def test_level_triggered_event_fires_on_every_step_while_true() -> None:
+    flight = Flight(TAKE_OFF + hover() + LAND, event("CONTINUE", '<action name="MEMORIZE_POINT">'
+                    '<argument name="coordinates" label="p"/></action>', trigger="level"), SEEN)
+    flight.run(each=see_at(8.0, 9.0))
+    assert 9 <= len(flight.fired()) <= 11  # 1 s of 0.1 s steps
+
+
+def test_memorizing_event_does_not_disturb_the_running_action() -> None:
+    flight = Flight(TAKE_OFF + goto("Far", "(40, 0, 5)") + LAND,
+                    event("CONTINUE", '<action name="MEMORIZE_POINT"><argument '
+                          'name="coordinates" label="spot"/></action>'), SEEN)
+    flight.run(each=see_at(6.0))
+    assert flight.sent(Hold) == []
+    spot = flight.interp.labels["spot"]
+    assert 0 < spot[0] < 40 and spot[2] == pytest.approx(5.0)
+    assert flight.vehicle.position == pytest.approx((40, 0, 0), abs=0.55)
+
+
+def test_continue_after_a_moving_event_action_resumes_the_stopped_action() -> None:
+    flight = Flight(TAKE_OFF + goto("Far", "(40, 0, 5)") + LAND,
+                    event("CONTINUE", '<action name="MOVE"><argument name="coordinates" '
+                          'value="(0, 5, 0)"/></action>'), SEEN)
+    flight.run(each=see_at(6.0))
+    assert len(flight.sent(Hold)) == 1
+    gotos = flight.sent(GoTo)
+    assert gotos[0].target == gotos[-1].target == (40, 0, 5)  # sent again after the event
+    assert len(gotos) == 3
+    assert flight.interp.status is Status.COMPLETED
+    assert flight.vehicle.position == pytest.approx((40, 0, 0), abs=0.55)
+
+
+def test_next_task_abandons_the_current_task() -> None:
+    flight = Flight(TAKE_OFF + hover() + goto("After", "(3, 0, 5)") + LAND,
+                    event("NEXT_TASK"), SEEN)
+    flight.run(each=see_at(8.0))
+    assert flight.started() == ["Take off", "Hover", "After", "Land"]
+    assert flight.time < 25  # the 30 s hover was cut short
+    assert flight.interp.status is Status.COMPLETED
+
+
+def test_repeat_task_starts_the_current_task_again() -> None:
+    flight = Flight(TAKE_OFF + hover(seconds=5) + LAND, event("REPEAT_TASK"), SEEN)
+    flight.run(each=see_at(5.0))
+    assert flight.started() == ["Take off", "Hover", "Hover", "Land"]
+
+
+def test_abort_task_abandons_the_task_the_event_is_scoped_to() -> None:
+    body = TAKE_OFF + ('<task name="Search">' + hover("Look", 20) + hover("Look more", 20)
+                       + '</task>\n') + goto("After", "(2, 0, 5)") + LAND
+    flight = Flight(body, event("ABORT_TASK", conditions='<condition current_task="Search"/>'
+                                '<condition parameter="seen" comparison="equal" value="yes"/>'),
+                    SEEN)
+    flight.run(each=see_at(8.0))
+    assert flight.started() == ["Take off", "Search/Look", "After", "Land"]
+    states = flight.interp.view().task_states
+    assert states["Search"] is TaskState.ABORTED and states["Search/Look more"] is TaskState.PENDING
+
+
+def test_current_task_condition_holds_for_ancestors_only_while_they_run() -> None:
+    body = TAKE_OFF + '<task name="Search">' + hover("Look", 5) + '</task>\n' + hover("Rest", 20)
+    flight = Flight(body + LAND, event("CONTINUE", '<action name="MEMORIZE_POINT"><argument '
+                    'name="coordinates" label="x"/></action>',
+                    conditions='<condition current_task="Search"/>'
+                    '<condition parameter="seen" comparison="equal" value="yes"/>'), SEEN)
+    flight.run(each=see_at(12.0))  # "Look" is over by then
+    assert flight.fired() == []
+
+
+def test_jump_to_task_continues_from_the_named_task() -> None:
+    body = (TAKE_OFF + hover("First", 30) + goto("Skipped", "(9, 9, 5)")
+            + '<task name="Target group">' + goto("Target", "(0, 4, 5)") + '</task>\n' + LAND)
+    events = ('<event name="E"><condition parameter="seen" comparison="equal" value="yes"/>'
+              '<termination mode="JUMP_TO_TASK" task="Target"/></event>')
+    flight = Flight(body, events, SEEN).run(each=see_at(8.0))
+    assert flight.started() == ["Take off", "First", "Target group/Target", "Land"]
+    assert flight.vehicle.position == pytest.approx((0, 4, 0), abs=0.55)
+
+
+def test_jump_backwards_repeats_earlier_tasks() -> None:
+    body = TAKE_OFF + goto("Out", "(5, 0, 5)") + hover("Wait", 20) + LAND
+    events = ('<event name="E"><condition current_task="Wait"/><condition parameter="seen" '
+              'comparison="equal" value="yes"/><termination mode="JUMP_TO_TASK" task="Out"/>'
+              '</event>')
+    flight = Flight(body, events, SEEN).run(each=see_at(9.0, 9.05))
+    assert flight.started() == ["Take off", "Out", "Wait", "Out", "Wait", "Land"]
+
+
+def test_end_mission_completes_and_brings_the_vehicle_back() -> None:
+    flight = Flight(TAKE_OFF + hover() + LAND, event("END_MISSION"), SEEN).run(each=see_at(8.0))
+    assert flight.interp.status is Status.COMPLETED
+    assert "ended the mission" in flight.interp.reason
+    assert len(flight.sent(ReturnToLaunch)) == 1  # never left hovering unattended
+
+
+def test_abort_mission_after_landing_needs_no_further_command() -> None:
+    flight = Flight(TAKE_OFF + hover() + LAND, event("ABORT_MISSION", '<action name="LAND"/>'),
+                    SEEN).run(each=see_at(8.0))
+    assert flight.interp.status is Status.ABORTED
+    assert flight.sent(ReturnToLaunch) == [] and flight.sent(Disarm) == []
+    assert not flight.vehicle.armed and flight.vehicle.position[2] == 0
+
+
+def test_abort_mission_in_the_air_commands_the_safe_state() -> None:
+    flight = Flight(TAKE_OFF + hover() + LAND, event("ABORT_MISSION"), SEEN,
+                    options=Options(safe_state="land")).run(each=see_at(8.0))
+    assert flight.interp.status is Status.ABORTED
+    assert len(flight.sent(Land)) == 1 and flight.sent(ReturnToLaunch) == []
+
+
+def test_memory_labels_feed_go_to_point_and_known_conditions() -> None:
+    body = (TAKE_OFF + goto("Out", "(6, 2, 5)")
+            + '<task name="Remember"><action name="MEMORIZE_POINT"><argument name="coordinates" '
+              'label="spot"/></action></task>\n' + goto("Away", "(0, 0, 5)")
+            + '<task name="Back"><condition label="spot" comparison="known" value="yes"/>'
+              '<action name="GO_TO_POINT"><argument name="coordinates" label="spot"/></action>'
+              '</task>\n'
+            + '<task name="Never"><condition label="other" comparison="known" value="yes"/>'
+              '<action name="WAIT"><argument name="duration" value="1"/></action></task>\n'
+            + LAND)
+    flight = Flight(body).run()
+    assert flight.interp.labels["spot"] == pytest.approx((6, 2, 5), abs=0.55)
+    assert "Never" not in flight.started() and "Back" in flight.started()
+    assert flight.vehicle.position == pytest.approx((6, 2, 0), abs=0.55)
+
+
+def test_rejected_command_is_an_action_failure_an_event_can_handle() -> None:
+    vehicle = FakeVehicle(reject={"Arm": "rejected"})
+    events = ('<event name="Arming refused"><condition parameter="ACTION_FAILURE" '
+              'comparison="equal" value="rejected"/><termination mode="END_MISSION"/></event>')
+    flight = Flight(TAKE_OFF + LAND, events, vehicle=vehicle).run()
+    assert flight.fired() == ["Arming refused"]
+    assert flight.interp.status is Status.COMPLETED
+
+
+def test_unhandled_failure_ends_the_mission_as_failed() -> None:
+    flight = Flight(TAKE_OFF + LAND, vehicle=FakeVehicle(reject={"TakeOff": "rejected"})).run()
+    assert flight.interp.status is Status.FAILED
+    assert "TAKE_OFF failed (rejected)" in flight.interp.reason
+    assert len(flight.sent(Disarm)) == 1  # armed on the ground: disarmed
+
+
+def test_timeout_is_derived_from_distance_and_speed() -> None:
+    vehicle = FakeVehicle()
+    flight = Flight(TAKE_OFF + goto("Far", "(50, 0, 5)") + LAND, vehicle=vehicle)
+    flight.run(each=lambda f: setattr(f.vehicle, "stuck", f.time > 3))
+    assert flight.interp.status is Status.FAILED
+    assert "GO_TO_POINT failed (timeout)" in flight.interp.reason
+    # 50 m at 5 m/s = 10 s, times 2, plus 15 s of slack = 35 s after the action started.
+    started = next(r.time for r in flight.records if r.data.get("message") == "GO_TO_POINT started")
+    assert flight.time - started == pytest.approx(35.0, abs=0.3)
+
+
+def test_timeout_can_be_handled_by_repeating_the_task() -> None:
+    events = ('<event name="Retry"><condition parameter="ACTION_FAILURE" comparison="equal" '
+              'value="timeout"/><termination mode="REPEAT_TASK"/></event>')
+    flight = Flight(TAKE_OFF + goto("Far", "(50, 0, 5)") + LAND, events)
+    flight.run(each=lambda f: setattr(f.vehicle, "stuck", 3 < f.time < 40))
+    assert flight.fired() == ["Retry"]
+    assert flight.interp.status is Status.COMPLETED
+
+
+def test_action_the_vehicle_cannot_do_fails_before_anything_is_sent() -> None:
+    body = TAKE_OFF + '<task name="Grab"><action name="PICK_UP_ITEM"/></task>\n' + LAND
+    flight = Flight(body).run()
+    assert flight.interp.status is Status.FAILED
+    assert "no gripper" in flight.interp.reason
+    assert flight.sent(Gripper) == []
+    with_gripper = Flight(body, vehicle=FakeVehicle(capabilities=frozenset({"gripper"}))).run()
+    assert with_gripper.interp.status is Status.COMPLETED
+    assert [g.grab for g in with_gripper.sent(Gripper)] == [True]
+
+
+def test_skills_are_switched_on_with_their_task_and_off_after() -> None:
+    body = ('<skill name="AVOID_OBSTACLES"/>' + TAKE_OFF
+            + '<task name="Look"><skill name="RECOGNIZE_ITEMS"/>' + hover("Scan", 2)
+            + '</task>\n' + LAND)
+    flight = Flight(body).run()
+    switches = [(r.skill, r.enabled) for r in flight.sent(SetSkill)]
+    assert switches == [("AVOID_OBSTACLES", True), ("RECOGNIZE_ITEMS", True),
+                        ("RECOGNIZE_ITEMS", False), ("AVOID_OBSTACLES", False)]
+    assert flight.vehicle.skills == set()
+
+
+def test_detections_named_after_objects_feed_conditions() -> None:
+    events = ('<event name="Item A found"><condition parameter="Item A found" '
+              'comparison="equal" value="yes"/><action name="MEMORIZE_POINT"><argument '
+              'name="coordinates" label="item A"/></action><termination mode="CONTINUE"/>'
+              '</event>')
+    extra = '<parameter name="Item A found" type="boolean"/>\n'
+    flight = Flight(TAKE_OFF + hover("Scan", 10) + LAND, events, extra)
+    flight.run(each=lambda f: f.vehicle.detections.__setitem__(
+        "RECOGNIZED_ITEMS", frozenset({"A"}) if f.time > 7 else frozenset()))
+    assert flight.fired() == ["Item A found"] and "item A" in flight.interp.labels
+
+
+def test_runner_abort_commands_the_safe_state() -> None:
+    flight = Flight(TAKE_OFF + hover() + LAND).run(seconds=8)
+    out = flight.interp.abort(flight.time, flight.vehicle.state(), "operator pressed Ctrl-C")
+    assert [type(r) for r in out.requests] == [ReturnToLaunch]
+    assert flight.interp.status is Status.ABORTED
+    assert any(r.kind == "safety" for r in out.records)
+
+
+def test_abort_on_the_ground_disarms_an_armed_vehicle() -> None:
+    vehicle = FakeVehicle(armed=True)
+    interp = Interpreter(mission(hover()))
+    interp.start(0.0, vehicle.state())
+    out = interp.abort(0.1, vehicle.state(), "link lost")
+    assert [type(r) for r in out.requests] == [Disarm]
+
+
+def test_mission_dispatch_sends_one_plan_and_follows_its_progress() -> None:
+    body = TAKE_OFF + ('<task name="Auto" dispatch="mission">' + goto("P1", "(10, 0, 5)")
+                       + goto("P2", "(10, 10, 5)") + '</task>\n') + LAND
+    seen_tasks: list[str] = []
+    flight = Flight(body)
+    flight.run(each=lambda f: seen_tasks.append(f.interp.view().current_task))
+    [plan] = flight.sent(FlyMission)
+    assert [a.name for a in plan.actions] == ["GO_TO_POINT", "GO_TO_POINT"]
+    assert plan.start == pytest.approx((0, 0, 5), abs=0.6)
+    assert "Auto/P1" in seen_tasks and "Auto/P2" in seen_tasks
+    assert flight.interp.status is Status.COMPLETED
+    assert flight.vehicle.position == pytest.approx((10, 10, 0), abs=0.55)
+
+
+def test_mission_dispatch_that_never_starts_times_out() -> None:
+    body = TAKE_OFF + '<task name="Auto" dispatch="mission">' + goto("P1", "(10, 0, 5)") + \
+        '</task>\n'
+    vehicle = FakeVehicle(ignore={"FlyMission"})
+    flight = Flight(body, vehicle=vehicle, options=Options(mission_stall=20)).run()
+    assert flight.interp.status is Status.FAILED
+    assert "did not start" in flight.interp.reason
+
+
+def test_mission_dispatch_can_be_interrupted_by_an_event() -> None:
+    body = TAKE_OFF + '<task name="Auto" dispatch="mission">' + goto("P1", "(60, 0, 5)") + \
+        '</task>\n' + LAND
+    flight = Flight(body, event("NEXT_TASK"), SEEN).run(each=see_at(8.0))
+    assert len(flight.sent(Hold)) == 1
+    assert flight.interp.view().task_states["Auto"] is TaskState.ABORTED
+    assert flight.interp.status is Status.COMPLETED
+    assert flight.vehicle.position[0] < 60
+
+
+def test_pre_check_makes_an_infeasible_action_abort() -> None:
+    def too_far(bound, state, labels) -> list[str]:
+        target = bound.values.get("coordinates")
+        return ["c2 battery range: 50 m > 20 m"] if target and target[0] > 20 else []
+    flight = Flight(TAKE_OFF + goto("Far", "(50, 0, 5)") + LAND,
+                    options=Options(pre_check=too_far)).run()
+    assert flight.interp.status is Status.ABORTED
+    assert "infeasible" in flight.interp.reason and "c2 battery range" in flight.interp.reason
+    assert [g.target for g in flight.sent(GoTo)] == []
+
+
+def test_view_reports_current_action_and_progress() -> None:
+    flight = Flight(TAKE_OFF + goto("Far", "(40, 0, 5)") + LAND).run(seconds=7)
+    view = flight.interp.view()
+    assert view.current_task == "Far" and view.current_action == "GO_TO_POINT"
+    assert 0.0 < view.progress < 1.0
+    assert view.task_states["Take off"] is TaskState.DONE
+    assert view.task_states["Far"] is TaskState.RUNNING
+
+
+def test_mission_progress_type_is_shared_with_vehicles() -> None:
+    assert MissionProgress(1, 0).finished is False
+
+
+def test_engine_imports_no_io() -> None:
+    code = ("import sys, tml.engine; print(sorted(m for m in ('pymavlink', 'socket', 'lxml', "
+            "'threading', 'select') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == "[]"

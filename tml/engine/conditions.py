@@ -1,0 +1,162 @@
+"""Reading parameters and evaluating conditions, from a vehicle state and the engine's memory.
+
+Built-in parameters come from :class:`~tml.vehicle.VehicleState` and the interpreter
+(elapsed times, current task, last action failure). Any other name is a detection
+parameter: it is looked up in the state's detections by its exact name, and a name of the
+form ``"<kind> <id> found"`` (the IMAV 2016 mission's ``"Item A found"``) is true while
+``<id>`` is among the recognised objects of that kind (``RECOGNIZED_ITEMS`` ...).
+
+Sets are compared with ``includes``; ``equal`` on a set is also true when the set
+includes the value (the paper's ``visualMarker equal 3``), ``not equal to`` when it does
+not. Comparisons on an unknown value are false, except ``known`` with value ``no``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+from tml import parameters
+from tml.model import Comparison, Condition, ConditionKind
+from tml.parameters import ParamType
+from tml.vehicle import VehicleState
+
+
+@dataclass(frozen=True)
+class Memory:
+    """What the interpreter itself knows when a condition is evaluated."""
+
+    labels: Mapping[str, tuple[float, float, float]]
+    mission_time: float
+    task_time: float
+    current_task: tuple[str, ...]  # path of the running terminal task ("" when none)
+    current_action: str
+    action_failure: str | None
+    running_paths: frozenset[tuple[str, ...]]  # the running task and all its ancestors
+
+
+_FOUND = re.compile(r"^\s*(item|bucket|aruco marker|aruco|visual marker|marker|frame)s?\s+"
+                    r"(.+?)\s+(?:found|seen|recognized|recognised)\s*$", re.I)
+_FOUND_SETS = {"item": "RECOGNIZED_ITEMS", "bucket": "RECOGNIZED_BUCKETS",
+               "aruco marker": "RECOGNIZED_ARUCO_MARKERS", "aruco": "RECOGNIZED_ARUCO_MARKERS",
+               "visual marker": "RECOGNIZED_VISUAL_MARKERS",
+               "marker": "RECOGNIZED_VISUAL_MARKERS", "frame": "RECOGNIZED_FRAMES"}
+
+_STATE_READERS: dict[str, Callable[[VehicleState], object]] = {
+    "BATTERY_CHARGE_PERCENTAGE": lambda s: s.battery,
+    "ALTITUDE": lambda s: s.position[2] if s.position else None,
+    "GROUND_SPEED": lambda s: s.ground_speed,
+    "DISTANCE_TO_HOME": lambda s: math.hypot(s.position[0], s.position[1])
+    if s.position else None,
+    "HEADING": lambda s: s.heading,
+    "FLIGHT_MODE": lambda s: s.mode or None,
+    "ARMED": lambda s: s.armed,
+    "LANDED": lambda s: s.landed,
+    "LINK_STATE": lambda s: s.link,
+    "GPS_FIX": lambda s: s.gps_fix,
+}
+
+
+def read_parameter(name: str, state: VehicleState, memory: Memory) -> object:
+    """The current value of a parameter (None when unknown)."""
+    spec = parameters.lookup(name)
+    if spec is not None:
+        reader = _STATE_READERS.get(spec.name)
+        if reader is not None:
+            return reader(state)
+        if spec.type is ParamType.SET:
+            return _as_set(state.detections.get(spec.name))
+        return {
+            "MISSION_ELAPSED_TIME": memory.mission_time,
+            "TASK_ELAPSED_TIME": memory.task_time,
+            "CURRENT_TASK": "/".join(memory.current_task) or None,
+            "CURRENT_ACTION": memory.current_action or None,
+            "ACTION_FAILURE": memory.action_failure,
+        }.get(spec.name)
+    if name in state.detections:
+        return state.detections[name]
+    found = _FOUND.match(name)
+    if found:
+        seen = _as_set(state.detections.get(_FOUND_SETS[found.group(1).lower()]))
+        return found.group(2).strip().lower() in {str(v).lower() for v in seen}
+    return None
+
+
+def _as_set(value: object) -> frozenset[str]:
+    if value is None:
+        return frozenset()
+    if isinstance(value, (set, frozenset, list, tuple)):
+        return frozenset(_text(v) for v in value)
+    return frozenset({_text(value)})
+
+
+def _text(value: object) -> str:
+    if isinstance(value, float) and value.is_integer():
+        return str(int(value))
+    return str(value)
+
+
+def evaluate(condition: Condition, state: VehicleState, memory: Memory) -> tuple[bool, object]:
+    """Whether a condition holds, and the value it read (for the flight log)."""
+    if condition.kind is ConditionKind.CURRENT_TASK:
+        wanted = condition.subject
+        holds = any(_names_task(wanted, path) for path in memory.running_paths)
+        return holds, "/".join(memory.current_task)
+    if condition.kind is ConditionKind.LABEL:
+        known = condition.subject in memory.labels
+        return _compare_known(known, condition.value), known
+    value = read_parameter(condition.subject, state, memory)
+    comparison = condition.comparison
+    if comparison is Comparison.KNOWN:
+        known = value is not None and value != frozenset()
+        return _compare_known(known, condition.value), value
+    if value is None or condition.value is None:
+        return False, value
+    return _compare(value, comparison, condition.value), value
+
+
+def _names_task(wanted: str, path: tuple[str, ...]) -> bool:
+    if "/" in wanted:
+        return tuple(part.strip() for part in wanted.split("/")) == path
+    return bool(path) and path[-1] == wanted.strip()
+
+
+def _compare_known(known: bool, value: str | None) -> bool:
+    expected = parameters.parse_boolean(value) if value is not None else True
+    return known == (True if expected is None else expected)
+
+
+def _compare(value: object, comparison: Comparison | None, written: str) -> bool:
+    if isinstance(value, frozenset):
+        members = {m.lower() for m in value}
+        inside = _text(_number_or_text(written)).lower() in members
+        return inside if comparison is not Comparison.NOT_EQUAL else not inside
+    if isinstance(value, bool):
+        expected = parameters.parse_boolean(written)
+        if expected is None:
+            return False
+        return (value == expected) == (comparison is not Comparison.NOT_EQUAL)
+    if isinstance(value, (int, float)):
+        try:
+            target = float(written)
+        except ValueError:
+            return False
+        return {
+            Comparison.EQUAL: math.isclose(value, target, abs_tol=1e-9),
+            Comparison.NOT_EQUAL: not math.isclose(value, target, abs_tol=1e-9),
+            Comparison.LESS: value < target,
+            Comparison.LESS_OR_EQUAL: value <= target,
+            Comparison.GREATER: value > target,
+            Comparison.GREATER_OR_EQUAL: value >= target,
+        }.get(comparison, False)
+    equal = str(value).strip().lower() == written.strip().lower()
+    return equal if comparison is not Comparison.NOT_EQUAL else not equal
+
+
+def _number_or_text(written: str) -> object:
+    try:
+        return float(written)
+    except ValueError:
+        return written.strip()

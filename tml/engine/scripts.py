@@ -1,0 +1,576 @@
+"""How each action of the catalogue is flown with commands (``dispatch="command"``).
+
+An action is a generator that yields steps to the interpreter and never does I/O:
+
+- :class:`Send` a request and wait for its result (a refusal fails the action);
+- :class:`Until` a predicate on the vehicle state holds, within a time limit derived from
+  distance and speed (running out fails the action with ACTION_FAILURE ``timeout``);
+- :class:`Sleep` for a time.
+
+A script fails the action by raising :class:`ActionFailed` with an ACTION_FAILURE reason
+(``rejected``, ``timeout``, ``unsupported``, ``infeasible``, ``general``). Completion is
+always observed in telemetry: position within the acceptance radius, altitude reached,
+heading reached, landed and disarmed.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Generator, Iterator
+from dataclasses import dataclass
+from typing import Protocol
+
+from tml import geo
+from tml.actions import BoundAction
+from tml.vehicle import (
+    Arm,
+    Camera,
+    GoTo,
+    Gripper,
+    Hold,
+    Land,
+    Point,
+    Request,
+    ReturnToLaunch,
+    SetHome,
+    SetMode,
+    SetSpeed,
+    SetYaw,
+    TakeOff,
+    VehicleState,
+)
+from tml.world import World
+
+
+class ActionFailed(Exception):
+    """An action could not be completed; ``reason`` is the ACTION_FAILURE value."""
+
+    def __init__(self, reason: str, detail: str) -> None:
+        super().__init__(f"{reason}: {detail}")
+        self.reason = reason
+        self.detail = detail
+
+
+@dataclass(frozen=True)
+class Send:
+    """Submit a request; the script resumes when the vehicle has accepted it."""
+
+    request: Request
+
+
+@dataclass(frozen=True)
+class Until:
+    """Wait until ``predicate(state)`` holds; fail with ``timeout`` after ``limit`` s."""
+
+    predicate: Callable[[VehicleState], bool]
+    limit: float
+    what: str
+    progress: Callable[[VehicleState], float] | None = None
+
+
+@dataclass(frozen=True)
+class Sleep:
+    """Wait ``seconds`` of mission time."""
+
+    seconds: float
+
+
+Step = Send | Until | Sleep
+Script = Generator[Step, None, None]
+
+
+@dataclass
+class Limits:
+    """What the scripts assume of the vehicle when they set time limits and tolerances."""
+
+    speed: float = 5.0  # m/s horizontal, changed by SET_SPEED
+    climb_rate: float = 2.5  # m/s
+    descent_rate: float = 1.5  # m/s
+    yaw_rate: float = 45.0  # deg/s
+    acceptance_radius: float = 0.5  # m, horizontal and vertical
+    heading_tolerance: float = 5.0  # deg
+    ready_timeout: float = 120.0  # s for a position estimate before arming (ArduPilot EKF)
+    slack: float = 15.0  # s added to every time limit
+    factor: float = 2.0  # time limits are this many times the nominal time
+
+
+class Context(Protocol):
+    """What a script may read and change while it runs."""
+
+    vehicle_id: int
+    limits: Limits
+    labels: dict[str, Point]
+    world: World | None
+    last_target: Point | None  # where the last completed move was sent
+
+    @property
+    def state(self) -> VehicleState:
+        """The latest vehicle state."""
+        ...
+
+    def note(self, message: str, **data: object) -> None:
+        """Write a decision to the flight log."""
+        ...
+
+
+# --- shared steps ---------------------------------------------------------------------------
+
+
+def _position(ctx: Context) -> Point:
+    if ctx.state.position is None:
+        raise ActionFailed("general", "the vehicle's position is not known yet")
+    return ctx.state.position
+
+
+def _reference(ctx: Context) -> Point:
+    """Where relative moves start: the last move's target when the vehicle reached it.
+
+    Moves complete within the acceptance radius; measuring the next relative move from the
+    target rather than from where the vehicle stopped keeps a chain of relative moves from
+    adding up those errors (Dolphin's "relative to its last position").
+    """
+    here = _position(ctx)
+    target = ctx.last_target
+    if target is not None and math.dist(here, target) <= 2 * ctx.limits.acceptance_radius:
+        return target
+    return here
+
+
+def _require_flying(ctx: Context, action: str) -> Point:
+    position = _position(ctx)
+    if not ctx.state.flying:
+        raise ActionFailed("infeasible", f"{action} needs a flying vehicle; take off first")
+    return position
+
+
+def _travel_time(ctx: Context, start: Point, end: Point) -> float:
+    limits = ctx.limits
+    horizontal = math.hypot(end[0] - start[0], end[1] - start[1]) / limits.speed
+    rate = limits.climb_rate if end[2] >= start[2] else limits.descent_rate
+    vertical = abs(end[2] - start[2]) / rate
+    return limits.factor * max(horizontal, vertical) + limits.slack
+
+
+def _arrived(ctx: Context, target: Point) -> Callable[[VehicleState], bool]:
+    radius = ctx.limits.acceptance_radius
+
+    def arrived(state: VehicleState) -> bool:
+        p = state.position
+        return p is not None and math.hypot(p[0] - target[0], p[1] - target[1]) <= radius \
+            and abs(p[2] - target[2]) <= radius
+
+    return arrived
+
+
+def fly_to(ctx: Context, target: Point, what: str) -> Script:
+    """Fly in a straight line to a local point and wait until within the acceptance radius."""
+    start = _require_flying(ctx, what)
+    if target[2] < 0:
+        raise ActionFailed("infeasible", f"{what}: target altitude {target[2]:.1f} m is "
+                                         "below home")
+    total = max(math.dist(start, target), 1e-6)
+
+    def progress(state: VehicleState) -> float:
+        here = state.position or start
+        return max(0.0, min(1.0, 1.0 - math.dist(here, target) / total))
+
+    yield Send(GoTo(ctx.vehicle_id, target))
+    yield Until(_arrived(ctx, target), _travel_time(ctx, start, target),
+                f"reach {_fmt(target)}", progress)
+    ctx.last_target = target
+
+
+def _fmt(point: Point) -> str:
+    return "(" + ", ".join(f"{v:.1f}" for v in point) + ")"
+
+
+def _landed_and_disarmed(state: VehicleState) -> bool:
+    return state.landed and not state.armed
+
+
+def _local(ctx: Context, bound: BoundAction, altitude_key: str = "altitude") -> Point:
+    """The local point of an action's latitude/longitude/altitude arguments."""
+    home = ctx.state.home
+    if home is None:
+        raise ActionFailed("general", "the vehicle's home position is not known yet")
+    altitude = float(bound.values.get(altitude_key, ctx.state.altitude))  # type: ignore[arg-type]
+    if bound.values.get("altitude_reference") == "amsl":
+        altitude -= home.altitude
+    north, east, _ = geo.to_local(float(bound.values["latitude"]),  # type: ignore[arg-type]
+                                  float(bound.values["longitude"]),  # type: ignore[arg-type]
+                                  home.altitude, home.latitude, home.longitude, home.altitude)
+    return (north, east, altitude)
+
+
+def _point(ctx: Context, bound: BoundAction, name: str) -> Point | None:
+    """A point argument given as a value or as a memorized label."""
+    if name in bound.labels:
+        label = bound.labels[name]
+        if label not in ctx.labels:
+            raise ActionFailed("infeasible", f"label {label!r} has not been memorized")
+        return ctx.labels[label]
+    value = bound.values.get(name)
+    return value if isinstance(value, tuple) else None  # type: ignore[return-value]
+
+
+def _circle(ctx: Context, centre: Point, radius: float, turns: float | None,
+            duration: float | None) -> Script:
+    """Fly around ``centre``: a number of turns, for a time, or until stopped (neither)."""
+    points_per_turn = 16
+    started = ctx.state.time
+    step = 0
+    while True:
+        if turns is not None and step >= turns * points_per_turn:
+            return
+        if duration is not None and ctx.state.time - started >= duration:
+            return
+        angle = 2 * math.pi * step / points_per_turn
+        target = (centre[0] + radius * math.cos(angle), centre[1] + radius * math.sin(angle),
+                  centre[2])
+        yield from fly_to(ctx, target, "loiter")
+        step += 1
+
+
+# --- the actions ----------------------------------------------------------------------------
+
+
+def take_off(ctx: Context, bound: BoundAction) -> Script:
+    """Arm in GUIDED and climb; ignored (as the paper says) when already flying."""
+    altitude = float(bound.values["altitude"])  # type: ignore[arg-type]
+    if ctx.state.flying:
+        ctx.note("TAKE_OFF ignored: the vehicle is already flying", altitude=ctx.state.altitude)
+        return
+    yield Until(lambda s: s.ready, ctx.limits.ready_timeout,
+                "a position estimate to arm with (EKF using GPS)")
+    yield Send(SetMode(ctx.vehicle_id, "GUIDED"))
+    yield Send(Arm(ctx.vehicle_id))
+    yield Send(TakeOff(ctx.vehicle_id, altitude))
+    tolerance = ctx.limits.acceptance_radius
+    yield Until(lambda s: s.altitude >= altitude - tolerance,
+                ctx.limits.factor * altitude / ctx.limits.climb_rate + ctx.limits.slack,
+                f"climb to {altitude:g} m", lambda s: max(0.0, min(1.0, s.altitude / altitude)))
+
+
+def land(ctx: Context, bound: BoundAction) -> Script:
+    """Land where the vehicle is and wait until it is down and disarmed."""
+    if not ctx.state.flying:
+        ctx.note("LAND: the vehicle is already on the ground")
+        return
+    start = ctx.state.altitude
+    yield Send(Land(ctx.vehicle_id))
+    yield Until(_landed_and_disarmed,
+                ctx.limits.factor * start / ctx.limits.descent_rate + ctx.limits.slack,
+                "land and disarm", lambda s: max(0.0, min(1.0, 1 - s.altitude / max(start, 1))))
+
+
+def go_to_point(ctx: Context, bound: BoundAction) -> Script:
+    """Fly to a local point, a memorized label, or a point relative to the vehicle."""
+    here = _reference(ctx)
+    target = _point(ctx, bound, "coordinates")
+    if target is None:
+        dn, de, du = bound.values["relative_coordinates"]  # type: ignore[misc]
+        target = (here[0] + dn, here[1] + de, here[2] + du)
+    yield from fly_to(ctx, target, "GO_TO_POINT")
+
+
+def move(ctx: Context, bound: BoundAction) -> Script:
+    """Move by a displacement, or a distance in a direction relative to the heading."""
+    here = _reference(ctx)
+    if "coordinates" in bound.values:
+        dn, de, du = bound.values["coordinates"]  # type: ignore[misc]
+        target = (here[0] + dn, here[1] + de, here[2] + du)
+    else:
+        distance = float(bound.values["distance"])  # type: ignore[arg-type]
+        target = _displaced(here, ctx.state.heading, str(bound.values["direction"]), distance)
+    yield from fly_to(ctx, target, bound.name)
+
+
+def _displaced(here: Point, heading: float, direction: str, distance: float) -> Point:
+    if direction == "up":
+        return (here[0], here[1], here[2] + distance)
+    if direction == "down":
+        return (here[0], here[1], here[2] - distance)
+    offset = {"forward": 0.0, "right": 90.0, "backward": 180.0, "left": 270.0}[direction]
+    bearing = math.radians(heading + offset)
+    return (here[0] + distance * math.cos(bearing), here[1] + distance * math.sin(bearing),
+            here[2])
+
+
+def move_forwards(ctx: Context, bound: BoundAction) -> Script:
+    """Move straight ahead along the heading."""
+    here = _reference(ctx)
+    target = _displaced(here, ctx.state.heading, "forward",
+                        float(bound.values["distance"]))  # type: ignore[arg-type]
+    yield from fly_to(ctx, target, "MOVE_FORWARDS")
+
+
+def move_from_home(ctx: Context, bound: BoundAction) -> Script:
+    """Fly to an offset from home (the local frame's origin)."""
+    yield from fly_to(ctx, bound.values["coordinates"], "MOVE_FROM_HOME")  # type: ignore[arg-type]
+
+
+def go_to_position(ctx: Context, bound: BoundAction) -> Script:
+    """Fly to a WGS84 position."""
+    yield from fly_to(ctx, _local(ctx, bound), "GO_TO_POSITION")
+
+
+def set_altitude(ctx: Context, bound: BoundAction) -> Script:
+    """Climb or descend where the vehicle is."""
+    here = _reference(ctx)
+    altitude = float(bound.values["altitude"])  # type: ignore[arg-type]
+    if bound.values.get("altitude_reference") == "amsl" and ctx.state.home is not None:
+        altitude -= ctx.state.home.altitude
+    yield from fly_to(ctx, (here[0], here[1], altitude), "SET_ALTITUDE")
+
+
+def rotate_yaw(ctx: Context, bound: BoundAction) -> Script:
+    """Turn by an angle, or to a heading; done when the heading is within tolerance."""
+    _require_flying(ctx, "ROTATE_YAW")
+    heading = ctx.state.heading
+    if "angle" in bound.values:
+        angle = float(bound.values["angle"])  # type: ignore[arg-type]
+        target = (heading + angle) % 360
+        yield Send(SetYaw(ctx.vehicle_id, angle, relative=True))
+    else:
+        target = float(bound.values["orientation_angle"]) % 360  # type: ignore[arg-type]
+        yield Send(SetYaw(ctx.vehicle_id, target))
+    turn = abs((target - heading + 540) % 360 - 180)
+    tolerance = ctx.limits.heading_tolerance
+    yield Until(lambda s: abs((target - s.heading + 540) % 360 - 180) <= tolerance,
+                ctx.limits.factor * turn / ctx.limits.yaw_rate + ctx.limits.slack,
+                f"face {target:.0f} deg")
+
+
+def stabilize(ctx: Context, bound: BoundAction) -> Script:
+    """Stop all motion and hold."""
+    _require_flying(ctx, "STABILIZE")
+    yield Send(Hold(ctx.vehicle_id))
+    yield Until(lambda s: s.ground_speed <= 0.3, ctx.limits.slack, "come to a stop")
+
+
+def wait(ctx: Context, bound: BoundAction) -> Script:
+    """Hold position (when flying) for a time."""
+    if ctx.state.flying:
+        yield Send(Hold(ctx.vehicle_id))
+    yield Sleep(float(bound.values["duration"]))  # type: ignore[arg-type]
+
+
+def flip(ctx: Context, bound: BoundAction) -> Script:
+    """ArduCopter's FLIP mode, then back to GUIDED."""
+    _require_flying(ctx, "FLIP")
+    if "flip" not in ctx.state.capabilities:
+        raise ActionFailed("unsupported", "this vehicle has no FLIP mode")
+    yield Send(SetMode(ctx.vehicle_id, "FLIP"))
+    yield Sleep(2.5)
+    yield Send(SetMode(ctx.vehicle_id, "GUIDED"))
+
+
+def memorize_point(ctx: Context, bound: BoundAction) -> Script:
+    """Store the current position under a label."""
+    label = bound.labels["coordinates"]
+    ctx.labels[label] = _position(ctx)
+    ctx.note(f"memorized {label!r}", label=label, point=list(ctx.labels[label]))
+    yield from ()
+
+
+def go_to_rectangle(ctx: Context, bound: BoundAction) -> Script:
+    """Fly to the coloured frame known in the environment, 1 m in front of it."""
+    colour = str(bound.values["frame_color"]).lower()
+    frames = [o for o in (ctx.world.objects if ctx.world else ())
+              if o.kind == "frame" and o.color.lower() == colour]
+    if not frames:
+        raise ActionFailed("infeasible", f"no {colour} frame is known in the environment")
+    here = _position(ctx)
+    frame = min(frames, key=lambda o: math.hypot(o.north - here[0], o.east - here[1]))
+    distance = math.hypot(frame.north - here[0], frame.east - here[1])
+    back = min(1.0, distance) / max(distance, 1e-6)
+    target = (frame.north - (frame.north - here[0]) * back,
+              frame.east - (frame.east - here[1]) * back, frame.altitude or here[2])
+    yield from fly_to(ctx, target, "GO_TO_RECTANGLE")
+
+
+def explore_space(ctx: Context, bound: BoundAction) -> Script:
+    """An expanding square around the start, passes ``spacing`` apart, out to ``radius``."""
+    here = _require_flying(ctx, "EXPLORE_SPACE")
+    radius = float(bound.values["radius"])  # type: ignore[arg-type]
+    spacing = float(bound.values["spacing"])  # type: ignore[arg-type]
+    for north, east in _expanding_square(radius, spacing):
+        yield from fly_to(ctx, (here[0] + north, here[1] + east, here[2]), "EXPLORE_SPACE")
+    yield from fly_to(ctx, here, "EXPLORE_SPACE")
+
+
+def _expanding_square(radius: float, spacing: float) -> Iterator[tuple[float, float]]:
+    north = east = 0.0
+    leg, heading = spacing, 0
+    moves = ((1, 0), (0, 1), (-1, 0), (0, -1))
+    while leg <= 2 * radius + 1e-9:
+        for _ in range(2):
+            dn, de = moves[heading % 4]
+            north = max(-radius, min(radius, north + dn * leg))
+            east = max(-radius, min(radius, east + de * leg))
+            yield north, east
+            heading += 1
+        leg += spacing
+
+
+def pick_up_item(ctx: Context, bound: BoundAction) -> Script:
+    """Descend to 1 m, close the gripper, climb back."""
+    here = _require_flying(ctx, "PICK_UP_ITEM")
+    if "gripper" not in ctx.state.capabilities:
+        raise ActionFailed("unsupported", "this vehicle has no gripper")
+    yield from fly_to(ctx, (here[0], here[1], min(here[2], 1.0)), "PICK_UP_ITEM")
+    yield Send(Gripper(ctx.vehicle_id, grab=True))
+    yield Sleep(1.0)
+    yield from fly_to(ctx, here, "PICK_UP_ITEM")
+
+
+def drop_item(ctx: Context, bound: BoundAction) -> Script:
+    """Open the gripper."""
+    if "gripper" not in ctx.state.capabilities:
+        raise ActionFailed("unsupported", "this vehicle has no gripper")
+    yield Send(Gripper(ctx.vehicle_id, grab=False))
+    yield Sleep(1.0)
+
+
+def loiter(ctx: Context, bound: BoundAction) -> Script:
+    """Fly to the centre and circle it: turns, a time, or until an event stops it."""
+    here = _require_flying(ctx, "LOITER")
+    centre = _point(ctx, bound, "coordinates")
+    if centre is None and "relative_coordinates" in bound.values:
+        dn, de, du = bound.values["relative_coordinates"]  # type: ignore[misc]
+        centre = (here[0] + dn, here[1] + de, here[2] + du)
+    if centre is None and "from_home" in bound.values:
+        centre = bound.values["from_home"]  # type: ignore[assignment]
+    if centre is None and "latitude" in bound.values:
+        centre = _local(ctx, bound)
+    centre = centre or here
+    if centre != here:
+        yield from fly_to(ctx, centre, "LOITER")
+    turns = bound.values.get("turns")
+    duration = bound.values.get("duration")
+    yield from _circle(ctx, centre, float(bound.values["radius"]),  # type: ignore[arg-type]
+                       float(turns) if turns is not None else None,  # type: ignore[arg-type]
+                       float(duration) if duration is not None else None)  # type: ignore[arg-type]
+
+
+def landing_point(ctx: Context, bound: BoundAction) -> Script:
+    """Fly over the landing point, face the yaw if given, and land."""
+    here = _require_flying(ctx, "LANDING_POINT")
+    point = _point(ctx, bound, "coordinates")
+    if point is None:
+        point = _local(ctx, bound)
+    yield from fly_to(ctx, (point[0], point[1], max(here[2], point[2])), "LANDING_POINT")
+    if "yaw" in bound.values:
+        yield Send(SetYaw(ctx.vehicle_id, float(bound.values["yaw"]) % 360))  # type: ignore[arg-type]
+    if bound.values.get("precision_mode", "disabled") != "disabled":
+        ctx.note("precision landing is applied only to dispatch=\"mission\" (NAV_LAND)")
+    yield from land(ctx, bound)
+
+
+def return_home(ctx: Context, bound: BoundAction) -> Script:
+    """Fly back over home at the current altitude and hold."""
+    here = _require_flying(ctx, "RETURN_HOME")
+    yield from fly_to(ctx, (0.0, 0.0, here[2]), "RETURN_HOME")
+
+
+def return_home_and_loiter(ctx: Context, bound: BoundAction) -> Script:
+    """Fly back over home and circle it until an event stops it."""
+    here = _require_flying(ctx, "RETURN_HOME_AND_LOITER")
+    yield from fly_to(ctx, (0.0, 0.0, here[2]), "RETURN_HOME_AND_LOITER")
+    yield from _circle(ctx, (0.0, 0.0, here[2]),
+                       float(bound.values["radius"]), None, None)  # type: ignore[arg-type]
+
+
+def return_home_and_land(ctx: Context, bound: BoundAction) -> Script:
+    """ArduPilot RTL: return, descend and land at home; done when disarmed."""
+    here = _require_flying(ctx, "RETURN_HOME_AND_LAND")
+    yield Send(ReturnToLaunch(ctx.vehicle_id))
+    limit = _travel_time(ctx, here, (0.0, 0.0, 0.0)) + ctx.limits.factor * max(
+        here[2], 15.0) / ctx.limits.descent_rate
+    yield Until(_landed_and_disarmed, limit, "return home and land",
+                lambda s: 1.0 - min(1.0, math.dist(s.position or here, (0, 0, 0))
+                                    / max(math.dist(here, (0, 0, 0)), 1.0)))
+
+
+def set_speed(ctx: Context, bound: BoundAction) -> Script:
+    """Change the speed of the following moves."""
+    speed = float(bound.values["speed"])  # type: ignore[arg-type]
+    kind = str(bound.values["speed_type"])
+    yield Send(SetSpeed(ctx.vehicle_id, speed, kind))
+    if kind in ("airspeed", "ground"):
+        ctx.limits.speed = speed
+    elif kind == "climb":
+        ctx.limits.climb_rate = speed
+    else:
+        ctx.limits.descent_rate = speed
+
+
+def survey_area(ctx: Context, bound: BoundAction) -> Script:
+    """Lawnmower passes over the area, each along its length, ``spacing`` apart."""
+    here = _require_flying(ctx, "SURVEY_AREA")
+    base = _point(ctx, bound, "coordinates")
+    if base is None and "latitude" in bound.values:
+        base = _local(ctx, bound)
+    base = base or here
+    altitude = float(bound.values.get("altitude", here[2]))  # type: ignore[arg-type]
+    for north, east in survey_legs(base[0], base[1], bound):
+        yield from fly_to(ctx, (north, east, altitude), "SURVEY_AREA")
+
+
+def survey_legs(north: float, east: float, bound: BoundAction) -> list[tuple[float, float]]:
+    """The corners of the lawnmower pattern of a SURVEY_AREA, from its base point."""
+    length = float(bound.values["length"])  # type: ignore[arg-type]
+    width = float(bound.values["width"])  # type: ignore[arg-type]
+    spacing = float(bound.values["spacing"])  # type: ignore[arg-type]
+    direction = str(bound.values["direction"])
+    sign_north = 1.0 if direction.startswith("NORTH") else -1.0
+    sign_east = 1.0 if direction.endswith("EAST") else -1.0
+    passes = int(width // spacing) + 1
+    corners = []
+    for index in range(passes):
+        offset = min(index * spacing, width) * sign_east
+        ends = (0.0, length * sign_north)
+        if index % 2:
+            ends = ends[::-1]
+        corners += [(north + ends[0], east + offset), (north + ends[1], east + offset)]
+    return corners
+
+
+def camera(ctx: Context, bound: BoundAction) -> Script:
+    """The camera actions."""
+    if bound.name == "CAPTURE_PHOTO":
+        yield Send(Camera(ctx.vehicle_id, "photo", 1))
+    elif bound.name == "CAPTURE_PHOTOS":
+        count = int(bound.values["count"])  # type: ignore[call-overload]
+        interval = float(bound.values["interval"])  # type: ignore[arg-type]
+        yield Send(Camera(ctx.vehicle_id, "photo", count, interval))
+        yield Sleep(interval * (count - 1))
+    elif bound.name == "START_CAPTURING":
+        yield Send(Camera(ctx.vehicle_id, "start", 0,
+                          float(bound.values["interval"])))  # type: ignore[arg-type]
+    else:
+        yield Send(Camera(ctx.vehicle_id, "stop"))
+
+
+def set_home(ctx: Context, bound: BoundAction) -> Script:
+    """Home at the current position, or at a WGS84 position."""
+    position = None
+    if "latitude" in bound.values:
+        position = (float(bound.values["latitude"]), float(bound.values["longitude"]),  # type: ignore[arg-type]
+                    float(bound.values["altitude"]))  # type: ignore[arg-type]
+    yield Send(SetHome(ctx.vehicle_id, position))
+
+
+SCRIPTS: dict[str, Callable[[Context, BoundAction], Script]] = {
+    "TAKE_OFF": take_off, "LAND": land, "GO_TO_POINT": go_to_point, "MOVE": move,
+    "MOVE_FORWARDS": move_forwards, "MOVE_FROM_HOME": move_from_home,
+    "ROTATE_YAW": rotate_yaw, "STABILIZE": stabilize, "WAIT": wait, "FLIP": flip,
+    "MEMORIZE_POINT": memorize_point, "GO_TO_RECTANGLE": go_to_rectangle,
+    "EXPLORE_SPACE": explore_space, "PICK_UP_ITEM": pick_up_item, "DROP_ITEM": drop_item,
+    "GO_TO_POSITION": go_to_position, "LOITER": loiter, "LANDING_POINT": landing_point,
+    "RETURN_HOME": return_home, "RETURN_HOME_AND_LOITER": return_home_and_loiter,
+    "RETURN_HOME_AND_LAND": return_home_and_land, "SET_SPEED": set_speed,
+    "SET_ALTITUDE": set_altitude, "SURVEY_AREA": survey_area, "CAPTURE_PHOTO": camera,
+    "CAPTURE_PHOTOS": camera, "START_CAPTURING": camera, "STOP_CAPTURING": camera,
+    "SET_HOME": set_home,
+}

@@ -1,0 +1,217 @@
+"""MavlinkVehicle against the simulator over loopback: state, requests, results, skills."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import time
+from collections.abc import Callable, Iterator
+
+import pytest
+
+from sitl.faults import Faults
+from sitl.server import Simulator
+from tml.actions import BoundAction, bind
+from tml.errors import Location
+from tml.mavlink.adapter import MavlinkVehicle, detection_names
+from tml.mavlink.link import Link
+from tml.model import Action, Argument
+from tml.vehicle import (
+    Arm,
+    Camera,
+    FlyMission,
+    GoTo,
+    Gripper,
+    Hold,
+    Request,
+    RequestResult,
+    SetMode,
+    SetSkill,
+    SetYaw,
+    TakeOff,
+    VehicleState,
+)
+from tml.world import World, WorldObject
+
+FAST = {"SIM_GPS_LOCKTIME": 0.5, "SIM_EKF_GPS_TIME": 1.0}
+HERE = Location("test.xml", 1)
+WORLD = World(objects=(
+    WorldObject("item", "A", 20.0, 0.0, color="blue"),
+    WorldObject("bucket", "A", -20.0, 0.0),
+    WorldObject("frame", "door", 40.0, 0.0, color="red"),
+))
+WALL_LIMIT = 60.0  # seconds a test may wait for the simulator before it gives up
+
+
+def act(name: str, **values: str) -> BoundAction:
+    return bind(Action(name, tuple(Argument(k, v, None, HERE) for k, v in values.items()),
+                       HERE))
+
+
+class Rig:
+    """A simulator, a link and the adapter, all clocked by the simulator's time."""
+
+    def __init__(self, sim: Simulator, vehicle: MavlinkVehicle) -> None:
+        self.sim = sim
+        self.vehicle = vehicle
+
+    def until(self, what: Callable[[VehicleState], bool], label: str) -> VehicleState:
+        end = time.monotonic() + WALL_LIMIT
+        while time.monotonic() < end:
+            state = self.vehicle.state()
+            if what(state):
+                return state
+            time.sleep(0.01)
+        raise AssertionError(f"never: {label}; last state {self.vehicle.state()}")
+
+    def do(self, request: Request) -> RequestResult:
+        self.vehicle.submit(request)
+        end = time.monotonic() + WALL_LIMIT
+        while time.monotonic() < end:
+            for result in self.vehicle.poll():
+                assert result.request_id == request.request_id
+                return result
+            time.sleep(0.005)
+        raise AssertionError(f"no result for {request}")
+
+    def fly(self, altitude: float = 5.0) -> None:
+        self.until(lambda s: s.ready and s.position is not None and s.home is not None,
+                   "ready")
+        for request in (SetMode(1, "GUIDED"), Arm(1), TakeOff(1, altitude)):
+            assert self.do(request).ok
+        self.until(lambda s: s.altitude > altitude - 0.3, "climbed")
+
+
+@contextlib.contextmanager
+def make_rig(params: dict[str, float] | None = None, faults: Faults | None = None
+             ) -> Iterator[Rig]:
+    sim = Simulator(vehicles=1, speedup=20, tcp_base_port=0, world=WORLD, faults=faults,
+                    params={**FAST, **(params or {})})
+    with sim, Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}") as link:
+        vehicle = MavlinkVehicle(link, 1, clock=lambda: sim.time, world=WORLD)
+        vehicle.prepare()
+        yield Rig(sim, vehicle)
+        vehicle.close()
+
+
+@pytest.fixture
+def rig() -> Iterator[Rig]:
+    with make_rig() as made:
+        yield made
+
+
+def test_state_before_and_after_the_position_fix(rig: Rig) -> None:
+    early = rig.vehicle.state()
+    assert early.vehicle_id == 1 and not early.armed and early.landed
+    ready = rig.until(lambda s: s.ready and s.position is not None and s.home is not None,
+                      "position fix")
+    assert ready.link == "ok" and ready.gps_fix >= 3 and ready.battery == 100
+    assert math.dist(ready.position, (0, 0, 0)) < 1.0
+    assert ready.home.latitude == pytest.approx(WORLD.home_or_default.latitude, abs=1e-5)
+    assert ready.time == pytest.approx(rig.sim.time, abs=1.0)
+
+
+def test_capabilities_come_from_the_vehicle(rig: Rig) -> None:
+    # An ArduCopter's mode table has FLIP; GRIP_ENABLE is 1 by default.
+    assert {"camera", "gripper", "flip"} <= rig.vehicle.state().capabilities
+    with make_rig({"GRIP_ENABLE": 0}) as without:
+        assert "gripper" not in without.vehicle.state().capabilities
+        result = without.do(Gripper(1, grab=True))
+        assert (result.ok, result.reason) == (False, "unsupported")
+        assert "GRIP_ENABLE" in result.detail
+
+
+def test_refusal_carries_the_ack_result(rig: Rig) -> None:
+    result = rig.do(TakeOff(1, 5.0))  # not armed
+    assert (result.ok, result.reason) == (False, "rejected")
+    assert result.detail == "MAV_CMD_NAV_TAKEOFF: MAV_RESULT_FAILED"
+
+
+def test_take_off_go_to_yaw_and_hold(rig: Rig) -> None:
+    rig.fly(5.0)
+    assert rig.do(GoTo(1, (10.0, -5.0, 8.0))).ok
+    there = rig.until(lambda s: math.dist(s.position, (10, -5, 8)) < 0.5, "arrived")
+    assert there.flying and there.mode == "GUIDED"
+    assert rig.do(SetYaw(1, 90.0)).ok
+    rig.until(lambda s: abs((s.heading - 90 + 180) % 360 - 180) < 2, "facing east")
+    assert rig.do(SetYaw(1, -45.0, relative=True)).ok
+    rig.until(lambda s: abs((s.heading - 45 + 180) % 360 - 180) < 2, "turned back 45")
+    assert rig.do(GoTo(1, (40.0, -5.0, 8.0))).ok
+    rig.until(lambda s: s.ground_speed > 2, "moving")
+    assert rig.do(Hold(1)).ok
+    stopped = rig.until(lambda s: s.ground_speed < 0.1, "stopped")
+    assert stopped.position[0] < 39.0
+
+
+def test_camera_requests_reach_the_camera(rig: Rig) -> None:
+    rig.fly(5.0)
+    assert rig.do(Camera(1, "photo")).ok
+    assert rig.do(Camera(1, "photo", count=3, interval=0.5)).ok
+    model = rig.sim.vehicle(1)
+    end = time.monotonic() + WALL_LIMIT
+    while model.images_captured < 4 and time.monotonic() < end:
+        time.sleep(0.01)
+    assert model.images_captured == 4
+
+
+def test_skills_switch_companion_parameters_and_feed_detections(rig: Rig) -> None:
+    rig.fly(6.0)
+    assert rig.do(SetSkill(1, "RECOGNIZE_ITEMS", True)).ok
+    assert rig.do(SetSkill(1, "AVOID_OBSTACLES", True)).ok
+    model = rig.sim.vehicle(1)
+    assert model.companion.params["RECOG_ITEMS"] == 1
+    assert model.companion.params["AVOID_OBST"] == 1 and model.params["AVOID_ENABLE"] == 3
+    assert rig.do(GoTo(1, (20.0, 0.0, 6.0))).ok
+    seen = rig.until(lambda s: "A" in s.detections.get("RECOGNIZED_ITEMS", ()), "item A")
+    assert "RECOGNIZED_BUCKETS" not in seen.detections  # that skill is off
+    assert rig.do(SetSkill(1, "RECOGNIZE_ITEMS", False)).ok
+    assert model.companion.params["RECOG_ITEMS"] == 0
+    rig.until(lambda s: "RECOGNIZED_ITEMS" not in s.detections, "detection expired")
+    result = rig.do(SetSkill(1, "SAY_OUT_LOUD_CURRENT_TASK", True))
+    assert (result.ok, result.reason) == (False, "unsupported")
+
+
+def test_detection_names_follow_the_companion_numbering() -> None:
+    names = detection_names(World(objects=(
+        WorldObject("item", "A", 0, 0), WorldObject("item", "7", 0, 0),
+        WorldObject("item", "B", 0, 0), WorldObject("frame", "door", 0, 0, color="red"))))
+    assert names == {("ITEM", 1): "A", ("ITEM", 7): "7", ("ITEM", 3): "B",
+                     ("FRAME", 1): "red"}
+
+
+def test_fly_mission_from_the_ground_reports_progress_by_action(rig: Rig) -> None:
+    rig.until(lambda s: s.ready and s.home is not None and s.position is not None, "ready")
+    actions = (act("TAKE_OFF", altitude="6"), act("GO_TO_POINT", coordinates="(15, 0, 6)"),
+               act("CAPTURE_PHOTO"), act("LANDING_POINT", coordinates="(15, 5, 0)"))
+    assert rig.do(FlyMission(1, 7, actions, (0.0, 0.0, 0.0))).ok
+    indices = set()
+    end = time.monotonic() + WALL_LIMIT
+    while time.monotonic() < end:
+        progress = rig.vehicle.state().mission
+        assert progress is not None and progress.plan_id == 7
+        indices.add(progress.action_index)
+        if progress.finished:
+            break
+        time.sleep(0.005)
+    assert progress.finished and {0, 1, 3} <= indices
+    landed = rig.until(lambda s: s.landed and not s.armed, "landed and disarmed")
+    assert math.dist(landed.position[:2], (15, 5)) < 1.0
+    # At least once: the simulator's AUTO executor runs a DO item again when it scans
+    # past it to the next NAV item.
+    assert rig.sim.vehicle(1).images_captured >= 1
+
+
+def test_mission_with_an_unflyable_action_is_unsupported(rig: Rig) -> None:
+    rig.until(lambda s: s.home is not None, "home")
+    result = rig.do(FlyMission(1, 1, (act("MEMORIZE_POINT", coordinates="(0, 0, 0)"),),
+                               (0.0, 0.0, 0.0)))
+    assert (result.ok, result.reason) == (False, "unsupported")
+
+
+def test_link_degrades_then_is_lost_when_heartbeats_stop() -> None:
+    with make_rig(faults=Faults(outages=((3.0, 1e6),))) as rig:
+        up = rig.until(lambda s: s.link == "ok" and s.time > 1.0, "link up")
+        degraded = rig.until(lambda s: s.link != "ok", "link degraded")
+        lost = rig.until(lambda s: s.link == "lost", "link lost")
+        assert up.time < 3.0 < degraded.time < lost.time
+        assert degraded.link == "degraded" and lost.time > 3.0 + rig.vehicle.lost_after - 1.0

@@ -1,0 +1,572 @@
+"""The Vehicle interface of :mod:`tml.vehicle` over a MAVLink link: ``MavlinkVehicle``.
+
+Theory of operation
+-------------------
+The interpreter reads :class:`~tml.vehicle.VehicleState` and submits requests without ever
+waiting; a MAVLink vehicle answers commands in round trips of tens of milliseconds (and
+seconds when the link is poor). So each :class:`MavlinkVehicle` owns one worker thread that
+takes the submitted requests in order and carries each out with the link's command sender
+(:class:`tml.mavlink.vehicle.Vehicle`): ``submit`` only queues, ``poll`` returns the
+:class:`~tml.vehicle.RequestResult` of the requests finished since the last poll.
+
+``state`` is built on demand from the link's latest :class:`~tml.mavlink.telemetry.Telemetry`
+snapshot: local position from GLOBAL_POSITION_INT relative to HOME_POSITION (via
+:mod:`tml.geo`), heading from ATTITUDE, ground speed, battery, landed from
+EXTENDED_SYS_STATE, ``ready`` from the EKF flags. Three things need more than the snapshot,
+and come from a listener on the link that sees every message of this vehicle:
+
+- *link health*, timed with the runner's clock (the simulator's clock in ``--sim``, so that a
+  speed-up does not make the link look faster than the vehicle): ``lost`` after
+  ``lost_after`` s without a HEARTBEAT, ``degraded`` after ``degraded_after`` s or when more
+  than ``DEGRADED_LOSS`` of the messages of the last second went missing;
+- *detections* from the companion computer (component 191, see sitl/companion.py for the
+  protocol): each NAMED_VALUE_INT ``ITEM``/``BUCKET``/``MARKER``/``ARUCO``/``FRAME`` report
+  keeps the object in the matching ``RECOGNIZED_*`` set for ``detection_hold`` s; objects
+  are named by their world ident when the world is known (so ``"Item A found"`` works),
+  else by number; other NAMED_VALUE names are passed through as detection parameters;
+- *mission progress* of the last :class:`~tml.vehicle.FlyMission`: MISSION_CURRENT and
+  MISSION_ITEM_REACHED seqs are mapped back to action indices with the item map of
+  :mod:`tml.mavlink.compile`.
+
+Skills are bound to the vehicle through :data:`SKILL_BINDINGS` (documented in docs/run.md).
+Every failure becomes a result, never an exception: ``rejected`` (the vehicle refused: the
+COMMAND_ACK or MISSION_ACK result is the detail), ``timeout``, ``unsupported`` (the vehicle
+lacks what the request needs) or ``general``.
+"""
+
+from __future__ import annotations
+
+import math
+import queue
+import threading
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Any
+
+from tml.errors import CommandRejected, MissionTransferError, VehicleError, VehicleTimeout
+from tml.geo import to_global, to_local
+from tml.mavlink.codec import mavlink
+from tml.mavlink.command import CommandLong
+from tml.mavlink.compile import SPEED_TYPES, CompiledMission, CompileError, compile_mission
+from tml.mavlink.link import Link
+from tml.mavlink.modes import mode_names
+from tml.mavlink.telemetry import COMPANION_COMPONENT, Telemetry
+from tml.mavlink.vehicle import Vehicle
+from tml.vehicle import (
+    Arm,
+    Camera,
+    Disarm,
+    FlyMission,
+    GoTo,
+    Gripper,
+    Hold,
+    Land,
+    MissionProgress,
+    Request,
+    RequestResult,
+    ReturnToLaunch,
+    SetHome,
+    SetMode,
+    SetSkill,
+    SetSpeed,
+    SetYaw,
+    TakeOff,
+    VehicleState,
+)
+from tml.world import Home, World
+
+Clock = Callable[[], float]
+
+DEGRADED_LOSS = 0.2
+"""Fraction of messages missing in the last second above which the link is degraded."""
+PARAM_TIMEOUT = 1.0
+PARAM_RETRIES = 3
+
+AUTOPILOT = "autopilot"
+COMPANION = "companion"
+
+
+@dataclass(frozen=True)
+class SkillBinding:
+    """How a skill is switched: parameters set to 1 (on) and 0 (off) on a component."""
+
+    component: str  # AUTOPILOT or COMPANION
+    parameters: tuple[str, ...]
+    autopilot_on: tuple[tuple[str, float], ...] = ()  # autopilot parameters set while on
+
+
+SKILL_BINDINGS: dict[str, SkillBinding] = {
+    # The companion's rangefinder feeds ArduCopter's proximity avoidance (AVOID_ENABLE bit 2
+    # "proximity"; 3 = fence + proximity) which stops AVOID_MARGIN metres short.
+    "AVOID_OBSTACLES": SkillBinding(COMPANION, ("AVOID_OBST",), (("AVOID_ENABLE", 3),)),
+    "RECOGNIZE_VISUAL_MARKERS": SkillBinding(COMPANION, ("RECOG_MARKERS",)),
+    "RECOGNIZE_FRAMES": SkillBinding(COMPANION, ("RECOG_MARKERS",)),
+    "RECOGNIZE_ARUCO_MARKERS": SkillBinding(COMPANION, ("RECOG_ARUCO",)),
+    "DETECT_OBSTACLES_BY_ARUCO_MARKERS": SkillBinding(COMPANION, ("RECOG_ARUCO",)),
+    "SELF_LOCATE_BY_MARKERS": SkillBinding(COMPANION, ("SELF_LOCATE",)),
+    "RECOGNIZE_ITEMS": SkillBinding(COMPANION, ("RECOG_ITEMS",)),
+    "RECOGNIZE_BUCKETS": SkillBinding(COMPANION, ("RECOG_BUCKETS",)),
+}
+"""Skill name -> what switching it does (SAY_OUT_LOUD_CURRENT_TASK has no vehicle side)."""
+
+DETECTION_SETS = {"ITEM": "RECOGNIZED_ITEMS", "SUBJECT": "RECOGNIZED_ITEMS",
+                  "BUCKET": "RECOGNIZED_BUCKETS", "MARKER": "RECOGNIZED_VISUAL_MARKERS",
+                  "ARUCO": "RECOGNIZED_ARUCO_MARKERS", "FRAME": "RECOGNIZED_FRAMES"}
+"""Companion NAMED_VALUE_INT name -> the TML parameter (a set) it feeds."""
+TAG_KINDS = {"ITEM": "item", "SUBJECT": "subject", "BUCKET": "bucket", "MARKER": "marker",
+             "ARUCO": "aruco", "FRAME": "frame"}
+
+
+def detection_names(world: World | None) -> dict[tuple[str, int], str]:
+    """(tag, number) -> the name a detection stands for, from the world's objects.
+
+    The companion reports an object by its ident when that is an integer, else by its
+    1-based rank among the world's objects of its kind; frames are named by colour.
+    """
+    names: dict[tuple[str, int], str] = {}
+    ranks: dict[str, int] = {}
+    tags = {kind: tag for tag, kind in TAG_KINDS.items()}
+    for obj in world.objects if world else ():
+        ranks[obj.kind] = ranks.get(obj.kind, 0) + 1
+        ident = obj.ident.strip()
+        number = int(ident) if ident.lstrip("-").isdigit() else ranks[obj.kind]
+        names[(tags[obj.kind], number)] = obj.color if obj.kind == "frame" and obj.color \
+            else ident
+    return names
+
+
+class _Plan:
+    """The compiled mission being flown, and what the vehicle has said about it."""
+
+    def __init__(self, plan_id: int, compiled: CompiledMission, offset: int) -> None:
+        self.plan_id = plan_id
+        self.compiled = compiled
+        self.offset = offset  # wire seq of compiled item 0 (1 behind ArduPilot's home)
+        self.started = False
+        self.current = 0
+        self.finished = False
+        navs = [i for i, item in enumerate(compiled.items) if item.command < _NAV_LAST]
+        self.last_nav = navs[-1] if navs else None
+
+    def progress(self) -> MissionProgress:
+        index = self.compiled.action_at(self.current)
+        last = len(self.compiled.items) and self.compiled.action_index[-1]
+        return MissionProgress(self.plan_id, last if index is None else index, self.finished)
+
+    def seen(self, msg: Any) -> None:
+        """Fold in a MISSION_CURRENT or MISSION_ITEM_REACHED."""
+        if not self.started:
+            return
+        index = msg.seq - self.offset
+        if msg.get_type() == "MISSION_CURRENT":
+            if getattr(msg, "mission_state", 0) == mavlink.MISSION_STATE_COMPLETE:
+                self.finished = True
+            elif index >= 0:
+                self.current = max(self.current, min(index, len(self.compiled.items) - 1))
+        elif index >= 0:
+            self.current = max(self.current, min(index + 1, len(self.compiled.items) - 1))
+            if index == self.last_nav:
+                self.finished = True
+
+
+_NAV_LAST = 95  # MAV_CMD ids below this are navigation commands (ArduPilot's numbering)
+
+
+class MavlinkVehicle:
+    """One vehicle of a :class:`~tml.mavlink.link.Link`, as the interpreter sees it."""
+
+    def __init__(self, link: Link, system_id: int, *, vehicle_id: int | None = None,
+                 clock: Clock = time.monotonic, world: World | None = None,
+                 lost_after: float = 5.0, degraded_after: float = 2.5,
+                 detection_hold: float = 1.5, command_timeout: float = 1.5,
+                 connect_timeout: float = 10.0) -> None:
+        self.link = link
+        self.mav = Vehicle(link, link.wait_vehicle(system_id, connect_timeout),
+                           command_timeout=command_timeout)
+        self.system_id = system_id
+        self.vehicle_id = system_id if vehicle_id is None else vehicle_id
+        self.clock = clock
+        self.lost_after = lost_after
+        self.degraded_after = degraded_after
+        self.detection_hold = detection_hold
+        self.capabilities: frozenset[str] = frozenset({"camera"})
+        self._names = detection_names(world)
+        self._lock = threading.Lock()
+        self._results: list[RequestResult] = []
+        self._queue: queue.Queue[Request | None] = queue.Queue()
+        self._params: dict[tuple[int, str], float] = {}
+        self._param_arrived = threading.Condition()
+        self._heartbeat: float | None = None
+        self._window = (clock(), 0, 0)  # (start, received, lost) of the loss window
+        self._loss = 0.0
+        self._seen: dict[tuple[str, int], float] = {}
+        self._values: dict[str, float] = {}
+        self._plan: _Plan | None = None
+        self._progress: MissionProgress | None = None
+        self._cache: tuple[Any, Any, tuple[float, float, float] | None] = (None, None, None)
+        self._companion_seen = False
+        link.listen(self._on_message)
+        self._worker = threading.Thread(target=self._work, daemon=True,
+                                        name=f"vehicle {system_id}")
+        self._worker.start()
+
+    # --- set-up ---------------------------------------------------------------------------
+
+    def prepare(self) -> None:
+        """Ask for telemetry rates and find out what the vehicle can do (blocks).
+
+        ``gripper`` when the autopilot's GRIP_ENABLE is set; ``flip`` when the flight-mode
+        table of the vehicle's type and autopilot (pymavlink's) has a FLIP mode.
+        """
+        self.mav.request_rates()
+        capabilities = {"camera"}
+        grip = self._read_param("GRIP_ENABLE")
+        if grip is not None and grip > 0:
+            capabilities.add("gripper")
+        info = self.mav.info
+        if "FLIP" in mode_names(info.vehicle_type, info.autopilot):
+            capabilities.add("flip")
+        self.capabilities = frozenset(capabilities)
+
+    # --- the Vehicle protocol ---------------------------------------------------------------
+
+    def state(self) -> VehicleState:
+        """The latest state, built from the link's telemetry snapshot."""
+        t = self.link.telemetry(self.system_id)
+        now = self.clock()
+        home = _home(t)
+        position = self._local_position(t, home)
+        velocity = t.velocity or (0.0, 0.0, 0.0)
+        landed = t.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND \
+            if t.landed_state else not t.armed
+        with self._lock:
+            detections = self._detections(now)
+            progress = self._plan.progress() if self._plan is not None else self._progress
+        return VehicleState(
+            vehicle_id=self.vehicle_id, time=now, link=self._link_state(now),
+            ready=t.position_ready, armed=t.armed, landed=landed, mode=t.mode,
+            position=position,
+            heading=math.degrees(t.attitude[2]) % 360.0 if t.attitude else 0.0,
+            ground_speed=math.hypot(velocity[0], velocity[1]),
+            battery=None if t.battery_remaining is None else float(t.battery_remaining),
+            gps_fix=t.gps_fix or 0, home=home, mission=progress, detections=detections,
+            capabilities=self.capabilities,
+            status_text=t.status_texts[-1].text if t.status_texts else "")
+
+    def submit(self, request: Request) -> None:
+        """Queue a request for the worker thread; never blocks."""
+        self._queue.put(request)
+
+    def poll(self) -> list[RequestResult]:
+        """Results finished since the last poll."""
+        with self._lock:
+            results, self._results = self._results, []
+        return results
+
+    def close(self) -> None:
+        """Stop the worker once the requests queued so far are done (waits up to 10 s)."""
+        self._queue.put(None)
+        self._worker.join(timeout=10.0)
+
+    def idle(self) -> bool:
+        """True when every submitted request has been carried out."""
+        return self._queue.unfinished_tasks == 0
+
+    # --- state pieces -------------------------------------------------------------------
+
+    def _local_position(self, t: Telemetry, home: Home | None
+                        ) -> tuple[float, float, float] | None:
+        p = t.position
+        if p is None or home is None or (p.latitude == 0 and p.longitude == 0):
+            return None  # no fix yet: ArduPilot reports 0, 0
+        if self._cache[0] is p and self._cache[1] == home:
+            return self._cache[2]
+        north, east, _ = to_local(p.latitude, p.longitude, home.altitude,
+                                  home.latitude, home.longitude, home.altitude)
+        local = (north, east, p.relative_altitude)
+        self._cache = (p, home, local)
+        return local
+
+    def _link_state(self, now: float) -> str:
+        age = math.inf if self._heartbeat is None else now - self._heartbeat
+        if age > self.lost_after:
+            return "lost"
+        if age > self.degraded_after or self._loss > DEGRADED_LOSS:
+            return "degraded"
+        return "ok"
+
+    def _detections(self, now: float) -> Mapping[str, object]:
+        found: dict[str, object] = dict(self._values)
+        for (tag, number), when in self._seen.items():
+            if now - when > self.detection_hold:
+                continue
+            name = self._names.get((tag, number), str(number))
+            found.setdefault(DETECTION_SETS[tag], set()).add(name)  # type: ignore[union-attr]
+        return MappingProxyType({k: frozenset(v) if isinstance(v, set) else v
+                                 for k, v in found.items()})
+
+    # --- the link listener (receive thread: must be quick) --------------------------------
+
+    def _on_message(self, system_id: int, snapshot: Telemetry, msg: Any) -> None:
+        if system_id != self.system_id:
+            return
+        kind = msg.get_type()
+        component = msg.get_srcComponent()
+        now = self.clock()
+        if component == COMPANION_COMPONENT:
+            self._companion_seen = True
+        if kind == "HEARTBEAT" and component == self.mav.component_id:
+            self._heartbeat = now
+            start, received, lost = self._window
+            if now - start >= 1.0:
+                total = (snapshot.received - received) + (snapshot.lost - lost)
+                self._loss = (snapshot.lost - lost) / total if total else 0.0
+                self._window = (now, snapshot.received, snapshot.lost)
+        elif kind == "PARAM_VALUE":
+            with self._param_arrived:
+                self._params[(component, _text(msg.param_id))] = msg.param_value
+                self._param_arrived.notify_all()
+        elif kind in ("MISSION_CURRENT", "MISSION_ITEM_REACHED"):
+            with self._lock:
+                if self._plan is not None:
+                    self._plan.seen(msg)
+        elif component == COMPANION_COMPONENT and kind in ("NAMED_VALUE_INT",
+                                                            "NAMED_VALUE_FLOAT"):
+            name = _text(msg.name)
+            with self._lock:
+                if kind == "NAMED_VALUE_INT" and name in DETECTION_SETS:
+                    self._seen[(name, int(msg.value))] = now
+                else:
+                    self._values[name] = msg.value
+
+    # --- the worker thread ------------------------------------------------------------
+
+    def _work(self) -> None:
+        while True:
+            request = self._queue.get()
+            if request is None:
+                self._queue.task_done()
+                return
+            try:
+                result = self._carry_out(request)
+            finally:
+                self._queue.task_done()
+            with self._lock:
+                self._results.append(result)
+
+    def _carry_out(self, request: Request) -> RequestResult:
+        def fail(reason: str, detail: str) -> RequestResult:
+            return RequestResult(self.vehicle_id, request.request_id, False, reason, detail)
+
+        try:
+            handler = _HANDLERS[type(request)]
+            handler(self, request)  # type: ignore[arg-type]
+        except CommandRejected as error:
+            return fail("rejected", f"{error.command}: {error.result}")
+        except MissionTransferError as error:
+            return fail("timeout" if error.result in ("", "TIMEOUT") else "rejected", str(error))
+        except VehicleTimeout as error:
+            return fail("timeout", str(error))
+        except _Unsupported as error:
+            return fail("unsupported", str(error))
+        except CompileError as error:
+            return fail("unsupported", str(error))
+        except VehicleError as error:
+            return fail("general", str(error))
+        return RequestResult(self.vehicle_id, request.request_id, True)
+
+    # --- one method per request ----------------------------------------------------------
+
+    def _guided(self) -> None:
+        if self.link.telemetry(self.system_id).mode != "GUIDED":
+            self._end_plan()
+            self.mav.set_mode("GUIDED")
+
+    def _end_plan(self) -> None:
+        with self._lock:
+            if self._plan is not None:
+                self._progress = self._plan.progress()
+                self._plan = None
+
+    def _set_mode(self, request: SetMode) -> None:
+        if request.mode.upper() != "AUTO":
+            self._end_plan()
+        self.mav.set_mode(request.mode)
+
+    def _arm(self, request: Arm) -> None:
+        self.mav.arm()
+
+    def _disarm(self, request: Disarm) -> None:
+        self.mav.disarm()
+
+    def _take_off(self, request: TakeOff) -> None:
+        self.mav.takeoff(request.altitude)
+
+    def _go_to(self, request: GoTo) -> None:
+        home = self._require_home()
+        self._guided()
+        if request.speed:
+            self.mav.change_speed(request.speed)
+        latitude, longitude, _ = _global(request.target, home)
+        self.mav.position_target(latitude, longitude, request.target[2])
+
+    def _set_yaw(self, request: SetYaw) -> None:
+        self.mav.yaw(abs(request.heading) if request.relative else request.heading % 360.0,
+                     relative=request.relative,
+                     clockwise=not (request.relative and request.heading < 0))
+
+    def _hold(self, request: Hold) -> None:
+        t = self.link.telemetry(self.system_id)
+        if not t.armed or t.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND:
+            return
+        if t.mode != "GUIDED":
+            self._guided()  # ArduCopter stops at its stopping point on entering GUIDED
+            return
+        home, state = self._require_home(), self.state()
+        if state.position is not None:
+            latitude, longitude, _ = _global(state.position, home)
+            self.mav.position_target(latitude, longitude, state.position[2])
+
+    def _land(self, request: Land) -> None:
+        self._end_plan()
+        self.mav.land()
+
+    def _return_to_launch(self, request: ReturnToLaunch) -> None:
+        self._end_plan()
+        self.mav.return_to_launch()
+
+    def _set_speed(self, request: SetSpeed) -> None:
+        self.mav.command(CommandLong(mavlink.MAV_CMD_DO_CHANGE_SPEED,
+                                     SPEED_TYPES.get(request.kind, 1), request.speed, -1))
+
+    def _camera(self, request: Camera) -> None:
+        if request.operation == "stop":
+            self.mav.command(CommandLong(mavlink.MAV_CMD_IMAGE_STOP_CAPTURE))
+        elif request.operation == "photo" and request.count <= 1:
+            self.mav.take_photo()
+        else:
+            count = 0 if request.operation == "start" else request.count
+            self.mav.command(CommandLong(mavlink.MAV_CMD_IMAGE_START_CAPTURE, 0,
+                                         request.interval, count))
+
+    def _gripper(self, request: Gripper) -> None:
+        if "gripper" not in self.capabilities:
+            raise _Unsupported("this vehicle has no gripper (GRIP_ENABLE is 0)")
+        self.mav.gripper(request.grab)
+
+    def _set_home(self, request: SetHome) -> None:
+        if request.position is None:
+            self.mav.set_home()
+        else:
+            self.mav.set_home(*request.position)
+
+    def _set_skill(self, request: SetSkill) -> None:
+        binding = SKILL_BINDINGS.get(request.skill)
+        if binding is None:
+            raise _Unsupported(f"skill {request.skill} has nothing to switch on this vehicle")
+        if binding.component == COMPANION and not self._companion_seen:
+            raise _Unsupported(f"skill {request.skill} needs a companion computer "
+                               f"(component {COMPANION_COMPONENT}), and none was heard")
+        value = 1.0 if request.enabled else 0.0
+        for name in binding.parameters:
+            self._write_param(name, value, binding.component)
+        if request.enabled:
+            for name, setting in binding.autopilot_on:
+                self._write_param(name, setting, AUTOPILOT)
+
+    def _fly_mission(self, request: FlyMission) -> None:
+        home = self._require_home()
+        state = self.state()
+        compiled = compile_mission(request.actions, home, request.start, state.heading)
+        self._end_plan()
+        self.mav.upload(list(compiled.items))
+        plan = _Plan(request.plan_id, compiled, 1 if self.mav.keeps_home_in_item_zero else 0)
+        with self._lock:
+            self._plan = plan
+        if not state.armed:
+            # A mission that starts on the ground: arm in GUIDED, then AUTO takes off.
+            self.mav.set_mode("GUIDED")
+            self.mav.arm()
+        self.mav.set_mode("AUTO")
+        self.mav.start_mission(plan.offset)
+        with self._lock:
+            plan.started = True
+            plan.finished = plan.last_nav is None  # DO items only: done on starting
+
+    def _require_home(self) -> Home:
+        home = _home(self.link.telemetry(self.system_id))
+        if home is None:
+            raise VehicleError("the vehicle has not reported its home position yet",
+                               self.system_id)
+        return home
+
+    # --- parameters ---------------------------------------------------------------------
+
+    def _component(self, which: str) -> int:
+        return COMPANION_COMPONENT if which == COMPANION else self.mav.component_id
+
+    def _read_param(self, name: str, which: str = AUTOPILOT) -> float | None:
+        component = self._component(which)
+        msg = mavlink.MAVLink_param_request_read_message(self.system_id, component,
+                                                         name.encode(), -1)
+        try:
+            return self._param_exchange(msg, component, name)
+        except VehicleTimeout:
+            return None
+
+    def _write_param(self, name: str, value: float, which: str) -> None:
+        component = self._component(which)
+        msg = mavlink.MAVLink_param_set_message(self.system_id, component, name.encode(),
+                                                value, mavlink.MAV_PARAM_TYPE_REAL32)
+        stored = self._param_exchange(msg, component, name)
+        if not math.isclose(stored, value, abs_tol=1e-6):
+            raise CommandRejected(f"PARAM_SET {name}", f"stored {stored:g}", self.system_id)
+
+    def _param_exchange(self, msg: Any, component: int, name: str) -> float:
+        """Send a PARAM_SET/PARAM_REQUEST_READ until its PARAM_VALUE comes back."""
+        key = (component, name)
+        for _ in range(PARAM_RETRIES):
+            with self._param_arrived:
+                self._params.pop(key, None)
+            self.link.send(msg)
+            end = time.monotonic() + PARAM_TIMEOUT
+            with self._param_arrived:
+                while key not in self._params and time.monotonic() < end:
+                    self._param_arrived.wait(end - time.monotonic())
+                if key in self._params:
+                    return self._params[key]
+        raise VehicleTimeout(f"no PARAM_VALUE for {name} from component {component}",
+                             self.system_id)
+
+
+class _Unsupported(VehicleError):
+    """The vehicle lacks what a request needs."""
+
+
+_HANDLERS: dict[type, Callable[[MavlinkVehicle, Any], None]] = {
+    SetMode: MavlinkVehicle._set_mode, Arm: MavlinkVehicle._arm,
+    Disarm: MavlinkVehicle._disarm, TakeOff: MavlinkVehicle._take_off,
+    GoTo: MavlinkVehicle._go_to, SetYaw: MavlinkVehicle._set_yaw,
+    Hold: MavlinkVehicle._hold, Land: MavlinkVehicle._land,
+    ReturnToLaunch: MavlinkVehicle._return_to_launch, SetSpeed: MavlinkVehicle._set_speed,
+    Camera: MavlinkVehicle._camera, Gripper: MavlinkVehicle._gripper,
+    SetHome: MavlinkVehicle._set_home, SetSkill: MavlinkVehicle._set_skill,
+    FlyMission: MavlinkVehicle._fly_mission,
+}
+
+
+def _home(t: Telemetry) -> Home | None:
+    h = t.home
+    return None if h is None else Home(h.latitude, h.longitude, h.altitude)
+
+
+def _global(point: tuple[float, float, float], home: Home) -> tuple[float, float, float]:
+    return to_global(*point, home.latitude, home.longitude, home.altitude)
+
+
+def _text(value: str | bytes) -> str:
+    if isinstance(value, bytes):
+        value = value.decode("utf-8", "replace")
+    return value.rstrip("\x00")

@@ -194,11 +194,18 @@ def _battery(step: Step, model: FlightModel, homeward: bool, fail: _Fail) -> Non
         points = points[:-1]  # the action ends on the ground: no need to come home
     if after.flying:
         points.append((after.position, after.battery))
+    # The point the action starts from was judged with the action before.
+    points = [(p, b) for p, b in dict(points).items()
+              if p != before.position and _airborne(p, before, after)]
+    # Straight lines home cost a lower bound of the planned way: the margin they leave is
+    # an upper bound, so once it is above the worst planned margin found, no point further
+    # down the list can be worse and planning stops.
+    bounds = sorted((b - model.return_home_energy(p, after.home, planned=False), p, b)
+                    for p, b in points)
     worst: tuple[float, Point3] | None = None
-    for point, battery in points:
-        # The point the action starts from was judged with the action before.
-        if point == before.position or not _airborne(point, before, after):
-            continue
+    for bound, point, battery in bounds:
+        if worst is not None and bound >= worst[0]:
+            break
         left = battery - model.return_home_energy(point, after.home)
         if worst is None or left < worst[0]:
             worst = (left, point)

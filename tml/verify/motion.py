@@ -145,16 +145,18 @@ class FlightModel:
         found = self.planner.trajectory(start, end)
         return (found, True) if found is not None else (straight(start, end), False)
 
-    def fly(self, state: VehicleState, targets: list[Point3]) -> tuple[
+    def fly(self, state: VehicleState, targets: list[Point3], planned: bool = True) -> tuple[
             VehicleState, list[Trajectory], list[tuple[Point3, Point3]]]:
         """Fly through ``targets`` in order; the state at the end, the legs and the legs
-        that had no collision-free path."""
+        that had no collision-free path. Not ``planned``: straight lines, which cost a
+        lower bound of what the planned legs cost."""
         legs: list[Trajectory] = []
         blocked: list[tuple[Point3, Point3]] = []
         position, seconds, energy = state.position, 0.0, 0.0
         for target in targets:
-            leg, planned = self.plan(position, target)
-            if not planned:
+            leg, found = self.plan(position, target) if planned else \
+                (straight(position, target), True)
+            if not found:
                 blocked.append((position, target))
             leg_seconds = self.leg_time(state, leg)
             seconds += leg_seconds
@@ -170,14 +172,15 @@ class FlightModel:
         return replace(state, time=state.time + seconds,
                        battery=state.battery - self.profile.battery_per_second * seconds)
 
-    def return_home_energy(self, point: Point3, home: Point3) -> float:
+    def return_home_energy(self, point: Point3, home: Point3, planned: bool = True) -> float:
         """Percent of the battery needed to come home from ``point`` and land there the way
-        ArduPilot's RTL does: climb to the return altitude if lower, fly home, descend."""
+        ArduPilot's RTL does: climb to the return altitude if lower, fly home, descend.
+        Not ``planned``: along straight lines, a lower bound."""
         altitude = max(point[2], self.profile.return_altitude)
         probe = VehicleState(position=point, flying=True)
         targets = [(point[0], point[1], altitude), (home[0], home[1], altitude),
                    (home[0], home[1], home[2])]
-        after, _, _ = self.fly(probe, targets)
+        after, _, _ = self.fly(probe, targets, planned)
         return probe.battery - after.battery
 
     def local(self, latitude: float, longitude: float, altitude: float,

@@ -14,10 +14,12 @@ their vertices (a visibility graph); the vertices used as graph nodes come from 
 polygon grown by a further ``MARGIN``, so that a path along a polygon's edge does not touch
 the polygon it is tested against.
 
-The visibility graph is built lazily: first only the obstacles the straight line crosses,
-then, while the shortest path found crosses further obstacles, those are added and the path
-planned again. Free space only shrinks as obstacles are added, so when the graph has no path
-no path exists; when the path found crosses nothing else it is the shortest one.
+The visibility graph is built lazily, in two ways. A* finds the edges of a node only when
+it expands it. And obstacles are added as needed: first only those the straight line
+crosses, then, while the shortest path found crosses further obstacles, those are added
+and the path planned again. Free space only shrinks as obstacles are added, so when the
+graph has no path no path exists; when the path found crosses nothing else it is the
+shortest one.
 """
 
 from __future__ import annotations
@@ -110,8 +112,17 @@ class Planner:
         if a2 == b2 or not self.obstacles:
             return straight(start, end)
         usable = self.band(min(start[2], end[2]), max(start[2], end[2]))
-        for held in self.tree.query([Point(a2), Point(b2)], predicate="intersects")[1]:
-            usable[held] = False
+        # An end may lie inside an inflated polygon yet keep the clearance (the polygon is
+        # a little larger than the true shape): such an obstacle stays, but edges from and
+        # to that end are tested against its true shape ("soft").
+        soft: set[int] = set()
+        for held in {int(i) for i in self.tree.query([Point(a2), Point(b2)],
+                                                     predicate="intersects")[1]}:
+            if min(self._flat_distance(held, a2), self._flat_distance(held, b2)) \
+                    >= self.clearance - 1e-9:
+                soft.add(held)
+            else:
+                usable[held] = False
         active: set[int] = set()
         path = [a2, b2]
         while True:
@@ -120,7 +131,7 @@ class Planner:
             if not crossed:
                 break
             active |= crossed
-            found = self._shortest(a2, b2, sorted(active))
+            found = self._shortest(a2, b2, sorted(active), soft)
             if found is None:
                 return None
             path = found
@@ -132,30 +143,68 @@ class Planner:
             self._nodes[index] = np.asarray(grown.exterior.coords)[:-1]
         return self._nodes[index]
 
+    def _flat_distance(self, index: int, point: tuple[float, float]) -> float:
+        return max(float(shapely.distance(self.cores[index], Point(point))) - self.radii[index],
+                   0.0)
+
     def _shortest(self, a2: tuple[float, float], b2: tuple[float, float],
-                  active: list[int]) -> list[tuple[float, float]] | None:
-        polygons = self.inflated[active]
-        tree = shapely.STRtree(polygons)
+                  active: list[int], soft: set[int]) -> list[tuple[float, float]] | None:
+        """A* over the visibility graph of the active obstacles, whose edges are found only
+        from the nodes it expands (the straight-line distance to the goal is the heuristic:
+        it never overestimates, so the first time the goal is taken the path is shortest)."""
+        tree = shapely.STRtree(self.inflated[active])
         candidates = np.concatenate([self._node_points(i) for i in active])
         inside = tree.query(shapely.points(candidates), predicate="intersects")[0]
         keep = np.ones(len(candidates), dtype=bool)
         keep[inside] = False
         nodes = np.vstack([np.array([a2, b2]), candidates[keep]])
-        count = len(nodes)
-        first, second = np.triu_indices(count, k=1)
-        segments = shapely.linestrings(np.stack([nodes[first], nodes[second]], axis=1))
-        blocked = np.zeros(len(segments), dtype=bool)
-        blocked[tree.query(segments, predicate="intersects")[0]] = True
-        lengths = np.hypot(*(nodes[first] - nodes[second]).T)
-        neighbours: list[list[tuple[int, float]]] = [[] for _ in range(count)]
-        for i, j, length in zip(first[~blocked], second[~blocked], lengths[~blocked],
-                                strict=True):
-            neighbours[i].append((int(j), float(length)))
-            neighbours[j].append((int(i), float(length)))
-        order = _dijkstra(neighbours, 0, 1)
-        if order is None:
-            return None
-        return [(float(nodes[i][0]), float(nodes[i][1])) for i in order]
+        to_goal = np.hypot(*(nodes - nodes[1]).T)
+        cost = np.full(len(nodes), math.inf)
+        cost[0] = 0.0
+        previous: dict[int, int] = {}
+        open_ = np.ones(len(nodes), dtype=bool)
+        queue = [(float(to_goal[0]), 0)]
+        while queue:
+            _, node = heapq.heappop(queue)
+            if not open_[node]:
+                continue
+            if node == 1:
+                order = [1]
+                while order[-1] != 0:
+                    order.append(previous[order[-1]])
+                return [(float(nodes[i][0]), float(nodes[i][1])) for i in reversed(order)]
+            open_[node] = False
+            others = np.flatnonzero(open_)
+            segments = shapely.linestrings(np.stack(
+                [np.broadcast_to(nodes[node], (len(others), 2)), nodes[others]], axis=1))
+            hit, polygon = tree.query(segments, predicate="intersects")
+            hit = hit[self._blocking(hit, polygon, node, others, segments, active, soft)]
+            visible = np.ones(len(others), dtype=bool)
+            visible[hit] = False
+            reached = others[visible]
+            through = cost[node] + np.hypot(*(nodes[reached] - nodes[node]).T)
+            better = through < cost[reached]
+            for other, total in zip(reached[better], through[better], strict=True):
+                cost[other] = total
+                previous[int(other)] = node
+                heapq.heappush(queue, (float(total + to_goal[other]), int(other)))
+        return None
+
+    def _blocking(self, hit: np.ndarray, polygon: np.ndarray, node: int, others: np.ndarray,
+                  segments: np.ndarray, active: list[int], soft: set[int]) -> np.ndarray:
+        """Which (segment, polygon) hits block: all, except hits of a soft obstacle's
+        polygon by an edge from the start or to the goal that keeps its true clearance."""
+        blocking = np.ones(len(hit), dtype=bool)
+        if not soft:
+            return blocking
+        indices = np.asarray(active)[polygon]
+        at_end = (node == 0) | (others[hit] == 1)
+        check = at_end & np.isin(indices, list(soft))
+        if check.any():
+            gap = shapely.distance(self.cores[indices[check]], segments[hit[check]]) \
+                - self.radii[indices[check]]
+            blocking[np.flatnonzero(check)] = gap < self.clearance - 1e-9
+        return blocking
 
     def clearance_of(self, points: Sequence[Point3]) -> float:
         """Smallest distance in metres from a path (or a point) to any obstacle's surface,
@@ -184,29 +233,6 @@ class Planner:
         distances = np.hypot(flat, gap)
         index = int(np.argmin(distances))
         return float(distances[index]), self.obstacles[index].name
-
-
-def _dijkstra(neighbours: list[list[tuple[int, float]]], source: int,
-              target: int) -> list[int] | None:
-    best = {source: 0.0}
-    previous: dict[int, int] = {}
-    queue = [(0.0, source)]
-    while queue:
-        cost, node = heapq.heappop(queue)
-        if node == target:
-            order = [target]
-            while order[-1] != source:
-                order.append(previous[order[-1]])
-            return order[::-1]
-        if cost > best[node]:
-            continue
-        for other, length in neighbours[node]:
-            total = cost + length
-            if total < best.get(other, math.inf):
-                best[other] = total
-                previous[other] = node
-                heapq.heappush(queue, (total, other))
-    return None
 
 
 def _with_altitudes(path: Sequence[tuple[float, float]], start: Point3,

@@ -129,6 +129,38 @@ def test_mission_dispatch_allows_mission_items() -> None:
 
 
 def test_known_takes_yes_or_no() -> None:
-    result = run(TAKE_OFF + '<task name="t"><condition label="x" comparison="known" value="1.5"/>'
+    result = run(TAKE_OFF + '<task name="r"><action name="MEMORIZE_POINT"><argument '
+                 'name="coordinates" label="x"/></action></task>\n'
+                 '<task name="t"><condition label="x" comparison="known" value="1.5"/>'
                  '<action name="LAND"/></task>\n')
     assert codes(result) == ["E224"]
+
+
+def test_condition_numbers_are_written_as_in_arguments() -> None:
+    for bad in ("nan", "inf", "1_0", "0x10"):
+        result = run(TAKE_OFF + f'<task name="t"><condition parameter="ALTITUDE" '
+                     f'comparison="less than" value="{bad}"/><action name="LAND"/></task>\n')
+        assert codes(result) == ["E224"], bad
+
+
+def test_yes_no_words_are_the_same_everywhere() -> None:
+    for word in ("on", "off", "yes", "no", "true", "false", "1", "0"):
+        result = run(TAKE_OFF + f'<task name="t"><condition parameter="ARMED" comparison='
+                     f'"equal" value="{word}"/><action name="EXPLORE_SPACE"><argument '
+                     f'name="build_map" value="{word}"/></action></task>\n')
+        assert result.diagnostics == [], word
+
+
+def test_tested_label_that_is_never_stored() -> None:
+    result = run(TAKE_OFF + '<task name="Remember"><action name="MEMORIZE_POINT"><argument '
+                 'name="coordinates" label="door"/></action></task>\n<task name="t"><condition '
+                 'label="dor" comparison="known" value="yes"/><action name="LAND"/></task>\n')
+    assert codes(result) == ["E232"]
+    assert "did you mean 'door'" in result.diagnostics[0].hint
+
+
+def test_declared_parameter_names_are_trimmed_like_conditions() -> None:
+    result = run(TAKE_OFF + '<task name="t"><condition parameter=" x " comparison="less than" '
+                 'value="1"/><action name="LAND"/></task>\n',
+                 '<parameter name="x " type="number"/>\n')
+    assert result.diagnostics == []

@@ -129,3 +129,17 @@ def test_pre_commit_hook_entry_is_a_working_command(files: Path) -> None:
     # pre-commit appends the staged file names to the entry.
     assert main([*entry[1:], str(files / "valid.xml")]) == 0
     assert main([*entry[1:], str(files / "valid.xml"), str(files / "sub" / "invalid.xml")]) == 1
+
+
+def test_closed_pipe_is_not_a_traceback(files: Path) -> None:
+    many = [str(files / "sub" / "invalid.xml")] * 200
+    done = subprocess.run(f"{sys.executable} -m tml validate {' '.join(many)} | head -1",
+                          shell=True, capture_output=True, text=True)
+    assert "Traceback" not in done.stderr and "BrokenPipe" not in done.stderr
+    assert done.stdout.count("\n") == 1
+
+
+def test_sim_help_is_the_simulator_help(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["sim", "--help"]) == 0
+    assert "--vehicles" in capsys.readouterr().out
+    assert main(["sim", "--vehicles", "0"]) == 2

@@ -285,7 +285,10 @@ def test_memory_labels_feed_go_to_point_and_known_conditions() -> None:
             + '<task name="Never"><condition label="other" comparison="known" value="yes"/>'
               '<action name="WAIT"><argument name="duration" value="1"/></action></task>\n'
             + LAND)
-    flight = Flight(body).run()
+    never = ('<event name="Never"><condition parameter="ALTITUDE" comparison="greater than" '
+             'value="1000"/><action name="MEMORIZE_POINT"><argument name="coordinates" '
+             'label="other"/></action><termination mode="CONTINUE"/></event>')
+    flight = Flight(body, never).run()
     assert flight.interp.labels["spot"] == pytest.approx((6, 2, 5), abs=0.55)
     assert "Never" not in flight.started() and "Back" in flight.started()
     assert flight.vehicle.position == pytest.approx((6, 2, 0), abs=0.55)

@@ -194,3 +194,10 @@ def test_load_world_rejects_bad_files_with_location(tmp_path: Path) -> None:
     path.write_text('<mission name="m"><task name="t"><action name="LAND"/></task></mission>')
     with pytest.raises(MissionSyntaxError, match="expected a <world>"):
         parse.load_world(path)
+
+
+def test_attribute_columns_skip_quoted_values() -> None:
+    text = '<mission name="m">\n<parameter name="x" description="a > b typo=" typo="1"/></mission>'
+    doc = parse.read_xml("q.xml", text.encode())
+    assert doc.location(doc.root[0], "typo").column == 47
+    assert doc.location(doc.root[0], "description").column == 21

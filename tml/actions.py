@@ -15,13 +15,13 @@ metres from home (see :mod:`tml.geo`).
 from __future__ import annotations
 
 import functools
-import math
 import re
 from dataclasses import dataclass, replace
 from enum import StrEnum
 
 from tml.errors import MissionSemanticError
 from tml.model import Action, normalize_name
+from tml.parameters import NUMBER_PATTERN, parse_boolean, parse_number
 
 
 class Category(StrEnum):
@@ -397,9 +397,7 @@ def action_names() -> list[str]:
     return sorted(_BY_NAME)
 
 
-_BOOLEAN_WORDS = {"yes": True, "true": True, "1": True, "on": True,
-                  "no": False, "false": False, "0": False, "off": False}
-_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_NUMBER = NUMBER_PATTERN
 _POINT = re.compile(rf"^\(?\s*({_NUMBER})\s*,\s*({_NUMBER})\s*,\s*({_NUMBER})\s*\)?$")
 
 
@@ -412,9 +410,10 @@ def parse_value(spec: ArgumentSpec, raw: str) -> object:
             raise ValueError("expected a point '(north, east, up)' of three numbers in metres")
         return tuple(float(g) for g in match.groups())
     if spec.type is ArgType.BOOLEAN:
-        if text.lower() not in _BOOLEAN_WORDS:
+        flag = parse_boolean(text)
+        if flag is None:
             raise ValueError("expected yes or no")
-        return _BOOLEAN_WORDS[text.lower()]
+        return flag
     if spec.type is ArgType.CHOICE:
         for choice in spec.choices:
             if text.lower() == choice.lower():
@@ -429,11 +428,10 @@ def parse_value(spec: ArgumentSpec, raw: str) -> object:
             raise ValueError("expected a whole number")
         value: float = int(text)
     else:
-        if not re.fullmatch(_NUMBER, text):
+        number = parse_number(text)
+        if number is None:
             raise ValueError(f"expected a number{' in ' + spec.unit if spec.unit else ''}")
-        value = float(text)
-        if not math.isfinite(value):
-            raise ValueError("expected a finite number")
+        value = number
     _check_range(spec, value)
     return value
 

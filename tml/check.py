@@ -277,9 +277,7 @@ class _Checker:
         if param_type is ParamType.NUMBER or (
                 param_type is ParamType.SET and condition.comparison is Comparison.INCLUDES
                 and self.numeric_set(condition)):
-            try:
-                float(value)
-            except ValueError:
+            if parameters.parse_number(value) is None:
                 self.found.append(error(
                     condition.location, "E224",
                     f"{condition.subject!r} is a number; value {value!r} is not"))
@@ -364,6 +362,16 @@ class _Checker:
             e.termination.mode in (TerminationMode.JUMP_TO_TASK, TerminationMode.REPEAT_TASK)
             for e in self.mission.events)
         known = set(set_in_tasks) | set_by_events
+        tested = [c for t in self.tasks for c in t.conditions] + [
+            c for e in self.mission.events for c in e.conditions]
+        for condition in tested:
+            if condition.kind is ConditionKind.LABEL and condition.subject \
+                    and condition.subject not in known:
+                self.found.append(error(
+                    condition.location, "E232",
+                    f"label {condition.subject!r} is tested but no MEMORIZE_POINT ever "
+                    "stores it, so the test never changes",
+                    _did_you_mean(condition.subject, known) or "check the label's spelling"))
         for label, index, argument in reads:
             if label not in known:
                 self.found.append(error(

@@ -116,11 +116,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     return run(args)
 
 
-def cmd_sim(args: argparse.Namespace) -> int:
+def cmd_sim(argv: Sequence[str]) -> int:
     """Run the embedded simulator (same options as ``python -m sitl``)."""
     from sitl.cli import main as sim_main
 
-    return sim_main(args.sim_args)
+    return sim_main(list(argv))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -168,12 +168,14 @@ def build_parser() -> argparse.ArgumentParser:
         "sim", help="run the embedded MAVLink vehicle simulator", add_help=False,
         description="Run the embedded simulator; see `python -m sitl --help`.")
     sim.add_argument("sim_args", nargs=argparse.REMAINDER)
-    sim.set_defaults(handler=cmd_sim)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``tml`` command with ``argv``; return the exit code."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["sim"]:  # the simulator parses its own options, --help included
+        return cmd_sim(argv[1:])
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -184,4 +186,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def entry_point() -> None:
     """Console-script entry point."""
-    sys.exit(main())
+    try:
+        code = main()
+        sys.stdout.flush()
+    except BrokenPipeError:
+        # The reader (``| head``) went away: stop quietly, as command-line tools do.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        code = EXIT_INVALID
+    sys.exit(code)

@@ -10,6 +10,7 @@ reported with a did-you-mean hint.
 from __future__ import annotations
 
 import difflib
+import re
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -106,7 +107,18 @@ def suggest(name: str) -> str | None:
     return _BY_KEY[close[0]].name if close else None
 
 
+_BOOLEAN_WORDS = {"yes": True, "true": True, "on": True, "1": True,
+                  "no": False, "false": False, "off": False, "0": False}
+NUMBER_PATTERN = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_NUMBER = re.compile(NUMBER_PATTERN)
+
+
 def parse_boolean(text: str) -> bool | None:
-    """yes/no, true/false, 1/0 (any case) as a bool; None if it is none of those."""
-    return {"yes": True, "true": True, "1": True, "no": False, "false": False,
-            "0": False}.get(text.strip().lower())
+    """yes/no, true/false, on/off, 1/0 (any case) as a bool; None if it is none of those."""
+    return _BOOLEAN_WORDS.get(text.strip().lower())
+
+
+def parse_number(text: str) -> float | None:
+    """A decimal number as written in mission files (no nan, inf or ``1_0``); else None."""
+    text = text.strip()
+    return float(text) if _NUMBER.fullmatch(text) else None

@@ -52,6 +52,7 @@ _MARKUP = re.compile(
     r"<!--.*?-->|<!\[CDATA\[.*?\]\]>|<\?.*?\?>|<!DOCTYPE|<(?P<tag>[A-Za-z_][\w.\-:]*)",
     re.S,
 )
+_ATTRIBUTE = re.compile(r"""\s+([^\s=/>]+)\s*=\s*(?:"[^"]*"|'[^']*')""")
 _ENCODING_DECL = re.compile(rb"^\s*<\?xml[^>]*encoding\s*=\s*[\"']([^\"']+)[\"']")
 
 
@@ -76,11 +77,13 @@ class XmlDocument:
         if start is None:
             return Location(self.file, element.sourceline or 0, 0)
         if attribute is not None:
-            end = self.text.find(">", start)
-            tag_text = self.text[start:end if end >= 0 else len(self.text)]
-            match = re.search(r"\s(" + re.escape(attribute) + r")\s*=", tag_text)
-            if match:
-                return self.location_of_offset(start + match.start(1))
+            # Walk the start tag attribute by attribute, so that a ">" or a name inside an
+            # earlier quoted value is not taken for the end of the tag or for the attribute.
+            position = start + 1 + len(str(element.tag))
+            while match := _ATTRIBUTE.match(self.text, position):
+                if match.group(1) == attribute:
+                    return self.location_of_offset(match.start(1))
+                position = match.end()
         return self.location_of_offset(start)
 
     def element_at(self, xpath: str) -> etree._Element | None:
@@ -211,7 +214,8 @@ class _Builder:
             skills=tuple(self.skill(s) for s in self.children(root, "skill")),
             events=tuple(events),
             parameters=tuple(
-                ParameterDeclaration(p.get("name", ""), p.get("type", "string"), self.loc(p),
+                ParameterDeclaration(p.get("name", "").strip(), p.get("type", "string"),
+                                     self.loc(p),
                                      p.get("description", ""))
                 for p in self.children(root, "parameter")),
             world=world,

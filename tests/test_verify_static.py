@@ -129,3 +129,36 @@ def test_many_independent_conditions_stay_bounded() -> None:
     # 2**6 sets of labels are possible; the walk keeps a bounded number of them.
     assert report.approximate
     assert len(report.rows) == 7
+
+
+def _label_violations(tasks: str, events: str = "") -> list:
+    report = verify_mission(mission(tasks, events), PROFILE)
+    return [v for v in report.violations if v.constraint is Constraint.LABEL]
+
+
+READ_SPOT = ('<action name="GO_TO_POINT"><argument name="coordinates" label="spot"/>'
+             '</action></task>')
+MARK_ON_ONE_BRANCH = TAKE_OFF + (
+    '<task name="mark"><condition parameter="GROUND_SPEED" comparison="less than" value="3"/>'
+    '<action name="MEMORIZE_POINT"><argument name="coordinates" label="spot"/></action></task>')
+
+
+def test_read_guarded_by_known_is_not_a_violation() -> None:
+    guarded = ('<task name="return"><condition label="spot" comparison="known" value="yes"/>'
+               + READ_SPOT)
+    assert _label_violations(MARK_ON_ONE_BRANCH + guarded) == []
+    # The guard on a parent task covers its sub-tasks too.
+    nested = ('<task name="back"><condition label="spot" comparison="known"/>'
+              '<task name="return">' + READ_SPOT + '</task>')
+    assert _label_violations(MARK_ON_ONE_BRANCH + nested) == []
+    # "known no" guarantees nothing.
+    unguarded = ('<task name="return"><condition label="spot" comparison="known" value="no"/>'
+                 + READ_SPOT)
+    assert len(_label_violations(MARK_ON_ONE_BRANCH + unguarded)) == 1
+
+
+def test_label_an_event_may_store_is_not_a_violation() -> None:
+    event = ('<event name="seen"><condition parameter="RECOGNIZED_ITEMS" comparison="includes" '
+             'value="A"/><action name="MEMORIZE_POINT"><argument name="coordinates" '
+             'label="spot"/></action><termination mode="CONTINUE"/></event>')
+    assert _label_violations(TAKE_OFF + '<task name="return">' + READ_SPOT, event) == []

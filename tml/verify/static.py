@@ -23,8 +23,9 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 
 from tml import actions
-from tml.model import Event, Mission, Task
-from tml.verify.constraints import Violation, check_step
+from tml.model import Comparison, ConditionKind, Event, Mission, Task
+from tml.parameters import parse_boolean
+from tml.verify.constraints import Constraint, Violation, check_step
 from tml.verify.motion import FlightModel, Labels, Step, VehicleState
 from tml.verify.profile import VehicleProfile
 from tml.world import World
@@ -88,32 +89,36 @@ def _alternative(state: VehicleState, labels: Labels) -> _Alternative:
 
 
 class _Walker:
-    def __init__(self, model: FlightModel) -> None:
+    def __init__(self, model: FlightModel, event_labels: frozenset[str] = frozenset()) -> None:
         self.model = model
+        # Labels an event handler may store at any time: reading one is not an error even
+        # where no task has stored it yet (the IMAV 2016 mission's "item A coordinates").
+        self.event_labels = event_labels
         self.found: dict[tuple[str, str], Violation] = {}
         self.rows: list[Row] = []
         self.notes: dict[str, None] = {}
         self.sources: list[tuple[str, VehicleState, Labels]] = []  # where events may fire
         self.approximate = False
 
-    def tasks(self, tasks: Iterable[Task], alternatives: list[_Alternative]) -> list[
-            _Alternative]:
+    def tasks(self, tasks: Iterable[Task], alternatives: list[_Alternative],
+              guarded: frozenset[str] = frozenset()) -> list[_Alternative]:
         for task in tasks:
             ran = alternatives
+            inner = guarded | _guarded_labels(task)
             for iteration in range(task.repeat):
                 name = task.path_name + (f" #{iteration + 1}" if task.repeat > 1 else "")
-                ran = self.task(task, name, ran)
+                ran = self.task(task, name, ran, inner)
             alternatives = self.merge(ran + alternatives if task.conditions else ran)
         return alternatives
 
-    def task(self, task: Task, name: str, alternatives: list[_Alternative]) -> list[
-            _Alternative]:
+    def task(self, task: Task, name: str, alternatives: list[_Alternative],
+             guarded: frozenset[str] = frozenset()) -> list[_Alternative]:
         if task.action is None:
-            return self.tasks(task.children, alternatives)
+            return self.tasks(task.children, alternatives, guarded)
         bound = actions.bind(task.action)
         steps = [self.model.step(bound, a.state, a.label_map) for a in alternatives]
         for step in steps:
-            self.judge(bound, step, name)
+            self.judge(bound, step, name, guarded | self.event_labels)
             if step.after.flying:
                 self.sources.append((name, step.after, step.labels))
                 far = self.farthest(step)
@@ -133,10 +138,13 @@ class _Walker:
             return None
         return replace(step.after, position=point, battery=battery)
 
-    def judge(self, bound: actions.BoundAction, step: Step, where: str) -> None:
+    def judge(self, bound: actions.BoundAction, step: Step, where: str,
+              excused: frozenset[str] = frozenset()) -> None:
         for note in step.notes:
             self.notes[f"{bound.action.location}: {bound.name}: {note}"] = None
         for violation in check_step(bound, step, self.model):
+            if violation.constraint is Constraint.LABEL and step.unknown_label in excused:
+                continue  # guarded by "known", or an event may have stored it
             violation = replace(violation, task=where)
             key = (violation.constraint.value, str(violation.location))
             kept = self.found.get(key)
@@ -190,6 +198,14 @@ class _Walker:
             self.row(bound, [step], "", event.name)
 
 
+def _guarded_labels(task: Task) -> frozenset[str]:
+    """Labels a task's conditions require to be known before it runs."""
+    return frozenset(
+        c.subject for c in task.conditions
+        if c.kind is ConditionKind.LABEL and c.comparison is Comparison.KNOWN
+        and parse_boolean(c.value or "yes") is not False)
+
+
 def verify_mission(mission: Mission, profile: VehicleProfile, world: World | None = None,
                    start: VehicleState | None = None) -> Report:
     """Predict and check every action of ``mission`` (and of its event handlers).
@@ -202,7 +218,10 @@ def verify_mission(mission: Mission, profile: VehicleProfile, world: World | Non
     model = FlightModel(profile, merged)
     if start is None:
         start = VehicleState(heading=merged.home_or_default.heading)
-    walker = _Walker(model)
+    event_labels = frozenset(
+        bound.labels["coordinates"] for event in mission.events for action in event.actions
+        if (bound := actions.bind(action)).name == "MEMORIZE_POINT")
+    walker = _Walker(model, event_labels)
     ends = walker.tasks(mission.tasks, [_alternative(start, {})])
     for event in mission.events:
         walker.event(event)

@@ -414,7 +414,7 @@ def test_mission_dispatch_can_be_interrupted_by_an_event() -> None:
 
 
 def test_pre_check_makes_an_infeasible_action_abort() -> None:
-    def too_far(bound, state, labels) -> list[str]:
+    def too_far(bound, state, labels, mission_time) -> list[str]:
         target = bound.values.get("coordinates")
         return ["c2 battery range: 50 m > 20 m"] if target and target[0] > 20 else []
     flight = Flight(TAKE_OFF + goto("Far", "(50, 0, 5)") + LAND,

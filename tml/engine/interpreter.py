@@ -109,8 +109,9 @@ class Output:
     records: list[Record] = field(default_factory=list)
 
 
-# Checks an action before it starts; returns the violated constraints (empty: feasible).
-PreCheck = Callable[[BoundAction, VehicleState, dict[str, Point]], list[str]]
+# Checks an action before it starts, given the live state, the labels and the mission time;
+# returns the violated constraints (empty: feasible). See tml.verify.inflight.pre_check.
+PreCheck = Callable[[BoundAction, VehicleState, dict[str, Point], float], list[str]]
 
 
 @dataclass
@@ -400,7 +401,7 @@ class Interpreter:
     def _start_action(self, task: Task) -> None:
         self._terminal_left -= 1
         assert task.action is not None
-        self._run = self._new_run(task.action, task)
+        self._new_run(task.action, task)  # sets self._run (or fails, maybe firing an event)
 
     def _new_run(self, action: Action, task: Task | None) -> _Run | None:
         bound = bind(action)
@@ -410,7 +411,8 @@ class Interpreter:
                    arguments=_jsonable(bound.values), labels=dict(bound.labels))
         run = _Run(bound, SCRIPTS[bound.name](self, bound), task, since=self._now)
         if self.options.pre_check is not None:
-            violations = self.options.pre_check(bound, self._state, self.labels)
+            violations = self.options.pre_check(bound, self._state, self.labels,
+                                                self._now - self._start)
             if violations:
                 self._fail(run, "infeasible", "; ".join(violations))
                 return None

@@ -1,0 +1,69 @@
+"""Dynamic verification before each action (tml.verify.inflight)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from tml.engine import Interpreter, Options, Status
+from tml.validation import validate_file
+from tml.vehicle import FakeVehicle, GoTo, VehicleState
+from tml.verify.inflight import live_variables, pre_check
+from tml.verify.profile import load_profile
+from tml.world import Cylinder, World
+
+MISSION = ('<mission name="m"><task name="up"><action name="TAKE_OFF"/></task>'
+           '<task name="far"><action name="GO_TO_POINT"><argument name="coordinates" '
+           'value="({north}, 0, 10)"/></action></task><task name="down">'
+           '<action name="LAND"/></task>{events}</mission>')
+
+
+def fly(north: float, battery: float, events: str = "", world: World | None = None):
+    profile = load_profile("quadcopter")
+    text = MISSION.format(north=north, events=events)
+    mission = validate_file("m.xml", text.encode()).mission
+    vehicle = FakeVehicle(battery=battery, drain_per_second=0.0, speed=10.0)
+    interp = Interpreter(mission, options=Options(pre_check=pre_check(profile, world)))
+    out, time = interp.start(0.0, vehicle.state()), 0.0
+    while interp.status is Status.RUNNING and time < 600:
+        for request in out.requests:
+            vehicle.submit(request)
+        vehicle.advance(0.1)
+        time += 0.1
+        out = interp.step(time, vehicle.state(), vehicle.poll())
+    return interp, vehicle
+
+
+def test_feasible_action_flies() -> None:
+    interp, vehicle = fly(100, 90.0)
+    assert interp.status is Status.COMPLETED
+    assert any(isinstance(r, GoTo) for r in vehicle.submitted)
+
+
+def test_action_beyond_the_live_battery_is_refused_before_it_is_sent() -> None:
+    interp, vehicle = fly(3000, 30.0)
+    assert interp.status is Status.ABORTED
+    assert "infeasible" in interp.reason
+    assert not any(isinstance(r, GoTo) for r in vehicle.submitted)
+
+
+def test_infeasible_action_can_be_handled_by_an_event() -> None:
+    events = ('<event_handling><event name="cannot"><condition parameter="ACTION_FAILURE" '
+              'comparison="equal" value="infeasible"/><action name="LAND"/>'
+              '<termination mode="END_MISSION"/></event></event_handling>')
+    interp, vehicle = fly(3000, 30.0, events)
+    assert interp.status is Status.COMPLETED
+    assert vehicle.position[2] == 0.0
+
+
+def test_destination_inside_an_obstacle_is_refused() -> None:
+    world = World(obstacles=(Cylinder("mast", 100.0, 0.0, 5.0, 0.0, 50.0),))
+    interp, _ = fly(100, 90.0, world=world)
+    assert interp.status is Status.ABORTED and "c1" in interp.reason
+
+
+def test_unknown_position_or_battery_is_not_judged() -> None:
+    state = VehicleState(1, 0.0)
+    assert live_variables(state, 0.0) is None
+    known = replace(state, position=(1.0, 2.0, 3.0), battery=50.0, armed=True, landed=False)
+    variables = live_variables(known, 12.0)
+    assert variables.position == (1.0, 2.0, 3.0) and variables.flying and variables.time == 12.0

@@ -18,6 +18,7 @@ building) and by :mod:`tml.check` (everything else).
 from __future__ import annotations
 
 import bisect
+import functools
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -63,8 +64,13 @@ class XmlDocument:
     file: str
     text: str
     root: etree._Element
-    _line_starts: list[int] = field(repr=False)
-    _starts: dict[etree._Element, int] = field(repr=False)
+    # Each element's start tag: character offset, line and column (found in one sweep).
+    _starts: dict[etree._Element, tuple[int, int, int]] = field(repr=False)
+
+    @functools.cached_property
+    def _line_starts(self) -> list[int]:
+        # Only attribute positions need it, and only for files with problems.
+        return [0] + [m.end() for m in re.finditer("\n", self.text)]
 
     def location_of_offset(self, offset: int) -> Location:
         """Line and column (1-based, in characters) of a character offset in the text."""
@@ -73,9 +79,10 @@ class XmlDocument:
 
     def location(self, element: etree._Element, attribute: str | None = None) -> Location:
         """Where an element's start tag (or one of its attributes) begins."""
-        start = self._starts.get(element)
-        if start is None:
+        found = self._starts.get(element)
+        if found is None:
             return Location(self.file, element.sourceline or 0, 0)
+        start, line, column = found
         if attribute is not None:
             # Walk the start tag attribute by attribute, so that a ">" or a name inside an
             # earlier quoted value is not taken for the end of the tag or for the attribute.
@@ -84,7 +91,7 @@ class XmlDocument:
                 if match.group(1) == attribute:
                     return self.location_of_offset(match.start(1))
                 position = match.end()
-        return self.location_of_offset(start)
+        return Location(self.file, line, column)
 
     def element_at(self, xpath: str) -> etree._Element | None:
         """The element an lxml error path (``/mission/task[2]``) names, if any."""
@@ -112,20 +119,23 @@ def read_xml(source: str | Path, data: bytes | None = None) -> XmlDocument:
     if not data.strip():
         raise MissionSyntaxError("file is empty; expected a <mission> document", start, "E001")
     text = _decode(file, data)
-    line_starts = [0] + [m.end() for m in re.finditer("\n", text)]
 
     def at(offset: int) -> Location:
-        index = bisect.bisect_right(line_starts, offset) - 1
-        return Location(file, index + 1, offset - line_starts[index] + 1)
+        line_start = text.rfind("\n", 0, offset) + 1
+        return Location(file, text.count("\n", 0, offset) + 1, offset - line_start + 1)
 
-    tag_offsets: list[int] = []
+    tags: list[tuple[int, int, int]] = []  # offset, line, column of each start tag
+    line, previous = 1, 0
     for match in _MARKUP.finditer(text):
-        if match.group(0) == "<!DOCTYPE":
+        if match.group("tag"):
+            offset = match.start()
+            line += text.count("\n", previous, offset)  # counted in C, tag to tag
+            previous = offset
+            tags.append((offset, line, offset - text.rfind("\n", 0, offset)))
+        elif match.group(0) == "<!DOCTYPE":
             raise MissionSyntaxError(
                 "DOCTYPE declarations are not accepted (no DTDs or entities in mission files)",
                 at(match.start()), "E003")
-        if match.group("tag"):
-            tag_offsets.append(match.start())
     parser = etree.XMLParser(
         resolve_entities=False, no_network=True, load_dtd=False, dtd_validation=False,
         huge_tree=False, remove_blank_text=False, collect_ids=False,
@@ -137,19 +147,19 @@ def read_xml(source: str | Path, data: bytes | None = None) -> XmlDocument:
         message = re.sub(r", line \d+, column \d+$", "", exc.msg or "not well-formed")
         raise MissionSyntaxError(f"not well-formed XML: {message}",
                                  Location(file, line, column), "E002") from None
-    elements = [e for e in root.iter() if isinstance(e.tag, str)]
+    elements = list(root.iter(etree.Element))
+    starts = dict(zip(elements, tags, strict=False)) if len(elements) == len(tags) else {}
     depths = {root: 0}
-    for index, element in enumerate(elements):
+    for element in elements:
         parent = element.getparent()
         depth = depths[element] = depths[parent] + 1 if parent is not None else 0
         if depth >= MAX_DEPTH:
+            where = starts.get(element)
             raise MissionSyntaxError(
                 f"elements nest {depth + 1} deep; the limit is {MAX_DEPTH}",
-                at(tag_offsets[index]) if len(tag_offsets) == len(elements)
+                Location(file, where[1], where[2]) if where
                 else Location(file, element.sourceline or 1, 0), "E006")
-    starts = dict(zip(elements, tag_offsets, strict=False)) \
-        if len(elements) == len(tag_offsets) else {}
-    return XmlDocument(file, text, root, line_starts, starts)
+    return XmlDocument(file, text, root, starts)
 
 
 def _decode(file: str, data: bytes) -> str:

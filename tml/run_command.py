@@ -1,17 +1,234 @@
-"""``tml run``: arguments and the command itself."""
+"""``tml run``: validate, verify and fly a mission on the simulator or MAVLink vehicles.
+
+Exit codes: 0 the mission completed on every vehicle, 1 invalid (or infeasible, without
+``--force``) mission or bad arguments, 3 the mission was aborted (ABORT_MISSION, an
+infeasible action, Ctrl-C), 4 a vehicle or link failure (an action failed and nothing
+handled it, no vehicle answered, the link was lost, the interpreter broke).
+"""
 
 from __future__ import annotations
 
 import argparse
-import sys
+import contextlib
+import signal
+import threading
+from collections.abc import Iterator
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from tml.model import Mission
+    from tml.world import World
+
+EXIT_OK, EXIT_INVALID, EXIT_ABORTED, EXIT_FAILURE = 0, 1, 3, 4
+
+
+def _sim_param(text: str) -> tuple[str, float]:
+    name, _, value = text.partition("=")
+    try:
+        return name.strip().upper(), float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected NAME=NUMBER, got {text!r}") from None
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text}")
+    return value
+
+
+def _count(text: str) -> int:
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {text!r}")
+    return int(text)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the options of ``tml run``."""
     parser.add_argument("mission", metavar="FILE")
+    where = parser.add_mutually_exclusive_group(required=True)
+    where.add_argument("--sim", action="store_true",
+                       help="fly on the embedded simulator (loopback, free ports)")
+    where.add_argument("--connect", action="append", metavar="URL",
+                       help="fly the vehicle at this MAVLink address (tcp:HOST:PORT, "
+                            "udpin:0.0.0.0:14550, /dev/ttyACM0 ...); repeatable")
+    parser.add_argument("--vehicles", type=_count, default=1, metavar="N",
+                        help="--sim: number of simulated vehicles (default 1)")
+    parser.add_argument("--speedup", type=_positive, default=1.0, metavar="K",
+                        help="--sim: run simulated time K times faster (default 1)")
+    parser.add_argument("--world", metavar="FILE",
+                        help="world file laid over the mission's <environment>")
+    parser.add_argument("--sim-param", type=_sim_param, action="append", default=[],
+                        metavar="NAME=VALUE",
+                        help="--sim: set a simulator parameter (e.g. SIM_EKF_GPS_TIME=2)")
+    parser.add_argument("--log", metavar="FILE", help="write the JSON-lines flight log here")
+    parser.add_argument("-q", "--quiet", action="store_true",
+                        help="no live view; print only the outcome")
+    parser.add_argument("--safe-state", choices=("rtl", "land", "hold"), default="rtl",
+                        help="what a flying vehicle is told when the run stops early "
+                             "(default rtl; a vehicle on the ground is disarmed)")
+    parser.add_argument("--force", action="store_true",
+                        help="fly even when the verifier finds the mission infeasible")
+    parser.add_argument("--profile", default="quadcopter", metavar="P",
+                        help="vehicle profile for the verifier (default quadcopter)")
+    parser.add_argument("--link-lost-limit", type=_positive, default=10.0, metavar="S",
+                        help="abort the run after the link is lost this long (default 10 s)")
+    parser.add_argument("--timeout", type=_positive, default=30.0, metavar="S",
+                        help="seconds to wait for each vehicle's first heartbeat (default 30)")
 
 
 def run(args: argparse.Namespace) -> int:
     """Run ``tml run``; return the exit code."""
-    print("tml run: not available yet", file=sys.stderr)
-    return 2
+    from rich.console import Console
+
+    from tml.errors import TmlError
+
+    console = Console(stderr=False, highlight=False)
+    errors = Console(stderr=True, highlight=False)
+    try:
+        loaded = _load(args, errors)
+    except (OSError, TmlError) as error:
+        errors.print(f"tml run: {error}")
+        return EXIT_INVALID
+    if isinstance(loaded, int):
+        return loaded
+    mission, world = loaded
+    try:
+        with _vehicles(args, world) as (vehicles, wake, clock):
+            return _fly(args, mission, world, vehicles, wake, clock, console)
+    except TmlError as error:
+        errors.print(f"tml run: {error}")
+        return EXIT_FAILURE
+    except OSError as error:
+        errors.print(f"tml run: cannot open the vehicle link: {error}")
+        return EXIT_FAILURE
+
+
+def _load(args: argparse.Namespace, errors: Any) -> tuple[Mission, World] | int:
+    """The validated (and verified) mission and its world, or an exit code."""
+    from tml.diagnostics import format_human
+    from tml.parse import load_world
+    from tml.validation import validate_file
+    from tml.world import World
+
+    result = validate_file(args.mission)
+    if result.errors or result.mission is None:
+        for diagnostic in result.diagnostics:
+            errors.print(format_human(diagnostic, {result.file: result.source}), markup=False)
+        errors.print(f"tml run: {result.file}: invalid mission, not flown")
+        return EXIT_INVALID
+    mission = result.mission
+    extra = load_world(args.world) if args.world else None
+    world = (mission.world or World()).merged(extra)
+    from tml.verify.profile import load_profile
+    from tml.verify.report import print_report
+    from tml.verify.static import verify_mission
+
+    report = verify_mission(mission, load_profile(args.profile), extra)
+    if not report.feasible:
+        print_report(report, errors)
+        if not args.force:
+            errors.print(f"tml run: {result.file}: infeasible mission, not flown "
+                         "(--force flies it anyway)")
+            return EXIT_INVALID
+        errors.print("tml run: infeasible mission flown anyway (--force)")
+    return mission, world
+
+
+@contextlib.contextmanager
+def _vehicles(args: argparse.Namespace, world: World) -> Iterator[tuple[list[Any],
+                                                                        threading.Event, Any]]:
+    """Start the simulator or open the links; yield (vehicles, wake event, clock)."""
+    import time
+
+    from tml.mavlink.adapter import MavlinkVehicle
+    from tml.mavlink.link import Link
+
+    wake = threading.Event()
+    with contextlib.ExitStack() as stack:
+        if args.sim:
+            from sitl.server import Simulator
+
+            sim = Simulator(vehicles=args.vehicles, speedup=args.speedup, tcp_base_port=0,
+                            world=world, params=dict(args.sim_param))
+            stack.enter_context(sim)
+            clock = lambda: sim.time  # noqa: E731 - the vehicles' own time
+            addresses = [(f"tcp:127.0.0.1:{port}", index + 1)
+                         for index, port in enumerate(sim.tcp_ports)]
+        else:
+            clock = time.monotonic
+            addresses = [(url, None) for url in args.connect]
+        vehicles = []
+        for address, system_id in addresses:
+            link = stack.enter_context(Link(address))
+            link.listen(lambda *_: wake.set())
+            ids = [system_id] if system_id else _discover(link, args.timeout)
+            for sid in ids:
+                vehicle = MavlinkVehicle(link, sid, clock=clock, world=world,
+                                         vehicle_id=len(vehicles) + 1 if not args.sim else sid,
+                                         connect_timeout=args.timeout)
+                stack.callback(vehicle.close)
+                vehicle.prepare()
+                vehicles.append(vehicle)
+        yield vehicles, wake, clock
+
+
+def _discover(link: Any, timeout: float) -> list[int]:
+    """The system ids of the vehicles on a link: the first one, and any heard within 1 s."""
+    import time
+
+    first = link.wait_vehicle(None, timeout)
+    time.sleep(1.0)  # other vehicles on the same link (a radio, a router) say hello too
+    return sorted({first.system_id, *link.vehicles()})
+
+
+def _fly(args: argparse.Namespace, mission: Mission, world: World, vehicles: list[Any],
+         wake: threading.Event, clock: Any, console: Any) -> int:
+    from tml.display import LineDisplay, LiveDisplay
+    from tml.engine import Options
+    from tml.journal import Journal
+    from tml.runner import Runner, RunOptions
+
+    options = RunOptions(safe_state=args.safe_state, link_lost_limit=args.link_lost_limit,
+                         engine=Options(world=world))
+    journal = Journal.open(args.log)
+    display: Any = None
+    if not args.quiet:
+        display = LiveDisplay(mission, console) if console.is_terminal else LineDisplay(console)
+    said: list[str] = []
+
+    def on_safety(message: str) -> None:
+        said.append(message)
+        if display is not None:
+            display.say(message)
+
+    runner = Runner(mission, vehicles, clock=clock, options=options, journal=journal,
+                    wake=wake, on_safety=on_safety,
+                    on_update=(lambda r: display.update(r.views())) if display else None)
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    if threading.current_thread() is threading.main_thread():
+        for sig in previous:
+            signal.signal(sig, lambda number, _frame: runner.stop(
+                f"interrupted ({signal.Signals(number).name})"))
+    try:
+        with display if display is not None else contextlib.nullcontext():
+            outcome = runner.run()
+            if display is not None:
+                display.update(runner.views(), force=True)
+    finally:
+        if threading.current_thread() is threading.main_thread():
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+        journal.close()
+    for vehicle in outcome.vehicles:
+        console.print(f"vehicle {vehicle.vehicle_id}: mission {vehicle.status.value}: "
+                      f"{vehicle.reason}", markup=False)
+    if args.quiet:
+        for message in said:
+            console.print(message, markup=False)
+    if args.log:
+        console.print(f"flight log: {args.log} ({journal.lines} lines)", markup=False)
+    return int(outcome.exit_code)

@@ -1,0 +1,70 @@
+"""The terminal view, rendered to text."""
+
+from __future__ import annotations
+
+import io
+
+from rich.console import Console
+
+from tml.display import LineDisplay, render_text
+from tml.engine import Interpreter
+from tml.validation import validate_file
+from tml.vehicle import FakeVehicle
+
+XML = b"""<mission name="Show">
+  <task name="Take off"><action name="TAKE_OFF"><argument name="altitude" value="5"/></action>
+  </task>
+  <task name="Leg"><action name="GO_TO_POINT"><argument name="coordinates" value="(50, 0, 5)"/>
+  </action></task>
+  <event_handling><event name="Far"><condition parameter="DISTANCE_TO_HOME"
+    comparison="greater than" value="10"/><termination mode="CONTINUE"/></event>
+  </event_handling>
+</mission>"""
+
+
+def flown(seconds: float):
+    mission = validate_file("show.xml", XML).mission
+    vehicle = FakeVehicle()
+    interp = Interpreter(mission)
+    for request in interp.start(0.0, vehicle.state()).requests:
+        vehicle.submit(request)
+    for tick in range(1, round(seconds * 10) + 1):
+        vehicle.advance(0.1)
+        t = tick / 10
+        for request in interp.step(t, vehicle.state(), vehicle.poll()).requests:
+            vehicle.submit(request)
+    return mission, [(interp.view(), vehicle.state())]
+
+
+def test_view_shows_tree_states_action_progress_telemetry_and_events() -> None:
+    mission, views = flown(6.0)
+    text = render_text(mission, views)
+    lines = text.splitlines()
+    assert lines[0].startswith("Show  t = 6.0 s")
+    assert any("✓ Take off" in line and "TAKE_OFF" in line for line in lines)
+    assert any("▶ Leg" in line for line in lines)
+    row = next(line for line in lines if line.lstrip().startswith("1 "))
+    assert "running" in row and "Leg / GO_TO_POINT" in row and "GUIDED" in row
+    assert "%" in row and "ok" in row
+    assert any("Far" in line for line in lines[lines.index(
+        next(line for line in lines if line.startswith("events:"))):])
+
+
+def test_view_before_anything_happened() -> None:
+    mission = validate_file("show.xml", XML).mission
+    interp = Interpreter(mission)
+    text = render_text(mission, [(interp.view(), None)])
+    assert "· Take off" in text and "events: none yet" in text
+
+
+def test_line_display_prints_each_change_once() -> None:
+    _, views = flown(6.0)
+    out = io.StringIO()
+    display = LineDisplay(Console(file=out, width=200, color_system=None))
+    display.update(views)
+    display.update(views)
+    printed = out.getvalue().splitlines()
+    assert sum("Take off: done" in line for line in printed) == 1
+    assert sum("event 'Far'" in line for line in printed) == 1
+    display.say("vehicle 1: ReturnToLaunch")
+    assert out.getvalue().endswith("vehicle 1: ReturnToLaunch\n")

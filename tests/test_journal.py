@@ -1,0 +1,55 @@
+"""The JSON-lines flight log."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+from types import MappingProxyType
+
+from tml.journal import Journal, jsonable, read, telemetry_fields
+from tml.vehicle import MissionProgress, VehicleState
+
+
+def test_lines_are_json_with_time_kind_and_vehicle(tmp_path) -> None:
+    path = tmp_path / "flight.jsonl"
+    journal = Journal.open(str(path))
+    journal.write(1.23456, "event", 2, event="Low battery", read=[{"value": 24.0}])
+    journal.write(2.0, "run", message="run ended", exit_code=3)
+    journal.close()
+    assert journal.stream.closed and journal.lines == 2
+    assert read(str(path)) == [
+        {"t": 1.235, "kind": "event", "vehicle": 2, "event": "Low battery",
+         "read": [{"value": 24.0}]},
+        {"t": 2.0, "kind": "run", "message": "run ended", "exit_code": 3}]
+
+
+def test_values_are_made_json_safe() -> None:
+    value = {"set": frozenset({"b", "a"}), "point": (1.0, 2.0), "inf": math.inf,
+             "proxy": MappingProxyType({"k": 1}), 3: object}
+    safe = jsonable(value)
+    assert json.loads(json.dumps(safe)) == safe
+    assert safe["set"] == ["a", "b"] and safe["point"] == [1.0, 2.0] and safe["inf"] == "inf"
+    assert safe["proxy"] == {"k": 1} and safe["3"].startswith("<class")
+
+
+def test_silent_journal_writes_nothing_and_callers_stream_stays_open() -> None:
+    silent = Journal.open(None)
+    silent.write(0.0, "run")
+    assert silent.lines == 0
+    stream = io.StringIO()
+    journal = Journal(stream)
+    journal.write(0.0, "run")
+    journal.close()
+    assert not stream.closed and stream.getvalue().startswith('{"t":0.0,"kind":"run"')
+
+
+def test_telemetry_fields() -> None:
+    state = VehicleState(1, 5.0, position=(1.234, -5.678, 10.0), battery=80.0,
+                         mission=MissionProgress(3, 2), armed=True, landed=False,
+                         detections=MappingProxyType({"RECOGNIZED_ITEMS": frozenset({"A"})}))
+    fields = telemetry_fields(state)
+    assert fields["position"] == [1.23, -5.68, 10.0]
+    assert fields["mission"] == {"plan": 3, "action": 2, "finished": False}
+    assert fields["detections"] == {"RECOGNIZED_ITEMS": ["A"]}
+    assert json.dumps(fields)

@@ -1,0 +1,106 @@
+"""``tml run`` end to end through tml.cli.main: exit codes, log, refusals, interruption."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tml.cli import main
+from tml.journal import read
+
+FAST = ["--sim-param", "SIM_GPS_LOCKTIME=0.5", "--sim-param", "SIM_EKF_GPS_TIME=1",
+        "--speedup", "40"]
+SHORT = ('<mission name="Hop">\n'
+         '  <task name="Up"><action name="TAKE_OFF"><argument name="altitude" value="4"/>'
+         '</action></task>\n'
+         '  <task name="Over"><action name="GO_TO_POINT"><argument name="coordinates" '
+         'value="(8, 0, 4)"/></action></task>\n'
+         '  <task name="Down"><action name="LAND"/></task>\n</mission>\n')
+ABORTS = SHORT.replace("</mission>", '<event_handling><event name="High">'
+                       '<condition parameter="ALTITUDE" comparison="greater than" value="3"/>'
+                       '<action name="LAND"/><termination mode="ABORT_MISSION"/></event>'
+                       '</event_handling></mission>')
+REFUSED = SHORT.replace('<task name="Over">', '<task name="Grab"><action name="FLIP"/></task>'
+                        '<task name="Over">')
+
+
+def write(tmp_path: Path, text: str, name: str = "m.xml") -> str:
+    path = tmp_path / name
+    path.write_text(text)
+    return str(path)
+
+
+def test_completed_mission_exits_0_and_writes_the_log(tmp_path: Path,
+                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    log = tmp_path / "flight.jsonl"
+    code = main(["run", write(tmp_path, SHORT), "--sim", "-q", "--log", str(log), *FAST])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "vehicle 1: mission completed: all tasks done" in out
+    lines = read(str(log))
+    kinds = {line["kind"] for line in lines}
+    assert {"run", "mission", "task", "action", "request", "result", "telemetry"} <= kinds
+    assert lines[-1]["exit_code"] == 0
+    assert any(line["kind"] == "action" and line["message"] == "LAND done" for line in lines)
+    flying = [line for line in lines if line["kind"] == "telemetry" and not line["landed"]]
+    assert flying and max(line["position"][0] for line in flying) > 7.5
+
+
+def test_abort_mission_exits_3(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", write(tmp_path, ABORTS), "--sim", "-q", *FAST]) == 3
+    assert "mission aborted: event 'High' aborted the mission" in capsys.readouterr().out
+
+
+def test_refused_action_exits_4(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # The simulator answers DO_SET_MODE FLIP with MAV_RESULT_FAILED.
+    assert main(["run", write(tmp_path, REFUSED), "--sim", "-q", *FAST]) == 4
+    out = capsys.readouterr().out
+    assert "mission failed" in out and "MAV_RESULT_FAILED" in out
+
+
+def test_invalid_mission_exits_1_before_flying(tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    bad = write(tmp_path, SHORT.replace("LAND", "LANDD"))
+    assert main(["run", bad, "--sim", "-q"]) == 1
+    err = capsys.readouterr().err
+    assert "unknown action" in err and "invalid mission, not flown" in err
+
+
+def test_infeasible_mission_is_refused_unless_forced(tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    far = write(tmp_path, SHORT.replace("(8, 0, 4)", "(90000, 0, 4)"))
+    assert main(["run", far, "--sim", "-q"]) == 1
+    assert "infeasible mission, not flown" in capsys.readouterr().err
+
+
+def test_no_vehicle_at_the_address_exits_4(tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(["run", write(tmp_path, SHORT), "--connect", "udpin:127.0.0.1:0",
+                 "--timeout", "0.5", "-q"])
+    assert code == 4
+    assert "no heartbeat" in capsys.readouterr().err
+
+
+def test_sigint_commands_the_safe_state_and_exits_3(tmp_path: Path) -> None:
+    slow = SHORT.replace("(8, 0, 4)", "(300, 0, 4)")
+    log = tmp_path / "flight.jsonl"
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    process = subprocess.Popen(
+        [sys.executable, "-m", "tml", "run", write(tmp_path, slow), "--sim", "--log", str(log),
+         "--safe-state", "land", *FAST[:4], "--speedup", "5"],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    assert process.stdout is not None
+    for line in process.stdout:  # the line display: interrupt once the leg has started
+        if "Over: running" in line:
+            process.send_signal(signal.SIGINT)
+            break
+    out, _ = process.communicate(timeout=60)
+    assert process.returncode == 3, out
+    assert "aborting: interrupted (SIGINT)" in out and "Land" in out
+    safety = [line for line in read(str(log)) if line["kind"] == "safety"]
+    assert safety and safety[0]["request"] == "Land"

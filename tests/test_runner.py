@@ -1,0 +1,175 @@
+"""The run loop with FakeVehicles and an injected clock: outcomes, journal, safety."""
+
+from __future__ import annotations
+
+import io
+import itertools
+import json
+
+from tml.engine import Status
+from tml.journal import Journal
+from tml.runner import ExitCode, Runner, RunOptions
+from tml.validation import validate_file
+from tml.vehicle import FakeVehicle, Hold, Land, ReturnToLaunch, VehicleState
+
+TAKE_OFF = ('<task name="Take off"><action name="TAKE_OFF"><argument name="altitude" '
+            'value="5"/></action></task>')
+GO = ('<task name="Go"><action name="GO_TO_POINT"><argument name="coordinates" '
+      'value="(20, 0, 5)"/></action></task>')
+LAND = '<task name="Land"><action name="LAND"/></task>'
+
+
+def mission(body: str, events: str = ""):
+    xml = f'<mission name="m">{body}'
+    if events:
+        xml += f"<event_handling>{events}</event_handling>"
+    result = validate_file("m.xml", (xml + "</mission>").encode())
+    assert result.errors == [], result.errors
+    return result.mission
+
+
+class Sim:
+    """Fake vehicles moved on 0.1 s each time the runner waits."""
+
+    def __init__(self, *vehicles: FakeVehicle) -> None:
+        self.vehicles = vehicles
+        self.time = 0.0
+        self.hooks: list = []
+
+    def clock(self) -> float:
+        return self.time
+
+    def wait(self, _timeout: float) -> None:
+        self.time = round(self.time + 0.1, 6)
+        for vehicle in self.vehicles:
+            vehicle.advance(0.1)
+        for hook in self.hooks:
+            hook(self)
+
+
+def run(body: str, events: str = "", vehicles: int = 1, options: RunOptions | None = None,
+        hooks=(), broken_engine: bool = False):
+    sim = Sim(*(FakeVehicle(vehicle_id=i + 1) for i in range(vehicles)))
+    sim.hooks.extend(hooks)
+    log = io.StringIO()
+    said: list[str] = []
+    runner = Runner(mission(body, events), sim.vehicles, clock=sim.clock,
+                    options=options or RunOptions(), journal=Journal(log), wait=sim.wait,
+                    on_safety=said.append)
+    if broken_engine:
+        interpreter = runner.flights[0].interpreter
+        step = interpreter.step
+
+        def explode_in_flight(now, state, results):  # type: ignore[no-untyped-def]
+            if now > 3.0:
+                raise RuntimeError("boom")
+            return step(now, state, results)
+        interpreter.step = explode_in_flight  # type: ignore[method-assign]
+    outcome = runner.run()
+    lines = [json.loads(line) for line in log.getvalue().splitlines()]
+    return outcome, sim, lines, said, runner
+
+
+def test_completed_mission_exits_zero_and_logs_everything() -> None:
+    outcome, sim, lines, said, _ = run(TAKE_OFF + GO + LAND)
+    assert outcome.exit_code == ExitCode.COMPLETED
+    assert [v.status for v in outcome.vehicles] == [Status.COMPLETED]
+    kinds = {line["kind"] for line in lines}
+    assert {"run", "mission", "task", "action", "request", "result", "telemetry"} <= kinds
+    assert lines[0]["message"] == "run started" and lines[-1]["exit_code"] == 0
+    telemetry = [line for line in lines if line["kind"] == "telemetry"]
+    assert len(telemetry) >= 5
+    times = [line["t"] for line in telemetry]
+    assert all(b - a >= 1.0 - 1e-6 for a, b in itertools.pairwise(times))
+    assert not sim.vehicles[0].armed and said == []
+
+
+def test_every_vehicle_flies_the_mission() -> None:
+    outcome, _, lines, _, _ = run(TAKE_OFF + GO + LAND, vehicles=2)
+    assert [v.vehicle_id for v in outcome.vehicles] == [1, 2]
+    assert outcome.exit_code == ExitCode.COMPLETED
+    assert {line.get("vehicle") for line in lines if line["kind"] == "telemetry"} == {1, 2}
+
+
+def test_abort_mission_event_exits_three() -> None:
+    events = ('<event name="Far"><condition parameter="DISTANCE_TO_HOME" '
+              'comparison="greater than" value="10"/><action name="LAND"/>'
+              '<termination mode="ABORT_MISSION"/></event>')
+    outcome, sim, _, _, _ = run(TAKE_OFF + GO + LAND, events)
+    assert outcome.exit_code == ExitCode.ABORTED
+    assert outcome.vehicles[0].status is Status.ABORTED
+    assert sim.vehicles[0].position[2] == 0.0 and not sim.vehicles[0].armed
+    assert 10 < sim.vehicles[0].position[0] < 20
+
+
+def test_stop_commands_the_safe_state_and_says_so() -> None:
+    def interrupt(sim: Sim) -> None:
+        if sim.time == 4.0:
+            runner_box[0].stop("interrupted (SIGINT)")
+
+    runner_box: list = []
+    sim = Sim(FakeVehicle())
+    sim.hooks.append(interrupt)
+    log = io.StringIO()
+    said: list[str] = []
+    runner = Runner(mission(TAKE_OFF + GO + LAND), sim.vehicles, clock=sim.clock,
+                    options=RunOptions(safe_state="land"), journal=Journal(log),
+                    wait=sim.wait, on_safety=said.append)
+    runner_box.append(runner)
+    outcome = runner.run()
+    assert outcome.exit_code == ExitCode.ABORTED
+    assert outcome.vehicles[0].reason == "interrupted (SIGINT)"
+    assert isinstance(sim.vehicles[0].submitted[-1], Land)
+    assert any("aborting: interrupted" in s for s in said)
+    assert any("Land" in s for s in said)
+
+
+def test_link_lost_beyond_the_limit_aborts_with_exit_four() -> None:
+    class Deaf(FakeVehicle):
+        def state(self) -> VehicleState:
+            state = super().state()
+            return state if self.time < 3.0 else VehicleState(**{**state.__dict__,
+                                                                 "link": "lost"})
+
+    sim = Sim(Deaf())
+    runner = Runner(mission(TAKE_OFF + GO + LAND), sim.vehicles, clock=sim.clock,
+                    options=RunOptions(link_lost_limit=2.0), wait=sim.wait)
+    outcome = runner.run()
+    assert outcome.exit_code == ExitCode.VEHICLE_FAILURE
+    assert outcome.vehicles[0].cause == "link"
+    assert "link lost" in outcome.vehicles[0].reason
+    assert isinstance(sim.vehicles[0].submitted[-1], ReturnToLaunch)
+    assert 5.0 <= sim.time < 6.0
+
+
+def test_interpreter_exception_commands_the_safe_state_without_it() -> None:
+    outcome, sim, lines, said, _ = run(TAKE_OFF + GO + LAND, broken_engine=True)
+    assert outcome.exit_code == ExitCode.VEHICLE_FAILURE
+    assert isinstance(sim.vehicles[0].submitted[-1], ReturnToLaunch)
+    assert any("ReturnToLaunch (interpreter error" in s for s in said)
+    assert outcome.vehicles[0].cause == "error"
+    errors = [line for line in lines if line["kind"] == "error"]
+    assert errors and "boom" in errors[0]["message"] and "Traceback" in errors[0]["traceback"]
+
+
+def test_unhandled_action_failure_exits_four() -> None:
+    sim = Sim(FakeVehicle(reject={"TakeOff": "rejected"}))
+    runner = Runner(mission(TAKE_OFF + LAND), sim.vehicles, clock=sim.clock, wait=sim.wait)
+    outcome = runner.run()
+    assert outcome.vehicles[0].status is Status.FAILED
+    assert outcome.exit_code == ExitCode.VEHICLE_FAILURE
+
+
+def test_vehicle_left_flying_in_auto_is_brought_back() -> None:
+    body = ('<task name="Fly" dispatch="mission"><task name="Up"><action name="TAKE_OFF">'
+            '<argument name="altitude" value="5"/></action></task>'
+            '<task name="There">' + GO[len('<task name="Go">'):] + '</task>')
+    events = ('<event name="Stop"><condition parameter="ALTITUDE" comparison="greater than" '
+              'value="3"/><termination mode="END_MISSION"/></event>')
+    outcome, sim, lines, said, _ = run(body, events, options=RunOptions(safe_state="hold"))
+    assert outcome.exit_code == ExitCode.COMPLETED
+    vehicle = sim.vehicles[0]
+    safety = [line for line in lines if line["kind"] == "safety"]
+    assert safety and safety[0]["request"] == "Hold", "the run must say what it did"
+    assert isinstance(vehicle.submitted[-1], Hold) and vehicle.mission is None
+    assert any("uploaded mission" in s for s in said)

@@ -1,0 +1,178 @@
+"""The terminal view of a run: task tree with states, current action, telemetry, events.
+
+:func:`render` turns the interpreters' views and the vehicles' last states into one rich
+renderable; :class:`LiveDisplay` redraws it in place on a terminal (at most
+``refresh_per_second`` times a second, however often the runner asks), and
+:class:`LineDisplay` prints one line per change (task state, event, end) for logs and pipes.
+"""
+
+from __future__ import annotations
+
+import io
+import time
+from collections.abc import Sequence
+
+from rich.console import Console, Group, RenderableType
+from rich.live import Live
+from rich.table import Table
+from rich.text import Text
+from rich.tree import Tree
+
+from tml.engine import TaskState, View
+from tml.model import Mission, Task
+from tml.vehicle import VehicleState
+
+Views = Sequence[tuple[View, VehicleState | None]]
+
+MARKS = {
+    TaskState.PENDING: ("·", "dim"), TaskState.RUNNING: ("▶", "bold yellow"),
+    TaskState.DONE: ("✓", "green"), TaskState.SKIPPED: ("↷", "cyan"),
+    TaskState.FAILED: ("✗", "bold red"), TaskState.ABORTED: ("■", "red"),
+}
+EVENTS_SHOWN = 6
+
+
+def _task_label(task: Task, views: Views) -> Text:
+    text = Text()
+    for view, _ in views:
+        mark, style = MARKS[view.task_states.get(task.path_name, TaskState.PENDING)]
+        text.append(mark, style)
+    text.append(f" {task.name}")
+    if task.action is not None:
+        text.append(f"  {task.action.name}", "dim")
+    return text
+
+
+def _tree(mission: Mission, views: Views) -> Tree:
+    tree = Tree(Text(f"mission {mission.name!r}", "bold"))
+
+    def add(node: Tree, tasks: Sequence[Task]) -> None:
+        for task in tasks:
+            add(node.add(_task_label(task, views)), task.children)
+
+    add(tree, mission.tasks)
+    return tree
+
+
+def _bar(progress: float | None, width: int = 10) -> str:
+    if progress is None:
+        return ""
+    filled = round(max(0.0, min(1.0, progress)) * width)
+    return "█" * filled + "░" * (width - filled) + f" {progress:4.0%}"
+
+
+def _vehicles(views: Views) -> Table:
+    table = Table(box=None, pad_edge=False, expand=False)
+    for column in ("vehicle", "status", "task / action", "progress", "mode", "position (m)",
+                   "alt", "speed", "heading", "battery", "link"):
+        table.add_column(column, no_wrap=True)
+    for view, state in views:
+        task = view.current_task or "-"
+        action = f" / {view.current_action}" if view.current_action else ""
+        position = state.position if state else None
+        table.add_row(
+            str(state.vehicle_id) if state else "?", view.status.value, task + action,
+            _bar(view.progress),
+            state.mode if state else "",
+            "-" if position is None else f"{position[0]:7.1f} N {position[1]:7.1f} E",
+            "-" if position is None else f"{position[2]:5.1f}",
+            f"{state.ground_speed:4.1f}" if state else "",
+            f"{state.heading:3.0f}°" if state else "",
+            "-" if state is None or state.battery is None else f"{state.battery:3.0f}%",
+            state.link if state else "")
+    return table
+
+
+def _events(views: Views) -> Text:
+    fired = sorted((t, index, name) for index, (view, _) in enumerate(views)
+                   for t, name in view.events)
+    text = Text("events: ", "bold")
+    if not fired:
+        text.append("none yet", "dim")
+    for t, index, name in fired[-EVENTS_SHOWN:]:
+        who = f" (vehicle {views[index][1].vehicle_id})" \
+            if len(views) > 1 and views[index][1] else ""
+        text.append(f"\n  {t:7.1f} s  {name}{who}", "magenta")
+    return text
+
+
+def render(mission: Mission, views: Views) -> RenderableType:
+    """The whole view: header, task tree, vehicles, events."""
+    header = Text(f"{mission.name}  t = {max((v.mission_time for v, _ in views), default=0):.1f} s",
+                  "bold")
+    reasons = [v.reason for v, _ in views if v.reason]
+    parts: list[RenderableType] = [header, _tree(mission, views), _vehicles(views),
+                                   _events(views)]
+    if reasons:
+        parts.append(Text("ended: " + "; ".join(reasons), "bold"))
+    return Group(*parts)
+
+
+def render_text(mission: Mission, views: Views, width: int = 160) -> str:
+    """The view as plain text (no colours), e.g. for tests and logs."""
+    console = Console(file=io.StringIO(), width=width, color_system=None, force_terminal=False)
+    console.print(render(mission, views))
+    return console.file.getvalue()  # type: ignore[attr-defined]
+
+
+class LiveDisplay:
+    """Redraws the view in place on a terminal."""
+
+    def __init__(self, mission: Mission, console: Console | None = None,
+                 refresh_per_second: float = 4.0) -> None:
+        self.mission = mission
+        self.console = console or Console()
+        self.period = 1.0 / refresh_per_second
+        self._live = Live(console=self.console, auto_refresh=False, transient=False)
+        self._last = 0.0
+
+    def __enter__(self) -> LiveDisplay:
+        self._live.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._live.stop()
+
+    def update(self, views: Views, force: bool = False) -> None:
+        """Redraw, unless the last redraw was less than a refresh period ago."""
+        now = time.monotonic()
+        if force or now - self._last >= self.period:
+            self._last = now
+            self._live.update(render(self.mission, views), refresh=True)
+
+    def say(self, message: str) -> None:
+        """Print a line above the live view."""
+        self._live.console.print(message)
+
+
+class LineDisplay:
+    """Prints one line per task state change and per event, for pipes and log files."""
+
+    def __init__(self, console: Console | None = None) -> None:
+        self.console = console or Console(highlight=False)
+        self._states: dict[tuple[int, str], TaskState] = {}
+        self._events: set[tuple[int, float, str]] = set()
+
+    def __enter__(self) -> LineDisplay:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+    def update(self, views: Views, force: bool = False) -> None:
+        """Print what changed since the last update."""
+        for index, (view, _) in enumerate(views):
+            for path, state in view.task_states.items():
+                key = (index, path)
+                if state is not TaskState.PENDING and self._states.get(key) is not state:
+                    self._states[key] = state
+                    self.console.print(f"[{view.mission_time:7.1f} s] vehicle {index + 1}: "
+                                       f"{path}: {state.value}")
+            for t, name in view.events:
+                if (index, t, name) not in self._events:
+                    self._events.add((index, t, name))
+                    self.console.print(f"[{t:7.1f} s] vehicle {index + 1}: event {name!r}")
+
+    def say(self, message: str) -> None:
+        """Print a line."""
+        self.console.print(message)

@@ -1,0 +1,86 @@
+"""The flight log: one JSON object per line, written as things happen.
+
+Every line has ``t`` (mission clock, seconds), ``kind`` and, when it is about a vehicle,
+``vehicle``; the other keys depend on the kind. The interpreter's records keep their own
+kinds (``mission``, ``task``, ``action``, ``decision``, ``event``, ``request``,
+``result``, ``safety``); the runner adds ``run`` (start and end of the run, with the
+mission file and options), ``result`` (every request outcome a vehicle reported),
+``telemetry`` (a vehicle's state once a second) and ``safety`` (what it did to leave the
+vehicles safe). docs/run.md lists the fields. Lines are flushed at once, so that a log
+survives a crash of the run up to its last event.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import IO, Any
+
+from tml.vehicle import VehicleState
+
+
+def jsonable(value: Any) -> Any:
+    """``value`` with tuples, sets, mappings and non-finite floats made JSON-safe."""
+    if isinstance(value, dict) or hasattr(value, "items"):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (set, frozenset)):
+        return sorted((jsonable(v) for v in value), key=str)
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    if value is None or isinstance(value, (str, int, float, bool)):
+        return value
+    return str(value)
+
+
+def telemetry_fields(state: VehicleState) -> dict[str, Any]:
+    """The fields of a ``telemetry`` line for one vehicle state."""
+    position = state.position
+    return {
+        "link": state.link, "mode": state.mode, "armed": state.armed, "landed": state.landed,
+        "position": None if position is None else [round(v, 2) for v in position],
+        "heading": round(state.heading, 1), "ground_speed": round(state.ground_speed, 2),
+        "battery": state.battery, "gps_fix": state.gps_fix,
+        "mission": None if state.mission is None else {
+            "plan": state.mission.plan_id, "action": state.mission.action_index,
+            "finished": state.mission.finished},
+        "detections": jsonable(state.detections),
+    }
+
+
+class Journal:
+    """Writes log lines to ``stream`` (nothing at all when ``stream`` is None)."""
+
+    def __init__(self, stream: IO[str] | None, owned: bool = False) -> None:
+        self.stream = stream
+        self.owned = owned  # the journal opened the stream, and closes it
+        self.lines = 0
+
+    @classmethod
+    def open(cls, path: str | None) -> Journal:
+        """A journal writing to the file ``path`` (created or truncated), or a silent one."""
+        return cls(open(path, "w", encoding="utf-8"), owned=True) if path else cls(None)
+
+    def write(self, time: float, kind: str, vehicle: int | None = None, **data: Any) -> None:
+        """Append one line."""
+        if self.stream is None:
+            return
+        line: dict[str, Any] = {"t": round(time, 3), "kind": kind}
+        if vehicle is not None:
+            line["vehicle"] = vehicle
+        line.update(jsonable(data))
+        self.stream.write(json.dumps(line, separators=(",", ":")) + "\n")
+        self.stream.flush()
+        self.lines += 1
+
+    def close(self) -> None:
+        """Close the file (a journal on a caller's stream leaves it open)."""
+        if self.owned and self.stream is not None:
+            self.stream.close()
+
+
+def read(path: str) -> list[dict[str, Any]]:
+    """Every line of a flight log, parsed."""
+    with open(path, encoding="utf-8") as stream:
+        return [json.loads(line) for line in stream if line.strip()]

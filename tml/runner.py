@@ -1,0 +1,291 @@
+"""The run loop: clock, vehicles, interpreters, flight log and display.
+
+Theory of operation
+-------------------
+One :class:`~tml.engine.Interpreter` per vehicle flies the mission (each relative to its
+own home). The loop wakes ``rate`` times a second, and at once whenever ``wake`` is set --
+the link sets it on every message it receives, so an event reacts to the message that made
+its condition true without waiting for the next tick. Each wake, for every vehicle still
+running: read its state, collect the results of its requests, step its interpreter with the
+time, submit the requests that come out, and write everything to the journal; then refresh
+the display.
+
+*Time.* The interpreter sees the runner's ``clock``. For a real vehicle that is the
+monotonic clock; for the embedded simulator it is the simulator's own vehicle time, so a
+speed-up (or a simulator falling behind on a busy machine) changes nothing for the mission:
+time limits derived from distance and speed stay true to how the vehicle moves.
+
+*Safety.* The run stops early on an interpreter exception, on a link that stays ``lost``
+longer than ``link_lost_limit`` seconds, or on :meth:`Runner.stop` (Ctrl-C, SIGTERM). Then
+every vehicle still running is handed to its interpreter's :meth:`abort`, which commands
+the safe state (``rtl``, ``land`` or ``hold`` when flying, disarm when armed on the
+ground); if the interpreter itself is broken, the runner builds that request itself. After
+the interpreters have ended, the runner waits (up to ``settle_timeout`` wall seconds) until
+the vehicles have carried out what was asked, and if one is still flying an uploaded
+mission in AUTO that nobody watches any more, commands the safe state to it as well. Every
+such step is written to the journal and to ``on_safety`` so that the run says what it did.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+import traceback
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from enum import IntEnum
+from typing import Any
+
+from tml.engine import Interpreter, Options, Output, Status, View
+from tml.journal import Journal, telemetry_fields
+from tml.model import Mission
+from tml.vehicle import Disarm, Hold, Land, Request, ReturnToLaunch, Vehicle, VehicleState
+
+SAFE_STATES = {"rtl": ReturnToLaunch, "land": Land, "hold": Hold}
+
+
+class ExitCode(IntEnum):
+    """Exit codes of ``tml run``."""
+
+    COMPLETED = 0
+    INVALID = 1
+    ABORTED = 3
+    VEHICLE_FAILURE = 4
+
+
+@dataclass
+class RunOptions:
+    """How the loop runs."""
+
+    rate: float = 20.0  # Hz: wakes without a message
+    telemetry_period: float = 1.0  # s between telemetry lines in the journal
+    link_lost_limit: float = 10.0  # s of a lost link before the run is aborted
+    settle_timeout: float = 30.0  # wall s to wait for the last requests after the end
+    safe_state: str = "rtl"
+    engine: Options = field(default_factory=Options)
+
+
+@dataclass(frozen=True)
+class VehicleOutcome:
+    """How the mission ended on one vehicle."""
+
+    vehicle_id: int
+    status: Status
+    reason: str
+    cause: str = ""  # "link", "error", "stop" when the runner aborted the run
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """How the run ended."""
+
+    vehicles: tuple[VehicleOutcome, ...]
+
+    @property
+    def exit_code(self) -> ExitCode:
+        """0 all completed, 4 a vehicle or link failed (or the engine broke), 3 aborted."""
+        if any(v.status is Status.FAILED or v.cause in ("link", "error")
+               for v in self.vehicles):
+            return ExitCode.VEHICLE_FAILURE
+        if any(v.status is not Status.COMPLETED for v in self.vehicles):
+            return ExitCode.ABORTED
+        return ExitCode.COMPLETED
+
+
+class _Flight:
+    """One vehicle and its interpreter."""
+
+    def __init__(self, vehicle: Vehicle, interpreter: Interpreter) -> None:
+        self.vehicle = vehicle
+        self.interpreter = interpreter
+        self.state: VehicleState | None = None
+        self.lost_since: float | None = None
+        self.next_telemetry = 0.0
+        self.cause = ""
+        self.broken = False  # the interpreter raised: it is not asked anything again
+
+    @property
+    def running(self) -> bool:
+        return self.interpreter.status is Status.RUNNING and not self.broken
+
+
+class Runner:
+    """Flies ``mission`` on ``vehicles``; see the module docstring."""
+
+    def __init__(self, mission: Mission, vehicles: Sequence[Vehicle], *,
+                 clock: Callable[[], float] = time.monotonic,
+                 options: RunOptions | None = None, journal: Journal | None = None,
+                 wake: threading.Event | None = None,
+                 on_update: Callable[[Runner], None] | None = None,
+                 on_safety: Callable[[str], None] | None = None,
+                 wait: Callable[[float], None] | None = None) -> None:
+        self.mission = mission
+        self.options = options or RunOptions()
+        self.clock = clock
+        self.journal = journal or Journal(None)
+        self.wake = wake or threading.Event()
+        self.on_update = on_update
+        self.on_safety = on_safety
+        self._wait = wait or self._wait_for_wake
+        engine = self.options.engine
+        engine.safe_state = self.options.safe_state
+        self.flights = [_Flight(v, Interpreter(mission, v.vehicle_id, options=engine))
+                        for v in vehicles]
+        self._stop_reason = ""
+        self.safety_actions: list[str] = []
+
+    # --- control -------------------------------------------------------------------------
+
+    def stop(self, reason: str) -> None:
+        """Ask the loop to abort the run (safe to call from a signal handler or a thread)."""
+        self._stop_reason = self._stop_reason or reason
+        self.wake.set()
+
+    def views(self) -> list[tuple[View, VehicleState | None]]:
+        """The display's view of each vehicle: the interpreter's view and the last state."""
+        return [(f.interpreter.view(), f.state) for f in self.flights]
+
+    # --- the loop ----------------------------------------------------------------------------
+
+    def run(self) -> Outcome:
+        """Fly until every interpreter has ended; return how it went."""
+        now = self.clock()
+        self.journal.write(now, "run", message="run started", mission=self.mission.name,
+                           file=self.mission.file, vehicles=[f.vehicle.vehicle_id
+                                                             for f in self.flights],
+                           safe_state=self.options.safe_state)
+        for flight in self.flights:
+            flight.state = flight.vehicle.state()
+            self._guarded(flight, now, lambda f=flight: f.interpreter.start(now, f.state))
+        while any(f.running for f in self.flights):
+            self._wait(1.0 / self.options.rate)
+            now = self.clock()
+            if self._stop_reason:
+                self._abort_all(now, self._stop_reason, "stop")
+                break
+            for flight in self.flights:
+                if flight.running:
+                    self._tick(flight, now)
+            if self.on_update is not None:
+                self.on_update(self)
+        self._settle()
+        outcome = Outcome(tuple(
+            VehicleOutcome(f.vehicle.vehicle_id, f.interpreter.status, f.interpreter.reason,
+                           f.cause) for f in self.flights))
+        self.journal.write(self.clock(), "run", message="run ended",
+                           exit_code=int(outcome.exit_code),
+                           outcomes=[{"vehicle": v.vehicle_id, "status": v.status.value,
+                                      "reason": v.reason} for v in outcome.vehicles])
+        if self.on_update is not None:
+            self.on_update(self)
+        return outcome
+
+    def _wait_for_wake(self, timeout: float) -> None:
+        self.wake.wait(timeout)
+        self.wake.clear()
+
+    def _tick(self, flight: _Flight, now: float) -> None:
+        vehicle = flight.vehicle
+        state = flight.state = vehicle.state()
+        results = vehicle.poll()
+        for result in results:
+            self.journal.write(now, "result", vehicle.vehicle_id, request_id=result.request_id,
+                               ok=result.ok, reason=result.reason, detail=result.detail)
+        if now >= flight.next_telemetry:
+            flight.next_telemetry = now + self.options.telemetry_period
+            self.journal.write(now, "telemetry", vehicle.vehicle_id, **telemetry_fields(state))
+        if state.link == "lost":
+            flight.lost_since = now if flight.lost_since is None else flight.lost_since
+            if now - flight.lost_since > self.options.link_lost_limit:
+                flight.cause = "link"
+                self._abort(flight, now, f"link lost for more than "
+                                         f"{self.options.link_lost_limit:g} s")
+                return
+        else:
+            flight.lost_since = None
+        self._guarded(flight, now, lambda: flight.interpreter.step(now, state, results))
+
+    def _guarded(self, flight: _Flight, now: float, call: Callable[[], Output]) -> None:
+        """Run an interpreter call; an exception aborts every vehicle."""
+        try:
+            output = call()
+        except Exception as error:  # any engine bug must end in the safe state
+            flight.broken = True
+            flight.cause = "error"
+            self.journal.write(now, "error", flight.vehicle.vehicle_id,
+                               message=f"interpreter error: {error!r}",
+                               traceback=traceback.format_exc())
+            self._fallback_safe_state(flight, now, f"interpreter error: {error}")
+            self._abort_all(now, f"interpreter error on vehicle "
+                                 f"{flight.vehicle.vehicle_id}: {error}", "error")
+            return
+        self._dispatch(flight, output)
+
+    def _dispatch(self, flight: _Flight, output: Output) -> None:
+        for record in output.records:
+            self.journal.write(record.time, record.kind, flight.vehicle.vehicle_id,
+                               **record.data)
+            if record.kind == "safety":
+                self._said(f"vehicle {flight.vehicle.vehicle_id}: {record.data['message']}")
+        for request in output.requests:
+            flight.vehicle.submit(request)
+
+    def _abort_all(self, now: float, reason: str, cause: str) -> None:
+        for flight in self.flights:
+            if flight.running:
+                flight.cause = flight.cause or cause
+                self._abort(flight, now, reason)
+
+    def _abort(self, flight: _Flight, now: float, reason: str) -> None:
+        state = flight.state = flight.vehicle.state()
+        self._said(f"vehicle {flight.vehicle.vehicle_id}: aborting: {reason}")
+        self._guarded(flight, now, lambda: flight.interpreter.abort(now, state, reason))
+
+    # --- the end -----------------------------------------------------------------------------
+
+    def _fallback_safe_state(self, flight: _Flight, now: float, reason: str) -> None:
+        """The safe-state request, built here when the interpreter cannot be asked."""
+        state = flight.state = flight.vehicle.state()
+        request: Request | None = None
+        vid = flight.vehicle.vehicle_id
+        if state.flying or not state.landed:
+            request = SAFE_STATES.get(self.options.safe_state, ReturnToLaunch)(vid)
+        elif state.armed:
+            request = Disarm(vid)
+        if request is not None:
+            self.journal.write(now, "safety", vid, message=f"{request.name} ({reason})",
+                               request=request.name, request_id=request.request_id)
+            self._said(f"vehicle {vid}: {request.name} ({reason})")
+            flight.vehicle.submit(request)
+
+    def _settle(self) -> None:
+        """Wait for the last requests; leave no vehicle flying an unwatched AUTO mission."""
+        end = time.monotonic() + self.options.settle_timeout
+        while time.monotonic() < end and not all(_idle(f.vehicle) for f in self.flights):
+            self._wait(0.05)
+        now = self.clock()
+        for flight in self.flights:
+            for result in flight.vehicle.poll():
+                self.journal.write(now, "result", flight.vehicle.vehicle_id,
+                                   request_id=result.request_id, ok=result.ok,
+                                   reason=result.reason, detail=result.detail)
+                if not result.ok:
+                    self._said(f"vehicle {flight.vehicle.vehicle_id}: request "
+                               f"{result.request_id} failed: {result.reason} {result.detail}")
+            state = flight.state = flight.vehicle.state()
+            if state.mode == "AUTO" and not state.landed:
+                self._fallback_safe_state(flight, now, "the run ended with the vehicle "
+                                                       "flying an uploaded mission")
+        while time.monotonic() < end and not all(_idle(f.vehicle) for f in self.flights):
+            self._wait(0.05)
+
+    def _said(self, message: str) -> None:
+        self.safety_actions.append(message)
+        if self.on_safety is not None:
+            self.on_safety(message)
+
+
+def _idle(vehicle: Any) -> bool:
+    """Whether a vehicle has carried out everything submitted (True if it cannot say)."""
+    idle = getattr(vehicle, "idle", None)
+    return True if idle is None else bool(idle())

@@ -113,7 +113,7 @@ def test_landing_point_with_yaw_and_precision() -> None:
     yaw, land = items
     assert (yaw.command, yaw.param1, yaw.param4) == (M.MAV_CMD_CONDITION_YAW, 90, 0)
     assert (land.command, land.param2, land.param4) == (M.MAV_CMD_NAV_LAND, 1, 90)
-    assert local(land) == (8, 2, 0)
+    assert local(land) == (8, 2, 10)  # at the approach altitude: ArduCopter ignores it
 
 
 def test_return_home_and_land_is_rtl_unless_yaw_or_precision_is_asked() -> None:
@@ -121,7 +121,7 @@ def test_return_home_and_land_is_rtl_unless_yaw_or_precision_is_asked() -> None:
     assert [i.command for i in plain] == [M.MAV_CMD_NAV_RETURN_TO_LAUNCH]
     precise = compiled(act("RETURN_HOME_AND_LAND", precision_mode="required")).items
     assert [i.command for i in precise] == [M.MAV_CMD_NAV_WAYPOINT, M.MAV_CMD_NAV_LAND]
-    assert precise[1].param2 == 2 and local(precise[1]) == (0, 0, 0)
+    assert precise[1].param2 == 2 and local(precise[1]) == (0, 0, 10)
 
 
 def test_speed_altitude_wait_and_camera_items() -> None:

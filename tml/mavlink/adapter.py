@@ -149,6 +149,9 @@ class _Plan:
         self.finished = False
         navs = [i for i, item in enumerate(compiled.items) if item.command < _NAV_LAST]
         self.last_nav = navs[-1] if navs else None
+        # ArduPilot reports a landing item reached only once it is on the ground.
+        self.ends_landed = self.last_nav is not None and compiled.items[self.last_nav].command \
+            in (mavlink.MAV_CMD_NAV_LAND, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH)
 
     def progress(self) -> MissionProgress:
         index = self.compiled.action_at(self.current)
@@ -181,7 +184,7 @@ class MavlinkVehicle:
                  clock: Clock = time.monotonic, world: World | None = None,
                  lost_after: float = 5.0, degraded_after: float = 2.5,
                  detection_hold: float = 1.5, command_timeout: float = 1.5,
-                 connect_timeout: float = 10.0) -> None:
+                 connect_timeout: float = 10.0, ready_timeout: float = 120.0) -> None:
         self.link = link
         self.mav = Vehicle(link, link.wait_vehicle(system_id, connect_timeout),
                            command_timeout=command_timeout)
@@ -191,6 +194,7 @@ class MavlinkVehicle:
         self.lost_after = lost_after
         self.degraded_after = degraded_after
         self.detection_hold = detection_hold
+        self.ready_timeout = ready_timeout  # wall s a mission upload waits for home/EKF
         self.capabilities: frozenset[str] = frozenset({"camera"})
         self._names = detection_names(world)
         self._lock = threading.Lock()
@@ -243,7 +247,12 @@ class MavlinkVehicle:
             if t.landed_state else not t.armed
         with self._lock:
             detections = self._detections(now)
-            progress = self._plan.progress() if self._plan is not None else self._progress
+            plan = self._plan
+            if plan is not None and plan.started and not t.armed:
+                plan.finished = True  # disarmed: whatever was left will not be flown
+            if plan is not None and plan.finished and plan.ends_landed:
+                landed = True  # EXTENDED_SYS_STATE may lag the final MISSION_ITEM_REACHED
+            progress = plan.progress() if plan is not None else self._progress
         return VehicleState(
             vehicle_id=self.vehicle_id, time=now, link=self._link_state(now),
             ready=t.position_ready, armed=t.armed, landed=landed, mode=t.mode,
@@ -477,6 +486,11 @@ class MavlinkVehicle:
                 self._write_param(name, setting, AUTOPILOT)
 
     def _fly_mission(self, request: FlyMission) -> None:
+        # A mission may be the first thing asked: wait for home (and for a position good
+        # enough to arm with, when the mission starts on the ground).
+        self.link.wait_telemetry(
+            self.system_id, lambda t: t.home is not None and (t.armed or t.position_ready),
+            self.ready_timeout)
         home = self._require_home()
         state = self.state()
         compiled = compile_mission(request.actions, home, request.start, state.heading)

@@ -164,7 +164,7 @@ def _take_off(b: _Builder, action: BoundAction) -> None:
 
 
 def _land(b: _Builder, action: BoundAction) -> None:
-    b.add(mavlink.MAV_CMD_NAV_LAND, point=(*b.cursor.position[:2], 0.0))
+    b.add(mavlink.MAV_CMD_NAV_LAND, point=b.cursor.position)
     b.cursor.position = (*b.cursor.position[:2], 0.0)
 
 
@@ -240,7 +240,6 @@ def _landing_point(b: _Builder, action: BoundAction) -> None:
         point, reference = _global_point(b, action)
     else:
         point, reference = _point(action, "coordinates") or b.cursor.position, "relative"
-        point = (point[0], point[1], 0.0)
     _land_at(b, action, point, reference)
 
 
@@ -250,6 +249,10 @@ def _land_at(b: _Builder, action: BoundAction, point: Point, reference: str) -> 
     if yaw is not None:
         # ArduCopter keeps its heading while it descends: turn first, then land facing yaw.
         _yaw_item(b, float(yaw) % 360.0, relative=False)  # type: ignore[arg-type]
+    # ArduCopter flies to a NAV_LAND's position at its present altitude and ignores the
+    # item's altitude: the approach altitude is given, so that a simulator or autopilot
+    # that does fly to it does not descend on the way.
+    point = (point[0], point[1], b.cursor.position[2]) if reference == "relative" else point
     b.add(mavlink.MAV_CMD_NAV_LAND, point=point, reference=reference,
           params=(0.0, float(precision), 0.0, 0.0 if yaw is None else float(yaw)))  # type: ignore[arg-type]
     b.cursor.position = (point[0], point[1], 0.0)
@@ -270,7 +273,7 @@ def _return_home_and_land(b: _Builder, action: BoundAction) -> None:
         return
     # RTL carries neither a heading nor a precision-landing mode: fly home, then land.
     b.waypoint((0.0, 0.0, b.cursor.position[2]))
-    _land_at(b, action, (0.0, 0.0, 0.0), "relative")
+    _land_at(b, action, b.cursor.position, "relative")
 
 
 def _set_speed(b: _Builder, action: BoundAction) -> None:

@@ -7,10 +7,19 @@ the time alone causes. Behaviour copied from ArduCopter:
 - Upload: MISSION_COUNT -> the vehicle requests each item in turn, with the legacy
   MISSION_REQUEST (id 40) unless the client showed it speaks the _INT protocol by sending
   MISSION_REQUEST_INT itself; MISSION_ITEM and MISSION_ITEM_INT replies are both accepted.
-  A missing item is re-requested after :data:`ITEM_TIMEOUT` seconds, :data:`RETRIES` times,
-  then the upload is cancelled (MISSION_ACK OPERATION_CANCELLED). Duplicates of items
-  already received are ignored; an item from the future is answered INVALID_SEQUENCE.
-  If the final ACK is lost and the client resends the last item, the ACK is resent.
+  The vehicle side's timeouts are ArduPilot's (MissionItemProtocol::update): the item
+  waited for is requested again whenever :data:`REQUEST_INTERVAL` seconds pass after the
+  last request, and the upload is cancelled (MISSION_ACK OPERATION_CANCELLED) once no
+  item has arrived for :data:`UPLOAD_TIMEOUT` seconds. These run on :meth:`tick`, which the
+  vehicle calls every control step with its own time.
+- Any item other than the one waited for (a repeat of one already stored, or one from the
+  future) is answered MISSION_ACK INVALID_SEQUENCE and changes nothing; an item from
+  another client than the one uploading gets DENIED. Once the upload has ended, items get
+  no answer at all: ArduPilot never repeats a final ACK that was lost, so a client settles
+  such an upload by reading the mission back.
+- While an upload of a list is in progress, another client's MISSION_COUNT for it is
+  DENIED (the same client's restarts the upload), downloads of it are DENIED and
+  MISSION_CLEAR_ALL of it fails with ERROR.
 - Seq 0 of a mission is home: whatever the client uploads there is replaced by the
   vehicle's home (read back with frame GLOBAL and absolute altitude).
 - Uploads are refused with NO_SPACE for :data:`BOOT_BUSY` seconds after boot, as
@@ -29,8 +38,8 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from tml.mavlink.mission import MissionItem
 
-ITEM_TIMEOUT = 1.5  # seconds before an item is requested again
-RETRIES = 5
+REQUEST_INTERVAL = 1.0  # seconds after a request before the item is requested again
+UPLOAD_TIMEOUT = 8.0  # seconds without an item before the upload is cancelled
 BOOT_BUSY = 1.0  # seconds after boot during which uploads get NO_SPACE
 MAX_ITEMS = {0: 725, 1: 84, 2: 20}  # capacity per MAV_MISSION_TYPE (ArduCopter SITL's)
 
@@ -73,8 +82,8 @@ class _Upload:
     count: int
     client: tuple[int, int]
     items: list[MissionItem]
-    requested_at: float
-    retries: int = 0
+    requested_at: float  # vehicle time of the last MISSION_REQUEST
+    received_at: float  # vehicle time of the start, then of the last item stored
 
 
 def _sender(msg: Any) -> tuple[int, int]:
@@ -100,7 +109,6 @@ class MissionServer:
         self._on_change = on_change
         self._lists: dict[int, list[MissionItem]] = {MISSION: [], FENCE: [], RALLY: []}
         self._upload: _Upload | None = None
-        self._finished: tuple[int, int, tuple[int, int]] | None = None  # (type, count, client)
         self._client_uses_int = False
 
     def items(self, mission_type: int = MISSION) -> list[MissionItem]:
@@ -117,8 +125,11 @@ class MissionServer:
             return self._start_upload(msg, now)
         if kind in ("MISSION_ITEM", "MISSION_ITEM_INT"):
             return self._receive_item(msg, now)
+        mission_type = getattr(msg, "mission_type", MISSION)
+        if kind in ("MISSION_REQUEST_LIST", "MISSION_REQUEST", "MISSION_REQUEST_INT") and (
+                self._uploading(mission_type)):  # no reading a list while it is being written
+            return [_ack(_sender(msg), mavlink.MAV_MISSION_DENIED, mission_type)]
         if kind == "MISSION_REQUEST_LIST":
-            mission_type = getattr(msg, "mission_type", MISSION)
             if mission_type not in self._lists:
                 return [_ack(_sender(msg), mavlink.MAV_MISSION_UNSUPPORTED, mission_type)]
             count = len(self.items(mission_type))
@@ -126,18 +137,18 @@ class MissionServer:
         if kind in ("MISSION_REQUEST", "MISSION_REQUEST_INT"):
             as_int = kind == "MISSION_REQUEST_INT"
             self._client_uses_int = self._client_uses_int or as_int
-            mission_type = getattr(msg, "mission_type", MISSION)
             items = self.items(mission_type) if mission_type in self._lists else []
             if not 0 <= msg.seq < len(items):
                 return [_ack(_sender(msg), mavlink.MAV_MISSION_INVALID_SEQUENCE, mission_type)]
             return [item_to_message(items[msg.seq], _sender(msg), as_int)]
         if kind == "MISSION_CLEAR_ALL":
-            mission_type = getattr(msg, "mission_type", MISSION)
             types = list(self._lists) if mission_type == mavlink.MAV_MISSION_TYPE_ALL else [
                 mission_type
             ]
             if any(t not in self._lists for t in types):
                 return [_ack(_sender(msg), mavlink.MAV_MISSION_UNSUPPORTED, mission_type)]
+            if any(self._uploading(t) for t in types):
+                return [_ack(_sender(msg), mavlink.MAV_MISSION_ERROR, mission_type)]
             for t in types:
                 self._lists[t] = []
                 self._on_change(t)
@@ -145,16 +156,20 @@ class MissionServer:
         return []
 
     def tick(self, now: float) -> list[Any]:
-        """Re-request an overdue item, or cancel the upload after the last retry."""
+        """Cancel an upload silent for too long, or request the awaited item again."""
         upload = self._upload
-        if upload is None or now - upload.requested_at < ITEM_TIMEOUT:
+        if upload is None:
             return []
-        if upload.retries >= RETRIES:
+        if now - upload.received_at > UPLOAD_TIMEOUT:
             self._upload = None
             return [_ack(upload.client, mavlink.MAV_MISSION_OPERATION_CANCELLED,
                          upload.mission_type)]
-        upload.retries += 1
-        return [self._request(upload, now)]
+        if now - upload.requested_at > REQUEST_INTERVAL:
+            return [self._request(upload, now)]
+        return []
+
+    def _uploading(self, mission_type: int) -> bool:
+        return self._upload is not None and self._upload.mission_type == mission_type
 
     def _request(self, upload: _Upload, now: float) -> Any:
         upload.requested_at = now
@@ -170,15 +185,17 @@ class MissionServer:
         mission_type = getattr(msg, "mission_type", MISSION)
         if mission_type not in self._lists:
             return [_ack(client, mavlink.MAV_MISSION_UNSUPPORTED, mission_type)]
+        busy = self._upload
+        if busy is not None and busy.mission_type == mission_type and busy.client != client:
+            return [_ack(client, mavlink.MAV_MISSION_DENIED, mission_type)]
         if now < BOOT_BUSY or msg.count > MAX_ITEMS[mission_type]:
             return [_ack(client, mavlink.MAV_MISSION_NO_SPACE, mission_type)]
-        self._finished = None
         if msg.count == 0:
             self._upload = None
             self._lists[mission_type] = []
             self._on_change(mission_type)
             return [_ack(client, mavlink.MAV_MISSION_ACCEPTED, mission_type)]
-        self._upload = _Upload(mission_type, msg.count, client, [], now)
+        self._upload = _Upload(mission_type, msg.count, client, [], now, now)
         return [self._request(self._upload, now)]
 
     def _receive_item(self, msg: Any, now: float) -> list[Any]:
@@ -186,27 +203,22 @@ class MissionServer:
         mission_type = getattr(msg, "mission_type", MISSION)
         upload = self._upload
         if upload is None or upload.mission_type != mission_type:
-            finished = self._finished
-            if finished == (mission_type, msg.seq + 1, client):
-                return [_ack(client, mavlink.MAV_MISSION_ACCEPTED, mission_type)]
-            return []
-        expected = len(upload.items)
-        if msg.seq < expected:
-            return []  # a duplicate of an item we already hold
-        if msg.seq > expected:
+            return []  # no upload of this list: ArduPilot says nothing, not even a late ACK
+        if msg.seq != len(upload.items):
             return [_ack(client, mavlink.MAV_MISSION_INVALID_SEQUENCE, mission_type)]
+        if client != upload.client:
+            return [_ack(client, mavlink.MAV_MISSION_DENIED, mission_type)]
         item = item_from_message(msg)
         problem = _check(item)
         if problem is not None:
             self._upload = None
             return [_ack(client, problem, mission_type)]
         upload.items.append(replace(item, mission_type=mission_type))
-        upload.retries = 0
+        upload.received_at = now
         if len(upload.items) < upload.count:
             return [self._request(upload, now)]
         self._upload = None
         self._lists[mission_type] = upload.items
-        self._finished = (mission_type, upload.count, client)
         self._on_change(mission_type)
         return [_ack(client, mavlink.MAV_MISSION_ACCEPTED, mission_type)]
 

@@ -38,10 +38,11 @@ from sitl import auto
 from sitl.companion import Companion
 from sitl.faults import Faults
 from sitl.messages import AUTOPILOT, COMPANION, stamp, statustext, targets
-from sitl.missions import FENCE, MISSION, MissionItem, MissionServer
+from sitl.missions import FENCE, MISSION, MissionServer
 from sitl.params import AUTOPILOT_DEFAULTS, Params, param_replies
 from sitl.physics import Battery, Body, Limits, flight_current
 from tml.geo import to_global, to_local
+from tml.mavlink.mission import MissionItem
 from tml.world import Cylinder, Home, World
 
 TICK = 0.05  # seconds of vehicle time per control step
@@ -231,6 +232,7 @@ class VehicleModel:
             self.step_count += 1
             self.time = self.step_count * TICK
             self._tick()
+            self._outbox.extend(self.missions.tick(self.time))
             out.extend(self._streams())
             out.extend(self._flush())
             out.extend(self.companion.step(self.time, self.position, self.heading))

@@ -1,11 +1,22 @@
-"""The vehicle side of the mission protocol, driven message by message with injected time."""
+"""The vehicle side of the mission protocol: message by message with injected time, through
+the vehicle model, and over a lossy link against tml's own uploader."""
 
 from __future__ import annotations
 
+import time
+from dataclasses import replace
+
+import pytest
 from pymavlink.dialects.v20 import ardupilotmega as M
 
-from sitl.missions import ITEM_TIMEOUT, RETRIES, MissionServer
-from tml.mavlink.mission import MissionItem
+from sitl.faults import Faults
+from sitl.missions import REQUEST_INTERVAL, UPLOAD_TIMEOUT, MissionServer
+from sitl.model import VehicleModel
+from sitl.server import Simulator
+from tml.mavlink.link import Link
+from tml.mavlink.mission import MissionItem, with_home_placeholder
+from tml.mavlink.vehicle import Vehicle
+from tml.world import DEFAULT_HOME
 
 HOME = MissionItem(0, 0, 16, x=-353632610, y=1491652300, z=584.0)
 
@@ -88,29 +99,104 @@ def test_busy_after_boot_and_too_many_items():
     assert ack.type == M.MAV_MISSION_NO_SPACE
 
 
-def test_missing_items_are_requested_again_then_the_upload_is_cancelled():
+def test_the_awaited_item_is_requested_again_every_second_until_it_comes():
     s, _ = server()
-    s.handle(M.MAVLink_mission_count_message(1, 1, 2, 0), 5.0)
-    now, rerequests = 5.0, []
-    for _ in range(RETRIES + 1):
-        assert s.tick(now + ITEM_TIMEOUT / 2) == []
-        now += ITEM_TIMEOUT
-        rerequests += s.tick(now)
-    assert [m.get_type() for m in rerequests] == ["MISSION_REQUEST"] * RETRIES + ["MISSION_ACK"]
-    assert rerequests[-1].type == M.MAV_MISSION_OPERATION_CANCELLED
-    assert s.items() == []
+    (first,) = s.handle(M.MAVLink_mission_count_message(1, 1, 3, 0), 5.0)
+    assert first.seq == 0
+    assert s.tick(5.0 + REQUEST_INTERVAL) == []  # not yet: ArduPilot waits more than 1 s
+    (again,) = s.tick(5.0 + REQUEST_INTERVAL + 0.05)
+    assert (again.get_type(), again.seq) == ("MISSION_REQUEST", 0)
+    assert s.tick(5.0 + REQUEST_INTERVAL + 0.5) == []  # the clock restarts at each request
+    (next_request,) = s.handle(item_int(0), 6.8)
+    assert next_request.seq == 1
+    (again,) = s.tick(6.8 + REQUEST_INTERVAL + 0.05)
+    assert again.seq == 1
 
 
-def test_duplicates_ignored_future_items_refused_lost_ack_resent():
+def test_an_upload_that_gets_no_item_for_eight_seconds_is_cancelled():
+    s, changes = server()
+    upload(s, 2)
+    s.handle(M.MAVLink_mission_count_message(1, 1, 3, 0), 10.0)
+    s.handle(item_int(0), 10.0)
+    sent, now = [], 10.0
+    while now < 10.0 + UPLOAD_TIMEOUT + 1.0:
+        now = round(now + 0.05, 2)
+        sent += [(now, m) for m in s.tick(now)]
+    kinds = [m.get_type() for _, m in sent]
+    assert kinds == ["MISSION_REQUEST"] * 7 + ["MISSION_ACK"]  # once a second, then give up
+    assert {m.seq for _, m in sent[:-1]} == {1}
+    cancelled_at, ack = sent[-1]
+    assert ack.type == M.MAV_MISSION_OPERATION_CANCELLED and cancelled_at > 10.0 + UPLOAD_TIMEOUT
+    assert s.handle(item_int(1), now) == []  # too late: nothing is waiting for it
+    assert len(s.items()) == 2 and changes == [0]  # the earlier mission is kept
+
+
+def test_items_other_than_the_awaited_one_get_invalid_sequence_and_change_nothing():
     s, _ = server()
     s.handle(M.MAVLink_mission_count_message(1, 1, 2, 0), 5.0)
     assert s.handle(item_int(0), 5.0)[0].seq == 1
-    assert s.handle(item_int(0), 5.0) == []  # duplicate
+    repeat = M.MAVLink_mission_item_int_message(1, 1, 0, 6, 16, 0, 1, 0, 0, 0, 0, 1, 2, 99.0)
+    (ack,) = s.handle(repeat, 5.1)
+    assert (ack.get_type(), ack.type) == ("MISSION_ACK", M.MAV_MISSION_INVALID_SEQUENCE)
     (future,) = s.handle(M.MAVLink_mission_item_int_message(
-        1, 1, 5, 6, 16, 0, 1, 0, 0, 0, 0, 0, 0, 0), 5.0)
+        1, 1, 5, 6, 16, 0, 1, 0, 0, 0, 0, 0, 0, 0), 5.1)
     assert future.type == M.MAV_MISSION_INVALID_SEQUENCE
-    assert s.handle(item_int(1), 5.0)[0].type == M.MAV_MISSION_ACCEPTED
-    assert s.handle(item_int(1), 5.1)[0].type == M.MAV_MISSION_ACCEPTED  # ACK lost, item resent
+    assert s.handle(item_int(1), 5.2)[0].type == M.MAV_MISSION_ACCEPTED
+    assert s.items()[1].z == 10.0 and len(s.items()) == 2  # the repeat was not stored
+    assert s.handle(item_int(1), 5.3) == []  # final ACK lost: ArduPilot does not repeat it
+
+
+def test_a_list_being_uploaded_is_not_read_cleared_or_taken_over():
+    s, _ = server()
+    s.handle(M.MAVLink_mission_count_message(1, 1, 3, 0), 5.0)
+    other = M.MAVLink_mission_count_message(1, 1, 2, 0)
+    other._header.srcSystem = 42
+    assert s.handle(other, 5.1)[0].type == M.MAV_MISSION_DENIED
+    assert s.handle(M.MAVLink_mission_request_list_message(1, 1, 0), 5.1)[0].type == (
+        M.MAV_MISSION_DENIED)
+    assert s.handle(M.MAVLink_mission_clear_all_message(1, 1, 0), 5.1)[0].type == (
+        M.MAV_MISSION_ERROR)
+    (count,) = s.handle(M.MAVLink_mission_request_list_message(1, 1, 1), 5.1)
+    assert count.get_type() == "MISSION_COUNT"  # the fence list is not being written
+    (restart,) = s.handle(M.MAVLink_mission_count_message(1, 1, 1, 0), 5.2)
+    assert restart.seq == 0  # the uploading client may start again
+    assert s.handle(item_int(0), 5.3)[0].type == M.MAV_MISSION_ACCEPTED
+
+
+def test_the_vehicle_runs_the_timeouts_on_its_own_clock():
+    v = VehicleModel(1, DEFAULT_HOME)
+    v.step(2.0)
+    (request,) = v.handle(M.MAVLink_mission_count_message(1, 1, 2, 0))
+    assert request.seq == 0
+    out = [m for m in v.step(UPLOAD_TIMEOUT + 0.5) if m.get_type().startswith("MISSION_")
+           and m.get_type() != "MISSION_CURRENT"]
+    assert [m.get_type() for m in out] == ["MISSION_REQUEST"] * 7 + ["MISSION_ACK"]
+    assert out[-1].type == M.MAV_MISSION_OPERATION_CANCELLED
+    assert {(m.get_srcSystem(), m.get_srcComponent()) for m in out} == {(1, 1)}
+
+
+def mission(n: int) -> list[MissionItem]:
+    return [MissionItem(seq=i, frame=6, command=16, param1=i % 3, x=-353632621 + 100 * i,
+                        y=1491652374 - 50 * i, z=10.0 + i) for i in range(n)]
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_tmls_uploader_gets_a_mission_through_30_percent_loss_each_way(seed):
+    faults = Faults(seed=seed, loss_in=0.3, loss_out=0.3)
+    sent = mission(6)
+    with Simulator(tcp_base_port=0, speedup=5.0, faults=faults) as sim, \
+            Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}") as link:
+        vehicle = Vehicle.connect(link, 1, timeout=20)
+        deadline = time.monotonic() + 10
+        while sim.time < 1.5:  # uploads get NO_SPACE for a second after boot
+            assert time.monotonic() < deadline
+            time.sleep(0.02)
+        # upload() reads the mission back over the same lossy link, and raises a
+        # MissionTransferError unless it is what was sent.
+        assert vehicle.upload(sent) == with_home_placeholder(sent)
+        stored = sim.vehicle(1).mission_items[1:]
+        assert [replace(item, seq=item.seq - 1) for item in stored] == sent
+        assert link.telemetry(1).lost > 0  # the loss was real
 
 
 def test_fence_and_rally_lists_are_separate_and_checked():

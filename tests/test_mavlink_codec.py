@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from tml.mavlink.codec import command_name, decode, encode, enum_name, gcs_heartbeat, mavlink
-from tml.mavlink.command import CommandAck, CommandInt, CommandLong
+from tml.mavlink.command import CommandAck, CommandInt, CommandLong, Heartbeat
 from tml.mavlink.mission import (
     MissionAck,
     MissionClearAll,
@@ -16,8 +16,9 @@ from tml.mavlink.mission import (
 )
 
 
-def over_the_wire(msg: mavlink.MAVLink_message) -> mavlink.MAVLink_message:
+def over_the_wire(msg: mavlink.MAVLink_message, seq: int = 0) -> mavlink.MAVLink_message:
     sender = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    sender.seq = seq
     data = msg.pack(sender)
     assert data[0] == mavlink.PROTOCOL_MARKER_V2
     parsed = mavlink.MAVLink(None).parse_buffer(data)
@@ -68,8 +69,19 @@ def test_commands_are_encoded_with_all_their_fields() -> None:
     assert (goto.command, goto.frame, goto.x, goto.y, goto.z) == (192, 6, 10, 20, 30.0)
 
 
+def test_heartbeats_and_acks_carry_their_packet_sequence_number() -> None:
+    beat = mavlink.MAVLink(None).heartbeat_encode(
+        mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
+        mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4, mavlink.MAV_STATE_ACTIVE)
+    plain = decode(over_the_wire(beat, seq=200))
+    assert plain == Heartbeat(2, 3, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4)
+    assert isinstance(plain, Heartbeat) and plain.packet_seq == 200
+    ack = decode(over_the_wire(encode(CommandAck(176, 0), 255, 190), seq=201))
+    assert isinstance(ack, CommandAck) and ack.packet_seq == 201
+
+
 def test_other_messages_are_not_decoded() -> None:
-    assert decode(gcs_heartbeat()) is None
+    assert decode(mavlink.MAVLink(None).attitude_encode(0, 0, 0, 0, 0, 0, 0)) is None
 
 
 def test_names_of_commands_and_enums() -> None:

@@ -22,17 +22,39 @@ KEY = bytes(range(32))
 
 
 class FakeAutopilot:
-    """An ArduCopter-like endpoint: system ``system_id``, component 1, on a UDP socket."""
+    """An ArduCopter-like endpoint: component 1 of ``system_ids``, on one socket.
+
+    By default it binds a UDP socket and answers whoever sent last (tml's ``udpout:``);
+    with ``connect`` it sends first, to that UDP address (tml's ``udpin:``), or dials it
+    over TCP with ``tcp=True`` (tml's ``tcpin:``). Each system id has its own mode; commands
+    are answered as the system they address. ``obey_modes=False`` makes a vehicle that
+    accepts DO_SET_MODE but stays in its mode; clearing ``beating`` stops the HEARTBEATs,
+    and so does receiving the command ``silent_after``.
+    """
 
     def __init__(self, system_id: int = 1, key: bytes | None = None,
-                 command_results: dict[int, int] | None = None) -> None:
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind(("127.0.0.1", 0))
+                 command_results: dict[int, int | None] | None = None, *,
+                 system_ids: tuple[int, ...] | None = None,
+                 connect: tuple[str, int] | None = None, tcp: bool = False,
+                 obey_modes: bool = True, silent_after: int | None = None) -> None:
+        self.tcp = tcp
+        if tcp:
+            assert connect is not None, "a TCP fake dials tml's tcpin: address"
+            self.sock = socket.create_connection(connect, timeout=5.0)
+        else:
+            self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            self.sock.bind(("127.0.0.1", 0))
         self.sock.settimeout(0.02)
         self.port = self.sock.getsockname()[1]
-        self.peer: tuple[str, int] | None = None
-        self.system_id = system_id
+        self.peer: tuple[str, int] | None = connect
+        self.system_ids = system_ids or (system_id,)
+        self.system_id = self.system_ids[0]
         self.command_results = command_results or {}
+        self.obey_modes = obey_modes
+        self.silent_after = silent_after
+        self.beating = threading.Event()
+        self.beating.set()
+        self.modes = dict.fromkeys(self.system_ids, 0)
         self.mavs: dict[tuple[int, int], mavlink.MAVLink] = {}
         self.parser = mavlink.MAVLink(None)
         if key is not None:
@@ -42,13 +64,17 @@ class FakeAutopilot:
         self.received: list[Any] = []
         self.commands: list[Any] = []
         self.missions: dict[int, list[Any]] = {}
-        self.mode = 0
         self.store_altitude: float | None = None
         self._incoming: list[Any] | None = None
         self._count = 0
         self._type = 0
         self._running = True
         self._thread = threading.Thread(target=self._loop, daemon=True)
+
+    @property
+    def mode(self) -> int:
+        """The custom mode of the first system."""
+        return self.modes[self.system_id]
 
     def __enter__(self) -> FakeAutopilot:
         self._thread.start()
@@ -77,22 +103,31 @@ class FakeAutopilot:
             mav.signing.sign_outgoing = False
         data = msg.pack(mav)
         mav.seq = (mav.seq + 1) % 256
-        if self.peer is not None:
+        if self.tcp:
+            self.sock.sendall(data)
+        elif self.peer is not None:
             self.sock.sendto(data, self.peer)
 
-    def heartbeat(self, **ids: Any) -> None:
+    def heartbeat(self, system_id: int | None = None, **ids: Any) -> None:
+        sysid = self.system_id if system_id is None else system_id
         self.send(mavlink.MAVLink_heartbeat_message(
             mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
-            mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, self.mode, 4, 3), **ids)
+            mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, self.modes.get(sysid, 0), 4, 3),
+            system_id=sysid, **ids)
 
     def _loop(self) -> None:
         next_beat = 0.0
         while self._running:
-            if time.monotonic() >= next_beat and self.peer is not None:
-                self.heartbeat()
+            if time.monotonic() >= next_beat and (self.peer is not None or self.tcp):
+                if self.beating.is_set():
+                    for sysid in self.system_ids:
+                        self.heartbeat(sysid)
                 next_beat = time.monotonic() + 0.1
             try:
-                data, self.peer = self.sock.recvfrom(65536)
+                if self.tcp:
+                    data = self.sock.recv(65536)
+                else:
+                    data, self.peer = self.sock.recvfrom(65536)
             except (TimeoutError, OSError):
                 continue
             for msg in self.parser.parse_buffer(data) or []:
@@ -104,13 +139,18 @@ class FakeAutopilot:
         kind = msg.get_type()
         b = mavlink.MAVLink(None)
         if kind in ("COMMAND_LONG", "COMMAND_INT"):
+            if msg.target_system not in self.system_ids:
+                return
             self.commands.append(msg)
+            if msg.command == self.silent_after:
+                self.beating.clear()
             result = self.command_results.get(msg.command, mavlink.MAV_RESULT_ACCEPTED)
             if result is None:
                 return  # this command is never answered
-            if msg.command == mavlink.MAV_CMD_DO_SET_MODE and result == 0:
-                self.mode = int(msg.param2)
-            self.send(b.command_ack_encode(msg.command, result, 0, 0, 255, 190))
+            if msg.command == mavlink.MAV_CMD_DO_SET_MODE and result == 0 and self.obey_modes:
+                self.modes[msg.target_system] = int(msg.param2)
+            self.send(b.command_ack_encode(msg.command, result, 0, 0, 255, 190),
+                      system_id=msg.target_system)
         elif kind == "MISSION_COUNT":
             self._incoming, self._count, self._type = [], msg.count, msg.mission_type
             self._ask_or_finish()
@@ -254,3 +294,32 @@ def test_no_vehicle_is_a_clear_link_lost() -> None:
 def test_an_address_that_cannot_be_opened_is_a_clear_error() -> None:
     with pytest.raises(LinkLost, match="cannot open"):
         Link("/dev/tml-no-such-serial-port,57600")
+
+
+def test_a_silent_vehicle_is_lost_in_the_snapshot_and_found_again() -> None:
+    with FakeAutopilot(system_id=1) as ap, \
+            Link(f"udpout:127.0.0.1:{ap.port}", lost_after=0.3) as link:
+        link.wait_vehicle(1, timeout=5)
+        assert not link.telemetry(1).link_lost
+        ap.beating.clear()
+        lost = link.wait_telemetry(1, lambda t: t.link_lost, timeout=5)
+        assert lost.heartbeat_age(time.monotonic()) > 0.3
+        with pytest.raises(LinkLost, match="vehicle 1: link lost while waiting"):
+            link.wait_telemetry(1, lambda t: t.mode == "GUIDED", timeout=30)
+        ap.beating.set()
+        link.wait_telemetry(1, lambda t: not t.link_lost, timeout=5, lost_ok=True)
+
+
+def test_a_vehicle_lost_during_a_command_is_link_lost_not_a_timeout() -> None:
+    from tml.mavlink.command import CommandLong, CommandSender
+
+    gripper = mavlink.MAV_CMD_DO_GRIPPER
+    with FakeAutopilot(system_id=1, command_results={gripper: None},
+                       silent_after=gripper) as ap, \
+            Link(f"udpout:127.0.0.1:{ap.port}", lost_after=0.3) as link:
+        link.wait_vehicle(1, timeout=5)
+        sender = CommandSender(CommandLong(gripper), system_id=1, timeout=1.5, retries=5)
+        with pytest.raises(LinkLost, match="link lost during CommandSender") as caught:
+            link.run(sender, 1, 1)  # 9 s of retries, cut short by the loss
+        assert caught.value.system_id == 1 and not sender.done
+        assert link.telemetry(1).link_lost

@@ -1,12 +1,19 @@
-"""Flight modes by name for ArduPilot Copter, Plane, Rover and PX4."""
+"""Flight modes by name for ArduPilot Copter, Plane, Rover and PX4, and confirming a change."""
 
 from __future__ import annotations
 
 import pytest
 
-from tml.errors import VehicleError
+from tml.errors import CommandRejected, VehicleError, VehicleTimeout
 from tml.mavlink.codec import mavlink
-from tml.mavlink.modes import mode_name, mode_names, set_mode_command
+from tml.mavlink.command import CommandAck, Heartbeat
+from tml.mavlink.modes import (
+    CONFIRM_TIMEOUT,
+    ModeChange,
+    mode_name,
+    mode_names,
+    set_mode_command,
+)
 
 ARDUPILOT = mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
 PX4 = mavlink.MAV_AUTOPILOT_PX4
@@ -48,3 +55,69 @@ def test_mode_lists_differ_between_vehicle_kinds() -> None:
     assert "FBWA" in mode_names(PLANE, ARDUPILOT) and "FBWA" not in mode_names(QUAD, ARDUPILOT)
     assert "OFFBOARD" in mode_names(QUAD, PX4)
     assert mode_name(QUAD, ARDUPILOT, CUSTOM, 99) == "Mode(99)"
+
+
+# -- confirming a mode change (sans-IO, time injected) --------------------------------------
+
+ACCEPTED = mavlink.MAV_RESULT_ACCEPTED
+
+
+def beat(custom_mode: int, seq: int | None = None) -> Heartbeat:
+    return Heartbeat(QUAD, ARDUPILOT, CUSTOM, custom_mode, seq)
+
+
+def guided_change(**options: float) -> ModeChange:
+    change = ModeChange(set_mode_command(QUAD, ARDUPILOT, "GUIDED"), "guided", system_id=1,
+                        **options)
+    assert [m.command for m in change.start(0.0)] == [mavlink.MAV_CMD_DO_SET_MODE]
+    return change
+
+
+def test_a_mode_change_is_done_when_the_heartbeat_after_the_ack_shows_it() -> None:
+    change = guided_change()
+    change.receive(beat(4, seq=10), 0.1)  # before the ACK: proves nothing
+    assert not change.done
+    change.receive(CommandAck(mavlink.MAV_CMD_DO_SET_MODE, ACCEPTED, packet_seq=11), 0.2)
+    assert not change.done and change.deadline == pytest.approx(0.2 + CONFIRM_TIMEOUT)
+    change.receive(beat(4, seq=12), 0.9)
+    assert change.done and change.error is None and change.shown == "GUIDED"
+
+
+def test_a_heartbeat_showing_another_mode_after_the_ack_is_a_rejection() -> None:
+    change = guided_change()
+    change.receive(CommandAck(mavlink.MAV_CMD_DO_SET_MODE, ACCEPTED, packet_seq=250), 0.1)
+    change.receive(beat(0, seq=3), 0.8)  # after the ACK, across the sequence wrap
+    assert change.done and isinstance(change.error, CommandRejected)
+    assert change.error.command == "MAV_CMD_DO_SET_MODE" and change.error.system_id == 1
+    assert "shows STABILIZE, not GUIDED" in change.error.result
+
+
+def test_a_heartbeat_sent_before_the_ack_but_arriving_after_it_is_not_the_answer() -> None:
+    change = guided_change()
+    change.receive(CommandAck(mavlink.MAV_CMD_DO_SET_MODE, ACCEPTED, packet_seq=2), 0.1)
+    change.receive(beat(0, seq=250), 0.11)  # overtaken on the way (UDP reorders)
+    assert not change.done
+    change.receive(beat(4, seq=9), 1.1)
+    assert change.done and change.error is None
+
+
+def test_no_heartbeat_within_the_limit_after_the_ack_is_a_timeout() -> None:
+    change = guided_change(confirm_timeout=2.0)
+    change.receive(CommandAck(mavlink.MAV_CMD_DO_SET_MODE, ACCEPTED), 0.1)
+    assert change.tick(2.0) == [] and not change.done
+    change.tick(2.1)
+    assert change.done and isinstance(change.error, VehicleTimeout)
+    assert "GUIDED accepted, but no HEARTBEAT within 2 s" in str(change.error)
+    change.receive(beat(4), 2.2)
+    assert isinstance(change.error, VehicleTimeout)  # too late to change the outcome
+
+
+def test_a_refused_or_unanswered_mode_command_fails_as_a_command() -> None:
+    refused = guided_change()
+    refused.receive(CommandAck(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_RESULT_FAILED), 0.1)
+    assert refused.done and isinstance(refused.error, CommandRejected)
+    assert refused.error.result == "MAV_RESULT_FAILED"
+    silent = guided_change(timeout=1.0, retries=1)
+    assert [m.confirmation for m in silent.tick(1.0)] == [1]  # retransmitted, confirmation 1
+    silent.tick(2.0)
+    assert silent.done and isinstance(silent.error, VehicleTimeout)

@@ -111,3 +111,15 @@ def test_status_texts_are_bounded() -> None:
         tracker.apply(ap("statustext", 6, f"line {n}".encode()), float(n))
     texts = tracker.snapshot.status_texts
     assert len(texts) == 50 and texts[-1].text == "line 79" and texts[0].text == "line 30"
+
+
+def test_a_vehicle_is_lost_after_the_limit_without_heartbeat_and_found_by_the_next() -> None:
+    tracker = TelemetryTracker(1)
+    ap = Source()
+    tracker.apply(heartbeat(ap), 10.0)
+    assert not tracker.check_link(15.0, lost_after=5.0)  # at the limit: not yet
+    tracker.apply(ap("attitude", 0, 0, 0, 0, 0, 0, 0), 15.5)  # other messages do not count
+    assert tracker.check_link(15.01, lost_after=5.0) and tracker.snapshot.link_lost
+    assert not tracker.check_link(20.0, lost_after=5.0)  # no change: still lost
+    tracker.apply(heartbeat(ap), 21.0)
+    assert not tracker.snapshot.link_lost and not tracker.check_link(21.0, lost_after=5.0)

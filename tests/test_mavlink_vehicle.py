@@ -9,7 +9,7 @@ from test_mavlink_link import FakeAutopilot, eventually
 
 from sitl.faults import Faults
 from sitl.server import Simulator
-from tml.errors import CommandRejected, MissionTransferError, VehicleTimeout
+from tml.errors import CommandRejected, LinkLost, MissionTransferError, VehicleTimeout
 from tml.mavlink.codec import mavlink
 from tml.mavlink.link import Link
 from tml.mavlink.mission import MissionItem, MissionType, Progress
@@ -41,7 +41,27 @@ def test_mode_by_name_reaches_the_vehicle_and_shows_in_telemetry(
         fake: FakeAutopilot, vehicle: Vehicle) -> None:
     vehicle.set_mode("guided")
     assert fake.mode == 4
-    assert eventually(lambda: vehicle.telemetry.mode == "GUIDED")
+    assert vehicle.telemetry.mode == "GUIDED"  # set_mode waited for the HEARTBEAT
+
+
+def test_a_vehicle_that_accepts_a_mode_but_keeps_its_own_is_caught() -> None:
+    with FakeAutopilot(system_id=1, obey_modes=False) as stubborn, \
+            Link(f"udpout:127.0.0.1:{stubborn.port}") as link:
+        vehicle = Vehicle.connect(link, 1, timeout=5)
+        with pytest.raises(CommandRejected) as caught:
+            vehicle.set_mode("GUIDED")
+        assert caught.value.command == "MAV_CMD_DO_SET_MODE"
+        assert "ACCEPTED, but the next HEARTBEAT shows STABILIZE, not GUIDED" in str(caught.value)
+        assert [c.command for c in stubborn.commands] == [mavlink.MAV_CMD_DO_SET_MODE]
+
+
+def test_a_mode_change_without_a_heartbeat_after_the_ack_times_out() -> None:
+    with FakeAutopilot(system_id=1, silent_after=mavlink.MAV_CMD_DO_SET_MODE) as mute, \
+            Link(f"udpout:127.0.0.1:{mute.port}", lost_after=30.0) as link:
+        vehicle = Vehicle(link, link.wait_vehicle(1, timeout=5), mode_timeout=0.3)
+        with pytest.raises(VehicleTimeout, match="GUIDED accepted, but no HEARTBEAT"):
+            vehicle.set_mode("GUIDED")
+        assert mute.mode == 4  # it did switch: only the proof is missing
 
 
 def test_refused_command_raises_command_rejected_with_names(vehicle: Vehicle) -> None:
@@ -155,6 +175,19 @@ def test_simulated_copter_is_discovered_takes_off_and_reports_it(
     link.wait_telemetry(1, lambda t: not t.armed, timeout=60)
 
 
+def test_simulated_copter_mode_changes_are_confirmed_or_refused(
+        sim_link: tuple[Simulator, Link]) -> None:
+    sim, link = sim_link
+    vehicle = Vehicle.connect(link, 1, timeout=10)
+    with pytest.raises(CommandRejected) as caught:  # GUIDED needs the EKF's position
+        vehicle.set_mode("GUIDED")
+    assert caught.value.result == "MAV_RESULT_FAILED" and sim.vehicle(1).mode == "STABILIZE"
+    vehicle.set_mode("LAND")  # returns only once a HEARTBEAT has shown LAND
+    assert vehicle.telemetry.mode == "LAND" and sim.vehicle(1).mode == "LAND"
+    vehicle.set_mode("stabilize")
+    assert vehicle.telemetry.mode == "STABILIZE"
+
+
 def test_simulated_copter_keeps_an_uploaded_mission_in_items_1_to_n(
         sim_link: tuple[Simulator, Link]) -> None:
     sim, link = sim_link
@@ -181,6 +214,22 @@ def test_upload_survives_the_simulators_message_loss() -> None:
         assert [(m.x, m.z) for m in sim.vehicle(1).mission_items[1:]] == [
             (i.x, i.z) for i in items(30)]
         assert link.telemetry(1).lost > 0  # the loss was real, and seen in the sequence gaps
+
+
+def test_a_simulated_outage_makes_the_vehicle_lost_until_it_ends() -> None:
+    # Nothing gets through between 20 s and 60 s of vehicle time (1 s to 3 s of wall time).
+    faults = Faults(outages=((20.0, 60.0),))
+    with Simulator(vehicles=1, tcp_base_port=0, speedup=20.0, faults=faults) as sim, \
+            Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}", lost_after=0.5) as link:
+        vehicle = Vehicle.connect(link, 1, timeout=10)
+        lost = link.wait_telemetry(1, lambda t: t.link_lost, timeout=20)
+        assert sim.faults.in_outage(sim.time) and lost.mode == "STABILIZE"
+        with pytest.raises(LinkLost):  # sent once, but its retries are not waited out
+            vehicle.set_mode("LAND")
+        back = link.wait_telemetry(1, lambda t: not t.link_lost, timeout=20, lost_ok=True)
+        assert sim.time >= 60.0 and back.last_heartbeat is not None
+        vehicle.set_mode("LAND")
+        assert sim.vehicle(1).mode == "LAND"
 
 
 def test_two_simulated_vehicles_on_two_links_are_kept_apart() -> None:

@@ -16,7 +16,7 @@ os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from tml.mavlink.command import Command, CommandAck, CommandInt, CommandLong
+from tml.mavlink.command import Command, CommandAck, CommandInt, CommandLong, Heartbeat
 from tml.mavlink.mission import (
     MissionAck,
     MissionClearAll,
@@ -37,7 +37,7 @@ GCS_COMPONENT_ID = mavlink.MAV_COMP_ID_MISSIONPLANNER
 # pymavlink stamps sequence numbers and signatures when the link's own encoder sends them.
 _BUILD = mavlink.MAVLink(None)
 
-Plain = MissionMessage | Command | CommandAck
+Plain = MissionMessage | Command | CommandAck | Heartbeat
 
 
 def encode(msg: Plain, target_system: int, target_component: int) -> mavlink.MAVLink_message:
@@ -75,8 +75,10 @@ def encode(msg: Plain, target_system: int, target_component: int) -> mavlink.MAV
 
 
 def decode(msg: mavlink.MAVLink_message) -> Plain | None:
-    """The plain form of a mission-protocol message or COMMAND_ACK; None for anything else."""
+    """The plain form of a mission-protocol message, COMMAND_ACK or HEARTBEAT; else None."""
     kind = msg.get_type()
+    if kind == "HEARTBEAT":
+        return Heartbeat(msg.type, msg.autopilot, msg.base_mode, msg.custom_mode, msg.get_seq())
     if kind == "MISSION_ITEM_INT":
         return _item(msg, msg.x, msg.y)
     if kind == "MISSION_ITEM":
@@ -94,7 +96,7 @@ def decode(msg: mavlink.MAVLink_message) -> Plain | None:
     if kind == "MISSION_ACK":
         return MissionAck(msg.type, msg.mission_type)
     if kind == "COMMAND_ACK":
-        return CommandAck(msg.command, msg.result, msg.progress)
+        return CommandAck(msg.command, msg.result, msg.progress, msg.get_seq())
     return None
 
 

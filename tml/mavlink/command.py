@@ -17,7 +17,8 @@ name and the vehicle; silence becomes :class:`~tml.errors.VehicleTimeout`.
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass, replace
+import types
+from dataclasses import dataclass, field, replace
 
 from tml.errors import CommandRejected, VehicleError, VehicleTimeout
 
@@ -86,11 +87,32 @@ class CommandInt:
 
 @dataclass(frozen=True)
 class CommandAck:
-    """COMMAND_ACK: the vehicle's answer to a command."""
+    """COMMAND_ACK: the vehicle's answer to a command.
+
+    ``packet_seq`` is the MAVLink packet sequence number it came with (None when unknown):
+    it orders the ACK against the HEARTBEATs of the same component (see
+    :class:`~tml.mavlink.modes.ModeChange`).
+    """
 
     command: int
     result: int
     progress: int = 0
+    packet_seq: int | None = field(default=None, compare=False)
+
+
+@dataclass(frozen=True)
+class Heartbeat:
+    """HEARTBEAT: what a component is and which mode it is in.
+
+    The command protocol reads it to confirm a mode change; ``packet_seq`` as in
+    :class:`CommandAck`.
+    """
+
+    vehicle_type: int
+    autopilot: int
+    base_mode: int
+    custom_mode: int
+    packet_seq: int | None = field(default=None, compare=False)
 
 
 Command = CommandLong | CommandInt
@@ -99,6 +121,9 @@ Command = CommandLong | CommandInt
 
 class CommandSender:
     """Send one command until it is acknowledged, refused, or the vehicle stays silent."""
+
+    inputs: type | types.UnionType = CommandAck
+    """The plain messages the sender takes (what a link feeds it)."""
 
     def __init__(self, command: Command, name: str = "", *, system_id: int | None = None,
                  timeout: float = TIMEOUT, retries: int = RETRIES,

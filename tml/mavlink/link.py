@@ -12,15 +12,21 @@ so a message is handled as soon as it arrives, and for each message it
 3. records the sender's HEARTBEAT for discovery and folds the message into that vehicle's
    :class:`~tml.mavlink.telemetry.TelemetryTracker` -- a vehicle's state only ever sees
    its own system id;
-4. feeds mission-protocol messages and COMMAND_ACKs to the sans-IO state machines running
-   for that vehicle (:meth:`run`) and sends their answers at once, from the same thread:
-   the time from an item request to the item on the wire is one Python call;
+4. feeds mission-protocol messages, COMMAND_ACKs and HEARTBEATs to the sans-IO state
+   machines running for that vehicle (:meth:`run`; each takes the plain messages of its
+   ``inputs``) and sends their answers at once, from the same thread: the time from an
+   item request to the item on the wire is one Python call;
 5. calls the listeners (:meth:`listen`), e.g. a runner that wakes the interpreter on fresh
    telemetry, with the new snapshot.
 
-It also sends the ground-station HEARTBEAT at 1 Hz. The calling thread uses the link
-through snapshots (:meth:`telemetry`), :meth:`send`, and :meth:`run`, which starts a state
-machine, then sleeps on a condition until an answer or the machine's deadline and ticks it.
+It also sends the ground-station HEARTBEAT at 1 Hz, and marks a vehicle *lost* when no
+HEARTBEAT has come from it for ``lost_after`` seconds (``Telemetry.link_lost``, cleared by
+the next HEARTBEAT): the blocking calls waiting on that vehicle then raise
+:class:`~tml.errors.LinkLost` instead of waiting out their own time limits, and a runner
+reads the state from the snapshot to command its safe state. The calling thread uses the
+link through snapshots (:meth:`telemetry`), :meth:`send`, and :meth:`run`, which starts a
+state machine, then sleeps on a condition until an answer or the machine's deadline and
+ticks it.
 Threads rather than a poll(now) API because the link must answer the vehicle (mission item
 requests, heartbeats) while the interpreter is busy; the interpreter itself stays I/O-free
 and reads snapshots.
@@ -38,18 +44,56 @@ from typing import Any, Protocol
 from tml.errors import LinkLost, VehicleError, VehicleTimeout
 from tml.mavlink import codec
 from tml.mavlink.codec import mavlink, mavutil
-from tml.mavlink.command import CommandAck, CommandSender
 from tml.mavlink.telemetry import Telemetry, TelemetryTracker
 
 HEARTBEAT_PERIOD = 1.0
 PROGRESS_PERIOD = 0.1
+LOST_AFTER = 5.0
+"""Default seconds without a HEARTBEAT before a vehicle counts as lost."""
+LOST_CHECK_PERIOD = 0.05
 GCS_TYPES = frozenset({mavlink.MAV_TYPE_GCS})
+SCHEMES = ("udpin", "udpout", "udp", "tcpin", "tcp")
+"""Network address schemes; anything else is a serial device."""
+
+
+@dataclass(frozen=True)
+class Address:
+    """A connection address taken apart: ``scheme`` is one of SCHEMES or ``serial``."""
+
+    scheme: str
+    host: str = ""
+    port: int = 0
+    device: str = ""
+    baud: int = 0
+
+
+def parse_address(text: str, baud: int = 57600) -> Address:
+    """Take ``udpin:HOST:PORT``, ``tcp:HOST:PORT``, ... or ``DEVICE[,BAUD]`` apart.
+
+    ``baud`` is the serial speed when the address names none. Raises VehicleError saying
+    what is wrong with a malformed address.
+    """
+    scheme, colon, rest = text.partition(":")
+    if colon and scheme in SCHEMES:
+        host, _, port = rest.rpartition(":")
+        if not host or not port.isdigit() or int(port) > 65535:
+            raise VehicleError(f"connection address {text!r}: expected {scheme}:HOST:PORT "
+                               f"with a port from 0 to 65535")
+        return Address(scheme, host=host, port=int(port))
+    device, comma, speed = text.partition(",")
+    if not device or (comma and not speed.isdigit()):
+        raise VehicleError(f"connection address {text!r}: expected DEVICE or DEVICE,BAUD "
+                           f"(e.g. /dev/ttyUSB0,57600), or a network address "
+                           f"({', '.join(s + ':HOST:PORT' for s in SCHEMES)})")
+    return Address("serial", device=device, baud=int(speed) if comma else baud)
 
 
 class Machine(Protocol):
-    """What :meth:`Link.run` drives: a transfer or a command sender."""
+    """What :meth:`Link.run` drives: a transfer, a command sender, a mode change."""
 
     deadline: float
+    inputs: Any
+    """The plain message type(s) (a type or a union) the machine is fed."""
 
     @property
     def done(self) -> bool: ...
@@ -90,15 +134,18 @@ class Link:
 
     ``system_ids`` lists the vehicles expected (others are dropped and counted; None
     accepts any). ``outputs`` are extra addresses that receive a copy of every message from
-    the vehicles. With ``signing_key`` (32 bytes) outgoing messages are signed and incoming
-    ones without a valid signature are dropped.
+    the vehicles (one way, see docs/connections.md). With ``signing_key`` (32 bytes)
+    outgoing messages are signed and incoming ones without a valid signature are dropped.
+    A vehicle silent for ``lost_after`` seconds is lost (see the module docstring).
     """
 
     def __init__(self, address: str, *, outputs: Iterable[str] = (),
                  system_ids: Iterable[int] | None = None, signing_key: bytes | None = None,
                  source_system: int = codec.GCS_SYSTEM_ID,
-                 source_component: int = codec.GCS_COMPONENT_ID, baud: int = 57600) -> None:
+                 source_component: int = codec.GCS_COMPONENT_ID, baud: int = 57600,
+                 lost_after: float = LOST_AFTER) -> None:
         self.address = address
+        self.lost_after = lost_after
         self.stats = LinkStats()
         self._expected = None if system_ids is None else frozenset(system_ids)
         self._conn = _connect(address, baud, source_system, source_component)
@@ -170,6 +217,17 @@ class Link:
                                    f"within {timeout:g} s", system_id)
                 self._lock.wait(left)
 
+    @property
+    def local_address(self) -> tuple[str, int] | None:
+        """The (host, port) a ``udpin:``/``udp:``/``tcpin:`` link listens on, else None.
+
+        With port 0 in the address the system picks the port; this tells which.
+        """
+        sock = getattr(self._conn, "listen", None)  # tcpin
+        if sock is None and getattr(self._conn, "udp_server", False):
+            sock = self._conn.port
+        return None if sock is None else sock.getsockname()[:2]
+
     def telemetry(self, system_id: int) -> Telemetry:
         """The latest snapshot of one vehicle (empty if nothing was heard from it yet)."""
         with self._lock:
@@ -177,14 +235,20 @@ class Link:
             return tracker.snapshot if tracker else Telemetry(system_id)
 
     def wait_telemetry(self, system_id: int, until: Callable[[Telemetry], bool],
-                       timeout: float) -> Telemetry:
-        """Wait until ``until(snapshot)`` holds; raises VehicleTimeout after ``timeout``."""
+                       timeout: float, *, lost_ok: bool = False) -> Telemetry:
+        """Wait until ``until(snapshot)`` holds.
+
+        Raises VehicleTimeout after ``timeout``, and LinkLost as soon as the vehicle is
+        lost unless ``lost_ok`` (to wait for a lost vehicle to come back).
+        """
         end = time.monotonic() + timeout
         with self._lock:
             while True:
                 snapshot = self.telemetry(system_id)
                 if until(snapshot):
                     return snapshot
+                if not lost_ok:
+                    self._raise_if_lost(snapshot, "while waiting for telemetry")
                 left = end - time.monotonic()
                 if left <= 0:
                     raise VehicleTimeout(f"condition not reached within {timeout:g} s",
@@ -219,7 +283,10 @@ class Link:
 
         The receive thread feeds the machine and sends its answers; this thread only
         sleeps until the machine is done or its deadline passes (then ticks it), waking
-        every ``PROGRESS_PERIOD`` to report progress if ``on_progress`` is given.
+        every ``PROGRESS_PERIOD`` to report progress if ``on_progress`` is given. Raises
+        LinkLost once the vehicle is lost: a machine started for a lost vehicle still
+        sends its first message (the way up may work when the way down does not), but
+        its retries are not waited out.
         """
         with self._lock:
             self._machines.setdefault(system_id, []).append(machine)
@@ -227,6 +294,8 @@ class Link:
         try:
             with self._lock:
                 while not machine.done:
+                    self._raise_if_lost(self.telemetry(system_id),
+                                        f"during {type(machine).__name__}")
                     wait = machine.deadline - time.monotonic()
                     if on_progress is not None:
                         wait = min(wait, PROGRESS_PERIOD)
@@ -244,15 +313,25 @@ class Link:
         for msg in msgs:
             self.send(msg, system_id, component_id)
 
+    def _raise_if_lost(self, snapshot: Telemetry, doing: str) -> None:
+        if snapshot.link_lost:
+            age = snapshot.heartbeat_age(time.monotonic())
+            raise LinkLost(f"link lost {doing}: no HEARTBEAT for {age:.1f} s "
+                           f"(limit {self.lost_after:g} s) on {self.address}",
+                           snapshot.system_id)
+
     # -- the receive thread ------------------------------------------------------------
 
     def _loop(self) -> None:
-        next_heartbeat = 0.0
+        next_heartbeat = next_check = 0.0
         while self._running:
             now = time.monotonic()
             if now >= next_heartbeat:
                 self._heartbeat()
                 next_heartbeat = now + HEARTBEAT_PERIOD
+            if now >= next_check:
+                self._check_lost(now)
+                next_check = now + LOST_CHECK_PERIOD
             try:
                 msg = self._conn.recv_match(blocking=True, timeout=0.1)
             except (OSError, ValueError):
@@ -266,6 +345,13 @@ class Link:
         # udpin before any peer, or a TCP peer gone: nothing to send to yet.
         with contextlib.suppress(OSError):
             self.send(codec.gcs_heartbeat())
+
+    def _check_lost(self, now: float) -> None:
+        with self._lock:
+            changed = [t for t in self._trackers.values() if t.check_link(now, self.lost_after)]
+            if changed:
+                self._lock.notify_all()
+                self._machine_done.notify_all()
 
     def _handle(self, msg: Any, now: float) -> None:
         if msg.get_type() == "BAD_DATA":
@@ -288,7 +374,7 @@ class Link:
             plain = codec.decode(msg)
             if plain is not None and self._for_us(msg, tracker):
                 for machine in list(self._machines.get(sysid, [])):
-                    if isinstance(plain, CommandAck) == _is_command(machine):
+                    if isinstance(plain, machine.inputs):
                         info = self._vehicles[sysid]
                         deadline = machine.deadline
                         self._send_all(machine.receive(plain, now), sysid, info.component_id)
@@ -330,11 +416,10 @@ def _with_component(info: VehicleInfo, component: int) -> VehicleInfo:
                        info.components | {component})
 
 
-def _is_command(machine: Machine) -> bool:
-    return isinstance(machine, CommandSender)
-
-
 def _connect(address: str, baud: int, source_system: int, source_component: int) -> Any:
+    parsed = parse_address(address, baud)
+    if parsed.scheme == "serial":
+        address, baud = parsed.device, parsed.baud
     try:
         return mavutil.mavlink_connection(address, baud=baud, source_system=source_system,
                                           source_component=source_component,

@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import enum
 import struct
+import types
 from dataclasses import dataclass, replace
 
 from tml.errors import MissionTransferError
@@ -180,6 +181,8 @@ class Transfer:
     """What upload, download and clear share: the timer, the retry count, the outcome."""
 
     operation = "transfer"
+    inputs: type | types.UnionType = MissionMessage
+    """The plain messages a transfer takes (what a link feeds it)."""
 
     def __init__(
         self,

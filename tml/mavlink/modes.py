@@ -5,15 +5,35 @@ number as ``custom_mode``; PX4 packs a main mode and a sub mode into ``custom_mo
 tables are pymavlink's (``mavutil.mode_mapping_*`` and ``px4_map``), so they follow upstream.
 A mode is set with MAV_CMD_DO_SET_MODE: param1 the base mode flags, param2 the custom (or
 PX4 main) mode, param3 the PX4 sub mode.
+
+A mode change is confirmed as ArduPilot confirms it (:class:`ModeChange`): the command's
+ACCEPTED, then the vehicle's next HEARTBEAT (1 Hz) showing the new mode. ArduPilot switches
+before it acknowledges, so that HEARTBEAT is the proof; one showing another mode means the
+vehicle did not switch, or left the mode at once (a failsafe), and is a refusal. "Next" is
+by the autopilot's packet sequence numbers: a HEARTBEAT sent shortly before the ACK that
+arrives after it (UDP may reorder) is not taken for the answer.
 """
 
 from __future__ import annotations
 
-from tml.errors import VehicleError
+import types
+
+from tml.errors import CommandRejected, VehicleError, VehicleTimeout
 from tml.mavlink.codec import mavlink, mavutil
-from tml.mavlink.command import CommandLong
+from tml.mavlink.command import (
+    RETRIES,
+    TIMEOUT,
+    CommandAck,
+    CommandLong,
+    CommandSender,
+    Heartbeat,
+)
 
 PX4 = mavlink.MAV_AUTOPILOT_PX4
+CONFIRM_TIMEOUT = 3.0
+"""Seconds after the ACK within which a HEARTBEAT must show the mode (three heartbeats)."""
+STRAGGLER_WINDOW = 32
+"""A HEARTBEAT at most this many packets older than the ACK was sent before it."""
 
 
 def mode_names(vehicle_type: int, autopilot: int) -> list[str]:
@@ -47,3 +67,88 @@ def set_mode_command(vehicle_type: int, autopilot: int, name: str,
                                mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, table[wanted])
     known = ", ".join(mode_names(vehicle_type, autopilot)) or "none known"
     raise VehicleError(f"no flight mode {name!r} for this vehicle (modes: {known})", system_id)
+
+
+class ModeChange:
+    """DO_SET_MODE to mode ``name``, done once the vehicle's next HEARTBEAT shows the mode.
+
+    A sans-IO machine like :class:`~tml.mavlink.command.CommandSender` (which it drives for
+    the command itself), fed COMMAND_ACKs and the autopilot's HEARTBEATs. ``error`` is the
+    sender's for a refused or unanswered command, :class:`~tml.errors.CommandRejected` when
+    the HEARTBEAT after the ACK shows another mode, :class:`~tml.errors.VehicleTimeout` when
+    no HEARTBEAT comes within ``confirm_timeout`` of the ACK.
+    """
+
+    inputs: type | types.UnionType = CommandAck | Heartbeat
+
+    def __init__(self, command: CommandLong, name: str, *, system_id: int | None = None,
+                 timeout: float = TIMEOUT, retries: int = RETRIES,
+                 confirm_timeout: float = CONFIRM_TIMEOUT) -> None:
+        self.sender = CommandSender(command, "MAV_CMD_DO_SET_MODE", system_id=system_id,
+                                    timeout=timeout, retries=retries)
+        self.mode = name.upper()
+        self.system_id = system_id
+        self.confirm_timeout = confirm_timeout
+        self.shown: str | None = None
+        """The mode the HEARTBEAT after the ACK showed (None until it came)."""
+        self.timed_out = False
+        self._ack_seq: int | None = None
+        self._confirm_by = float("inf")
+
+    @property
+    def deadline(self) -> float:
+        """When :meth:`tick` is next due."""
+        return self._confirm_by if self.sender.accepted else self.sender.deadline
+
+    @property
+    def done(self) -> bool:
+        """True once the mode is confirmed or the change failed."""
+        if not self.sender.accepted:
+            return self.sender.done
+        return self.shown is not None or self.timed_out
+
+    @property
+    def error(self) -> VehicleError | None:
+        """The exception this outcome amounts to, or None if confirmed or still running."""
+        if not self.sender.accepted:
+            return self.sender.error
+        if self.timed_out:
+            return VehicleTimeout(f"{self.sender.name}: {self.mode} accepted, but no HEARTBEAT "
+                                  f"within {self.confirm_timeout:g} s", self.system_id)
+        if self.shown is not None and self.shown != self.mode:
+            return CommandRejected(self.sender.name, f"ACCEPTED, but the next HEARTBEAT shows "
+                                   f"{self.shown}, not {self.mode}", self.system_id)
+        return None
+
+    def start(self, now: float) -> list[CommandLong]:
+        """The first transmission of the command."""
+        return self.sender.start(now)  # type: ignore[return-value]
+
+    def receive(self, msg: CommandAck | Heartbeat, now: float) -> list[CommandLong]:
+        """Feed a COMMAND_ACK or an autopilot HEARTBEAT."""
+        if isinstance(msg, CommandAck):
+            waiting = not self.sender.done
+            self.sender.receive(msg, now)
+            if waiting and self.sender.accepted:
+                self._ack_seq = msg.packet_seq
+                self._confirm_by = now + self.confirm_timeout
+        elif self.sender.accepted and not self.done and not self._straggler(msg):
+            self.shown = mode_name(msg.vehicle_type, msg.autopilot, msg.base_mode,
+                                   msg.custom_mode)
+            self._confirm_by = float("inf")
+        return []
+
+    def tick(self, now: float) -> list[CommandLong]:
+        """Retransmit the command, or give up waiting for the HEARTBEAT."""
+        if not self.sender.done:
+            return self.sender.tick(now)  # type: ignore[return-value]
+        if self.sender.accepted and not self.done and now >= self._confirm_by:
+            self.timed_out = True
+            self._confirm_by = float("inf")
+        return []
+
+    def _straggler(self, beat: Heartbeat) -> bool:
+        # Sent before the ACK, overtaken by it: sequence numbers wrap at 256.
+        if self._ack_seq is None or beat.packet_seq is None:
+            return False
+        return 0 < (self._ack_seq - beat.packet_seq) % 256 <= STRAGGLER_WINDOW

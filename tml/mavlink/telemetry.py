@@ -9,7 +9,9 @@ refused here too, as a second guard behind the link's routing.
 Vehicle state (position, attitude, mode ...) is taken only from the autopilot component;
 detections come as NAMED_VALUE_FLOAT / NAMED_VALUE_INT from the companion computer
 (component 191, MAV_COMP_ID_ONBOARD_COMPUTER). Link health counts the messages received and
-the ones missing from the gaps in each component's sequence numbers.
+the ones missing from the gaps in each component's sequence numbers, and whether the
+vehicle is lost: :meth:`TelemetryTracker.check_link` is asked, with the time, whether the
+last HEARTBEAT is older than the limit; the next HEARTBEAT ends the loss.
 """
 
 from __future__ import annotations
@@ -80,6 +82,8 @@ class Telemetry:
     status_texts: tuple[StatusText, ...] = ()
     detections: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
     last_heartbeat: float | None = None
+    link_lost: bool = False
+    """True while no HEARTBEAT has come for longer than the link's limit."""
     received: int = 0
     lost: int = 0
 
@@ -123,6 +127,18 @@ class TelemetryTracker:
         self.snapshot = replace(self.snapshot, time=now, **changes)
         return True
 
+    def check_link(self, now: float, lost_after: float) -> bool:
+        """Mark the vehicle lost if its last HEARTBEAT is older than ``lost_after`` seconds.
+
+        Returns whether that changed the snapshot (a HEARTBEAT clears the mark in
+        :meth:`apply`).
+        """
+        lost = self.snapshot.heartbeat_age(now) > lost_after
+        if lost == self.snapshot.link_lost:
+            return False
+        self.snapshot = replace(self.snapshot, link_lost=lost)
+        return True
+
     def _count(self, component: int, seq: int) -> dict[str, Any]:
         last = self._last_seq.get(component)
         self._last_seq[component] = seq
@@ -135,6 +151,7 @@ class TelemetryTracker:
         if kind == "HEARTBEAT":
             return {"vehicle_type": msg.type, "autopilot": msg.autopilot,
                     "armed": bool(msg.base_mode & ARMED_FLAG), "last_heartbeat": now,
+                    "link_lost": False,
                     "mode": mode_name(msg.type, msg.autopilot, msg.base_mode, msg.custom_mode)}
         if kind == "GLOBAL_POSITION_INT":
             return {"position": GlobalPosition(msg.lat / 1e7, msg.lon / 1e7, msg.alt / 1000,

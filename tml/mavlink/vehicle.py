@@ -3,8 +3,10 @@
 Every method builds plain messages (``command``, ``mission``, ``modes``), lets the link
 drive the sans-IO machine, and turns the outcome into the error hierarchy at one place
 (:meth:`Vehicle.command`, :meth:`Vehicle.upload`): a refusal is CommandRejected or
-MissionTransferError naming the result, silence is VehicleTimeout. Methods return when the
-vehicle has *acknowledged*; that it then flies where it was told is watched from telemetry.
+MissionTransferError naming the result, silence is VehicleTimeout, a vehicle that stops
+sending HEARTBEATs is LinkLost. Methods return when the vehicle has *acknowledged*; that it
+then flies where it was told is watched from telemetry -- except a mode change, which is
+done only when a HEARTBEAT shows the new mode (:class:`~tml.mavlink.modes.ModeChange`).
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from tml.mavlink.mission import (
     same_items,
     with_home_placeholder,
 )
-from tml.mavlink.modes import set_mode_command
+from tml.mavlink.modes import CONFIRM_TIMEOUT, ModeChange, set_mode_command
 from tml.mavlink.telemetry import Telemetry
 
 DEFAULT_RATES = {
@@ -42,14 +44,19 @@ FORCE = 21196.0
 
 
 class Vehicle:
-    """Commands and mission transfers for the vehicle ``info`` on ``link``."""
+    """Commands and mission transfers for the vehicle ``info`` on ``link``.
+
+    ``mode_timeout``: seconds after a mode change's ACK within which a HEARTBEAT must show
+    the new mode.
+    """
 
     def __init__(self, link: Link, info: VehicleInfo, *, command_timeout: float = 1.5,
-                 command_retries: int = 5) -> None:
+                 command_retries: int = 5, mode_timeout: float = CONFIRM_TIMEOUT) -> None:
         self.link = link
         self.info = info
         self.command_timeout = command_timeout
         self.command_retries = command_retries
+        self.mode_timeout = mode_timeout
         self.system_id = info.system_id
         self.component_id = info.component_id
 
@@ -67,18 +74,30 @@ class Vehicle:
     # -- commands ---------------------------------------------------------------------
 
     def command(self, command: Command) -> None:
-        """Send ``command`` until acknowledged; raises CommandRejected or VehicleTimeout."""
-        sender = CommandSender(command, codec.command_name(command.command),
-                               system_id=self.system_id, timeout=self.command_timeout,
-                               retries=self.command_retries)
-        self.link.run(sender, self.system_id, self.component_id)
-        if sender.error is not None:
-            raise sender.error
+        """Send ``command`` until acknowledged.
+
+        Raises CommandRejected, VehicleTimeout, or LinkLost when the vehicle is lost.
+        """
+        self._run(CommandSender(command, codec.command_name(command.command),
+                                system_id=self.system_id, timeout=self.command_timeout,
+                                retries=self.command_retries))
 
     def set_mode(self, name: str) -> None:
-        """Switch to flight mode ``name`` (e.g. GUIDED, AUTO, LAND, RTL for ArduCopter)."""
-        self.command(set_mode_command(self.info.vehicle_type, self.info.autopilot, name,
-                                      self.system_id))
+        """Switch to flight mode ``name`` (e.g. GUIDED, AUTO, LAND, RTL for ArduCopter).
+
+        Returns once the ACK and then the next HEARTBEAT confirm it; a HEARTBEAT showing
+        another mode is CommandRejected, none within ``mode_timeout`` VehicleTimeout.
+        """
+        command = set_mode_command(self.info.vehicle_type, self.info.autopilot, name,
+                                   self.system_id)
+        self._run(ModeChange(command, name, system_id=self.system_id,
+                             timeout=self.command_timeout, retries=self.command_retries,
+                             confirm_timeout=self.mode_timeout))
+
+    def _run(self, machine: CommandSender | ModeChange) -> None:
+        self.link.run(machine, self.system_id, self.component_id)
+        if machine.error is not None:
+            raise machine.error
 
     def arm(self, force: bool = False) -> None:
         """Arm the motors (``force`` skips the pre-arm checks)."""

@@ -16,7 +16,8 @@ import pytest
 
 from tml.errors import LinkLost
 from tml.mavlink.codec import mavlink
-from tml.mavlink.link import Link
+from tml.mavlink.link import Address, Link, parse_address
+from tml.mavlink.vehicle import Vehicle
 
 KEY = bytes(range(32))
 
@@ -323,3 +324,72 @@ def test_a_vehicle_lost_during_a_command_is_link_lost_not_a_timeout() -> None:
             link.run(sender, 1, 1)  # 9 s of retries, cut short by the loss
         assert caught.value.system_id == 1 and not sender.done
         assert link.telemetry(1).link_lost
+
+
+# -- address forms over loopback ------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("text", "expected"), [
+    ("/dev/ttyUSB0,57600", Address("serial", device="/dev/ttyUSB0", baud=57600)),
+    ("/dev/ttyACM0,115200", Address("serial", device="/dev/ttyACM0", baud=115200)),
+    ("/dev/ttyUSB1", Address("serial", device="/dev/ttyUSB1", baud=57600)),
+    ("COM4,921600", Address("serial", device="COM4", baud=921600)),
+    ("udpin:0.0.0.0:14550", Address("udpin", host="0.0.0.0", port=14550)),
+    ("udp:127.0.0.1:14550", Address("udp", host="127.0.0.1", port=14550)),
+    ("udpout:10.0.0.2:14550", Address("udpout", host="10.0.0.2", port=14550)),
+    ("tcp:127.0.0.1:5760", Address("tcp", host="127.0.0.1", port=5760)),
+    ("tcpin:0.0.0.0:5760", Address("tcpin", host="0.0.0.0", port=5760)),
+])
+def test_addresses_are_taken_apart_without_opening_anything(text: str,
+                                                            expected: Address) -> None:
+    assert parse_address(text) == expected
+
+
+@pytest.mark.parametrize(("text", "why"), [
+    ("udpin:14550", "expected udpin:HOST:PORT"),
+    ("tcp:127.0.0.1:70000", "port from 0 to 65535"),
+    ("/dev/ttyUSB0,fast", "DEVICE,BAUD"),
+    ("", "DEVICE,BAUD"),
+])
+def test_malformed_addresses_say_what_is_expected(text: str, why: str) -> None:
+    from tml.errors import VehicleError
+
+    with pytest.raises(VehicleError, match=why) as caught:
+        Link(text)
+    assert repr(text) in str(caught.value)
+
+
+@pytest.mark.parametrize("scheme", ["udpin", "udp"])
+def test_a_listening_udp_link_is_found_by_a_vehicle_that_sends_first(scheme: str) -> None:
+    with Link(f"{scheme}:127.0.0.1:0") as link:
+        assert link.local_address is not None
+        with FakeAutopilot(system_id=6, connect=link.local_address) as ap:
+            vehicle = Vehicle.connect(link, 6, timeout=5)
+            vehicle.set_mode("GUIDED")  # the replies find their way back to the vehicle
+            assert ap.mode == 4 and vehicle.telemetry.mode == "GUIDED"
+
+
+def test_a_listening_tcp_link_accepts_a_vehicle_that_dials_in() -> None:
+    with Link("tcpin:127.0.0.1:0") as link:
+        assert link.local_address is not None
+        with FakeAutopilot(system_id=7, connect=link.local_address, tcp=True) as ap:
+            vehicle = Vehicle.connect(link, 7, timeout=5)
+            vehicle.set_mode("LAND")
+            assert ap.mode == 9 and vehicle.telemetry.mode == "LAND"
+
+
+def test_connecting_links_have_no_local_listening_address() -> None:
+    with FakeAutopilot() as ap, Link(f"udpout:127.0.0.1:{ap.port}") as link:
+        assert link.local_address is None
+
+
+def test_two_vehicles_sending_from_one_udp_socket_are_told_apart_by_system_id() -> None:
+    with Link("udpin:127.0.0.1:0") as link, \
+            FakeAutopilot(system_ids=(1, 2), connect=link.local_address) as ap:
+        first, second = Vehicle.connect(link, 1, timeout=5), Vehicle.connect(link, 2, timeout=5)
+        second.set_mode("RTL")
+        first.set_mode("LOITER")
+        assert ap.modes == {1: 5, 2: 6}
+        assert (first.telemetry.mode, second.telemetry.mode) == ("LOITER", "RTL")
+        assert [c.target_system for c in ap.commands] == [2, 1]
+        assert sorted(link.vehicles()) == [1, 2]

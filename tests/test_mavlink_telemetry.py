@@ -7,7 +7,7 @@ from typing import Any
 import pytest
 
 from tml.mavlink.codec import mavlink
-from tml.mavlink.telemetry import TelemetryTracker
+from tml.mavlink.telemetry import Sighting, TelemetryTracker
 
 
 class Source:
@@ -123,3 +123,18 @@ def test_a_vehicle_is_lost_after_the_limit_without_heartbeat_and_found_by_the_ne
     assert not tracker.check_link(20.0, lost_after=5.0)  # no change: still lost
     tracker.apply(heartbeat(ap), 21.0)
     assert not tracker.snapshot.link_lost and not tracker.check_link(21.0, lost_after=5.0)
+
+
+def test_sightings_pair_each_named_object_with_the_position_sent_after_it() -> None:
+    tracker = TelemetryTracker(1)
+    companion = Source(component=191)
+    tracker.apply(companion("named_value_int", 500, b"MARKER", 7), 0.0)
+    assert tracker.snapshot.sightings[("MARKER", 7)].position is None
+    tracker.apply(companion("debug_vect", b"MARKER", 500_000, 3.0, -2.0, 0.5), 0.0)
+    tracker.apply(companion("named_value_int", 500, b"MARKER", 8), 0.1)
+    tracker.apply(companion("debug_vect", b"MARKER", 499_000, 9.0, 9.0, 9.0), 0.1)  # stale
+    tracker.apply(companion("named_value_int", 1000, b"MARKER", 7), 0.5)
+    sightings = tracker.snapshot.sightings
+    assert sightings[("MARKER", 7)] == Sighting(0.5, (3.0, -2.0, 0.5))  # kept its place
+    assert sightings[("MARKER", 8)] == Sighting(0.1, None)
+    assert tracker.snapshot.detections["MARKER"] == 7

@@ -13,7 +13,9 @@ from tml.errors import CommandRejected, LinkLost, MissionTransferError, VehicleT
 from tml.mavlink.codec import mavlink
 from tml.mavlink.link import Link
 from tml.mavlink.mission import MissionItem, MissionType, Progress
+from tml.mavlink.telemetry import COMPANION_COMPONENT
 from tml.mavlink.vehicle import Vehicle
+from tml.world import World, WorldObject
 
 
 @pytest.fixture
@@ -230,6 +232,32 @@ def test_a_simulated_outage_makes_the_vehicle_lost_until_it_ends() -> None:
         assert sim.time >= 60.0 and back.last_heartbeat is not None
         vehicle.set_mode("LAND")
         assert sim.vehicle(1).mode == "LAND"
+
+
+def test_an_object_under_the_flying_vehicle_is_detected_over_the_link() -> None:
+    world = World(objects=(
+        WorldObject("marker", "7", north=1.0, east=-1.0),  # under the take-off point
+        WorldObject("aruco", "3", north=0.0, east=1.0),  # in view, but its skill stays off
+        WorldObject("marker", "8", north=200.0, east=0.0),  # far outside the footprint
+    ))
+    quick_fix = {"SIM_GPS_LOCKTIME": 1.0, "SIM_EKF_GPS_TIME": 2.0}
+    with Simulator(vehicles=1, tcp_base_port=0, speedup=20.0, world=world,
+                   params=quick_fix) as sim, \
+            Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}") as link:
+        vehicle = Vehicle.connect(link, 1, timeout=10)
+        link.send(mavlink.MAVLink_param_set_message(1, COMPANION_COMPONENT, b"RECOG_MARKERS", 1,
+                                                    mavlink.MAV_PARAM_TYPE_REAL32))
+        link.wait_telemetry(1, lambda t: t.position_ready, timeout=30)
+        vehicle.set_mode("GUIDED")
+        vehicle.arm()
+        vehicle.takeoff(10.0)
+        seen = link.wait_telemetry(1, lambda t: ("MARKER", 7) in t.sightings, timeout=30)
+        assert seen.detections["MARKER"] == 7 and "ARUCO" not in seen.detections
+        assert link.wait_telemetry(
+            1, lambda t: t.sightings[("MARKER", 7)].position is not None, timeout=10
+        ).sightings[("MARKER", 7)].position == (1.0, -1.0, 0.0)
+        assert ("MARKER", 8) not in link.telemetry(1).sightings
+        assert sim.vehicle(1).armed
 
 
 def test_two_simulated_vehicles_on_two_links_are_kept_apart() -> None:

@@ -8,10 +8,14 @@ refused here too, as a second guard behind the link's routing.
 
 Vehicle state (position, attitude, mode ...) is taken only from the autopilot component;
 detections come as NAMED_VALUE_FLOAT / NAMED_VALUE_INT from the companion computer
-(component 191, MAV_COMP_ID_ONBOARD_COMPUTER). Link health counts the messages received and
-the ones missing from the gaps in each component's sequence numbers, and whether the
-vehicle is lost: :meth:`TelemetryTracker.check_link` is asked, with the time, whether the
-last HEARTBEAT is older than the limit; the next HEARTBEAT ends the loss.
+(component 191, MAV_COMP_ID_ONBOARD_COMPUTER): ``detections`` keeps the latest value of
+each name, ``sightings`` each object reported (a NAMED_VALUE_INT: tag and number) with the
+position the DEBUG_VECT of the same name and time stamp gives it (docs/simulator.md).
+
+Link health counts the messages received and the ones missing from the gaps in each
+component's sequence numbers, and tells whether the vehicle is lost: the link asks
+:meth:`TelemetryTracker.check_link`, with the time, whether the last HEARTBEAT is older
+than the limit; the next HEARTBEAT ends the loss.
 """
 
 from __future__ import annotations
@@ -52,6 +56,15 @@ class StatusText:
 
 
 @dataclass(frozen=True)
+class Sighting:
+    """An object the companion computer reported: when last, and where if it said."""
+
+    time: float
+    position: tuple[float, float, float] | None = None
+    """North, east, up in metres from home."""
+
+
+@dataclass(frozen=True)
 class Telemetry:
     """What is known of one vehicle at ``time`` (None: not reported yet)."""
 
@@ -81,6 +94,10 @@ class Telemetry:
     items_reached: tuple[int, ...] = ()
     status_texts: tuple[StatusText, ...] = ()
     detections: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
+    """The latest NAMED_VALUE of each name from the companion computer."""
+    sightings: Mapping[tuple[str, int], Sighting] = field(
+        default_factory=lambda: MappingProxyType({}))
+    """Each object the companion computer reported, by (tag, number), e.g. ("MARKER", 7)."""
     last_heartbeat: float | None = None
     link_lost: bool = False
     """True while no HEARTBEAT has come for longer than the link's limit."""
@@ -113,6 +130,7 @@ class TelemetryTracker:
         self.companion_component = companion_component
         self.snapshot = Telemetry(system_id)
         self._last_seq: dict[int, int] = {}
+        self._named: tuple[str, int, int] | None = None  # (name, time_boot_ms, number)
 
     def apply(self, msg: Any, now: float) -> bool:
         """Fold ``msg`` in; returns whether it was this vehicle's and changed the snapshot."""
@@ -123,7 +141,7 @@ class TelemetryTracker:
         if component == self.autopilot_component:
             changes.update(self._vehicle_state(msg, now))
         elif component == self.companion_component:
-            changes.update(self._detection(msg))
+            changes.update(self._detection(msg, now))
         self.snapshot = replace(self.snapshot, time=now, **changes)
         return True
 
@@ -183,12 +201,31 @@ class TelemetryTracker:
             return {"status_texts": (*s.status_texts, text)[-STATUS_TEXTS_KEPT:]}
         return {}
 
-    def _detection(self, msg: Any) -> dict[str, Any]:
-        if msg.get_type() not in ("NAMED_VALUE_FLOAT", "NAMED_VALUE_INT"):
+    def _detection(self, msg: Any, now: float) -> dict[str, Any]:
+        kind = msg.get_type()
+        if kind == "DEBUG_VECT":
+            # Where the object just named is: same name, same time stamp.
+            name = _text(msg.name)
+            if self._named is None or self._named[:2] != (name, msg.time_usec // 1000):
+                return {}
+            return self._sighted((name, self._named[2]), Sighting(now, (msg.x, msg.y, msg.z)))
+        if kind not in ("NAMED_VALUE_FLOAT", "NAMED_VALUE_INT"):
             return {}
+        name = _text(msg.name)
         detections = dict(self.snapshot.detections)
-        detections[_text(msg.name)] = msg.value
-        return {"detections": MappingProxyType(detections)}
+        detections[name] = msg.value
+        changes: dict[str, Any] = {"detections": MappingProxyType(detections)}
+        if kind == "NAMED_VALUE_INT":
+            self._named = (name, msg.time_boot_ms, msg.value)
+            known = self.snapshot.sightings.get((name, msg.value))
+            changes.update(self._sighted((name, msg.value),
+                                         Sighting(now, known.position if known else None)))
+        return changes
+
+    def _sighted(self, key: tuple[str, int], sighting: Sighting) -> dict[str, Any]:
+        sightings = dict(self.snapshot.sightings)
+        sightings[key] = sighting
+        return {"sightings": MappingProxyType(sightings)}
 
 
 def _text(value: str | bytes) -> str:

@@ -1,18 +1,78 @@
-"""Small builders for outgoing messages shared by the autopilot and the companion.
+"""The messages a simulated vehicle sends, built from its present state.
+
+Each builder reads a :class:`Source` (the vehicle model, or any object with the same
+attributes) and returns one pymavlink message; :data:`BUILDERS` maps the message ids that
+stream or can be requested to their builders, so the model builds what
+:mod:`sitl.streams` says is due with :func:`build`. What the values mean follows
+ArduCopter: GLOBAL_POSITION_INT has lat = lon = 0 until the EKF has a position,
+HOME_POSITION does not exist before it, EXTENDED_SYS_STATE tells taking off from landing,
+MISSION_CURRENT carries the mission state.
 
 A message built by the model is addressed with its sender (system, component) in its
-header, so that the server encodes each with the right source ids without knowing which
-part of the vehicle produced it.
+header (:func:`stamp`), so that the server encodes each with the right source ids without
+knowing which part of the vehicle produced it.
 """
 
 from __future__ import annotations
 
-from typing import Any
+import math
+from collections.abc import Callable
+from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-AUTOPILOT = mavlink.MAV_COMP_ID_AUTOPILOT1  # 1
-COMPANION = mavlink.MAV_COMP_ID_ONBOARD_COMPUTER  # 191
+from sitl.modes import GUIDED_FLAG_MODES, MODES
+from sitl.physics import Battery
+from tml.world import Home
+
+M = mavlink
+AUTOPILOT = M.MAV_COMP_ID_AUTOPILOT1  # 1
+COMPANION = M.MAV_COMP_ID_ONBOARD_COMPUTER  # 191
+
+EKF_BEFORE_GPS = 0xA7  # attitude, velocities, vertical position, constant-position mode
+EKF_WITH_GPS = 0x33F  # ... plus horizontal position, relative and absolute, and predicted
+FLIGHT_SW_VERSION = (4 << 24) | (6 << 16) | (0 << 8) | 255  # 4.6.0 official
+CAPABILITIES = (
+    M.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT | M.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
+    | M.MAV_PROTOCOL_CAPABILITY_MISSION_INT | M.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+    | M.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
+    | M.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
+    | M.MAV_PROTOCOL_CAPABILITY_MAVLINK2 | M.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
+    | M.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY
+)
+SENSORS = (
+    M.MAV_SYS_STATUS_SENSOR_3D_GYRO | M.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+    | M.MAV_SYS_STATUS_SENSOR_3D_MAG | M.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+    | M.MAV_SYS_STATUS_SENSOR_GPS | M.MAV_SYS_STATUS_SENSOR_BATTERY
+)
+
+Vector = tuple[float, float, float]
+
+
+class Source(Protocol):
+    """What the builders read from a vehicle (positions in metres north/east/up of origin)."""
+
+    system_id: int
+    time: float
+    mode: str
+    armed: bool
+    landed: bool
+    origin: Home
+    home: Home
+    battery: Battery
+    position: Vector
+    velocity: Vector
+    heading: float  # degrees
+    roll: float  # radians
+    gps_fixed: bool
+    position_ok: bool
+    landing: bool  # descending to touch down
+    in_failsafe: bool
+
+    def global_position(self) -> Vector: ...  # latitude, longitude, altitude (AMSL)
+    def home_local(self) -> Vector: ...
+    def gps_noise(self) -> float: ...  # degrees of receiver noise for this fix
+    def mission_status(self) -> tuple[int, int, int]: ...  # seq, total, MISSION_STATE
 
 
 def stamp(msg: Any, system_id: int, component_id: int) -> Any:
@@ -24,7 +84,7 @@ def stamp(msg: Any, system_id: int, component_id: int) -> Any:
 
 def statustext(severity: int, text: str) -> Any:
     """A STATUSTEXT, cut to the 50 characters the field holds."""
-    return mavlink.MAVLink_statustext_message(severity, text.encode()[:50])
+    return M.MAVLink_statustext_message(severity, text.encode()[:50])
 
 
 def targets(msg: Any, system_id: int, component_id: int) -> bool:
@@ -32,3 +92,164 @@ def targets(msg: Any, system_id: int, component_id: int) -> bool:
     system = getattr(msg, "target_system", 0)
     component = getattr(msg, "target_component", 0)
     return system in (0, system_id) and component in (0, component_id)
+
+
+def _quaternion(heading: float) -> list[float]:
+    yaw = math.radians(heading)
+    return [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
+
+
+def heartbeat(v: Source) -> Any:
+    """HEARTBEAT: quadrotor, ArduPilot, the mode number; CRITICAL during a failsafe."""
+    base = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | M.MAV_MODE_FLAG_STABILIZE_ENABLED
+    if v.mode in GUIDED_FLAG_MODES:
+        base |= M.MAV_MODE_FLAG_GUIDED_ENABLED
+    if v.armed:
+        base |= M.MAV_MODE_FLAG_SAFETY_ARMED
+    state = M.MAV_STATE_CRITICAL if v.in_failsafe else (
+        M.MAV_STATE_ACTIVE if v.armed else M.MAV_STATE_STANDBY)
+    return M.MAVLink_heartbeat_message(M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                                       base, MODES[v.mode], state, 3)
+
+
+def sys_status(v: Source) -> Any:
+    """SYS_STATUS: sensors (GPS unhealthy without a fix) and the battery."""
+    healthy = SENSORS if v.gps_fixed else SENSORS & ~M.MAV_SYS_STATUS_SENSOR_GPS
+    b = v.battery
+    return M.MAVLink_sys_status_message(
+        SENSORS, SENSORS, healthy, 200, round(b.voltage * 1000), round(b.current * 100),
+        b.remaining, 0, 0, 0, 0, 0, 0)
+
+
+def battery_status(v: Source) -> Any:
+    """BATTERY_STATUS: voltage, current, consumed charge and percent left."""
+    b = v.battery
+    cells = [round(b.voltage * 1000)] + [65535] * 9
+    return M.MAVLink_battery_status_message(
+        0, M.MAV_BATTERY_FUNCTION_ALL, M.MAV_BATTERY_TYPE_LIPO, 32767, cells,
+        round(b.current * 100), round(b.consumed_mah), -1, b.remaining)
+
+
+def gps_raw_int(v: Source) -> Any:
+    """GPS_RAW_INT: no fix until the GPS locks, then a 3D fix with a little noise."""
+    if not v.gps_fixed:
+        return M.MAVLink_gps_raw_int_message(int(v.time * 1e6), 1, 0, 0, 0, 9999, 9999,
+                                             0, 0, 0)
+    lat, lon, alt = v.global_position()
+    noise = v.gps_noise()
+    vn, ve, _ = v.velocity
+    return M.MAVLink_gps_raw_int_message(
+        int(v.time * 1e6), 3, round((lat + noise) * 1e7), round((lon + noise) * 1e7),
+        round(alt * 1000), 121, 200, round(math.hypot(vn, ve) * 100),
+        round(math.degrees(math.atan2(ve, vn)) % 360 * 100), 10)
+
+
+def global_position_int(v: Source) -> Any:
+    """GLOBAL_POSITION_INT: lat = lon = 0 before the position estimate, as ArduCopter."""
+    u = v.position[2]
+    vn, ve, vu = v.velocity
+    lat = lon = 0
+    alt = round((v.origin.altitude + u) * 1000)
+    if v.position_ok:
+        la, lo, al = v.global_position()
+        lat, lon, alt = round(la * 1e7), round(lo * 1e7), round(al * 1000)
+    home_up = v.home_local()[2]
+    return M.MAVLink_global_position_int_message(
+        int(v.time * 1000), lat, lon, alt, round((u - home_up) * 1000),
+        round(vn * 100), round(ve * 100), round(-vu * 100), round(v.heading * 100) % 36000)
+
+
+def local_position_ned(v: Source) -> Any:
+    """LOCAL_POSITION_NED from the boot position (the EKF origin)."""
+    (n, e, u), (vn, ve, vu) = v.position, v.velocity
+    return M.MAVLink_local_position_ned_message(int(v.time * 1000), n, e, -u, vn, ve, -vu)
+
+
+def attitude(v: Source) -> Any:
+    """ATTITUDE: roll (non-zero only in a flip), level pitch, yaw in (-pi, pi]."""
+    yaw = math.radians(v.heading)
+    yaw = yaw - 2 * math.pi if yaw > math.pi else yaw
+    return M.MAVLink_attitude_message(int(v.time * 1000), v.roll, 0.0, yaw, 0.0, 0.0, 0.0)
+
+
+def vfr_hud(v: Source) -> Any:
+    """VFR_HUD: speeds, heading, throttle, altitude and climb."""
+    vn, ve, vu = v.velocity
+    ground = math.hypot(vn, ve)
+    throttle = 0 if not v.armed else (15 if v.landed else 50)
+    return M.MAVLink_vfr_hud_message(ground, ground, round(v.heading) % 360, throttle,
+                                     v.origin.altitude + v.position[2], vu)
+
+
+def extended_sys_state(v: Source) -> Any:
+    """EXTENDED_SYS_STATE: on the ground, taking off, in the air or landing."""
+    if v.landed:
+        state = M.MAV_LANDED_STATE_ON_GROUND
+    elif v.landing:
+        state = M.MAV_LANDED_STATE_LANDING
+    elif v.velocity[2] > 0.2 and v.position[2] < 2.0:
+        state = M.MAV_LANDED_STATE_TAKEOFF
+    else:
+        state = M.MAV_LANDED_STATE_IN_AIR
+    return M.MAVLink_extended_sys_state_message(M.MAV_VTOL_STATE_UNDEFINED, state)
+
+
+def mission_current(v: Source) -> Any:
+    """MISSION_CURRENT: the item in progress, the item count (home excluded), the state."""
+    seq, total, state = v.mission_status()
+    return M.MAVLink_mission_current_message(seq, total, state, 0)
+
+
+def ekf_status_report(v: Source) -> Any:
+    """EKF_STATUS_REPORT: the horizontal position flags only once the EKF uses GPS."""
+    flags = EKF_WITH_GPS if v.position_ok else EKF_BEFORE_GPS
+    return M.MAVLink_ekf_status_report_message(flags, 0.01, 0.01, 0.01, 0.01, 0.0, 0.0)
+
+
+def home_position(v: Source) -> Any | None:
+    """HOME_POSITION, or None before the position estimate (ArduCopter has no home yet)."""
+    if not v.position_ok:
+        return None
+    h = v.home
+    x, y, z = v.home_local()
+    return M.MAVLink_home_position_message(
+        round(h.latitude * 1e7), round(h.longitude * 1e7), round(h.altitude * 1000),
+        x, y, -z, _quaternion(h.heading), 0.0, 0.0, 0.0, int(v.time * 1e6))
+
+
+def autopilot_version(v: Source) -> Any:
+    """AUTOPILOT_VERSION: ArduPilot 4.6.0 with the mission, fence and rally capabilities."""
+    return M.MAVLink_autopilot_version_message(
+        CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0x1209, 0x5740,
+        v.system_id)
+
+
+def camera_image_captured(v: Source, index: int) -> Any:
+    """CAMERA_IMAGE_CAPTURED for picture ``index`` taken here and now."""
+    lat, lon, alt = v.global_position()
+    return M.MAVLink_camera_image_captured_message(
+        int(v.time * 1000), 0, 0, round(lat * 1e7), round(lon * 1e7), round(alt * 1000),
+        round(v.position[2] * 1000), _quaternion(v.heading), index, 1, b"")
+
+
+BUILDERS: dict[int, Callable[[Source], Any | None]] = {
+    M.MAVLINK_MSG_ID_HEARTBEAT: heartbeat,
+    M.MAVLINK_MSG_ID_SYS_STATUS: sys_status,
+    M.MAVLINK_MSG_ID_BATTERY_STATUS: battery_status,
+    M.MAVLINK_MSG_ID_GPS_RAW_INT: gps_raw_int,
+    M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: global_position_int,
+    M.MAVLINK_MSG_ID_LOCAL_POSITION_NED: local_position_ned,
+    M.MAVLINK_MSG_ID_ATTITUDE: attitude,
+    M.MAVLINK_MSG_ID_VFR_HUD: vfr_hud,
+    M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: extended_sys_state,
+    M.MAVLINK_MSG_ID_MISSION_CURRENT: mission_current,
+    M.MAVLINK_MSG_ID_EKF_STATUS_REPORT: ekf_status_report,
+    M.MAVLINK_MSG_ID_HOME_POSITION: home_position,
+    M.MAVLINK_MSG_ID_AUTOPILOT_VERSION: autopilot_version,
+}
+
+
+def build(msg_id: int, v: Source) -> Any | None:
+    """Message ``msg_id`` describing ``v`` now (None when unknown or not available yet)."""
+    builder = BUILDERS.get(msg_id)
+    return builder(v) if builder is not None else None

@@ -10,8 +10,11 @@ seed, the same messages and the same total time.
 Each tick: the sensors age (GPS lock after ``SIM_GPS_LOCKTIME`` s, the EKF uses GPS after
 ``SIM_EKF_GPS_TIME`` s, faults strike), failsafes are checked, the flight mode turns its
 goal into a motion demand (a position target, a velocity, or a landing), the body moves
-within its limits (:mod:`sitl.physics`), touch-down, collisions and the fence are
-detected, the battery drains, and due stream messages are built.
+within its limits (:mod:`sitl.physics`), touch-down, collisions (:mod:`sitl.obstacles`)
+and the fence (:mod:`sitl.fence`) are detected, the camera (:mod:`sitl.camera`) takes
+the pictures that fell due, the battery drains, the mission protocol's timeouts run, and
+the messages :mod:`sitl.streams` says are due are built by :mod:`sitl.messages`, which
+reads the model's public state. The mode table is :mod:`sitl.modes`.
 
 What a ground station sees follows ArduCopter: HEARTBEAT type QUADROTOR, autopilot
 ARDUPILOTMEGA, ``custom_mode`` = mode number; arming refused with "PreArm: ..." and
@@ -32,73 +35,27 @@ from dataclasses import replace
 from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
-from shapely.geometry import Point, Polygon
 
-from sitl import auto
+from sitl import auto, fence, messages
+from sitl.camera import COMMANDS as CAMERA_COMMANDS
+from sitl.camera import Camera
 from sitl.companion import Companion
 from sitl.faults import Faults
 from sitl.messages import AUTOPILOT, COMPANION, stamp, statustext, targets
 from sitl.missions import FENCE, MISSION, MissionServer
+from sitl.modes import ARMABLE, MODE_NAMES, MODES, NEEDS_POSITION
+from sitl.obstacles import Obstacles
 from sitl.params import AUTOPILOT_DEFAULTS, Params, param_replies
 from sitl.physics import Battery, Body, Limits, flight_current
+from sitl.streams import Streams
 from tml.geo import to_global, to_local
 from tml.mavlink.mission import MissionItem
-from tml.world import Cylinder, Home, World
+from tml.world import Home, World
 
 TICK = 0.05  # seconds of vehicle time per control step
 
-MODES = {"STABILIZE": 0, "AUTO": 3, "GUIDED": 4, "LOITER": 5, "RTL": 6, "LAND": 9, "BRAKE": 17}
-MODE_NAMES = {number: name for name, number in MODES.items()}
-ARMABLE = frozenset({"STABILIZE", "GUIDED", "LOITER"})
-NEEDS_POSITION = frozenset({"AUTO", "GUIDED", "LOITER", "RTL", "BRAKE"})
-GUIDED_FLAG_MODES = frozenset({"AUTO", "GUIDED", "RTL", "LAND", "LOITER", "BRAKE"})
-
 M = mavlink
-# Default stream rates in Hz (message id -> rate); SET_MESSAGE_INTERVAL and
-# REQUEST_DATA_STREAM change them per vehicle.
-DEFAULT_RATES = {
-    M.MAVLINK_MSG_ID_HEARTBEAT: 1.0,
-    M.MAVLINK_MSG_ID_SYS_STATUS: 1.0,
-    M.MAVLINK_MSG_ID_BATTERY_STATUS: 1.0,
-    M.MAVLINK_MSG_ID_GPS_RAW_INT: 1.0,
-    M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 4.0,
-    M.MAVLINK_MSG_ID_LOCAL_POSITION_NED: 4.0,
-    M.MAVLINK_MSG_ID_ATTITUDE: 4.0,
-    M.MAVLINK_MSG_ID_VFR_HUD: 4.0,
-    M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 1.0,
-    M.MAVLINK_MSG_ID_MISSION_CURRENT: 1.0,
-    M.MAVLINK_MSG_ID_EKF_STATUS_REPORT: 1.0,
-    M.MAVLINK_MSG_ID_HOME_POSITION: 0.0,  # sent when home changes and on request
-}
-# REQUEST_DATA_STREAM groups (MAV_DATA_STREAM) as ArduPilot maps them.
-DATA_STREAMS = {
-    M.MAV_DATA_STREAM_RAW_SENSORS: (M.MAVLINK_MSG_ID_GPS_RAW_INT,),
-    M.MAV_DATA_STREAM_EXTENDED_STATUS: (
-        M.MAVLINK_MSG_ID_SYS_STATUS, M.MAVLINK_MSG_ID_GPS_RAW_INT,
-        M.MAVLINK_MSG_ID_MISSION_CURRENT,
-    ),
-    M.MAV_DATA_STREAM_POSITION: (
-        M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, M.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
-    ),
-    M.MAV_DATA_STREAM_EXTRA1: (M.MAVLINK_MSG_ID_ATTITUDE,),
-    M.MAV_DATA_STREAM_EXTRA2: (M.MAVLINK_MSG_ID_VFR_HUD,),
-    M.MAV_DATA_STREAM_EXTRA3: (
-        M.MAVLINK_MSG_ID_BATTERY_STATUS, M.MAVLINK_MSG_ID_EKF_STATUS_REPORT,
-        M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
-    ),
-}
-EKF_BEFORE_GPS = 0xA7  # attitude, velocities, vertical position, constant-position mode
-EKF_WITH_GPS = 0x33F  # ... plus horizontal position, relative and absolute, and predicted
 FORCE_ARM = (2989, 21196)  # param2 magic numbers that skip the checks
-FLIGHT_SW_VERSION = (4 << 24) | (6 << 16) | (0 << 8) | 255  # 4.6.0 official
-CAPABILITIES = (
-    M.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT | M.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
-    | M.MAV_PROTOCOL_CAPABILITY_MISSION_INT | M.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
-    | M.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
-    | M.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
-    | M.MAV_PROTOCOL_CAPABILITY_MAVLINK2 | M.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
-    | M.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY
-)
 LANDED_AFTER = 1.0  # seconds on the ground before touch-down counts (ArduCopter's detector)
 GUIDED_VELOCITY_TIMEOUT = 3.0  # a velocity target older than this stops the vehicle
 
@@ -142,10 +99,10 @@ class VehicleModel:
         self.control_period = TICK
         self.gripper_closed = False
         self.images_captured = 0
+        self.roll = 0.0
         self._pending = 0.0
         self._outbox: list[Any] = []
-        self._intervals = {msg_id: _interval(rate) for msg_id, rate in DEFAULT_RATES.items()}
-        self._next_due = dict.fromkeys(self._intervals, 0.0)
+        self.streams = Streams()
         self._speed: float | None = None
         self._target: Vector | None = None
         self._velocity: tuple[Vector, float] | None = None  # (velocity, expiry time)
@@ -161,11 +118,9 @@ class VehicleModel:
         self._failsafes: set[str] = set()
         self._low_voltage_since: float | None = None
         self._colliding = False
-        self._capture: tuple[float, int, float] | None = None  # (interval, left, next time)
-        self._trigger_distance = 0.0
-        self._last_trigger: Vector | None = None
-        self._obstacles = [_footprint(obstacle) for obstacle in self.world.obstacles]
-        self._fence_polygon: Polygon | None = _fence_polygon(self.world)
+        self.camera = Camera(self.params)
+        self.obstacles = Obstacles(self.world)
+        self._fence_polygon = fence.world_polygon(self.world)
         self._home_changed()
 
     # ----------------------------------------------------------------- public state
@@ -233,7 +188,9 @@ class VehicleModel:
             self.time = self.step_count * TICK
             self._tick()
             self._outbox.extend(self.missions.tick(self.time))
-            out.extend(self._streams())
+            out.extend(stamp(built, self.system_id, AUTOPILOT)
+                       for built in map(self._build, self.streams.due(self.time))
+                       if built is not None)
             out.extend(self._flush())
             out.extend(self.companion.step(self.time, self.position, self.heading))
         return out
@@ -249,7 +206,7 @@ class VehicleModel:
             return self.missions.handle(msg, self.time)
         if kind == "MISSION_SET_CURRENT":
             self._set_current(msg.seq)
-            return [self._build(M.MAVLINK_MSG_ID_MISSION_CURRENT)]
+            return [messages.mission_current(self)]
         if kind in ("COMMAND_LONG", "COMMAND_INT"):
             return self._command(msg)
         if kind == "SET_MODE":
@@ -261,7 +218,8 @@ class VehicleModel:
         elif kind == "SET_POSITION_TARGET_GLOBAL_INT":
             self._global_target(msg)
         elif kind == "REQUEST_DATA_STREAM":
-            self._data_stream(msg)
+            self.streams.request_data_stream(msg.req_stream_id, msg.req_message_rate,
+                                             bool(msg.start_stop), self.time)
         return []
 
     def _command(self, msg: Any) -> list[Any]:
@@ -326,8 +284,7 @@ class VehicleModel:
             return ok
         if command == M.MAV_CMD_DO_SET_MISSION_CURRENT:
             return ok if self._set_current(round(p[0])) else failed
-        if command in (M.MAV_CMD_DO_DIGICAM_CONTROL, M.MAV_CMD_IMAGE_START_CAPTURE,
-                       M.MAV_CMD_IMAGE_STOP_CAPTURE, M.MAV_CMD_DO_SET_CAM_TRIGG_DIST):
+        if command in CAMERA_COMMANDS:
             self._camera(command, p)
             return ok
         if command == M.MAV_CMD_DO_GRIPPER:
@@ -336,28 +293,18 @@ class VehicleModel:
             self._gripper(p[1])
             return ok
         if command == M.MAV_CMD_SET_MESSAGE_INTERVAL:
-            msg_id, interval = round(p[0]), p[1]
-            if msg_id not in self._intervals:
-                return failed
-            if interval < 0:
-                self._intervals[msg_id] = None
-            elif interval == 0:
-                self._intervals[msg_id] = _interval(DEFAULT_RATES[msg_id])
-            else:
-                self._intervals[msg_id] = interval / 1e6
-            self._next_due[msg_id] = self.time
-            return ok
+            return ok if self.streams.set_interval(round(p[0]), p[1], self.time) else failed
         if command == M.MAV_CMD_REQUEST_MESSAGE:
-            built = self._build(round(p[0]))
+            built = messages.build(round(p[0]), self)
             if built is None:
                 return failed
             extra.append(built)
             return ok
         if command == M.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
-            extra.append(self._build(M.MAVLINK_MSG_ID_AUTOPILOT_VERSION))
+            extra.append(messages.autopilot_version(self))
             return ok
         if command == M.MAV_CMD_GET_HOME_POSITION:
-            built = self._build(M.MAVLINK_MSG_ID_HOME_POSITION)
+            built = messages.home_position(self)
             if built is None:
                 return failed
             extra.append(built)
@@ -601,7 +548,8 @@ class VehicleModel:
             self.auto.update()
         self._fly()
         self._check_landed()
-        self._update_camera()
+        for _ in range(self.camera.update(self.time, self.position, not self.landed)):
+            self._capture_image()
         wind = self.params["SIM_WIND_SPD"]
         self.battery.drain(TICK, flight_current(
             self.armed, not self.landed, self.body.velocity, wind))
@@ -790,89 +738,40 @@ class VehicleModel:
             self.disarm()
 
     def _fence_breach(self, position: Vector) -> str:
-        p = self.params
-        kinds = round(p["FENCE_TYPE"])
-        fence = self.world.geofence
-        max_alt = p["FENCE_ALT_MAX"]
-        if fence is not None and fence.max_altitude is not None:
-            max_alt = min(max_alt, fence.max_altitude)
-        if kinds & 1 and position[2] > max_alt:
-            return "maximum altitude"
-        home = self._home_local()
-        from_home = math.hypot(position[0] - home[0], position[1] - home[1])
-        if kinds & 2 and from_home > p["FENCE_RADIUS"]:
-            return "circle"
-        polygon = self._fence_polygon
-        if kinds & 4 and polygon is not None and not polygon.contains(Point(position[:2])):
-            return "polygon"
-        return ""
+        geofence = self.world.geofence
+        ceiling = geofence.max_altitude if geofence is not None else None
+        return fence.breach(position, self.params, self._home_local(), self._fence_polygon,
+                            ceiling)
 
     # ------------------------------------------------------------- obstacles
     def _blocked(self, position: Vector) -> bool:
         """True when ``position`` hits an obstacle; reported once per approach."""
         margin = self.params["AVOID_MARGIN"] if (
             self.companion.avoiding and self.params["AVOID_ENABLE"]) else 0.0
-        clear = True
-        for name, shape, bottom, top in self._obstacles:
-            if not bottom - margin <= position[2] <= top + margin:
-                continue
-            distance = shape.distance(Point(position[:2]))
-            clear = clear and distance > margin + 1.0
-            if distance <= margin:
-                if not self._colliding:
-                    self._colliding = True
-                    message = f"Avoid: stopped at {name}" if margin else f"Collision with {name}"
-                    severity = M.MAV_SEVERITY_WARNING if margin else M.MAV_SEVERITY_CRITICAL
-                    self._text(severity, message)
-                return True
-        if clear:  # a metre away: the next contact is a new one
-            self._colliding = False
-        return False
+        name = self.obstacles.touching(position, margin)
+        if name is None:
+            nearest = self.obstacles.nearest(position, margin)
+            if nearest is None or nearest > margin + 1.0:  # a metre away: contact is over
+                self._colliding = False
+            return False
+        if not self._colliding:
+            self._colliding = True
+            if margin:
+                self._text(M.MAV_SEVERITY_WARNING, f"Avoid: stopped at {name}")
+            else:
+                self._text(M.MAV_SEVERITY_CRITICAL, f"Collision with {name}")
+        return True
 
     def _nearest_obstacle(self, position: Vector) -> float | None:
-        distances = [shape.distance(Point(position[:2]))
-                     for _, shape, bottom, top in self._obstacles if bottom <= position[2] <= top]
-        return min(distances) if distances else None
+        return self.obstacles.nearest(position)
 
     # ---------------------------------------------------------- camera, gripper
     def _camera(self, command: int, p: list[float]) -> None:
-        if command == M.MAV_CMD_DO_DIGICAM_CONTROL:
-            if p[4] >= 0.5:
-                self._capture_image()
-        elif command == M.MAV_CMD_IMAGE_START_CAPTURE:
-            interval, count = p[1], round(p[2])
-            self._capture_image()
-            if count != 1:
-                self._capture = (max(interval, 0.1), count - 1 if count > 1 else -1,
-                                 self.time + max(interval, 0.1))
-        elif command == M.MAV_CMD_IMAGE_STOP_CAPTURE:
-            self._capture = None
-        elif command == M.MAV_CMD_DO_SET_CAM_TRIGG_DIST:
-            self._trigger_distance = max(p[0], 0.0)
-            self._last_trigger = self.position
-            if p[2] >= 0.5 and self._trigger_distance:
-                self._capture_image()
-
-    def _update_camera(self) -> None:
-        if self._capture is not None and self.time >= self._capture[2] - 1e-9:
-            interval, left, _ = self._capture
-            self._capture_image()
-            left -= 1 if left > 0 else 0
-            self._capture = None if left == 0 else (interval, left, self.time + interval)
-        last = self._last_trigger
-        if (self._trigger_distance > 0 and last is not None and not self.landed
-                and math.dist(self.position[:2], last[:2]) >= self._trigger_distance):
-            self._last_trigger = self.position
+        for _ in range(self.camera.command(command, p, self.time, self.position)):
             self._capture_image()
 
     def _capture_image(self) -> None:
-        lat, lon, alt = self._global(self.position)
-        yaw = math.radians(self.heading)
-        self._outbox.append(M.MAVLink_camera_image_captured_message(
-            int(self.time * 1000), 0, 0, round(lat * 1e7), round(lon * 1e7), round(alt * 1000),
-            round(self.position[2] * 1000), [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)],
-            self.images_captured, 1, b"",
-        ))
+        self._outbox.append(messages.camera_image_captured(self, self.images_captured))
         self.images_captured += 1
 
     def _gripper(self, action: float) -> None:
@@ -900,7 +799,7 @@ class VehicleModel:
 
     def _home_changed(self) -> None:
         if self.position_ok:
-            self._outbox.append(self._build(M.MAVLINK_MSG_ID_HOME_POSITION))
+            self._outbox.append(messages.home_position(self))
 
     def _home_item(self) -> MissionItem:
         h = self.home
@@ -920,8 +819,7 @@ class VehicleModel:
             self.params.set("FENCE_TOTAL", len(items))
             vertices = [self._local(i.x / 1e7, i.y / 1e7, self.origin.altitude)[:2]
                         for i in items if i.command == M.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION]
-            self._fence_polygon = Polygon(vertices) if len(vertices) >= 3 else _fence_polygon(
-                self.world)
+            self._fence_polygon = fence.inclusion_polygon(vertices, self.world)
         else:
             self.params.set("RALLY_TOTAL", len(self.missions.items(mission_type)))
 
@@ -949,158 +847,42 @@ class VehicleModel:
         out, self._outbox = self._outbox, []
         return [stamp(msg, self.system_id, AUTOPILOT) for msg in out]
 
-    # ---------------------------------------------------------------- streams
-    def _data_stream(self, msg: Any) -> None:
-        groups = list(DATA_STREAMS) if msg.req_stream_id == M.MAV_DATA_STREAM_ALL else [
-            msg.req_stream_id]
-        for group in groups:
-            for msg_id in DATA_STREAMS.get(group, ()):
-                on = msg.start_stop and msg.req_message_rate > 0
-                self._intervals[msg_id] = 1.0 / msg.req_message_rate if on else None
-                self._next_due[msg_id] = self.time
+    # ---------------------------------------------------------- what messages read
+    @property
+    def velocity(self) -> Vector:
+        """(north, east, up) in m/s."""
+        return self.body.velocity
 
-    def _streams(self) -> list[Any]:
-        out = []
-        for msg_id, interval in self._intervals.items():
-            if interval is None or self.time + 1e-9 < self._next_due[msg_id]:
-                continue
-            self._next_due[msg_id] = max(self._next_due[msg_id] + interval, self.time)
-            built = self._build(msg_id)
-            if built is not None:
-                out.append(stamp(built, self.system_id, AUTOPILOT))
-        return out
+    @property
+    def landing(self) -> bool:
+        """True while descending to touch down (LAND, RTL's last phase, NAV_LAND)."""
+        return self._landing is not None
 
-    def _build(self, msg_id: int) -> Any | None:
-        """The message ``msg_id`` describing the present state (None if not available)."""
-        builder = getattr(self, f"_msg_{msg_id}", None)
-        return builder() if builder is not None else None
+    @property
+    def in_failsafe(self) -> bool:
+        """True while any failsafe (battery, GCS, EKF, fence) is active."""
+        return bool(self._failsafes)
 
-    def _msg_0(self) -> Any:  # HEARTBEAT
-        base = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | M.MAV_MODE_FLAG_STABILIZE_ENABLED
-        if self.mode in GUIDED_FLAG_MODES:
-            base |= M.MAV_MODE_FLAG_GUIDED_ENABLED
-        if self.armed:
-            base |= M.MAV_MODE_FLAG_SAFETY_ARMED
-        state = M.MAV_STATE_CRITICAL if self._failsafes else (
-            M.MAV_STATE_ACTIVE if self.armed else M.MAV_STATE_STANDBY)
-        return M.MAVLink_heartbeat_message(M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_ARDUPILOTMEGA,
-                                           base, MODES[self.mode], state, 3)
+    def global_position(self) -> Vector:
+        """Latitude, longitude (degrees) and altitude above mean sea level (m)."""
+        return self._global(self.position)
 
-    def _msg_1(self) -> Any:  # SYS_STATUS
-        sensors = (M.MAV_SYS_STATUS_SENSOR_3D_GYRO | M.MAV_SYS_STATUS_SENSOR_3D_ACCEL
-                   | M.MAV_SYS_STATUS_SENSOR_3D_MAG | M.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
-                   | M.MAV_SYS_STATUS_SENSOR_GPS | M.MAV_SYS_STATUS_SENSOR_BATTERY)
-        healthy = sensors if self.gps_fixed else sensors & ~M.MAV_SYS_STATUS_SENSOR_GPS
-        b = self.battery
-        return M.MAVLink_sys_status_message(
-            sensors, sensors, healthy, 200, round(b.voltage * 1000), round(b.current * 100),
-            b.remaining, 0, 0, 0, 0, 0, 0)
+    def home_local(self) -> Vector:
+        """Home in the local frame."""
+        return self._home_local()
 
-    def _msg_147(self) -> Any:  # BATTERY_STATUS
-        b = self.battery
-        cells = [round(b.voltage * 1000)] + [65535] * 9
-        return M.MAVLink_battery_status_message(
-            0, M.MAV_BATTERY_FUNCTION_ALL, M.MAV_BATTERY_TYPE_LIPO, 32767, cells,
-            round(b.current * 100), round(b.consumed_mah), -1, b.remaining)
+    def gps_noise(self) -> float:
+        """A draw of receiver noise in degrees (about 0.3 m), from the vehicle's seed."""
+        return 1e-7 * self._rng.uniform(-3.0, 3.0)
 
-    def _msg_24(self) -> Any:  # GPS_RAW_INT
-        if not self.gps_fixed:
-            return M.MAVLink_gps_raw_int_message(int(self.time * 1e6), 1, 0, 0, 0, 9999, 9999,
-                                                 0, 0, 0)
-        lat, lon, alt = self._global(self.position)
-        noise = 1e-7 * self._rng.uniform(-3.0, 3.0)  # ~0.3 m of receiver noise
-        vn, ve, _ = self.body.velocity
-        return M.MAVLink_gps_raw_int_message(
-            int(self.time * 1e6), 3, round((lat + noise) * 1e7), round((lon + noise) * 1e7),
-            round(alt * 1000), 121, 200, round(math.hypot(vn, ve) * 100),
-            round(math.degrees(math.atan2(ve, vn)) % 360 * 100), 10)
-
-    def _msg_33(self) -> Any:  # GLOBAL_POSITION_INT
-        u = self.position[2]
-        vn, ve, vu = self.body.velocity
-        lat = lon = 0
-        alt = round((self.origin.altitude + u) * 1000)
-        if self.position_ok:
-            la, lo, al = self._global(self.position)
-            lat, lon, alt = round(la * 1e7), round(lo * 1e7), round(al * 1000)
-        home_up = self._home_local()[2]
-        return M.MAVLink_global_position_int_message(
-            int(self.time * 1000), lat, lon, alt, round((u - home_up) * 1000),
-            round(vn * 100), round(ve * 100), round(-vu * 100), round(self.heading * 100) % 36000)
-
-    def _msg_32(self) -> Any:  # LOCAL_POSITION_NED
-        (n, e, u), (vn, ve, vu) = self.position, self.body.velocity
-        return M.MAVLink_local_position_ned_message(int(self.time * 1000), n, e, -u, vn, ve, -vu)
-
-    def _msg_30(self) -> Any:  # ATTITUDE
-        yaw = math.radians(self.heading)
-        yaw = yaw - 2 * math.pi if yaw > math.pi else yaw
-        return M.MAVLink_attitude_message(int(self.time * 1000), 0.0, 0.0, yaw, 0.0, 0.0, 0.0)
-
-    def _msg_74(self) -> Any:  # VFR_HUD
-        vn, ve, vu = self.body.velocity
-        ground = math.hypot(vn, ve)
-        throttle = 0 if not self.armed else (15 if self.landed else 50)
-        return M.MAVLink_vfr_hud_message(ground, ground, round(self.heading) % 360, throttle,
-                                         self.origin.altitude + self.position[2], vu)
-
-    def _msg_245(self) -> Any:  # EXTENDED_SYS_STATE
-        if self.landed:
-            state = M.MAV_LANDED_STATE_ON_GROUND
-        elif self._landing is not None:
-            state = M.MAV_LANDED_STATE_LANDING
-        elif self.body.velocity[2] > 0.2 and self.position[2] < 2.0:
-            state = M.MAV_LANDED_STATE_TAKEOFF
-        else:
-            state = M.MAV_LANDED_STATE_IN_AIR
-        return M.MAVLink_extended_sys_state_message(M.MAV_VTOL_STATE_UNDEFINED, state)
-
-    def _msg_42(self) -> Any:  # MISSION_CURRENT
+    def mission_status(self) -> tuple[int, int, int]:
+        """(seq, item count without home, MISSION_STATE) for MISSION_CURRENT."""
         total = max(len(self.mission_items) - 1, 0)
         if self.auto is not None:
-            seq = self.auto.current
             state = M.MISSION_STATE_COMPLETE if self.auto.finished else M.MISSION_STATE_ACTIVE
-        else:
-            seq = self._mission_current
-            state = M.MISSION_STATE_NOT_STARTED if total else M.MISSION_STATE_NO_MISSION
-        return M.MAVLink_mission_current_message(seq, total, state, 0)
+            return self.auto.current, total, state
+        state = M.MISSION_STATE_NOT_STARTED if total else M.MISSION_STATE_NO_MISSION
+        return self._mission_current, total, state
 
-    def _msg_193(self) -> Any:  # EKF_STATUS_REPORT
-        flags = EKF_WITH_GPS if self.position_ok else EKF_BEFORE_GPS
-        return M.MAVLink_ekf_status_report_message(flags, 0.01, 0.01, 0.01, 0.01, 0.0, 0.0)
-
-    def _msg_242(self) -> Any | None:  # HOME_POSITION
-        if not self.position_ok:
-            return None
-        h = self.home
-        x, y, z = self._home_local()
-        yaw = math.radians(h.heading)
-        return M.MAVLink_home_position_message(
-            round(h.latitude * 1e7), round(h.longitude * 1e7), round(h.altitude * 1000),
-            x, y, -z, [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)], 0.0, 0.0, 0.0,
-            int(self.time * 1e6))
-
-    def _msg_148(self) -> Any:  # AUTOPILOT_VERSION
-        return M.MAVLink_autopilot_version_message(
-            CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0x1209, 0x5740,
-            self.system_id)
-
-
-def _interval(rate: float) -> float | None:
-    return 1.0 / rate if rate > 0 else None
-
-
-def _footprint(obstacle: Any) -> tuple[str, Any, float, float]:
-    """(name, ground shape, bottom, top) of a world obstacle."""
-    if isinstance(obstacle, Cylinder):
-        shape = Point(obstacle.north, obstacle.east).buffer(obstacle.radius)
-    else:
-        shape = Polygon(obstacle.polygon)
-    return obstacle.name, shape, obstacle.bottom, obstacle.top
-
-
-def _fence_polygon(world: World) -> Polygon | None:
-    fence = world.geofence
-    if fence is None or len(fence.polygon) < 3:
-        return None
-    return Polygon(fence.polygon)
+    def _build(self, msg_id: int) -> Any | None:
+        return messages.build(msg_id, self)

@@ -68,8 +68,10 @@ class Body:
     ) -> None:
         """Advance ``dt`` seconds chasing the velocity ``demand``.
 
-        With a ``target`` the body never overshoots it (the discrete step would otherwise
-        oscillate around the point the square-root curve stops at).
+        With a ``target``, a step that would cross it ends on it, so the discrete step does
+        not oscillate around the point the square-root curve stops at; the speed left over
+        from the acceleration limit's lag may still carry the body a few centimetres past
+        before it settles back.
         """
         step_h, step_v = limits.accel * dt, limits.accel_z * dt
         vn, ve, vu = self.velocity

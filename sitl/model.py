@@ -55,6 +55,7 @@ from tml.world import Home, World
 TICK = 0.05  # seconds of vehicle time per control step
 
 M = mavlink
+BRAKE_DECEL = 7.5  # m/s², ArduCopter's BRAKE_MODE_DECEL_RATE: BRAKE stops harder
 FORCE_ARM = (2989, 21196)  # param2 magic numbers that skip the checks
 LANDED_AFTER = 1.0  # seconds on the ground before touch-down counts (ArduCopter's detector)
 GUIDED_VELOCITY_TIMEOUT = 3.0  # a velocity target older than this stops the vehicle
@@ -564,7 +565,7 @@ class VehicleModel:
         speed = self._speed or p["WPNAV_SPEED"] / 100.0
         if self.mode == "RTL" and p["RTL_SPEED"] > 0:
             speed = p["RTL_SPEED"] / 100.0
-        accel = p["WPNAV_ACCEL"] / 100.0 * (2.0 if self.mode == "BRAKE" else 1.0)
+        accel = BRAKE_DECEL if self.mode == "BRAKE" else p["WPNAV_ACCEL"] / 100.0
         return Limits(speed, p["WPNAV_SPEED_UP"] / 100.0, p["WPNAV_SPEED_DN"] / 100.0,
                       accel, p["WPNAV_ACCEL_Z"] / 100.0, p["ATC_RATE_Y_MAX"])
 
@@ -833,7 +834,7 @@ class VehicleModel:
 
     def _stopping_point(self) -> Vector:
         (n, e, u), (vn, ve, _) = self.position, self.body.velocity
-        accel = self.params["WPNAV_ACCEL"] / 100.0
+        accel = BRAKE_DECEL if self.mode == "BRAKE" else self.params["WPNAV_ACCEL"] / 100.0
         speed = math.hypot(vn, ve)
         if speed < 1e-6:
             return n, e, max(u, 0.0)

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
+import pytest
 from pymavlink.dialects.v20 import ardupilotmega as M
 
 from sitl.model import TICK, VehicleModel
-from tml.geo import to_global
+from tml.geo import to_global, to_local
 from tml.world import DEFAULT_HOME
 
 FAST = {"SIM_GPS_LOCKTIME": 1, "SIM_EKF_GPS_TIME": 2}
@@ -103,3 +105,45 @@ def test_auto_needs_a_takeoff_first_when_on_the_ground():
     v.handle(M.MAVLink_command_long_message(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0))
     assert v.set_mode("AUTO") is False and v.mode == "GUIDED"
     assert "Auto: Missing Takeoff Cmd" in texts(v.step(TICK))
+
+
+def local(msg) -> tuple[float, float]:
+    north, east, _ = to_local(msg.lat / 1e7, msg.lon / 1e7, H.altitude, H.latitude,
+                              H.longitude, H.altitude)
+    return north, east
+
+
+def test_cam_trigg_dist_takes_a_picture_every_n_metres_of_the_leg():
+    _, out = fly([
+        item(22, alt=10), item(206, 10), item(16, 2, north=50), item(16, north=50, east=30),
+        item(206, 0), item(21, north=50, east=30, alt=0),
+    ])
+    spots = [local(m) for m in out if m.get_type() == "CAMERA_IMAGE_CAPTURED"]
+    # Every 10 m (and up to one control step's travel, 0.5 m at 10 m/s, as the check runs
+    # once a step) along the 50 m leg north, none on the leg east, whose DO item turns it off.
+    norths = [0.0] + [north for north, _ in spots]
+    assert [round(b - a) for a, b in itertools.pairwise(norths)] == [10, 10, 10, 10]
+    assert all(10.0 <= b - a <= 10.6 for a, b in itertools.pairwise(norths))
+    assert all(abs(east) < 0.5 for _, east in spots)
+
+
+def test_change_altitude_retargets_the_leg_in_progress():
+    _, out = fly([
+        item(22, alt=10), item(16, north=40, alt=10), item(186, 25),
+        item(16, 3, north=40, east=10, alt=10), item(21, north=40, east=10, alt=0),
+    ], limit=300)
+    assert reached(out)[:2] == [1, 2]
+    heights = [m.relative_alt / 1000 for m in out if m.get_type() == "GLOBAL_POSITION_INT"]
+    assert max(heights) == pytest.approx(25.0, abs=0.3)  # item 2 flown at 25 m, not 10
+
+
+def test_set_home_item_moves_where_the_mission_returns_to():
+    lat, lon = at(20, 30)
+    v, out = fly([
+        item(22, alt=10), item(16, north=20), (0, 179, [0, 0, 0, 0], lat, lon, H.altitude),
+        item(20),
+    ], limit=400)
+    assert reached(out) == [1, 2, 4]
+    assert math.dist(v.position[:2], (20.0, 30.0)) < 1.0  # landed at the new home
+    homes = [m for m in out if m.get_type() == "HOME_POSITION"]
+    assert homes and homes[-1].latitude == lat and homes[-1].longitude == lon

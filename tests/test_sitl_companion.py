@@ -64,3 +64,21 @@ def test_parameters_are_listed_on_component_191():
     names = {m.param_id for m in c.handle(M.MAVLink_param_request_list_message(1, 191))}
     assert {"AVOID_OBST", "RECOG_MARKERS", "RECOG_ARUCO", "SELF_LOCATE", "RECOG_ITEMS",
             "RECOG_BUCKETS", "CAM_HFOV", "DET_RATE"} <= names
+
+
+def test_bucket_and_marker_skills_report_their_kinds_only():
+    world = World(objects=(
+        WorldObject("bucket", "blue", 10.0, 0.0), WorldObject("bucket", "3", 12.0, 0.0),
+        WorldObject("marker", "H", 10.0, 1.0), WorldObject("frame", "red", 11.0, -1.0),
+        WorldObject("aruco", "7", 10.0, 0.5),
+    ))
+    c = Companion(1, world, lambda position: None)
+    over = (11.0, 0.0, 10.0)
+    switch(c, "RECOG_BUCKETS", 1)
+    out = c.step(1.0, over, 0.0)
+    assert sorted(detections(out)) == [("BUCKET", 1), ("BUCKET", 3)]
+    assert "Detected bucket 1 blue" in [m.text for m in out if m.get_type() == "STATUSTEXT"]
+    switch(c, "RECOG_BUCKETS", 0)
+    switch(c, "RECOG_MARKERS", 1)
+    assert sorted(detections(c.step(2.0, over, 0.0))) == [("FRAME", 1), ("MARKER", 1)]
+    assert detections(c.step(3.0, (11.0, 40.0, 10.0), 0.0)) == []  # all out of view

@@ -288,3 +288,62 @@ def test_gripper_and_camera():
     images = [m for m in out if m.get_type() == "CAMERA_IMAGE_CAPTURED"]
     assert [m.image_index for m in images] == [0, 1, 2]
     assert command(v, M.MAV_CMD_IMAGE_STOP_CAPTURE)[0] == M.MAV_RESULT_ACCEPTED
+
+
+def test_wind_drifts_a_vehicle_that_holds_nothing_but_not_one_that_holds_position():
+    v = flying(10.0, params={"SIM_WIND_SPD": 4.0, "SIM_WIND_DIR": 0.0})  # from the north
+    start = v.position
+    v.step(5)
+    assert math.dist(v.position, start) < 0.5  # GUIDED holds against the wind
+    assert v.set_mode("STABILIZE")
+    start = v.position
+    v.step(5)
+    south, east = start[0] - v.position[0], v.position[1] - start[1]
+    assert south == pytest.approx(20.0, abs=1.0) and abs(east) < 0.1  # 4 m/s for 5 s
+    assert v.position[2] == pytest.approx(start[2], abs=0.1)
+
+
+def test_brake_stops_a_fast_vehicle_and_holds_it_there():
+    v = flying(10.0)
+    v.fly_to((500.0, 0.0, 10.0))
+    run_until(v, lambda: v.body.velocity[0] > 9.9, 30)
+    result, _ = command(v, M.MAV_CMD_DO_SET_MODE, 1, 17)
+    assert result == M.MAV_RESULT_ACCEPTED
+    braked_at = v.position[0]
+    run_until(v, lambda: math.hypot(*v.body.velocity[:2]) < 0.01, 10)
+    stopped = v.position
+    assert stopped[0] - braked_at < 10.0 ** 2 / (2 * 7.5) + 0.5  # at 7.5 m/s², not 2.5
+    v.step(5)
+    assert math.dist(v.position, stopped) < 0.2 and v.mode == "BRAKE"
+    beat = next(m for m in v.step(1) if m.get_type() == "HEARTBEAT")
+    assert beat.custom_mode == 17
+
+
+def test_set_home_here_or_elsewhere_moves_where_rtl_lands():
+    v = flying(5.0)
+    v.fly_to((30.0, 0.0, 5.0))
+    run_until(v, lambda: v.arrived((30.0, 0.0, 5.0), 0.2), 30)
+    result, replies = command(v, M.MAV_CMD_DO_SET_HOME, 1)
+    assert result == M.MAV_RESULT_ACCEPTED
+    (home,) = [m for m in replies if m.get_type() == "HOME_POSITION"]
+    assert home.x == pytest.approx(30.0, abs=0.3)
+    lat, lon, _ = v._global((0.0, 40.0, 0.0))
+    result, _ = command(v, M.MAV_CMD_DO_SET_HOME, 0, 0, 0, 0, lat, lon, DEFAULT_HOME.altitude)
+    assert result == M.MAV_RESULT_ACCEPTED
+    command(v, M.MAV_CMD_NAV_RETURN_TO_LAUNCH)
+    run_until(v, lambda: not v.armed, 120)
+    assert math.dist(v.position[:2], (0.0, 40.0)) < 1.0
+
+
+def test_avoidance_stops_the_vehicle_avoid_margin_short_of_an_obstacle():
+    world = World(home=DEFAULT_HOME, obstacles=(Cylinder("mast", 30.0, 0.0, 3.0),))
+    v = flying(5.0, world=world, params={"AVOID_MARGIN": 4.0})
+    v.handle(M.MAVLink_param_set_message(1, 191, b"AVOID_OBST", 1, 2))
+    v.fly_to((60.0, 0.0, 5.0))
+    out = v.step(20)
+    assert texts(out).count("Avoid: stopped at mast") == 1 and "Collision with mast" not in texts(
+        out)
+    surface = 30.0 - 3.0
+    assert surface - 4.0 - 0.6 < v.position[0] <= surface - 4.0  # AVOID_MARGIN short
+    ranges = [m.current_distance for m in out if m.get_type() == "DISTANCE_SENSOR"]
+    assert ranges and min(ranges) == pytest.approx(400, abs=60)

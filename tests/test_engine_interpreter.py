@@ -443,3 +443,14 @@ def test_engine_imports_no_io() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_requests_with_a_kind_field_are_logged() -> None:
+    body = TAKE_OFF + ('<task name="Slow"><action name="SET_SPEED"><argument name="speed" '
+                       'value="2"/><argument name="speed_type" value="climb"/></action>'
+                       '</task>\n') + LAND
+    flight = Flight(body).run()
+    assert flight.interp.status is Status.COMPLETED
+    [logged] = [r for r in flight.records if r.kind == "request" and r.data["message"] ==
+                "SetSpeed"]
+    assert logged.data["kind"] == "climb" and logged.data["speed"] == 2.0

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 from tml.engine import Interpreter, Options, Status
@@ -67,3 +68,37 @@ def test_unknown_position_or_battery_is_not_judged() -> None:
     known = replace(state, position=(1.0, 2.0, 3.0), battery=50.0, armed=True, landed=False)
     variables = live_variables(known, 12.0)
     assert variables.position == (1.0, 2.0, 3.0) and variables.flying and variables.time == 12.0
+
+
+def test_router_flies_around_a_known_obstacle() -> None:
+    from tml.verify.inflight import router
+
+    profile = load_profile("quadcopter")
+    world = World(obstacles=(Cylinder("tower", 50.0, 0.0, 5.0, 0.0, 100.0),))
+    mission = validate_file("m.xml", MISSION.format(north=100, events="").encode()).mission
+    vehicle = FakeVehicle(battery=100.0, drain_per_second=0.0, speed=10.0)
+    interp = Interpreter(mission, options=Options(route=router(profile, world)))
+    out, time, closest = interp.start(0.0, vehicle.state()), 0.0, float("inf")
+    while interp.status is Status.RUNNING and time < 600:
+        for request in out.requests:
+            vehicle.submit(request)
+        vehicle.advance(0.1)
+        time += 0.1
+        north, east, _ = vehicle.position
+        closest = min(closest, ((north - 50) ** 2 + east ** 2) ** 0.5)
+        out = interp.step(time, vehicle.state(), vehicle.poll())
+    assert interp.status is Status.COMPLETED
+    assert closest >= 5.0 + profile.min_clearance - 0.6  # radius + clearance, less tolerance
+    assert len([r for r in vehicle.submitted if isinstance(r, GoTo)]) > 1
+    assert router(profile, World()) is None
+
+
+def test_no_path_is_infeasible() -> None:
+    from tml.verify.inflight import router
+
+    # A ring of towers 100 m out, each 12 m wide, closer together than the clearance allows.
+    walls = tuple(Cylinder(f"c{i}", 100.0 * math.cos(i * 0.2), 100.0 * math.sin(i * 0.2),
+                           12.0, 0.0, 1000.0) for i in range(32))
+    world = World(obstacles=walls)
+    route = router(load_profile("quadcopter"), world)
+    assert route((0.0, 0.0, 10.0), (300.0, 0.0, 10.0)) is None

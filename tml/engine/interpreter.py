@@ -109,6 +109,8 @@ class Output:
     records: list[Record] = field(default_factory=list)
 
 
+# Waypoints from a point to another around known obstacles (ends included), or None.
+Route = Callable[[Point, Point], list[Point] | None]
 # Checks an action before it starts, given the live state, the labels and the mission time;
 # returns the violated constraints (empty: feasible). See tml.verify.inflight.pre_check.
 PreCheck = Callable[[BoundAction, VehicleState, dict[str, Point], float], list[str]]
@@ -122,6 +124,7 @@ class Options:
     limits: Limits = field(default_factory=Limits)
     world: World | None = None  # what GO_TO_RECTANGLE knows of frames
     pre_check: PreCheck | None = None  # dynamic feasibility check before each action
+    route: Route | None = None  # collision-free waypoints around known obstacles
     mission_stall: float = 300.0  # s without progress in a dispatch="mission" task
 
 
@@ -188,6 +191,7 @@ class Interpreter:
         self.world = self.options.world or mission.world
         self.labels: dict[str, Point] = {}
         self.last_target: Point | None = None
+        self.route = self.options.route
         self.status = Status.RUNNING
         self.reason = ""
         self._root = Task("", (), mission.location, children=mission.tasks)
@@ -272,7 +276,7 @@ class Interpreter:
         out, self._out = self._out, Output()
         return out
 
-    def _note(self, kind: str, message: str, **data: object) -> None:
+    def _note(self, kind: str, message: str, /, **data: object) -> None:
         self._out.records.append(Record(self._now, kind, {"message": message, **data}))
 
     def _send(self, request: Request) -> None:

@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Generator, Iterator
 from dataclasses import dataclass
+from itertools import pairwise
 from typing import Protocol
 
 from tml import geo
@@ -102,6 +103,9 @@ class Context(Protocol):
     labels: dict[str, Point]
     world: World | None
     last_target: Point | None  # where the last completed move was sent
+    # Collision-free waypoints from a point to another around known obstacles (the first
+    # and last being the two points), None when no path exists; absent: straight lines.
+    route: Callable[[Point, Point], list[Point] | None] | None
 
     @property
     def state(self) -> VehicleState:
@@ -163,20 +167,39 @@ def _arrived(ctx: Context, target: Point) -> Callable[[VehicleState], bool]:
 
 
 def fly_to(ctx: Context, target: Point, what: str) -> Script:
-    """Fly in a straight line to a local point and wait until within the acceptance radius."""
+    """Fly to a local point and wait until within the acceptance radius.
+
+    With a router, the vehicle follows the collision-free path around known obstacles,
+    one waypoint after the other; without one, a straight line.
+    """
     start = _require_flying(ctx, what)
     if target[2] < 0:
         raise ActionFailed("infeasible", f"{what}: target altitude {target[2]:.1f} m is "
                                          "below home")
-    total = max(math.dist(start, target), 1e-6)
+    path = [start, target]
+    if ctx.route is not None:
+        planned = ctx.route(start, target)
+        if planned is None:
+            raise ActionFailed("infeasible", f"{what}: no collision-free path to "
+                                             f"{_fmt(target)} around the known obstacles")
+        path = [start, *planned[1:-1], target]
+        if len(path) > 2:
+            ctx.note(f"{what}: around obstacles by {len(path) - 2} waypoint(s)",
+                     waypoints=[list(p) for p in path[1:-1]])
+    legs = [math.dist(a, b) for a, b in pairwise(path)]
+    total = max(sum(legs), 1e-6)
+    for index, point in enumerate(path[1:]):
+        done = sum(legs[:index])
 
-    def progress(state: VehicleState) -> float:
-        here = state.position or start
-        return max(0.0, min(1.0, 1.0 - math.dist(here, target) / total))
+        def progress(state: VehicleState, point: Point = point, done: float = done,
+                     leg: float = legs[index]) -> float:
+            here = state.position or start
+            covered = done + max(0.0, leg - math.dist(here, point))
+            return max(0.0, min(1.0, covered / total))
 
-    yield Send(GoTo(ctx.vehicle_id, target))
-    yield Until(_arrived(ctx, target), _travel_time(ctx, start, target),
-                f"reach {_fmt(target)}", progress)
+        yield Send(GoTo(ctx.vehicle_id, point))
+        yield Until(_arrived(ctx, point), _travel_time(ctx, path[index], point),
+                    f"reach {_fmt(point)}", progress)
     ctx.last_target = target
 
 

@@ -43,7 +43,7 @@ from sitl.companion import Companion
 from sitl.faults import Faults
 from sitl.messages import AUTOPILOT, COMPANION, stamp, statustext, targets
 from sitl.missions import FENCE, MISSION, MissionServer
-from sitl.modes import ARMABLE, MODE_NAMES, MODES, NEEDS_POSITION
+from sitl.modes import ARMABLE, FLIP_FROM, MODE_NAMES, MODES, NEEDS_POSITION
 from sitl.obstacles import Obstacles
 from sitl.params import AUTOPILOT_DEFAULTS, Params, param_replies
 from sitl.physics import Battery, Body, Limits, flight_current
@@ -55,6 +55,7 @@ from tml.world import Home, World
 TICK = 0.05  # seconds of vehicle time per control step
 
 M = mavlink
+FLIP_RATE = 400.0  # degrees per second of roll, ArduCopter's FLIP_ROTATION_RATE
 BRAKE_DECEL = 7.5  # m/s², ArduCopter's BRAKE_MODE_DECEL_RATE: BRAKE stops harder
 FORCE_ARM = (2989, 21196)  # param2 magic numbers that skip the checks
 LANDED_AFTER = 1.0  # seconds on the ground before touch-down counts (ArduCopter's detector)
@@ -100,7 +101,8 @@ class VehicleModel:
         self.control_period = TICK
         self.gripper_closed = False
         self.images_captured = 0
-        self.roll = 0.0
+        self.roll = 0.0  # radians; only a flip rolls the simulated vehicle
+        self._flip = ("", 0.0)  # (mode to return to, degrees rolled so far)
         self._pending = 0.0
         self._outbox: list[Any] = []
         self.streams = Streams()
@@ -289,10 +291,7 @@ class VehicleModel:
             self._camera(command, p)
             return ok
         if command == M.MAV_CMD_DO_GRIPPER:
-            if not self.params["GRIP_ENABLE"]:
-                return failed
-            self._gripper(p[1])
-            return ok
+            return ok if self._gripper(p[1]) else failed
         if command == M.MAV_CMD_SET_MESSAGE_INTERVAL:
             return ok if self.streams.set_interval(round(p[0]), p[1], self.time) else failed
         if command == M.MAV_CMD_REQUEST_MESSAGE:
@@ -323,11 +322,18 @@ class VehicleModel:
         if name == "AUTO" and self.armed and self.landed and not self._starts_with_takeoff():
             self._text(M.MAV_SEVERITY_WARNING, "Auto: Missing Takeoff Cmd")
             return False
-        self.mode = name
+        flying = self.armed and not self.landed
+        if name == "FLIP" and (self.mode not in FLIP_FROM or not flying):
+            self._text(M.MAV_SEVERITY_WARNING, "Mode change to FLIP failed: init failed")
+            return False
+        previous, self.mode = self.mode, name
         self._target, self._velocity, self._landing, self.auto = None, None, None, None
         self._rtl_phase = ""
-        flying = self.armed and not self.landed
-        if name in ("GUIDED", "LOITER", "BRAKE") and flying:
+        self.roll = 0.0
+        if name == "FLIP":  # roll once around, holding position, then back to ``previous``
+            self._flip = (previous, 0.0)
+            self._target = self.position
+        elif name in ("GUIDED", "LOITER", "BRAKE") and flying:
             self._target = self._stopping_point()
         elif name == "LAND":
             self._landing = self.position[:2]
@@ -543,6 +549,8 @@ class VehicleModel:
         if failure_at is not None and self.time >= failure_at:
             self.battery.failed = True
         self._check_failsafes()
+        if self.mode == "FLIP":
+            self._update_flip()
         if self.mode == "RTL" or self._rtl_phase:
             self._update_rtl()
         if self.auto is not None:
@@ -643,6 +651,17 @@ class VehicleModel:
             self.auto.update()  # lets NAV_LAND / RTL items complete and be reported
         if self.armed and (landing or self.mode in ("LAND", "RTL")):
             self.disarm()
+
+    def _update_flip(self) -> None:
+        previous, rolled = self._flip
+        rolled += FLIP_RATE * TICK
+        if rolled >= 360.0 or not self.armed:
+            # As ArduCopter: back to the mode the flip started from, else STABILIZE.
+            if not self.set_mode(previous):
+                self.set_mode("STABILIZE")
+            return
+        self._flip = (previous, rolled)
+        self.roll = math.radians(rolled - 360.0 if rolled > 180.0 else rolled)
 
     # --------------------------------------------------------------------- RTL
     def _start_rtl(self) -> None:
@@ -775,10 +794,16 @@ class VehicleModel:
         self._outbox.append(messages.camera_image_captured(self, self.images_captured))
         self.images_captured += 1
 
-    def _gripper(self, action: float) -> None:
-        self.gripper_closed = action >= 0.5
+    def _gripper(self, action: float) -> bool:
+        """DO_GRIPPER's action (GRIPPER_ACTION_RELEASE 0, GRAB 1), in any mode, as ArduPilot:
+        False without a gripper (``GRIP_ENABLE`` 0 or ``GRIP_TYPE`` 0) or for another action."""
+        if not (self.params["GRIP_ENABLE"] and self.params["GRIP_TYPE"]) or action not in (
+                M.GRIPPER_ACTION_RELEASE, M.GRIPPER_ACTION_GRAB):
+            return False
+        self.gripper_closed = action == M.GRIPPER_ACTION_GRAB
         self._text(M.MAV_SEVERITY_INFO,
                    "Gripper load grabbed" if self.gripper_closed else "Gripper load released")
+        return True
 
     # ----------------------------------------------------------------- helpers
     def _local(self, latitude: float, longitude: float, altitude: float) -> Vector:

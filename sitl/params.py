@@ -71,6 +71,7 @@ AUTOPILOT_DEFAULTS: tuple[tuple[str, float, int], ...] = (
     ("AVOID_ENABLE", 3, INT8),
     ("AVOID_MARGIN", 2, REAL32),
     ("GRIP_ENABLE", 1, INT8),
+    ("GRIP_TYPE", 1, INT8),  # 1 servo: a gripper is fitted
     ("CAM_TRIGG_DIST", 0, REAL32),
     ("SIM_GPS_LOCKTIME", 20, REAL32),
     ("SIM_EKF_GPS_TIME", 41, REAL32),

@@ -347,3 +347,67 @@ def test_avoidance_stops_the_vehicle_avoid_margin_short_of_an_obstacle():
     assert surface - 4.0 - 0.6 < v.position[0] <= surface - 4.0  # AVOID_MARGIN short
     ranges = [m.current_distance for m in out if m.get_type() == "DISTANCE_SENSOR"]
     assert ranges and min(ranges) == pytest.approx(400, abs=60)
+
+
+def test_flip_from_guided_rolls_once_around_in_place_and_returns_to_guided():
+    v = flying(10.0)
+    v.step(2)
+    beats: list[int] = []
+    for _ in range(3):  # the TML paper's Example 2 flips three times
+        start = v.position
+        result, _ = command(v, M.MAV_CMD_DO_SET_MODE, 1, 14)
+        assert result == M.MAV_RESULT_ACCEPTED and v.mode == "FLIP"
+        command(v, M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_ATTITUDE, 50_000)
+        began = v.time
+        out = run_until(v, lambda: v.mode != "FLIP", 3.0)
+        assert v.mode == "GUIDED" and v.roll == 0.0
+        assert 0.8 <= v.time - began <= 1.0  # about a second
+        rolls = [m.roll for m in out if m.get_type() == "ATTITUDE"][:-1]  # the last is level
+        turns = [(b - a) % (2 * math.pi) for a, b in itertools.pairwise(rolls)]
+        assert all(0 < turn < 1.0 for turn in turns)  # always the same way
+        assert math.degrees(rolls[0] + sum(turns)) == pytest.approx(340, abs=25)  # once round
+        assert max(abs(r) for r in rolls) > 3.0  # upside down on the way
+        assert math.dist(v.position, start) < 0.2
+        beats += [m.custom_mode for m in out
+                  if m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1]
+    assert set(beats) == {14}  # a ground station sees FLIP while it lasts
+    v.fly_to((10.0, 0.0, 10.0))  # GUIDED obeys again
+    run_until(v, lambda: v.arrived((10.0, 0.0, 10.0), 0.3), 20)
+
+
+def test_flip_from_stabilize_returns_to_stabilize():
+    v = flying(10.0)
+    assert v.set_mode("STABILIZE") and v.set_mode("FLIP")
+    run_until(v, lambda: v.mode != "FLIP", 3.0)
+    assert v.mode == "STABILIZE"
+
+
+def test_flip_is_refused_on_the_ground_and_from_other_modes():
+    v = vehicle()
+    v.step(3)
+    v.set_mode("GUIDED")
+    result, replies = command(v, M.MAV_CMD_DO_SET_MODE, 1, 14)
+    assert result == M.MAV_RESULT_FAILED and v.mode == "GUIDED"
+    assert texts(replies) == ["Mode change to FLIP failed: init failed"]
+    v = flying(10.0)
+    assert v.set_mode("LOITER")
+    assert command(v, M.MAV_CMD_DO_SET_MODE, 1, 14)[0] == M.MAV_RESULT_FAILED
+    assert v.mode == "LOITER"
+
+
+def test_gripper_works_as_a_command_in_guided_and_a_ground_station_can_tell_it_is_there():
+    v = flying(5.0)
+    (enabled,) = v.handle(M.MAVLink_param_request_read_message(1, 1, b"GRIP_ENABLE", -1))
+    assert enabled.param_value == 1
+    result, replies = command(v, M.MAV_CMD_DO_GRIPPER, 1, M.GRIPPER_ACTION_GRAB)
+    assert result == M.MAV_RESULT_ACCEPTED and v.gripper_closed and v.mode == "GUIDED"
+    assert texts(replies) == ["Gripper load grabbed"]
+    result, replies = command(v, M.MAV_CMD_DO_GRIPPER, 1, M.GRIPPER_ACTION_RELEASE)
+    assert result == M.MAV_RESULT_ACCEPTED and not v.gripper_closed
+    assert texts(replies) == ["Gripper load released"]
+    assert command(v, M.MAV_CMD_DO_GRIPPER, 1, 7)[0] == M.MAV_RESULT_FAILED
+    for no_gripper in ({"GRIP_ENABLE": 0}, {"GRIP_TYPE": 0}):
+        bare = vehicle(params=no_gripper)
+        assert command(bare, M.MAV_CMD_DO_GRIPPER, 1, M.GRIPPER_ACTION_GRAB)[0] == (
+            M.MAV_RESULT_FAILED)
+        assert not bare.gripper_closed

@@ -236,6 +236,23 @@ def test_unconfirmed_only_when_the_last_item_went_out() -> None:
     assert not silent_after([], 2).unconfirmed
 
 
+def test_a_lost_final_ack_is_given_up_on_sooner_once_the_last_item_was_asked_for() -> None:
+    def silent_at(requests: list[int], n: int) -> float:
+        upload = Upload(mission(n))
+        upload.start(0.0)
+        for seq in requests:
+            upload.receive(MissionRequest(seq), 0.1)
+        now = 0.1
+        while not upload.done:
+            now = upload.deadline
+            upload.tick(now)
+        return now
+
+    assert silent_at([0, 1, 2], 3) == pytest.approx(0.1 + 1.5)  # one default timeout
+    assert silent_at([0, 1], 3) == pytest.approx(0.1 + 6 * 1.5)  # the vehicle may lack 2
+    assert silent_at([0, 1], 2) == pytest.approx(0.1 + 1.5)
+
+
 @pytest.mark.parametrize("mission_type", [MissionType.MISSION, MissionType.FENCE,
                                           MissionType.RALLY])
 def test_upload_download_and_clear_each_mission_type(mission_type: MissionType) -> None:

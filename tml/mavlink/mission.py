@@ -37,7 +37,11 @@ INVALID_SEQUENCE, which therefore ends nothing), and ArduPilot asks again only o
 second, giving up after 8 s. So unanswered timeouts offer, in turn, the last item asked for
 and the two after it; vehicles accept the item they expect whether asked for or not. When
 the final ACK is lost, ArduPilot never repeats it: the upload ends ``unconfirmed`` and a
-read-back settles it (``Vehicle.upload`` does).
+read-back settles it (``Vehicle.upload`` does). Once the vehicle has asked for the last item
+the wait for that ACK is one default timeout of silence, not the whole window: the item
+went out with every 250 ms offer since, so a vehicle still without it would have had to
+lose six copies in a row and its own request again (0.3**7 at 30 % loss), while a lost ACK
+is as likely as any loss.
 
 Requests may come out of order or twice; each is answered with the item asked for. The
 legacy MISSION_REQUEST (ArduPilot asks with it) is answered with MISSION_ITEM_INT like
@@ -311,6 +315,11 @@ class Upload(Transfer):
 
     def _current_timeout(self) -> float:
         return self.item_timeout if self._requested else self.timeout
+
+    def _give_up_at(self) -> float:
+        if len(self.items) - 1 in self._requested:  # silence now means a lost final ACK
+            return self._heard_at + self.timeout
+        return super()._give_up_at()
 
     def _handle(self, msg: MissionMessage, now: float) -> list[MissionMessage]:
         if isinstance(msg, MissionRequest):

@@ -258,6 +258,28 @@ def test_output_forwarding_copies_vehicle_messages_to_a_watcher() -> None:
     watcher.close()
 
 
+def test_forwarding_is_one_way_a_watchers_commands_never_reach_the_vehicle() -> None:
+    watcher = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    watcher.bind(("127.0.0.1", 0))
+    watcher.settimeout(5.0)
+    port = watcher.getsockname()[1]
+    with FakeAutopilot(system_id=4) as ap, Link(f"udpout:127.0.0.1:{ap.port}",
+                                                outputs=[f"udpout:127.0.0.1:{port}"]) as link:
+        vehicle = Vehicle.connect(link, 4, timeout=5)
+        _, forwarder = watcher.recvfrom(65536)  # where the copies come from
+        qgc = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+        guided = qgc.command_long_encode(4, 1, mavlink.MAV_CMD_DO_SET_MODE, 0,
+                                         mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4,
+                                         0, 0, 0, 0, 0)
+        for _ in range(3):
+            watcher.sendto(guided.pack(qgc), forwarder)
+        vehicle.set_mode("LAND")  # tml's own command gets through meanwhile
+        assert [(c.command, c.param2) for c in ap.commands] == [
+            (mavlink.MAV_CMD_DO_SET_MODE, 9)]
+        assert ap.mode == 9
+    watcher.close()
+
+
 def test_signing_accepts_only_correctly_signed_messages_and_signs_its_own() -> None:
     with FakeAutopilot(system_id=1, key=KEY) as ap, \
             Link(f"udpout:127.0.0.1:{ap.port}", signing_key=KEY) as link:

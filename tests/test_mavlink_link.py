@@ -9,7 +9,7 @@ from __future__ import annotations
 import socket
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
@@ -244,40 +244,41 @@ def test_listeners_hear_each_message_with_the_fresh_snapshot() -> None:
         assert eventually(lambda: heard == [(1, 4)])
 
 
-def test_output_forwarding_copies_vehicle_messages_to_a_watcher() -> None:
+@pytest.fixture
+def watched() -> Iterator[tuple[FakeAutopilot, Link, socket.socket]]:
+    """Vehicle 4, a link to it, and a ground station's UDP socket the link forwards to."""
     watcher = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     watcher.bind(("127.0.0.1", 0))
     watcher.settimeout(5.0)
     port = watcher.getsockname()[1]
     with FakeAutopilot(system_id=4) as ap, Link(f"udpout:127.0.0.1:{ap.port}",
                                                 outputs=[f"udpout:127.0.0.1:{port}"]) as link:
-        link.wait_vehicle(4, timeout=5)
-        data, _ = watcher.recvfrom(65536)
-        (msg,) = mavlink.MAVLink(None).parse_buffer(data)
-        assert (msg.get_type(), msg.get_srcSystem()) == ("HEARTBEAT", 4)
+        yield ap, link, watcher
     watcher.close()
 
 
-def test_forwarding_is_one_way_a_watchers_commands_never_reach_the_vehicle() -> None:
-    watcher = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    watcher.bind(("127.0.0.1", 0))
-    watcher.settimeout(5.0)
-    port = watcher.getsockname()[1]
-    with FakeAutopilot(system_id=4) as ap, Link(f"udpout:127.0.0.1:{ap.port}",
-                                                outputs=[f"udpout:127.0.0.1:{port}"]) as link:
-        vehicle = Vehicle.connect(link, 4, timeout=5)
-        _, forwarder = watcher.recvfrom(65536)  # where the copies come from
-        qgc = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
-        guided = qgc.command_long_encode(4, 1, mavlink.MAV_CMD_DO_SET_MODE, 0,
-                                         mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4,
-                                         0, 0, 0, 0, 0)
-        for _ in range(3):
-            watcher.sendto(guided.pack(qgc), forwarder)
-        vehicle.set_mode("LAND")  # tml's own command gets through meanwhile
-        assert [(c.command, c.param2) for c in ap.commands] == [
-            (mavlink.MAV_CMD_DO_SET_MODE, 9)]
-        assert ap.mode == 9
-    watcher.close()
+def test_output_forwarding_copies_vehicle_messages_to_a_watcher(
+        watched: tuple[FakeAutopilot, Link, socket.socket]) -> None:
+    _, link, watcher = watched
+    link.wait_vehicle(4, timeout=5)
+    data, _ = watcher.recvfrom(65536)
+    (msg,) = mavlink.MAVLink(None).parse_buffer(data)
+    assert (msg.get_type(), msg.get_srcSystem()) == ("HEARTBEAT", 4)
+
+
+def test_forwarding_is_one_way_a_watchers_commands_never_reach_the_vehicle(
+        watched: tuple[FakeAutopilot, Link, socket.socket]) -> None:
+    ap, link, watcher = watched
+    vehicle = Vehicle.connect(link, 4, timeout=5)
+    _, forwarder = watcher.recvfrom(65536)  # where the copies come from
+    qgc = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    guided = qgc.command_long_encode(4, 1, mavlink.MAV_CMD_DO_SET_MODE, 0,
+                                     mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4, 0, 0, 0, 0, 0)
+    for _ in range(3):
+        watcher.sendto(guided.pack(qgc), forwarder)
+    vehicle.set_mode("LAND")  # tml's own command gets through meanwhile
+    assert [(c.command, c.param2) for c in ap.commands] == [(mavlink.MAV_CMD_DO_SET_MODE, 9)]
+    assert ap.mode == 9
 
 
 def test_signing_accepts_only_correctly_signed_messages_and_signs_its_own() -> None:

@@ -24,6 +24,13 @@ def test_lines_are_json_with_time_kind_and_vehicle(tmp_path) -> None:
         {"t": 2.0, "kind": "run", "message": "run ended", "exit_code": 3}]
 
 
+def test_fields_cannot_hide_time_kind_or_vehicle() -> None:
+    stream = io.StringIO()
+    Journal(stream).write(3.0, "request", 1, {"message": "SetSpeed", "kind": "ground"})
+    assert json.loads(stream.getvalue()) == {"t": 3.0, "kind": "request", "vehicle": 1,
+                                             "message": "SetSpeed", "request_kind": "ground"}
+
+
 def test_values_are_made_json_safe() -> None:
     value = {"set": frozenset({"b", "a"}), "point": (1.0, 2.0), "inf": math.inf,
              "proxy": MappingProxyType({"k": 1}), 3: object}

@@ -233,3 +233,14 @@ def test_compiled_survey_flies_and_lands_at_the_pad() -> None:
     reached = [m.seq - 1 for m in out if m.get_type() == "MISSION_ITEM_REACHED"]
     assert [plan.action_at(s) for s in reached] == [0, *[1] * 6, 2]
     assert v.landed and math.dist(v.position[:2], (-5, -5)) < 1.0
+
+
+def test_docs_table_names_every_action() -> None:
+    from pathlib import Path
+
+    from tml.actions import CATALOGUE
+
+    doc = (Path(__file__).parent.parent / "docs" / "run.md").read_text()
+    table = doc[doc.index("## `dispatch=\"mission\"`"):]
+    missing = [spec.name for spec in CATALOGUE if spec.name not in table]
+    assert not missing, f"docs/run.md's item table misses {missing}"

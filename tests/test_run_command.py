@@ -25,8 +25,8 @@ ABORTS = SHORT.replace("</mission>", '<event_handling><event name="High">'
                        '<condition parameter="ALTITUDE" comparison="greater than" value="3"/>'
                        '<action name="LAND"/><termination mode="ABORT_MISSION"/></event>'
                        '</event_handling></mission>')
-REFUSED = SHORT.replace('<task name="Over">', '<task name="Grab"><action name="FLIP"/></task>'
-                        '<task name="Over">')
+GRAB = SHORT.replace('<task name="Over">', '<task name="Grab"><action name="PICK_UP_ITEM"/>'
+                     '</task><task name="Over">')
 
 
 def write(tmp_path: Path, text: str, name: str = "m.xml") -> str:
@@ -56,11 +56,16 @@ def test_abort_mission_exits_3(tmp_path: Path, capsys: pytest.CaptureFixture[str
     assert "mission aborted: event 'High' aborted the mission" in capsys.readouterr().out
 
 
-def test_refused_action_exits_4(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    # The simulator answers DO_SET_MODE FLIP with MAV_RESULT_FAILED.
-    assert main(["run", write(tmp_path, REFUSED), "--sim", "-q", *FAST]) == 4
-    out = capsys.readouterr().out
-    assert "mission failed" in out and "MAV_RESULT_FAILED" in out
+def test_action_the_vehicle_cannot_do_exits_4(tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    log = tmp_path / "flight.jsonl"
+    code = main(["run", write(tmp_path, GRAB), "--sim", "-q", "--log", str(log), *FAST,
+                 "--sim-param", "GRIP_ENABLE=0"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert code == 4
+    assert "mission failed: PICK_UP_ITEM failed (unsupported): this vehicle has no gripper" in out
+    assert not [line for line in read(str(log))
+                if line["kind"] == "request" and line["message"] == "Gripper"]
 
 
 def test_invalid_mission_exits_1_before_flying(tmp_path: Path,

@@ -79,7 +79,8 @@ def test_completed_mission_exits_zero_and_logs_everything() -> None:
     assert lines[0]["message"] == "run started" and lines[-1]["exit_code"] == 0
     telemetry = [line for line in lines if line["kind"] == "telemetry"]
     assert len(telemetry) >= 5
-    times = [line["t"] for line in telemetry]
+    times = [line["t"] for line in telemetry[:-1]]  # the last one: the state left in
+    assert not telemetry[-1]["armed"] and telemetry[-1]["landed"]
     assert all(b - a >= 1.0 - 1e-6 for a, b in itertools.pairwise(times))
     assert not sim.vehicles[0].armed and said == []
 

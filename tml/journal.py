@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping
 from typing import IO, Any
 
 from tml.vehicle import VehicleState
@@ -62,14 +63,21 @@ class Journal:
         """A journal writing to the file ``path`` (created or truncated), or a silent one."""
         return cls(open(path, "w", encoding="utf-8"), owned=True) if path else cls(None)
 
-    def write(self, time: float, kind: str, vehicle: int | None = None, **data: Any) -> None:
-        """Append one line."""
+    def write(self, time: float, kind: str, vehicle: int | None = None,
+              fields: Mapping[str, Any] | None = None, **more: Any) -> None:
+        """Append one line: ``fields`` and ``more`` after ``t``, ``kind`` and ``vehicle``.
+
+        A field named like one of those three (a SetSpeed request's ``kind``) is written
+        as ``<kind>_<name>`` (``request_kind``) so that it cannot hide them.
+        """
         if self.stream is None:
             return
         line: dict[str, Any] = {"t": round(time, 3), "kind": kind}
         if vehicle is not None:
             line["vehicle"] = vehicle
-        line.update(jsonable(data))
+        for name, value in {**(fields or {}), **more}.items():
+            key = f"{kind}_{name}" if name in ("t", "kind", "vehicle") else name
+            line[key] = jsonable(value)
         self.stream.write(json.dumps(line, separators=(",", ":")) + "\n")
         self.stream.flush()
         self.lines += 1

@@ -169,7 +169,7 @@ def _vehicles(args: argparse.Namespace, world: World) -> Iterator[tuple[list[Any
             for sid in ids:
                 vehicle = MavlinkVehicle(link, sid, clock=clock, world=world,
                                          vehicle_id=len(vehicles) + 1 if not args.sim else sid,
-                                         connect_timeout=args.timeout)
+                                         connect_timeout=args.timeout, on_result=wake.set)
                 stack.callback(vehicle.close)
                 vehicle.prepare()
                 vehicles.append(vehicle)

@@ -169,6 +169,10 @@ class Runner:
             if self.on_update is not None:
                 self.on_update(self)
         self._settle()
+        for flight in self.flights:  # the state each vehicle is left in
+            flight.state = flight.vehicle.state()
+            self.journal.write(self.clock(), "telemetry", flight.vehicle.vehicle_id,
+                               **telemetry_fields(flight.state))
         outcome = Outcome(tuple(
             VehicleOutcome(f.vehicle.vehicle_id, f.interpreter.status, f.interpreter.reason,
                            f.cause) for f in self.flights))
@@ -224,7 +228,7 @@ class Runner:
     def _dispatch(self, flight: _Flight, output: Output) -> None:
         for record in output.records:
             self.journal.write(record.time, record.kind, flight.vehicle.vehicle_id,
-                               **record.data)
+                               record.data)
             if record.kind == "safety":
                 self._said(f"vehicle {flight.vehicle.vehicle_id}: {record.data['message']}")
         for request in output.requests:

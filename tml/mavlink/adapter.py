@@ -41,7 +41,7 @@ import queue
 import threading
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import MappingProxyType
 from typing import Any
 
@@ -184,7 +184,8 @@ class MavlinkVehicle:
                  clock: Clock = time.monotonic, world: World | None = None,
                  lost_after: float = 5.0, degraded_after: float = 2.5,
                  detection_hold: float = 1.5, command_timeout: float = 1.5,
-                 connect_timeout: float = 10.0, ready_timeout: float = 120.0) -> None:
+                 connect_timeout: float = 10.0, ready_timeout: float = 120.0,
+                 on_result: Callable[[], None] | None = None) -> None:
         self.link = link
         self.mav = Vehicle(link, link.wait_vehicle(system_id, connect_timeout),
                            command_timeout=command_timeout)
@@ -195,6 +196,7 @@ class MavlinkVehicle:
         self.degraded_after = degraded_after
         self.detection_hold = detection_hold
         self.ready_timeout = ready_timeout  # wall s a mission upload waits for home/EKF
+        self.on_result = on_result  # called when a result is ready (wakes the runner)
         self.capabilities: frozenset[str] = frozenset({"camera"})
         self._names = detection_names(world)
         self._lock = threading.Lock()
@@ -265,7 +267,15 @@ class MavlinkVehicle:
             status_text=t.status_texts[-1].text if t.status_texts else "")
 
     def submit(self, request: Request) -> None:
-        """Queue a request for the worker thread; never blocks."""
+        """Queue a request for the worker thread; never blocks.
+
+        A relative SetYaw is made absolute here, against the heading the interpreter has
+        just seen: by the time the worker sends it the vehicle may have turned further,
+        and the interpreter waits for the heading it computed.
+        """
+        if isinstance(request, SetYaw) and request.relative:
+            heading = (self.state().heading + request.heading) % 360.0
+            request = replace(request, heading=heading, relative=False)
         self._queue.put(request)
 
     def poll(self) -> list[RequestResult]:
@@ -364,6 +374,8 @@ class MavlinkVehicle:
                 self._queue.task_done()
             with self._lock:
                 self._results.append(result)
+            if self.on_result is not None:
+                self.on_result()
 
     def _carry_out(self, request: Request) -> RequestResult:
         def fail(reason: str, detail: str) -> RequestResult:

@@ -1,0 +1,109 @@
+"""Every mission in missions/ flies on the simulator to its expected outcome (end to end).
+
+Each flight runs ``tml run FILE --sim`` at 50x with the GPS and EKF delays cut to 1-2 s;
+the flight log is then read to check what happened, not only the exit code.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from tml.cli import main
+from tml.journal import read
+
+MISSIONS = Path(__file__).parent.parent / "missions"
+FAST = ["--speedup", "50", "--sim-param", "SIM_GPS_LOCKTIME=1",
+        "--sim-param", "SIM_EKF_GPS_TIME=2"]
+
+# mission -> (exit code, text the outcome's reason contains, extra simulator parameters)
+EXPECTED: dict[str, tuple[int, str, list[str]]] = {
+    "aerostack_example": (0, "all tasks done", []),
+    "battery_event": (3, "event 'Low battery' aborted the mission",
+                      ["--sim-param", "BATT_CAPACITY=300"]),
+    "catalogue_tour": (0, "all tasks done", []),
+    "dolphin_relay_single": (0, "all tasks done", []),
+    # loiters until the battery falls below 30 %: a small battery makes that minutes
+    "dolphin_single_vehicle": (0, "event 'Battery below 30 %' ended the mission",
+                               ["--sim-param", "BATT_CAPACITY=1000"]),
+    "dolphin_survey_north": (0, "all tasks done", []),
+    "imav2016": (0, "all tasks done", []),
+    "jump_and_repeat": (0, "all tasks done", []),
+    "mission_dispatch": (0, "all tasks done", []),
+    "paper_example1": (0, "all tasks done", []),
+    "paper_example2": (0, "all tasks done", []),
+    "verify_obstacles": (0, "all tasks done", []),
+}
+KNOWN_GAPS = {
+    "paper_example2": "at 50x the simulator's FLIP ends before the next HEARTBEAT, and the "
+                      "link's mode confirmation then sees GUIDED and reports the change "
+                      "refused",
+    "verify_obstacles": "GO_TO_POINT flies the straight leg into the warehouse instead of "
+                        "the verifier's detour, and times out",
+}
+
+
+def fly(tmp_path: Path, name: str, extra: list[str]) -> tuple[int, list[dict], str]:
+    log = tmp_path / f"{name}.jsonl"
+    code = main(["run", str(MISSIONS / f"{name}.xml"), "--sim", "-q", "--log", str(log),
+                 *FAST, *extra])
+    lines = read(str(log))
+    ended = [line for line in lines if line["kind"] == "run" and "outcomes" in line]
+    reason = ended[-1]["outcomes"][0]["reason"] if ended else ""
+    return code, lines, reason
+
+
+def test_every_mission_has_an_expected_outcome() -> None:
+    assert sorted(p.stem for p in MISSIONS.glob("*.xml")) == sorted(EXPECTED)
+
+
+@pytest.mark.parametrize("name", [
+    pytest.param(name, marks=pytest.mark.xfail(reason=KNOWN_GAPS[name], strict=True))
+    if name in KNOWN_GAPS else name for name in sorted(EXPECTED)])
+def test_mission_flies_to_its_expected_outcome(name: str, tmp_path: Path) -> None:
+    code, lines, reason = fly(tmp_path, name, EXPECTED[name][2])
+    expected_code, expected_reason, _ = EXPECTED[name]
+    assert (code, expected_reason in reason) == (expected_code, True), reason
+    assert not [line for line in lines if line["kind"] == "error"]
+    last = [line for line in lines if line["kind"] == "telemetry"][-1]
+    assert last["mode"] != "AUTO" or last["landed"], "left flying an unwatched AUTO mission"
+
+
+def test_imav2016_recognises_transports_and_lands_at_the_operating_zone(
+        tmp_path: Path) -> None:
+    code, lines, _ = fly(tmp_path, "imav2016", [])
+    assert code == 0
+    fired = [line["event"] for line in lines if line["kind"] == "event"]
+    assert set(fired) == {"Bucket A found", "Item A found"}  # via RECOGNIZE_ITEMS/BUCKETS
+    skills = {(line["skill"], line["enabled"]) for line in lines
+              if line["kind"] == "request" and line["message"] == "SetSkill"}
+    assert {("RECOGNIZE_ITEMS", True), ("RECOGNIZE_BUCKETS", True)} <= skills
+    memorized = {line["label"]: line["point"] for line in lines
+                 if line["kind"] == "decision" and line["message"].startswith("memorized")}
+    assert math.dist(memorized["item A coordinates"][:2], (8, 2)) < 2.5  # seen from above
+    assert math.dist(memorized["bucket A coordinates"][:2], (8, -2)) < 2.5
+    grips = [line for line in lines if line["kind"] == "request" and line["message"] == "Gripper"]
+    assert [g["grab"] for g in grips] == [True, False]
+    ok = {line["request_id"] for line in lines if line["kind"] == "result" and line["ok"]}
+    assert all(g["request_id"] in ok for g in grips)
+    states = {line["task"]: line["state"] for line in lines if line["kind"] == "task"}
+    assert states["Transport item A"] == "done"
+    landed = [line for line in lines if line["kind"] == "telemetry" and line["landed"]
+              and line["position"] is not None][-1]
+    zone = memorized["operating zone"]
+    assert math.dist(landed["position"][:2], zone[:2]) < 1.0
+
+
+def test_battery_event_lands_and_aborts(tmp_path: Path) -> None:
+    code, lines, reason = fly(tmp_path, "battery_event", ["--sim-param", "BATT_CAPACITY=300"])
+    assert code == 3 and "Low battery" in reason
+    fired = [line for line in lines if line["kind"] == "event"]
+    assert [f["event"] for f in fired] == ["Low battery"]
+    assert fired[0]["read"][0]["value"] < 25
+    after = [line for line in lines if line["t"] >= fired[0]["t"]]
+    assert any(line["kind"] == "request" and line["message"] == "Land" for line in after)
+    assert any(line["kind"] == "action" and line["message"] == "LAND done" for line in after)
+    states = {line["task"]: line["state"] for line in lines if line["kind"] == "task"}
+    assert states.get("Return and land", "pending") == "pending"  # never flown

@@ -121,3 +121,16 @@ def test_a_refused_or_unanswered_mode_command_fails_as_a_command() -> None:
     assert [m.confirmation for m in silent.tick(1.0)] == [1]  # retransmitted, confirmation 1
     silent.tick(2.0)
     assert silent.done and isinstance(silent.error, VehicleTimeout)
+
+
+def test_a_flip_is_confirmed_by_its_ack_alone_as_it_may_end_before_the_next_heartbeat() -> None:
+    flip = ModeChange(set_mode_command(QUAD, ARDUPILOT, "FLIP"), "flip", system_id=1)
+    flip.start(0.0)
+    flip.receive(beat(14, seq=1), 0.1)
+    assert not flip.done
+    flip.receive(CommandAck(mavlink.MAV_CMD_DO_SET_MODE, ACCEPTED, packet_seq=2), 0.2)
+    assert flip.done and flip.error is None
+    refused = ModeChange(set_mode_command(QUAD, ARDUPILOT, "FLIP"), "FLIP", system_id=1)
+    refused.start(0.0)
+    refused.receive(CommandAck(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_RESULT_FAILED), 0.1)
+    assert isinstance(refused.error, CommandRejected)

@@ -11,7 +11,10 @@ ACCEPTED, then the vehicle's next HEARTBEAT (1 Hz) showing the new mode. ArduPil
 before it acknowledges, so that HEARTBEAT is the proof; one showing another mode means the
 vehicle did not switch, or left the mode at once (a failsafe), and is a refusal. "Next" is
 by the autopilot's packet sequence numbers: a HEARTBEAT sent shortly before the ACK that
-arrives after it (UDP may reorder) is not taken for the answer.
+arrives after it (UDP may reorder) is not taken for the answer. Modes the vehicle leaves by
+itself within about a second (ArduCopter's FLIP returns to the mode it started from) may be
+over before the next HEARTBEAT, so for them the ACK alone confirms: ArduCopter refuses,
+with the ACK, a FLIP it cannot start.
 """
 
 from __future__ import annotations
@@ -34,6 +37,8 @@ CONFIRM_TIMEOUT = 3.0
 """Seconds after the ACK within which a HEARTBEAT must show the mode (three heartbeats)."""
 STRAGGLER_WINDOW = 32
 """A HEARTBEAT at most this many packets older than the ACK was sent before it."""
+SELF_ENDING_MODES = frozenset({"FLIP"})
+"""Modes a HEARTBEAT may never show (see the module docstring): confirmed by the ACK."""
 
 
 def mode_names(vehicle_type: int, autopilot: int) -> list[str]:
@@ -72,6 +77,8 @@ def set_mode_command(vehicle_type: int, autopilot: int, name: str,
 class ModeChange:
     """DO_SET_MODE to mode ``name``, done once the vehicle's next HEARTBEAT shows the mode.
 
+    (Or once accepted, for the SELF_ENDING_MODES.)
+
     A sans-IO machine like :class:`~tml.mavlink.command.CommandSender` (which it drives for
     the command itself), fed COMMAND_ACKs and the autopilot's HEARTBEATs. ``error`` is the
     sender's for a refused or unanswered command, :class:`~tml.errors.CommandRejected` when
@@ -103,14 +110,14 @@ class ModeChange:
     @property
     def done(self) -> bool:
         """True once the mode is confirmed or the change failed."""
-        if not self.sender.accepted:
+        if not self.sender.accepted or self.mode in SELF_ENDING_MODES:
             return self.sender.done
         return self.shown is not None or self.timed_out
 
     @property
     def error(self) -> VehicleError | None:
         """The exception this outcome amounts to, or None if confirmed or still running."""
-        if not self.sender.accepted:
+        if not self.sender.accepted or self.mode in SELF_ENDING_MODES:
             return self.sender.error
         if self.timed_out:
             return VehicleTimeout(f"{self.sender.name}: {self.mode} accepted, but no HEARTBEAT "

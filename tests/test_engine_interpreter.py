@@ -5,6 +5,7 @@ from __future__ import annotations
 import subprocess
 import sys
 from collections.abc import Callable
+from dataclasses import replace
 
 import pytest
 
@@ -454,3 +455,52 @@ def test_requests_with_a_kind_field_are_logged() -> None:
     [logged] = [r for r in flight.records if r.kind == "request" and r.data["message"] ==
                 "SetSpeed"]
     assert logged.data["kind"] == "climb" and logged.data["speed"] == 2.0
+
+
+def test_mission_dispatch_resolves_labels_before_sending() -> None:
+    body = (TAKE_OFF + goto("Out", "(6, 2, 5)")
+            + '<task name="Remember"><action name="MEMORIZE_POINT"><argument name="coordinates" '
+              'label="spot"/></action></task>\n' + goto("Away", "(0, 0, 5)")
+            + '<task name="Auto" dispatch="mission"><task name="Back"><action name="GO_TO_POINT">'
+              '<argument name="coordinates" label="spot"/></action></task></task>\n' + LAND)
+    flight = Flight(body).run()
+    [plan] = flight.sent(FlyMission)
+    assert plan.actions[0].labels == {}
+    assert plan.actions[0].values["coordinates"] == pytest.approx((6, 2, 5), abs=0.55)
+    assert flight.interp.status is Status.COMPLETED
+
+
+def test_refused_mission_fails_at_once() -> None:
+    body = TAKE_OFF + '<task name="Auto" dispatch="mission">' + goto("P1", "(10, 0, 5)") + \
+        '</task>\n' + LAND
+    flight = Flight(body, vehicle=FakeVehicle(reject={"FlyMission": "rejected"})).run()
+    assert flight.interp.status is Status.FAILED
+    assert "refused the mission" in flight.interp.reason
+    assert flight.time < 15  # not after the 300 s stall limit
+
+
+def plan_flight(action: str, seconds: float) -> Interpreter:
+    """A dispatch="mission" plan whose vehicle stays on its first item for ``seconds``."""
+    interp = Interpreter(mission(
+        f'<task name="Auto" dispatch="mission"><task name="A">{action}</task></task>\n'))
+    flying = FakeVehicle(armed=True, position=(0.0, 0.0, 10.0)).state()
+    out = interp.start(0.0, flying)
+    [plan] = [r for r in out.requests if isinstance(r, FlyMission)]
+    time = 0.0
+    while interp.status is Status.RUNNING and time < seconds:
+        time += 1.0
+        state = replace(flying, time=time, mission=MissionProgress(plan.plan_id, 0))
+        interp.step(time, state)
+    return interp
+
+
+def test_endless_loiter_in_a_mission_never_stalls() -> None:
+    interp = plan_flight('<action name="LOITER"/>', 2000.0)
+    assert interp.status is Status.RUNNING and interp.view().current_task == "Auto/A"
+
+
+def test_mission_item_time_limit_comes_from_the_action() -> None:
+    interp = plan_flight('<action name="WAIT"><argument name="duration" value="5"/></action>',
+                         2000.0)
+    assert interp.status is Status.FAILED
+    assert "WAIT not done within 25 s" in interp.reason  # 2 x 5 s + 15 s

@@ -36,13 +36,7 @@ EXPECTED: dict[str, tuple[int, str, list[str]]] = {
     "paper_example2": (0, "all tasks done", []),
     "verify_obstacles": (0, "all tasks done", []),
 }
-KNOWN_GAPS = {
-    "paper_example2": "at 50x the simulator's FLIP ends before the next HEARTBEAT, and the "
-                      "link's mode confirmation then sees GUIDED and reports the change "
-                      "refused",
-    "verify_obstacles": "GO_TO_POINT flies the straight leg into the warehouse instead of "
-                        "the verifier's detour, and times out",
-}
+KNOWN_GAPS: dict[str, str] = {}
 
 
 def fly(tmp_path: Path, name: str, extra: list[str]) -> tuple[int, list[dict], str]:

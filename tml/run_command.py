@@ -95,10 +95,10 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_INVALID
     if isinstance(loaded, int):
         return loaded
-    mission, world = loaded
+    mission, world, profile = loaded
     try:
         with _vehicles(args, world) as (vehicles, wake, clock):
-            return _fly(args, mission, world, vehicles, wake, clock, console)
+            return _fly(args, mission, world, profile, vehicles, wake, clock, console)
     except TmlError as error:
         errors.print(f"tml run: {error}")
         return EXIT_FAILURE
@@ -107,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_FAILURE
 
 
-def _load(args: argparse.Namespace, errors: Any) -> tuple[Mission, World] | int:
+def _load(args: argparse.Namespace, errors: Any) -> tuple[Mission, World, Any] | int:
     """The validated (and verified) mission and its world, or an exit code."""
     from tml.diagnostics import format_human
     from tml.parse import load_world
@@ -135,7 +135,7 @@ def _load(args: argparse.Namespace, errors: Any) -> tuple[Mission, World] | int:
                          "(--force flies it anyway)")
             return EXIT_INVALID
         errors.print("tml run: infeasible mission flown anyway (--force)")
-    return mission, world
+    return mission, world, load_profile(args.profile)
 
 
 @contextlib.contextmanager
@@ -185,15 +185,20 @@ def _discover(link: Any, timeout: float) -> list[int]:
     return sorted({first.system_id, *link.vehicles()})
 
 
-def _fly(args: argparse.Namespace, mission: Mission, world: World, vehicles: list[Any],
-         wake: threading.Event, clock: Any, console: Any) -> int:
+def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
+         vehicles: list[Any], wake: threading.Event, clock: Any, console: Any) -> int:
     from tml.display import LineDisplay, LiveDisplay
     from tml.engine import Options
     from tml.journal import Journal
     from tml.runner import Runner, RunOptions
+    from tml.verify.inflight import pre_check, router
 
+    # In flight, each action is checked again against live telemetry before it starts, and
+    # moves follow the planner's paths around the obstacles the verifier planned around.
+    engine = Options(world=world, pre_check=pre_check(profile, world),
+                     route=router(profile, world))
     options = RunOptions(safe_state=args.safe_state, link_lost_limit=args.link_lost_limit,
-                         engine=Options(world=world))
+                         engine=engine)
     journal = Journal.open(args.log)
     display: Any = None
     if not args.quiet:

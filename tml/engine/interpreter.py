@@ -94,7 +94,10 @@ class TaskState(StrEnum):
 
 @dataclass(frozen=True)
 class Record:
-    """One line of the flight log: what the interpreter decided or saw, and when."""
+    """One line of the flight log: what the interpreter decided or saw, and when.
+
+    ``data`` holds plain values (numbers, text, tuples, sets); the journal writes them as JSON.
+    """
 
     time: float
     kind: str
@@ -175,8 +178,11 @@ class _Plan:
     plan_id: int
     root: Task
     tasks: list[Task]
+    actions: list[BoundAction]
     index: int = -1
     since: float = 0.0
+    limit: float = math.inf  # s the current item may take before the plan has stalled
+    request_id: int = 0
 
 
 class Interpreter:
@@ -347,7 +353,7 @@ class Interpreter:
                 self._note("decision", f"{task.path_name}: skipped, condition false",
                            task=task.path_name, subject=condition.subject,
                            comparison=condition.comparison.value if condition.comparison
-                           else None, expected=condition.value, read=_jsonable(value),
+                           else None, expected=condition.value, read=value,
                            line=condition.location.line)
                 self._set(task, TaskState.SKIPPED)
                 return
@@ -412,7 +418,7 @@ class Interpreter:
         self._failure = None
         self._note("action", f"{bound.name} started", action=bound.name,
                    task=task.path_name if task else None, line=action.location.line,
-                   arguments=_jsonable(bound.values), labels=dict(bound.labels))
+                   arguments=dict(bound.values), labels=dict(bound.labels))
         run = _Run(bound, SCRIPTS[bound.name](self, bound), task, since=self._now)
         if self.options.pre_check is not None:
             violations = self.options.pre_check(bound, self._state, self.labels,
@@ -461,6 +467,11 @@ class Interpreter:
                 self._send(run.step.request)
 
     def _result(self, result: RequestResult) -> None:
+        plan = self._plan
+        if plan is not None and result.request_id == plan.request_id and not result.ok:
+            self._plan_failed(plan, result.reason or "rejected", "the vehicle refused the "
+                              "mission" + (f": {result.detail}" if result.detail else ""))
+            return
         run = self._run
         if run is None or not isinstance(run.step, Send) or result.request_id != run.request_id:
             if not result.ok:
@@ -516,12 +527,32 @@ class Interpreter:
             self._leave(task, TaskState.DONE)
             return
         self._plan_ids += 1
-        self._plan = _Plan(self._plan_ids, task, tasks, since=self._now)
-        actions = tuple(bind(t.action) for t in tasks if t.action is not None)
-        start = self._state.position or (0.0, 0.0, 0.0)
-        self._note("decision", f"{task.path_name}: {len(actions)} actions flown as a mission",
-                   task=task.path_name, actions=[a.name for a in actions])
-        self._send(FlyMission(self.vehicle_id, self._plan.plan_id, actions, start))
+        plan = self._plan = _Plan(self._plan_ids, task, tasks, [], since=self._now,
+                                  limit=self.options.mission_stall)
+        try:
+            plan.actions = [self._with_labels(bind(t.action)) for t in tasks if t.action]
+        except ActionFailed as failure:
+            self._plan_failed(plan, failure.reason, failure.detail)
+            return
+        self._note("decision", f"{task.path_name}: {len(plan.actions)} actions flown as a "
+                   "mission", task=task.path_name, actions=[a.name for a in plan.actions])
+        self._send_plan(plan)
+
+    def _send_plan(self, plan: _Plan) -> None:
+        request = FlyMission(self.vehicle_id, plan.plan_id, tuple(plan.actions),
+                             self._state.position or (0.0, 0.0, 0.0))
+        plan.request_id = request.request_id
+        self._send(request)
+
+    def _with_labels(self, bound: BoundAction) -> BoundAction:
+        """The action with the points of the labels it reads put in its values."""
+        values = dict(bound.values)
+        for name, label in bound.labels.items():
+            if label not in self.labels:
+                raise ActionFailed("infeasible", f"{bound.name}: label {label!r} has not "
+                                   "been memorized")
+            values[name] = self.labels[label]
+        return replace(bound, values=values, labels={})
 
     def _collect(self, task: Task, into: list[Task]) -> None:
         """Terminal tasks of a mission subtree, repeats unrolled, conditions evaluated now."""
@@ -541,14 +572,15 @@ class Interpreter:
         assert plan is not None
         progress = self._state.mission
         if progress is None or progress.plan_id != plan.plan_id:
-            if self._now - plan.since > self.options.mission_stall:
-                self._plan_failed(plan, "the vehicle did not start the mission")
+            if self._now - plan.since > plan.limit:
+                self._plan_failed(plan, "timeout", "the vehicle did not start the mission")
             return
         index = min(progress.action_index, len(plan.tasks) - 1)
         if index != plan.index:
             if 0 <= plan.index < len(plan.tasks):
                 self._set(plan.tasks[plan.index], TaskState.DONE)
             plan.index, plan.since = index, self._now
+            plan.limit = self._item_limit(plan.actions[index])
             self._terminal = plan.tasks[index]
             self._task_started[self._terminal.path] = self._now
             self._set(self._terminal, TaskState.RUNNING)
@@ -559,18 +591,51 @@ class Interpreter:
             self._plan = None
             self._leave(plan.root, TaskState.DONE)
             self._advance()
-        elif self._now - plan.since > self.options.mission_stall:
-            self._plan_failed(plan, f"no progress for {self.options.mission_stall:.0f} s")
+        elif self._now - plan.since > plan.limit:
+            self._plan_failed(plan, "timeout", f"{plan.actions[plan.index].name} not done "
+                              f"within {plan.limit:.0f} s")
 
-    def _plan_failed(self, plan: _Plan, detail: str) -> None:
+    def _item_limit(self, bound: BoundAction) -> float:
+        """How long one action of a mission plan may take: its nominal time, doubled, plus
+        slack; an endless loiter has no limit (an event ends it)."""
+        limits, values = self.limits, bound.values
+        here = self._state.position or (0.0, 0.0, 0.0)
+        turns, duration = values.get("turns"), values.get("duration")
+        if bound.name in ("LOITER", "RETURN_HOME_AND_LOITER") and turns is None \
+                and duration is None:
+            return math.inf
+        seconds = float(duration or 0.0)  # type: ignore[arg-type]
+        if turns is not None:
+            seconds += 2 * math.pi * float(values["radius"]) * float(turns) / limits.speed  # type: ignore[arg-type]
+        target = values.get("coordinates")
+        if isinstance(target, tuple):
+            seconds += math.dist(here, target) / limits.speed
+        if bound.name == "SURVEY_AREA":
+            seconds += (float(values["length"]) * (float(values["width"])  # type: ignore[arg-type]
+                        / float(values["spacing"]) + 1) + float(values["width"])) / limits.speed  # type: ignore[arg-type]
+        if bound.name == "TAKE_OFF":
+            seconds += float(values["altitude"]) / limits.climb_rate  # type: ignore[arg-type]
+        if bound.spec.category is Category.TAKE_OFF_LANDING and bound.name != "TAKE_OFF":
+            # Over the landing point (home when none is given), then down at LAND_SPEED.
+            over = target if isinstance(target, tuple) else (0.0, 0.0, 0.0)
+            if "latitude" in values or bound.name == "LAND":
+                over = here
+            seconds += math.hypot(here[0] - over[0], here[1] - over[1]) / limits.speed \
+                + max(here[2], 15.0) / limits.land_rate
+        if seconds == 0.0:
+            return self.options.mission_stall
+        return limits.factor * seconds + limits.slack
+
+    def _plan_failed(self, plan: _Plan, reason: str, detail: str) -> None:
         self._plan = None
         self._terminal = None
-        self._failure = "timeout"
+        self._failure = reason
         self._states[plan.root.path_name] = TaskState.FAILED
         self._note("action", f"mission flight of {plan.root.path_name} failed: {detail}",
-                   task=plan.root.path_name, reason="timeout", detail=detail)
+                   task=plan.root.path_name, reason=reason, detail=detail)
         if not self._events_tick():
-            self._end(Status.FAILED, f"{plan.root.path_name}: {detail}")
+            status = Status.ABORTED if reason == "infeasible" else Status.FAILED
+            self._end(status, f"{plan.root.path_name}: {detail}")
 
     # --- events --------------------------------------------------------------------------------
 
@@ -590,7 +655,7 @@ class Interpreter:
                 self._holding[event.name] = True
                 self._note("event", f"event {event.name!r} fired", event=event.name,
                            line=event.location.line,
-                           read=[{"subject": c.subject, "value": _jsonable(v)}
+                           read=[{"subject": c.subject, "value": v}
                                  for c, (_, v) in zip(event.conditions, readings, strict=True)])
             elif not triggers or not holds:
                 self._holding[event.name] = holds  # a rising edge left pending fires next
@@ -619,8 +684,6 @@ class Interpreter:
         if self._run is not None or self._plan is not None:
             self._interrupted = self._run
             self._run = None
-            if self._plan is not None:
-                self._interrupted_plan = self._plan
             if self._state.flying:
                 self._send(Hold(self.vehicle_id))
         self._handler_actions = list(event.actions)
@@ -645,13 +708,10 @@ class Interpreter:
             if plan is not None:
                 self._plan = plan
                 self._note("decision", "the autopilot mission is resumed from its current item")
-                self._send(FlyMission(self.vehicle_id, plan.plan_id,
-                                      tuple(bind(t.action) for t in plan.tasks[plan.index:]
-                                            if t.action is not None),
-                                      self._state.position or (0.0, 0.0, 0.0)))
-                plan.tasks = plan.tasks[max(plan.index, 0):]
-                plan.index = -1
-                plan.since = self._now
+                first = max(plan.index, 0)
+                plan.tasks, plan.actions = plan.tasks[first:], plan.actions[first:]
+                plan.index, plan.since, plan.limit = -1, self._now, self.options.mission_stall
+                self._send_plan(plan)
             elif interrupted is not None:
                 self._resume(interrupted)
             else:
@@ -765,17 +825,4 @@ def _request_fields(request: Request) -> dict[str, object]:
     data = {k: v for k, v in request.__dict__.items() if k not in ("vehicle_id", "request_id")}
     if isinstance(request, FlyMission):
         data["actions"] = [a.name for a in request.actions]
-    return {k: _jsonable(v) for k, v in data.items()}
-
-
-def _jsonable(value: object) -> object:
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple, set, frozenset)):
-        items = sorted(value, key=str) if isinstance(value, (set, frozenset)) else value
-        return [_jsonable(v) for v in items]
-    if isinstance(value, float) and not math.isfinite(value):
-        return str(value)
-    if value is None or isinstance(value, (str, int, float, bool)):
-        return value
-    return str(value)
+    return data

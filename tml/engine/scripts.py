@@ -87,6 +87,7 @@ class Limits:
     speed: float = 5.0  # m/s horizontal, changed by SET_SPEED
     climb_rate: float = 2.5  # m/s
     descent_rate: float = 1.5  # m/s
+    land_rate: float = 0.5  # m/s: ArduCopter lands at LAND_SPEED (50 cm/s) near the ground
     yaw_rate: float = 45.0  # deg/s
     acceptance_radius: float = 0.5  # m, horizontal and vertical
     heading_tolerance: float = 5.0  # deg
@@ -238,19 +239,29 @@ def _point(ctx: Context, bound: BoundAction, name: str) -> Point | None:
 
 def _circle(ctx: Context, centre: Point, radius: float, turns: float | None,
             duration: float | None) -> Script:
-    """Fly around ``centre``: a number of turns, for a time, or until stopped (neither)."""
+    """Circle ``centre`` clockwise: a number of turns, for a time, or until stopped (neither).
+
+    As ArduPilot's loiter items do, the vehicle joins the circle at its nearest point (the
+    centre itself may be what it circles, a mast or a tower) and goes round from there.
+    """
+    here = _position(ctx)
+    start = math.atan2(here[1] - centre[1], here[0] - centre[0]) \
+        if math.hypot(here[0] - centre[0], here[1] - centre[1]) > 1e-6 else 0.0
     points_per_turn = 16
-    started = ctx.state.time
+    started = None
     step = 0
     while True:
-        if turns is not None and step >= turns * points_per_turn:
+        if turns is not None and step > turns * points_per_turn:
             return
-        if duration is not None and ctx.state.time - started >= duration:
+        if duration is not None and started is not None and \
+                ctx.state.time - started >= duration:
             return
-        angle = 2 * math.pi * step / points_per_turn
+        angle = start + 2 * math.pi * step / points_per_turn
         target = (centre[0] + radius * math.cos(angle), centre[1] + radius * math.sin(angle),
                   centre[2])
         yield from fly_to(ctx, target, "loiter")
+        if started is None:
+            started = ctx.state.time  # the time and the turns count once on the circle
         step += 1
 
 
@@ -282,7 +293,7 @@ def land(ctx: Context, bound: BoundAction) -> Script:
     start = ctx.state.altitude
     yield Send(Land(ctx.vehicle_id))
     yield Until(_landed_and_disarmed,
-                ctx.limits.factor * start / ctx.limits.descent_rate + ctx.limits.slack,
+                ctx.limits.factor * start / ctx.limits.land_rate + ctx.limits.slack,
                 "land and disarm", lambda s: max(0.0, min(1.0, 1 - s.altitude / max(start, 1))))
 
 
@@ -351,12 +362,11 @@ def rotate_yaw(ctx: Context, bound: BoundAction) -> Script:
     _require_flying(ctx, "ROTATE_YAW")
     heading = ctx.state.heading
     if "angle" in bound.values:
-        angle = float(bound.values["angle"])  # type: ignore[arg-type]
-        target = (heading + angle) % 360
-        yield Send(SetYaw(ctx.vehicle_id, angle, relative=True))
+        target = (heading + float(bound.values["angle"])) % 360  # type: ignore[arg-type]
     else:
         target = float(bound.values["orientation_angle"]) % 360  # type: ignore[arg-type]
-        yield Send(SetYaw(ctx.vehicle_id, target))
+    # Sent as a heading, not a turn: a resent request (after an event) must not turn again.
+    yield Send(SetYaw(ctx.vehicle_id, target))
     turn = abs((target - heading + 540) % 360 - 180)
     tolerance = ctx.limits.heading_tolerance
     yield Until(lambda s: abs((target - s.heading + 540) % 360 - 180) <= tolerance,
@@ -467,8 +477,6 @@ def loiter(ctx: Context, bound: BoundAction) -> Script:
     if centre is None and "latitude" in bound.values:
         centre = _local(ctx, bound)
     centre = centre or here
-    if centre != here:
-        yield from fly_to(ctx, centre, "LOITER")
     turns = bound.values.get("turns")
     duration = bound.values.get("duration")
     yield from _circle(ctx, centre, float(bound.values["radius"]),  # type: ignore[arg-type]
@@ -499,17 +507,26 @@ def return_home(ctx: Context, bound: BoundAction) -> Script:
 def return_home_and_loiter(ctx: Context, bound: BoundAction) -> Script:
     """Fly back over home and circle it until an event stops it."""
     here = _require_flying(ctx, "RETURN_HOME_AND_LOITER")
-    yield from fly_to(ctx, (0.0, 0.0, here[2]), "RETURN_HOME_AND_LOITER")
     yield from _circle(ctx, (0.0, 0.0, here[2]),
                        float(bound.values["radius"]), None, None)  # type: ignore[arg-type]
 
 
 def return_home_and_land(ctx: Context, bound: BoundAction) -> Script:
-    """ArduPilot RTL: return, descend and land at home; done when disarmed."""
+    """ArduPilot RTL: return, descend and land at home; done when disarmed.
+
+    RTL flies a straight line home. When known obstacles stand on that line, the vehicle
+    first flies the planned path home in GUIDED, and RTL then only descends.
+    """
     here = _require_flying(ctx, "RETURN_HOME_AND_LAND")
+    above_home = (0.0, 0.0, here[2])
+    if ctx.route is not None:
+        path = ctx.route(here, above_home)
+        if path is not None and len(path) > 2:
+            yield from fly_to(ctx, above_home, "RETURN_HOME_AND_LAND")
+            here = _position(ctx)
     yield Send(ReturnToLaunch(ctx.vehicle_id))
     limit = _travel_time(ctx, here, (0.0, 0.0, 0.0)) + ctx.limits.factor * max(
-        here[2], 15.0) / ctx.limits.descent_rate
+        here[2], 15.0) / ctx.limits.land_rate
     yield Until(_landed_and_disarmed, limit, "return home and land",
                 lambda s: 1.0 - min(1.0, math.dist(s.position or here, (0, 0, 0))
                                     / max(math.dist(here, (0, 0, 0)), 1.0)))

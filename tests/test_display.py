@@ -44,7 +44,7 @@ def test_view_shows_tree_states_action_progress_telemetry_and_events() -> None:
     assert any("✓ Take off" in line and "TAKE_OFF" in line for line in lines)
     assert any("▶ Leg" in line for line in lines)
     row = next(line for line in lines if line.lstrip().startswith("1 "))
-    assert "running" in row and "Leg / GO_TO_POINT" in row and "GUIDED" in row
+    assert "running" in row and "GO_TO_POINT (Leg)" in row and "GUIDED" in row
     assert "%" in row and "ok" in row
     assert any("Far" in line for line in lines[lines.index(
         next(line for line in lines if line.startswith("events:"))):])

@@ -62,24 +62,28 @@ def _bar(progress: float | None, width: int = 10) -> str:
 
 
 def _vehicles(views: Views) -> Table:
+    # The tree shows where each task is; the table keeps to one short line per vehicle.
     table = Table(box=None, pad_edge=False, expand=False)
-    for column in ("vehicle", "status", "task / action", "progress", "mode", "position (m)",
-                   "alt", "speed", "heading", "battery", "link"):
-        table.add_column(column, no_wrap=True)
+    # Fixed widths for the figures, so that only the action's text is ever cut short.
+    for column, width in (("id", 2), ("status", 9), ("mode", 8), ("n, e, up (m)", 19),
+                          ("m/s", 4), ("hdg", 4), ("batt", 4), ("link", 8)):
+        table.add_column(column, no_wrap=True, min_width=width)
+    table.add_column("progress", no_wrap=True, min_width=15)
+    table.add_column("action", no_wrap=True, overflow="ellipsis")
     for view, state in views:
-        task = view.current_task or "-"
-        action = f" / {view.current_action}" if view.current_action else ""
+        action = view.current_action or "-"
+        if view.current_task:
+            action += f" ({view.current_task.rsplit('/', 1)[-1]})"
         position = state.position if state else None
         table.add_row(
-            str(state.vehicle_id) if state else "?", view.status.value, task + action,
-            _bar(view.progress),
+            str(state.vehicle_id) if state else "?", view.status.value,
             state.mode if state else "",
-            "-" if position is None else f"{position[0]:7.1f} N {position[1]:7.1f} E",
-            "-" if position is None else f"{position[2]:5.1f}",
+            "-" if position is None else
+            f"{position[0]:6.1f} {position[1]:6.1f} {position[2]:5.1f}",
             f"{state.ground_speed:4.1f}" if state else "",
             f"{state.heading:3.0f}°" if state else "",
             "-" if state is None or state.battery is None else f"{state.battery:3.0f}%",
-            state.link if state else "")
+            state.link if state else "", _bar(view.progress), action)
     return table
 
 

@@ -109,3 +109,28 @@ def test_sigint_commands_the_safe_state_and_exits_3(tmp_path: Path) -> None:
     assert "aborting: interrupted (SIGINT)" in out and "Land" in out
     safety = [line for line in read(str(log)) if line["kind"] == "safety"]
     assert safety and safety[0]["request"] == "Land"
+
+
+def test_out_lets_a_ground_station_watch_the_flight(tmp_path: Path) -> None:
+    import socket
+
+    from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+    watcher = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    watcher.bind(("127.0.0.1", 0))
+    watcher.settimeout(0.2)
+    port = watcher.getsockname()[1]
+    try:
+        assert main(["run", write(tmp_path, SHORT), "--sim", "-q", *FAST,
+                     "--out", f"udpout:127.0.0.1:{port}"]) == 0
+        parser, seen = mavlink.MAVLink(None), set()
+        while True:
+            try:
+                data = watcher.recv(65536)
+            except TimeoutError:
+                break
+            for msg in parser.parse_buffer(data) or []:
+                seen.add((msg.get_srcSystem(), msg.get_type()))
+    finally:
+        watcher.close()
+    assert {(1, "HEARTBEAT"), (1, "GLOBAL_POSITION_INT")} <= seen

@@ -64,6 +64,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sim-param", type=_sim_param, action="append", default=[],
                         metavar="NAME=VALUE",
                         help="--sim: set a simulator parameter (e.g. SIM_EKF_GPS_TIME=2)")
+    parser.add_argument("--out", action="append", default=[], metavar="ADDRESS",
+                        help="copy every vehicle message to this address, so QGroundControl "
+                             "or MAVProxy can watch (e.g. udpout:127.0.0.1:14551); "
+                             "repeatable")
     parser.add_argument("--log", metavar="FILE", help="write the JSON-lines flight log here")
     parser.add_argument("-q", "--quiet", action="store_true",
                         help="no live view; print only the outcome")
@@ -163,7 +167,7 @@ def _vehicles(args: argparse.Namespace, world: World) -> Iterator[tuple[list[Any
             addresses = [(url, None) for url in args.connect]
         vehicles = []
         for address, system_id in addresses:
-            link = stack.enter_context(Link(address))
+            link = stack.enter_context(Link(address, outputs=args.out))
             link.listen(lambda *_: wake.set())
             ids = [system_id] if system_id else _discover(link, args.timeout)
             for sid in ids:

@@ -332,6 +332,7 @@ def test_a_silent_vehicle_is_lost_in_the_snapshot_and_found_again() -> None:
             link.wait_telemetry(1, lambda t: t.mode == "GUIDED", timeout=30)
         ap.beating.set()
         link.wait_telemetry(1, lambda t: not t.link_lost, timeout=5, lost_ok=True)
+        assert link.stats.losses == 1
 
 
 def test_a_vehicle_lost_during_a_command_is_link_lost_not_a_timeout() -> None:
@@ -416,3 +417,24 @@ def test_two_vehicles_sending_from_one_udp_socket_are_told_apart_by_system_id() 
         assert (first.telemetry.mode, second.telemetry.mode) == ("LOITER", "RTL")
         assert [c.target_system for c in ap.commands] == [2, 1]
         assert sorted(link.vehicles()) == [1, 2]
+
+
+def test_heartbeats_waiting_behind_a_slow_listener_are_not_taken_for_silence() -> None:
+    with FakeAutopilot(system_id=1) as ap, \
+            Link(f"udpout:127.0.0.1:{ap.port}", lost_after=0.3) as link:
+        link.wait_vehicle(1, timeout=5)
+        stalled = threading.Event()
+
+        def slow(sysid: int, snapshot: Any, msg: Any) -> None:
+            if msg.get_type() == "MISSION_CURRENT" and not stalled.is_set():
+                stalled.set()
+                time.sleep(0.5)  # holds the receive thread while HEARTBEATs queue up
+
+        link.listen(slow)
+        received = link.telemetry(1).received
+        for seq in (4, 5, 9):  # 5 and 9 wait in the socket with the HEARTBEATs
+            ap.send(mavlink.MAVLink_mission_current_message(seq))
+        # Raises LinkLost if the link judged the vehicle lost before reading its queue.
+        link.wait_telemetry(1, lambda t: t.mission_current == 9, timeout=5)
+        assert eventually(lambda: link.telemetry(1).received > received + 5)  # beats after it
+        assert stalled.is_set() and link.stats.losses == 0

@@ -51,6 +51,8 @@ PROGRESS_PERIOD = 0.1
 LOST_AFTER = 5.0
 """Default seconds without a HEARTBEAT before a vehicle counts as lost."""
 LOST_CHECK_PERIOD = 0.05
+DRAIN_LIMIT = 1000
+"""Messages read at most, before judging a vehicle lost, from what waits in the socket."""
 GCS_TYPES = frozenset({mavlink.MAV_TYPE_GCS})
 SCHEMES = ("udpin", "udpout", "udp", "tcpin", "tcp")
 """Network address schemes; anything else is a serial device."""
@@ -118,12 +120,13 @@ class VehicleInfo:
 
 @dataclass
 class LinkStats:
-    """Counters of what the link dropped."""
+    """Counters of what the link dropped, and of the times a vehicle was lost."""
 
     unexpected_system: int = 0
     unsigned_rejected: int = 0
     bad_signature: int = 0
     bad_data: int = 0
+    losses: int = 0
 
 
 Listener = Callable[[int, Telemetry, Any], None]
@@ -333,13 +336,16 @@ class Link:
                 self._check_lost(now)
                 next_check = now + LOST_CHECK_PERIOD
             try:
-                msg = self._conn.recv_match(blocking=True, timeout=0.1)
+                msg = self._receive(blocking=True)
             except (OSError, ValueError):
                 if not self._running:
                     return
                 raise
             if msg is not None:
                 self._handle(msg, time.monotonic())
+
+    def _receive(self, blocking: bool) -> Any:
+        return self._conn.recv_match(blocking=blocking, timeout=0.1)
 
     def _heartbeat(self) -> None:
         # udpin before any peer, or a TCP peer gone: nothing to send to yet.
@@ -348,7 +354,20 @@ class Link:
 
     def _check_lost(self, now: float) -> None:
         with self._lock:
+            losing = any(not t.snapshot.link_lost and t.snapshot.heartbeat_age(now)
+                         > self.lost_after for t in self._trackers.values())
+        if losing:
+            # Read what already waits in the socket first: after this thread was held up
+            # (a slow listener, a busy machine) the HEARTBEATs may be there, not missing.
+            for _ in range(DRAIN_LIMIT):
+                msg = self._receive(blocking=False)
+                if msg is None:
+                    break
+                self._handle(msg, time.monotonic())
+            now = time.monotonic()
+        with self._lock:
             changed = [t for t in self._trackers.values() if t.check_link(now, self.lost_after)]
+            self.stats.losses += sum(t.snapshot.link_lost for t in changed)
             if changed:
                 self._lock.notify_all()
                 self._machine_done.notify_all()

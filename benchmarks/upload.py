@@ -11,7 +11,9 @@ neither tml nor MAVProxy shares an interpreter lock with it, and, for missions o
   item -> next request or ACK), each timed as a bare MISSION_REQUEST_LIST -> MISSION_COUNT
   exchange with the same simulator over a raw pymavlink connection.
 
-Prints the median of each and the ratios. Needs the ``bench`` extra (MAVProxy):
+tml and MAVProxy stay connected to the simulator side by side and take turns, one upload
+each, so that a change in the machine's load affects both alike. Prints the median of each
+and the ratios. Needs the ``bench`` extra (MAVProxy):
 
     /work/venv/bin/python benchmarks/upload.py [--sizes 10 100 500] [--repeat 5]
 """
@@ -36,6 +38,7 @@ from tml.mavlink.mission import MissionItem
 from tml.mavlink.vehicle import Vehicle
 
 HOME = (-35.3632621, 149.1652374, 584.0)
+TML_SYSTEM = 250
 FRAME = mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT
 
 
@@ -72,17 +75,12 @@ def round_trip(port: int, samples: int) -> float:
     return statistics.median(times)
 
 
-def tml_uploads(port: int, n: int, repeat: int) -> float:
-    """Median seconds of tml's upload of ``n`` waypoints, after checking one read-back."""
-    with Link(f"tcp:127.0.0.1:{port}") as link:
-        vehicle = Vehicle.connect(link, 1, timeout=10)
-        vehicle.upload(mission(n), verify=True)  # warm-up, and proof the mission arrives whole
-        times = []
-        for _ in range(repeat):
-            start = time.perf_counter()
-            vehicle.upload(mission(n), verify=False)
-            times.append(time.perf_counter() - start)
-    return statistics.median(times)
+def tml_upload(vehicle: Vehicle, n: int) -> float:
+    """Seconds of tml's upload of ``n`` waypoints (MISSION_COUNT to MISSION_ACK)."""
+    items = mission(n)
+    start = time.perf_counter()
+    vehicle.upload(items, verify=False)
+    return time.perf_counter() - start
 
 
 SIMULATOR = """
@@ -183,16 +181,28 @@ def compare(port: int, sizes: list[int], repeat: int, directory: str) -> None:
           f"{'tml/floor':>10} {'MAVProxy/tml':>13}")
     proxy = MavProxy(port)
     try:
-        for n in sizes:
-            path = waypoint_file(n, directory)
-            proxy_times = [proxy.upload(path, n + 1) for _ in range(repeat)]
-            ours = tml_uploads(port, n, repeat)
-            theirs = statistics.median(proxy_times)
-            floor = (n + 2) * rtt
-            print(f"{n:>6} {floor * 1e3:>10.2f} {ours * 1e3:>10.2f} {theirs * 1e3:>12.2f} "
-                  f"{ours / floor:>10.2f} {theirs / ours:>13.2f}")
+        # Not system 255 like MAVProxy: each must know the vehicle's answers for its own.
+        with Link(f"tcp:127.0.0.1:{port}", source_system=TML_SYSTEM) as link:
+            vehicle = Vehicle.connect(link, 1, timeout=10)
+            for n in sizes:
+                path = waypoint_file(n, directory)
+                vehicle.upload(mission(n), verify=True)  # warm-up, and proof it arrives whole
+                proxy.upload(path, n + 1)  # warm-up
+                tml_times, proxy_times = [], []
+                for _ in range(repeat):
+                    proxy_times.append(proxy.upload(path, n + 1))
+                    tml_times.append(tml_upload(vehicle, n))
+                report(n, rtt, statistics.median(tml_times), statistics.median(proxy_times))
     finally:
         proxy.close()
+
+
+def report(n: int, rtt: float, ours: float, theirs: float) -> None:
+    """One line of the table."""
+    floor = (n + 2) * rtt
+    print(f"{n:>6} {floor * 1e3:>10.2f} {ours * 1e3:>10.2f} {theirs * 1e3:>12.2f} "
+          f"{ours / floor:>10.2f} {theirs / ours:>13.2f}", flush=True)
+
 
 if __name__ == "__main__":
     main()

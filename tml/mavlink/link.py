@@ -332,10 +332,10 @@ class Link:
             if now >= next_heartbeat:
                 self._heartbeat()
                 next_heartbeat = now + HEARTBEAT_PERIOD
-            if now >= next_check:
-                self._check_lost(now)
-                next_check = now + LOST_CHECK_PERIOD
             try:
+                if now >= next_check:
+                    self._check_lost(now)  # may read the socket too
+                    next_check = now + LOST_CHECK_PERIOD
                 msg = self._receive(blocking=True)
             except (OSError, ValueError):
                 if not self._running:

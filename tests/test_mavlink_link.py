@@ -244,15 +244,16 @@ def test_listeners_hear_each_message_with_the_fresh_snapshot() -> None:
         assert eventually(lambda: heard == [(1, 4)])
 
 
-@pytest.fixture
-def watched() -> Iterator[tuple[FakeAutopilot, Link, socket.socket]]:
+@pytest.fixture(params=["udpout", "udp"])  # as an output, udp: sends like MAVProxy's --out
+def watched(request: pytest.FixtureRequest
+            ) -> Iterator[tuple[FakeAutopilot, Link, socket.socket]]:
     """Vehicle 4, a link to it, and a ground station's UDP socket the link forwards to."""
     watcher = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     watcher.bind(("127.0.0.1", 0))
     watcher.settimeout(5.0)
     port = watcher.getsockname()[1]
-    with FakeAutopilot(system_id=4) as ap, Link(f"udpout:127.0.0.1:{ap.port}",
-                                                outputs=[f"udpout:127.0.0.1:{port}"]) as link:
+    with FakeAutopilot(system_id=4) as ap, Link(
+            f"udpout:127.0.0.1:{ap.port}", outputs=[f"{request.param}:127.0.0.1:{port}"]) as link:
         yield ap, link, watcher
     watcher.close()
 

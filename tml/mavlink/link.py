@@ -152,7 +152,7 @@ class Link:
         self.stats = LinkStats()
         self._expected = None if system_ids is None else frozenset(system_ids)
         self._conn = _connect(address, baud, source_system, source_component)
-        self._outputs = [_connect(out, baud, source_system, source_component)
+        self._outputs = [_connect(out, baud, source_system, source_component, output=True)
                          for out in outputs]
         if signing_key is not None:
             if len(signing_key) != 32:
@@ -435,13 +435,17 @@ def _with_component(info: VehicleInfo, component: int) -> VehicleInfo:
                        info.components | {component})
 
 
-def _connect(address: str, baud: int, source_system: int, source_component: int) -> Any:
+def _connect(address: str, baud: int, source_system: int, source_component: int,
+             output: bool = False) -> Any:
     parsed = parse_address(address, baud)
     if parsed.scheme == "serial":
         address, baud = parsed.device, parsed.baud
     try:
+        # ``udp:`` listens (pymavlink's default), except as an output: there it sends to the
+        # address, as MAVProxy's and the simulator's ``--out udp:HOST:PORT`` do.
         return mavutil.mavlink_connection(address, baud=baud, source_system=source_system,
                                           source_component=source_component,
-                                          dialect="ardupilotmega", autoreconnect=True)
+                                          dialect="ardupilotmega", autoreconnect=True,
+                                          input=not (output and parsed.scheme == "udp"))
     except (OSError, ValueError) as error:
         raise LinkLost(f"cannot open MAVLink connection {address!r}: {error}") from error

@@ -3,12 +3,25 @@
 Two cursors walk the item list. The *navigation* cursor holds one NAV command (take off,
 waypoint, loiter, land, RTL, delay) that moves the vehicle; when it completes, the vehicle
 sends MISSION_ITEM_REACHED and the cursor moves to the next NAV command, following DO_JUMP
-(with its repeat count) on the way. The *do* cursor runs the DO and CONDITION commands
-that follow the current NAV command: DO commands act at once, a CONDITION command (delay,
-yaw) holds back the DO commands after it until it is satisfied, and whatever the do
-cursor has not reached when the next NAV command starts is dropped, as on ArduPilot.
+(with its repeat count) on the way. The DO and CONDITION commands passed over on the way
+there are the *do* list of the new NAV command, and each of them runs once, as on
+ArduPilot (``AP_Mission::advance_current_nav_cmd``): the first starts just before the NAV
+command (so its "Mission: N" text comes first), the others right after it. DO commands
+act at once; a CONDITION command (delay, yaw) holds back the DO commands after it until
+it is satisfied, and whatever the do list has not reached when the NAV command completes
+is dropped. So a DO command placed after a waypoint acts on the leg *from* that waypoint,
+and the DO commands before the first NAV command run when the mission starts. After the
+last NAV command only the first DO command runs: ArduPilot's mission is complete as soon
+as the search for a next NAV command reaches the end of the list.
 Every command started is announced with STATUSTEXT "Mission: N <name>"; commands the
 executor does not know are skipped with "Skipping invalid cmd #<id>".
+
+NAV_LAND with a latitude or longitude flies to that point at the altitude the vehicle
+has when the item starts, and only then descends (ArduCopter's ``ModeAuto::do_land``
+ignores the item's altitude); without one it descends where the vehicle is.
+DO_CHANGE_SPEED's param1 says which speed param2 sets: 0 (airspeed) and 1 (ground
+speed) the horizontal speed, 2 the climb speed, 3 the descent speed; a speed that is not
+positive (-1: no change) changes nothing (``ModeAuto::do_change_speed``).
 
 The executor moves nothing itself: it tells the vehicle what to do through the
 :class:`Pilot` interface (fly to, circle, land, return home) and asks it where it is.
@@ -45,6 +58,8 @@ NAV_COMMANDS = frozenset({
 })
 # Below this id a MAV_CMD is a navigation command in ArduPilot's numbering.
 NAV_LAST = 95
+# DO_CHANGE_SPEED param1 (MAVLink SPEED_TYPE).
+SPEED_AIR, SPEED_GROUND, SPEED_CLIMB, SPEED_DESCENT = 0, 1, 2, 3
 
 Vector = tuple[float, float, float]
 
@@ -64,7 +79,7 @@ class Pilot(Protocol):
     def return_home(self) -> None: ...
     def has_landed(self) -> bool: ...
     def arrived(self, target: Vector, radius: float) -> bool: ...
-    def set_speed(self, speed: float) -> None: ...
+    def set_speed(self, speed_type: int, speed: float) -> None: ...
     def set_yaw(self, heading: float, rate: float) -> None: ...
     def yaw_settled(self) -> bool: ...
     def set_home_from(self, item: MissionItem) -> None: ...
@@ -119,18 +134,19 @@ class AutoMission:
         self._run_dos()
 
     def _advance(self, index: int) -> None:
-        pending: list[int] = []
+        pending: list[int] = []  # the DO/CONDITION items between here and the next NAV
         while index < len(self.items):
             item = self.items[index]
             if item.command == DO_JUMP:
                 index = self._jump(index, item)
                 continue
             if item.command in NAV_COMMANDS:
-                self._announce(item)
                 self.nav = _Nav(index, self.pilot.item_position(item), since=self.pilot.time)
+                self._dos, self._condition_started = pending, None
+                self._run_dos(limit=1)
+                self._announce(item)
                 self._start_nav(self.nav, item)
-                self._dos = pending + self._dos_after(index)
-                self._condition_started = None
+                self._run_dos()
                 return
             if item.command < NAV_LAST:
                 self.pilot.text(4, f"Skipping invalid cmd #{item.command}")
@@ -138,8 +154,9 @@ class AutoMission:
                 pending.append(index)
             index += 1
         self.nav = None
-        self._dos = pending
+        self._dos, self._condition_started = pending[:1], None
         self._run_dos()
+        self._dos = []
         self.finished = True
         if self.pilot.has_landed():
             return
@@ -153,16 +170,6 @@ class AutoMission:
             self._jumps[index] = done + 1
             return target
         return index + 1
-
-    def _dos_after(self, index: int) -> list[int]:
-        out = []
-        for later in range(index + 1, len(self.items)):
-            command = self.items[later].command
-            if command in NAV_COMMANDS or command == DO_JUMP:
-                break
-            if command >= NAV_LAST:
-                out.append(later)
-        return out
 
     def _announce(self, item: MissionItem) -> None:
         name = NAMES.get(item.command, str(item.command))
@@ -181,10 +188,13 @@ class AutoMission:
             pilot.hold()
             nav.phase = "hold"
             return
-        elif item.command == NAV_LAND and item.x == 0 and item.y == 0:
-            pilot.land_at(pilot.position[0], pilot.position[1])
-            nav.phase = "descend"
-            return
+        elif item.command == NAV_LAND:
+            here = pilot.position
+            if item.x == 0 and item.y == 0:
+                pilot.land_at(here[0], here[1])
+                nav.phase = "descend"
+                return
+            nav.target = (nav.target[0], nav.target[1], here[2])
         pilot.fly_to(nav.target)
 
     def _update_nav(self, nav: _Nav) -> bool:
@@ -235,11 +245,14 @@ class AutoMission:
         ))
         return False
 
-    def _run_dos(self) -> None:
-        while self._dos:
+    def _run_dos(self, limit: int | None = None) -> None:
+        """Run the do list up to a CONDITION not yet satisfied, or ``limit`` new items."""
+        started = 0
+        while self._dos and (limit is None or started < limit):
             item = self.items[self._dos[0]]
             if item.command in (CONDITION_DELAY, CONDITION_YAW):
                 if self._condition_started is None:
+                    started += 1
                     self._announce(item)
                     self._condition_started = self.pilot.time
                     if item.command == CONDITION_YAW:
@@ -250,6 +263,7 @@ class AutoMission:
                 self._dos.pop(0)
                 continue
             self._dos.pop(0)
+            started += 1
             self._announce(item)
             self._run_do(item)
 
@@ -269,8 +283,9 @@ class AutoMission:
     def _run_do(self, item: MissionItem) -> None:
         pilot = self.pilot
         if item.command == DO_CHANGE_SPEED:
-            if item.param2 > 0:
-                pilot.set_speed(item.param2)
+            if item.param2 > 0 and int(item.param1) in (
+                    SPEED_AIR, SPEED_GROUND, SPEED_CLIMB, SPEED_DESCENT):
+                pilot.set_speed(int(item.param1), item.param2)
         elif item.command == DO_CHANGE_ALTITUDE:
             if self.nav is not None:
                 target = self.nav.target

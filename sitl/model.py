@@ -17,7 +17,8 @@ the messages :mod:`sitl.streams` says are due are built by :mod:`sitl.messages`,
 reads the model's public state. The mode table is :mod:`sitl.modes`.
 
 What a ground station sees follows ArduCopter: HEARTBEAT type QUADROTOR, autopilot
-ARDUPILOTMEGA, ``custom_mode`` = mode number; arming refused with "PreArm: ..." and
+ARDUPILOTMEGA, ``custom_mode`` = mode number, at 1 Hz and once more at each mode change
+(so even a FLIP shorter than a second shows); arming refused with "PreArm: ..." and
 COMMAND_ACK FAILED until the position estimate exists; GLOBAL_POSITION_INT with lat = lon
 = 0 until then; auto-disarm ``DISARM_DELAY`` s after landing or when idle on the ground;
 the mission protocol of :mod:`sitl.missions` and the AUTO executor of :mod:`sitl.auto`.
@@ -106,7 +107,10 @@ class VehicleModel:
         self._pending = 0.0
         self._outbox: list[Any] = []
         self.streams = Streams()
+        # DO_CHANGE_SPEED overrides of WPNAV_SPEED, WPNAV_SPEED_UP, WPNAV_SPEED_DN (m/s).
         self._speed: float | None = None
+        self._climb_speed: float | None = None
+        self._descent_speed: float | None = None
         self._target: Vector | None = None
         self._velocity: tuple[Vector, float] | None = None  # (velocity, expiry time)
         self._landing: tuple[float, float] | None = None
@@ -258,10 +262,7 @@ class VehicleModel:
         if command == M.MAV_CMD_NAV_RETURN_TO_LAUNCH:
             return ok if self.set_mode("RTL") else failed
         if command == M.MAV_CMD_DO_CHANGE_SPEED:
-            if p[1] <= 0:
-                return failed
-            self._speed = p[1]
-            return ok
+            return self._change_speed(p[0], p[1])
         if command == M.MAV_CMD_CONDITION_YAW:
             if not 0 <= p[0] <= 360 or p[3] not in (0, 1):
                 return failed
@@ -282,8 +283,10 @@ class VehicleModel:
         if command == M.MAV_CMD_MISSION_START:
             if not self.set_mode("AUTO"):
                 return failed
-            if p[0] >= 1 and self.auto is not None:
-                self.auto.start(round(p[0]))
+            if self.auto is not None and (p[0] >= 1 or self.auto.finished):
+                # Already in AUTO, set_mode changed nothing: as ArduCopter, a mission that
+                # is not running (here: finished) starts again.
+                self.auto.start(max(round(p[0]), 1))
             return ok
         if command == M.MAV_CMD_DO_SET_MISSION_CURRENT:
             return ok if self._set_current(round(p[0])) else failed
@@ -311,11 +314,26 @@ class VehicleModel:
             return ok
         return M.MAV_RESULT_UNSUPPORTED
 
+    def _change_speed(self, speed_type: float, speed: float) -> int:
+        """DO_CHANGE_SPEED as a command, as ArduCopter answers it: DENIED for a speed that
+        is not positive or an unknown speed type, FAILED in a mode that has no speed to
+        change (only AUTO, GUIDED and RTL have one)."""
+        kind = int(speed_type) if math.isfinite(speed_type) else -1
+        if not speed > 0 or kind not in (auto.SPEED_AIR, auto.SPEED_GROUND, auto.SPEED_CLIMB,
+                                         auto.SPEED_DESCENT):
+            return M.MAV_RESULT_DENIED
+        if self.mode not in ("AUTO", "GUIDED", "RTL"):
+            return M.MAV_RESULT_FAILED
+        self.set_speed(kind, speed)
+        return M.MAV_RESULT_ACCEPTED
+
     # ------------------------------------------------------------ modes and arming
     def set_mode(self, name: str) -> bool:
         """Change flight mode as ArduCopter would; False (with a STATUSTEXT) when refused."""
         if name not in MODES:
             return False
+        if name == self.mode:  # as ArduCopter: already there, nothing restarts
+            return True
         if name in NEEDS_POSITION and not self.position_ok:
             self._text(M.MAV_SEVERITY_WARNING, f"Flight mode change failed: {name}")
             return False
@@ -330,6 +348,7 @@ class VehicleModel:
         self._target, self._velocity, self._landing, self.auto = None, None, None, None
         self._rtl_phase = ""
         self.roll = 0.0
+        self._announce_mode()
         if name == "FLIP":  # roll once around, holding position, then back to ``previous``
             self._flip = (previous, 0.0)
             self._target = self.position
@@ -342,6 +361,11 @@ class VehicleModel:
         elif name == "AUTO":
             self._start_auto(self._mission_current or 1)
         return True
+
+    def _announce_mode(self) -> None:
+        # ArduCopter's Copter::set_mode sends a HEARTBEAT at once after every successful
+        # change, besides the 1 Hz stream, so a ground station sees even a short FLIP.
+        self._outbox.append(messages.heartbeat(self))
 
     def _starts_with_takeoff(self) -> bool:
         for item in self.mission_items[1:]:
@@ -504,9 +528,15 @@ class VehicleModel:
         """True when within ``radius`` metres of ``target``."""
         return math.dist(self.position, target) <= radius
 
-    def set_speed(self, speed: float) -> None:
-        """Horizontal speed for waypoints and guided targets (m/s)."""
-        self._speed = speed
+    def set_speed(self, speed_type: int, speed: float) -> None:
+        """Set one speed (m/s) for waypoints and guided targets: ``speed_type`` 0 or 1 the
+        horizontal speed, 2 the climb speed, 3 the descent speed (MAVLink SPEED_TYPE)."""
+        if speed_type == auto.SPEED_CLIMB:
+            self._climb_speed = speed
+        elif speed_type == auto.SPEED_DESCENT:
+            self._descent_speed = speed
+        else:
+            self._speed = speed
 
     def set_yaw(self, heading: float, rate: float) -> None:
         """Turn to ``heading`` degrees at ``rate`` degrees per second, and keep it."""
@@ -574,8 +604,10 @@ class VehicleModel:
         if self.mode == "RTL" and p["RTL_SPEED"] > 0:
             speed = p["RTL_SPEED"] / 100.0
         accel = BRAKE_DECEL if self.mode == "BRAKE" else p["WPNAV_ACCEL"] / 100.0
-        return Limits(speed, p["WPNAV_SPEED_UP"] / 100.0, p["WPNAV_SPEED_DN"] / 100.0,
-                      accel, p["WPNAV_ACCEL_Z"] / 100.0, p["ATC_RATE_Y_MAX"])
+        climb = self._climb_speed or p["WPNAV_SPEED_UP"] / 100.0
+        descent = self._descent_speed or p["WPNAV_SPEED_DN"] / 100.0
+        return Limits(speed, climb, descent, accel, p["WPNAV_ACCEL_Z"] / 100.0,
+                      p["ATC_RATE_Y_MAX"])
 
     def _wind(self) -> tuple[float, float]:
         # SIM_WIND_DIR is where the wind comes from; it blows toward the opposite side.
@@ -707,6 +739,7 @@ class VehicleModel:
                 self._text(M.MAV_SEVERITY_CRITICAL, "EKF Failsafe: changed to LAND Mode")
                 self.mode = "LAND"
                 self._target, self._velocity, self.auto, self._rtl_phase = None, None, None, ""
+                self._announce_mode()
                 self._landing = self.position[:2]
         if self.params["FENCE_ENABLE"] and self.armed and not self.landed:
             breach = self._fence_breach(self.position)

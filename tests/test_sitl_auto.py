@@ -38,7 +38,8 @@ def load(v: VehicleModel, items: list[tuple]) -> None:
     assert replies[-1].type == M.MAV_MISSION_ACCEPTED
 
 
-def fly(items: list[tuple], limit: float = 300.0) -> tuple[VehicleModel, list]:
+def fly(items: list[tuple], limit: float = 300.0, until=None) -> tuple[VehicleModel, list]:
+    """Fly ``items`` in AUTO until the vehicle disarms (or ``until(v)``); all it sent."""
     v = VehicleModel(1, H, params=FAST)
     v.step(3)
     load(v, items)
@@ -46,7 +47,7 @@ def fly(items: list[tuple], limit: float = 300.0) -> tuple[VehicleModel, list]:
     v.handle(M.MAVLink_command_long_message(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0))
     assert v.armed and v.set_mode("AUTO")
     out: list = []
-    while v.armed:
+    while not until(v) if until else v.armed:
         assert v.time < limit
         out += v.step(TICK)
     return v, out
@@ -115,12 +116,13 @@ def local(msg) -> tuple[float, float]:
 
 def test_cam_trigg_dist_takes_a_picture_every_n_metres_of_the_leg():
     _, out = fly([
-        item(22, alt=10), item(206, 10), item(16, 2, north=50), item(16, north=50, east=30),
-        item(206, 0), item(21, north=50, east=30, alt=0),
+        item(22, alt=10), item(206, 10), item(16, 2, north=50), item(206, 0),
+        item(16, north=50, east=30), item(21, north=50, east=30, alt=0),
     ])
     spots = [local(m) for m in out if m.get_type() == "CAMERA_IMAGE_CAPTURED"]
     # Every 10 m (and up to one control step's travel, 0.5 m at 10 m/s, as the check runs
-    # once a step) along the 50 m leg north, none on the leg east, whose DO item turns it off.
+    # once a step) along the 50 m leg north, none on the leg east: a DO item acts on the leg
+    # that follows it, so the one after the northern waypoint turns the camera off there.
     norths = [0.0] + [north for north, _ in spots]
     assert [round(b - a) for a, b in itertools.pairwise(norths)] == [10, 10, 10, 10]
     assert all(10.0 <= b - a <= 10.6 for a, b in itertools.pairwise(norths))
@@ -147,3 +149,92 @@ def test_set_home_item_moves_where_the_mission_returns_to():
     assert math.dist(v.position[:2], (20.0, 30.0)) < 1.0  # landed at the new home
     homes = [m for m in out if m.get_type() == "HOME_POSITION"]
     assert homes and homes[-1].latitude == lat and homes[-1].longitude == lon
+
+
+def shoot(frame: int = 2) -> tuple:
+    """DO_DIGICAM_CONTROL that takes one picture (param5 = shoot, in the x field)."""
+    return frame, M.MAV_CMD_DO_DIGICAM_CONTROL, [0.0] * 4, 1, 0, 0.0
+
+
+def pictures(out: list) -> list[tuple[float, float]]:
+    return [local(m) for m in out if m.get_type() == "CAMERA_IMAGE_CAPTURED"]
+
+
+def test_each_do_item_runs_once_per_pass_on_the_leg_after_the_waypoint_before_it():
+    _, out = fly([
+        item(22, alt=10), item(16, north=10), shoot(), item(16, north=20),
+        item(177, 2, 1), item(21, alt=0),
+    ])
+    assert reached(out) == [1, 2, 4, 2, 4, 6]
+    assert texts(out).count("Mission: 3 DigiCam") == 2  # once in each of the two passes
+    spots = pictures(out)
+    assert len(spots) == 2  # one picture per pass, not one per item and per NAV command
+    # ArduPilot runs the DO items after a waypoint when that waypoint is reached: first the
+    # DO item, then the next waypoint starts.
+    assert all(abs(north - 10.0) <= 2.1 for north, _ in spots)  # within WPNAV_RADIUS
+    said = texts(out)
+    assert said.index("Mission: 2 WP") < said.index("Mission: 3 DigiCam") < said.index(
+        "Mission: 4 WP")
+
+
+def test_only_the_first_do_item_after_the_last_nav_item_runs():
+    v, out = fly([item(22, alt=5), item(16, north=5, alt=5), shoot(), shoot()],
+                 until=lambda v: v.auto is not None and v.auto.finished)
+    out += v.step(2)
+    # AP_Mission starts the first and finds no NAV command after it: the mission is complete.
+    assert len(pictures(out)) == 1
+    assert "Mission: 3 DigiCam" in texts(out) and "Mission: 4 DigiCam" not in texts(out)
+    assert v.mode == "AUTO" and v.armed and v.position[2] > 4.5  # holds where it ended
+    replies = v.handle(M.MAVLink_command_long_message(1, 1, 300, 0, 0, 0, 0, 0, 0, 0, 0))
+    assert replies[0].result == M.MAV_RESULT_ACCEPTED  # MISSION_START: it runs again
+    assert "Mission: 1 Takeoff" in texts(replies + v.step(1))
+
+
+def legs(out: list) -> dict[int, list]:
+    """GLOBAL_POSITION_INT samples by the NAV item being flown (between two REACHED)."""
+    flown: dict[int, list] = {}
+    previous = 0
+    for m in out:
+        if m.get_type() == "MISSION_ITEM_REACHED":
+            flown[m.seq], previous = flown.pop(-1, []), m.seq
+        elif m.get_type() == "GLOBAL_POSITION_INT" and previous:
+            flown.setdefault(-1, []).append(m)
+    return flown
+
+
+def test_change_speed_sets_the_speed_its_type_names():
+    change = M.MAV_CMD_DO_CHANGE_SPEED
+    _, out = fly([
+        item(22, alt=10),
+        item(change, 3, 0.5, -1, frame=2), item(16, north=60, alt=10),  # descent speed
+        item(change, 1, -1, -1, frame=2), item(16, 0, 0.3, north=60, alt=4),  # -1: no change
+        item(change, 2, 1.0, -1, frame=2), item(16, 0, 0.3, north=60, alt=8),  # climb speed
+        item(change, 0, 3.0, -1, frame=2), item(16, north=0, alt=8),  # horizontal speed
+        item(21, alt=0),
+    ], limit=400)
+    assert reached(out) == [1, 3, 5, 7, 9, 10]
+    flown = legs(out)
+
+    def fastest(seq: int) -> tuple[float, float, float]:
+        samples = flown[seq]
+        return (max(math.hypot(m.vx, m.vy) for m in samples) / 100,
+                max(-m.vz for m in samples) / 100, max(m.vz for m in samples) / 100)
+
+    assert fastest(3)[0] == pytest.approx(10.0, abs=0.2)  # WPNAV_SPEED: the descent one is apart
+    assert fastest(5)[2] == pytest.approx(0.5, abs=0.02)  # descends at the new descent speed
+    assert fastest(7)[1] == pytest.approx(1.0, abs=0.02)  # climbs at the new climb speed
+    assert fastest(9)[0] == pytest.approx(3.0, abs=0.05)  # flies at the new horizontal speed
+
+
+def test_land_at_a_point_flies_there_at_the_present_altitude_then_descends():
+    v, out = fly([item(22, alt=20), item(21, north=30, east=10, alt=0)])
+    assert reached(out) == [1, 2]
+    approach = [m for m in legs(out)[2] if math.dist(local(m), (30.0, 10.0)) > 1.5]
+    assert approach and min(m.relative_alt for m in approach) / 1000 > 19.5
+    assert math.dist(v.position, (30.0, 10.0, 0.0)) < 0.5 and v.landed and not v.armed
+
+
+def test_land_without_a_point_lands_where_the_vehicle_is():
+    v, out = fly([item(22, alt=10), item(16, 1, 0.3, north=15, east=-5), item(21, alt=3)])
+    assert reached(out) == [1, 2, 3]
+    assert math.dist(v.position, (15.0, -5.0, 0.0)) < 0.5 and v.landed and not v.armed

@@ -108,12 +108,16 @@ def test_command_results():
     v = vehicle()
     v.step(3)
     assert command(v, M.MAV_CMD_NAV_TAKEOFF, *[0] * 6, 10)[0] == M.MAV_RESULT_FAILED
-    assert command(v, M.MAV_CMD_DO_CHANGE_SPEED, 1, 0)[0] == M.MAV_RESULT_FAILED
-    assert command(v, M.MAV_CMD_DO_CHANGE_SPEED, 1, 5)[0] == M.MAV_RESULT_ACCEPTED
+    assert command(v, M.MAV_CMD_DO_CHANGE_SPEED, 1, 0)[0] == M.MAV_RESULT_DENIED
+    assert command(v, M.MAV_CMD_DO_CHANGE_SPEED, 1, -1)[0] == M.MAV_RESULT_DENIED
+    assert command(v, M.MAV_CMD_DO_CHANGE_SPEED, 4, 5)[0] == M.MAV_RESULT_DENIED
+    assert command(v, M.MAV_CMD_DO_CHANGE_SPEED, 1, 5)[0] == M.MAV_RESULT_FAILED  # STABILIZE
     assert command(v, M.MAV_CMD_DO_SET_MODE, 1, 99)[0] == M.MAV_RESULT_FAILED
     assert command(v, M.MAV_CMD_DO_SET_MODE, 0, 4)[0] == M.MAV_RESULT_UNSUPPORTED
     assert command(v, M.MAV_CMD_DO_REPOSITION, -1, 0, 0, 0, 1, 1, 10)[0] == M.MAV_RESULT_DENIED
     assert command(v, 31337)[0] == M.MAV_RESULT_UNSUPPORTED
+    assert v.set_mode("GUIDED")
+    assert command(v, M.MAV_CMD_DO_CHANGE_SPEED, 1, 5)[0] == M.MAV_RESULT_ACCEPTED
     assert command(v, M.MAV_CMD_CONDITION_YAW, 400)[0] == M.MAV_RESULT_FAILED
     result, replies = command(v, M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
     assert result == M.MAV_RESULT_ACCEPTED
@@ -352,11 +356,13 @@ def test_avoidance_stops_the_vehicle_avoid_margin_short_of_an_obstacle():
 def test_flip_from_guided_rolls_once_around_in_place_and_returns_to_guided():
     v = flying(10.0)
     v.step(2)
-    beats: list[int] = []
     for _ in range(3):  # the TML paper's Example 2 flips three times
         start = v.position
-        result, _ = command(v, M.MAV_CMD_DO_SET_MODE, 1, 14)
+        result, replies = command(v, M.MAV_CMD_DO_SET_MODE, 1, 14)
         assert result == M.MAV_RESULT_ACCEPTED and v.mode == "FLIP"
+        # As ArduCopter, a HEARTBEAT right after the ACK shows FLIP, however short it is.
+        assert [(m.get_type(), getattr(m, "custom_mode", None)) for m in replies] == [
+            ("COMMAND_ACK", None), ("HEARTBEAT", 14)]
         command(v, M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_ATTITUDE, 50_000)
         began = v.time
         out = run_until(v, lambda: v.mode != "FLIP", 3.0)
@@ -368,11 +374,31 @@ def test_flip_from_guided_rolls_once_around_in_place_and_returns_to_guided():
         assert math.degrees(rolls[0] + sum(turns)) == pytest.approx(340, abs=25)  # once round
         assert max(abs(r) for r in rolls) > 3.0  # upside down on the way
         assert math.dist(v.position, start) < 0.2
-        beats += [m.custom_mode for m in out
-                  if m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1]
-    assert set(beats) == {14}  # a ground station sees FLIP while it lasts
+        beats = [m.custom_mode for m in out
+                 if m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1]
+        assert beats[-1] == 4 and set(beats[:-1]) <= {14}  # and one announces GUIDED again
     v.fly_to((10.0, 0.0, 10.0))  # GUIDED obeys again
     run_until(v, lambda: v.arrived((10.0, 0.0, 10.0), 0.3), 20)
+
+
+def test_a_mode_change_sends_a_heartbeat_at_once_and_the_same_mode_changes_nothing():
+    v = flying(10.0)
+    v.fly_to((30.0, 0.0, 10.0))
+    v.step(1)
+    result, replies = command(v, M.MAV_CMD_DO_SET_MODE, 1, 4)  # GUIDED again
+    assert result == M.MAV_RESULT_ACCEPTED and [m.get_type() for m in replies] == ["COMMAND_ACK"]
+    run_until(v, lambda: v.arrived((30.0, 0.0, 10.0), 0.3), 20)  # its target was kept
+    result, replies = command(v, M.MAV_CMD_DO_SET_MODE, 1, 5)
+    assert [(m.get_type(), getattr(m, "custom_mode", None)) for m in replies] == [
+        ("COMMAND_ACK", None), ("HEARTBEAT", 5)]
+    beats = [m for m in v.step(5) if m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1]
+    assert len(beats) == 5  # the 1 Hz stream goes on as before
+    v = flying(10.0, faults=Faults(gps_loss_at=20.5))  # a failsafe's change too, at once
+    v.step(20.45 - v.time)  # (the 1 Hz stream sends its HEARTBEATs at whole seconds)
+    assert v.mode == "GUIDED"
+    out = v.step(TICK)
+    assert v.mode == "LAND" and [m.custom_mode for m in out if m.get_type() == "HEARTBEAT"
+                                 and m.get_srcComponent() == 1] == [9]
 
 
 def test_flip_from_stabilize_returns_to_stabilize():

@@ -51,7 +51,7 @@ from tml.mavlink.codec import mavlink
 from tml.mavlink.command import CommandLong
 from tml.mavlink.compile import SPEED_TYPES, CompiledMission, CompileError, compile_mission
 from tml.mavlink.link import Link
-from tml.mavlink.modes import mode_names, set_mode_command
+from tml.mavlink.modes import mode_names
 from tml.mavlink.telemetry import COMPANION_COMPONENT, Telemetry
 from tml.mavlink.vehicle import Vehicle
 from tml.vehicle import (
@@ -76,9 +76,6 @@ from tml.vehicle import (
     VehicleState,
 )
 from tml.world import Home, World
-
-TRANSIENT_MODES = frozenset({"FLIP"})
-"""Modes an ArduPilot vehicle leaves by itself when their manoeuvre is over."""
 
 Clock = Callable[[], float]
 
@@ -417,14 +414,7 @@ class MavlinkVehicle:
     def _set_mode(self, request: SetMode) -> None:
         if request.mode.upper() != "AUTO":
             self._end_plan()
-        if request.mode.upper() in TRANSIENT_MODES:
-            # The vehicle leaves FLIP by itself, often before the next HEARTBEAT: the ACK is
-            # the only confirmation there is.
-            info = self.mav.info
-            self.mav.command(set_mode_command(info.vehicle_type, info.autopilot,
-                                              request.mode.upper(), self.mav.system_id))
-        else:
-            self.mav.set_mode(request.mode)
+        self.mav.set_mode(request.mode)  # transient modes (FLIP) are confirmed by their ACK
 
     def _arm(self, request: Arm) -> None:
         self.mav.arm()

@@ -203,7 +203,9 @@ def test_actions_without_items_and_unresolved_labels_are_refused() -> None:
 FAST = {"SIM_GPS_LOCKTIME": 1, "SIM_EKF_GPS_TIME": 2}
 
 
-def fly(items: tuple[MissionItem, ...], limit: float = 400.0) -> tuple[VehicleModel, list]:
+def fly(items: tuple[MissionItem, ...], limit: float = 400.0,
+        until_disarmed: bool = True) -> tuple[VehicleModel, list]:
+    """Upload and fly ``items`` in AUTO until the vehicle disarms (or for ``limit`` s)."""
     v = VehicleModel(1, H, params=FAST)
     v.step(3)
     everything = with_home_placeholder(list(items))
@@ -218,7 +220,7 @@ def fly(items: tuple[MissionItem, ...], limit: float = 400.0) -> tuple[VehicleMo
     v.handle(M.MAVLink_command_long_message(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0))
     assert v.armed and v.set_mode("AUTO")
     out: list = []
-    while v.armed:
+    while v.armed if until_disarmed else v.time < limit:
         assert v.time < limit
         out += v.step(TICK)
     return v, out
@@ -244,3 +246,23 @@ def test_docs_table_names_every_action() -> None:
     table = doc[doc.index("## `dispatch=\"mission\"`"):]
     missing = [spec.name for spec in CATALOGUE if spec.name not in table]
     assert not missing, f"docs/run.md's item table misses {missing}"
+
+
+def test_several_trailing_commands_get_a_closing_waypoint_so_all_of_them_run() -> None:
+    # ArduPilot ends a mission at the first DO item after the last NAV item.
+    two = compiled(act("GO_TO_POINT", coordinates="(10, 0, 10)"), act("CAPTURE_PHOTO"),
+                   act("SET_SPEED", speed="3"))
+    commands = [i.command for i in two.items]
+    assert commands == [M.MAV_CMD_NAV_WAYPOINT, M.MAV_CMD_DO_DIGICAM_CONTROL,
+                        M.MAV_CMD_DO_CHANGE_SPEED, M.MAV_CMD_NAV_WAYPOINT]
+    assert local(two.items[-1]) == (10.0, 0.0, 10.0) and two.action_index[-1] == 2
+    one = compiled(act("GO_TO_POINT", coordinates="(10, 0, 10)"), act("CAPTURE_PHOTO"))
+    assert [i.command for i in one.items] == [M.MAV_CMD_NAV_WAYPOINT,
+                                              M.MAV_CMD_DO_DIGICAM_CONTROL]
+
+
+def test_trailing_commands_all_run_in_the_simulator() -> None:
+    plan = compiled(act("TAKE_OFF", altitude="5"), act("CAPTURE_PHOTO"),
+                    act("CAPTURE_PHOTO"), act("CAPTURE_PHOTO"), start=(0, 0, 0))
+    _, out = fly(plan.items, until_disarmed=False, limit=60.0)
+    assert sum(m.get_type() == "CAMERA_IMAGE_CAPTURED" for m in out) == 3

@@ -126,7 +126,21 @@ def compile_mission(actions: tuple[BoundAction, ...] | list[BoundAction], home: 
         if compiler is None:
             raise CompileError(f"{action.name} cannot be flown as a mission item")
         compiler(builder, action)
+    _close_trailing_commands(builder)
     return CompiledMission(tuple(builder.items), tuple(builder.owners))
+
+
+def _close_trailing_commands(b: _Builder) -> None:
+    """End with a waypoint where the vehicle is when more than one DO/CONDITION item follows
+    the last navigation item: ArduPilot ends the mission at the first of them otherwise
+    (AP_Mission finds no next navigation command), and the others never run."""
+    trailing = 0
+    for item in reversed(b.items):
+        if item.command < mavlink.MAV_CMD_NAV_LAST:
+            break
+        trailing += 1
+    if trailing > 1 and len(b.items) > trailing:
+        b.waypoint(b.cursor.position)
 
 
 # --- one function per action ------------------------------------------------------------

@@ -109,3 +109,15 @@ def test_nearest_names_the_obstacle() -> None:
     planner = Planner([Cylinder("mast", 50, 0, 5), Cylinder("tree", -50, 0, 5)], 5)
     assert planner.nearest((40, 0, 10)) == (pytest.approx(5.0), "mast")
     assert planner.nearest((40, 0, 10)) != planner.nearest((-40, 0, 10))
+
+
+def test_degenerate_legs_give_no_numeric_warnings() -> None:
+    import warnings
+
+    planner = Planner([Cylinder("c", 0.0, 0.0, 1.0), Cylinder("d", 5.0, 0.0, 1.0)], 0.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        tiny = planner.trajectory((2.0, 0.0, 0.0), (2.0, 3.1659946594612924e-298, 0.0))
+        assert tiny is not None and planner.clearance_of(tiny.points) == pytest.approx(1.0)
+        around = planner.trajectory((-3.0, 0.0, 0.0), (8.0, 0.0, 0.0))  # shared vertices
+        assert around is not None and planner.clearance_of(around.points) >= -1e-6

@@ -109,7 +109,7 @@ class Planner:
 
     def _plan(self, start: Point3, end: Point3) -> Trajectory | None:
         a2, b2 = (start[0], start[1]), (end[0], end[1])
-        if a2 == b2 or not self.obstacles:
+        if math.dist(a2, b2) < 1e-9 or not self.obstacles:  # a vertical or empty leg
             return straight(start, end)
         usable = self.band(min(start[2], end[2]), max(start[2], end[2]))
         # An end may lie inside an inflated polygon yet keep the clearance (the polygon is
@@ -157,7 +157,12 @@ class Planner:
         inside = tree.query(shapely.points(candidates), predicate="intersects")[0]
         keep = np.ones(len(candidates), dtype=bool)
         keep[inside] = False
-        nodes = np.vstack([np.array([a2, b2]), candidates[keep]])
+        # Coincident nodes (shared vertices, a vertex on an end) would make zero-length
+        # edges, degenerate geometry for the distance and intersection tests.
+        candidates = np.unique(candidates[keep], axis=0)
+        candidates = candidates[~(np.all(candidates == a2, axis=1)
+                                  | np.all(candidates == b2, axis=1))]
+        nodes = np.vstack([np.array([a2, b2]), candidates])
         to_goal = np.hypot(*(nodes - nodes[1]).T)
         cost = np.full(len(nodes), math.inf)
         cost[0] = 0.0
@@ -216,7 +221,8 @@ class Planner:
                  [(points[0], points[0])]
         best = math.inf
         for a, b in pieces:
-            geometry = Point(a[0], a[1]) if a[:2] == b[:2] else LineString([a[:2], b[:2]])
+            geometry = Point(a[0], a[1]) if math.dist(a[:2], b[:2]) < 1e-9 \
+                else LineString([a[:2], b[:2]])
             flat = np.maximum(shapely.distance(self.cores, geometry) - self.radii, 0.0)
             low, high = min(a[2], b[2]), max(a[2], b[2])
             gap = np.maximum(np.maximum(self.bottoms - high, low - self.tops), 0.0)

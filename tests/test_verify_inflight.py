@@ -104,59 +104,49 @@ def test_no_path_is_infeasible() -> None:
     assert route((0.0, 0.0, 10.0), (300.0, 0.0, 10.0)) is None
 
 
-def run(mission_text: str, options: Options, vehicle: FakeVehicle,
-        watch=lambda v: None) -> Interpreter:
-    interp = Interpreter(validate_file("m.xml", mission_text.encode()).mission, options=options)
-    out, time = interp.start(0.0, vehicle.state()), 0.0
+def closest_approach(mission_text: str, obstacle: Cylinder) -> tuple[Interpreter,
+                                                                    FakeVehicle, float]:
+    """Fly with the router around ``obstacle``; the closest the vehicle came to its axis."""
+    from tml.verify.inflight import router
+
+    world = World(obstacles=(obstacle,))
+    route = router(load_profile("quadcopter"), world)
+    mission = validate_file("m.xml", mission_text.encode()).mission
+    interp = Interpreter(mission, options=Options(route=route))
+    vehicle = FakeVehicle(drain_per_second=0.0, speed=10.0)
+    out, time, closest = interp.start(0.0, vehicle.state()), 0.0, math.inf
     while interp.status is Status.RUNNING and time < 900:
         for request in out.requests:
             vehicle.submit(request)
         vehicle.advance(0.1)
         time += 0.1
-        watch(vehicle)
+        north, east, _ = vehicle.position
+        closest = min(closest, math.hypot(north - obstacle.north, east - obstacle.east))
         out = interp.step(time, vehicle.state(), vehicle.poll())
-    return interp
+    return interp, vehicle, closest
 
 
 def test_loiter_around_an_obstacle_joins_the_circle_instead_of_its_centre() -> None:
-    from tml.verify.inflight import router
-
-    mast = World(obstacles=(Cylinder("mast", 60.0, 0.0, 2.0, 0.0, 100.0),))
     text = ('<mission name="m"><task name="up"><action name="TAKE_OFF"/></task>'
             '<task name="round"><action name="LOITER"><argument name="coordinates" '
             'value="(60, 0, 10)"/><argument name="radius" value="10"/><argument name="turns" '
             'value="1"/></action></task><task name="down"><action name="LAND"/></task>'
             '</mission>')
-    closest = [float("inf")]
-
-    def watch(vehicle: FakeVehicle) -> None:
-        north, east, _ = vehicle.position
-        closest[0] = min(closest[0], math.hypot(north - 60.0, east))
-
-    vehicle = FakeVehicle(drain_per_second=0.0, speed=10.0)
-    interp = run(text, Options(route=router(load_profile("quadcopter"), mast)), vehicle, watch)
+    interp, _, closest = closest_approach(text, Cylinder("mast", 60.0, 0.0, 2.0, 0.0, 100.0))
     assert interp.status is Status.COMPLETED
-    assert closest[0] >= 10.0 - 0.6  # never inside the circle
+    assert closest >= 10.0 - 0.6  # never inside the circle
 
 
 def test_return_home_and_land_goes_around_obstacles_before_rtl() -> None:
     from tml.vehicle import ReturnToLaunch
-    from tml.verify.inflight import router
 
-    wall = World(obstacles=(Cylinder("tower", 40.0, 0.0, 5.0, 0.0, 100.0),))
     text = ('<mission name="m"><task name="up"><action name="TAKE_OFF"/></task>'
             '<task name="out"><action name="GO_TO_POINT"><argument name="coordinates" '
             'value="(80, 0, 10)"/></action></task><task name="back">'
             '<action name="RETURN_HOME_AND_LAND"/></task></mission>')
-    closest = [float("inf")]
-
-    def watch(vehicle: FakeVehicle) -> None:
-        north, east, _ = vehicle.position
-        closest[0] = min(closest[0], math.hypot(north - 40.0, east))
-
-    vehicle = FakeVehicle(drain_per_second=0.0, speed=10.0)
-    interp = run(text, Options(route=router(load_profile("quadcopter"), wall)), vehicle, watch)
+    interp, vehicle, closest = closest_approach(
+        text, Cylinder("tower", 40.0, 0.0, 5.0, 0.0, 100.0))
     assert interp.status is Status.COMPLETED
-    assert closest[0] >= 5.0 + 5.0 - 0.6
+    assert closest >= 5.0 + 5.0 - 0.6  # radius plus the profile's clearance, less tolerance
     rtl = [i for i, r in enumerate(vehicle.submitted) if isinstance(r, ReturnToLaunch)]
     assert len(rtl) == 1 and isinstance(vehicle.submitted[rtl[0] - 1], GoTo)

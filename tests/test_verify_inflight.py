@@ -73,24 +73,12 @@ def test_unknown_position_or_battery_is_not_judged() -> None:
 def test_router_flies_around_a_known_obstacle() -> None:
     from tml.verify.inflight import router
 
-    profile = load_profile("quadcopter")
-    world = World(obstacles=(Cylinder("tower", 50.0, 0.0, 5.0, 0.0, 100.0),))
-    mission = validate_file("m.xml", MISSION.format(north=100, events="").encode()).mission
-    vehicle = FakeVehicle(battery=100.0, drain_per_second=0.0, speed=10.0)
-    interp = Interpreter(mission, options=Options(route=router(profile, world)))
-    out, time, closest = interp.start(0.0, vehicle.state()), 0.0, float("inf")
-    while interp.status is Status.RUNNING and time < 600:
-        for request in out.requests:
-            vehicle.submit(request)
-        vehicle.advance(0.1)
-        time += 0.1
-        north, east, _ = vehicle.position
-        closest = min(closest, ((north - 50) ** 2 + east ** 2) ** 0.5)
-        out = interp.step(time, vehicle.state(), vehicle.poll())
+    interp, vehicle, closest = closest_approach(
+        MISSION.format(north=100, events=""), Cylinder("tower", 50.0, 0.0, 5.0, 0.0, 100.0))
     assert interp.status is Status.COMPLETED
-    assert closest >= 5.0 + profile.min_clearance - 0.6  # radius + clearance, less tolerance
+    assert closest >= 5.0 + load_profile("quadcopter").min_clearance - 0.6
     assert len([r for r in vehicle.submitted if isinstance(r, GoTo)]) > 1
-    assert router(profile, World()) is None
+    assert router(load_profile("quadcopter"), World()) is None
 
 
 def test_no_path_is_infeasible() -> None:

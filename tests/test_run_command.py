@@ -134,3 +134,16 @@ def test_out_lets_a_ground_station_watch_the_flight(tmp_path: Path) -> None:
     finally:
         watcher.close()
     assert {(1, "HEARTBEAT"), (1, "GLOBAL_POSITION_INT")} <= seen
+
+
+def test_profile_from_the_vehicles_parameters(tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    far = SHORT.replace("(8, 0, 4)", "(80, 0, 4)")
+    # The quadcopter profile allows 80 m; the vehicle's own fence radius of 50 m does not.
+    assert main(["run", write(tmp_path, far), "--sim", "-q", *FAST, "--profile", "vehicle",
+                 "--sim-param", "FENCE_RADIUS=50"]) == 1
+    err = capsys.readouterr().err
+    assert "profile from vehicle 1's parameters" in err and "FENCE_RADIUS=50" in err
+    assert "infeasible mission, not flown" in err
+    assert main(["run", write(tmp_path, far), "--sim", "-q", *FAST,
+                 "--profile", "vehicle"]) == 0

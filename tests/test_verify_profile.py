@@ -91,3 +91,14 @@ def test_parameters_raise_max_speed_to_a_faster_cruise() -> None:
 def test_no_parameters_change_nothing() -> None:
     base = load_profile("fixed-wing")
     assert profile_from_parameters({}, base) == base
+
+
+def test_every_copter_parameter_read_from_a_vehicle_changes_the_profile() -> None:
+    from tml.verify.profile import COPTER_PARAMETERS, profile_from_parameters
+
+    base = load_profile("quadcopter")
+    for name in COPTER_PARAMETERS:
+        value = 7777.0 if name != "BATT_LOW_MAH" else 500.0
+        params = {name: value, "BATT_CAPACITY": 9000.0} if name == "BATT_LOW_MAH" \
+            else {name: value}
+        assert profile_from_parameters(params, base) != base, name

@@ -20,6 +20,7 @@ if TYPE_CHECKING:
     from tml.world import World
 
 EXIT_OK, EXIT_INVALID, EXIT_ABORTED, EXIT_FAILURE = 0, 1, 3, 4
+VEHICLE_PROFILE = "vehicle"  # --profile vehicle: read from the connected vehicle
 
 
 def _sim_param(text: str) -> tuple[str, float]:
@@ -77,7 +78,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--force", action="store_true",
                         help="fly even when the verifier finds the mission infeasible")
     parser.add_argument("--profile", default="quadcopter", metavar="P",
-                        help="vehicle profile for the verifier (default quadcopter)")
+                        help="vehicle profile for the verifier: quadcopter (default), "
+                             "fixed-wing, a TOML file, or 'vehicle' to fill the quadcopter "
+                             "profile from the connected vehicle's parameters")
     parser.add_argument("--link-lost-limit", type=_positive, default=10.0, metavar="S",
                         help="abort the run after the link is lost this long (default 10 s)")
     parser.add_argument("--timeout", type=_positive, default=30.0, metavar="S",
@@ -99,9 +102,14 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_INVALID
     if isinstance(loaded, int):
         return loaded
-    mission, world, profile = loaded
+    mission, world, extra, profile = loaded
     try:
         with _vehicles(args, world) as (vehicles, wake, clock):
+            if args.profile == VEHICLE_PROFILE:
+                profile = _vehicle_profile(vehicles[0], errors)
+                refused = _verify(args, mission, extra, profile, errors)
+                if refused is not None:
+                    return refused
             return _fly(args, mission, world, profile, vehicles, wake, clock, console)
     except TmlError as error:
         errors.print(f"tml run: {error}")
@@ -111,8 +119,10 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_FAILURE
 
 
-def _load(args: argparse.Namespace, errors: Any) -> tuple[Mission, World, Any] | int:
-    """The validated (and verified) mission and its world, or an exit code."""
+def _load(args: argparse.Namespace,
+          errors: Any) -> tuple[Mission, World, World | None, Any] | int:
+    """The validated (and verified) mission, its world, the --world file's world and the
+    verifier's profile; or an exit code."""
     from tml.diagnostics import format_human
     from tml.parse import load_world
     from tml.validation import validate_file
@@ -128,18 +138,41 @@ def _load(args: argparse.Namespace, errors: Any) -> tuple[Mission, World, Any] |
     extra = load_world(args.world) if args.world else None
     world = (mission.world or World()).merged(extra)
     from tml.verify.profile import load_profile
+
+    if args.profile == VEHICLE_PROFILE:
+        return mission, world, extra, None  # verified once the vehicle's parameters are read
+    profile = load_profile(args.profile)
+    refused = _verify(args, mission, extra, profile, errors)
+    return refused if refused is not None else (mission, world, extra, profile)
+
+
+def _verify(args: argparse.Namespace, mission: Mission, extra: World | None, profile: Any,
+            errors: Any) -> int | None:
+    """Verify the mission with ``profile``; the exit code if it must not be flown."""
     from tml.verify.report import print_report
     from tml.verify.static import verify_mission
 
-    report = verify_mission(mission, load_profile(args.profile), extra)
-    if not report.feasible:
-        print_report(report, errors)
-        if not args.force:
-            errors.print(f"tml run: {result.file}: infeasible mission, not flown "
-                         "(--force flies it anyway)")
-            return EXIT_INVALID
-        errors.print("tml run: infeasible mission flown anyway (--force)")
-    return mission, world, load_profile(args.profile)
+    report = verify_mission(mission, profile, extra)
+    if report.feasible:
+        return None
+    print_report(report, errors)
+    if not args.force:
+        errors.print(f"tml run: {mission.file}: infeasible mission, not flown "
+                     "(--force flies it anyway)")
+        return EXIT_INVALID
+    errors.print("tml run: infeasible mission flown anyway (--force)")
+    return None
+
+
+def _vehicle_profile(vehicle: Any, errors: Any) -> Any:
+    """The quadcopter profile filled in from the vehicle's own parameters."""
+    from tml.verify.profile import COPTER_PARAMETERS, load_profile, profile_from_parameters
+
+    params = vehicle.read_parameters(COPTER_PARAMETERS)
+    profile = profile_from_parameters(params, load_profile("quadcopter"))
+    errors.print(f"tml run: profile from vehicle {vehicle.vehicle_id}'s parameters: "
+                 + ", ".join(f"{name}={value:g}" for name, value in sorted(params.items())))
+    return profile
 
 
 @contextlib.contextmanager

@@ -40,7 +40,7 @@ import math
 import queue
 import threading
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, replace
 from types import MappingProxyType
 from typing import Any
@@ -532,6 +532,11 @@ class MavlinkVehicle:
 
     def _component(self, which: str) -> int:
         return COMPANION_COMPONENT if which == COMPANION else self.mav.component_id
+
+    def read_parameters(self, names: Iterable[str]) -> dict[str, float]:
+        """The autopilot's values of ``names`` (those it has), read one by one."""
+        values = {name: self._read_param(name) for name in names}
+        return {name: value for name, value in values.items() if value is not None}
 
     def _read_param(self, name: str, which: str = AUTOPILOT) -> float | None:
         component = self._component(which)

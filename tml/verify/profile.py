@@ -131,6 +131,12 @@ def _positive(params: Mapping[str, float], name: str) -> float | None:
     return float(value)
 
 
+COPTER_PARAMETERS = ("WPNAV_SPEED", "WPNAV_SPEED_UP", "WPNAV_SPEED_DN", "RTL_ALT",
+                     "FENCE_ALT_MAX", "FENCE_ALT_MIN", "FENCE_RADIUS", "ATC_RATE_Y_MAX",
+                     "BATT_CAPACITY", "BATT_LOW_MAH")
+"""The ArduCopter parameters :func:`profile_from_parameters` reads (all exist on Copter)."""
+
+
 def profile_from_parameters(params: Mapping[str, float], base: VehicleProfile) -> VehicleProfile:
     """``base`` with the values an ArduPilot vehicle's parameters give, in profile units.
 

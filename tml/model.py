@@ -53,6 +53,15 @@ class Dispatch(StrEnum):
     MISSION = "mission"  # the task's actions compiled to mission items, flown in AUTO
 
 
+class Composition(StrEnum):
+    """How a task's sub-tasks run (Dolphin's composition operators)."""
+
+    SEQUENCE = "sequence"  # one after the other, in document order (Dolphin's >>)
+    PARALLEL = "parallel"  # all at once; done when all are done (Dolphin's |)
+    FIRST = "first"  # all at once; done when the first is done, the others are stopped
+    CHOICE = "choice"  # the first whose conditions hold, waiting for one (Dolphin's oneOf)
+
+
 class ConditionKind(StrEnum):
     """What a condition reads: a parameter, a memorized label, or the current task."""
 
@@ -108,6 +117,7 @@ class Condition:
     comparison: Comparison | None
     value: str | None
     location: Location
+    role: str | None = None  # read this role's vehicle instead of the task's own
 
 
 @dataclass(frozen=True)
@@ -119,8 +129,52 @@ class Skill:
 
 
 @dataclass(frozen=True)
+class Region:
+    """Where a role's vehicles must be when they are picked: a circle or a polygon.
+
+    Points are (north, east) metres from the mission's home, whatever the author wrote.
+    """
+
+    points: tuple[tuple[float, float], ...]  # the centre of a circle, or the polygon's corners
+    location: Location
+    radius: float | None = None  # set for a circle
+
+    @property
+    def is_circle(self) -> bool:
+        """True for a circle (one centre and a radius)."""
+        return self.radius is not None
+
+
+@dataclass(frozen=True)
+class Role:
+    """``<role name=...>``: vehicles a task can be flown by, picked when first needed."""
+
+    name: str
+    location: Location
+    count: int = 1
+    vehicle_type: str | None = None  # "quadcopter", "multicopter", "UAV" ...
+    payloads: tuple[str, ...] = ()
+    region: Region | None = None
+    pick_timeout: float = 30.0  # s to wait for enough free vehicles that qualify
+
+
+@dataclass(frozen=True)
+class Loop:
+    """``<loop>``: repeat the task while its conditions hold (checked before each round),
+    or forever when it has none."""
+
+    conditions: tuple[Condition, ...]
+    location: Location
+
+
+@dataclass(frozen=True)
 class Task:
-    """``<task name=...>``: a terminal task holds one action, others hold sub-tasks."""
+    """``<task name=...>``: a terminal task holds one action, others hold sub-tasks.
+
+    The orchestration fields (role, composition, wait_for, until, time_limit, on_error,
+    loop, release) bring Dolphin's operators; a task that uses none of them behaves as in
+    the TML paper.
+    """
 
     name: str
     path: tuple[str, ...]  # names from the top-level task down to this one
@@ -132,6 +186,23 @@ class Task:
     action: Action | None = None
     children: tuple[Task, ...] = ()
     dispatch: Dispatch = Dispatch.COMMAND  # inherited from the parent task when not given
+    role: str | None = None  # the role flying the task, inherited when not given
+    role_location: Location | None = None  # where role= is written on this task
+    composition: Composition = Composition.SEQUENCE
+    wait_for: tuple[Condition, ...] = ()  # wait until all hold before starting
+    until: tuple[Condition, ...] = ()  # stop the task (as done) once all hold
+    time_limit: float | None = None  # s: stop the task (as done) when it has run this long
+    on_error: tuple[Task, ...] = ()  # run in its place when an action in it fails
+    loop: Loop | None = None
+    release: tuple[str, ...] = ()  # roles whose vehicles are freed when the task ends
+    release_location: Location | None = None
+
+    @property
+    def orchestrated(self) -> bool:
+        """True when the task itself uses an orchestration operator (not its sub-tasks)."""
+        return (self.composition is not Composition.SEQUENCE or bool(self.wait_for)
+                or bool(self.until) or self.time_limit is not None or bool(self.on_error)
+                or self.loop is not None or bool(self.release))
 
     @property
     def is_terminal(self) -> bool:
@@ -148,6 +219,8 @@ class Task:
         yield self
         for child in self.children:
             yield from child.walk()
+        for handler in self.on_error:
+            yield from handler.walk()
 
 
 @dataclass(frozen=True)
@@ -169,6 +242,7 @@ class Event:
     termination: Termination
     location: Location
     trigger: EventTrigger = EventTrigger.EDGE
+    role: str | None = None  # only vehicles flying this role evaluate the handler
 
 
 @dataclass(frozen=True)
@@ -193,6 +267,11 @@ class Mission:
     parameters: tuple[ParameterDeclaration, ...] = ()
     world: World | None = None
     source: str = ""  # the file's text, kept to quote lines in diagnostics
+    roles: tuple[Role, ...] = ()
+
+    def role(self, name: str) -> Role | None:
+        """The declared role called ``name``."""
+        return next((r for r in self.roles if r.name == name), None)
 
     @property
     def file(self) -> str:

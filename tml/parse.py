@@ -32,13 +32,17 @@ from tml.model import (
     Action,
     Argument,
     Comparison,
+    Composition,
     Condition,
     ConditionKind,
     Dispatch,
     Event,
     EventTrigger,
+    Loop,
     Mission,
     ParameterDeclaration,
+    Region,
+    Role,
     Skill,
     Task,
     Termination,
@@ -216,10 +220,15 @@ class _Builder:
         events: list[Event] = []
         for handling in self.children(root, "event_handling"):
             events.extend(self.event(e) for e in self.children(handling, "event"))
+        roles = tuple(self.role(r, world.home if world else None)
+                      for block in self.children(root, "roles")
+                      for r in self.children(block, "role"))
+        # With a single role, every task is flown by it unless it says otherwise.
+        default_role = roles[0].name if len(roles) == 1 else None
         return Mission(
             name=root.get("name", ""),
             location=self.loc(root),
-            tasks=tuple(self.task(t, (), Dispatch.COMMAND)
+            tasks=tuple(self.task(t, (), Dispatch.COMMAND, default_role)
                         for t in self.children(root, "task")),
             skills=tuple(self.skill(s) for s in self.children(root, "skill")),
             events=tuple(events),
@@ -230,25 +239,53 @@ class _Builder:
                 for p in self.children(root, "parameter")),
             world=world,
             source=self.doc.text,
+            roles=roles,
+        )
+
+    def role(self, element: etree._Element, home: Home | None) -> Role:
+        region: Region | None = None
+        for block in self.children(element, "region"):
+            for shape in block:
+                if shape.tag == "circle":
+                    region = Region((self.point(shape, home),), self.loc(shape),
+                                    float(shape.get("radius", "0")))
+                elif shape.tag == "polygon":
+                    region = Region(tuple(self.point(p, home)
+                                          for p in self.children(shape, "point")),
+                                    self.loc(shape))
+        kind = element.get("type")
+        return Role(
+            name=element.get("name", "").strip(),
+            location=self.loc(element),
+            count=int(element.get("count", "1")),
+            vehicle_type=kind.strip() if kind else None,
+            payloads=tuple(p.get("name", "").strip()
+                           for p in self.children(element, "payload")),
+            region=region,
+            pick_timeout=float(element.get("pick_timeout", "30")),
         )
 
     def skill(self, element: etree._Element) -> Skill:
         return Skill(element.get("name", "").strip(), self.loc(element))
 
     def task(self, element: etree._Element, parent: tuple[str, ...],
-             inherited: Dispatch) -> Task:
+             inherited: Dispatch, inherited_role: str | None = None) -> Task:
         name = element.get("name", "").strip()
         path = (*parent, name)
         dispatch = Dispatch(element.get("dispatch", inherited.value))
+        written_role = element.get("role")
+        role = written_role.strip() if written_role is not None else inherited_role
         skills: list[Skill] = []
         conditions: list[Condition] = []
         repeats: list[etree._Element] = []
         action: Action | None = None
         children: list[Task] = []
+        gates: dict[str, list[etree._Element]] = {}
+        handlers: list[Task] = []
         for child in element:  # one pass: tasks are the bulk of a mission
             tag = child.tag
             if tag == "task":
-                children.append(self.task(child, path, dispatch))
+                children.append(self.task(child, path, dispatch, role))
             elif tag == "action":
                 action = self.action(child)
             elif tag == "condition":
@@ -257,10 +294,34 @@ class _Builder:
                 skills.append(self.skill(child))
             elif tag == "repeat":
                 repeats.append(child)
+            elif tag in ("wait_for", "until", "loop"):
+                gates.setdefault(tag, []).append(child)
+            elif tag == "on_error":
+                handlers.extend(self.task(t, path, dispatch, role)
+                                for t in self.children(child, "task"))
         for extra in repeats[1:]:
             self.diagnostics.append(error(
                 self.loc(extra), "E251", f"task {name!r} has more than one <repeat>",
                 "keep one <repeat times=...>"))
+        for tag, found in gates.items():
+            for extra in found[1:]:
+                self.diagnostics.append(error(
+                    self.loc(extra), "E251", f"task {name!r} has more than one <{tag}>",
+                    f"put all the conditions in one <{tag}>: they must all hold"))
+        if repeats and "loop" in gates:
+            self.diagnostics.append(error(
+                self.loc(gates["loop"][0]), "E251",
+                f"task {name!r} has both <repeat> and <loop>",
+                "keep <repeat times=...> for a count, or <loop> for while/forever"))
+
+        def conditions_of(tag: str) -> tuple[Condition, ...]:
+            found = gates.get(tag)
+            return tuple(self.condition(c) for c in self.children(found[0], "condition")) \
+                if found else ()
+
+        loops = gates.get("loop")
+        limit = element.get("time_limit")
+        release = element.get("release")
         return Task(
             name=name,
             path=path,
@@ -272,6 +333,16 @@ class _Builder:
             action=action,
             children=tuple(children),
             dispatch=dispatch,
+            role=role,
+            role_location=self.loc(element, "role") if written_role is not None else None,
+            composition=Composition(element.get("composition", "sequence").strip()),
+            wait_for=conditions_of("wait_for"),
+            until=conditions_of("until"),
+            time_limit=float(limit) if limit is not None else None,
+            on_error=tuple(handlers),
+            loop=Loop(conditions_of("loop"), self.loc(loops[0])) if loops else None,
+            release=tuple(release.split()) if release else (),
+            release_location=self.loc(element, "release") if release is not None else None,
         )
 
     def action(self, element: etree._Element) -> Action:
@@ -309,6 +380,7 @@ class _Builder:
             comparison=Comparison(" ".join(comparison.split())) if comparison else None,
             value=element.get("value"),
             location=self.loc(element),
+            role=element.get("role", "").strip() or None,
         )
 
     def event(self, element: etree._Element) -> Event:
@@ -321,6 +393,7 @@ class _Builder:
                                     self.loc(term), term.get("task")),
             location=self.loc(element),
             trigger=EventTrigger(element.get("trigger", "edge").strip()),
+            role=element.get("role", "").strip() or None,
         )
 
     # --- environment -----------------------------------------------------------------------

@@ -12,7 +12,8 @@ Each tick: the sensors age (GPS lock after ``SIM_GPS_LOCKTIME`` s, the EKF uses 
 goal into a motion demand (a position target, a velocity, or a landing), the body moves
 within its limits (:mod:`sitl.physics`), touch-down, collisions (:mod:`sitl.obstacles`)
 and the fence (:mod:`sitl.fence`) are detected, the camera (:mod:`sitl.camera`) takes
-the pictures that fell due, the battery drains, the mission protocol's timeouts run, and
+the pictures that fell due, the battery drains (or, landed and disarmed with
+``SIM_BATT_CHARGE`` set, charges on its pad), the mission protocol's timeouts run, and
 the messages :mod:`sitl.streams` says are due are built by :mod:`sitl.messages`, which
 reads the model's public state. The mode table is :mod:`sitl.modes`.
 
@@ -589,9 +590,14 @@ class VehicleModel:
         self._check_landed()
         for _ in range(self.camera.update(self.time, self.position, not self.landed)):
             self._capture_image()
-        wind = self.params["SIM_WIND_SPD"]
-        self.battery.drain(TICK, flight_current(
-            self.armed, not self.landed, self.body.velocity, wind))
+        charger = self.params["SIM_BATT_CHARGE"]
+        if charger > 0 and self.landed and not self.armed:
+            # On its pad the charger also feeds the electronics, so nothing drains.
+            self.battery.charge(TICK, charger)
+        else:
+            wind = self.params["SIM_WIND_SPD"]
+            self.battery.drain(TICK, flight_current(
+                self.armed, not self.landed, self.body.velocity, wind))
         if self.armed and self.landed and self._target is None and self._landing is None:
             if self.time - self._idle_since >= self.params["DISARM_DELAY"] > 0:
                 self.disarm()
@@ -753,6 +759,12 @@ class VehicleModel:
                 self._failsafes.discard("fence")
 
     def _battery_failsafe(self) -> None:
+        """Raise the low and critical battery failsafes as their conditions arise.
+
+        Each level latches, as ArduPilot's battery monitor does until a reboot: a pack
+        recharged on its pad reports its charge again but still refuses arming
+        ("PreArm: Battery failsafe") once a failsafe was raised.
+        """
         p, battery = self.params, self.battery
         voltage = battery.voltage
         if voltage < p["BATT_LOW_VOLT"]:

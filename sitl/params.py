@@ -4,7 +4,9 @@ Names, defaults and units follow ArduCopter (centimetres and centimetres per sec
 ArduCopter uses them) so that a ground station that reads or writes them sees what it
 expects. ``SIM_*`` parameters shape the simulation itself: ``SIM_GPS_LOCKTIME``,
 ``SIM_WIND_SPD`` and ``SIM_WIND_DIR`` are ArduPilot SITL's own names; ``SIM_EKF_GPS_TIME``
-(seconds from boot until the EKF uses GPS) is ours, with the delay ArduCopter SITL shows.
+(seconds from boot until the EKF uses GPS) is ours, with the delay ArduCopter SITL shows,
+and so is ``SIM_BATT_CHARGE`` (amperes a landed, disarmed vehicle takes from its charging
+pad; 0: no pad).
 
 :class:`Params` keeps the values in table order (the order PARAM_VALUE indices refer to)
 and remembers each value's MAVLink type: PARAM_SET carries a float whatever the type,
@@ -78,6 +80,7 @@ AUTOPILOT_DEFAULTS: tuple[tuple[str, float, int], ...] = (
     ("SIM_WIND_SPD", 0, REAL32),
     ("SIM_WIND_DIR", 180, REAL32),
     ("SIM_BATT_VOLTAGE", 12.6, REAL32),
+    ("SIM_BATT_CHARGE", 0, REAL32),
 )
 
 # The companion computer (component 191): one switch per TML skill, and its camera.

@@ -9,7 +9,9 @@ only when nothing holds its position (``hold=False``).
 
 The battery integrates current over time: a base load, a hover load while flying and an
 effort term growing with speed, climb and wind. Voltage falls linearly from full to empty
-with the charge and sags with the current through an internal resistance.
+with the charge and sags with the current through an internal resistance. On a charging
+pad the charge flows back in at the charger's current until the pack is full; the current
+is then reported negative, as a battery monitor shows a pack being charged.
 """
 
 from __future__ import annotations
@@ -134,6 +136,16 @@ class Battery:
         """Draw ``current`` amperes for ``dt`` seconds."""
         self.current = current
         self.consumed_mah = min(self.capacity_mah, self.consumed_mah + current * dt / 3.6)
+
+    def charge(self, dt: float, current: float) -> None:
+        """Take ``current`` amperes from a charger for ``dt`` seconds, stopping when full.
+
+        A failed battery takes no charge. The current is the one that actually flowed
+        (negative), so a full pack on the charger shows zero.
+        """
+        taken = 0.0 if self.failed else min(self.consumed_mah, current * dt / 3.6)
+        self.consumed_mah -= taken
+        self.current = -taken * 3.6 / dt
 
     @property
     def remaining(self) -> int:

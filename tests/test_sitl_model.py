@@ -249,6 +249,68 @@ def test_battery_drains_and_failure_triggers_the_failsafe():
     assert any(t.startswith("Battery 1 is low") for t in texts(out))
 
 
+def land_drained(consumed_mah: float, **params: float) -> VehicleModel:
+    """A vehicle back from a sortie that used ``consumed_mah``, landed and disarmed."""
+    v = flying(3.0, params=params)
+    v.battery.consumed_mah = consumed_mah
+    assert command(v, M.MAV_CMD_NAV_LAND)[0] == M.MAV_RESULT_ACCEPTED
+    run_until(v, lambda: not v.armed, 30)
+    assert v.landed
+    return v
+
+
+def test_a_landed_disarmed_vehicle_charges_on_its_pad_at_sim_batt_charge():
+    v = land_drained(2000.0, SIM_BATT_CHARGE=6.0)
+    before, remaining, volts, start = (v.battery.consumed_mah, v.battery_remaining,
+                                       v.battery.voltage, v.time)
+    assert before > 2000.0  # the landing itself drew current
+    out = v.step(120.0)
+    regained = before - v.battery.consumed_mah
+    assert regained == pytest.approx(6.0 * (v.time - start) / 3.6, rel=1e-6)  # 200 mAh
+    assert v.battery_remaining > remaining and v.battery.voltage > volts
+    status = [m for m in out if m.get_type() == "BATTERY_STATUS"][-1]
+    assert status.current_battery == -600  # cA: a charging pack reports negative current
+
+
+def test_a_recharged_vehicle_arms_again_unless_a_battery_failsafe_latched():
+    v = land_drained(2500.0, SIM_BATT_CHARGE=30.0)
+    v.step(400.0)
+    assert v.battery_remaining == 100
+    assert v.set_mode("GUIDED")
+    assert command(v, M.MAV_CMD_COMPONENT_ARM_DISARM, 1)[0] == M.MAV_RESULT_ACCEPTED
+    latched = land_drained(2500.0, SIM_BATT_CHARGE=30.0, BATT_LOW_MAH=1000)
+    latched.step(400.0)
+    assert latched.battery_remaining == 100
+    assert latched.set_mode("GUIDED")
+    result, replies = command(latched, M.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+    assert result == M.MAV_RESULT_FAILED and "PreArm: Battery failsafe" in texts(replies)
+
+
+def test_no_charge_while_armed_flying_without_a_charger_or_with_a_failed_battery():
+    on_ground = vehicle(params={"SIM_BATT_CHARGE": 6.0, "DISARM_DELAY": 0})
+    on_ground.step(3)
+    on_ground.set_mode("GUIDED")
+    command(on_ground, M.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+    in_air = flying(5.0, params={"SIM_BATT_CHARGE": 6.0})
+    no_charger = land_drained(2000.0)
+    failed = land_drained(2000.0, SIM_BATT_CHARGE=6.0)
+    failed.battery.failed = True
+    on_ground.battery.consumed_mah = in_air.battery.consumed_mah = 2000.0
+    before = {v: v.battery.consumed_mah for v in (on_ground, in_air, no_charger, failed)}
+    for v in before:
+        v.step(10.0)
+    assert on_ground.armed and in_air.armed and not in_air.landed
+    for v in (on_ground, in_air, no_charger):
+        assert v.battery.consumed_mah > before[v]  # drawing current, not charging
+    assert failed.battery.consumed_mah == before[failed]
+    falling = flying(20.0, params={"SIM_BATT_CHARGE": 6.0})
+    falling.battery.consumed_mah = 2000.0
+    result, _ = command(falling, M.MAV_CMD_COMPONENT_ARM_DISARM, 0, 21196)
+    assert result == M.MAV_RESULT_ACCEPTED
+    falling.step(1.0)
+    assert not falling.armed and not falling.landed and falling.battery.consumed_mah > 2000.0
+
+
 def test_gcs_link_loss_failsafe():
     v = flying(10.0, params={"FS_GCS_ENABLE": 1})
     v.handle(M.MAVLink_heartbeat_message(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))

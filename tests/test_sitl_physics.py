@@ -69,6 +69,27 @@ def test_battery_charge_voltage_and_failure():
     assert battery.remaining == 0 and battery.voltage < Battery.EMPTY_VOLTS
 
 
+def test_a_charger_refills_at_its_current_until_full_and_not_a_failed_battery():
+    battery = Battery(capacity_mah=1000.0)
+    battery.consumed_mah = 600.0
+    battery.charge(360.0, 5.0)  # 5 A for 6 minutes: 500 mAh back
+    assert battery.consumed_mah == pytest.approx(100.0) and battery.remaining == 90
+    assert battery.current == pytest.approx(-5.0)
+    resting = Battery(1000.0)
+    resting.consumed_mah = 100.0
+    assert battery.voltage > resting.voltage  # the charger lifts the terminal voltage
+    battery.charge(360.0, 5.0)  # only 100 mAh were missing
+    assert battery.consumed_mah == 0.0 and battery.remaining == 100
+    assert battery.current == pytest.approx(-100.0 * 3.6 / 360.0)
+    battery.charge(1.0, 5.0)
+    assert battery.current == 0.0  # full: the charger stops
+    failed = Battery(1000.0)
+    failed.consumed_mah = 600.0
+    failed.failed = True
+    failed.charge(360.0, 5.0)
+    assert failed.consumed_mah == 600.0 and failed.current == 0.0
+
+
 def test_current_grows_with_effort():
     still = (0.0, 0.0, 0.0)
     assert flight_current(False, False, still, 0) < flight_current(True, False, still, 0)

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 from tml import parameters
@@ -115,6 +115,18 @@ def evaluate(condition: Condition, state: VehicleState, memory: Memory) -> tuple
     if value is None or condition.value is None:
         return False, value
     return _compare(value, comparison, condition.value), value
+
+
+def evaluate_all(condition: Condition, states: Sequence[VehicleState],
+                 memory: Memory) -> tuple[bool, object]:
+    """Whether a condition holds for every one of ``states`` (a role's vehicles), and the
+    value read from the first. With no vehicle (the role is not picked) nothing is known."""
+    if not states:
+        if condition.comparison is Comparison.KNOWN:
+            return _compare_known(False, condition.value), None
+        return False, None
+    readings = [evaluate(condition, state, memory) for state in states]
+    return all(holds for holds, _ in readings), readings[0][1]
 
 
 def _names_task(wanted: str, path: tuple[str, ...]) -> bool:

@@ -45,10 +45,11 @@ from dataclasses import dataclass, field, replace
 from enum import StrEnum
 
 from tml.actions import BoundAction, Category, bind
-from tml.engine.conditions import Memory, evaluate
+from tml.engine.conditions import Memory, evaluate, evaluate_all
 from tml.engine.scripts import SCRIPTS, ActionFailed, Limits, Script, Send, Sleep, Until
 from tml.model import (
     Action,
+    Condition,
     ConditionKind,
     Dispatch,
     Event,
@@ -102,6 +103,7 @@ class Record:
     time: float
     kind: str
     data: dict[str, object]
+    vehicle_id: int | None = None  # whose record it is, in a fleet
 
 
 @dataclass
@@ -117,6 +119,9 @@ Route = Callable[[Point, Point], list[Point] | None]
 # Checks an action before it starts, given the live state, the labels and the mission time;
 # returns the violated constraints (empty: feasible). See tml.verify.inflight.pre_check.
 PreCheck = Callable[[BoundAction, VehicleState, dict[str, Point], float], list[str]]
+# The latest states of a role's vehicles (empty when the role is not picked), for
+# conditions that name a role.
+RoleStates = Callable[[str], Sequence[VehicleState]]
 
 
 @dataclass
@@ -129,6 +134,11 @@ class Options:
     pre_check: PreCheck | None = None  # dynamic feasibility check before each action
     route: Route | None = None  # collision-free waypoints around known obstacles
     mission_stall: float = 300.0  # s without progress in a dispatch="mission" task
+    role_states: RoleStates | None = None  # for conditions with role=
+    # At the end of a run the vehicle is commanded to the safe state. A fleet's branch ends
+    # with end_safe=False: a completed branch leaves its vehicle where it is (the next task
+    # takes over), a failed one only stops it (hold); the fleet decides what comes next.
+    end_safe: bool = True
 
 
 @dataclass(frozen=True)
@@ -144,6 +154,7 @@ class View:
     events: tuple[tuple[float, str], ...]
     mission_time: float
     reason: str
+    role: str = ""  # the role the vehicle flies, in a fleet
 
 
 _INSTANT = {Category.MEMORY}
@@ -200,6 +211,7 @@ class Interpreter:
         self.route = self.options.route
         self.status = Status.RUNNING
         self.reason = ""
+        self.mission_end: Status | None = None  # set when END/ABORT_MISSION ended the run
         self._root = Task("", (), mission.location, children=mission.tasks)
         self._stack: list[_Frame] = []
         self._terminal: Task | None = None
@@ -262,6 +274,18 @@ class Interpreter:
             self._safe_state(reason)
         return self._finish()
 
+    def stop(self, now: float, state: VehicleState, reason: str) -> Output:
+        """End the run as stopped from outside (a fleet's until, time limit or sibling):
+        the running action is stopped and a flying vehicle told to hold, nothing more."""
+        self._begin(now, state)
+        if self.status is Status.RUNNING:
+            safe, self.options = self.options, replace(self.options, end_safe=False)
+            self._end(Status.ABORTED, reason)
+            self.options = safe
+            if state.flying and not any(isinstance(r, Hold) for r in self._out.requests):
+                self._send(Hold(self.vehicle_id))
+        return self._finish()
+
     def view(self) -> View:
         """A snapshot for the display."""
         run = self._run
@@ -302,6 +326,12 @@ class Interpreter:
         return Memory(self.labels, self._now - self._start, self._now - started, current,
                       self._run.bound.name if self._run else "", self._failure,
                       frozenset(running))
+
+    def _evaluate(self, condition: Condition, memory: Memory) -> tuple[bool, object]:
+        read_role = self.options.role_states
+        if condition.role is not None and read_role is not None:
+            return evaluate_all(condition, read_role(condition.role), memory)
+        return evaluate(condition, self._state, memory)
 
     def _skill(self, name: str, enabled: bool) -> None:
         count = self._skills.get(name, 0) + (1 if enabled else -1)
@@ -348,7 +378,7 @@ class Interpreter:
     def _enter(self, task: Task) -> None:
         memory = self._memory()
         for condition in task.conditions:
-            holds, value = evaluate(condition, self._state, memory)
+            holds, value = self._evaluate(condition, memory)
             if not holds:
                 self._note("decision", f"{task.path_name}: skipped, condition false",
                            task=task.path_name, subject=condition.subject,
@@ -558,7 +588,7 @@ class Interpreter:
         """Terminal tasks of a mission subtree, repeats unrolled, conditions evaluated now."""
         memory = self._memory()
         for condition in task.conditions:
-            if not evaluate(condition, self._state, memory)[0]:
+            if not self._evaluate(condition, memory)[0]:
                 self._set(task, TaskState.SKIPPED)
                 return
         for _ in range(task.repeat):
@@ -646,7 +676,7 @@ class Interpreter:
         memory = self._memory()
         fired: Event | None = None
         for event in self.mission.events:
-            readings = [evaluate(c, self._state, memory) for c in event.conditions]
+            readings = [self._evaluate(c, memory) for c in event.conditions]
             holds = all(h for h, _ in readings)
             was = self._holding.get(event.name, False)
             triggers = holds and (event.trigger is EventTrigger.LEVEL or not was)
@@ -743,8 +773,10 @@ class Interpreter:
             self._jump(target)
             self._advance()
         elif mode is TerminationMode.END_MISSION:
+            self.mission_end = Status.COMPLETED
             self._end(Status.COMPLETED, f"event {event.name!r} ended the mission")
         else:
+            self.mission_end = Status.ABORTED
             self._end(Status.ABORTED, f"event {event.name!r} aborted the mission")
 
     def _resume(self, run: _Run) -> None:
@@ -802,7 +834,10 @@ class Interpreter:
                 self._skill(name, False)
         self._note("mission", f"mission {status.value}: {reason}", status=status.value,
                    reason=reason)
-        self._safe_state(reason)
+        if self.options.end_safe:
+            self._safe_state(reason)
+        elif status is not Status.COMPLETED and self._state.flying:
+            self._send(Hold(self.vehicle_id))
 
     def _safe_state(self, reason: str) -> None:
         state = self._state

@@ -6,8 +6,11 @@ from typing import Any
 
 import pytest
 
+from sitl.model import VehicleModel
 from tml.mavlink.codec import mavlink
-from tml.mavlink.telemetry import Sighting, TelemetryTracker
+from tml.mavlink.telemetry import AIRFRAMES, Sighting, TelemetryTracker
+from tml.vehicle import VEHICLE_TYPES
+from tml.world import DEFAULT_HOME
 
 
 class Source:
@@ -23,9 +26,10 @@ class Source:
         return parsed
 
 
-def heartbeat(source: Source, custom_mode: int = 4, armed: bool = True) -> Any:
+def heartbeat(source: Source, custom_mode: int = 4, armed: bool = True,
+              mav_type: int = mavlink.MAV_TYPE_QUADROTOR) -> Any:
     base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (128 if armed else 0)
-    return source("heartbeat", mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
+    return source("heartbeat", mav_type, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
                   base, custom_mode, mavlink.MAV_STATE_ACTIVE)
 
 
@@ -138,3 +142,63 @@ def test_sightings_pair_each_named_object_with_the_position_sent_after_it() -> N
     assert sightings[("MARKER", 7)] == Sighting(0.5, (3.0, -2.0, 0.5))  # kept its place
     assert sightings[("MARKER", 8)] == Sighting(0.1, None)
     assert tracker.snapshot.detections["MARKER"] == 7
+
+
+@pytest.mark.parametrize(("mav_type", "airframe"), [
+    (mavlink.MAV_TYPE_QUADROTOR, "quadcopter"),
+    (mavlink.MAV_TYPE_HEXAROTOR, "hexacopter"),
+    (mavlink.MAV_TYPE_OCTOROTOR, "octocopter"),
+    (mavlink.MAV_TYPE_TRICOPTER, "tricopter"),
+    (mavlink.MAV_TYPE_COAXIAL, "coaxial"),
+    (mavlink.MAV_TYPE_HELICOPTER, "helicopter"),
+    (mavlink.MAV_TYPE_FIXED_WING, "fixed-wing"),
+    (mavlink.MAV_TYPE_VTOL_DUOROTOR, "vtol"),
+    (mavlink.MAV_TYPE_VTOL_QUADROTOR, "vtol"),
+    (mavlink.MAV_TYPE_VTOL_TILTROTOR, "vtol"),
+    (mavlink.MAV_TYPE_VTOL_RESERVED5, "vtol"),
+    (mavlink.MAV_TYPE_VTOL_GYRODYNE, "vtol"),
+    (mavlink.MAV_TYPE_GROUND_ROVER, "rover"),
+    (mavlink.MAV_TYPE_SURFACE_BOAT, "boat"),
+    (mavlink.MAV_TYPE_SUBMARINE, "submarine"),
+    (mavlink.MAV_TYPE_AIRSHIP, "airship"),
+    (mavlink.MAV_TYPE_GENERIC, ""),
+    (mavlink.MAV_TYPE_GCS, ""),
+    (mavlink.MAV_TYPE_GIMBAL, ""),
+])
+def test_the_airframe_is_named_from_the_heartbeat_type(mav_type: int, airframe: str) -> None:
+    tracker = TelemetryTracker(1)
+    assert tracker.snapshot.airframe == ""  # no HEARTBEAT yet
+    tracker.apply(heartbeat(Source(), mav_type=mav_type), 0.0)
+    assert tracker.snapshot.airframe == airframe
+
+
+def test_every_airframe_word_is_a_vehicle_type_and_every_vehicle_type_has_one() -> None:
+    assert set(AIRFRAMES.values()) == VEHICLE_TYPES
+
+
+def test_only_the_autopilots_heartbeat_names_the_airframe() -> None:
+    tracker = TelemetryTracker(1)
+    gimbal = Source(component=mavlink.MAV_COMP_ID_GIMBAL)
+    tracker.apply(heartbeat(gimbal, mav_type=mavlink.MAV_TYPE_GIMBAL), 0.0)
+    tracker.apply(heartbeat(gimbal, mav_type=mavlink.MAV_TYPE_HEXAROTOR), 0.1)
+    assert tracker.snapshot.airframe == ""
+    tracker.apply(heartbeat(Source(), mav_type=mavlink.MAV_TYPE_OCTOROTOR), 0.2)
+    tracker.apply(heartbeat(gimbal, mav_type=mavlink.MAV_TYPE_GIMBAL), 0.3)
+    assert tracker.snapshot.airframe == "octocopter"
+
+
+def test_the_simulated_copter_is_a_quadcopter() -> None:
+    model = VehicleModel(1, DEFAULT_HOME)
+    tracker = TelemetryTracker(1)
+    encoders: dict[int, Any] = {}
+    decoder = mavlink.MAVLink(None)
+    sent = model.step(2.0)
+    assert {m.get_srcComponent() for m in sent if m.get_type() == "HEARTBEAT"} == {1, 191}
+    for msg in sent:
+        component = msg.get_srcComponent()
+        encoder = encoders.setdefault(component, mavlink.MAVLink(None, 1, component))
+        (received,) = decoder.parse_buffer(msg.pack(encoder))
+        encoder.seq = (encoder.seq + 1) % 256
+        tracker.apply(received, model.time)
+    t = tracker.snapshot
+    assert (t.vehicle_type, t.airframe) == (mavlink.MAV_TYPE_QUADROTOR, "quadcopter")

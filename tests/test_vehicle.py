@@ -4,7 +4,19 @@ from __future__ import annotations
 
 import pytest
 
-from tml.vehicle import Arm, FakeVehicle, GoTo, Land, RequestResult, SetMode, TakeOff
+from tml.vehicle import (
+    VEHICLE_TYPE_CLASSES,
+    VEHICLE_TYPES,
+    Arm,
+    FakeVehicle,
+    GoTo,
+    Land,
+    RequestResult,
+    SetMode,
+    TakeOff,
+    VehicleState,
+    vehicle_type_matches,
+)
 
 
 def test_fake_vehicle_flies_and_answers_requests() -> None:
@@ -45,3 +57,47 @@ def test_not_ready_vehicle_refuses_to_arm() -> None:
 
 def test_request_ids_are_unique() -> None:
     assert len({Arm(1).request_id for _ in range(100)}) == 100
+
+
+def test_the_fake_vehicle_reports_its_type() -> None:
+    assert FakeVehicle().state().vehicle_type == "quadcopter"
+    assert FakeVehicle(vehicle_type="rover").state().vehicle_type == "rover"
+    assert VehicleState(1, 0.0).vehicle_type == ""  # unknown until the vehicle says
+
+
+@pytest.mark.parametrize(("wanted", "actual", "matches"), [
+    ("quadcopter", "quadcopter", True),
+    ("quadcopter", "hexacopter", False),
+    ("fixed-wing", "fixed-wing", True),
+    ("rover", "boat", False),
+    ("multicopter", "quadcopter", True),
+    ("multicopter", "hexacopter", True),
+    ("multicopter", "octocopter", True),
+    ("multicopter", "tricopter", True),
+    ("multicopter", "coaxial", True),
+    ("multicopter", "helicopter", False),
+    ("multicopter", "fixed-wing", False),
+    ("UAV", "quadcopter", True),
+    ("uav", "helicopter", True),
+    ("Uav", "fixed-wing", True),
+    ("UAV", "vtol", True),
+    ("UAV", "airship", True),
+    ("UAV", "rover", False),
+    ("UAV", "boat", False),
+    ("UAV", "submarine", False),
+    ("Quadcopter", "quadcopter", False),  # only the class word "UAV" ignores case
+    ("quadcopter", "", False),
+    ("UAV", "", False),
+    ("multicopter", "", False),
+])
+def test_vehicle_type_matches(wanted: str, actual: str, matches: bool) -> None:
+    assert vehicle_type_matches(wanted, actual) is matches
+
+
+def test_the_type_words_a_role_may_use() -> None:
+    assert {"quadcopter", "fixed-wing", "vtol", "rover"} <= VEHICLE_TYPES
+    assert "" not in VEHICLE_TYPES
+    assert {"multicopter", "uav"} == VEHICLE_TYPE_CLASSES
+    assert not VEHICLE_TYPES & VEHICLE_TYPE_CLASSES
+    for word in VEHICLE_TYPES:
+        assert vehicle_type_matches(word, word)

@@ -28,6 +28,34 @@ Point = tuple[float, float, float]
 
 _EMPTY: Mapping[str, object] = MappingProxyType({})
 
+MULTICOPTERS = frozenset({"quadcopter", "hexacopter", "octocopter", "tricopter", "coaxial"})
+"""The vehicle types a role asking for "multicopter" accepts."""
+GROUND_AND_WATER = frozenset({"rover", "boat", "submarine"})
+"""The vehicle types that are not aircraft (a "UAV" role accepts all the others)."""
+VEHICLE_TYPES = MULTICOPTERS | GROUND_AND_WATER | frozenset(
+    {"helicopter", "fixed-wing", "vtol", "airship"})
+"""The airframe classes a vehicle reports (:attr:`VehicleState.vehicle_type`)."""
+VEHICLE_TYPE_CLASSES = frozenset({"multicopter", "uav"})
+"""Words a role may ask for that stand for several vehicle types ("UAV" as Dolphin writes it)."""
+
+
+def vehicle_type_matches(wanted: str, actual: str) -> bool:
+    """Whether a vehicle of type ``actual`` is what a role asking for ``wanted`` needs.
+
+    ``wanted`` is a word of :data:`VEHICLE_TYPES` (that type only) or of
+    :data:`VEHICLE_TYPE_CLASSES`: "multicopter" (any multirotor) or "UAV", any case (any
+    aircraft, not a rover, boat or submarine). An unknown ``actual`` ("") matches nothing.
+    """
+    if not actual:
+        return False
+    if wanted == actual:
+        return True
+    if wanted == "multicopter":
+        return actual in MULTICOPTERS
+    if wanted.lower() == "uav":
+        return actual in VEHICLE_TYPES - GROUND_AND_WATER
+    return False
+
 
 @dataclass(frozen=True)
 class MissionProgress:
@@ -59,6 +87,7 @@ class VehicleState:
     detections: Mapping[str, object] = field(default_factory=lambda: _EMPTY)
     capabilities: frozenset[str] = frozenset()  # "gripper", "flip", "camera"
     status_text: str = ""  # the last STATUSTEXT, for the log and the display
+    vehicle_type: str = ""  # a word of VEHICLE_TYPES, "" while unknown
 
     @property
     def flying(self) -> bool:
@@ -241,7 +270,7 @@ class FakeVehicle:
     (vertical), drains the battery, and lands it when told. Scripting knobs: ``reject``
     (request kinds answered with a failure), ``ignore`` (request kinds never answered),
     ``stuck`` (accepts moves but never moves), ``ready``, ``capabilities``,
-    ``detections`` (set by the test), and ``battery``.
+    ``detections`` (set by the test), ``battery``, and ``vehicle_type``.
     """
 
     vehicle_id: int = 1
@@ -253,6 +282,7 @@ class FakeVehicle:
     battery: float = 100.0
     ready: bool = True
     capabilities: frozenset[str] = frozenset({"camera"})
+    vehicle_type: str = "quadcopter"
     reject: dict[str, str] = field(default_factory=dict)  # request name -> reason
     ignore: set[str] = field(default_factory=set)
     stuck: bool = False
@@ -281,7 +311,7 @@ class FakeVehicle:
             heading=self.heading, ground_speed=self.speed if self._moving() else 0.0,
             battery=self.battery, gps_fix=3, home=self.home, mission=self.mission,
             detections=MappingProxyType(dict(self.detections)),
-            capabilities=self.capabilities)
+            capabilities=self.capabilities, vehicle_type=self.vehicle_type)
 
     def submit(self, request: Request) -> None:
         """Record and carry out a request (answered at the next ``poll``)."""

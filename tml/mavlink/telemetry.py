@@ -6,7 +6,8 @@ message (duck-typed, by ``get_type()``) from its own vehicle and updates the sta
 without locks while the link goes on receiving. Messages from another system id are
 refused here too, as a second guard behind the link's routing.
 
-Vehicle state (position, attitude, mode ...) is taken only from the autopilot component;
+Vehicle state (position, attitude, mode, airframe ...) is taken only from the autopilot
+component (a gimbal's or a camera's HEARTBEAT says nothing of the vehicle);
 detections come as NAMED_VALUE_FLOAT / NAMED_VALUE_INT from the companion computer
 (component 191, MAV_COMP_ID_ONBOARD_COMPUTER): ``detections`` keeps the latest value of
 each name, ``sightings`` each object reported (a NAMED_VALUE_INT: tag and number) with the
@@ -25,6 +26,7 @@ from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 from typing import Any
 
+from tml.mavlink.codec import mavlink
 from tml.mavlink.modes import mode_name
 
 COMPANION_COMPONENT = 191
@@ -34,6 +36,25 @@ ARMED_FLAG = 128
 EKF_POSITION_FLAGS = 8 | 2 | 512
 """EKF_POS_HORIZ_ABS | EKF_VELOCITY_HORIZ | EKF_PRED_POS_HORIZ_ABS: ArduPilot can arm in GUIDED."""
 STATUS_TEXTS_KEPT = 50
+
+
+def _airframes() -> Mapping[int, str]:
+    words = {"QUADROTOR": "quadcopter", "HEXAROTOR": "hexacopter", "OCTOROTOR": "octocopter",
+             "TRICOPTER": "tricopter", "COAXIAL": "coaxial", "HELICOPTER": "helicopter",
+             "FIXED_WING": "fixed-wing", "GROUND_ROVER": "rover", "SURFACE_BOAT": "boat",
+             "SUBMARINE": "submarine", "AIRSHIP": "airship"}
+    table = {getattr(mavlink, f"MAV_TYPE_{name}"): word for name, word in words.items()}
+    # Every VTOL kind, those MAVLink still calls "reserved" included.
+    table.update({number: "vtol" for number, entry in mavlink.enums["MAV_TYPE"].items()
+                  if entry.name.startswith("MAV_TYPE_VTOL_")})
+    return MappingProxyType(table)
+
+
+AIRFRAMES = _airframes()
+"""HEARTBEAT.type (MAV_TYPE) -> airframe class, a word of :data:`tml.vehicle.VEHICLE_TYPES`.
+
+Types that are not vehicles (GCS, gimbal, camera ...) and generic ones are left out.
+"""
 
 
 @dataclass(frozen=True)
@@ -115,6 +136,11 @@ class Telemetry:
         """Fraction of this vehicle's messages that never arrived (from sequence gaps)."""
         total = self.received + self.lost
         return self.lost / total if total else 0.0
+
+    @property
+    def airframe(self) -> str:
+        """The airframe class from the HEARTBEAT type ("quadcopter" ...), "" if unknown."""
+        return "" if self.vehicle_type is None else AIRFRAMES.get(self.vehicle_type, "")
 
     def heartbeat_age(self, now: float) -> float:
         """Seconds since the last HEARTBEAT (infinite if none yet)."""

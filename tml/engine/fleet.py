@@ -498,7 +498,9 @@ class Fleet:
             while interpreter.status is Status.RUNNING:
                 yield
                 if vehicle.lost:
-                    self._take(vid, interpreter.stop(self._now, vehicle.state, vehicle.lost))
+                    # The request may still get through if the link comes back.
+                    end = interpreter.abort if end_safe else interpreter.stop
+                    self._take(vid, end(self._now, vehicle.state, vehicle.lost))
                     raise _Failure("link", f"vehicle {vid}: {vehicle.lost}")
                 results, vehicle.results = vehicle.results, []
                 self._take(vid, interpreter.step(self._now, vehicle.state, results))
@@ -627,8 +629,6 @@ class Fleet:
 
     def _safe_state(self, vehicle: _Vehicle, reason: str) -> None:
         state, vid = vehicle.state, vehicle.vehicle_id
-        if vehicle.lost:
-            return
         if state.flying:
             request: Request = {"land": Land, "hold": Hold}.get(
                 self.options.safe_state, ReturnToLaunch)(vid)

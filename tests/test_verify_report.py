@@ -23,16 +23,20 @@ MISSION = b"""<?xml version="1.0"?>
 """
 
 
-def _report() -> object:
-    mission = validate_file("m.xml", MISSION).mission
+def _report(file: str = "m.xml", text: bytes = MISSION) -> object:
+    mission = validate_file(file, text).mission
     assert mission is not None
     return verify_mission(mission, replace(load_profile("quadcopter"), name="test"))
 
 
-def test_table_has_a_row_per_action_and_every_violation() -> None:
+def _printed(report: object) -> str:
     buffer = io.StringIO()
-    print_report(_report(), Console(file=buffer, width=160))  # type: ignore[arg-type]
-    text = buffer.getvalue()
+    print_report(report, Console(file=buffer, width=200))  # type: ignore[arg-type]
+    return buffer.getvalue()
+
+
+def test_table_has_a_row_per_action_and_every_violation() -> None:
+    text = _printed(_report())
     assert "m.xml with profile test" in text
     assert "TAKE_OFF" in text and "GO_TO_POINT" in text
     assert "m.xml:5:" in text and "c1: GO_TO_POINT" in text and "(in close)" in text
@@ -47,3 +51,42 @@ def test_json_document() -> None:
     assert data["actions"][1]["clearance"] == 2.0
     assert data["violations"][0]["task"] == "close"
     assert data["end"]["position"] == [47.0, 0.0, 10.0]
+
+
+FLEET = b"""<?xml version="1.0"?>
+<mission name="f">
+  <environment><cylinder name="mast" north="50" east="0" radius="1"/></environment>
+  <roles><role name="north"/><role name="south" count="2"/></roles>
+  <task name="both" composition="parallel">
+    <task name="n" role="north">
+      <task name="up"><action name="TAKE_OFF"/></task>
+      <task name="close"><action name="GO_TO_POINT">
+        <argument name="coordinates" value="(47, 0, 10)"/></action></task>
+    </task>
+    <task name="s" role="south"><action name="TAKE_OFF"/></task>
+  </task>
+</mission>
+"""
+
+
+def test_table_of_a_fleet_names_roles_and_vehicles() -> None:
+    text = _printed(_report("f.xml", FLEET))
+    assert "role (vehicles)" in text and "north (1)" in text and "south (1, 2)" in text
+    assert "role north, vehicle 1: f.xml:8:" in text and "(in both/n/close)" in text
+    assert "; role north ends after" in text and "; role south ends after" in text
+
+
+def test_json_of_a_fleet_has_roles() -> None:
+    data = json.loads(report_json(_report("f.xml", FLEET)))  # type: ignore[arg-type]
+    assert [(row["role"], row["vehicles"]) for row in data["actions"]] == [
+        ("north", [1]), ("north", [1]), ("south", [1, 2])]
+    assert [(v["role"], v["vehicles"], v["constraint"]) for v in data["violations"]] == [
+        ("north", [1], "c1")]
+    assert sorted(data["ends"]) == ["north", "south"]
+    assert data["ends"]["north"]["position"] == [47.0, 0.0, 10.0]
+
+
+def test_json_without_roles_has_no_role_fields() -> None:
+    data = json.loads(report_json(_report()))  # type: ignore[arg-type]
+    assert "ends" not in data
+    assert all("role" not in row for row in data["actions"] + data["violations"])

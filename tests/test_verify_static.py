@@ -162,3 +162,109 @@ def test_label_an_event_may_store_is_not_a_violation() -> None:
              'value="A"/><action name="MEMORIZE_POINT"><argument name="coordinates" '
              'label="spot"/></action><termination mode="CONTINUE"/></event>')
     assert _label_violations(TAKE_OFF + '<task name="return">' + READ_SPOT, event) == []
+
+
+ROLES = '<roles><role name="north"/><role name="south" count="2"/></roles>'
+
+
+def fly(name: str, point: str, role: str = "", extra: str = "") -> str:
+    """Take off, fly to ``point`` and land there, as one task of ``role``."""
+    written = f' role="{role}"' if role else ""
+    return (f'<task name="{name}"{written}{extra}>' + TAKE_OFF + go("out", point)
+            + '<task name="down"><action name="RETURN_HOME_AND_LAND"/></task></task>')
+
+
+def test_each_role_is_its_own_vehicle_and_findings_name_it() -> None:
+    # North flies 450 m out: 1 + 45 % there, 46 % to come home: below the 20 % reserve.
+    # South flies 50 m out and back on its own vehicles.
+    tasks = ('<task name="Both" composition="parallel">'
+             + fly("N", "(450, 0, 10)", "north") + fly("S", "(50, 0, 10)", "south") + '</task>')
+    report = verify_mission(mission(tasks, environment=ROLES), PROFILE)
+    assert not report.feasible
+    assert {(v.role, v.vehicles) for v in report.violations} == {("north", (1,))}
+    assert [v.constraint for v in report.violations] == [Constraint.RETURN_RESERVE]
+    assert [(r.task, r.role, r.vehicles) for r in report.rows if r.role == "south"] == [
+        ("Both/S/up", "south", (1, 2)), ("Both/S/out", "south", (1, 2)),
+        ("Both/S/down", "south", (1, 2))]
+    # South's branch is flown from the ground at home with a full battery.
+    south_up = next(r for r in report.rows if r.task == "Both/S/up")
+    assert south_up.battery == pytest.approx(99.0) and south_up.time == pytest.approx(5.0)
+    assert report.roles == ("north", "south")
+    assert report.ends["south"].battery == pytest.approx(100 - 1 - 5 - 6)
+
+
+SORTIE = fly("sortie", "(250, 0, 10)", extra=' release="north"')
+
+
+@pytest.mark.parametrize(("release", "feasible"), [(True, True), (False, False)])
+def test_release_brings_a_fresh_vehicle(release: bool, feasible: bool) -> None:
+    # A sortie uses 1 + 25 + 26 = 52 %: a second one on the same battery breaks the reserve.
+    sortie = SORTIE if release else SORTIE.replace(' release="north"', "")
+    tasks = ('<task name="Relay" role="north"><loop/>'
+             + sortie.replace('"sortie"', '"first"') + sortie.replace('"sortie"', '"second"')
+             + '</task>')
+    report = verify_mission(mission(tasks, environment=ROLES), PROFILE)
+    assert report.feasible is feasible
+    assert any(n.endswith("task Relay: loop verified for one round") for n in report.notes)
+    second = next(r for r in report.rows if r.task == "Relay/second/out")
+    if release:
+        assert second.vehicles == (2,)
+        assert second.battery == pytest.approx(100 - 1 - 25)
+    else:
+        assert second.vehicles == (1,)
+        # 22 % left 250 m out: below the reserve there, and too little to come home.
+        assert {(v.task, v.vehicles) for v in report.violations} == {
+            ("Relay/second/out", (1,)), ("Relay/second/down", (1,))}
+
+
+def test_a_mission_without_roles_is_verified_as_one_vehicle() -> None:
+    tasks = TAKE_OFF + go("far", "(450, 0, 10)") + go("near", "(10, 0, 10)")
+    plain = verify_mission(mission(tasks), PROFILE)
+    assert plain.roles == () and plain.ends == {}
+    assert all(r.role == "" and r.vehicles == () for r in plain.rows)
+    assert all(v.role == "" and v.vehicles == () for v in plain.violations)
+    # With one declared role every task is flown by it: the same predictions and findings.
+    single = verify_mission(mission(tasks, environment='<roles><role name="solo"/></roles>'),
+                            PROFILE)
+    assert [replace(r, role="", vehicles=()) for r in single.rows] == plain.rows
+    assert [replace(v, role="", vehicles=()) for v in single.violations] == plain.violations
+    assert plain.violations and {v.role for v in single.violations} == {"solo"}
+    assert single.end == plain.end
+
+
+def test_choice_keeps_the_worst_branch_from_the_same_start() -> None:
+    tasks = TAKE_OFF + ('<task name="pick" composition="choice">'
+                        + go("far", "(300, 0, 10)") + go("near", "(50, 0, 10)")
+                        + '</task>') + go("back", "(0, 0, 10)")
+    report = verify_mission(mission(tasks), PROFILE)
+    near = next(r for r in report.rows if r.task == "pick/near")
+    # Not after the far branch: both start after the take-off.
+    assert near.battery == pytest.approx(100 - 1 - 5)
+    back = [r for r in report.rows if r.task == "back"]
+    assert back[0].battery == pytest.approx(100 - 1 - 30 - 30)
+
+
+def test_error_handler_runs_from_the_start_or_the_end_of_its_task() -> None:
+    handler = ('<on_error><task name="home"><action name="RETURN_HOME_AND_LAND"/></task>'
+               '</on_error>')
+    tasks = (TAKE_OFF + '<task name="mission"><until><condition parameter="GROUND_SPEED" '
+             'comparison="less than" value="1"/></until>' + go("far", "(300, 0, 10)")
+             + handler + '</task>' + '<task name="again"><action name="TAKE_OFF"/></task>')
+    report = verify_mission(mission(tasks), PROFILE)
+    home = [r for r in report.rows if r.task == "mission/home"]
+    # Worst: the failure after the far leg (69 % left), then 300 m home and 10 m down.
+    assert len(home) == 1 and home[0].battery == pytest.approx(69 - 30 - 1)
+    assert any("until and time_limit can only shorten the task" in n for n in report.notes)
+    # After the task, the ways with and without the handler go on: the worst is landed.
+    again = next(r for r in report.rows if r.task == "again")
+    assert again.distance == pytest.approx(10.0)
+
+
+def test_events_of_a_role_are_checked_on_its_vehicles_only() -> None:
+    events = """<event name="look" role="south">
+        <condition parameter="GROUND_SPEED" comparison="less than" value="1"/>
+        <action name="ROTATE_YAW"><argument name="angle" value="90"/></action>
+        <termination mode="CONTINUE"/></event>"""
+    tasks = fly("N", "(100, 0, 10)", "north") + fly("S", "(20, 0, 10)", "south")
+    report = verify_mission(mission(tasks, events, ROLES), PROFILE)
+    assert [(r.event, r.role) for r in report.rows if r.event] == [("look", "south")]

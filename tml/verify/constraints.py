@@ -90,6 +90,8 @@ class Violation:
     action: str
     location: Location | None = None
     task: str = ""
+    role: str = ""  # the role whose vehicles break it, in a mission that declares roles
+    vehicles: tuple[int, ...] = ()  # which of the role's vehicles (1, 2 ... in pick order)
 
     @property
     def excess(self) -> float:

@@ -1,4 +1,8 @@
-"""How a verification report is printed: a rich table per action, or one JSON document."""
+"""How a verification report is printed: a rich table per action, or one JSON document.
+
+A mission that declares roles gets a role column, findings prefixed with the role and its
+vehicles, and an end per role; a mission without roles prints as it always has.
+"""
 
 from __future__ import annotations
 
@@ -8,11 +12,20 @@ import math
 from rich.console import Console
 from rich.table import Table
 
-from tml.verify.static import Report
+from tml.verify.constraints import Violation
+from tml.verify.motion import VehicleState
+from tml.verify.static import Report, vehicles_text
 
 
 def _cell(value: float, digits: int = 1) -> str:
     return "-" if math.isinf(value) else f"{value:.{digits}f}"
+
+
+def _finding(violation: Violation) -> str:
+    whose = f"role {violation.role}, {vehicles_text(violation.vehicles)}: " \
+        if violation.role else ""
+    where = f" (in {violation.task})" if violation.task else ""
+    return f"{whose}{violation}{where}"
 
 
 def print_report(report: Report, console: Console) -> None:
@@ -20,12 +33,15 @@ def print_report(report: Report, console: Console) -> None:
     table = Table(title=f"{report.file} with profile {report.profile.name}")
     table.add_column("line", justify="right", no_wrap=True)
     table.add_column("task", overflow="fold", min_width=16)
+    if report.roles:
+        table.add_column("role (vehicles)", no_wrap=True)
     table.add_column("action", no_wrap=True)
     for heading in ("distance m", "time s", "battery %", "clearance m"):
         table.add_column(heading, justify="right", no_wrap=True)
     for row in report.rows:
         task = f"event {row.event}" if row.event else row.task
-        table.add_row(str(row.line), task, row.action, _cell(row.distance),
+        whose = [f"{row.role} ({', '.join(map(str, row.vehicles))})"] if report.roles else []
+        table.add_row(str(row.line), task, *whose, row.action, _cell(row.distance),
                       _cell(row.duration), _cell(row.battery), _cell(row.clearance))
     console.print(table)
     for note in report.notes:
@@ -34,27 +50,43 @@ def print_report(report: Report, console: Console) -> None:
         console.print("note: too many alternative ways through the mission; the ones with "
                       "the least battery were kept", highlight=False)
     for violation in report.violations:
-        where = f" (in {violation.task})" if violation.task else ""
-        console.print(f"{violation}{where}", markup=False, highlight=False)
-    end = report.end
-    summary = f", ends after {end.time:.1f} s with {end.battery:.1f}% battery" if end else ""
+        console.print(_finding(violation), markup=False, highlight=False)
     verdict = "feasible" if report.feasible else \
         f"INFEASIBLE: {len(report.violations)} constraint(s) broken"
+    if report.roles:
+        summary = "".join(f"; role {role} ends after {end.time:.1f} s with "
+                          f"{end.battery:.1f}% battery" for role, end in report.ends.items())
+    else:
+        end = report.end
+        summary = f", ends after {end.time:.1f} s with {end.battery:.1f}% battery" if end else ""
     console.print(f"{report.file}: {verdict}{summary}", markup=False, highlight=False)
+
+
+def _end(end: VehicleState | None) -> dict[str, object] | None:
+    return None if end is None else {
+        "position": [round(v, 3) for v in end.position], "battery": round(end.battery, 3),
+        "time": round(end.time, 3), "flying": end.flying}
+
+
+def _violation(violation: Violation) -> dict[str, object]:
+    found = violation.to_dict()
+    if violation.role:
+        found |= {"role": violation.role, "vehicles": list(violation.vehicles)}
+    return found
 
 
 def report_json(report: Report) -> str:
     """The report as one JSON document (see docs/verify.md for its fields)."""
-    end = report.end
-    return json.dumps({
+    document: dict[str, object] = {
         "file": report.file,
         "profile": report.profile.name,
         "feasible": report.feasible,
         "approximate": report.approximate,
         "actions": [row.to_dict() for row in report.rows],
-        "violations": [v.to_dict() | {"task": v.task} for v in report.violations],
+        "violations": [_violation(v) for v in report.violations],
         "notes": report.notes,
-        "end": None if end is None else {
-            "position": [round(v, 3) for v in end.position], "battery": round(end.battery, 3),
-            "time": round(end.time, 3), "flying": end.flying},
-    }, indent=2)
+        "end": _end(report.end),
+    }
+    if report.roles:
+        document["ends"] = {role: _end(end) for role, end in report.ends.items()}
+    return json.dumps(document, indent=2)

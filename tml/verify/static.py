@@ -14,6 +14,22 @@ path farthest from home, and the worst outcome is kept.
 
 Every action is checked against its category's constraints (:mod:`tml.verify.constraints`);
 a violation found on several alternatives is reported once, with its worst numbers.
+
+Fleets. A mission that declares roles is verified role by role: each role is one vehicle
+(all its ``count`` vehicles fly the same tasks from the same start, so one prediction
+covers them), starting from ``start``, flying the terminal tasks whose effective role is
+that role in document order; the tasks of other roles leave it as it is, so parallel and
+first compositions fly each role's branch independently (a role in several branches of one
+composition flies them one after the other, which costs at least as much battery). A
+choice is abstracted like a condition: each branch is walked from the state before it and
+the alternatives of all branches are kept. An on_error handler is walked from the state at
+the start of the task it guards and from the state at its end (the failure may come at
+once or at the last action), and the ways that ran it join those that did not. A loop is
+walked for one round (a loop forever cannot be bounded); until and time_limit can only
+shorten a task, so the whole task is walked; wait_for leaves the vehicle as it is (a
+recharge while waiting is not counted). After a task that releases a role, the role's
+next pick may be another vehicle: its next task starts from ``start`` again (with the
+labels kept), and its findings name the next vehicle of the role.
 """
 
 from __future__ import annotations
@@ -23,8 +39,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 
 from tml import actions
-from tml.model import Comparison, ConditionKind, Event, Mission, Task
-from tml.parameters import parse_boolean
+from tml.model import Comparison, Composition, ConditionKind, Event, Mission, Role, Task
+from tml.parameters import lookup, parse_boolean
 from tml.verify.constraints import Constraint, Violation, check_step
 from tml.verify.motion import FlightModel, Labels, Step, VehicleState
 from tml.verify.profile import VehicleProfile
@@ -46,14 +62,20 @@ class Row:
     battery: float  # percent after the action
     clearance: float  # m from the path (or the destination) to the nearest obstacle
     event: str = ""  # the event handler the action belongs to, if any
+    role: str = ""  # the role flying it, in a mission that declares roles
+    vehicles: tuple[int, ...] = ()  # which of the role's vehicles (1, 2 ... in pick order)
 
     def to_dict(self) -> dict[str, object]:
-        """A JSON-ready dictionary."""
-        return {"task": self.task, "event": self.event or None, "action": self.action,
-                "line": self.line, "distance": round(self.distance, 3),
-                "duration": round(self.duration, 3), "time": round(self.time, 3),
-                "battery": round(self.battery, 3),
-                "clearance": None if math.isinf(self.clearance) else round(self.clearance, 3)}
+        """A JSON-ready dictionary (``role`` and ``vehicles`` only when there are roles)."""
+        found: dict[str, object] = {
+            "task": self.task, "event": self.event or None, "action": self.action,
+            "line": self.line, "distance": round(self.distance, 3),
+            "duration": round(self.duration, 3), "time": round(self.time, 3),
+            "battery": round(self.battery, 3),
+            "clearance": None if math.isinf(self.clearance) else round(self.clearance, 3)}
+        if self.role:
+            found |= {"role": self.role, "vehicles": list(self.vehicles)}
+        return found
 
 
 @dataclass
@@ -67,6 +89,8 @@ class Report:
     notes: list[str] = field(default_factory=list)
     end: VehicleState | None = None  # the worst predicted state at the end
     approximate: bool = False
+    roles: tuple[str, ...] = ()  # the roles verified, each as its own vehicle
+    ends: dict[str, VehicleState] = field(default_factory=dict)  # role -> worst end
 
     @property
     def feasible(self) -> bool:
@@ -74,58 +98,129 @@ class Report:
         return not self.violations
 
 
+def vehicles_text(vehicles: tuple[int, ...]) -> str:
+    """``vehicle 1`` or ``vehicles 3, 4``: which of a role's vehicles a finding is about."""
+    numbers = ", ".join(str(v) for v in vehicles)
+    return f"vehicle {numbers}" if len(vehicles) == 1 else f"vehicles {numbers}"
+
+
 @dataclass(frozen=True)
 class _Alternative:
     state: VehicleState
     labels: tuple[tuple[str, tuple[float, float, float]], ...] = ()
+    pick: int = 0  # releases of the role so far: which of its vehicles flies now
+    released: bool = False  # the role was released: its next task is flown by a fresh pick
 
     @property
     def label_map(self) -> Labels:
         return dict(self.labels)
 
 
-def _alternative(state: VehicleState, labels: Labels) -> _Alternative:
-    return _Alternative(state, tuple(sorted(labels.items())))
+def _alternative(state: VehicleState, labels: Labels, pick: int = 0) -> _Alternative:
+    return _Alternative(state, tuple(sorted(labels.items())), pick)
 
 
 class _Walker:
-    def __init__(self, model: FlightModel, event_labels: frozenset[str] = frozenset()) -> None:
+    """Walks the task tree for one vehicle: every terminal task, or a role's only."""
+
+    def __init__(self, model: FlightModel, start: VehicleState,
+                 event_labels: frozenset[str] = frozenset(), role: Role | None = None) -> None:
         self.model = model
+        self.start = start  # also the state of a fresh vehicle picked after a release
+        self.role = role
         # Labels an event handler may store at any time: reading one is not an error even
         # where no task has stored it yet (the IMAV 2016 mission's "item A coordinates").
         self.event_labels = event_labels
         self.found: dict[tuple[str, str], Violation] = {}
         self.rows: list[Row] = []
         self.notes: dict[str, None] = {}
-        self.sources: list[tuple[str, VehicleState, Labels]] = []  # where events may fire
+        # Where events may fire: (task, state, labels, pick).
+        self.sources: list[tuple[str, VehicleState, Labels, int]] = []
         self.approximate = False
+
+    @property
+    def role_name(self) -> str:
+        return self.role.name if self.role is not None else ""
+
+    def vehicles(self, pick: int) -> tuple[int, ...]:
+        """The role's vehicles flying after ``pick`` releases (none without roles)."""
+        if self.role is None:
+            return ()
+        first = pick * self.role.count + 1
+        return tuple(range(first, first + self.role.count))
 
     def tasks(self, tasks: Iterable[Task], alternatives: list[_Alternative],
               guarded: frozenset[str] = frozenset()) -> list[_Alternative]:
         for task in tasks:
-            ran = alternatives
-            inner = guarded | _guarded_labels(task)
-            for iteration in range(task.repeat):
-                name = task.path_name + (f" #{iteration + 1}" if task.repeat > 1 else "")
-                ran = self.task(task, name, ran, inner)
-            alternatives = self.merge(ran + alternatives if task.conditions else ran)
+            alternatives = self.entry(task, alternatives, guarded)
         return alternatives
+
+    def entry(self, task: Task, alternatives: list[_Alternative], guarded: frozenset[str],
+              optional: bool = True) -> list[_Alternative]:
+        """``task`` as its parent runs it: rounds, error handler, release; ``optional``
+        when its conditions may skip it (not so for the branch a choice picked)."""
+        self.explain(task)
+        inner = guarded | _guarded_labels(task)
+        ran = alternatives
+        for iteration in range(task.repeat):  # a loop is walked for one round
+            name = task.path_name + (f" #{iteration + 1}" if task.repeat > 1 else "")
+            ran = self.task(task, name, ran, inner)
+        if task.on_error:
+            # The failure may come at once or at the last action.
+            ran = ran + self.tasks(task.on_error, self.merge(alternatives + ran), inner)
+        ran = self.released(task, ran)
+        skippable = bool(task.conditions) or (task.loop is not None and bool(task.loop.conditions))
+        return self.merge(ran + alternatives if optional and skippable else ran)
+
+    def explain(self, task: Task) -> None:
+        """Notes on what the walk assumes of the task's orchestration."""
+        where = f"{task.location}: task {task.path_name}"
+        if task.loop is not None:
+            self.notes[f"{where}: loop verified for one round"] = None
+        if task.until or task.time_limit is not None:
+            self.notes[f"{where}: until and time_limit can only shorten the task; the "
+                       "whole task is verified"] = None
+        if any(_reads_battery(c.subject) for c in task.wait_for):
+            self.notes[f"{where}: wait_for on the battery: the vehicle is taken as it was "
+                       "(a recharge while waiting is not counted)"] = None
+
+    def released(self, task: Task, alternatives: list[_Alternative]) -> list[_Alternative]:
+        """After a task that releases the role, its next pick may be a fresh vehicle (the
+        released one stays the end state until the role flies again)."""
+        if self.role is None or self.role.name not in task.release:
+            return alternatives
+        return [replace(a, released=True) for a in alternatives]
+
+    def picked(self, alternative: _Alternative) -> _Alternative:
+        """The alternative as the role's next task finds it: a fresh vehicle if released."""
+        if not alternative.released:
+            return alternative
+        fresh = replace(self.start, time=alternative.state.time)
+        return _Alternative(fresh, alternative.labels, alternative.pick + 1)
 
     def task(self, task: Task, name: str, alternatives: list[_Alternative],
              guarded: frozenset[str] = frozenset()) -> list[_Alternative]:
         if task.action is None:
+            if task.composition is Composition.CHOICE:
+                # Which branch runs is known only in flight: each from the same state.
+                return self.merge([a for child in task.children
+                                   for a in self.entry(child, alternatives, guarded, False)])
+            # Parallel and first branches of other roles leave this vehicle as it is.
             return self.tasks(task.children, alternatives, guarded)
+        if self.role is not None and task.role != self.role.name:
+            return alternatives
         bound = actions.bind(task.action)
-        steps = [self.model.step(bound, a.state, a.label_map) for a in alternatives]
-        for step in steps:
-            self.judge(bound, step, name, guarded | self.event_labels)
+        alternatives = [self.picked(a) for a in alternatives]
+        steps = [(a.pick, self.model.step(bound, a.state, a.label_map)) for a in alternatives]
+        for pick, step in steps:
+            self.judge(bound, step, name, guarded | self.event_labels, pick)
             if step.after.flying:
-                self.sources.append((name, step.after, step.labels))
+                self.sources.append((name, step.after, step.labels, pick))
                 far = self.farthest(step)
                 if far is not None:
-                    self.sources.append((name, far, step.labels))
+                    self.sources.append((name, far, step.labels, pick))
         self.row(bound, steps, name)
-        return self.merge([_alternative(s.after, s.labels) for s in steps])
+        return self.merge([_alternative(s.after, s.labels, pick) for pick, s in steps])
 
     def farthest(self, step: Step) -> VehicleState | None:
         points = step.waypoints()
@@ -139,28 +234,29 @@ class _Walker:
         return replace(step.after, position=point, battery=battery)
 
     def judge(self, bound: actions.BoundAction, step: Step, where: str,
-              excused: frozenset[str] = frozenset()) -> None:
+              excused: frozenset[str] = frozenset(), pick: int = 0) -> None:
         for note in step.notes:
             self.notes[f"{bound.action.location}: {bound.name}: {note}"] = None
         for violation in check_step(bound, step, self.model):
             if violation.constraint is Constraint.LABEL and step.unknown_label in excused:
                 continue  # guarded by "known", or an event may have stored it
-            violation = replace(violation, task=where)
+            violation = replace(violation, task=where, role=self.role_name,
+                                vehicles=self.vehicles(pick))
             key = (violation.constraint.value, str(violation.location))
             kept = self.found.get(key)
             if kept is None or violation.excess > kept.excess:
                 self.found[key] = violation
 
-    def row(self, bound: actions.BoundAction, steps: list[Step], task: str,
+    def row(self, bound: actions.BoundAction, steps: list[tuple[int, Step]], task: str,
             event: str = "") -> None:
-        worst = min(steps, key=lambda s: s.after.battery)
+        pick, worst = min(steps, key=lambda s: s[1].after.battery)
         points = worst.path_points()
         if worst.destination is not None and not points:
             points = [worst.destination]
         clearance = self.model.planner.clearance_of(points) if points else math.inf
         self.rows.append(Row(task, bound.name, bound.action.location.line, worst.distance,
                              worst.duration, worst.after.time, worst.after.battery,
-                             clearance, event))
+                             clearance, event, self.role_name, self.vehicles(pick)))
 
     def merge(self, alternatives: list[_Alternative]) -> list[_Alternative]:
         grouped: dict[tuple[object, ...], _Alternative] = {}
@@ -168,7 +264,8 @@ class _Walker:
             state = alternative.state
             key = (tuple(round(v, 3) for v in state.position), state.flying, state.home,
                    state.speed, state.climb_rate, state.descent_rate,
-                   round(state.heading, 3), alternative.labels)
+                   round(state.heading, 3), alternative.labels, alternative.pick,
+                   alternative.released)
             kept = grouped.get(key)
             if kept is not None:
                 state = replace(state, battery=min(state.battery, kept.state.battery),
@@ -184,15 +281,15 @@ class _Walker:
         if not event.actions:
             return
         bounds = [actions.bind(action) for action in event.actions]
-        worst: list[Step] | None = None
-        for where, state, labels in self.sources:
-            steps: list[Step] = []
+        worst: list[tuple[int, Step]] | None = None
+        for where, state, labels, pick in self.sources:
+            steps: list[tuple[int, Step]] = []
             for bound in bounds:
                 step = self.model.step(bound, state, labels)
-                self.judge(bound, step, f"event {event.name} during {where}")
-                steps.append(step)
+                self.judge(bound, step, f"event {event.name} during {where}", pick=pick)
+                steps.append((pick, step))
                 state, labels = step.after, step.labels
-            if worst is None or steps[-1].after.battery < worst[-1].after.battery:
+            if worst is None or steps[-1][1].after.battery < worst[-1][1].after.battery:
                 worst = steps
         for bound, step in zip(bounds, worst or [], strict=False):
             self.row(bound, [step], "", event.name)
@@ -206,13 +303,18 @@ def _guarded_labels(task: Task) -> frozenset[str]:
         and parse_boolean(c.value or "yes") is not False)
 
 
+def _reads_battery(parameter: str) -> bool:
+    spec = lookup(parameter)
+    return spec is not None and spec.name == "BATTERY_CHARGE_PERCENTAGE"
+
+
 def verify_mission(mission: Mission, profile: VehicleProfile, world: World | None = None,
                    start: VehicleState | None = None) -> Report:
     """Predict and check every action of ``mission`` (and of its event handlers).
 
     ``world`` is laid over the mission's own ``<environment>``; ``start`` is the state
     before the first action (default: on the ground at home, battery full, heading as
-    the world's home).
+    the world's home), and with roles the state of every vehicle when it is picked.
     """
     merged = (mission.world or World()).merged(world)
     model = FlightModel(profile, merged)
@@ -221,12 +323,31 @@ def verify_mission(mission: Mission, profile: VehicleProfile, world: World | Non
     event_labels = frozenset(
         bound.labels["coordinates"] for event in mission.events for action in event.actions
         if (bound := actions.bind(action)).name == "MEMORIZE_POINT")
-    walker = _Walker(model, event_labels)
-    ends = walker.tasks(mission.tasks, [_alternative(start, {})])
-    for event in mission.events:
-        walker.event(event)
-    violations = sorted(walker.found.values(), key=lambda v: (
-        v.location.line if v.location else 0, v.constraint.value))
-    end = min((a.state for a in ends), key=lambda s: s.battery, default=None)
-    return Report(mission.file, profile, walker.rows, violations, list(walker.notes), end,
-                  walker.approximate)
+    walkers = [_Walker(model, start, event_labels, role) for role in mission.roles] or \
+        [_Walker(model, start, event_labels)]
+    notes: dict[str, None] = {}
+    if mission.roles:
+        names = {role.name for role in mission.roles}
+        notes |= {f"{task.location}: task {task.path_name}: flown by no declared role; not "
+                  "verified": None
+                  for task in mission.walk() if task.action is not None and task.role not in names}
+    violations: list[Violation] = []
+    ends: dict[str, VehicleState] = {}
+    for walker in walkers:
+        finals = walker.tasks(mission.tasks, [_alternative(start, {})])
+        for event in mission.events:
+            if walker.role is None or event.role in (None, walker.role.name):
+                walker.event(event)
+        violations += walker.found.values()
+        notes |= walker.notes
+        end = min((a.state for a in finals), key=lambda s: s.battery, default=None)
+        if end is not None and (walker.role is None or walker.rows):
+            ends[walker.role_name] = end
+    violations.sort(key=lambda v: (v.location.line if v.location else 0, v.constraint.value,
+                                   v.role))
+    rows = [row for walker in walkers for row in walker.rows]
+    end = min(ends.values(), key=lambda s: s.battery, default=None)
+    roles = tuple(role.name for role in mission.roles)
+    return Report(mission.file, profile, rows, violations, list(notes), end,
+                  any(w.approximate for w in walkers), roles,
+                  ends if mission.roles else {})

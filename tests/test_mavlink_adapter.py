@@ -106,6 +106,7 @@ def test_state_before_and_after_the_position_fix(rig: Rig) -> None:
     ready = rig.until(lambda s: s.ready and s.position is not None and s.home is not None,
                       "position fix")
     assert ready.link == "ok" and ready.gps_fix >= 3 and ready.battery == 100
+    assert ready.vehicle_type == "quadcopter"  # from the autopilot's HEARTBEAT
     assert math.dist(ready.position, (0, 0, 0)) < 1.0
     assert ready.home.latitude == pytest.approx(WORLD.home_or_default.latitude, abs=1e-5)
     assert ready.time == pytest.approx(rig.sim.time, abs=1.0)

@@ -57,14 +57,14 @@ def run(body: str, events: str = "", vehicles: int = 1, options: RunOptions | No
                     options=options or RunOptions(), journal=Journal(log), wait=sim.wait,
                     on_safety=said.append)
     if broken_engine:
-        interpreter = runner.flights[0].interpreter
-        step = interpreter.step
+        fleet = runner.crews[0].fleet
+        step = fleet.step
 
-        def explode_in_flight(now, state, results):  # type: ignore[no-untyped-def]
+        def explode_in_flight(now, states, results):  # type: ignore[no-untyped-def]
             if now > 3.0:
                 raise RuntimeError("boom")
-            return step(now, state, results)
-        interpreter.step = explode_in_flight  # type: ignore[method-assign]
+            return step(now, states, results)
+        fleet.step = explode_in_flight  # type: ignore[method-assign]
     outcome = runner.run()
     lines = [json.loads(line) for line in log.getvalue().splitlines()]
     return outcome, sim, lines, said, runner

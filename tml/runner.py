@@ -31,15 +31,24 @@ from __future__ import annotations
 import threading
 import time
 import traceback
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import Any
 
-from tml.engine import Interpreter, Options, Output, Status, View
+from tml.engine import Fleet, Options, Output, Status, View
 from tml.journal import Journal, telemetry_fields
 from tml.model import Mission
-from tml.vehicle import Disarm, Hold, Land, Request, ReturnToLaunch, Vehicle, VehicleState
+from tml.vehicle import (
+    Disarm,
+    Hold,
+    Land,
+    Request,
+    RequestResult,
+    ReturnToLaunch,
+    Vehicle,
+    VehicleState,
+)
 
 SAFE_STATES = {"rtl": ReturnToLaunch, "land": Land, "hold": Hold}
 
@@ -93,20 +102,31 @@ class Outcome:
 
 
 class _Flight:
-    """One vehicle and its interpreter."""
+    """One vehicle as the loop sees it."""
 
-    def __init__(self, vehicle: Vehicle, interpreter: Interpreter) -> None:
+    def __init__(self, vehicle: Vehicle) -> None:
         self.vehicle = vehicle
-        self.interpreter = interpreter
         self.state: VehicleState | None = None
         self.lost_since: float | None = None
+        self.lost = False  # reported to the engine
         self.next_telemetry = 0.0
         self.cause = ""
-        self.broken = False  # the interpreter raised: it is not asked anything again
+
+
+class _Crew:
+    """A fleet engine and the vehicles it flies."""
+
+    def __init__(self, fleet: Fleet, flights: list[_Flight]) -> None:
+        self.fleet = fleet
+        self.flights = flights
+        self.broken = False  # the engine raised: it is not asked anything again
 
     @property
     def running(self) -> bool:
-        return self.interpreter.status is Status.RUNNING and not self.broken
+        return self.fleet.status is Status.RUNNING and not self.broken
+
+    def states(self) -> dict[int, VehicleState]:
+        return {f.vehicle.vehicle_id: f.state for f in self.flights if f.state is not None}
 
 
 class Runner:
@@ -118,7 +138,8 @@ class Runner:
                  wake: threading.Event | None = None,
                  on_update: Callable[[Runner], None] | None = None,
                  on_safety: Callable[[str], None] | None = None,
-                 wait: Callable[[float], None] | None = None) -> None:
+                 wait: Callable[[float], None] | None = None,
+                 payloads: Mapping[int, Iterable[str]] | None = None) -> None:
         self.mission = mission
         self.options = options or RunOptions()
         self.clock = clock
@@ -129,8 +150,13 @@ class Runner:
         self._wait = wait or self._wait_for_wake
         engine = self.options.engine
         engine.safe_state = self.options.safe_state
-        self.flights = [_Flight(v, Interpreter(mission, v.vehicle_id, options=engine))
-                        for v in vehicles]
+        self.flights = [_Flight(v) for v in vehicles]
+        ids = [f.vehicle.vehicle_id for f in self.flights]
+        if mission.roles:  # one fleet picks its vehicles for the roles
+            self.crews = [_Crew(Fleet(mission, ids, engine, payloads), self.flights)]
+        else:  # every vehicle flies the whole mission on its own
+            self.crews = [_Crew(Fleet(mission, [f.vehicle.vehicle_id], engine, payloads), [f])
+                          for f in self.flights]
         self._stop_reason = ""
         self.safety_actions: list[str] = []
 
@@ -142,30 +168,36 @@ class Runner:
         self.wake.set()
 
     def views(self) -> list[tuple[View, VehicleState | None]]:
-        """The display's view of each vehicle: the interpreter's view and the last state."""
-        return [(f.interpreter.view(), f.state) for f in self.flights]
+        """The display's view of each vehicle: the engine's view and the last state."""
+        views = []
+        for crew in self.crews:
+            found = crew.fleet.views()
+            views.extend((found[f.vehicle.vehicle_id], f.state) for f in crew.flights)
+        return views
 
     # --- the loop ----------------------------------------------------------------------------
 
     def run(self) -> Outcome:
-        """Fly until every interpreter has ended; return how it went."""
+        """Fly until every fleet has ended; return how it went."""
         now = self.clock()
         self.journal.write(now, "run", message="run started", mission=self.mission.name,
                            file=self.mission.file, vehicles=[f.vehicle.vehicle_id
                                                              for f in self.flights],
+                           roles=[r.name for r in self.mission.roles],
                            safe_state=self.options.safe_state)
         for flight in self.flights:
             flight.state = flight.vehicle.state()
-            self._guarded(flight, now, lambda f=flight: f.interpreter.start(now, f.state))
-        while any(f.running for f in self.flights):
+        for crew in self.crews:
+            self._guarded(crew, now, lambda c=crew: c.fleet.start(now, c.states()))
+        while any(c.running for c in self.crews):
             self._wait(1.0 / self.options.rate)
             now = self.clock()
             if self._stop_reason:
                 self._abort_all(now, self._stop_reason, "stop")
                 break
-            for flight in self.flights:
-                if flight.running:
-                    self._tick(flight, now)
+            for crew in self.crews:
+                if crew.running:
+                    self._tick(crew, now)
             if self.on_update is not None:
                 self.on_update(self)
         self._settle()
@@ -174,8 +206,8 @@ class Runner:
             self.journal.write(self.clock(), "telemetry", flight.vehicle.vehicle_id,
                                **telemetry_fields(flight.state))
         outcome = Outcome(tuple(
-            VehicleOutcome(f.vehicle.vehicle_id, f.interpreter.status, f.interpreter.reason,
-                           f.cause) for f in self.flights))
+            VehicleOutcome(f.vehicle.vehicle_id, c.fleet.status, c.fleet.reason, f.cause)
+            for c in self.crews for f in c.flights))
         self.journal.write(self.clock(), "run", message="run ended",
                            exit_code=int(outcome.exit_code),
                            outcomes=[{"vehicle": v.vehicle_id, "status": v.status.value,
@@ -188,67 +220,77 @@ class Runner:
         self.wake.wait(timeout)
         self.wake.clear()
 
-    def _tick(self, flight: _Flight, now: float) -> None:
-        vehicle = flight.vehicle
-        state = flight.state = vehicle.state()
-        results = vehicle.poll()
-        for result in results:
-            self.journal.write(now, "result", vehicle.vehicle_id, request_id=result.request_id,
-                               ok=result.ok, reason=result.reason, detail=result.detail)
-        if now >= flight.next_telemetry:
-            flight.next_telemetry = now + self.options.telemetry_period
-            self.journal.write(now, "telemetry", vehicle.vehicle_id, **telemetry_fields(state))
-        if state.link == "lost":
-            flight.lost_since = now if flight.lost_since is None else flight.lost_since
-            if now - flight.lost_since > self.options.link_lost_limit:
-                flight.cause = "link"
-                self._abort(flight, now, f"link lost for more than "
-                                         f"{self.options.link_lost_limit:g} s")
-                return
-        else:
-            flight.lost_since = None
-        self._guarded(flight, now, lambda: flight.interpreter.step(now, state, results))
+    def _tick(self, crew: _Crew, now: float) -> None:
+        results: dict[int, list[RequestResult]] = {}
+        lost: list[_Flight] = []
+        for flight in crew.flights:
+            vehicle = flight.vehicle
+            state = flight.state = vehicle.state()
+            found = results[vehicle.vehicle_id] = vehicle.poll()
+            for result in found:
+                self.journal.write(now, "result", vehicle.vehicle_id,
+                                   request_id=result.request_id, ok=result.ok,
+                                   reason=result.reason, detail=result.detail)
+            if now >= flight.next_telemetry:
+                flight.next_telemetry = now + self.options.telemetry_period
+                self.journal.write(now, "telemetry", vehicle.vehicle_id,
+                                   **telemetry_fields(state))
+            if state.link == "lost":
+                flight.lost_since = now if flight.lost_since is None else flight.lost_since
+                if now - flight.lost_since > self.options.link_lost_limit and not flight.lost:
+                    lost.append(flight)
+            else:
+                flight.lost_since = None
+        for flight in lost:
+            flight.lost = True
+            flight.cause = "link"
+            reason = f"link lost for more than {self.options.link_lost_limit:g} s"
+            self._said(f"vehicle {flight.vehicle.vehicle_id}: {reason}")
+            self._guarded(crew, now, lambda f=flight, r=reason: crew.fleet.lost(
+                now, f.vehicle.vehicle_id, r))
+        if crew.running:
+            self._guarded(crew, now, lambda: crew.fleet.step(now, crew.states(), results))
 
-    def _guarded(self, flight: _Flight, now: float, call: Callable[[], Output]) -> None:
-        """Run an interpreter call; an exception aborts every vehicle."""
+    def _guarded(self, crew: _Crew, now: float, call: Callable[[], Output]) -> None:
+        """Run an engine call; an exception aborts every vehicle."""
         try:
             output = call()
         except Exception as error:  # any engine bug must end in the safe state
-            flight.broken = True
-            flight.cause = "error"
-            self.journal.write(now, "error", flight.vehicle.vehicle_id,
-                               message=f"interpreter error: {error!r}",
+            crew.broken = True
+            for flight in crew.flights:
+                flight.cause = flight.cause or "error"
+            self.journal.write(now, "error", None, message=f"interpreter error: {error!r}",
                                traceback=traceback.format_exc())
-            self._fallback_safe_state(flight, now, f"interpreter error: {error}")
-            self._abort_all(now, f"interpreter error on vehicle "
-                                 f"{flight.vehicle.vehicle_id}: {error}", "error")
+            for flight in crew.flights:
+                self._fallback_safe_state(flight, now, f"interpreter error: {error}")
+            self._abort_all(now, f"interpreter error: {error}", "error")
             return
-        self._dispatch(flight, output)
+        self._dispatch(crew, output)
 
-    def _dispatch(self, flight: _Flight, output: Output) -> None:
+    def _dispatch(self, crew: _Crew, output: Output) -> None:
+        vehicles = {f.vehicle.vehicle_id: f.vehicle for f in crew.flights}
         for record in output.records:
-            self.journal.write(record.time, record.kind, flight.vehicle.vehicle_id,
-                               record.data)
+            self.journal.write(record.time, record.kind, record.vehicle_id, record.data)
             if record.kind == "safety":
-                self._said(f"vehicle {flight.vehicle.vehicle_id}: {record.data['message']}")
+                self._said(f"vehicle {record.vehicle_id}: {record.data['message']}")
         for request in output.requests:
-            flight.vehicle.submit(request)
+            vehicles[request.vehicle_id].submit(request)
 
     def _abort_all(self, now: float, reason: str, cause: str) -> None:
-        for flight in self.flights:
-            if flight.running:
-                flight.cause = flight.cause or cause
-                self._abort(flight, now, reason)
-
-    def _abort(self, flight: _Flight, now: float, reason: str) -> None:
-        state = flight.state = flight.vehicle.state()
-        self._said(f"vehicle {flight.vehicle.vehicle_id}: aborting: {reason}")
-        self._guarded(flight, now, lambda: flight.interpreter.abort(now, state, reason))
+        for crew in self.crews:
+            if crew.running:
+                for flight in crew.flights:
+                    flight.cause = flight.cause or cause
+                    flight.state = flight.vehicle.state()
+                self._said(f"vehicle{'s' if len(crew.flights) > 1 else ''} "
+                           f"{', '.join(str(f.vehicle.vehicle_id) for f in crew.flights)}: "
+                           f"aborting: {reason}")
+                self._guarded(crew, now, lambda c=crew: c.fleet.abort(now, c.states(), reason))
 
     # --- the end -----------------------------------------------------------------------------
 
     def _fallback_safe_state(self, flight: _Flight, now: float, reason: str) -> None:
-        """The safe-state request, built here when the interpreter cannot be asked."""
+        """The safe-state request, built here when the engine cannot be asked."""
         state = flight.state = flight.vehicle.state()
         request: Request | None = None
         vid = flight.vehicle.vehicle_id

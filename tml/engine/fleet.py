@@ -143,9 +143,10 @@ class Fleet:
         """Begin the mission."""
         self._begin(now, states, {})
         self._start = now
-        self._note("mission", f"mission {self.mission.name!r} started",
-                   name=self.mission.name, vehicles=list(self._vehicles),
-                   roles=[r.name for r in self.mission.roles])
+        if not self._classic:  # else the interpreter says it
+            self._note("mission", f"mission {self.mission.name!r} started",
+                       name=self.mission.name, vehicles=list(self._vehicles),
+                       roles=[r.name for r in self.mission.roles])
         if not self.mission.roles:
             # Without roles the fleet has one vehicle and every task is its own.
             self._bound[None] = tuple(self._vehicles)
@@ -266,7 +267,9 @@ class Fleet:
         except _MissionEnd as end:
             self._end(end.status, end.reason)
         except _Failure as failure:
-            self._end(failure.status, f"{failure.reason}: {failure.detail}")
+            # An action's failure is said by its interpreter already in full.
+            self._end(failure.status, failure.detail if failure.reason == "action"
+                      else f"{failure.reason}: {failure.detail}")
 
     def _end(self, status: Status, reason: str) -> None:
         self.status, self.reason = status, reason
@@ -278,10 +281,10 @@ class Fleet:
             if state is TaskState.RUNNING:
                 self._states[path] = (TaskState.DONE if status is Status.COMPLETED
                                       else TaskState.ABORTED)
+        if self._classic:
+            return  # the interpreter has said it, and put the vehicle in the safe state
         self._note("mission", f"mission {status.value}: {reason}", status=status.value,
                    reason=reason)
-        if self._classic:
-            return  # the interpreter has put the vehicle in the safe state itself
         for role in list(self._bound):
             self._release(role, reason)
 

@@ -263,7 +263,7 @@ class MavlinkVehicle:
             ground_speed=math.hypot(velocity[0], velocity[1]),
             battery=None if t.battery_remaining is None else float(t.battery_remaining),
             gps_fix=t.gps_fix or 0, home=home, mission=progress, detections=detections,
-            capabilities=self.capabilities,
+            capabilities=self.capabilities, vehicle_type=t.airframe,
             status_text=t.status_texts[-1].text if t.status_texts else "")
 
     def submit(self, request: Request) -> None:

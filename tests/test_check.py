@@ -164,3 +164,197 @@ def test_declared_parameter_names_are_trimmed_like_conditions() -> None:
                  'value="1"/><action name="LAND"/></task>\n',
                  '<parameter name="x " type="number"/>\n')
     assert result.diagnostics == []
+
+
+# --- fleets -------------------------------------------------------------------------------
+
+ROLES = ('<roles><role name="north" type="quadcopter"/>'
+         '<role name="south" type="multicopter"/></roles>\n')
+FLOWN = ('<task name="N" role="north"><action name="TAKE_OFF"/></task>\n'
+         '<task name="S" role="south"><action name="TAKE_OFF"/></task>\n')
+
+
+def found(result) -> list[tuple[str, int, int]]:
+    return [(d.code, d.location.line, d.location.column) for d in result.diagnostics]
+
+
+def test_a_fleet_mission_with_every_construct_passes() -> None:
+    body = ('<task name="Round" composition="parallel" time_limit="600" release="north south">\n'
+            '<loop><condition parameter="BATTERY_CHARGE_PERCENTAGE" role="north" '
+            'comparison="greater than" value="30"/></loop>\n'
+            '<task name="N" role="north"><wait_for><condition parameter="ALTITUDE" role="south" '
+            'comparison="greater than" value="5"/></wait_for>'
+            '<until><condition parameter="TASK_ELAPSED_TIME" comparison="greater than" '
+            'value="60"/></until><action name="TAKE_OFF"/>'
+            '<on_error><task name="Back"><action name="LAND"/></task></on_error></task>\n'
+            '<task name="S" role="south" composition="choice">'
+            '<task name="Low"><condition parameter="BATTERY_CHARGE_PERCENTAGE" '
+            'comparison="less than" value="50"/><action name="LAND"/></task>'
+            '<task name="Else"><action name="TAKE_OFF"/></task></task>\n'
+            '</task>\n'
+            '<event_handling><event name="low" role="north"><condition '
+            'parameter="BATTERY_CHARGE_PERCENTAGE" comparison="less than" value="20"/>'
+            '<termination mode="END_MISSION"/></event></event_handling>\n')
+    assert run(body, ROLES).diagnostics == []
+
+
+def test_undeclared_role_names_are_errors_at_the_attribute() -> None:
+    body = ('<task name="X" role="nort" release="sout"><condition parameter="ALTITUDE" '
+            'role="west" comparison="less than" value="5"/><action name="TAKE_OFF"/></task>\n'
+            + FLOWN +
+            '<event_handling><event name="e" role="est"><termination mode="CONTINUE"/>'
+            '</event></event_handling>\n')
+    result = run(body, ROLES)
+    assert found(result) == [("E270", 3, 16), ("E270", 3, 28), ("E270", 3, 75),
+                             ("E270", 6, 33)]
+    hints = [d.hint for d in result.diagnostics]
+    assert "did you mean 'north'?" in hints[0] and "did you mean 'south'?" in hints[1]
+    assert hints[2] == "declared roles: north, south"
+
+
+def test_role_in_a_mission_without_roles_says_how_to_declare_it() -> None:
+    result = run('<task name="t" role="scout"><action name="TAKE_OFF"/></task>\n')
+    assert codes(result) == ["E270"]
+    assert '<role name="scout"/>' in result.diagnostics[0].hint
+
+
+def test_duplicate_role_unknown_type_and_unused_role() -> None:
+    roles = ('<roles><role name="north" type="quadcoptr"/><role name="north"/>\n'
+             '<role name="south" type="UAV"/><role name="spare" type="rover"/></roles>\n')
+    result = run(FLOWN, roles)
+    assert found(result) == [("E272", 2, 27), ("E271", 2, 51), ("W305", 3, 32)]
+    assert "did you mean 'quadcopter'?" in result.diagnostics[0].hint
+
+
+def test_region_polygon_must_be_simple() -> None:
+    def region(corners: str) -> str:
+        return (f'<roles><role name="north"><region><polygon>{corners}</polygon></region>'
+                '</role><role name="south"/></roles>\n')
+    square = ('<point north="0" east="0"/><point north="0" east="10"/>'
+              '<point north="10" east="10"/><point north="10" east="0"/>')
+    bowtie = ('<point north="0" east="0"/><point north="10" east="10"/>'
+              '<point north="0" east="10"/><point north="10" east="0"/>')
+    line = '<point north="0" east="0"/><point north="5" east="5"/><point north="9" east="9"/>'
+    assert run(FLOWN, region(square)).diagnostics == []
+    crossed = run(FLOWN, region(bowtie))
+    assert found(crossed) == [("E273", 2, 35)]
+    assert "self-intersection at north 5 m, east 5 m" in crossed.diagnostics[0].message
+    flat = run(FLOWN, region(line))
+    assert codes(flat) == ["E273"] and "on one line" in flat.diagnostics[0].message
+
+
+def test_with_several_roles_every_terminal_task_needs_one() -> None:
+    body = FLOWN + ('<task name="Both"><task name="Who"><action name="LAND"/></task>'
+                    '<on_error><task name="Handler"><action name="LAND"/></task></on_error>'
+                    '</task>\n')
+    assert [(c, line) for c, line, _ in found(run(body, ROLES))] == [("E274", 5), ("E274", 5)]
+    # With one role, every task is flown by it.
+    one = '<roles><role name="solo"/></roles>\n'
+    assert run('<task name="t"><action name="LAND"/></task>\n', one).diagnostics == []
+
+
+def test_vehicle_parameters_need_a_vehicle() -> None:
+    body = ('<task name="Round" composition="parallel">\n'
+            '<condition parameter="BATTERY_CHARGE_PERCENTAGE" comparison="less than" '
+            'value="50"/>\n'
+            '<condition parameter="BATTERY_CHARGE_PERCENTAGE" role="north" '
+            'comparison="less than" value="50"/>\n'
+            '<until><condition parameter="MISSION_ELAPSED_TIME" comparison="greater than" '
+            'value="60"/></until>\n'
+            '<wait_for><condition parameter="LANDED" comparison="equal" value="yes"/>'
+            '</wait_for>\n' + FLOWN + '</task>\n')
+    assert found(run(body, ROLES)) == [("E275", 4, 1), ("E275", 7, 11)]
+    # Without roles there is one vehicle per run, as before.
+    classic = ('<task name="t"><condition parameter="LANDED" comparison="equal" value="yes"/>'
+               '<action name="TAKE_OFF"/></task>\n')
+    assert run(classic).diagnostics == []
+
+
+def test_composition_needs_sub_tasks() -> None:
+    result = run('<task name="t" composition="first"><action name="TAKE_OFF"/></task>\n')
+    assert found(result) == [("E280", 2, 16)]
+
+
+def test_choice_branches_after_an_unconditional_one_are_never_chosen() -> None:
+    body = ('<task name="c" composition="choice">\n'
+            '<task name="a"><condition parameter="ALTITUDE" comparison="less than" value="5"/>'
+            '<action name="TAKE_OFF"/></task>\n'
+            '<task name="b"><action name="LAND"/></task>\n'
+            '<task name="d"><action name="LAND"/></task>\n</task>\n')
+    result = run(body)
+    assert found(result) == [("W306", 5, 1)]
+    assert "'b' before it has no condition" in result.diagnostics[0].message
+    assert result.valid() and not result.valid(strict=True)
+
+
+def test_current_task_makes_no_sense_in_gates() -> None:
+    for tag in ("wait_for", "until", "loop"):
+        body = (TAKE_OFF + f'<task name="t">\n<{tag}><condition current_task="Take off"/>'
+                f'</{tag}><action name="LAND"/></task>\n')
+        assert found(run(body)) == [("E281", 4, len(tag) + 3)], tag
+
+
+def test_gate_conditions_get_the_ordinary_checks() -> None:
+    body = (TAKE_OFF + '<task name="t"><until><condition parameter="ALTITUD" '
+            'comparison="less than" value="x"/></until><action name="LAND"/></task>\n')
+    assert codes(run(body)) == ["E225"]
+
+
+def test_empty_until_and_wait_for_are_errors() -> None:
+    for tag in ("wait_for", "until"):
+        result = run(TAKE_OFF + f'<task name="t">\n  <{tag}/><action name="LAND"/></task>\n')
+        assert found(result) == [("E282", 4, 3)], tag
+    forever = run(TAKE_OFF + '<task name="t"><loop/><action name="LAND"/></task>\n')
+    assert forever.diagnostics == []
+
+
+def test_jump_to_task_is_refused_when_branches_exist() -> None:
+    events = ('<event_handling><event name="e"><termination mode="JUMP_TO_TASK" '
+              'task="Take off"/></event></event_handling>\n')
+    assert run(TAKE_OFF + events).diagnostics == []
+    with_roles = run(FLOWN.replace('"N"', '"Take off"') + events, ROLES)
+    assert found(with_roles) == [("E283", 5, 46)]
+    timed = run(TAKE_OFF.replace('name="Take off"', 'name="Take off" time_limit="5"') + events)
+    assert codes(timed) == ["E283"]
+
+
+def test_mission_dispatch_cannot_hold_orchestration_or_several_roles() -> None:
+    orchestrated = ('<task name="Plan" dispatch="mission"><task name="a" time_limit="9">'
+                    '<action name="TAKE_OFF"/></task></task>\n')
+    result = run(orchestrated)
+    assert found(result) == [("E261", 2, 19)]
+    assert "'a' (line 2) in it uses orchestration" in result.diagnostics[0].message
+    mixed = ('<task name="Plan" dispatch="mission" role="north"><task name="a">'
+             '<action name="TAKE_OFF"/></task><task name="b" role="south">'
+             '<action name="LAND"/></task></task>\n')
+    assert codes(run(mixed, ROLES)) == ["E261"]
+    # A sub-tree flown by command inside the plan is not part of it.
+    carved = ('<task name="Plan" dispatch="mission"><task name="a"><action name="TAKE_OFF"/>'
+              '</task><task name="b" dispatch="command" time_limit="9"><action name="LAND"/>'
+              '</task></task>\n')
+    assert run(carved).diagnostics == []
+
+
+def test_on_error_tasks_are_checked_and_share_names_with_sub_tasks() -> None:
+    body = ('<task name="p"><task name="a"><action name="TAKE_OFF"/></task>\n'
+            '<on_error><task name="a"><action name="LANDD"/></task></on_error></task>\n')
+    assert sorted(codes(run(body))) == ["E201", "E244"]
+
+
+def test_handler_tasks_can_be_named_by_path() -> None:
+    body = ('<task name="p"><task name="a"><action name="TAKE_OFF"/></task>\n'
+            '<on_error><task name="back"><action name="LAND"/></task></on_error></task>\n'
+            '<event_handling><event name="e"><condition current_task="p/back"/>'
+            '<termination mode="CONTINUE"/></event></event_handling>\n')
+    assert run(body).diagnostics == []
+
+
+def test_labels_in_side_by_side_branches_have_no_order() -> None:
+    body = ('<task name="p" composition="parallel">'
+            '<task name="go"><action name="GO_TO_POINT"><argument name="coordinates" '
+            'label="spot"/></action></task>'
+            '<task name="mark"><action name="MEMORIZE_POINT"><argument name="coordinates" '
+            'label="spot"/></action></task></task>\n')
+    assert run(body).diagnostics == []
+    sequential = body.replace(' composition="parallel"', '')
+    assert codes(run(sequential)) == ["E231"]

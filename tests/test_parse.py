@@ -7,8 +7,15 @@ from pathlib import Path
 import pytest
 
 from tml import parse
-from tml.errors import MissionSyntaxError
-from tml.model import Comparison, ConditionKind, Dispatch, EventTrigger, TerminationMode
+from tml.errors import Location, MissionSyntaxError
+from tml.model import (
+    Comparison,
+    Composition,
+    ConditionKind,
+    Dispatch,
+    EventTrigger,
+    TerminationMode,
+)
 from tml.world import Cylinder, Prism
 
 MISSION = b"""<?xml version="1.0" encoding="UTF-8"?>
@@ -201,3 +208,124 @@ def test_attribute_columns_skip_quoted_values() -> None:
     doc = parse.read_xml("q.xml", text.encode())
     assert doc.location(doc.root[0], "typo").column == 47
     assert doc.location(doc.root[0], "description").column == 21
+
+
+FLEET = b"""<mission name="Fleet">
+  <environment><home latitude="47.3977" longitude="8.5456" altitude="488"/></environment>
+  <roles>
+    <role name="north" count="2" type="quadcopter" pick_timeout="12.5">
+      <payload name="camera"/><payload name="gripper"/>
+      <region><circle latitude="47.3978" longitude="8.5456" radius="300"/></region>
+    </role>
+    <role name="south">
+      <region><polygon><point north="0" east="0"/><point north="0" east="10"/>
+        <point latitude="47.3978" longitude="8.5457"/></polygon></region>
+    </role>
+  </roles>
+  <task name="Round" composition="parallel" time_limit="600" release=" north  south ">
+    <loop><condition parameter="BATTERY_CHARGE_PERCENTAGE" role="north"
+                     comparison="greater than" value="30"/></loop>
+    <task name="N" role="north">
+      <wait_for><condition parameter="ALTITUDE" comparison="less than" value="1"/></wait_for>
+      <until><condition parameter="TASK_ELAPSED_TIME" comparison="greater than" value="9"/>
+      </until>
+      <task name="Up"><action name="TAKE_OFF"/></task>
+      <on_error><task name="Down"><action name="LAND"/></task></on_error>
+    </task>
+    <task name="S" role="south" composition="first"><action name="LAND"/></task>
+  </task>
+  <event_handling><event name="e" role="south">
+    <termination mode="END_MISSION"/></event></event_handling>
+</mission>
+"""
+
+
+def test_roles_are_built_with_regions_in_local_metres() -> None:
+    mission, problems = build(FLEET)
+    assert problems == []
+    north, south = mission.roles
+    assert mission.role("south") is south and mission.role("west") is None
+    assert (north.count, north.vehicle_type, north.payloads, north.pick_timeout) == (
+        2, "quadcopter", ("camera", "gripper"), 12.5)
+    assert north.location.line == 4
+    assert north.region.is_circle and north.region.radius == 300
+    (centre,) = north.region.points
+    assert centre[0] == pytest.approx(11.1, abs=0.1) and abs(centre[1]) < 0.01
+    assert not south.region.is_circle and south.region.location.line == 9
+    corners = south.region.points
+    assert corners[:2] == ((0, 0), (0, 10))
+    # 0.0001 degree of longitude at 47.4 degrees north is about 7.5 m east.
+    assert corners[2] == (pytest.approx(11.1, abs=0.1), pytest.approx(7.5, abs=0.1))
+    assert (south.count, south.vehicle_type, south.pick_timeout) == (1, None, 30.0)
+
+
+def test_orchestration_fields_roles_and_handler_paths() -> None:
+    mission, _ = build(FLEET)
+    (round_,) = mission.tasks
+    n, s = round_.children
+    assert round_.composition is Composition.PARALLEL and round_.time_limit == 600
+    assert round_.release == ("north", "south") and round_.release_location.line == 13
+    assert round_.role is None and round_.role_location is None
+    assert (n.role, n.role_location.line, n.role_location.column) == ("north", 16, 20)
+    up = n.children[0]
+    assert up.role == "north" and up.role_location is None  # inherited
+    (down,) = n.on_error
+    assert down.path == ("Round", "N", "Down") and down.role == "north"
+    assert [t.name for t in round_.walk()] == ["Round", "N", "Up", "Down", "S"]
+    assert [c.subject for c in n.wait_for] == ["ALTITUDE"]
+    assert [c.subject for c in n.until] == ["TASK_ELAPSED_TIME"]
+    assert round_.loop.location.line == 14
+    assert [(c.subject, c.role) for c in round_.loop.conditions] == [
+        ("BATTERY_CHARGE_PERCENTAGE", "north")]
+    assert s.composition is Composition.FIRST and s.loop is None
+    assert n.time_limit is None and n.release == ()
+    assert round_.orchestrated and n.orchestrated and not up.orchestrated
+    assert mission.events[0].role == "south"
+
+
+def test_with_one_role_every_task_is_flown_by_it() -> None:
+    data = (b'<mission name="m"><roles><role name="solo"/></roles>'
+            b'<task name="a"><task name="b"><action name="LAND"/></task></task></mission>')
+    mission, _ = build(data)
+    assert [t.role for t in mission.walk()] == ["solo", "solo"]
+    assert mission.tasks[0].role_location is None
+
+
+def test_forever_loop_has_no_conditions() -> None:
+    mission, _ = build(b'<mission name="m"><task name="a"><loop/><action name="LAND"/></task>'
+                       b'</mission>')
+    assert mission.tasks[0].loop is not None and mission.tasks[0].loop.conditions == ()
+
+
+@pytest.mark.parametrize(("gates", "words"), [
+    ("<until><condition parameter='ALTITUDE' comparison='less than' value='1'/></until>"
+     "\n<until><condition parameter='ALTITUDE' comparison='less than' value='2'/></until>",
+     "more than one <until>"),
+    ("<wait_for><condition parameter='ALTITUDE' comparison='less than' value='1'/></wait_for>"
+     "\n<wait_for><condition parameter='ALTITUDE' comparison='less than' value='2'/>"
+     "</wait_for>", "more than one <wait_for>"),
+    ("<loop/>\n<loop/>", "more than one <loop>"),
+    ("<repeat times='2'/>\n<loop/>", "both <repeat> and <loop>"),
+])
+def test_gates_given_twice_or_repeat_with_loop(gates: str, words: str) -> None:
+    data = f'<mission name="m"><task name="a">\n{gates}<action name="LAND"/></task></mission>'
+    _, problems = build(data.encode())
+    assert [(p.code, p.location.line) for p in problems] == [("E251", 3)]
+    assert words in problems[0].message
+
+
+def test_empty_until_or_wait_for_is_reported_while_building() -> None:
+    data = (b'<mission name="m"><task name="a">\n  <until/><wait_for/><action name="LAND"/>'
+            b'</task></mission>')
+    _, problems = build(data)
+    assert sorted((p.code, p.location.line, p.location.column) for p in problems) == [
+        ("E282", 2, 3), ("E282", 2, 11)]
+
+
+def test_attribute_location_from_the_source_text() -> None:
+    text = 'ab\n<mission name="m">\n  <task\n    name="t" role="r"/></mission>'
+    task = Location("x.xml", 3, 3)
+    assert parse.attribute_location(text, task, "role") == Location("x.xml", 4, 14)
+    assert parse.attribute_location(text, task, "missing") == task
+    assert parse.attribute_location(text, Location("x.xml", 9, 1), "role") == Location(
+        "x.xml", 9, 1)

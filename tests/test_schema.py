@@ -101,3 +101,30 @@ def test_wrong_root() -> None:
     found = problems('<world/>')
     assert [p.code for p in found] == ["E007"]
     assert "world file" in found[0].message
+
+
+FLEET_TASK = '<task name="t">\n<task name="u"><action name="LAND"/></task></task>'
+
+
+@pytest.mark.parametrize(
+    ("xml", "code", "line", "words"),
+    [
+        (FLEET_TASK.replace('"t"', '"t" composition="together"'), "E105", 2, "parallel"),
+        (FLEET_TASK.replace('"t"', '"t" time_limit="-5"'), "E105", 2, "time_limit"),
+        (FLEET_TASK.replace('"t"', '"t" time_limit="0"'), "E105", 2, "time_limit"),
+        ('<roles>\n<role name="r"><region><polygon><point north="0" east="0"/>'
+         '<point north="1" east="0"/></polygon></region></role></roles>' + FLEET_TASK,
+         "E102", 3, "point"),
+        ('<roles>\n<role name="r" count="0"/></roles>' + FLEET_TASK, "E105", 3, "count"),
+        ('<roles>\n<role name="r"><region><circle north="0" east="0"/></region></role>'
+         '</roles>' + FLEET_TASK, "E104", 3, "radius"),
+        (FLEET_TASK.replace('<action name="LAND"/></task>',
+                            '<action name="LAND"/></task><until/>'), "E101", 3, "until"),
+        (FLEET_TASK.replace('</task></task>', '</task><on_error/></task>'), "E102", 3,
+         "task"),
+    ],
+)
+def test_fleet_schema_errors(xml: str, code: str, line: int, words: str) -> None:
+    found = problems(f'<mission name="m">\n{xml}</mission>')
+    assert [(p.code, p.location.line) for p in found][:1] == [(code, line)], found
+    assert words in found[0].message + found[0].hint

@@ -7,28 +7,48 @@ that does not fit their type, labels read before any MEMORIZE_POINT can have set
 ``current_task`` and JUMP_TO_TASK naming tasks that do not exist (or ambiguously), sibling
 tasks with the same name, repeat counts below one, and actions that cannot be compiled to
 mission items in a ``dispatch="mission"`` task.
+
+Fleet missions (``<roles>`` and the orchestration of Dolphin) add their own rules: every
+role named is declared once with a known vehicle type and a simple region; with several
+roles each terminal task, and each condition that reads a vehicle, knows which vehicle it
+means; orchestration that the interpreter cannot honour (a composition without sub-tasks,
+``current_task`` in a gate, JUMP_TO_TASK between branches, an orchestrated part in an
+autopilot-flown plan) is an error; roles no task uses and ``choice`` branches that can
+never be chosen are warnings.
 """
 
 from __future__ import annotations
 
 import difflib
+import re
 from collections import defaultdict
 from collections.abc import Iterable
 
-from tml import actions, parameters, skills
+from tml import actions, parameters, skills, vehicle
 from tml.diagnostics import Diagnostic, error, warning
+from tml.errors import Location
 from tml.model import (
     Action,
     Comparison,
+    Composition,
     Condition,
     ConditionKind,
     Dispatch,
     Mission,
+    Role,
     Skill,
     Task,
+    Termination,
     TerminationMode,
 )
 from tml.parameters import ParamType
+from tml.parse import attribute_location
+
+# Built-in parameters the interpreter keeps itself; every other parameter (telemetry,
+# recognitions, detection parameters) is read from a vehicle (tml.engine.conditions).
+_INTERPRETER_PARAMETERS = frozenset({
+    "MISSION_ELAPSED_TIME", "TASK_ELAPSED_TIME", "CURRENT_TASK", "CURRENT_ACTION",
+    "ACTION_FAILURE"})
 
 
 def _did_you_mean(word: str, candidates: Iterable[str]) -> str:
@@ -53,16 +73,24 @@ class _Checker:
 
     def run(self) -> list[Diagnostic]:
         self.check_declarations()
+        self.check_roles()
         self.check_skills(self.mission.skills)
         self.check_tasks(self.mission.tasks)
         for event in self.mission.events:
+            self.check_role_name(event.role, self.at(event.location, "role"))
             for condition in event.conditions:
                 self.check_condition(condition)
+                self.check_role_name(condition.role, self.at(condition.location, "role"))
             for action in event.actions:
                 self.check_action(action, Dispatch.COMMAND)
             self.check_termination(event.termination)
         self.check_labels()
+        self.check_mission_dispatch(self.mission.tasks, None)
         return self.found
+
+    def at(self, where: Location, attribute: str) -> Location:
+        """The location of ``attribute`` in the start tag at ``where``."""
+        return attribute_location(self.mission.source, where, attribute)
 
     # --- declarations and skills -----------------------------------------------------------
 
@@ -97,7 +125,9 @@ class _Checker:
 
     # --- tasks -----------------------------------------------------------------------------
 
-    def check_tasks(self, siblings: tuple[Task, ...]) -> None:
+    def check_tasks(self, siblings: tuple[Task, ...], parent: Task | None = None) -> None:
+        # An on_error task's path is its parent's path plus its name, like a sub-task's, so
+        # the two share one name space.
         seen: dict[str, Task] = {}
         for task in siblings:
             if task.name in seen:
@@ -118,7 +148,8 @@ class _Checker:
                 self.check_condition(condition)
             if task.action is not None:
                 self.check_action(task.action, task.dispatch)
-            self.check_tasks(task.children)
+            self.check_orchestration(task, parent)
+            self.check_tasks(task.children + task.on_error, task)
 
     # --- actions ---------------------------------------------------------------------------
 
@@ -326,10 +357,16 @@ class _Checker:
                 f"{what} {reference!r} is ambiguous: {len(matches)} tasks have this name",
                 "write the path instead: " + " or ".join(repr(t.path_name) for t in matches)))
 
-    def check_termination(self, termination: object) -> None:
+    def check_termination(self, termination: Termination) -> None:
         mode = termination.mode
         if mode is TerminationMode.JUMP_TO_TASK:
-            if not termination.task:
+            if self.has_branches():
+                self.found.append(error(
+                    self.at(termination.location, "mode"), "E283",
+                    "JUMP_TO_TASK is not allowed in a mission with roles or orchestration",
+                    "a branch cannot jump into another; use NEXT_TASK, ABORT_TASK or "
+                    "REPEAT_TASK within the branch, or an <on_error> handler"))
+            elif not termination.task:
                 self.found.append(error(
                     termination.location, "E242", "JUMP_TO_TASK needs task=\"...\"",
                     "name the task to jump to"))
@@ -358,11 +395,15 @@ class _Checker:
                         set_in_tasks[label].append(index)
                 else:
                     reads.append((label, index, argument))
-        loops_back = any(task.repeat > 1 for task in self.tasks) or any(
+        # Document order is flight order unless tasks repeat, loop, run side by side, or an
+        # event sends the flight back.
+        loops_back = any(task.repeat > 1 or task.loop is not None
+                         or task.composition is not Composition.SEQUENCE
+                         for task in self.tasks) or any(
             e.termination.mode in (TerminationMode.JUMP_TO_TASK, TerminationMode.REPEAT_TASK)
             for e in self.mission.events)
         known = set(set_in_tasks) | set_by_events
-        tested = [c for t in self.tasks for c in t.conditions] + [
+        tested = [c for t in self.tasks for c in _all_conditions(t)] + [
             c for e in self.mission.events for c in e.conditions]
         for condition in tested:
             if condition.kind is ConditionKind.LABEL and condition.subject \
@@ -399,3 +440,174 @@ class _Checker:
             if arg_spec is not None and arg_spec.label is not None and argument.label:
                 found.append((argument.label, arg_spec.label, argument))
         return found
+
+    # --- fleets: roles ---------------------------------------------------------------------
+
+    def check_roles(self) -> None:
+        seen: dict[str, Role] = {}
+        for role in self.mission.roles:
+            if role.name in seen:
+                self.found.append(error(
+                    self.at(role.location, "name"), "E271",
+                    f"role {role.name!r} is declared twice (first at line "
+                    f"{seen[role.name].location.line})", "give each role its own name"))
+            seen.setdefault(role.name, role)
+            wanted = role.vehicle_type
+            if wanted is not None and not any(vehicle.vehicle_type_matches(wanted, actual)
+                                               for actual in vehicle.VEHICLE_TYPES):
+                known_types = sorted(vehicle.VEHICLE_TYPES | vehicle.VEHICLE_TYPE_CLASSES)
+                self.found.append(error(
+                    self.at(role.location, "type"), "E272",
+                    f"role {role.name!r}: unknown vehicle type {wanted!r}",
+                    _did_you_mean(wanted, known_types)
+                    or "known types: " + ", ".join(known_types)))
+            if role.region is not None and not role.region.is_circle:
+                reason = _polygon_problem(role.region.points)
+                if reason:
+                    self.found.append(error(
+                        role.region.location, "E273",
+                        f"the region of role {role.name!r} is not a simple polygon: {reason}",
+                        "list the corners in order around the region, without crossing "
+                        "edges"))
+        flown = {task.role for task in self.tasks}
+        for role in self.mission.roles:
+            if role.name not in flown and seen[role.name] is role:
+                self.found.append(warning(
+                    role.location, "W305", f"no task is flown by role {role.name!r}",
+                    f'write role="{role.name}" on the tasks it flies, or remove the role'))
+
+    def check_role_name(self, name: str | None, where: Location) -> None:
+        """E270 when ``name`` (written at ``where``) is no declared role."""
+        if name is None or self.mission.role(name) is not None:
+            return
+        declared = list(dict.fromkeys(r.name for r in self.mission.roles))
+        self.found.append(error(
+            where, "E270", f"no role is named {name!r}",
+            _did_you_mean(name, declared)
+            or ("declared roles: " + ", ".join(declared) if declared
+                else "declare it: <roles><role name=\"" + name + "\"/></roles>")))
+
+    # --- fleets: orchestration -------------------------------------------------------------
+
+    def check_orchestration(self, task: Task, parent: Task | None) -> None:
+        if task.role_location is not None:
+            self.check_role_name(task.role, task.role_location)
+        for name in task.release:
+            self.check_role_name(name, task.release_location or task.location)
+        several_roles = len(self.mission.roles) > 1
+        if several_roles and task.is_terminal and task.role is None:
+            self.found.append(error(
+                task.location, "E274",
+                f"task {task.name!r} is flown by no role, and the mission has "
+                f"{len(self.mission.roles)}: which vehicle flies it?",
+                "write role=\"...\" on the task or on a task above it"))
+        if task.is_terminal and task.composition is not Composition.SEQUENCE:
+            self.found.append(error(
+                self.at(task.location, "composition"), "E280",
+                f'composition="{task.composition.value}" on task {task.name!r}, which has '
+                "an action and no sub-tasks", "composition says how sub-tasks run; remove it"))
+        gated = [(tag, c) for tag, conditions in (
+            ("wait_for", task.wait_for), ("until", task.until),
+            ("loop", task.loop.conditions if task.loop else ())) for c in conditions]
+        for tag, condition in gated:
+            if condition.kind is ConditionKind.CURRENT_TASK:
+                self.found.append(error(
+                    condition.location, "E281",
+                    f"current_task in <{tag}> of task {task.name!r}",
+                    f"<{tag}> is checked while the task itself is current (or about to be); "
+                    "test a parameter or a label instead"))
+            else:
+                self.check_condition(condition)
+        for condition in _all_conditions(task):
+            self.check_role_name(condition.role, self.at(condition.location, "role"))
+            if (self.mission.roles and task.role is None and condition.role is None
+                    and condition.kind is ConditionKind.PARAMETER and condition.subject
+                    and self.reads_vehicle(condition.subject)):
+                self.found.append(error(
+                    condition.location, "E275",
+                    f"{condition.subject!r} is read from a vehicle, but task {task.name!r} "
+                    "is flown by no role: which vehicle's?",
+                    'name it: role="..." on the condition or on the task'))
+        if task.composition is Composition.CHOICE:
+            self.check_choice(task)
+
+    @staticmethod
+    def reads_vehicle(subject: str) -> bool:
+        spec = parameters.lookup(subject)
+        return spec is None or spec.name not in _INTERPRETER_PARAMETERS
+
+    def check_choice(self, task: Task) -> None:
+        always = next((c for c in task.children if not c.conditions), None)
+        if always is None:
+            return
+        for child in task.children[task.children.index(always) + 1:]:
+            self.found.append(warning(
+                child.location, "W306",
+                f"task {child.name!r} is never chosen: {always.name!r} before it has no "
+                "condition, so it is always chosen first",
+                "give the earlier branch a condition, or move the unconditional branch last"))
+
+    def has_branches(self) -> bool:
+        """True when the mission has roles or orchestration: tasks that run side by side."""
+        return bool(self.mission.roles) or any(
+            task.orchestrated or task.role_location is not None for task in self.tasks)
+
+    def check_mission_dispatch(self, siblings: tuple[Task, ...], parent: Task | None) -> None:
+        """E261 for each task whose ``dispatch="mission"`` plan cannot be one plan."""
+        for task in siblings:
+            starts_plan = task.dispatch is Dispatch.MISSION and (
+                parent is None or parent.dispatch is not Dispatch.MISSION)
+            if not starts_plan:
+                self.check_mission_dispatch(task.children + task.on_error, task)
+                continue
+            plan = list(_plan_tasks(task))
+            orchestrated = next((t for t in plan if t.orchestrated), None)
+            roles = sorted({t.role or "" for t in plan})
+            if orchestrated is not None or len(roles) > 1:
+                if orchestrated is task:
+                    why = "it uses orchestration"
+                elif orchestrated is not None:
+                    why = (f"task {orchestrated.name!r} (line {orchestrated.location.line}) "
+                           "in it uses orchestration")
+                else:
+                    why = "its sub-tasks are flown by roles " + ", ".join(roles)
+                self.found.append(error(
+                    self.at(task.location, "dispatch"), "E261",
+                    f'task {task.name!r} is flown as one autopilot plan (dispatch="mission"), '
+                    f"but {why}",
+                    "the autopilot flies one plan on one vehicle; use dispatch=\"mission\" "
+                    "on the plain tasks inside"))
+
+
+def _all_conditions(task: Task) -> list[Condition]:
+    """A task's own conditions, and those of its wait_for, until and loop."""
+    return [*task.conditions, *task.wait_for, *task.until,
+            *(task.loop.conditions if task.loop else ())]
+
+
+def _plan_tasks(task: Task) -> list[Task]:
+    """The tasks of the autopilot plan that ``task`` starts (sub-trees flown by command
+    are not part of it)."""
+    found = [task]
+    for child in task.children + task.on_error:
+        if child.dispatch is Dispatch.MISSION:
+            found.extend(_plan_tasks(child))
+    return found
+
+
+def _polygon_problem(points: tuple[tuple[float, float], ...]) -> str:
+    """Why the corners do not make a simple polygon with an area ('' if they do)."""
+    from shapely.geometry import Polygon  # only missions with polygon regions need it
+    from shapely.validation import explain_validity
+
+    polygon = Polygon([(east, north) for north, east in points])
+    if polygon.is_valid:
+        return ""
+    if polygon.convex_hull.area < 1e-6:
+        return "its corners are on one line"
+    reason = explain_validity(polygon)  # "Self-intersection[east north]"
+    where = re.fullmatch(r"(.*)\[(\S+) (\S+)\]", reason)
+    if where is None:
+        return reason.lower()
+    return (f"{where.group(1).lower()} at north {float(where.group(3)):g} m, "
+            f"east {float(where.group(2)):g} m")

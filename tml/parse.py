@@ -88,13 +88,9 @@ class XmlDocument:
             return Location(self.file, element.sourceline or 0, 0)
         start, line, column = found
         if attribute is not None:
-            # Walk the start tag attribute by attribute, so that a ">" or a name inside an
-            # earlier quoted value is not taken for the end of the tag or for the attribute.
-            position = start + 1 + len(str(element.tag))
-            while match := _ATTRIBUTE.match(self.text, position):
-                if match.group(1) == attribute:
-                    return self.location_of_offset(match.start(1))
-                position = match.end()
+            offset = _attribute_offset(self.text, start, attribute)
+            if offset is not None:
+                return self.location_of_offset(offset)
         return Location(self.file, line, column)
 
     def element_at(self, xpath: str) -> etree._Element | None:
@@ -104,6 +100,43 @@ class XmlDocument:
         except etree.XPathError:
             return None
         return found[0] if found and isinstance(found[0], etree._Element) else None
+
+
+_TAG_NAME = re.compile(r"<[A-Za-z_][\w.\-:]*")
+
+
+def _attribute_offset(text: str, start: int, attribute: str) -> int | None:
+    """Offset of ``attribute``'s name in the start tag that begins at ``start``, if written."""
+    tag = _TAG_NAME.match(text, start)
+    if tag is None:
+        return None
+    # Walk the start tag attribute by attribute, so that a ">" or a name inside an earlier
+    # quoted value is not taken for the end of the tag or for the attribute.
+    position = tag.end()
+    while match := _ATTRIBUTE.match(text, position):
+        if match.group(1) == attribute:
+            return match.start(1)
+        position = match.end()
+    return None
+
+
+def attribute_location(text: str, element: Location, attribute: str) -> Location:
+    """Where ``attribute`` is written in the start tag at ``element`` (the location of its
+    ``<`` in ``text``, the whole document); ``element`` itself if the attribute is not there.
+
+    For stages that hold only the model and the source text, such as the semantic checks.
+    """
+    start = 0
+    for _ in range(element.line - 1):
+        start = text.find("\n", start) + 1
+        if start == 0:
+            return element
+    offset = _attribute_offset(text, start + element.column - 1, attribute)
+    if offset is None:
+        return element
+    line_start = text.rfind("\n", 0, offset) + 1
+    return Location(element.file, element.line + text.count("\n", start, line_start),
+                    offset - line_start + 1)
 
 
 def read_xml(source: str | Path, data: bytes | None = None) -> XmlDocument:
@@ -308,6 +341,15 @@ class _Builder:
                 self.diagnostics.append(error(
                     self.loc(extra), "E251", f"task {name!r} has more than one <{tag}>",
                     f"put all the conditions in one <{tag}>: they must all hold"))
+        for tag in ("wait_for", "until"):
+            found = gates.get(tag, [])
+            if found and not self.children(found[0], "condition"):
+                self.diagnostics.append(error(
+                    self.loc(found[0]), "E282",
+                    f"<{tag}> in task {name!r} has no condition",
+                    "it would " + ("wait for nothing" if tag == "wait_for" else
+                                   "stop the task at once") + "; give it a <condition> "
+                    "or remove it"))
         if repeats and "loop" in gates:
             self.diagnostics.append(error(
                 self.loc(gates["loop"][0]), "E251",

@@ -333,6 +333,11 @@ def test_mission_dispatch_cannot_hold_orchestration_or_several_roles() -> None:
               '</task><task name="b" dispatch="command" time_limit="9"><action name="LAND"/>'
               '</task></task>\n')
     assert run(carved).diagnostics == []
+    # ... but a plan inside that sub-tree is checked on its own.
+    nested = carved.replace('<action name="LAND"/></task></task>',
+                            '<task name="c" dispatch="mission" composition="first">'
+                            '<task name="d"><action name="LAND"/></task></task></task></task>')
+    assert found(run(nested)) == [("E261", 2, 149)]
 
 
 def test_on_error_tasks_are_checked_and_share_names_with_sub_tasks() -> None:

@@ -125,7 +125,7 @@ class _Checker:
 
     # --- tasks -----------------------------------------------------------------------------
 
-    def check_tasks(self, siblings: tuple[Task, ...], parent: Task | None = None) -> None:
+    def check_tasks(self, siblings: tuple[Task, ...]) -> None:
         # An on_error task's path is its parent's path plus its name, like a sub-task's, so
         # the two share one name space.
         seen: dict[str, Task] = {}
@@ -148,8 +148,8 @@ class _Checker:
                 self.check_condition(condition)
             if task.action is not None:
                 self.check_action(task.action, task.dispatch)
-            self.check_orchestration(task, parent)
-            self.check_tasks(task.children + task.on_error, task)
+            self.check_orchestration(task)
+            self.check_tasks(task.children + task.on_error)
 
     # --- actions ---------------------------------------------------------------------------
 
@@ -489,7 +489,7 @@ class _Checker:
 
     # --- fleets: orchestration -------------------------------------------------------------
 
-    def check_orchestration(self, task: Task, parent: Task | None) -> None:
+    def check_orchestration(self, task: Task) -> None:
         if task.role_location is not None:
             self.check_role_name(task.role, task.role_location)
         for name in task.release:
@@ -555,14 +555,15 @@ class _Checker:
     def check_mission_dispatch(self, siblings: tuple[Task, ...], parent: Task | None) -> None:
         """E261 for each task whose ``dispatch="mission"`` plan cannot be one plan."""
         for task in siblings:
+            # Command-flown sub-trees of a plan may start plans of their own.
+            self.check_mission_dispatch(task.children + task.on_error, task)
             starts_plan = task.dispatch is Dispatch.MISSION and (
                 parent is None or parent.dispatch is not Dispatch.MISSION)
             if not starts_plan:
-                self.check_mission_dispatch(task.children + task.on_error, task)
                 continue
-            plan = list(_plan_tasks(task))
+            plan = _plan_tasks(task)
             orchestrated = next((t for t in plan if t.orchestrated), None)
-            roles = sorted({t.role or "" for t in plan})
+            roles = sorted({t.role or "none" for t in plan})
             if orchestrated is not None or len(roles) > 1:
                 if orchestrated is task:
                     why = "it uses orchestration"

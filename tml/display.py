@@ -65,6 +65,9 @@ def _vehicles(views: Views) -> Table:
     # The tree shows where each task is; the table keeps to one short line per vehicle.
     table = Table(box=None, pad_edge=False, expand=False)
     # Fixed widths for the figures, so that only the action's text is ever cut short.
+    roles = any(view.role for view, _ in views)
+    if roles:  # a fleet: which role each vehicle flies
+        table.add_column("role", no_wrap=True, min_width=4)
     for column, width in (("id", 2), ("status", 9), ("mode", 8), ("n, e, up (m)", 19),
                           ("m/s", 4), ("hdg", 4), ("batt", 4), ("link", 8)):
         table.add_column(column, no_wrap=True, min_width=width)
@@ -76,6 +79,7 @@ def _vehicles(views: Views) -> Table:
             action += f" ({view.current_task.rsplit('/', 1)[-1]})"
         position = state.position if state else None
         table.add_row(
+            *([view.role or "-"] if roles else []),
             str(state.vehicle_id) if state else "?", view.status.value,
             state.mode if state else "",
             "-" if position is None else
@@ -165,17 +169,19 @@ class LineDisplay:
 
     def update(self, views: Views, force: bool = False) -> None:
         """Print what changed since the last update."""
-        for index, (view, _) in enumerate(views):
+        for index, (view, vehicle) in enumerate(views):
+            who = f"vehicle {vehicle.vehicle_id if vehicle else index + 1}" \
+                + (f" ({view.role})" if view.role else "")
             for path, state in view.task_states.items():
                 key = (index, path)
                 if state is not TaskState.PENDING and self._states.get(key) is not state:
                     self._states[key] = state
-                    self.console.print(f"[{view.mission_time:7.1f} s] vehicle {index + 1}: "
+                    self.console.print(f"[{view.mission_time:7.1f} s] {who}: "
                                        f"{path}: {state.value}")
             for t, name in view.events:
                 if (index, t, name) not in self._events:
                     self._events.add((index, t, name))
-                    self.console.print(f"[{t:7.1f} s] vehicle {index + 1}: event {name!r}")
+                    self.console.print(f"[{t:7.1f} s] {who}: event {name!r}")
 
     def say(self, message: str) -> None:
         """Print a line."""

@@ -47,6 +47,15 @@ def _count(text: str) -> int:
     return int(text)
 
 
+def _payload(text: str) -> tuple[int, tuple[str, ...]]:
+    number, _, names = text.partition("=")
+    wanted = tuple(n.strip() for n in names.split(",") if n.strip())
+    if not number.strip().isdigit() or not wanted:
+        raise argparse.ArgumentTypeError(f"expected ID=NAME[,NAME...] (e.g. 2=camera,sidescan), "
+                                         f"got {text!r}")
+    return int(number), wanted
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the options of ``tml run``."""
     parser.add_argument("mission", metavar="FILE")
@@ -69,6 +78,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="copy every vehicle message to this address, so QGroundControl "
                              "or MAVProxy can watch (e.g. udpout:127.0.0.1:14551); "
                              "repeatable")
+    parser.add_argument("--payload", type=_payload, action="append", default=[],
+                        metavar="ID=NAME[,NAME...]",
+                        help="what vehicle ID carries, for the payloads a <role> asks for "
+                             "(beyond the camera and gripper the vehicle reports); repeatable")
     parser.add_argument("--log", metavar="FILE", help="write the JSON-lines flight log here")
     parser.add_argument("-q", "--quiet", action="store_true",
                         help="no live view; print only the outcome")
@@ -247,8 +260,11 @@ def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
         if display is not None:
             display.say(message)
 
+    payloads: dict[int, list[str]] = {}
+    for number, names in args.payload:
+        payloads.setdefault(number, []).extend(names)
     runner = Runner(mission, vehicles, clock=clock, options=options, journal=journal,
-                    wake=wake, on_safety=on_safety,
+                    wake=wake, on_safety=on_safety, payloads=payloads,
                     on_update=(lambda r: display.update(r.views())) if display else None)
     previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
     if threading.current_thread() is threading.main_thread():

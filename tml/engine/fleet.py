@@ -121,6 +121,9 @@ class Fleet:
         self._bound: dict[str | None, tuple[int, ...]] = {}
         self._states: dict[str, TaskState] = {t.path_name: TaskState.PENDING
                                               for t in mission.walk()}
+        # What each vehicle flew, and the tasks no vehicle flies (pure orchestration), for
+        # the per-vehicle views.
+        self._flown: dict[int | None, dict[str, TaskState]] = {None: {}}
         self._started: dict[tuple[str, ...], float] = {}
         self._events: list[tuple[float, str]] = []
         self._classic = not mission.roles and not any(
@@ -183,15 +186,13 @@ class Fleet:
 
     def views(self) -> dict[int, View]:
         """A snapshot per vehicle for the display."""
-        states = dict(self._states)
-        for vehicle in self._vehicles.values():
-            if vehicle.segment is not None:
-                states.update({path: state for path, state in
-                               vehicle.segment.view().task_states.items()
-                               if state is not TaskState.PENDING})
         views = {}
         for vid, vehicle in self._vehicles.items():
             segment = vehicle.segment.view() if vehicle.segment is not None else None
+            states = {**self._flown[None], **self._flown.get(vid, {})}
+            if segment is not None:
+                states.update({path: state for path, state in segment.task_states.items()
+                               if state is not TaskState.PENDING})
             role = vehicle.role if vehicle.role is not None else ""
             views[vid] = View(
                 self.status, states, segment.current_task if segment else "",
@@ -253,6 +254,7 @@ class Fleet:
 
     def _set(self, task: Task, state: TaskState, vid: int | None = None) -> None:
         self._states[task.path_name] = state
+        self._flown.setdefault(vid, {})[task.path_name] = state
         self._note("task", f"{task.path_name}: {state.value}", vid, task=task.path_name,
                    state=state.value)
 
@@ -277,10 +279,11 @@ class Fleet:
         self._ending = True
         if root is not None:
             self._close(root, reason)
-        for path, state in self._states.items():
-            if state is TaskState.RUNNING:
-                self._states[path] = (TaskState.DONE if status is Status.COMPLETED
-                                      else TaskState.ABORTED)
+        for states in (self._states, *self._flown.values()):
+            for path, state in states.items():
+                if state is TaskState.RUNNING:
+                    states[path] = (TaskState.DONE if status is Status.COMPLETED
+                                    else TaskState.ABORTED)
         if self._classic:
             return  # the interpreter has said it, and put the vehicle in the safe state
         self._note("mission", f"mission {status.value}: {reason}", status=status.value,
@@ -315,28 +318,42 @@ class Fleet:
     def _task(self, task: Task, ctx: Context) -> Step:
         role = task.role
         needs_vehicle = role is not None or task.is_terminal or None in self._bound
-        if role not in ctx and needs_vehicle:
-            vids = self._bound.get(role)
-            if not vids:
-                try:
-                    vids = yield from self._pick(task, role)
-                except _Failure:
-                    self._set(task, TaskState.FAILED)
-                    raise
-            if len(vids) > 1:  # a team: every vehicle flies the task
-                yield from self._together([self._task(task, {**ctx, role: v})
-                                           for v in vids])
-                return
-            ctx = {**ctx, role: vids[0]}
-        vid = ctx.get(role)
         try:
-            if self._plain(task):
-                yield from self._segment(self._alone(task), vid, ctx)  # type: ignore[arg-type]
-            else:
-                yield from self._orchestrated(task, ctx, vid)
-        finally:
+            if role not in ctx and needs_vehicle:
+                vids = self._bound.get(role)
+                if not vids:
+                    try:
+                        vids = yield from self._pick(task, role)
+                    except _Failure as failure:
+                        self._set(task, TaskState.FAILED)
+                        if not task.on_error:
+                            raise
+                        yield from self._recover(task, ctx, None, failure)
+                        return
+                if len(vids) > 1:  # a team: every vehicle flies the task
+                    yield from self._together([self._fly(task, {**ctx, role: v})
+                                               for v in vids])
+                    return
+                ctx = {**ctx, role: vids[0]}
+            yield from self._fly(task, ctx)
+        finally:  # once, when every vehicle of a team is done with the task
             for name in task.release:
                 self._release(name, f"released by {task.path_name}")
+
+    def _fly(self, task: Task, ctx: Context) -> Step:
+        """The task on the vehicle ``ctx`` gives its role."""
+        vid = ctx.get(task.role)
+        if self._plain(task):
+            yield from self._segment(self._alone(task), vid, ctx)  # type: ignore[arg-type]
+        else:
+            yield from self._orchestrated(task, ctx, vid)
+
+    def _recover(self, task: Task, ctx: Context, vid: int | None, failure: _Failure) -> Step:
+        """The task failed: its on_error tasks run in sequence, with the same role."""
+        self._note("decision", f"{task.path_name}: failed ({failure.reason}: "
+                   f"{failure.detail}); its on_error tasks run", vid,
+                   task=task.path_name, reason=failure.reason, detail=failure.detail)
+        yield from self._sequence(task.on_error, ctx)
 
     def _orchestrated(self, task: Task, ctx: Context, vid: int | None) -> Step:
         if task.wait_for:
@@ -361,11 +378,7 @@ class Fleet:
                     yield from body
                 except _Failure as failure:
                     self._set(task, TaskState.FAILED, vid)
-                    self._note("decision", f"{task.path_name}: failed ({failure.reason}: "
-                               f"{failure.detail}); its on_error tasks run", vid,
-                               task=task.path_name, reason=failure.reason,
-                               detail=failure.detail)
-                    yield from self._sequence(task.on_error, ctx)
+                    yield from self._recover(task, ctx, vid, failure)
                     return
             else:
                 yield from body
@@ -521,8 +534,10 @@ class Fleet:
         finally:
             vehicle.last_target = interpreter.last_target
             vehicle.segment = None
-            self._states.update({p: s for p, s in interpreter.view().task_states.items()
-                                 if s is not TaskState.PENDING})
+            flown = {p: s for p, s in interpreter.view().task_states.items()
+                     if s is not TaskState.PENDING}
+            self._states.update(flown)
+            self._flown.setdefault(vid, {}).update(flown)
         if interpreter.mission_end is not None:
             raise _MissionEnd(interpreter.mission_end, interpreter.reason)
         if interpreter.status is not Status.COMPLETED:

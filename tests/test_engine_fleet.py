@@ -1,0 +1,513 @@
+"""The fleet engine (tml.engine.fleet), driven by FakeVehicles and an injected clock.
+
+Every test asserts who flew what, when: the records (with their vehicle ids and times),
+the requests each vehicle received, and where the vehicles ended up.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import pytest
+from test_engine_interpreter import SEEN, goto, hover, mission
+
+from tml.engine import Fleet, Options, Status, TaskState
+from tml.engine.interpreter import Record
+from tml.vehicle import (
+    Disarm,
+    FakeVehicle,
+    GoTo,
+    Hold,
+    Land,
+    Request,
+    ReturnToLaunch,
+    VehicleState,
+)
+
+STEP = 0.1
+
+
+def take_off(name: str = "Take off", altitude: float = 5) -> str:
+    return (f'<task name="{name}"><action name="TAKE_OFF"><argument name="altitude" '
+            f'value="{altitude:g}"/></action></task>\n')
+
+
+def land(name: str = "Land") -> str:
+    return f'<task name="{name}"><action name="LAND"/></task>\n'
+
+
+def condition(parameter: str, comparison: str, value: str, role: str = "") -> str:
+    role_attribute = f' role="{role}"' if role else ""
+    return (f'<condition parameter="{parameter}" comparison="{comparison}" '
+            f'value="{value}"{role_attribute}/>')
+
+
+def roles(*specs: str) -> str:
+    """``<roles>`` from role names, or whole ``<role>`` elements."""
+    return "<roles>" + "".join(s if s.startswith("<") else f'<role name="{s}"/>'
+                               for s in specs) + "</roles>\n"
+
+
+class FleetFlight:
+    """Flies a mission on N FakeVehicles, 0.1 s a step, recording everything.
+
+    Requests are routed to the vehicle they name; ``sent`` keeps each with the time it
+    was sent, ``track`` every state the fleet was given.
+    """
+
+    def __init__(self, body: str, vehicles: int | list[FakeVehicle] = 2, events: str = "",
+                 extra: str = "", options: Options | None = None,
+                 payloads: dict[int, list[str]] | None = None) -> None:
+        if isinstance(vehicles, int):
+            vehicles = [FakeVehicle(vehicle_id=i) for i in range(1, vehicles + 1)]
+        self.vehicles = {v.vehicle_id: v for v in vehicles}
+        self.fleet = Fleet(mission(body, events, extra), list(self.vehicles), options,
+                           payloads)
+        self.records: list[Record] = []
+        self.sent: list[tuple[float, Request]] = []
+        self.track: list[tuple[float, dict[int, VehicleState]]] = []
+        self.time = 0.0
+        self.take(self.fleet.start(0.0, self.states()))
+
+    def states(self) -> dict[int, VehicleState]:
+        return {vid: v.state() for vid, v in self.vehicles.items()}
+
+    def take(self, out) -> None:
+        self.records += out.records
+        for request in out.requests:
+            self.sent.append((self.time, request))
+            self.vehicles[request.vehicle_id].submit(request)
+
+    def run(self, seconds: float = 600.0,
+            each: Callable[[FleetFlight], None] | None = None) -> FleetFlight:
+        end = self.time + seconds
+        while self.fleet.status is Status.RUNNING and self.time < end - 1e-9:
+            for vehicle in self.vehicles.values():
+                vehicle.advance(STEP)
+            self.time = round(self.time + STEP, 6)
+            if each:
+                each(self)
+            states = self.states()
+            self.track.append((self.time, states))
+            self.take(self.fleet.step(self.time, states,
+                                      {vid: v.poll() for vid, v in self.vehicles.items()}))
+        return self
+
+    # --- what happened ---------------------------------------------------------------------
+
+    def first(self, vid: int, holds: Callable[[VehicleState], bool]) -> float:
+        """When the fleet was first given a state of ``vid`` for which ``holds``."""
+        return next(t for t, states in self.track if holds(states[vid]))
+
+    def requests(self, kind: type, vid: int | None = None) -> list[tuple[float, Request]]:
+        return [(t, r) for t, r in self.sent
+                if isinstance(r, kind) and (vid is None or r.vehicle_id == vid)]
+
+    def task(self, path: str, state: str) -> list[Record]:
+        """The records of ``path`` entering ``state``."""
+        return [r for r in self.records if r.kind == "task" and r.data["task"] == path
+                and r.data["state"] == state]
+
+    def began(self, path: str) -> float:
+        return self.task(path, "running")[0].time
+
+    def ended(self, path: str) -> float:
+        return next(r.time for r in self.records if r.kind == "task"
+                    and r.data["task"] == path and r.data["state"] != "running")
+
+    def flown_by(self, path: str) -> set[int | None]:
+        return {r.vehicle_id for r in self.task(path, "running")}
+
+    def state_of(self, path: str, vid: int = 1) -> TaskState | None:
+        """The task's state in ``vid``'s view (None: the vehicle never flew it)."""
+        return self.fleet.views()[vid].task_states.get(path)
+
+    def decisions(self, text: str) -> list[Record]:
+        return [r for r in self.records if r.kind == "decision" and text in r.data["message"]]
+
+    def picks(self) -> list[Record]:
+        return [r for r in self.records if r.kind == "pick"]
+
+
+def test_parallel_branches_fly_at_the_same_time_on_different_vehicles() -> None:
+    body = ('<task name="Both" composition="parallel">'
+            '<task name="A" role="a">' + take_off("A up") + goto("A go", "(50, 0, 5)")
+            + land("A land") + '</task>'
+            '<task name="B" role="b">' + take_off("B up") + goto("B go", "(0, 20, 5)")
+            + land("B land") + '</task></task>\n')
+    flight = FleetFlight(body, 2, extra=roles("a", "b")).run()
+    assert flight.fleet.status is Status.COMPLETED
+    assert flight.flown_by("Both/A/A go") == {1} and flight.flown_by("Both/B/B go") == {2}
+    assert [r.target for _, r in flight.requests(GoTo, 1)] == [(50, 0, 5)]
+    assert [r.target for _, r in flight.requests(GoTo, 2)] == [(0, 20, 5)]
+    # Both take off at once; B's shorter leg ends first; the task ends with the slower A.
+    assert flight.began("Both/A/A up") == flight.began("Both/B/B up") == 0.0
+    assert flight.ended("Both/B") < flight.ended("Both/A")
+    assert flight.began("Both/A/A go") < flight.ended("Both/B/B go")
+    assert flight.ended("Both") == flight.ended("Both/A")
+    assert flight.vehicles[1].position == pytest.approx((50, 0, 0), abs=0.55)
+    assert flight.vehicles[2].position == pytest.approx((0, 20, 0), abs=0.55)
+
+
+def test_first_stops_the_slower_branch_and_the_mission_goes_on() -> None:
+    body = ('<task name="Race" composition="first">'
+            '<task name="A" role="a">' + take_off("A up") + hover("A wait", 3) + '</task>'
+            '<task name="B" role="b">' + take_off("B up") + goto("B far", "(200, 0, 5)")
+            + '</task></task>\n'
+            '<task name="After" role="b">' + goto("Back", "(0, 0, 5)") + land("Down")
+            + '</task>\n')
+    flight = FleetFlight(body, 2, extra=roles("a", "b")).run()
+    assert flight.fleet.status is Status.COMPLETED
+    a_done = flight.ended("Race/A")
+    assert flight.ended("Race") == a_done
+    [(held_at, _)] = flight.requests(Hold, 2)
+    assert held_at == a_done  # told to hold the moment A finished
+    assert all(t != a_done for t, _ in flight.requests(Hold, 1))
+    assert flight.state_of("Race/B", 2) is TaskState.ABORTED
+    assert flight.state_of("Race/B/B far", 2) is TaskState.ABORTED
+    assert flight.state_of("Race/A") is TaskState.DONE
+    assert flight.began("After/Back") == a_done and flight.flown_by("After/Back") == {2}
+    assert flight.vehicles[2].position == pytest.approx((0, 0, 0), abs=0.55)
+    # At the end of the mission A's vehicle, still hovering, is brought home.
+    assert [t for t, _ in flight.requests(ReturnToLaunch, 1)] == [flight.time]
+
+
+def test_choice_runs_the_first_child_whose_conditions_hold() -> None:
+    body = (take_off() + '<task name="Pick" composition="choice">'
+            '<task name="High">' + condition("ALTITUDE", "greater than", "50")
+            + '<action name="MOVE"><argument name="coordinates" value="(9, 0, 0)"/></action>'
+            '</task><task name="Low">' + condition("ALTITUDE", "less than", "50")
+            + '<action name="MOVE"><argument name="coordinates" value="(0, 4, 0)"/></action>'
+            '</task><task name="Any"><action name="MOVE"><argument name="coordinates" '
+            'value="(0, -4, 0)"/></action></task></task>\n' + land())
+    flight = FleetFlight(body, 1).run()
+    assert flight.fleet.status is Status.COMPLETED
+    assert flight.state_of("Pick/Low") is TaskState.DONE
+    assert flight.state_of("Pick/High") is TaskState.SKIPPED
+    assert flight.state_of("Pick/Any") is TaskState.SKIPPED
+    assert flight.vehicles[1].position == pytest.approx((0, 4, 0), abs=0.55)
+
+
+def test_choice_with_no_child_holding_waits_until_one_does() -> None:
+    body = (take_off() + '<task name="Pick" composition="choice">'
+            '<task name="Seen">' + condition("seen", "equal", "yes")
+            + '<action name="MOVE"><argument name="coordinates" value="(6, 0, 0)"/></action>'
+            '</task><task name="Drained">' + condition("BATTERY_CHARGE_PERCENTAGE", "less than",
+                                                       "20")
+            + '<action name="MOVE"><argument name="coordinates" value="(0, 6, 0)"/></action>'
+            '</task></task>\n' + land())
+    flight = FleetFlight(body, 1, extra=SEEN)
+    flight.run(each=lambda f: f.vehicles[1].detections.__setitem__("seen", f.time >= 7))
+    assert flight.fleet.status is Status.COMPLETED
+    [chosen] = flight.decisions("chosen")
+    assert chosen.time == 7.0 and "Seen" in chosen.data["message"]
+    assert flight.began("Pick/Seen") == 7.0
+    assert flight.state_of("Pick/Drained") is TaskState.SKIPPED
+    assert flight.vehicles[1].position == pytest.approx((6, 0, 0), abs=0.55)
+
+
+def test_until_stops_an_endless_loiter_and_the_next_task_runs() -> None:
+    body = (take_off() + '<task name="Patrol">'
+            '<until>' + condition("BATTERY_CHARGE_PERCENTAGE", "less than", "90") + '</until>'
+            '<action name="LOITER"><argument name="radius" value="5"/></action></task>\n'
+            '<task name="Home"><action name="RETURN_HOME_AND_LAND"/></task>\n')
+    vehicle = FakeVehicle(drain_per_second=1.0)
+    flight = FleetFlight(body, [vehicle]).run()
+    assert flight.fleet.status is Status.COMPLETED
+    # The battery, drained 1 %/s from arming, falls below 90 % after 10 s.
+    stopped = flight.ended("Patrol")
+    assert stopped == flight.first(1, lambda s: s.battery < 90)
+    assert 10.0 <= stopped <= 10.5
+    assert flight.state_of("Patrol") is TaskState.DONE
+    assert [t for t, _ in flight.requests(Hold, 1)] == [stopped]
+    assert flight.began("Home") == stopped
+    assert len(flight.requests(ReturnToLaunch, 1)) == 1
+    assert vehicle.position[2] == 0 and not vehicle.armed
+
+
+def test_wait_for_holds_the_task_until_its_conditions_hold() -> None:
+    body = ('<task name="Go"><wait_for>'
+            + condition("BATTERY_CHARGE_PERCENTAGE", "greater than or equal to", "90")
+            + '</wait_for>' + take_off() + land() + '</task>\n')
+    vehicle = FakeVehicle(battery=50.0)
+
+    def charge(flight: FleetFlight) -> None:
+        if flight.time >= 4.0:
+            vehicle.battery = 95.0
+    flight = FleetFlight(body, [vehicle]).run(each=charge)
+    assert flight.fleet.status is Status.COMPLETED
+    assert flight.began("Go") == 4.0
+    assert flight.sent[0][0] == 4.0  # nothing was asked of the vehicle before
+
+
+def test_wait_for_on_another_roles_vehicle() -> None:
+    body = ('<task name="Both" composition="parallel">'
+            '<task name="A" role="a">' + take_off("A up", 10) + hover("A wait", 2)
+            + land("A land") + '</task>'
+            '<task name="B" role="b"><wait_for>' + condition("ALTITUDE", "greater than", "4", "a")
+            + '</wait_for>' + take_off("B up") + land("B land") + '</task></task>\n')
+    flight = FleetFlight(body, 2, extra=roles("a", "b")).run()
+    assert flight.fleet.status is Status.COMPLETED
+    a_up = flight.first(1, lambda s: s.altitude > 4)
+    assert a_up > 1.0
+    assert flight.began("Both/B") == a_up
+    assert min(t for t, r in flight.sent if r.vehicle_id == 2) == a_up
+
+def test_time_limit_stops_the_task_and_the_mission_goes_on() -> None:
+    body = (take_off() + '<task name="Bounded" time_limit="5">' + hover("Long", 60)
+            + '</task>\n' + goto("Next", "(3, 0, 5)") + land())
+    flight = FleetFlight(body, 1).run()
+    assert flight.fleet.status is Status.COMPLETED
+    began = flight.began("Bounded")
+    assert flight.ended("Bounded") - began == pytest.approx(5.0, abs=STEP + 1e-6)
+    assert flight.state_of("Bounded") is TaskState.DONE
+    assert flight.state_of("Bounded/Long") is TaskState.ABORTED
+    assert flight.began("Next") == flight.ended("Bounded")
+    assert any(t == flight.ended("Bounded") for t, _ in flight.requests(Hold, 1))
+
+
+def reject_while(vid: int, kind: str, start: float, end: float = 1e9):
+    """A script that makes vehicle ``vid`` refuse ``kind`` requests from ``start`` to ``end``."""
+    def script(flight: FleetFlight) -> None:
+        reject = flight.vehicles[vid].reject
+        if start <= flight.time < end:
+            reject[kind] = "rejected"
+        else:
+            reject.pop(kind, None)
+    return script
+
+
+def test_on_error_runs_the_handler_then_the_mission_goes_on_after_the_task() -> None:
+    body = (take_off() + '<task name="Guarded">' + goto("Out", "(30, 0, 5)")
+            + goto("Further", "(60, 0, 5)")
+            + '<on_error>' + goto("Recover", "(0, 8, 5)") + '</on_error></task>\n'
+            + goto("After", "(0, 0, 5)") + land())
+    vehicle = FakeVehicle()
+    flight = FleetFlight(body, [vehicle])
+    flight.run(each=reject_while(1, "GoTo", 0.0, 2.05))  # only the first GO_TO, at 2 s
+    assert flight.fleet.status is Status.COMPLETED
+    assert flight.state_of("Guarded") is TaskState.FAILED
+    assert flight.state_of("Guarded/Further") is None
+    [failed] = flight.decisions("its on_error tasks run")
+    assert "rejected" in failed.data["detail"]
+    assert flight.began("Guarded/Recover") == failed.time
+    assert flight.began("After") == flight.ended("Guarded/Recover")
+    assert [r.target for _, r in flight.requests(GoTo, 1)][-2:] == [(0, 8, 5), (0, 0, 5)]
+    assert vehicle.position == pytest.approx((0, 0, 0), abs=0.55)
+
+
+def test_a_failure_inside_the_handler_goes_up_to_the_next_on_error() -> None:
+    body = (take_off() + '<task name="Outer"><task name="Inner">' + goto("Out", "(30, 0, 5)")
+            + '<on_error>' + goto("Inner fix", "(0, 8, 5)") + '</on_error></task>'
+            '<on_error>' + land("Outer fix") + '</on_error></task>\n' + hover("After", 1))
+    flight = FleetFlight(body, [FakeVehicle(reject={"GoTo": "rejected"})]).run()
+    assert flight.fleet.status is Status.COMPLETED
+    assert flight.state_of("Outer/Inner") is TaskState.FAILED
+    assert flight.state_of("Outer") is TaskState.FAILED
+    assert flight.began("Outer/Outer fix") > flight.began("Outer/Inner/Inner fix")
+    assert len(flight.requests(GoTo, 1)) == 2  # Out, then Inner fix: both refused
+    assert flight.state_of("After") is TaskState.DONE
+
+
+def test_unhandled_failure_fails_the_mission_and_every_flying_vehicle_is_made_safe() -> None:
+    body = ('<task name="Both" composition="parallel">'
+            '<task name="A" role="a">' + take_off("A up") + goto("A go", "(40, 0, 5)")
+            + '</task>'
+            '<task name="B" role="b">' + take_off("B up") + goto("B go", "(0, 40, 5)")
+            + '</task></task>\n')
+    flight = FleetFlight(body, 2, extra=roles("a", "b"))
+    flight.run(each=reject_while(1, "GoTo", 1.0))
+    assert flight.fleet.status is Status.FAILED
+    assert "rejected" in flight.fleet.reason
+    end = flight.time
+    # The sibling is stopped (hold), then both vehicles, in the air, are brought home.
+    [(held, _)] = flight.requests(Hold, 2)
+    [(home_2, _)] = flight.requests(ReturnToLaunch, 2)
+    [(home_1, _)] = flight.requests(ReturnToLaunch, 1)
+    assert held == home_2 == home_1 == end
+    kinds = [type(r) for _, r in flight.sent if r.vehicle_id == 2]
+    assert kinds.index(Hold) < kinds.index(ReturnToLaunch)
+    assert flight.state_of("Both/B", 2) is TaskState.ABORTED
+    branch_ends = {r.vehicle_id: r.data["status"] for r in flight.records
+                   if r.kind == "branch" and "status" in r.data and r.time == end}
+    assert branch_ends == {1: "failed", 2: "aborted"}
+
+
+def test_forever_loop_is_ended_by_the_time_limit_and_rounds_are_counted() -> None:
+    body = (take_off() + '<task name="Patrol" time_limit="20"><loop/>'
+            + goto("Out", "(10, 0, 5)") + goto("Back", "(0, 0, 5)") + '</task>\n' + land())
+    flight = FleetFlight(body, 1).run()
+    assert flight.fleet.status is Status.COMPLETED
+    assert flight.ended("Patrol") - flight.began("Patrol") == pytest.approx(20, abs=STEP + 1e-6)
+    rounds = [r.data["round"] for r in flight.decisions(": round ")]
+    assert rounds == list(range(2, len(rounds) + 2))
+    # A leg of 10 m at 5 m/s takes 2 s: about five rounds of two legs in 20 s.
+    assert len(flight.task("Patrol/Out", "running")) == len(rounds) + 1
+    assert len(rounds) + 1 in (5, 6)
+    assert flight.state_of("Patrol") is TaskState.DONE
+
+
+def test_forever_loop_is_ended_by_until() -> None:
+    body = (take_off() + '<task name="Patrol"><until>' + condition("seen", "equal", "yes")
+            + '</until><loop/>' + goto("Out", "(10, 0, 5)") + goto("Back", "(0, 0, 5)")
+            + '</task>\n' + land())
+    flight = FleetFlight(body, 1, extra=SEEN)
+    flight.run(each=lambda f: f.vehicles[1].detections.__setitem__("seen", f.time >= 9))
+    assert flight.fleet.status is Status.COMPLETED
+    assert flight.ended("Patrol") == 9.0
+    assert flight.began("Land") == 9.0
+
+
+def test_while_loop_ends_when_its_condition_turns_false() -> None:
+    body = (take_off() + '<task name="Laps"><loop>'
+            + condition("BATTERY_CHARGE_PERCENTAGE", "greater than", "95") + '</loop>'
+            + goto("Out", "(10, 0, 5)") + goto("Back", "(0, 0, 5)") + '</task>\n' + land())
+    vehicle = FakeVehicle(drain_per_second=0.5)
+    flight = FleetFlight(body, [vehicle]).run()
+    assert flight.fleet.status is Status.COMPLETED
+    [end] = flight.decisions("loop ends")
+    laps = len(flight.task("Laps/Back", "done"))
+    assert end.data["rounds"] == laps >= 2
+    # Each round starts with the battery above 95 %; the round after it is not started.
+    starts = [r.time for r in flight.task("Laps/Out", "running")]
+    battery = {t: states[1].battery for t, states in flight.track}
+    assert all(battery.get(t, 100.0) > 95 for t in starts)
+    assert battery[end.time] <= 95
+    assert flight.state_of("Laps") is TaskState.DONE
+
+
+def pick_failure(flight: FleetFlight) -> Record:
+    [failed] = [r for r in flight.picks() if r.data["message"].startswith("pick failed")]
+    return failed
+
+
+def test_pick_refuses_wrong_type_missing_payload_and_outside_the_region() -> None:
+    role = ('<role name="r" type="hexacopter" pick_timeout="5"><payload name="thermal"/>'
+            '<region><circle north="0" east="0" radius="50"/></region></role>')
+    vehicles = [FakeVehicle(vehicle_id=1),  # a quadcopter
+                FakeVehicle(vehicle_id=2, vehicle_type="hexacopter"),  # no thermal camera
+                FakeVehicle(vehicle_id=3, vehicle_type="hexacopter", position=(80.0, 0.0, 0.0),
+                            capabilities=frozenset({"thermal"})),
+                FakeVehicle(vehicle_id=4, vehicle_type="hexacopter", position=(30.0, 30.0, 0.0),
+                            capabilities=frozenset({"thermal"}))]
+    flight = FleetFlight(take_off() + land(), vehicles, extra=roles(role)).run()
+    assert flight.fleet.status is Status.COMPLETED
+    [picked] = flight.picks()
+    assert picked.data["vehicles"] == [4] and picked.time == 0.0
+    assert flight.flown_by("Take off") == {4}
+    assert {r.vehicle_id for _, r in flight.sent} == {4}
+
+
+def test_pick_that_cannot_be_satisfied_fails_the_task_naming_each_vehicle() -> None:
+    role = ('<role name="r" type="hexacopter" pick_timeout="5"><payload name="thermal"/>'
+            '<region><polygon><point north="0" east="0"/><point north="0" east="50"/>'
+            '<point north="50" east="50"/><point north="50" east="0"/></polygon></region>'
+            '</role>')
+    vehicles = [FakeVehicle(vehicle_id=1),
+                FakeVehicle(vehicle_id=2, vehicle_type="hexacopter"),
+                FakeVehicle(vehicle_id=3, vehicle_type="hexacopter", position=(10.0, -5.0, 0.0),
+                            capabilities=frozenset({"thermal"}))]
+    flight = FleetFlight(take_off() + land(), vehicles, extra=roles(role)).run()
+    assert flight.fleet.status is Status.FAILED
+    failed = pick_failure(flight)
+    assert failed.time == 5.0
+    assert failed.data["refused"] == {1: "a quadcopter, not hexacopter", 2: "no thermal",
+                                      3: "outside the region (at 10 m N, -5 m E)"}
+    for text in ("vehicle 1: a quadcopter", "vehicle 2: no thermal", "vehicle 3: outside"):
+        assert text in flight.fleet.reason
+    assert flight.sent == []
+    assert flight.state_of("Take off") is TaskState.FAILED
+
+
+def test_payloads_declared_for_the_run_count() -> None:
+    role = '<role name="r" pick_timeout="1"><payload name="Thermal"/></role>'
+    flight = FleetFlight(take_off() + land(), 2, extra=roles(role),
+                         payloads={2: ["thermal"]}).run()
+    assert flight.fleet.status is Status.COMPLETED
+    assert flight.flown_by("Take off") == {2}
+
+
+def test_pick_failure_can_be_handled_by_on_error() -> None:
+    body = ('<task name="Needs two" role="pair">' + take_off() + land()
+            + '<on_error><task name="Alone" role="solo">' + take_off("Solo up") + land("Solo down")
+            + '</task></on_error></task>\n')
+    extra = roles('<role name="pair" count="2" pick_timeout="3"/>', "solo")
+    flight = FleetFlight(body, 1, extra=extra).run()
+    assert flight.fleet.status is Status.COMPLETED
+    assert pick_failure(flight).time == 3.0
+    assert flight.state_of("Needs two") is TaskState.FAILED
+    assert flight.began("Needs two/Alone/Solo up") == 3.0
+    assert flight.flown_by("Needs two/Alone/Solo up") == {1}
+
+
+def test_pick_order_is_longest_free_first_then_lowest_id() -> None:
+    sortie = ''.join(f'<task name="S{i}" role="r" release="r">' + hover(f"W{i}", 1) + '</task>'
+                     for i in range(1, 5))
+    flight = FleetFlight(sortie, 3, extra=roles("r")).run()
+    assert flight.fleet.status is Status.COMPLETED
+    # Never-used vehicles first by id; then the one released longest ago.
+    assert [p.data["vehicles"] for p in flight.picks()] == [[1], [2], [3], [1]]
+    assert [r.data["role"] for r in flight.records if r.kind == "release"] == ["r"] * 4
+
+
+def test_a_vehicle_is_never_bound_to_two_roles() -> None:
+    body = (f'<task name="A" role="a">{hover("Wa", 1)}</task>'
+            f'<task name="B" role="b">{hover("Wb", 1)}</task>\n')
+    extra = roles("a", '<role name="b" pick_timeout="2"/>')
+    flight = FleetFlight(body, 1, extra=extra).run()
+    assert flight.fleet.status is Status.FAILED
+    assert pick_failure(flight).data["refused"] == {1: "busy (role 'a')"}
+
+
+def test_release_sends_a_flying_vehicle_home_and_disarms_an_armed_grounded_one() -> None:
+    body = ('<task name="Both" composition="parallel" release="a b">'
+            f'<task name="A" role="a">{take_off("Up")}</task>'
+            f'<task name="B" role="b">{hover("Idle", 1)}</task></task>\n'
+            f'<task name="Later" role="c">{hover("Rest", 2)}</task>\n')
+    vehicles = [FakeVehicle(vehicle_id=1), FakeVehicle(vehicle_id=2, armed=True),
+                FakeVehicle(vehicle_id=3)]
+    flight = FleetFlight(body, vehicles, extra=roles("a", "b", "c")).run()
+    assert flight.fleet.status is Status.COMPLETED
+    released = flight.ended("Both")
+    assert [t for t, _ in flight.requests(ReturnToLaunch, 1)] == [released]
+    assert [t for t, _ in flight.requests(Disarm, 2)] == [released]
+    assert flight.began("Later") == released and flight.flown_by("Later") == {3}
+    with_land = FleetFlight(body, [FakeVehicle(vehicle_id=1), FakeVehicle(vehicle_id=2),
+                                   FakeVehicle(vehicle_id=3)],
+                            extra=roles("a", "b", "c"), options=Options(safe_state="land")).run()
+    assert len(with_land.requests(Land, 1)) == 1 and with_land.requests(ReturnToLaunch) == []
+    assert with_land.requests(Disarm) == []  # nothing to do for a vehicle that never armed
+
+
+def test_a_role_of_two_flies_the_task_on_both_and_ends_with_the_slower() -> None:
+    body = ('<task name="Survey" role="team">' + take_off() + goto("Out", "(20, 0, 5)")
+            + land() + '</task>\n' + '<task name="After" role="team">'
+            + condition("LANDED", "equal", "yes", "team") + hover("Rest", 1) + '</task>\n')
+    vehicles = [FakeVehicle(vehicle_id=1), FakeVehicle(vehicle_id=2, speed=2.5),
+                FakeVehicle(vehicle_id=3)]
+    flight = FleetFlight(body, vehicles, extra=roles('<role name="team" count="2"/>')).run()
+    assert flight.fleet.status is Status.COMPLETED
+    assert flight.picks()[0].data["vehicles"] == [1, 2]
+    assert flight.flown_by("Survey/Out") == {1, 2}
+    done = {r.vehicle_id: r.time for r in flight.task("Survey", "done")}
+    assert done[1] < done[2]
+    assert flight.began("After") == done[2]  # when both are done
+    assert flight.flown_by("After") == {1, 2}
+    assert [r.vehicle_id for _, r in flight.sent if r.vehicle_id == 3] == []
+
+
+def test_a_team_is_released_when_its_last_vehicle_is_done() -> None:
+    body = ('<task name="Survey" role="team" release="team">' + take_off()
+            + goto("Out", "(20, 0, 5)") + land() + '</task>\n'
+            '<task name="Next" role="team">' + hover("Rest", 1) + '</task>\n')
+    vehicles = [FakeVehicle(vehicle_id=1), FakeVehicle(vehicle_id=2, speed=2.5),
+                FakeVehicle(vehicle_id=3)]
+    flight = FleetFlight(body, vehicles, extra=roles('<role name="team" count="2"/>')).run()
+    assert flight.fleet.status is Status.COMPLETED
+    slower = max(r.time for r in flight.task("Survey", "done"))
+    released = [r for r in flight.records if r.kind == "release"]
+    assert [(r.time, r.vehicle_id) for r in released[:2]] == [(slower, 1), (slower, 2)]
+    assert flight.requests(ReturnToLaunch) == []  # both had landed
+    assert vehicles[1].position == pytest.approx((20, 0, 0), abs=0.55)
+    # The re-pick takes the never-used vehicle 3 first, then 1 (tied with 2, lower id).
+    assert [p.data["vehicles"] for p in flight.picks()] == [[1, 2], [3, 1]]

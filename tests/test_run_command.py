@@ -147,3 +147,8 @@ def test_profile_from_the_vehicles_parameters(tmp_path: Path,
     assert "infeasible mission, not flown" in err
     assert main(["run", write(tmp_path, far), "--sim", "-q", *FAST,
                  "--profile", "vehicle"]) == 0
+
+
+def test_a_bad_payload_option_says_what_it_expects(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", "m.xml", "--sim", "--payload", "camera"]) == 2
+    assert "expected ID=NAME[,NAME...]" in capsys.readouterr().err

@@ -174,3 +174,46 @@ def test_vehicle_left_flying_in_auto_is_brought_back() -> None:
     assert safety and safety[0]["request"] == "Hold", "the run must say what it did"
     assert isinstance(vehicle.submitted[-1], Hold) and vehicle.mission is None
     assert any("uploaded mission" in s for s in said)
+
+
+FLEET = ('<roles><role name="scout" type="quadcopter"><payload name="sidescan"/></role>'
+         '<role name="spare"/></roles>'
+         '<task name="Both" composition="parallel">'
+         '<task name="Scout" role="scout">' + TAKE_OFF + GO + LAND + '</task>'
+         '<task name="Spare" role="spare">' + TAKE_OFF.replace("Take off", "Up")
+         + LAND.replace("Land", "Down") + '</task></task>')
+
+
+def test_a_mission_with_roles_picks_vehicles_with_the_payloads_given() -> None:
+    sim = Sim(*(FakeVehicle(vehicle_id=i + 1) for i in range(3)))
+    log = io.StringIO()
+    runner = Runner(mission(FLEET), sim.vehicles, clock=sim.clock, wait=sim.wait,
+                    journal=Journal(log), payloads={3: ["sidescan"]})
+    outcome = runner.run()
+    assert outcome.exit_code == ExitCode.COMPLETED
+    picks = {line["role"]: line["vehicles"] for line in map(json.loads, log.getvalue().split(
+        "\n")[:-1]) if line["kind"] == "pick"}
+    assert picks == {"scout": [3], "spare": [1]}  # only 3 carries the sidescan
+    assert sim.vehicles[2].submitted and sim.vehicles[0].submitted
+    assert not sim.vehicles[1].submitted  # never picked, never commanded
+    assert [view.role for view, _ in runner.views()] == ["", "", ""]  # released at the end
+
+
+def test_a_lost_vehicle_fails_its_branch_and_the_other_is_stopped_safely() -> None:
+    class Deaf(FakeVehicle):
+        def state(self) -> VehicleState:
+            state = super().state()
+            return state if self.time < 1.0 else VehicleState(**{**state.__dict__,
+                                                                 "link": "lost"})
+
+    sim = Sim(FakeVehicle(vehicle_id=1), Deaf(vehicle_id=2))
+    runner = Runner(mission(FLEET), sim.vehicles, clock=sim.clock, wait=sim.wait,
+                    options=RunOptions(link_lost_limit=2.0), payloads={1: ["sidescan"]})
+    outcome = runner.run()
+    assert outcome.exit_code == ExitCode.VEHICLE_FAILURE
+    assert [v.cause for v in outcome.vehicles] == ["", "link"]
+    assert "vehicle 2: link lost" in outcome.vehicles[0].reason
+    # The healthy vehicle's branch was stopped and it was sent home, as was the lost one.
+    assert isinstance(sim.vehicles[0].submitted[-1], ReturnToLaunch)
+    assert any(isinstance(r, Hold) for r in sim.vehicles[0].submitted)
+    assert isinstance(sim.vehicles[1].submitted[-1], ReturnToLaunch)

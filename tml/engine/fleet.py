@@ -96,6 +96,7 @@ class _Vehicle:
     labels: dict[str, Point] = field(default_factory=dict)
     limits: Limits | None = None
     last_target: Point | None = None
+    plan_ids: int = 0  # the last plan id its segments used: ids never repeat on a vehicle
     segment: Interpreter | None = None
     results: list[RequestResult] = field(default_factory=list)
 
@@ -319,7 +320,9 @@ class Fleet:
         role = task.role
         needs_vehicle = role is not None or task.is_terminal or None in self._bound
         try:
-            if role not in ctx and needs_vehicle:
+            # A role released since this branch bound it (a loop round that ends with
+            # release) is picked again, as on first use.
+            if needs_vehicle and ctx.get(role) not in self._bound.get(role, ()):
                 vids = self._bound.get(role)
                 if not vids:
                     try:
@@ -508,6 +511,9 @@ class Fleet:
             interpreter.limits = vehicle.limits
         vehicle.limits = interpreter.limits
         interpreter.last_target = vehicle.last_target
+        # The vehicle reports the last plan's progress until the next one is uploaded: a
+        # new segment must not take it for its own plan.
+        interpreter._plan_ids = vehicle.plan_ids
         vehicle.segment = interpreter
         try:
             self._take(vid, interpreter.start(self._now, vehicle.state))
@@ -533,6 +539,7 @@ class Fleet:
             raise
         finally:
             vehicle.last_target = interpreter.last_target
+            vehicle.plan_ids = interpreter._plan_ids
             vehicle.segment = None
             flown = {p: s for p, s in interpreter.view().task_states.items()
                      if s is not TaskState.PENDING}

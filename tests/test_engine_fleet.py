@@ -7,11 +7,12 @@ the requests each vehicle received, and where the vehicles ended up.
 from __future__ import annotations
 
 from collections.abc import Callable
+from itertools import pairwise
 
 import pytest
 from test_engine_interpreter import SEEN, goto, hover, mission
 
-from tml.engine import Fleet, Options, Status, TaskState
+from tml.engine import Fleet, Interpreter, Options, Status, TaskState
 from tml.engine.interpreter import Record
 from tml.vehicle import (
     Disarm,
@@ -511,3 +512,210 @@ def test_a_team_is_released_when_its_last_vehicle_is_done() -> None:
     assert vehicles[1].position == pytest.approx((20, 0, 0), abs=0.55)
     # The re-pick takes the never-used vehicle 3 first, then 1 (tied with 2, lower id).
     assert [p.data["vehicles"] for p in flight.picks()] == [[1, 2], [3, 1]]
+
+
+def test_a_condition_on_an_unbound_role_reads_unknown() -> None:
+    body = ('<task name="A" role="a">'
+            '<task name="If b is charged">'
+            + condition("BATTERY_CHARGE_PERCENTAGE", "greater than", "0", "b")
+            + '<action name="WAIT"><argument name="duration" value="1"/></action></task>'
+            '<task name="If b is unknown">'
+            + condition("BATTERY_CHARGE_PERCENTAGE", "known", "no", "b")
+            + '<action name="WAIT"><argument name="duration" value="1"/></action></task>'
+            '</task>\n'
+            '<task name="B" role="b">' + hover("Wb", 1) + '</task>\n')
+    flight = FleetFlight(body, 2, extra=roles("a", "b")).run()
+    assert flight.fleet.status is Status.COMPLETED
+    assert flight.state_of("A/If b is charged") is TaskState.SKIPPED
+    assert flight.state_of("A/If b is unknown") is TaskState.DONE
+    [skipped] = flight.decisions("skipped")
+    assert skipped.data["read"] is None
+
+
+def test_a_role_condition_on_a_team_holds_only_for_every_vehicle() -> None:
+    body = ('<task name="Up" role="team">' + take_off() + '</task>\n'
+            '<task name="Scout" role="s"><wait_for>'
+            + condition("BATTERY_CHARGE_PERCENTAGE", "less than", "90", "team")
+            + '</wait_for>' + hover("Ws", 1) + '</task>\n')
+    vehicles = [FakeVehicle(vehicle_id=1, drain_per_second=2.0),
+                FakeVehicle(vehicle_id=2, drain_per_second=1.0), FakeVehicle(vehicle_id=3)]
+    extra = roles('<role name="team" count="2"/>', "s")
+    flight = FleetFlight(body, vehicles, extra=extra).run(seconds=60)
+    assert flight.fleet.status is Status.COMPLETED
+    assert flight.began("Scout") == flight.first(2, lambda s: s.battery < 90)
+    assert flight.began("Scout") > flight.first(1, lambda s: s.battery < 90)
+    assert flight.flown_by("Scout") == {3}
+
+
+def seen_on(vid: int, at: float) -> Callable[[FleetFlight], None]:
+    def script(flight: FleetFlight) -> None:
+        flight.vehicles[vid].detections["seen"] = flight.time >= at
+    return script
+
+
+def memorize(name: str, role: str = "") -> str:
+    role_attribute = f' role="{role}"' if role else ""
+    return (f'<event name="{name}"{role_attribute}>' + condition("seen", "equal", "yes")
+            + '<action name="MEMORIZE_POINT"><argument name="coordinates" label="spot"/>'
+            '</action><termination mode="CONTINUE"/></event>')
+
+
+PARALLEL_HOVER = ('<task name="Both" composition="parallel">'
+                  f'<task name="A" role="a">{take_off("A up")}{hover("A hover", 10)}'
+                  f'{land("A land")}</task>'
+                  f'<task name="B" role="b">{take_off("B up")}{hover("B hover", 10)}'
+                  f'{land("B land")}</task></task>\n')
+
+
+def fired(flight: FleetFlight) -> list[tuple[float, int | None, str]]:
+    return [(r.time, r.vehicle_id, r.data["event"]) for r in flight.records if r.kind == "event"]
+
+
+def test_an_event_with_a_role_fires_only_for_that_roles_vehicle() -> None:
+    events = memorize("On a", role="a")
+    both = lambda f: (seen_on(1, 6.0)(f), seen_on(2, 4.0)(f))  # noqa: E731
+    flight = FleetFlight(PARALLEL_HOVER, 2, events, roles("a", "b") + SEEN).run(each=both)
+    assert flight.fleet.status is Status.COMPLETED
+    assert fired(flight) == [(6.0, 1, "On a")]
+
+
+def test_an_event_without_a_role_fires_on_each_vehicles_own_state() -> None:
+    events = memorize("Seen")
+    both = lambda f: (seen_on(1, 6.0)(f), seen_on(2, 4.0)(f))  # noqa: E731
+    flight = FleetFlight(PARALLEL_HOVER, 2, events, roles("a", "b") + SEEN).run(each=both)
+    assert fired(flight) == [(4.0, 2, "Seen"), (6.0, 1, "Seen")]
+    assert flight.fleet.views()[1].labels["spot"] == pytest.approx((0, 0, 5), abs=0.6)
+
+
+def test_end_mission_from_one_vehicle_ends_the_whole_mission() -> None:
+    events = ('<event name="Found" role="b">' + condition("seen", "equal", "yes")
+              + '<termination mode="END_MISSION"/></event>')
+    flight = FleetFlight(PARALLEL_HOVER, 2, events, roles("a", "b") + SEEN)
+    flight.run(each=seen_on(2, 5.0))
+    assert flight.fleet.status is Status.COMPLETED
+    assert "Found" in flight.fleet.reason and flight.time == 5.0
+    # Vehicle 1, stopped in its hover, and vehicle 2 are both sent home at once.
+    assert [t for t, _ in flight.requests(ReturnToLaunch, 1)] == [5.0]
+    assert [t for t, _ in flight.requests(ReturnToLaunch, 2)] == [5.0]
+    assert flight.state_of("Both/A/A hover") is TaskState.ABORTED
+    assert flight.task("Both/A/A land", "running") == []
+
+
+def test_a_lost_vehicle_fails_its_task_and_is_never_picked_again() -> None:
+    body = ('<task name="Both" composition="parallel">'
+            f'<task name="A" role="a">{take_off("A up")}{goto("A go", "(60, 0, 5)")}'
+            f'{land("A land")}</task>'
+            f'<task name="B" role="b" release="b">{take_off("B up")}{hover("B hover", 20)}'
+            f'<on_error><task name="Spare" role="c" release="c">{hover("Cover", 1)}</task>'
+            '</on_error></task></task>\n'
+            f'<task name="Again" role="b">{hover("Wb", 1)}</task>\n')
+    flight = FleetFlight(body, 3, extra=roles("a", "b", "c"))
+    flight.run(seconds=5)
+    flight.take(flight.fleet.lost(flight.time, 2, "link lost"))
+    lost_at = flight.time
+    flight.run()
+    assert flight.fleet.status is Status.COMPLETED
+    [failed] = flight.decisions("its on_error tasks run")
+    assert failed.time == lost_at and "vehicle 2: link lost" in failed.data["detail"]
+    assert flight.state_of("Both/B", 2) is TaskState.FAILED
+    assert flight.began("Both/B/Spare/Cover") == lost_at
+    # Released, vehicle 2 is still sent the safe state in case its link comes back, but
+    # it is not picked again: b goes to vehicle 3 once c has freed it.
+    assert [type(r) for t, r in flight.sent if r.vehicle_id == 2 and t >= lost_at] == \
+        [Hold, ReturnToLaunch]
+    assert [p.data["vehicles"] for p in flight.picks()] == [[1], [2], [3], [3]]
+    assert flight.flown_by("Again/Wb") == {3}
+    # Vehicle 1 flew on regardless.
+    assert flight.ended("Both/A") > lost_at
+    assert flight.vehicles[1].position == pytest.approx((60, 0, 0), abs=0.55)
+
+
+def test_a_lost_vehicle_without_a_handler_fails_the_mission() -> None:
+    flight = FleetFlight(PARALLEL_HOVER, 2, extra=roles("a", "b")).run(seconds=5)
+    flight.take(flight.fleet.lost(flight.time, 1, "link lost"))
+    assert flight.fleet.status is Status.FAILED
+    assert "vehicle 1: link lost" in flight.fleet.reason
+    assert [type(r) for _, r in flight.sent if r.vehicle_id == 2][-2:] == [Hold, ReturnToLaunch]
+
+
+def test_a_vehicle_that_ignores_every_request_never_stalls_the_other() -> None:
+    kinds = {"SetMode", "Arm", "TakeOff", "GoTo", "Hold", "Land", "ReturnToLaunch", "Disarm"}
+    body = ('<task name="Both" composition="parallel">'
+            f'<task name="A" role="a">{take_off("A up")}{goto("A go", "(40, 0, 5)")}'
+            f'{land("A land")}</task>'
+            f'<task name="B" role="b">{take_off("B up")}{land("B land")}</task></task>\n')
+    silent = FakeVehicle(vehicle_id=2, ignore=kinds)
+    flight = FleetFlight(body, [FakeVehicle(vehicle_id=1), silent],
+                         extra=roles("a", "b")).run(seconds=15)
+    # Vehicle 1 moved on every step of its leg and finished while vehicle 2 never answered.
+    norths = [states[1].position[0] for t, states in flight.track if 2.2 < t < 9.8]
+    assert all(b > a for a, b in pairwise(norths))
+    assert flight.task("Both/A", "done") and flight.vehicles[1].position == \
+        pytest.approx((40, 0, 0), abs=0.55)
+    assert flight.fleet.status is Status.RUNNING and silent.position == (0, 0, 0)
+    # The runner calls the silent vehicle lost: the mission, without a handler, fails.
+    flight.take(flight.fleet.lost(flight.time, 2, "no heartbeat for 5 s"))
+    assert flight.fleet.status is Status.FAILED
+    assert "vehicle 2: no heartbeat for 5 s" in flight.fleet.reason
+
+
+def request_fields(request: Request) -> tuple[str, dict[str, object]]:
+    return request.name, {k: v for k, v in vars(request).items() if k != "request_id"}
+
+
+def test_a_mission_without_roles_or_orchestration_flies_as_the_interpreter_does() -> None:
+    body = (take_off() + goto("Out", "(8, 3, 5)") + '<task name="Look"><skill '
+            'name="RECOGNIZE_ITEMS"/>' + hover("Scan", 2) + '</task>\n' + land())
+    events = memorize("Seen")
+    flight = FleetFlight(body, 1, events, SEEN).run(each=seen_on(1, 4.0))
+    assert flight.fleet.status is Status.COMPLETED
+    vehicle = FakeVehicle()
+    interpreter = Interpreter(mission(body, events, SEEN))
+    alone: list[tuple[float, Request]] = []
+    records: list[Record] = []
+    out, time = interpreter.start(0.0, vehicle.state()), 0.0
+    while True:
+        alone += [(time, r) for r in out.requests]
+        records += out.records
+        for request in out.requests:
+            vehicle.submit(request)
+        if interpreter.status is not Status.RUNNING:
+            break
+        vehicle.advance(STEP)
+        time = round(time + STEP, 6)
+        vehicle.detections["seen"] = time >= 4.0
+        out = interpreter.step(time, vehicle.state(), vehicle.poll())
+    assert [(t, request_fields(r)) for t, r in flight.sent] == \
+        [(t, request_fields(r)) for t, r in alone]
+    def logged(rs: list[Record]) -> list[tuple[float, str, str]]:
+        return [(r.time, r.kind, r.data["message"]) for r in rs if r.kind != "request"]
+    assert logged(flight.records) == logged(records)
+    assert {r.vehicle_id for r in flight.records} == {1}
+
+
+def test_a_mission_without_roles_but_with_until_flies_on_its_one_vehicle() -> None:
+    body = (take_off() + '<task name="Patrol"><until>' + condition("seen", "equal", "yes")
+            + '</until>' + goto("Far", "(100, 0, 5)") + '</task>\n' + land())
+    flight = FleetFlight(body, 1, extra=SEEN).run(each=seen_on(1, 6.0))
+    assert flight.fleet.status is Status.COMPLETED
+    assert flight.ended("Patrol") == 6.0 and flight.began("Land") == 6.0
+    assert {r.vehicle_id for _, r in flight.sent} == {1}
+    assert 15 < flight.vehicles[1].position[0] < 25 and flight.vehicles[1].position[2] == 0
+
+
+def test_abort_sends_every_bound_flying_vehicle_to_the_safe_state() -> None:
+    flight = FleetFlight(PARALLEL_HOVER, 3, extra=roles("a", "b")).run(seconds=5)
+    out = flight.fleet.abort(flight.time, flight.states(), "operator pressed Ctrl-C")
+    flight.take(out)
+    assert flight.fleet.status is Status.ABORTED
+    assert flight.fleet.reason == "operator pressed Ctrl-C"
+    # Both branches are stopped without a hold: the safe state is the one command.
+    assert sorted((r.vehicle_id, r.name) for r in out.requests) == \
+        [(1, "ReturnToLaunch"), (2, "ReturnToLaunch")]
+    assert flight.state_of("Both/A/A hover") is TaskState.ABORTED
+    assert flight.state_of("Both/B/B hover", 2) is TaskState.ABORTED
+    for _ in range(300):  # the vehicles carry the requests out on their own
+        for vehicle in flight.vehicles.values():
+            vehicle.advance(STEP)
+    assert all(v.position[2] == 0 and not v.armed for v in flight.vehicles.values())
+    assert flight.vehicles[3].submitted == []

@@ -719,3 +719,58 @@ def test_abort_sends_every_bound_flying_vehicle_to_the_safe_state() -> None:
             vehicle.advance(STEP)
     assert all(v.position[2] == 0 and not v.armed for v in flight.vehicles.values())
     assert flight.vehicles[3].submitted == []
+
+
+def test_a_pick_waits_for_a_vehicle_another_role_releases() -> None:
+    body = ('<task name="Both" composition="parallel">'
+            f'<task name="A" role="a" release="a">{hover("Wa", 3)}</task>'
+            f'<task name="B" role="b">{hover("Wb", 1)}</task></task>\n')
+    extra = roles("a", '<role name="b" pick_timeout="10"/>')
+    flight = FleetFlight(body, 1, extra=extra).run()
+    assert flight.fleet.status is Status.COMPLETED
+    released = flight.ended("Both/A")
+    [_, b] = flight.picks()
+    assert b.time == released and b.data["waited"] == released
+    assert flight.began("Both/B/Wb") == released and flight.flown_by("Both/B/Wb") == {1}
+
+
+def test_a_lost_vehicle_is_named_in_a_pick_failure() -> None:
+    flight = FleetFlight(hover("W", 1), 2, extra=roles('<role name="r" pick_timeout="2" '
+                                                        'type="hexacopter"/>'))
+    flight.take(flight.fleet.lost(0.0, 2, "link lost"))
+    flight.run()
+    assert pick_failure(flight).data["refused"] == {1: "a quadcopter, not hexacopter",
+                                                    2: "link lost"}
+
+
+def test_time_limit_does_not_count_the_wait_for_wait() -> None:
+    body = (take_off() + '<task name="Later" time_limit="5"><wait_for>'
+            + condition("seen", "equal", "yes") + '</wait_for>' + hover("Long", 60)
+            + '</task>\n' + land())
+    flight = FleetFlight(body, 1, extra=SEEN).run(each=seen_on(1, 4.0))
+    assert flight.fleet.status is Status.COMPLETED
+    assert flight.began("Later") == 4.0
+    assert flight.ended("Later") == pytest.approx(9.0, abs=STEP + 1e-6)
+
+
+def test_a_choice_wait_is_bounded_by_its_time_limit() -> None:
+    body = (take_off() + '<task name="Pick" composition="choice" time_limit="4">'
+            '<task name="Seen">' + condition("seen", "equal", "yes")
+            + '<action name="MOVE"><argument name="coordinates" value="(6, 0, 0)"/></action>'
+            '</task></task>\n' + land())
+    flight = FleetFlight(body, 1, extra=SEEN).run()
+    assert flight.fleet.status is Status.COMPLETED
+    assert flight.ended("Pick") - flight.began("Pick") == pytest.approx(4.0, abs=STEP + 1e-6)
+    assert flight.decisions("chosen") == [] and flight.requests(GoTo) == []
+    assert flight.state_of("Pick") is TaskState.DONE
+
+
+def test_abort_mission_from_one_vehicle_aborts_the_whole_mission() -> None:
+    events = ('<event name="Fault" role="a">' + condition("seen", "equal", "yes")
+              + '<termination mode="ABORT_MISSION"/></event>')
+    flight = FleetFlight(PARALLEL_HOVER, 2, events, roles("a", "b") + SEEN)
+    flight.run(each=seen_on(1, 5.0))
+    assert flight.fleet.status is Status.ABORTED and "Fault" in flight.fleet.reason
+    assert flight.time == 5.0
+    assert {r.vehicle_id for _, r in flight.requests(ReturnToLaunch)} == {1, 2}
+    assert flight.state_of("Both/B/B hover", 2) is TaskState.ABORTED

@@ -774,3 +774,32 @@ def test_abort_mission_from_one_vehicle_aborts_the_whole_mission() -> None:
     assert flight.time == 5.0
     assert {r.vehicle_id for _, r in flight.requests(ReturnToLaunch)} == {1, 2}
     assert flight.state_of("Both/B/B hover", 2) is TaskState.ABORTED
+
+
+def test_a_relay_loop_takes_the_vehicle_free_longest_in_each_round() -> None:
+    body = ('<task name="Relay" role="r" time_limit="30"><loop/>'
+            '<task name="Sortie" release="r">' + take_off() + hover("Watch", 2) + land()
+            + '</task></task>\n')
+    flight = FleetFlight(body, 3, extra=roles("r")).run()
+    assert flight.fleet.status is Status.COMPLETED
+    picked = [p.data["vehicles"][0] for p in flight.picks()]
+    assert picked[:5] == [1, 2, 3, 1, 2]
+    sorties = flight.task("Relay/Sortie/Watch", "running")
+    assert [r.vehicle_id for r in sorties] == picked
+    # Each sortie starts once the previous vehicle has landed and been released (the
+    # next round begins on the next step).
+    releases = [r.time for r in flight.records if r.kind == "release"]
+    picks = [p.time for p in flight.picks()][1:]
+    assert all(0 < pick - release <= STEP + 1e-6
+               for pick, release in zip(picks, releases, strict=False))
+
+
+def test_a_forever_loop_is_ended_by_a_first_sibling() -> None:
+    body = (take_off() + '<task name="Race" composition="first">'
+            + hover("Timer", 7)
+            + '<task name="Patrol"><loop/>' + goto("Out", "(10, 0, 5)") + goto("Back", "(0, 0, 5)")
+            + '</task></task>\n' + land())
+    flight = FleetFlight(body, 1).run()
+    assert flight.fleet.status is Status.COMPLETED
+    assert flight.ended("Race") == flight.ended("Race/Timer") == flight.began("Land")
+    assert flight.state_of("Race/Patrol") is TaskState.ABORTED

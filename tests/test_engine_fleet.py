@@ -420,6 +420,17 @@ def test_pick_that_cannot_be_satisfied_fails_the_task_naming_each_vehicle() -> N
     assert flight.state_of("Take off") is TaskState.FAILED
 
 
+def test_a_vehicle_outside_a_circle_region_is_refused() -> None:
+    role = ('<role name="r" pick_timeout="1"><region><circle north="10" east="0" radius="50"/>'
+            '</region></role>')
+    vehicles = [FakeVehicle(vehicle_id=1, position=(70.0, 0.0, 0.0)),
+                FakeVehicle(vehicle_id=2, position=(59.0, 5.0, 0.0))]
+    flight = FleetFlight(hover("W", 1), vehicles, extra=roles(role)).run()
+    assert flight.fleet.status is Status.COMPLETED
+    assert flight.picks()[0].data["vehicles"] == [2]
+    flight = FleetFlight(hover("W", 1), vehicles[:1], extra=roles(role)).run()
+    assert pick_failure(flight).data["refused"] == {1: "outside the region (at 70 m N, 0 m E)"}
+
 def test_payloads_declared_for_the_run_count() -> None:
     role = '<role name="r" pick_timeout="1"><payload name="Thermal"/></role>'
     flight = FleetFlight(take_off() + land(), 2, extra=roles(role),

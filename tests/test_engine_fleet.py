@@ -814,3 +814,15 @@ def test_a_forever_loop_is_ended_by_a_first_sibling() -> None:
     assert flight.fleet.status is Status.COMPLETED
     assert flight.ended("Race") == flight.ended("Race/Timer") == flight.began("Land")
     assert flight.state_of("Race/Patrol") is TaskState.ABORTED
+
+
+def test_an_on_error_with_the_same_role_picks_another_vehicle_when_one_is_lost() -> None:
+    body = (f'<task name="B" role="b">{take_off("B up")}{hover("B hover", 20)}'
+            f'<on_error><task name="Cover">{hover("Cover hover", 1)}</task></on_error>'
+            '</task>\n')
+    flight = FleetFlight(body, 2, extra=roles("b")).run(seconds=5)
+    flight.take(flight.fleet.lost(flight.time, 1, "link lost"))
+    flight.run()
+    assert flight.fleet.status is Status.COMPLETED
+    assert [p.data["vehicles"] for p in flight.picks()] == [[1], [2]]
+    assert flight.flown_by("B/Cover/Cover hover") == {2}

@@ -172,10 +172,22 @@ class Fleet:
         self._now = now
         vehicle = self._vehicles[vehicle_id]
         vehicle.lost = reason
+        role = vehicle.role
+        if role is not None:
+            # The role lets go of it: the role's next task (an on_error) picks another.
+            rest = tuple(v for v in self._bound.get(role, ()) if v != vehicle_id)
+            if rest:
+                self._bound[role] = rest
+            else:
+                self._bound.pop(role, None)
+            vehicle.role = None
         self._note("vehicle", f"vehicle {vehicle_id}: {reason}", vehicle=vehicle_id,
                    reason=reason)
         if self.status is Status.RUNNING:
-            self._advance()
+            self._advance()  # its task fails (and is stopped) now
+        if role is not None:
+            # Nobody flies it any more; if the link comes back, it goes to the safe state.
+            self._safe_state(vehicle, reason)
         return self._finish()
 
     def abort(self, now: float, states: Mapping[int, VehicleState], reason: str) -> Output:
@@ -688,7 +700,9 @@ class Fleet:
             elif vehicle is not None:
                 holds, value = evaluate(condition, vehicle.state, memory)
             else:
-                holds, value = evaluate_all(condition, [], memory)
+                # No vehicle: what the engine keeps itself (elapsed times, the current
+                # task) is still known; the checks (E275) allow nothing else here.
+                holds, value = evaluate(condition, VehicleState(0, self._now), memory)
             if not holds:
                 if log:
                     self._note("decision", f"{task.path_name}: skipped, condition false",

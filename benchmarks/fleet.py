@@ -1,0 +1,370 @@
+"""Fleet: one interpreter flying 10, 50 and 100 simulated vehicles -- CPU and event delay.
+
+Run by hand: ``python benchmarks/fleet.py [--vehicles 10,50,100] [--speedup 1] [--seconds 30]``.
+
+For each fleet size N the simulator runs in its own process (``python -m sitl --vehicles N
+--speedup K --tcp-base-port 0``, ports read from what it prints, all on 127.0.0.1), and
+this process flies it as ``tml run --connect`` would: one Link and one MavlinkVehicle per
+vehicle, and one Runner whose single Fleet engine drives them all. The mission, generated
+below, declares one role with ``count=N`` (every vehicle) flying two tasks: take off to
+5 m, then hover until an event. The event, ``BATTERY_CHARGE_PERCENTAGE < 25``, lands the
+vehicle.
+
+The benchmark makes each vehicle's event true at a moment it chooses: once every vehicle
+hovers, it sends vehicle i (1..N) a PARAM_SET ``BATT_CAPACITY`` = 1 mAh at (i - 0.5)/N of
+the way through ``--seconds`` of vehicle time, so the simulator reports 0 % left from its
+next SYS_STATUS on, and the triggers are spread evenly. Two stamps per vehicle, both taken in
+this process:
+
+- *received*: when pymavlink finished parsing the first SYS_STATUS that shows the low
+  battery (the message's own ``_timestamp``, set before tml sees it);
+- *left*: when the COMMAND_LONG NAV_LAND for that vehicle has been written to its socket
+  (``Link.send`` is wrapped to note it).
+
+Their difference is the event delay: the receive thread's hand-off, the runner's wake,
+one engine step over all N vehicles, the vehicle's worker and the command's encoding.
+p50/p99 are over the N vehicles of one run.
+
+CPU: ``time.process_time`` of this process while ``Runner.run`` flies (take-off, hover,
+landing; the set-up before it is not counted), divided by the vehicle time flown (vehicle
+1's ``time_boot_ms``) and by N. The runner's wakes (loop rounds, each one engine step over
+all N vehicles) are counted too: the link wakes the runner on every message, so their
+rate says how many messages each step takes in at once.
+The simulator's CPU comes from ``getrusage(RUSAGE_CHILDREN)`` after its process has
+exited, over its whole life. Ratios are against the first (smallest) fleet.
+
+The floor, measured in the same run: a bare pymavlink loop on one simulated vehicle
+(1 vehicle, same speed-up) that sends NAV_LAND when a SYS_STATUS shows the low battery,
+with the same two stamps -- the least any Python ground station can do.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import resource
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import ExitStack, contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+os.environ.setdefault("MAVLINK20", "1")
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+ROOT = Path(__file__).resolve().parent.parent
+
+ALTITUDE = 5.0  # m: the take-off height; the hover starts once every vehicle is near it
+LOW = 25  # %: the event's threshold
+NAV_LAND = mavlink.MAV_CMD_NAV_LAND
+FAST_FIX = {"SIM_GPS_LOCKTIME": 1.0, "SIM_EKF_GPS_TIME": 2.0}  # armable within seconds
+PORT_LINE = re.compile(r"vehicle (\d+): tcp:127\.0\.0\.1:(\d+)")
+
+MISSION = """<mission name="Fleet benchmark">
+  <roles><role name="fleet" count="{count}" type="quadcopter" pick_timeout="60"/></roles>
+  <task name="Patrol" role="fleet">
+    <task name="Take off">
+      <action name="TAKE_OFF"><argument name="altitude" value="{altitude:g}"/></action>
+    </task>
+    <task name="Hover">
+      <action name="WAIT"><argument name="duration" value="1000000"/></action>
+    </task>
+  </task>
+  <event_handling>
+    <event name="Low battery" role="fleet">
+      <condition parameter="BATTERY_CHARGE_PERCENTAGE" comparison="less than" value="{low}"/>
+      <action name="LAND"/>
+      <termination mode="NEXT_TASK"/>
+    </event>
+  </event_handling>
+</mission>"""
+
+
+@dataclass
+class Probe:
+    """Per vehicle: when its trigger went out, its trigger telemetry arrived, its command left."""
+
+    triggered: dict[int, float] = field(default_factory=dict)
+    received: dict[int, float] = field(default_factory=dict)
+    left: dict[int, float] = field(default_factory=dict)
+    altitude: dict[int, float] = field(default_factory=dict)
+    vehicle_time: float = 0.0  # s, vehicle 1's time_boot_ms
+
+    def on_message(self, system_id: int, msg: Any) -> None:
+        """Note the low-battery SYS_STATUS, the altitude and vehicle 1's time."""
+        kind = msg.get_type()
+        if kind == "SYS_STATUS":
+            if (system_id in self.triggered and system_id not in self.received
+                    and 0 <= msg.battery_remaining < LOW):
+                self.received[system_id] = msg._timestamp  # set by pymavlink as it parsed
+        elif kind == "GLOBAL_POSITION_INT":
+            self.altitude[system_id] = msg.relative_alt / 1000.0
+            if system_id == 1:
+                self.vehicle_time = msg.time_boot_ms / 1000.0
+
+    def on_send(self, system_id: int, msg: Any) -> None:
+        """Note the first NAV_LAND written to a triggered vehicle."""
+        if (getattr(msg, "command", None) == NAV_LAND and system_id in self.triggered
+                and system_id not in self.left):
+            self.left[system_id] = time.time()
+
+    def delays(self) -> list[float]:
+        """Event delays in milliseconds, one per vehicle that answered."""
+        return [(self.left[v] - self.received[v]) * 1000
+                for v in self.received if v in self.left]
+
+
+@dataclass
+class Result:
+    """One fleet size's measurements."""
+
+    vehicles: int
+    wall: float  # s the flight took
+    flown: float  # vehicle s the flight took
+    cpu: float  # s of this process's CPU during the flight
+    wakes: int  # rounds of the runner's loop during the flight
+    sim_cpu: float  # s of the simulator's CPU over its life
+    sim_time: float  # vehicle s the simulator ran
+    delays: list[float]
+    outcome: str
+
+    @property
+    def cpu_per_vehicle_second(self) -> float:
+        """ms of CPU per vehicle per simulated second."""
+        return self.cpu * 1000 / (self.vehicles * self.flown)
+
+    @property
+    def sim_cpu_per_vehicle_second(self) -> float:
+        return self.sim_cpu * 1000 / (self.vehicles * self.sim_time)
+
+
+@contextmanager
+def simulator(vehicles: int, speedup: float) -> Iterator[tuple[list[int], list[float]]]:
+    """Run ``python -m sitl`` in its own process; yield its TCP ports and a one-item list
+    that holds the simulator's CPU seconds once the process has exited."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "sitl", "--vehicles", str(vehicles), "--speedup", f"{speedup:g}",
+         "--tcp-base-port", "0", "--bind", "127.0.0.1"],
+        cwd=ROOT, stdout=subprocess.PIPE, text=True)
+    cpu: list[float] = []
+    try:
+        assert process.stdout is not None
+        ports = []
+        while len(ports) < vehicles:
+            line = process.stdout.readline()
+            if not line:
+                raise SystemExit(f"the simulator exited ({process.wait()}) before listing "
+                                 f"{vehicles} vehicles")
+            found = PORT_LINE.search(line)
+            if found:
+                ports.append(int(found.group(2)))
+        yield ports, cpu
+    finally:
+        process.send_signal(signal.SIGINT)
+        try:
+            process.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu.append(after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime)
+
+
+def param_set(system_id: int, name: str, value: float) -> Any:
+    """A PARAM_SET to the autopilot of ``system_id``."""
+    return mavlink.MAVLink_param_set_message(system_id, 1, name.encode(), value,
+                                             mavlink.MAV_PARAM_TYPE_REAL32)
+
+
+def fly(vehicles: int, speedup: float, seconds: float) -> Result:
+    """Fly the generated mission on ``vehicles`` simulated vehicles; measure it."""
+    from tml.engine import Options
+    from tml.mavlink.adapter import MavlinkVehicle
+    from tml.mavlink.link import Link
+    from tml.runner import Runner, RunOptions
+    from tml.validation import validate_file
+
+    source = MISSION.format(count=vehicles, altitude=ALTITUDE, low=LOW).encode()
+    mission = validate_file("fleet.xml", source).mission
+    assert mission is not None, "the generated mission is invalid"
+    probe = Probe()
+    wake = threading.Event()
+    with ExitStack() as stack:
+        ports, sim_cpu = stack.enter_context(simulator(vehicles, speedup))
+        links = []
+        for system_id, port in enumerate(ports, start=1):
+            link = stack.enter_context(Link(f"tcp:127.0.0.1:{port}"))
+            # The probe listens first: it sees each message before the runner is woken.
+            link.listen(lambda sid, _snapshot, msg: probe.on_message(sid, msg))
+            link.listen(lambda *_: wake.set())
+            link.send = _stamped(link.send, system_id, probe.on_send)  # type: ignore[method-assign]
+            links.append(link)
+        for system_id, link in enumerate(links, start=1):
+            link.wait_vehicle(system_id, timeout=30)
+            for name, value in FAST_FIX.items():
+                link.send(param_set(system_id, name, value))
+
+        def connect(system_id: int) -> MavlinkVehicle:
+            vehicle = MavlinkVehicle(links[system_id - 1], system_id, on_result=wake.set,
+                                     connect_timeout=30)
+            vehicle.prepare()
+            return vehicle
+
+        with ThreadPoolExecutor(max_workers=16) as pool:  # set-up is not measured
+            fleet = list(pool.map(connect, range(1, vehicles + 1)))
+        for vehicle in fleet:
+            stack.callback(vehicle.close)
+        wakes = [0]
+
+        def wait(timeout: float) -> None:  # the runner's own wait, counted
+            wake.wait(timeout)
+            wake.clear()
+            wakes[0] += 1
+
+        runner = Runner(mission, fleet, options=RunOptions(engine=Options()), wake=wake,
+                        wait=wait)
+        limit = 120 + 3 * (seconds + 60) / speedup  # wall s: a stuck run is stopped
+        trigger = threading.Thread(target=_trigger, daemon=True,
+                                   args=(links, probe, seconds / speedup, limit))
+        trigger.start()
+        watchdog = threading.Timer(limit, runner.stop, args=("benchmark time limit",))
+        watchdog.daemon = True
+        watchdog.start()
+        started_cpu, started_wall = time.process_time(), time.perf_counter()
+        started_vehicle = probe.vehicle_time
+        outcome = runner.run()
+        cpu = time.process_time() - started_cpu
+        wall = time.perf_counter() - started_wall
+        flown = probe.vehicle_time - started_vehicle
+        watchdog.cancel()
+        sim_time = probe.vehicle_time
+    statuses = sorted({v.status.value for v in outcome.vehicles})
+    return Result(vehicles, wall, flown, cpu, wakes[0], sim_cpu[0], sim_time, probe.delays(),
+                  f"{'/'.join(statuses)} (exit {int(outcome.exit_code)})")
+
+
+def _stamped(send: Callable[..., None], system_id: int,
+             note: Callable[[int, Any], None]) -> Callable[..., None]:
+    def stamped(msg: Any, target: int = 0, component: int = 0) -> None:
+        send(msg, target, component)
+        note(system_id, msg)
+    return stamped
+
+
+def _trigger(links: list[Any], probe: Probe, window: float, limit: float) -> None:
+    """Once every vehicle hovers, drop vehicle i's battery at i/N of ``window`` wall s."""
+    end = time.monotonic() + limit
+    while time.monotonic() < end:
+        if len(probe.altitude) == len(links) and all(
+                a >= ALTITUDE - 0.5 for a in probe.altitude.values()):
+            break
+        time.sleep(0.1)
+    start = time.monotonic()
+    for index, link in enumerate(links):
+        time.sleep(max(0.0, start + (index + 0.5) * window / len(links) - time.monotonic()))
+        system_id = index + 1
+        probe.triggered[system_id] = time.time()
+        link.send(param_set(system_id, "BATT_CAPACITY", 1.0))
+
+
+def floor(speedup: float, trials: int) -> list[float]:
+    """Event delays (ms) of a bare pymavlink loop answering the same trigger."""
+    delays = []
+    with simulator(1, speedup) as (ports, _cpu):
+        conn = mavutil.mavlink_connection(f"tcp:127.0.0.1:{ports[0]}", source_system=255,
+                                          source_component=190)
+        try:
+            conn.wait_heartbeat(timeout=30)
+            conn.mav.command_long_send(1, 1, mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                                       mavlink.MAVLINK_MSG_ID_SYS_STATUS, 50_000, 0, 0, 0, 0, 0)
+            time.sleep(1.0 / speedup * 8)  # > 7.2 s of vehicle time: 1 mAh drawn on the ground
+            for _ in range(trials):
+                conn.mav.send(param_set(1, "BATT_CAPACITY", 1.0))
+                while True:
+                    msg = conn.recv_match(type="SYS_STATUS", blocking=True, timeout=10)
+                    if msg is None:
+                        raise SystemExit("the floor's vehicle sent no SYS_STATUS for 10 s")
+                    if 0 <= msg.battery_remaining < LOW:
+                        conn.mav.command_long_send(1, 1, NAV_LAND, 0, 0, 0, 0, 0, 0, 0, 0)
+                        delays.append((time.time() - msg._timestamp) * 1000)
+                        break
+                conn.mav.send(param_set(1, "BATT_CAPACITY", 3300.0))
+                while (msg := conn.recv_match(type="SYS_STATUS", blocking=True, timeout=10)) \
+                        is not None and msg.battery_remaining < LOW:
+                    pass
+        finally:
+            conn.close()
+    return delays
+
+
+def percentile(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, round(q * (len(ordered) - 1)))] if ordered else \
+        float("nan")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--vehicles", default="10,50,100",
+                        help="comma-separated fleet sizes (default 10,50,100)")
+    parser.add_argument("--speedup", type=float, default=1.0,
+                        help="simulated time this many times faster than real (default 1)")
+    parser.add_argument("--seconds", type=float, default=30.0,
+                        help="vehicle seconds over which the triggers are spread (default 30)")
+    parser.add_argument("--floor-trials", type=int, default=50,
+                        help="trials of the bare pymavlink floor (default 50)")
+    args = parser.parse_args()
+    try:
+        sizes = [int(n) for n in args.vehicles.split(",")]
+    except ValueError:
+        parser.error(f"--vehicles: expected numbers separated by commas, got {args.vehicles!r}")
+    if not sizes or min(sizes) < 1 or args.speedup <= 0 or args.seconds <= 0:
+        parser.error("fleet sizes, --speedup and --seconds must be positive")
+
+    base = floor(args.speedup, args.floor_trials)
+    results = []
+    for n in sizes:
+        results.append(fly(n, args.speedup, args.seconds))
+        r = results[-1]
+        print(f"  {n} vehicles: {r.outcome}, {len(r.delays)}/{n} events timed, "
+              f"{r.wall:.1f} s wall for {r.flown:.1f} s of vehicle time", flush=True)
+    print(f"\nfleet: {os.cpu_count()} cores, speedup {args.speedup:g}, triggers over "
+          f"{args.seconds:g} vehicle s; delay = trigger telemetry parsed -> NAV_LAND written")
+    print(f"{'vehicles':>8} {'tml CPU s':>9} {'core %':>6} {'ms/veh/s':>8} {'wakes/s':>7} "
+          f"{'p50 ms':>7} {'p99 ms':>7} {'max ms':>7} {'sim CPU s':>9} {'sim ms/veh/s':>12}")
+    for r in results:
+        print(f"{r.vehicles:>8} {r.cpu:>9.1f} {100 * r.cpu / r.wall:>6.0f} "
+              f"{r.cpu_per_vehicle_second:>8.2f} {r.wakes / r.wall:>7.0f} "
+              f"{percentile(r.delays, 0.5):>7.2f} "
+              f"{percentile(r.delays, 0.99):>7.2f} {max(r.delays, default=float('nan')):>7.2f} "
+              f"{r.sim_cpu:>9.1f} {r.sim_cpu_per_vehicle_second:>12.2f}")
+    print(f"{'floor':>8} {'':>9} {'':>6} {'':>8} {'':>7} {percentile(base, 0.5):>7.2f} "
+          f"{percentile(base, 0.99):>7.2f} {max(base, default=float('nan')):>7.2f}   "
+          f"(bare pymavlink loop, 1 vehicle, {len(base)} trials)")
+    first = results[0]
+    for r in results[1:]:
+        print(f"growth {first.vehicles} -> {r.vehicles} vehicles "
+              f"(x{r.vehicles / first.vehicles:g}): CPU per simulated s "
+              f"x{(r.cpu / r.flown) / (first.cpu / first.flown):.2f}, per vehicle "
+              f"x{r.cpu_per_vehicle_second / first.cpu_per_vehicle_second:.2f}; delay p50 "
+              f"x{percentile(r.delays, 0.5) / percentile(first.delays, 0.5):.2f}, p99 "
+              f"x{percentile(r.delays, 0.99) / percentile(first.delays, 0.99):.2f}")
+    for r in results:
+        print(f"delay / floor at {r.vehicles} vehicles: p50 "
+              f"x{percentile(r.delays, 0.5) / percentile(base, 0.5):.0f}, p99 "
+              f"x{percentile(r.delays, 0.99) / percentile(base, 0.99):.0f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -17,6 +17,11 @@ from tml.journal import read
 MISSIONS = Path(__file__).parent.parent / "missions"
 FAST = ["--speedup", "50", "--sim-param", "SIM_GPS_LOCKTIME=1",
         "--sim-param", "SIM_EKF_GPS_TIME=2"]
+# Fleets: an 800 mAh battery and a 30 A charging pad make the rounds drain to 30 % and
+# recharge to 90 % in minutes (see tests/test_fleet_flights.py); several simulated vehicles
+# load the machine, so a stalled link is given longer before the run is aborted.
+FLEET = ["--sim-param", "BATT_CAPACITY=800", "--sim-param", "SIM_BATT_CHARGE=30",
+         "--link-lost-limit", "60"]
 
 # mission -> (exit code, text the outcome's reason contains, extra simulator parameters)
 EXPECTED: dict[str, tuple[int, str, list[str]]] = {
@@ -24,11 +29,15 @@ EXPECTED: dict[str, tuple[int, str, list[str]]] = {
     "battery_event": (3, "event 'Low battery' aborted the mission",
                       ["--sim-param", "BATT_CAPACITY=300"]),
     "catalogue_tour": (0, "all tasks done", []),
+    "dolphin_fleet_relay": (0, "all tasks done", ["--vehicles", "4", *FLEET]),
+    "dolphin_fleet_single": (0, "all tasks done", FLEET),
+    "dolphin_fleet_survey": (0, "all tasks done", ["--vehicles", "2", *FLEET]),
     "dolphin_relay_single": (0, "all tasks done", []),
     # loiters until the battery falls below 30 %: a small battery makes that minutes
     "dolphin_single_vehicle": (0, "event 'Battery below 30 %' ended the mission",
                                ["--sim-param", "BATT_CAPACITY=1000"]),
     "dolphin_survey_north": (0, "all tasks done", []),
+    "fleet_compositions": (0, "all tasks done", ["--vehicles", "3", "--link-lost-limit", "60"]),
     "imav2016": (0, "all tasks done", []),
     "jump_and_repeat": (0, "all tasks done", []),
     "mission_dispatch": (0, "all tasks done", []),

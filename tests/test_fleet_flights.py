@@ -1,0 +1,214 @@
+"""The fleet missions flown end to end on the simulator: who flew what, and when.
+
+Each test runs ``tml run FILE --sim --vehicles N`` and reads the JSON-lines flight log:
+``pick`` and ``release`` records say which vehicles a role had, ``task``, ``action`` and
+``decision`` records carry the vehicle that flew them, and ``telemetry`` gives every
+vehicle's battery, position and whether it is on the ground, once a second of vehicle time.
+
+The Dolphin missions fly with an 800 mAh battery and a 30 A charging pad at home. Hovering
+draws 12 A and surveying at 10 m/s 16 A (sitl/physics.py ``flight_current``), that is
+0.4-0.6 % of the pack a second: from full to the listings' 30 % takes two to three minutes of
+vehicle time, and the return and landing (about 50 s) leaves 5-15 %. The pad puts back
+30 A x 1 s / 3.6 = 8.3 mAh a second, about 1 % a second: back to 90 % in about 80 s. So a
+round lasts about 200 s of vehicle time and a vehicle landed after a round is ready again
+80 s later. The simulator runs at 40x; a round of four vehicles costs about 10 s of wall
+time on two cores. ``--link-lost-limit`` is raised because a busy machine can stall the
+simulator's thread for longer than 10 s of vehicle time (0.25 s of wall time at 40x).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from tml.cli import main
+from tml.journal import read
+
+MISSIONS = Path(__file__).parent.parent / "missions"
+FAST = ["--speedup", "40", "--sim-param", "SIM_GPS_LOCKTIME=1",
+        "--sim-param", "SIM_EKF_GPS_TIME=2", "--link-lost-limit", "60"]
+BATTERY = ["--sim-param", "BATT_CAPACITY=800", "--sim-param", "SIM_BATT_CHARGE=30"]
+
+Log = list[dict]
+
+
+def fly(tmp_path: Path, name: str, vehicles: int, extra: list[str]) -> Log:
+    log = tmp_path / f"{name}.jsonl"
+    code = main(["run", str(MISSIONS / f"{name}.xml"), "--sim", "-q", "--log", str(log),
+                 "--vehicles", str(vehicles), *FAST, *extra])
+    lines = read(str(log))
+    assert code == 0, [line for line in lines if line["kind"] in ("mission", "error")]
+    assert not [line for line in lines if line["kind"] == "error"]
+    return lines
+
+
+def of(lines: Log, kind: str, vehicle: int | None = None) -> Log:
+    return [line for line in lines if line["kind"] == kind
+            and (vehicle is None or line.get("vehicle") == vehicle)]
+
+
+def picks(lines: Log) -> list[tuple[str, tuple[int, ...]]]:
+    return [(line["role"], tuple(line["vehicles"])) for line in of(lines, "pick")
+            if "vehicles" in line]
+
+
+def airborne(lines: Log, vehicle: int) -> list[tuple[float, float]]:
+    """The intervals (first, last telemetry time) in which the vehicle was flying (armed and
+    off the ground; it disarms on touching down, a moment before it reports landed)."""
+    intervals: list[tuple[float, float]] = []
+    start = last = None
+    for line in of(lines, "telemetry", vehicle):
+        if line["armed"] and not line["landed"]:
+            start = line["t"] if start is None else start
+            last = line["t"]
+        elif start is not None:
+            intervals.append((start, last))
+            start = None
+    assert start is None, f"vehicle {vehicle} was still flying at the end"
+    return intervals
+
+
+def overlap(a: tuple[float, float], b: tuple[float, float]) -> float:
+    return min(a[1], b[1]) - max(a[0], b[0])
+
+
+def battery_before(lines: Log, vehicle: int, t: float) -> float:
+    """The last battery reading of the vehicle at or before ``t``."""
+    return [line for line in of(lines, "telemetry", vehicle) if line["t"] <= t][-1]["battery"]
+
+
+def stopped_by_until(lines: Log, vehicle: int) -> list[float]:
+    return [line["t"] for line in of(lines, "decision", vehicle)
+            if "stopped, its until conditions hold" in line["message"]]
+
+
+def test_single_vehicle_flies_rounds_each_ending_landed_at_home(tmp_path: Path) -> None:
+    lines = fly(tmp_path, "dolphin_fleet_single", 1, BATTERY)
+    assert picks(lines) == [("v1", (1,)), ("v1", (1,))]  # picked again after each release
+    releases = [line["t"] for line in of(lines, "release", 1)]
+    flights = airborne(lines, 1)
+    assert len(releases) == len(flights) == 2
+    for (_, down), released in zip(flights, releases, strict=True):
+        assert down < released
+        after = next(line for line in of(lines, "telemetry", 1) if line["t"] >= released)
+        assert after["landed"] and not after["armed"] and after["position"][2] < 0.5
+        assert math.hypot(*after["position"][:2]) < 2.0  # at home, on its charging pad
+    # The until ends each circling at 30 %; the second round waits on the pad for 90 %.
+    untils = stopped_by_until(lines, 1)
+    assert len(untils) == 2 and all(29 <= battery_before(lines, 1, t) <= 31 for t in untils)
+    assert battery_before(lines, 1, releases[0]) < 30
+    assert battery_before(lines, 1, flights[1][0]) >= 90
+    assert flights[1][0] - releases[0] > 30  # it charged before it took off again
+    # Each round uploads its own plan, and the second is followed from its first item.
+    plans = [line["plan_id"] for line in of(lines, "request", 1)
+             if line["message"] == "FlyMission"]
+    assert len(plans) == 2 and plans[0] != plans[1]
+    second = [line["task"].rsplit("/", 1)[-1] for line in of(lines, "task", 1)
+              if line["t"] >= flights[1][0] - 5 and line["state"] == "running"
+              and line["task"].startswith("Shift/Round/Survey Area/Fly/")]
+    assert second[:3] == ["Take off", "Move", "Move and loiter"]
+    ends = [line for line in of(lines, "decision") if "loop ends" in line["message"]]
+    assert [line["rounds"] for line in ends] == [2]
+
+
+def test_survey_flies_both_areas_at_once(tmp_path: Path) -> None:
+    lines = fly(tmp_path, "dolphin_fleet_survey", 2, BATTERY)
+    assert picks(lines) == [("v1", (1,)), ("v2", (2,))] * 2
+    north, south = airborne(lines, 1), airborne(lines, 2)
+    assert len(north) == len(south) == 2
+    for a, b in zip(north, south, strict=True):
+        assert overlap(a, b) > 100  # both in the air together for most of the round
+
+    def extent(vehicle: int) -> tuple[float, float]:
+        flying = [line["position"][0] for line in of(lines, "telemetry", vehicle)
+                  if line["armed"] and not line["landed"]]
+        return min(flying), max(flying)
+
+    assert extent(1)[0] > -3 and extent(1)[1] > 25  # north-east of home
+    assert extent(2)[1] < 3 and extent(2)[0] < -25  # south-east of home
+    for vehicle in (1, 2):
+        untils = stopped_by_until(lines, vehicle)
+        assert len(untils) == 2
+        assert all(29 <= battery_before(lines, vehicle, t) <= 31 for t in untils)
+        # Round 2 picked the same vehicle back at once; it waited on the pad for 90 %.
+        waits = [line["t"] for line in of(lines, "decision", vehicle)
+                 if "waiting for its conditions" in line["message"]]
+        flights = airborne(lines, vehicle)
+        assert battery_before(lines, vehicle, waits[1]) < 30
+        assert battery_before(lines, vehicle, flights[1][0]) >= 90
+
+
+def test_relay_sends_the_rested_pair_while_the_other_recharges(tmp_path: Path) -> None:
+    lines = fly(tmp_path, "dolphin_fleet_relay", 4, BATTERY)
+    # Longest free first: 1 and 2, then 3 and 4 (never used), then 1 and 2 again.
+    assert picks(lines) == [("v1", (1,)), ("v2", (2,)), ("v1", (3,)), ("v2", (4,)),
+                            ("v1", (1,)), ("v2", (2,))]
+    flights = {v: airborne(lines, v) for v in (1, 2, 3, 4)}
+    assert [len(flights[v]) for v in (1, 2, 3, 4)] == [2, 2, 1, 1]
+    rounds = [(flights[1][0], flights[2][0]), (flights[3][0], flights[4][0]),
+              (flights[1][1], flights[2][1])]
+    for a, b in rounds:
+        assert overlap(a, b) > 100  # two vehicles surveying at once
+    released = sorted({line["t"] for line in of(lines, "release")})
+    assert len(released) == 3  # each pair is released together when both have landed
+    for (a, b), (c, d), free in zip(rounds, rounds[1:], released, strict=False):
+        assert max(a[1], b[1]) < free < min(c[0], d[0])  # the next pair goes after the release
+    for vehicle in (1, 2, 3, 4):
+        untils = stopped_by_until(lines, vehicle)
+        assert len(untils) == len(flights[vehicle])
+        assert all(29 <= battery_before(lines, vehicle, t) <= 31 for t in untils)
+    for vehicle in (1, 2):  # landed low, recharged while 3 and 4 flew, up again at 90 %+
+        assert battery_before(lines, vehicle, released[0]) < 30
+        assert battery_before(lines, vehicle, flights[vehicle][1][0]) >= 90
+    ends = [line for line in of(lines, "decision") if "loop ends" in line["message"]]
+    assert [line["rounds"] for line in ends] == [3]
+
+
+def test_compositions_first_choice_time_limit_on_error_and_roles(tmp_path: Path) -> None:
+    lines = fly(tmp_path, "fleet_compositions", 3, [])
+    assert picks(lines) == [("lead", (1,)), ("pair", (2, 3))]  # count="2": both at once
+
+    def first(kind: str, vehicle: int | None, text: str) -> float:
+        return next(line["t"] for line in of(lines, kind, vehicle) if text in line["message"])
+
+    # wait_for on the lead's altitude: the pair starts climbing only once the lead is up.
+    lead_up = first("action", 1, "TAKE_OFF started")
+    for vehicle in (2, 3):
+        climb = first("action", vehicle, "TAKE_OFF started")
+        assert climb >= lead_up + 8 / 2.5  # 8 m at the 2.5 m/s climb rate, at the soonest
+        assert max(line["position"][2] for line in of(lines, "telemetry", 1)
+                   if line["t"] <= climb and line["position"] is not None) > 8 - 2.5
+    # The pair's own event cuts its climb to 12 m above 7 m; the lead's take-off, outside
+    # the role, is flown to its end.
+    fired = of(lines, "event")
+    assert sorted(line["vehicle"] for line in fired) == [2, 3]
+    assert all(line["event"] == "Pair high enough" for line in fired)
+    assert all(7 < line["read"][1]["value"] < 9 for line in fired)
+    take_offs_done = [line["vehicle"] for line in of(lines, "action")
+                      if line["message"] == "TAKE_OFF done"]
+    assert take_offs_done == [1]
+    # first: the lead's 5 m hop ends the race; the pair's 60 m leg is stopped, held.
+    hop = first("task", 1, "Race/Lead hops: done")
+    for vehicle in (2, 3):
+        stopped = [line for line in of(lines, "branch", vehicle)
+                   if line["message"] == "mission aborted: another branch finished first"]
+        assert [line["t"] for line in stopped] == [hop]
+        assert any(line["message"] == "Hold" and line["t"] == hop
+                   for line in of(lines, "request", vehicle))
+        assert max(line["position"][1] for line in of(lines, "telemetry", vehicle)
+                   if line["position"] is not None) < 40
+    # choice: the unconditional branch; its forever LOITER stopped by the 15 s time limit.
+    states = {line["task"]: line["state"] for line in of(lines, "task")}
+    assert states["Lead's turn/Choose/Go home early"] == "skipped"
+    assert states["Lead's turn/Choose/Circle a while"] == "done"
+    circled = (first("decision", 1, "its time limit of 15 s is reached")
+               - first("action", 1, "LOITER started"))
+    assert 15 <= circled < 16
+    # on_error: no vehicle carries a winch; the failed pick runs the handler on the pair.
+    failed = [line for line in of(lines, "pick") if "refused" in line]
+    assert [line["refused"]["1"] for line in failed] == ["no winch"]
+    assert states["Winch"] == "failed"
+    for vehicle in (2, 3):
+        assert first("task", vehicle, "Winch/Pair lands instead: done") > failed[0]["t"]
+        assert of(lines, "telemetry", vehicle)[-1]["landed"]
+    assert of(lines, "run")[-1]["outcomes"][0]["reason"] == "all tasks done"

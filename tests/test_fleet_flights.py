@@ -19,6 +19,7 @@ simulator's thread for longer than 10 s of vehicle time (0.25 s of wall time at 
 from __future__ import annotations
 
 import math
+import statistics
 from pathlib import Path
 
 from tml.cli import main
@@ -119,13 +120,14 @@ def test_survey_flies_both_areas_at_once(tmp_path: Path) -> None:
     for a, b in zip(north, south, strict=True):
         assert overlap(a, b) > 100  # both in the air together for most of the round
 
-    def extent(vehicle: int) -> tuple[float, float]:
-        flying = [line["position"][0] for line in of(lines, "telemetry", vehicle)
-                  if line["armed"] and not line["landed"]]
-        return min(flying), max(flying)
+    def norths(vehicle: int) -> list[float]:
+        return sorted(line["position"][0] for line in of(lines, "telemetry", vehicle)
+                      if line["armed"] and not line["landed"])
 
-    assert extent(1)[0] > -3 and extent(1)[1] > 25  # north-east of home
-    assert extent(2)[1] < 3 and extent(2)[0] < -25  # south-east of home
+    # Each swept its own side of home (a turn overshoots the area by a few metres).
+    first, second = norths(1), norths(2)
+    assert first[0] > -10 and first[-1] > 25 and statistics.median(first) > 5
+    assert second[-1] < 10 and second[0] < -25 and statistics.median(second) < -5
     for vehicle in (1, 2):
         untils = stopped_by_until(lines, vehicle)
         assert len(untils) == 2
@@ -203,7 +205,7 @@ def test_compositions_first_choice_time_limit_on_error_and_roles(tmp_path: Path)
     assert states["Lead's turn/Choose/Circle a while"] == "done"
     circled = (first("decision", 1, "its time limit of 15 s is reached")
                - first("action", 1, "LOITER started"))
-    assert 15 <= circled < 16
+    assert 15 - 1e-6 <= circled < 16
     # on_error: no vehicle carries a winch; the failed pick runs the handler on the pair.
     failed = [line for line in of(lines, "pick") if "refused" in line]
     assert [line["refused"]["1"] for line in failed] == ["no winch"]

@@ -126,8 +126,8 @@ def test_survey_flies_both_areas_at_once(tmp_path: Path) -> None:
 
     # Each swept its own side of home (a turn overshoots the area by a few metres).
     first, second = norths(1), norths(2)
-    assert first[0] > -10 and first[-1] > 25 and statistics.median(first) > 5
-    assert second[-1] < 10 and second[0] < -25 and statistics.median(second) < -5
+    assert first[0] > -10 and first[-1] > 25 and statistics.median(first) > 2
+    assert second[-1] < 10 and second[0] < -25 and statistics.median(second) < -2
     for vehicle in (1, 2):
         untils = stopped_by_until(lines, vehicle)
         assert len(untils) == 2

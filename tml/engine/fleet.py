@@ -259,10 +259,15 @@ class Fleet:
     def _take(self, vid: int, output: Output) -> None:
         """A segment's output, its records marked with its vehicle."""
         for record in output.records:
-            kind = "branch" if record.kind == "mission" and not self._classic else record.kind
+            kind, data = record.kind, record.data
+            if kind == "mission" and not self._classic:
+                # A segment is one vehicle's part of the mission, not the mission.
+                kind = "branch"
+                data = {**data, "message": str(data["message"]).replace(
+                    "mission aborted", "branch stopped").replace("mission ", "branch ", 1)}
             if kind == "event":
-                self._events.append((record.time - self._start, str(record.data["event"])))
-            self._out.records.append(Record(record.time, kind, record.data, vid))
+                self._events.append((record.time - self._start, str(data["event"])))
+            self._out.records.append(Record(record.time, kind, data, vid))
         self._out.requests.extend(output.requests)
 
     def _set(self, task: Task, state: TaskState, vid: int | None = None) -> None:

@@ -820,14 +820,11 @@ class Interpreter:
         self._run = None
         self._plan = None
         self._handling = None
-        if self._terminal is not None:
-            state = TaskState.DONE if status is Status.COMPLETED else TaskState.ABORTED
-            if self._states.get(self._terminal.path_name) is TaskState.RUNNING:
-                self._states[self._terminal.path_name] = state
+        ended = TaskState.DONE if status is Status.COMPLETED else TaskState.ABORTED
         for path, state in self._states.items():
-            if state is TaskState.RUNNING:
-                self._states[path] = (TaskState.DONE if status is Status.COMPLETED
-                                      else TaskState.ABORTED)
+            if state is TaskState.RUNNING:  # the log says how each running task ended
+                self._states[path] = ended
+                self._note("task", f"{path}: {ended.value}", task=path, state=ended.value)
         for name, count in list(self._skills.items()):
             if count > 0:
                 self._skills[name] = 1

@@ -193,7 +193,7 @@ def test_compositions_first_choice_time_limit_on_error_and_roles(tmp_path: Path)
     hop = first("task", 1, "Race/Lead hops: done")
     for vehicle in (2, 3):
         stopped = [line for line in of(lines, "branch", vehicle)
-                   if line["message"] == "mission aborted: another branch finished first"]
+                   if line["message"] == "branch stopped: another branch finished first"]
         assert [line["t"] for line in stopped] == [hop]
         assert any(line["message"] == "Hold" and line["t"] == hop
                    for line in of(lines, "request", vehicle))

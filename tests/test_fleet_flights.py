@@ -91,9 +91,12 @@ def test_single_vehicle_flies_rounds_each_ending_landed_at_home(tmp_path: Path) 
     assert len(releases) == len(flights) == 2
     for (_, down), released in zip(flights, releases, strict=True):
         assert down < released
-        after = next(line for line in of(lines, "telemetry", 1) if line["t"] >= released)
-        assert after["landed"] and not after["armed"] and after["position"][2] < 0.5
-        assert math.hypot(*after["position"][:2]) < 2.0  # at home, on its charging pad
+        # Landed when released; disarmed (by the release, or the autopilot) soon after.
+        after = [line for line in of(lines, "telemetry", 1)
+                 if released <= line["t"] <= released + 10]
+        assert after and all(line["landed"] and line["position"][2] < 0.5 for line in after)
+        assert not after[-1]["armed"]
+        assert math.hypot(*after[-1]["position"][:2]) < 2.0  # at home, on its charging pad
     # The until ends each circling at 30 %; the second round waits on the pad for 90 %.
     untils = stopped_by_until(lines, 1)
     assert len(untils) == 2 and all(29 <= battery_before(lines, 1, t) <= 31 for t in untils)

@@ -45,17 +45,24 @@ from collections.abc import Generator, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 from tml.engine.conditions import Memory, evaluate, evaluate_all
-from tml.engine.interpreter import Interpreter, Options, Output, Record, Status, TaskState, View
+from tml.engine.interpreter import (
+    Interpreter,
+    Options,
+    Output,
+    Record,
+    Status,
+    TaskState,
+    View,
+    request_fields,
+    safe_state_request,
+)
 from tml.engine.scripts import Limits
 from tml.model import Composition, Condition, Event, Mission, Role, Task
 from tml.vehicle import (
-    Disarm,
     Hold,
-    Land,
     Point,
     Request,
     RequestResult,
-    ReturnToLaunch,
     SetSkill,
     VehicleState,
     vehicle_type_matches,
@@ -96,7 +103,6 @@ class _Vehicle:
     labels: dict[str, Point] = field(default_factory=dict)
     limits: Limits | None = None
     last_target: Point | None = None
-    plan_ids: int = 0  # the last plan id its segments used: ids never repeat on a vehicle
     segment: Interpreter | None = None
     results: list[RequestResult] = field(default_factory=list)
 
@@ -252,9 +258,7 @@ class Fleet:
     def _send(self, request: Request) -> None:
         self._out.requests.append(request)
         self._note("request", request.name, request.vehicle_id,
-                   request_id=request.request_id,
-                   **{k: v for k, v in request.__dict__.items()
-                      if k not in ("vehicle_id", "request_id")})
+                   request_id=request.request_id, **request_fields(request))
 
     def _take(self, vid: int, output: Output) -> None:
         """A segment's output, its records marked with its vehicle."""
@@ -528,9 +532,6 @@ class Fleet:
             interpreter.limits = vehicle.limits
         vehicle.limits = interpreter.limits
         interpreter.last_target = vehicle.last_target
-        # The vehicle reports the last plan's progress until the next one is uploaded: a
-        # new segment must not take it for its own plan.
-        interpreter._plan_ids = vehicle.plan_ids
         vehicle.segment = interpreter
         try:
             self._take(vid, interpreter.start(self._now, vehicle.state))
@@ -556,7 +557,6 @@ class Fleet:
             raise
         finally:
             vehicle.last_target = interpreter.last_target
-            vehicle.plan_ids = interpreter._plan_ids
             vehicle.segment = None
             flown = {p: s for p, s in interpreter.view().task_states.items()
                      if s is not TaskState.PENDING}
@@ -670,16 +670,12 @@ class Fleet:
             self._safe_state(vehicle, reason)
 
     def _safe_state(self, vehicle: _Vehicle, reason: str) -> None:
-        state, vid = vehicle.state, vehicle.vehicle_id
-        if state.flying:
-            request: Request = {"land": Land, "hold": Hold}.get(
-                self.options.safe_state, ReturnToLaunch)(vid)
-            self._note("safety", f"vehicle in the air: {request.name} ({reason})", vid,
+        safe = safe_state_request(vehicle.state, self.options.safe_state)
+        if safe is not None:
+            request, why = safe
+            self._note("safety", f"{why} ({reason})", vehicle.vehicle_id,
                        request=request.name)
             self._send(request)
-        elif state.armed:
-            self._note("safety", f"vehicle armed on the ground: disarm ({reason})", vid)
-            self._send(Disarm(vid))
 
     # --- conditions --------------------------------------------------------------------------
 

@@ -39,6 +39,7 @@ default; land or hold by option), and disarmed if it is armed on the ground.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
@@ -196,6 +197,12 @@ class _Plan:
     request_id: int = 0
 
 
+# Plan ids are unique in the process: a vehicle reports the last plan's progress until the
+# next one is uploaded, and a later interpreter on it (a fleet's next task) must not take
+# that progress for its own plan's.
+_plan_ids = itertools.count(1)
+
+
 class Interpreter:
     """Runs one mission on one vehicle; see the module docstring."""
 
@@ -218,7 +225,6 @@ class Interpreter:
         self._terminal_left = 0
         self._run: _Run | None = None
         self._plan: _Plan | None = None
-        self._plan_ids = 0
         self._handling: Event | None = None
         self._handler_actions: list[Action] = []
         self._interrupted: _Run | None = None
@@ -312,7 +318,7 @@ class Interpreter:
     def _send(self, request: Request) -> None:
         self._out.requests.append(request)
         self._note("request", request.name, request_id=request.request_id,
-                   **_request_fields(request))
+                   **request_fields(request))
 
     def note(self, message: str, **data: object) -> None:
         """For scripts: log a decision."""
@@ -556,8 +562,7 @@ class Interpreter:
         if not tasks:
             self._leave(task, TaskState.DONE)
             return
-        self._plan_ids += 1
-        plan = self._plan = _Plan(self._plan_ids, task, tasks, [], since=self._now,
+        plan = self._plan = _Plan(next(_plan_ids), task, tasks, [], since=self._now,
                                   limit=self.options.mission_stall)
         try:
             plan.actions = [self._with_labels(bind(t.action)) for t in tasks if t.action]
@@ -837,23 +842,30 @@ class Interpreter:
             self._send(Hold(self.vehicle_id))
 
     def _safe_state(self, reason: str) -> None:
-        state = self._state
-        if state.flying:
-            request: Request = {"land": Land, "hold": Hold}.get(
-                self.options.safe_state, ReturnToLaunch)(self.vehicle_id)
-            self._note("safety", f"vehicle in the air: {request.name} ({reason})",
-                       request=request.name)
+        safe = safe_state_request(self._state, self.options.safe_state)
+        if safe is not None:
+            request, why = safe
+            self._note("safety", f"{why} ({reason})", request=request.name)
             self._send(request)
-        elif state.armed:
-            self._note("safety", f"vehicle armed on the ground: disarm ({reason})")
-            self._send(Disarm(self.vehicle_id))
+
+
+def safe_state_request(state: VehicleState, safe_state: str) -> tuple[Request, str] | None:
+    """What puts a vehicle in the safe state, and why; None when it is disarmed on the
+    ground. In the air: ``safe_state`` (rtl, land or hold); armed on the ground: disarm."""
+    if state.flying:
+        request: Request = {"land": Land, "hold": Hold}.get(
+            safe_state, ReturnToLaunch)(state.vehicle_id)
+        return request, f"vehicle in the air: {request.name}"
+    if state.armed:
+        return Disarm(state.vehicle_id), "vehicle armed on the ground: disarm"
+    return None
 
 
 def _fresh_id() -> int:
     return Hold(0).request_id
 
 
-def _request_fields(request: Request) -> dict[str, object]:
+def request_fields(request: Request) -> dict[str, object]:
     data = {k: v for k, v in request.__dict__.items() if k not in ("vehicle_id", "request_id")}
     if isinstance(request, FlyMission):
         data["actions"] = [a.name for a in request.actions]

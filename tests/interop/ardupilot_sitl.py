@@ -1,0 +1,257 @@
+"""Start and stop ArduPilot SITL vehicles (Copter, Plane, Rover) for the interoperability suite.
+
+Where ArduPilot is found, in this order:
+
+1. ``TML_ARDUPILOT_SITL``: a launcher in the style of ``../shared/ardupilot/ardupilot-sitl``
+   (``LAUNCHER [--vehicle copter|plane|rover] -I N --speedup K``), or an ``arducopter``
+   (``arduplane``, ``ardurover``) binary built with ``./waf configure --board sitl``, or the
+   directory that holds either. A bare binary is run with the parameter files ArduPilot's
+   autotest uses: ``VEHICLE.parm`` beside the binary, else the ArduPilot checkout's
+   ``Tools/autotest/default_params/`` (``models/plane.parm`` for Plane), found from
+   ``build/sitl/bin/``.
+2. ``../shared/ardupilot/ardupilot-sitl`` beside the checkout (CI has it).
+
+Instance ``N`` serves MAVLink on TCP ``5760 + 10 * N`` (SERIAL0) and ``5762 + 10 * N``
+(SERIAL1, where a companion computer attaches), with system id ``N + 1``. Instances are
+taken from ``TML_INTEROP_FIRST_INSTANCE`` (default 0) upwards, skipping any whose ports are
+busy, so that several runs of the suite on one machine keep out of each other's way.
+
+Each vehicle is stopped by its own pid (SIGTERM, then SIGKILL) when the test ends.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import tempfile
+import threading
+import time
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from pymavlink import mavutil
+
+ROOT = Path(__file__).resolve().parents[2]
+SHARED_LAUNCHER = ROOT.parent / "shared" / "ardupilot" / "ardupilot-sitl"
+BINARIES = {"copter": "arducopter", "plane": "arduplane", "rover": "ardurover"}
+MODELS = {"copter": "+", "plane": "plane", "rover": "rover"}
+DEFAULT_HOME = "-35.363261,149.165230,584,353"
+BASE_PORT = 5760
+MAX_INSTANCE = 60
+BOOT_TIMEOUT = 60.0
+
+
+@dataclass(frozen=True)
+class Launcher:
+    """How to start a vehicle: a launcher script, or a binary with its parameter file."""
+
+    path: Path
+    is_script: bool
+
+    def command(self, vehicle: str, instance: int, speedup: float, home: str,
+                scratch: Path) -> list[str]:
+        """The command line that starts ``vehicle`` as ``instance``."""
+        if self.is_script:
+            return [str(self.path), "--vehicle", vehicle, "-I", str(instance),
+                    "--speedup", f"{speedup:g}", "--home", home]
+        binary = self.path.parent / BINARIES[vehicle]
+        command = [str(binary), "--wipe", "--model", MODELS[vehicle], "--speedup",
+                   f"{speedup:g}", "-I", str(instance), "--sysid", str(instance + 1),
+                   "--home", home]
+        parm = parameter_file(binary, vehicle)
+        if parm is not None:
+            command += ["--defaults", str(parm)]
+        return command
+
+
+def parameter_file(binary: Path, vehicle: str) -> Path | None:
+    """ArduPilot's autotest parameters for ``vehicle``, beside the binary or in its checkout."""
+    beside = binary.parent / f"{vehicle}.parm"
+    if beside.is_file():
+        return beside
+    # build/sitl/bin/arducopter -> the checkout's Tools/autotest
+    autotest = binary.resolve().parents[3] / "Tools" / "autotest" if len(
+        binary.resolve().parents) > 3 else None
+    if autotest is None:
+        return None
+    found = (autotest / "models" / "plane.parm" if vehicle == "plane"
+             else autotest / "default_params" / f"{vehicle}.parm")
+    return found if found.is_file() else None
+
+
+def find_launcher() -> tuple[Launcher | None, str]:
+    """The launcher to use, or None and the one-line reason there is none."""
+    configured = os.environ.get("TML_ARDUPILOT_SITL", "")
+    if configured:
+        path = Path(configured).expanduser()
+        if path.is_dir():
+            script = path / "ardupilot-sitl"
+            path = script if script.is_file() else path / "arducopter"
+        if not path.is_file() or not os.access(path, os.X_OK):
+            return None, f"TML_ARDUPILOT_SITL={configured} is not an executable launcher " \
+                         f"or arducopter binary"
+        return Launcher(path, path.name not in BINARIES.values()), ""
+    if SHARED_LAUNCHER.is_file():
+        return Launcher(SHARED_LAUNCHER, True), ""
+    return None, ("no ArduPilot SITL: set TML_ARDUPILOT_SITL to an ardupilot-sitl launcher "
+                  "or an arducopter binary (see docs/interop.md)")
+
+
+def _port_free(port: int) -> bool:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            sock.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+    return True
+
+
+_claimed: set[int] = set()
+_claim_lock = threading.Lock()
+
+
+def _claim_instance() -> int:
+    first = int(os.environ.get("TML_INTEROP_FIRST_INSTANCE", "0"))
+    with _claim_lock:
+        for instance in range(first, MAX_INSTANCE):
+            ports = (BASE_PORT + 10 * instance, BASE_PORT + 10 * instance + 2)
+            if instance not in _claimed and all(_port_free(p) for p in ports):
+                _claimed.add(instance)
+                return instance
+    raise RuntimeError("no free ArduPilot SITL instance (ports 5760 + 10 * N are all busy)")
+
+
+@dataclass
+class SitlVehicle:
+    """One running ArduPilot SITL vehicle."""
+
+    vehicle: str
+    instance: int
+    process: subprocess.Popen[bytes]
+    log: Path
+
+    @property
+    def system_id(self) -> int:
+        """MAV_SYSID (the launcher's default: instance + 1)."""
+        return self.instance + 1
+
+    @property
+    def port(self) -> int:
+        """SERIAL0's TCP port, for the ground station."""
+        return BASE_PORT + 10 * self.instance
+
+    @property
+    def address(self) -> str:
+        """SERIAL0, the ground station's connection string."""
+        return f"tcp:127.0.0.1:{self.port}"
+
+    @property
+    def companion_address(self) -> str:
+        """SERIAL1, where a companion computer is attached."""
+        return f"tcp:127.0.0.1:{self.port + 2}"
+
+    def output(self) -> str:
+        """What the vehicle printed (for failure messages)."""
+        return self.log.read_text(errors="replace")[-2000:] if self.log.exists() else ""
+
+    def stop(self) -> None:
+        """Stop the vehicle by its pid: SIGTERM, then SIGKILL after 5 s."""
+        if self.process.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(self.process.pid, signal.SIGTERM)
+            try:
+                self.process.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                os.kill(self.process.pid, signal.SIGKILL)
+                self.process.wait(timeout=5)
+        with _claim_lock:
+            _claimed.discard(self.instance)
+
+
+def start_vehicle(launcher: Launcher, vehicle: str = "copter", *, speedup: float = 10.0,
+                  home: str = DEFAULT_HOME, params: Mapping[str, float] | None = None,
+                  scratch: Path | None = None) -> SitlVehicle:
+    """Start one vehicle, wait until it answers on SERIAL0, and set ``params`` on it.
+
+    The first connection starts the vehicle's clock; the parameters are set over it and it
+    is closed again, so that the ground station under test connects to a vehicle that has
+    already booted (ArduPilot takes the next client on the same port).
+    """
+    for _ in range(5):
+        instance = _claim_instance()
+        folder = Path(scratch or tempfile.mkdtemp(prefix="ardupilot-"))
+        log = folder / f"{vehicle}-{instance}.log"
+        with log.open("wb") as out:
+            process = subprocess.Popen(
+                launcher.command(vehicle, instance, speedup, home, folder), cwd=folder,
+                stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+        sitl = SitlVehicle(vehicle, instance, process, log)
+        if _wait_listening(sitl):
+            break
+        sitl.stop()  # another run took the ports between the check and the start
+    else:
+        raise RuntimeError(f"ArduPilot SITL did not start: {sitl.output()}")
+    try:
+        _first_contact(sitl, dict(params or {}))
+    except Exception:
+        sitl.stop()
+        raise
+    return sitl
+
+
+def _wait_listening(sitl: SitlVehicle) -> bool:
+    end = time.monotonic() + 15.0
+    while time.monotonic() < end:
+        if sitl.process.poll() is not None:
+            return False
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+            if sock.connect_ex(("127.0.0.1", sitl.port)) == 0:
+                return True
+        time.sleep(0.1)
+    return False
+
+
+def _first_contact(sitl: SitlVehicle, params: dict[str, float]) -> None:
+    conn = mavutil.mavlink_connection(sitl.address, source_system=250, source_component=190)
+    try:
+        if conn.wait_heartbeat(timeout=BOOT_TIMEOUT) is None:
+            raise RuntimeError(f"no heartbeat from {sitl.address}: {sitl.output()}")
+        for name, value in params.items():
+            set_parameter(conn, sitl.system_id, name, value)
+    finally:
+        conn.close()
+
+
+def set_parameter(conn: mavutil.mavfile, system_id: int, name: str, value: float) -> None:
+    """PARAM_SET until the vehicle echoes the value (raises after 10 tries)."""
+    for _ in range(10):
+        conn.mav.param_set_send(system_id, 1, name.encode(), value,
+                                mavutil.mavlink.MAV_PARAM_TYPE_REAL32)
+        end = time.monotonic() + 1.0
+        while time.monotonic() < end:
+            msg = conn.recv_match(type="PARAM_VALUE", blocking=True, timeout=0.2)
+            if msg is not None and msg.param_id == name and abs(msg.param_value - value) < 1e-3:
+                return
+    raise RuntimeError(f"{name}={value} was not taken by vehicle {system_id}")
+
+
+@contextlib.contextmanager
+def vehicles(launcher: Launcher, count: int = 1, vehicle: str = "copter",
+             **options: object) -> Iterator[list[SitlVehicle]]:
+    """``count`` vehicles, stopped (by pid) on leaving."""
+    started: list[SitlVehicle] = []
+    try:
+        for _ in range(count):
+            started.append(start_vehicle(launcher, vehicle, **options))  # type: ignore[arg-type]
+        yield started
+    finally:
+        for sitl in started:
+            sitl.stop()
+        for sitl in started:
+            shutil.rmtree(sitl.log.parent, ignore_errors=True)

@@ -45,7 +45,7 @@ def test_state_from_the_autopilot_messages() -> None:
         ap("sys_status", 0, 0, 0, 500, 12600, -1, 87, 0, 0, 0, 0, 0, 0),
         ap("extended_sys_state", 0, 2),
         ap("gps_raw_int", 0, 3, 0, 0, 0, 0, 0, 0, 0, 10),
-        ap("ekf_status_report", 8 | 2 | 512, 0, 0, 0, 0, 0),
+        ap("ekf_status_report", EKF_USING_GPS, 0, 0, 0, 0, 0),
         ap("mission_current", 3),
         ap("mission_item_reached", 2),
         ap("mission_item_reached", 3),
@@ -64,12 +64,47 @@ def test_state_from_the_autopilot_messages() -> None:
     assert (t.mission_current, t.items_reached) == (3, (2, 3))
     assert [s.text for s in t.status_texts] == ["Mission: 3 WP"]
     assert t.time == 12.0 and t.heartbeat_age(12.5) == 12.5
+    assert (t.boot_time, t.boot_time_received) == (1.0, 4.0)  # the ATTITUDE's time_boot_ms
+
+
+# EKF_STATUS_REPORT flags ArduCopter SITL sends before and after its EKF uses GPS.
+EKF_BEFORE_GPS = 0xA7  # attitude, velocities, vertical position, constant-position mode
+EKF_USING_GPS = 0x33F  # ... and horizontal position (relative, absolute, predicted)
+
+
+def test_position_is_ready_when_the_ekf_uses_gps_not_in_constant_position_mode() -> None:
+    tracker = TelemetryTracker(1)
+    ap = Source()
+    tracker.apply(ap("ekf_status_report", EKF_BEFORE_GPS, 0, 0, 0, 0, 0), 0.0)
+    assert not tracker.snapshot.position_ready
+    tracker.apply(ap("ekf_status_report", EKF_USING_GPS | 128, 0, 0, 0, 0, 0), 0.0)
+    assert not tracker.snapshot.position_ready  # still holding a constant position
+    tracker.apply(ap("ekf_status_report", EKF_USING_GPS, 0, 0, 0, 0, 0), 0.0)
+    assert tracker.snapshot.position_ready
+
+
+def test_prearm_checks_are_read_from_sys_status_and_statustext() -> None:
+    tracker = TelemetryTracker(1)
+    ap = Source()
+    prearm = mavlink.MAV_SYS_STATUS_PREARM_CHECK
+    assert tracker.snapshot.prearm_ok is None and tracker.snapshot.prearm_text == ""
+    tracker.apply(ap("sys_status", 0, 0, 0, 500, 12600, -1, 100, 0, 0, 0, 0, 0, 0), 0.0)
+    assert tracker.snapshot.prearm_ok is None  # not reported by this autopilot
+    tracker.apply(ap("sys_status", prearm, prearm, 0, 500, 12600, -1, 100, 0, 0, 0, 0, 0, 0),
+                  1.0)
+    tracker.apply(ap("statustext", 2, b"PreArm: Need Position Estimate"), 1.0)
+    tracker.apply(ap("statustext", 6, b"EKF3 IMU0 is using GPS"), 2.0)
+    assert tracker.snapshot.prearm_ok is False
+    assert tracker.snapshot.prearm_text == "PreArm: Need Position Estimate"
+    tracker.apply(ap("sys_status", prearm, prearm, prearm, 500, 12600, -1, 100, 0, 0, 0, 0, 0,
+                     0), 3.0)
+    assert tracker.snapshot.prearm_ok is True
 
 
 def test_not_ready_before_the_ekf_uses_gps_and_unknown_battery() -> None:
     tracker = TelemetryTracker(1)
     ap = Source()
-    tracker.apply(ap("ekf_status_report", 2, 0, 0, 0, 0, 0), 0.0)
+    tracker.apply(ap("ekf_status_report", EKF_BEFORE_GPS, 0, 0, 0, 0, 0), 0.0)
     tracker.apply(ap("sys_status", 0, 0, 0, 500, 12600, -1, -1, 0, 0, 0, 0, 0, 0), 0.0)
     assert not tracker.snapshot.position_ready
     assert tracker.snapshot.battery_remaining is None

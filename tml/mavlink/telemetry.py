@@ -33,8 +33,15 @@ COMPANION_COMPONENT = 191
 """MAV_COMP_ID_ONBOARD_COMPUTER: where detections come from."""
 ARMED_FLAG = 128
 """MAV_MODE_FLAG_SAFETY_ARMED in HEARTBEAT.base_mode."""
-EKF_POSITION_FLAGS = 8 | 2 | 512
+EKF_POSITION_FLAGS = 16 | 2 | 512
 """EKF_POS_HORIZ_ABS | EKF_VELOCITY_HORIZ | EKF_PRED_POS_HORIZ_ABS: ArduPilot can arm in GUIDED."""
+EKF_CONST_POS_MODE = 128
+"""The EKF holds a constant position (no GPS): whatever else it says, it has no fix to fly on."""
+PREARM_CHECK = 1 << 28
+"""MAV_SYS_STATUS_PREARM_CHECK in SYS_STATUS: present when the autopilot reports its
+pre-arm checks, healthy when they pass (ArduPilot)."""
+PREARM_PREFIXES = ("PreArm:", "Arm:")
+"""How ArduPilot begins the STATUSTEXTs that say why it will not arm."""
 STATUS_TEXTS_KEPT = 50
 
 
@@ -111,6 +118,13 @@ class Telemetry:
     gps_fix: int | None = None
     satellites: int | None = None
     ekf_flags: int | None = None
+    sensors_present: int | None = None
+    """SYS_STATUS onboard_control_sensors_present (MAV_SYS_STATUS_SENSOR bits)."""
+    sensors_health: int | None = None
+    boot_time: float | None = None
+    """Seconds since the vehicle booted (time_boot_ms of its latest message that has one)."""
+    boot_time_received: float | None = None
+    """When (the link's clock) ``boot_time`` arrived."""
     mission_current: int | None = None
     items_reached: tuple[int, ...] = ()
     status_texts: tuple[StatusText, ...] = ()
@@ -129,7 +143,22 @@ class Telemetry:
     def position_ready(self) -> bool:
         """True once the EKF reports an absolute horizontal position (arming is possible)."""
         flags = self.ekf_flags or 0
-        return flags & EKF_POSITION_FLAGS == EKF_POSITION_FLAGS
+        return flags & EKF_POSITION_FLAGS == EKF_POSITION_FLAGS and not flags & EKF_CONST_POS_MODE
+
+    @property
+    def prearm_ok(self) -> bool | None:
+        """Whether the autopilot's pre-arm checks pass (None: it does not say, or not yet)."""
+        if self.sensors_present is None or not self.sensors_present & PREARM_CHECK:
+            return None
+        return bool((self.sensors_health or 0) & PREARM_CHECK)
+
+    @property
+    def prearm_text(self) -> str:
+        """The autopilot's latest reason not to arm ("PreArm: ..."), "" if none was said."""
+        for text in reversed(self.status_texts):
+            if text.text.startswith(PREARM_PREFIXES):
+                return text.text
+        return ""
 
     @property
     def loss(self) -> float:
@@ -166,6 +195,9 @@ class TelemetryTracker:
         changes = self._count(component, msg.get_seq())
         if component == self.autopilot_component:
             changes.update(self._vehicle_state(msg, now))
+            boot_ms = getattr(msg, "time_boot_ms", None)
+            if boot_ms is not None:
+                changes.update(boot_time=boot_ms / 1000, boot_time_received=now)
         elif component == self.companion_component:
             changes.update(self._detection(msg, now))
         self.snapshot = replace(self.snapshot, time=now, **changes)
@@ -211,7 +243,9 @@ class TelemetryTracker:
         if kind == "SYS_STATUS":
             remaining = msg.battery_remaining
             return {"battery_voltage": msg.voltage_battery / 1000,
-                    "battery_remaining": None if remaining < 0 else remaining}
+                    "battery_remaining": None if remaining < 0 else remaining,
+                    "sensors_present": msg.onboard_control_sensors_present,
+                    "sensors_health": msg.onboard_control_sensors_health}
         if kind == "EXTENDED_SYS_STATE":
             return {"landed_state": msg.landed_state}
         if kind == "GPS_RAW_INT":

@@ -217,3 +217,84 @@ def test_a_lost_vehicle_fails_its_branch_and_the_other_is_stopped_safely() -> No
     assert isinstance(sim.vehicles[0].submitted[-1], ReturnToLaunch)
     assert any(isinstance(r, Hold) for r in sim.vehicles[0].submitted)
     assert isinstance(sim.vehicles[1].submitted[-1], ReturnToLaunch)
+
+
+class Booting(FakeVehicle):
+    """A vehicle that reports nothing but its heartbeat until ``reports_at`` and cannot arm
+    (no position estimate, an autopilot saying why) until ``armable_at``."""
+
+    reports_at = 2.0
+    armable_at = 6.0
+
+    def state(self) -> VehicleState:
+        state = super().state()
+        changes: dict[str, object] = {}
+        if self.time < self.reports_at:
+            changes.update(gps_fix=None, battery=None, position=None, home=None)
+        if self.time < self.armable_at:
+            changes.update(ready=False, armable=False, gps_fix=changes.get("gps_fix", 1),
+                           prearm="PreArm: Need Position Estimate")
+        return VehicleState(**{**state.__dict__, **changes})
+
+
+GPS_GATED = ('<task name="Only with a fix"><condition parameter="GPS_FIX" '
+             'comparison="greater than or equal to" value="3"/>' + TAKE_OFF + LAND + '</task>')
+
+
+def test_the_first_task_waits_until_the_vehicle_is_ready() -> None:
+    sim = Sim(Booting())
+    log = io.StringIO()
+    runner = Runner(mission(GPS_GATED), sim.vehicles, clock=sim.clock, wait=sim.wait,
+                    journal=Journal(log))
+    outcome = runner.run()
+    lines = [json.loads(line) for line in log.getvalue().splitlines()]
+    assert outcome.exit_code == ExitCode.COMPLETED
+    ready = [(line["t"], line["awaiting"]) for line in lines if line["kind"] == "ready"]
+    unarmable = ["GPS fix", "pre-arm checks", "autopilot: PreArm: Need Position Estimate"]
+    assert ready[0] == (0.0, ["GPS status", "position", "home position", "battery status",
+                              *unarmable])
+    assert ready[1][1] == unarmable and 2.0 <= ready[1][0] < 2.2
+    assert ready[2][1] == [] and 6.0 <= ready[2][0] < 6.2
+    states = {line["task"]: line["state"] for line in lines if line["kind"] == "task"}
+    assert states["Only with a fix"] == "done"  # GPS_FIX was never read before it arrived
+    first_request = next(line for line in lines if line["kind"] == "request")
+    assert first_request["t"] >= ready[2][0]
+
+
+def test_a_vehicle_never_ready_fails_the_run_with_the_autopilots_reason() -> None:
+    never = Booting()
+    never.armable_at = 1e9
+    sim = Sim(never)
+    said: list[str] = []
+    runner = Runner(mission(TAKE_OFF + LAND), sim.vehicles, clock=sim.clock, wait=sim.wait,
+                    options=RunOptions(ready_timeout=5.0), on_safety=said.append)
+    outcome = runner.run()
+    assert outcome.exit_code == ExitCode.VEHICLE_FAILURE
+    (vehicle,) = outcome.vehicles
+    assert (vehicle.status, vehicle.cause) == (Status.FAILED, "ready")
+    assert vehicle.reason == ("not ready after 5 s: waiting for GPS fix, pre-arm checks, "
+                              "autopilot: PreArm: Need Position Estimate")
+    assert sim.vehicles[0].submitted == [] and said == ["vehicle 1: " + vehicle.reason]
+    assert 5.0 < sim.time < 5.3
+
+
+def test_a_stop_while_waiting_aborts_without_commanding_anything() -> None:
+    sim = Sim(Booting(), FakeVehicle(vehicle_id=2))
+    runner = Runner(mission(TAKE_OFF + LAND), sim.vehicles, clock=sim.clock, wait=sim.wait)
+    sim.hooks.append(lambda s: runner.stop("interrupted (SIGINT)") if s.time >= 1.0 else None)
+    outcome = runner.run()
+    assert outcome.exit_code == ExitCode.ABORTED
+    assert [v.reason for v in outcome.vehicles] == ["interrupted (SIGINT)"] * 2
+    assert all(v.submitted == [] for v in sim.vehicles)
+
+
+def test_ready_timeout_zero_starts_at_once() -> None:
+    sim = Sim(Booting())
+    log = io.StringIO()
+    runner = Runner(mission(GPS_GATED), sim.vehicles, clock=sim.clock, wait=sim.wait,
+                    journal=Journal(log), options=RunOptions(ready_timeout=0))
+    runner.run()
+    lines = [json.loads(line) for line in log.getvalue().splitlines()]
+    assert not [line for line in lines if line["kind"] == "ready"]
+    states = {line["task"]: line["state"] for line in lines if line["kind"] == "task"}
+    assert states["Only with a fix"] == "skipped"  # read before the GPS said anything

@@ -15,8 +15,10 @@ from tml.vehicle import (
     SetMode,
     TakeOff,
     VehicleState,
+    awaiting,
     vehicle_type_matches,
 )
+from tml.world import DEFAULT_HOME
 
 
 def test_fake_vehicle_flies_and_answers_requests() -> None:
@@ -101,3 +103,36 @@ def test_the_type_words_a_role_may_use() -> None:
     assert not VEHICLE_TYPES & VEHICLE_TYPE_CLASSES
     for word in VEHICLE_TYPES:
         assert vehicle_type_matches(word, word)
+
+
+READY = VehicleState(vehicle_id=1, time=0.0, position=(0.0, 0.0, 0.0), home=DEFAULT_HOME,
+                     battery=100.0, gps_fix=3)
+
+
+def test_a_vehicle_that_reported_everything_and_can_arm_is_awaited_for_nothing() -> None:
+    assert awaiting(READY) == ()
+    assert awaiting(FakeVehicle().state()) == ()
+
+
+def test_what_has_not_arrived_is_awaited_never_taken_as_zero() -> None:
+    booting = VehicleState(vehicle_id=1, time=0.0, ready=False, armable=None)
+    assert awaiting(booting) == ("GPS status", "position", "home position", "battery status",
+                                 "GPS fix")
+    assert awaiting(VehicleState(vehicle_id=1, time=0.0, link="lost")) == ("heartbeat",)
+
+
+def test_an_unarmable_vehicle_is_awaited_with_the_autopilots_words() -> None:
+    no_ekf = VehicleState(**{**READY.__dict__, "ready": False, "armable": False,
+                             "prearm": "PreArm: Need Position Estimate"})
+    assert awaiting(no_ekf) == ("position estimate", "pre-arm checks",
+                                "autopilot: PreArm: Need Position Estimate")
+    no_fix = VehicleState(**{**no_ekf.__dict__, "gps_fix": 1, "armable": None})
+    assert awaiting(no_fix)[0] == "GPS fix"
+    # A stale text alone does not hold a vehicle that can arm.
+    assert awaiting(VehicleState(**{**READY.__dict__, "prearm": "PreArm: old news"})) == ()
+
+
+def test_a_vehicle_already_armed_is_taken_as_it_is() -> None:
+    flying = VehicleState(**{**READY.__dict__, "armed": True, "landed": False,
+                             "ready": False, "armable": False})
+    assert awaiting(flying) == ()

@@ -20,7 +20,7 @@ from rich.tree import Tree
 
 from tml.engine import TaskState, View
 from tml.model import Mission, Task
-from tml.vehicle import VehicleState
+from tml.vehicle import VehicleState, awaiting
 
 Views = Sequence[tuple[View, VehicleState | None]]
 
@@ -104,13 +104,22 @@ def _events(views: Views) -> Text:
     return text
 
 
+def _waiting(views: Views) -> Text | None:
+    """What vehicles still lack to be ready (before the first task, or lost since)."""
+    lines = [f"vehicle {state.vehicle_id}: waiting for {', '.join(missing)}"
+             for _, state in views if state is not None
+             for missing in [awaiting(state)] if missing]
+    return Text("\n".join(lines), "yellow") if lines else None
+
+
 def render(mission: Mission, views: Views) -> RenderableType:
-    """The whole view: header, task tree, vehicles, events."""
+    """The whole view: header, task tree, vehicles, what is awaited, events."""
     header = Text(f"{mission.name}  t = {max((v.mission_time for v, _ in views), default=0):.1f} s",
                   "bold")
     reasons = [v.reason for v, _ in views if v.reason]
+    waiting = _waiting(views)
     parts: list[RenderableType] = [header, _tree(mission, views), _vehicles(views),
-                                   _events(views)]
+                                   *([waiting] if waiting else []), _events(views)]
     if reasons:
         parts.append(Text("ended: " + "; ".join(reasons), "bold"))
     return Group(*parts)
@@ -160,6 +169,7 @@ class LineDisplay:
         self.console = console or Console(highlight=False)
         self._states: dict[tuple[int, str], TaskState] = {}
         self._events: set[tuple[int, float, str]] = set()
+        self._awaiting: dict[int, tuple[str, ...]] = {}
 
     def __enter__(self) -> LineDisplay:
         return self
@@ -172,6 +182,11 @@ class LineDisplay:
         for index, (view, vehicle) in enumerate(views):
             who = f"vehicle {vehicle.vehicle_id if vehicle else index + 1}" \
                 + (f" ({view.role})" if view.role else "")
+            missing = awaiting(vehicle) if vehicle is not None else ()
+            if missing != self._awaiting.get(index, ()):
+                self._awaiting[index] = missing
+                self.console.print(f"{who}: waiting for {', '.join(missing)}" if missing
+                                   else f"{who}: ready")
             for path, state in view.task_states.items():
                 key = (index, path)
                 if state is not TaskState.PENDING and self._states.get(key) is not state:

@@ -5,7 +5,8 @@ Every line has ``t`` (mission clock, seconds), ``kind`` and, when it is about a 
 kinds (``mission``, ``task``, ``action``, ``decision``, ``event``, ``request``,
 ``result``, ``safety``); the runner adds ``run`` (start and end of the run, with the
 mission file and options), ``result`` (every request outcome a vehicle reported),
-``telemetry`` (a vehicle's state once a second) and ``safety`` (what it did to leave the
+``telemetry`` (a vehicle's state once a second), ``ready`` (what a vehicle still lacks
+before the first task, each time that changes) and ``safety`` (what it did to leave the
 vehicles safe). docs/run.md lists the fields. Lines are flushed at once, so that a log
 survives a crash of the run up to its last event.
 """

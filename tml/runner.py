@@ -15,6 +15,14 @@ monotonic clock; for the embedded simulator it is the simulator's own vehicle ti
 speed-up (or a simulator falling behind on a busy machine) changes nothing for the mission:
 time limits derived from distance and speed stay true to how the vehicle moves.
 
+*Readiness.* Before the first task, every vehicle must be ready (:func:`tml.vehicle.awaiting`):
+its heartbeat, position, home, GPS and battery reported, and, on the ground, armable (a
+position estimate and the autopilot's pre-arm checks). The loop waits for that up to
+``ready_timeout`` seconds of its clock, writing what each vehicle still lacks to the journal
+whenever that changes; a vehicle still not ready then fails the run (exit 4) with what it
+lacked and the autopilot's own reason, before anything is sent to any vehicle. So the
+first conditions never read a value that has not arrived as if it were real.
+
 *Safety.* The run stops early on an interpreter exception, on a link that stays ``lost``
 longer than ``link_lost_limit`` seconds, or on :meth:`Runner.stop` (Ctrl-C, SIGTERM). Then
 every vehicle still running is handed to its interpreter's :meth:`abort`, which commands
@@ -48,6 +56,7 @@ from tml.vehicle import (
     ReturnToLaunch,
     Vehicle,
     VehicleState,
+    awaiting,
 )
 
 SAFE_STATES = {"rtl": ReturnToLaunch, "land": Land, "hold": Hold}
@@ -70,6 +79,7 @@ class RunOptions:
     telemetry_period: float = 1.0  # s between telemetry lines in the journal
     link_lost_limit: float = 10.0  # s of a lost link before the run is aborted
     settle_timeout: float = 30.0  # wall s to wait for the last requests after the end
+    ready_timeout: float = 180.0  # s for every vehicle to be ready before the first task
     safe_state: str = "rtl"
     engine: Options = field(default_factory=Options)
 
@@ -81,7 +91,7 @@ class VehicleOutcome:
     vehicle_id: int
     status: Status
     reason: str
-    cause: str = ""  # "link", "error", "stop" when the runner aborted the run
+    cause: str = ""  # "link", "error", "stop", "ready" when the runner ended the run
 
 
 @dataclass(frozen=True)
@@ -93,7 +103,7 @@ class Outcome:
     @property
     def exit_code(self) -> ExitCode:
         """0 all completed, 4 a vehicle or link failed (or the engine broke), 3 aborted."""
-        if any(v.status is Status.FAILED or v.cause in ("link", "error")
+        if any(v.status is Status.FAILED or v.cause in ("link", "error", "ready")
                for v in self.vehicles):
             return ExitCode.VEHICLE_FAILURE
         if any(v.status is not Status.COMPLETED for v in self.vehicles):
@@ -185,6 +195,10 @@ class Runner:
                                                              for f in self.flights],
                            roles=[r.name for r in self.mission.roles],
                            safe_state=self.options.safe_state)
+        unready = self._wait_ready()
+        if unready is not None:
+            return self._end(unready)
+        now = self.clock()
         for flight in self.flights:
             flight.state = flight.vehicle.state()
         for crew in self.crews:
@@ -201,13 +215,15 @@ class Runner:
             if self.on_update is not None:
                 self.on_update(self)
         self._settle()
+        return self._end(Outcome(tuple(
+            VehicleOutcome(f.vehicle.vehicle_id, c.fleet.status, c.fleet.reason, f.cause)
+            for c in self.crews for f in c.flights)))
+
+    def _end(self, outcome: Outcome) -> Outcome:
         for flight in self.flights:  # the state each vehicle is left in
             flight.state = flight.vehicle.state()
             self.journal.write(self.clock(), "telemetry", flight.vehicle.vehicle_id,
                                **telemetry_fields(flight.state))
-        outcome = Outcome(tuple(
-            VehicleOutcome(f.vehicle.vehicle_id, c.fleet.status, c.fleet.reason, f.cause)
-            for c in self.crews for f in c.flights))
         self.journal.write(self.clock(), "run", message="run ended",
                            exit_code=int(outcome.exit_code),
                            outcomes=[{"vehicle": v.vehicle_id, "status": v.status.value,
@@ -215,6 +231,49 @@ class Runner:
         if self.on_update is not None:
             self.on_update(self)
         return outcome
+
+    def _wait_ready(self) -> Outcome | None:
+        """Wait until every vehicle is ready; the outcome if the run must end instead."""
+        timeout = self.options.ready_timeout
+        if timeout <= 0:
+            return None
+        start = self.clock()
+        said: dict[int, tuple[str, ...]] = {}
+        while True:
+            now = self.clock()
+            waiting: dict[int, tuple[str, ...]] = {}
+            for flight in self.flights:
+                state = flight.state = flight.vehicle.state()
+                vid = flight.vehicle.vehicle_id
+                missing = waiting[vid] = awaiting(state)
+                if missing != said.get(vid, ()) or vid not in said:
+                    said[vid] = missing
+                    message = f"waiting for {', '.join(missing)}" if missing else "ready"
+                    self.journal.write(now, "ready", vid, message=message,
+                                       awaiting=list(missing))
+            if not any(waiting.values()):
+                return None
+            if self._stop_reason or now - start > timeout:
+                stopped = bool(self._stop_reason)
+                outcomes = []
+                for flight in self.flights:
+                    vid = flight.vehicle.vehicle_id
+                    if stopped:
+                        reason, status = self._stop_reason, Status.ABORTED
+                    elif waiting[vid]:
+                        reason = (f"not ready after {timeout:g} s: waiting for "
+                                  f"{', '.join(waiting[vid])}")
+                        status = Status.FAILED
+                    else:
+                        reason, status = "another vehicle was not ready", Status.ABORTED
+                    flight.cause = "stop" if stopped else "ready"
+                    outcomes.append(VehicleOutcome(vid, status, reason, flight.cause))
+                    if status is Status.FAILED:
+                        self._said(f"vehicle {vid}: {reason}")
+                return Outcome(tuple(outcomes))
+            if self.on_update is not None:
+                self.on_update(self)
+            self._wait(1.0 / self.options.rate)
 
     def _wait_for_wake(self, timeout: float) -> None:
         self.wake.wait(timeout)

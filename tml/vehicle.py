@@ -74,6 +74,8 @@ class VehicleState:
     time: float
     link: str = "ok"  # "ok", "degraded" (messages missing) or "lost" (no heartbeat)
     ready: bool = True  # position estimate good enough to arm (ArduPilot EKF flags)
+    armable: bool | None = True  # the autopilot's pre-arm checks pass (None: not said)
+    prearm: str = ""  # the autopilot's latest reason not to arm ("PreArm: ...")
     armed: bool = False
     landed: bool = True
     mode: str = ""
@@ -81,7 +83,7 @@ class VehicleState:
     heading: float = 0.0
     ground_speed: float = 0.0
     battery: float | None = None  # percent remaining
-    gps_fix: int = 0
+    gps_fix: int | None = None  # GPS_RAW_INT fix type (3 = 3D); None until reported
     home: Home | None = None
     mission: MissionProgress | None = None
     detections: Mapping[str, object] = field(default_factory=lambda: _EMPTY)
@@ -98,6 +100,39 @@ class VehicleState:
     def altitude(self) -> float:
         """Altitude above home in metres (0 when the position is unknown)."""
         return self.position[2] if self.position else 0.0
+
+
+def awaiting(state: VehicleState) -> tuple[str, ...]:
+    """What a vehicle still lacks before a mission may start on it ("" items: none).
+
+    Everything the interpreter reads must have arrived (a value not yet reported is
+    unknown, never 0): the heartbeat, the position, home, the GPS and the battery. A
+    vehicle on the ground and disarmed must also be armable: a position estimate the
+    autopilot flies on (ArduPilot's EKF) and pre-arm checks that pass, whose failure is
+    named with the autopilot's own words when it said them. A vehicle already armed or
+    flying is taken as it is.
+    """
+    if state.link == "lost":
+        return ("heartbeat",)
+    missing: list[str] = []
+    if state.gps_fix is None:
+        missing.append("GPS status")
+    if state.position is None:
+        missing.append("position")
+    if state.home is None:
+        missing.append("home position")
+    if state.battery is None:
+        missing.append("battery status")
+    if not state.armed:
+        unarmable = []
+        if not state.ready:
+            unarmable.append("GPS fix" if (state.gps_fix or 0) < 3 else "position estimate")
+        if state.armable is False:
+            unarmable.append("pre-arm checks")
+        if unarmable and state.prearm:
+            unarmable.append(f"autopilot: {state.prearm}")
+        missing.extend(unarmable)
+    return tuple(missing)
 
 
 # --- requests -------------------------------------------------------------------------------
@@ -307,6 +342,7 @@ class FakeVehicle:
         """The current state."""
         return VehicleState(
             vehicle_id=self.vehicle_id, time=self.time, ready=self.ready, armed=self.armed,
+            armable=self.ready,
             landed=self.position[2] <= 0.05, mode=self.mode, position=self.position,
             heading=self.heading, ground_speed=self.speed if self._moving() else 0.0,
             battery=self.battery, gps_fix=3, home=self.home, mission=self.mission,

@@ -257,12 +257,13 @@ class MavlinkVehicle:
             progress = plan.progress() if plan is not None else self._progress
         return VehicleState(
             vehicle_id=self.vehicle_id, time=now, link=self._link_state(now),
-            ready=t.position_ready, armed=t.armed, landed=landed, mode=t.mode,
+            ready=t.position_ready, armable=t.prearm_ok, prearm=t.prearm_text if not t.armed
+            else "", armed=t.armed, landed=landed, mode=t.mode,
             position=position,
             heading=math.degrees(t.attitude[2]) % 360.0 if t.attitude else 0.0,
             ground_speed=math.hypot(velocity[0], velocity[1]),
             battery=None if t.battery_remaining is None else float(t.battery_remaining),
-            gps_fix=t.gps_fix or 0, home=home, mission=progress, detections=detections,
+            gps_fix=t.gps_fix, home=home, mission=progress, detections=detections,
             capabilities=self.capabilities, vehicle_type=t.airframe,
             status_text=t.status_texts[-1].text if t.status_texts else "")
 

@@ -41,6 +41,16 @@ def _positive(text: str) -> float:
     return value
 
 
+def _non_negative(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not value >= 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a number of at least 0, got {text}")
+    return value
+
+
 def _count(text: str) -> int:
     if not text.isdigit() or int(text) < 1:
         raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {text!r}")
@@ -98,6 +108,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="abort the run after the link is lost this long (default 10 s)")
     parser.add_argument("--timeout", type=_positive, default=30.0, metavar="S",
                         help="seconds to wait for each vehicle's first heartbeat (default 30)")
+    parser.add_argument("--ready-timeout", type=_non_negative, default=180.0, metavar="S",
+                        help="seconds to wait, before the first task, for every vehicle to "
+                             "report position, home, GPS and battery and to be armable "
+                             "(default 180; 0 does not wait)")
+    parser.add_argument("--clock", choices=("wall", "vehicle"), default="wall",
+                        help="--connect: the mission's clock: the ground station's (wall, "
+                             "default) or the first vehicle's own (vehicle: time limits in "
+                             "vehicle seconds, e.g. for SITL run with --speedup); --sim "
+                             "always uses the simulator's")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -216,6 +235,11 @@ def _vehicles(args: argparse.Namespace, world: World) -> Iterator[tuple[list[Any
             link = stack.enter_context(Link(address, outputs=args.out))
             link.listen(lambda *_: wake.set())
             ids = [system_id] if system_id else _discover(link, args.timeout)
+            if not args.sim and args.clock == "vehicle" and not vehicles:
+                from tml.mavlink.clock import VehicleClock
+
+                # The first vehicle's clock times the mission and every vehicle's link.
+                clock = VehicleClock(link, ids[0])
             for sid in ids:
                 vehicle = MavlinkVehicle(link, sid, clock=clock, world=world,
                                          vehicle_id=len(vehicles) + 1 if not args.sim else sid,
@@ -248,7 +272,7 @@ def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
     engine = Options(world=world, pre_check=pre_check(profile, world),
                      route=router(profile, world))
     options = RunOptions(safe_state=args.safe_state, link_lost_limit=args.link_lost_limit,
-                         engine=engine)
+                         ready_timeout=args.ready_timeout, engine=engine)
     journal = Journal.open(args.log)
     display: Any = None
     if not args.quiet:

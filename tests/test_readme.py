@@ -12,8 +12,12 @@ README = (ROOT / "README.md").read_text()
 def test_first_block_is_the_two_commands_and_ci_runs_the_second() -> None:
     first = re.search(r"```\n(.*?)```", README, re.S).group(1).strip().splitlines()
     assert len(first) == 2
-    assert first[0].startswith("python3 -m pip install . && tml ")
-    assert first[1] == "python3 -m pip install '.[test]' && python3 -m pytest"
+    # Each makes and uses a virtual environment: a stock Debian/Ubuntu python3 refuses
+    # `pip install` outside one (PEP 668).
+    assert first[0].startswith("python3 -m venv .venv && .venv/bin/pip install . && "
+                               ".venv/bin/tml run ")
+    assert first[1] == ("python3 -m venv .venv && .venv/bin/pip install '.[test]' && "
+                        ".venv/bin/python -m pytest")
     ci = (ROOT / ".ci" / "run").read_text()
     assert "sed -n 2p" in ci  # .ci/run takes the second line of that block
 

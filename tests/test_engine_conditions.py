@@ -89,3 +89,13 @@ def test_unknown_position_reads_as_unknown() -> None:
     state = VehicleState(1, 0.0)
     assert read_parameter("ALTITUDE", state, MEMORY) is None
     assert not evaluate(Condition(P, "ALTITUDE", Comparison.LESS, "5", HERE), state, MEMORY)[0]
+
+
+@pytest.mark.parametrize("name", ["BATTERY_CHARGE_PERCENTAGE", "GPS_FIX", "HEADING",
+                                  "GROUND_SPEED", "ALTITUDE", "DISTANCE_TO_HOME"])
+def test_a_value_the_vehicle_has_not_reported_is_unknown_not_zero(name: str) -> None:
+    booting = VehicleState(1, 0.0, heading_known=False)  # nothing but a heartbeat yet
+    assert read_parameter(name, booting, MEMORY) is None
+    unknown = Condition(P, name, Comparison.LESS_OR_EQUAL, "100", HERE)
+    assert evaluate(unknown, booting, MEMORY) == (False, None)
+    assert evaluate(Condition(P, name, Comparison.KNOWN, "no", HERE), booting, MEMORY)[0]

@@ -115,9 +115,10 @@ def test_a_vehicle_that_reported_everything_and_can_arm_is_awaited_for_nothing()
 
 
 def test_what_has_not_arrived_is_awaited_never_taken_as_zero() -> None:
-    booting = VehicleState(vehicle_id=1, time=0.0, ready=False, armable=None)
-    assert awaiting(booting) == ("GPS status", "position", "home position", "battery status",
-                                 "GPS fix")
+    booting = VehicleState(vehicle_id=1, time=0.0, ready=False, armable=None,
+                           heading_known=False)
+    assert awaiting(booting) == ("GPS status", "position", "attitude", "home position",
+                                 "battery status", "GPS fix")
     assert awaiting(VehicleState(vehicle_id=1, time=0.0, link="lost")) == ("heartbeat",)
 
 

@@ -81,6 +81,7 @@ class VehicleState:
     mode: str = ""
     position: Point | None = None
     heading: float = 0.0
+    heading_known: bool = True  # False until the autopilot reports its attitude
     ground_speed: float = 0.0
     battery: float | None = None  # percent remaining
     gps_fix: int | None = None  # GPS_RAW_INT fix type (3 = 3D); None until reported
@@ -119,6 +120,8 @@ def awaiting(state: VehicleState) -> tuple[str, ...]:
         missing.append("GPS status")
     if state.position is None:
         missing.append("position")
+    if not state.heading_known:
+        missing.append("attitude")
     if state.home is None:
         missing.append("home position")
     if state.battery is None:

@@ -47,10 +47,10 @@ _FOUND_SETS = {"item": "RECOGNIZED_ITEMS", "bucket": "RECOGNIZED_BUCKETS",
 _STATE_READERS: dict[str, Callable[[VehicleState], object]] = {
     "BATTERY_CHARGE_PERCENTAGE": lambda s: s.battery,
     "ALTITUDE": lambda s: s.position[2] if s.position else None,
-    "GROUND_SPEED": lambda s: s.ground_speed,
+    "GROUND_SPEED": lambda s: s.ground_speed if s.position is not None else None,
     "DISTANCE_TO_HOME": lambda s: math.hypot(s.position[0], s.position[1])
     if s.position else None,
-    "HEADING": lambda s: s.heading,
+    "HEADING": lambda s: s.heading if s.heading_known else None,
     "FLIGHT_MODE": lambda s: s.mode or None,
     "ARMED": lambda s: s.armed,
     "LANDED": lambda s: s.landed,

@@ -261,6 +261,7 @@ class MavlinkVehicle:
             else "", armed=t.armed, landed=landed, mode=t.mode,
             position=position,
             heading=math.degrees(t.attitude[2]) % 360.0 if t.attitude else 0.0,
+            heading_known=t.attitude is not None,
             ground_speed=math.hypot(velocity[0], velocity[1]),
             battery=None if t.battery_remaining is None else float(t.battery_remaining),
             gps_fix=t.gps_fix, home=home, mission=progress, detections=detections,

@@ -255,3 +255,75 @@ def vehicles(launcher: Launcher, count: int = 1, vehicle: str = "copter",
             sitl.stop()
         for sitl in started:
             shutil.rmtree(sitl.log.parent, ignore_errors=True)
+
+
+class ChargingPad:
+    """A charging pad under an ArduPilot SITL vehicle, as the embedded simulator's
+    ``SIM_BATT_CHARGE``: while the vehicle is disarmed its battery gains ``amps`` of charge.
+
+    ArduPilot SITL has no charger, so the pad talks to the vehicle's second port (SERIAL1):
+    once a vehicle second (each HEARTBEAT) it adds ``amps`` x 1 s to what the battery holds
+    and sets the battery monitor's remaining charge with MAV_CMD_BATTERY_RESET, which
+    ArduPilot implements for monitors that integrate the current (BATT_MONITOR 4).
+    ``capacity`` is BATT_CAPACITY in mAh (0: read from the vehicle).
+    """
+
+    def __init__(self, sitl: SitlVehicle, amps: float, capacity: float = 0.0) -> None:
+        self.sitl = sitl
+        self.amps = amps
+        self.capacity = capacity
+        self.charges = 0  # resets sent, for the test to see the pad worked
+        self._running = False
+        self._thread: threading.Thread | None = None
+
+    def start(self) -> None:
+        """Attach to the vehicle and charge in a thread until :meth:`stop`."""
+        conn = mavutil.mavlink_connection(self.sitl.companion_address, source_system=250,
+                                          source_component=158)
+        if conn.wait_heartbeat(timeout=30) is None:
+            raise RuntimeError(f"no heartbeat on {self.sitl.companion_address}")
+        if not self.capacity:
+            conn.mav.param_request_read_send(self.sitl.system_id, 1, b"BATT_CAPACITY", -1)
+            msg = conn.recv_match(type="PARAM_VALUE", blocking=True, timeout=5)
+            self.capacity = msg.param_value if msg is not None else 3300.0
+        conn.mav.command_long_send(self.sitl.system_id, 1,
+                                   mavutil.mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                                   mavutil.mavlink.MAVLINK_MSG_ID_SYS_STATUS, 500_000,
+                                   0, 0, 0, 0, 0)
+        self._running = True
+        self._thread = threading.Thread(target=self._charge, args=(conn,), daemon=True,
+                                        name=f"pad {self.sitl.instance}")
+        self._thread.start()
+
+    def stop(self) -> None:
+        """Stop charging and detach."""
+        self._running = False
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+
+    def _charge(self, conn: mavutil.mavfile) -> None:
+        per_second = self.amps * 1000.0 / 3600.0 / self.capacity * 100.0  # % a second
+        remaining: float | None = None
+        charge: float | None = None
+        try:
+            while self._running:
+                msg = conn.recv_match(type=["HEARTBEAT", "SYS_STATUS"], blocking=True,
+                                      timeout=0.5)
+                if msg is None or msg.get_srcSystem() != self.sitl.system_id \
+                        or msg.get_srcComponent() != 1:
+                    continue
+                if msg.get_type() == "SYS_STATUS":
+                    remaining = None if msg.battery_remaining < 0 else msg.battery_remaining
+                    continue
+                armed = msg.base_mode & mavutil.mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+                if armed or remaining is None:
+                    charge = None
+                    continue
+                charge = min(100.0, (remaining if charge is None else charge) + per_second)
+                if charge > remaining:
+                    conn.mav.command_long_send(
+                        self.sitl.system_id, 1, mavutil.mavlink.MAV_CMD_BATTERY_RESET, 0,
+                        1, charge, 0, 0, 0, 0, 0)
+                    self.charges += 1
+        finally:
+            conn.close()

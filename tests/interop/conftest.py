@@ -6,6 +6,7 @@ found (see tests/interop/ardupilot_sitl.py and docs/interop.md). Run it with ``p
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack
 from pathlib import Path
@@ -14,6 +15,9 @@ import pytest
 from ardupilot_sitl import Launcher, SitlVehicle, find_launcher, vehicles
 
 INTEROP_DIR = Path(__file__).parent
+# The interop tests fly the regular suite's missions with its expectations
+# (tests/test_flights.py), one table for both.
+sys.path.insert(0, str(INTEROP_DIR.parent))
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

@@ -1,0 +1,158 @@
+"""Every mission in missions/ flies on ArduCopter SITL to the outcome it has on the simulator.
+
+Each test flies one mission twice, as a user would with ``tml run``: on the embedded
+simulator exactly as tests/test_flights.py does, and on ArduCopter SITL (speed-up 10, one
+instance per vehicle, ``--clock vehicle``). The expected exit code and outcome are
+tests/test_flights.py's ``EXPECTED`` (one table for both). Both flight logs are then read:
+besides the outcome, every task ends in the same state on both (done, skipped, failed,
+aborted, never started), so no task is skipped on ArduCopter for want of telemetry, and
+the tasks that fly on the simulator fly there too. A difference that has a reason is
+listed in ``DIFFERENCES`` and in docs/interop.md.
+
+The simulator's parameters of a flight become ArduCopter's where ArduCopter has the same
+parameter (BATT_CAPACITY); the simulator's charging pad (SIM_BATT_CHARGE) is played by a
+:class:`ChargingPad` on the vehicle's second port; missions whose skills need the companion
+computer fly with ``tml companion`` attached to that port.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+from ardupilot_sitl import ChargingPad, SitlVehicle
+from test_flights import EXPECTED, MISSIONS
+from test_flights import fly as fly_on_the_simulator
+
+from tml.cli import main
+from tml.journal import read
+from tml.mavlink.adapter import COMPANION, SKILL_BINDINGS
+from tml.validation import validate_file
+
+ARDUPILOT_PARAMETERS = frozenset({"BATT_CAPACITY"})
+"""Simulator parameters ArduCopter has under the same name and meaning."""
+DIFFERENCES: dict[str, dict[str, str]] = {}
+"""mission -> task -> why it ends differently on ArduCopter (see docs/interop.md)."""
+
+Log = list[dict]
+
+
+@dataclass
+class Setup:
+    """How a mission is flown on ArduPilot, from its simulator arguments."""
+
+    vehicles: int = 1
+    params: dict[str, float] = field(default_factory=dict)
+    charge_amps: float = 0.0
+    tml_args: list[str] = field(default_factory=list)
+    companion: bool = False
+
+
+def setup(name: str) -> Setup:
+    """Translate the simulator's extra arguments of EXPECTED into an ArduPilot set-up."""
+    found = Setup()
+    args = list(EXPECTED[name][2])
+    while args:
+        arg = args.pop(0)
+        if arg == "--sim-param":
+            key, _, value = args.pop(0).partition("=")
+            if key in ARDUPILOT_PARAMETERS:
+                found.params[key] = float(value)
+            elif key == "SIM_BATT_CHARGE":
+                found.charge_amps = float(value)
+            else:
+                raise AssertionError(f"{name}: no ArduPilot counterpart for {key}")
+        elif arg == "--vehicles":
+            found.vehicles = int(args.pop(0))
+        else:
+            found.tml_args.append(arg)
+    mission = validate_file(MISSIONS / f"{name}.xml").mission
+    assert mission is not None
+    skills = {skill.name for task in mission.walk() for skill in task.skills}
+    found.companion = any(SKILL_BINDINGS[s].component == COMPANION
+                          for s in skills if s in SKILL_BINDINGS)
+    return found
+
+
+def final_states(lines: Log) -> dict[str, str]:
+    """Each task's last state in a flight log (tasks never started are left out)."""
+    return {line["task"]: line["state"] for line in lines if line["kind"] == "task"}
+
+
+def outcome(lines: Log) -> tuple[int, str]:
+    (ended,) = [line for line in lines if line["kind"] == "run" and "outcomes" in line]
+    return ended["exit_code"], ended["outcomes"][0]["reason"]
+
+
+def companion(sitl: SitlVehicle, mission: Path, log: Path) -> subprocess.Popen[bytes]:
+    """``tml companion`` attached to the vehicle's second port, as a process of its own."""
+    with log.open("wb") as out:
+        return subprocess.Popen(
+            [sys.executable, "-m", "tml", "companion", "--connect", sitl.companion_address,
+             "--world", str(mission)], stdout=out, stderr=subprocess.STDOUT)
+
+
+def stop(process: subprocess.Popen[bytes]) -> None:
+    if process.poll() is None:
+        os.kill(process.pid, signal.SIGTERM)
+        try:
+            process.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            os.kill(process.pid, signal.SIGKILL)
+            process.wait()
+
+
+def fly_on_ardupilot(name: str, vehicles: list[SitlVehicle], how: Setup, tmp_path: Path
+                     ) -> tuple[int, Log, float]:
+    log = tmp_path / f"{name}.ardupilot.jsonl"
+    mission = MISSIONS / f"{name}.xml"
+    helpers: list[subprocess.Popen[bytes]] = []
+    pads = [ChargingPad(sitl, how.charge_amps, how.params.get("BATT_CAPACITY", 0.0))
+            for sitl in vehicles] if how.charge_amps else []
+    try:
+        if how.companion:
+            helpers = [companion(sitl, mission, tmp_path / f"companion-{sitl.instance}.log")
+                       for sitl in vehicles]
+        for pad in pads:
+            pad.start()
+        connects = [arg for sitl in vehicles for arg in ("--connect", sitl.address)]
+        start = time.monotonic()
+        code = main(["run", str(mission), *connects, "--clock", "vehicle", "-q",
+                     "--log", str(log), *how.tml_args])
+        wall = time.monotonic() - start
+    finally:
+        for pad in pads:
+            pad.stop()
+        for process in helpers:
+            stop(process)
+    return code, read(str(log)), wall
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED))
+def test_mission_flies_on_ardupilot_as_on_the_simulator(name: str, ardupilot, tmp_path: Path
+                                                        ) -> None:
+    how = setup(name)
+    vehicles = ardupilot(count=how.vehicles, params=how.params)
+    code, lines, wall = fly_on_ardupilot(name, vehicles, how, tmp_path)
+    print(f"{name}: exit {code} in {wall:.1f} s of wall time at speed-up 10")
+    expected_code, expected_reason, _ = EXPECTED[name]
+    assert not [line for line in lines if line["kind"] == "error"]
+    assert outcome(lines)[0] == code
+    assert (code, expected_reason in outcome(lines)[1]) == (expected_code, True), outcome(lines)
+    sim_code, sim_lines, _ = fly_on_the_simulator(tmp_path, name, EXPECTED[name][2])
+    assert sim_code == code
+    on_sim, on_ardupilot = final_states(sim_lines), final_states(lines)
+    allowed = DIFFERENCES.get(name, {})
+    differing = {task: (on_sim.get(task, "never started"),
+                        on_ardupilot.get(task, "never started"))
+                 for task in on_sim.keys() | on_ardupilot.keys()
+                 if on_sim.get(task) != on_ardupilot.get(task) and task not in allowed}
+    assert differing == {}, "task: (on the simulator, on ArduCopter)"
+    last = [line for line in lines if line["kind"] == "telemetry"][-1]
+    assert last["mode"] != "AUTO" or last["landed"], "left flying an unwatched AUTO mission"

@@ -152,3 +152,43 @@ def test_profile_from_the_vehicles_parameters(tmp_path: Path,
 def test_a_bad_payload_option_says_what_it_expects(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["run", "m.xml", "--sim", "--payload", "camera"]) == 2
     assert "expected ID=NAME[,NAME...]" in capsys.readouterr().err
+
+
+def test_clock_vehicle_times_the_mission_in_the_vehicles_seconds(tmp_path: Path) -> None:
+    from sitl.server import Simulator
+
+    log = tmp_path / "flight.jsonl"
+    params = {"SIM_GPS_LOCKTIME": 0.5, "SIM_EKF_GPS_TIME": 1.0}
+    with Simulator(vehicles=1, speedup=20, tcp_base_port=0, params=params) as sim:
+        code = main(["run", write(tmp_path, SHORT), "--connect",
+                     f"tcp:127.0.0.1:{sim.tcp_ports[0]}", "--clock", "vehicle", "-q",
+                     "--log", str(log)])
+        vehicle_time = sim.time
+    assert code == 0
+    lines = read(str(log))
+    # The log is timed by the vehicle (seconds since it booted), not the ground station.
+    assert 0 < lines[0]["t"] <= lines[-1]["t"] <= vehicle_time + 0.5
+    assert vehicle_time - lines[-1]["t"] < 3.0
+
+
+def test_a_vehicle_that_never_gets_ready_exits_4_saying_what_it_lacked(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = tmp_path / "flight.jsonl"
+    code = main(["run", write(tmp_path, SHORT), "--sim", "-q", "--log", str(log),
+                 "--speedup", "40", "--sim-param", "SIM_GPS_LOCKTIME=0.5",
+                 "--sim-param", "SIM_EKF_GPS_TIME=100000", "--ready-timeout", "5"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert code == 4, out
+    assert "vehicle 1: mission failed: not ready after 5 s: waiting for" in out
+    lines = read(str(log))
+    assert not [line for line in lines if line["kind"] in ("request", "task")]
+    (reason,) = [o["reason"] for o in lines[-1]["outcomes"]]
+    awaited = [line["awaiting"] for line in lines if line["kind"] == "ready"][-1]
+    assert "position estimate" in awaited and reason.endswith(", ".join(awaited))
+
+
+@pytest.mark.parametrize("bad", ["-1", "soon", "inf"])
+def test_a_bad_ready_timeout_says_what_it_expects(bad: str,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", "m.xml", "--sim", "--ready-timeout", bad]) == 2
+    assert "--ready-timeout" in capsys.readouterr().err

@@ -180,6 +180,16 @@ def test_only_the_first_do_item_after_the_last_nav_item_runs():
     assert "Mission: 1 Takeoff" in texts(replies + v.step(1))
 
 
+def test_mission_start_with_a_first_or_last_item_is_denied_as_on_arducopter():
+    v, _ = fly([item(22, alt=5), item(16, north=5, alt=5), item(21, alt=0)],
+               until=lambda v: v.auto is not None and v.auto.current == 2)
+    for first, last in ((2, 0), (0, 3)):
+        (ack, *_) = v.handle(M.MAVLink_command_long_message(1, 1, 300, 0, first, last, 0, 0,
+                                                            0, 0, 0))
+        assert ack.result == M.MAV_RESULT_DENIED
+    assert v.auto.current == 2  # still flying what it flew
+
+
 def legs(out: list) -> dict[int, list]:
     """GLOBAL_POSITION_INT samples by the NAV item being flown (between two REACHED)."""
     flown: dict[int, list] = {}

@@ -164,7 +164,8 @@ class Vehicle:
                                     z=altitude))
 
     def start_mission(self, first: int = 0, last: int = 0) -> None:
-        """Start the uploaded mission (MISSION_START; ArduPilot needs AUTO and arming)."""
+        """Start the uploaded mission (MISSION_START; ArduPilot needs AUTO and arming, and
+        DENIES any ``first`` or ``last`` but 0: make the first item current instead)."""
         self.command(CommandLong(mavlink.MAV_CMD_MISSION_START, first, last))
 
     def set_current(self, seq: int) -> None:

@@ -679,14 +679,18 @@ def _signed_whole(value: float) -> Expected:
     return -metres if v < 0 else metres
 
 
+LOITER_TURNS_MAX = 255
+"""The most turns ArduPilot keeps in one NAV_LOITER_TURNS (the low byte of its p1)."""
+
+
 def _turns(value: float) -> Expected:
     """NAV_LOITER_TURNS param1: whole turns up to 255; below 1, in 256ths of a turn."""
     v = _f32(value)
     if 0 < v < 1:
         return math.trunc(v * 256) / 256
     if math.isnan(v) or v <= -1:
-        return Unstorable("ArduPilot keeps 0 to 255 turns")
-    return float(min(255, math.trunc(v)))
+        return Unstorable(f"ArduPilot keeps 0 to {LOITER_TURNS_MAX} turns")
+    return float(min(LOITER_TURNS_MAX, math.trunc(v)))
 
 
 def _loiter_radius(value: float) -> Expected:

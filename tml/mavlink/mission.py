@@ -615,14 +615,15 @@ def _same(name: str, expected: float | int, read: float | int) -> bool:
 
 
 def _shown(value: float | int) -> str:
-    """A number as short as it reads: 2.0 -> 2, float32 12.300000190734863 -> 12.3."""
+    """A number as the wire carries it, as short as it reads: 2.0 -> 2, 12.3 -> 12.3."""
     if isinstance(value, int) or not math.isfinite(value):
         return str(value)
+    value = _f32(value)
     if value.is_integer():
         return str(int(value))
     for digits in range(1, 10):
         text = f"{value:.{digits}g}"
-        if float(text) == value or (_f32(value) == value and _f32(float(text)) == value):
+        if _f32(float(text)) == value:
             return text
     return repr(value)
 

@@ -232,14 +232,22 @@ class Vehicle:
         upload = Upload(sent, mission_type, system_id=self.system_id)
         self._transfer(upload, on_progress, raise_error=_lost_for_good)
         if verify or upload.unconfirmed:
-            read_back = self.download(mission_type)
-            differences = read_back_differences(sent, read_back, self.stored_form,
-                                                skip_home=skip_home)
-            if differences:
-                raise MissionTransferError(
-                    f"{MissionType(mission_type).name.lower()} read back differs from the "
-                    f"upload: {_describe(differences)}", "MISMATCH", self.system_id)
+            self.check_read_back(sent, mission_type)
         return sent
+
+    def check_read_back(self, sent: list[MissionItem],
+                        mission_type: int = MissionType.MISSION) -> None:
+        """Read the vehicle's items back and compare them with ``sent`` (as :meth:`upload`
+        returned them) by this vehicle's storage rules; a difference is a
+        MissionTransferError (result ``MISMATCH``) naming the items, fields and values."""
+        read_back = self.download(mission_type)
+        skip_home = mission_type == MissionType.MISSION and self.keeps_home_in_item_zero
+        differences = read_back_differences(sent, read_back, self.stored_form,
+                                            skip_home=skip_home)
+        if differences:
+            raise MissionTransferError(
+                f"{MissionType(mission_type).name.lower()} read back differs from the "
+                f"upload: {_describe(differences)}", "MISMATCH", self.system_id)
 
     def download(self, mission_type: int = MissionType.MISSION) -> list[MissionItem]:
         """The vehicle's items of ``mission_type`` (ArduPilot's home included as item 0)."""

@@ -378,11 +378,10 @@ def test_mission_arguments_arducopter_does_not_keep_are_warnings() -> None:
     timed = run(mission_task(loiter("duration=30", "radius=8")))
     assert codes(timed) == ["W307"] and "NAV_LOITER_TIME" in timed.diagnostics[0].message
     assert timed.valid() and not timed.valid(strict=True)
-    assert codes(run(mission_task(loiter("radius=8")))) == ["W307"]
-    assert codes(run(mission_task('<action name="RETURN_HOME_AND_LOITER"><argument '
-                                  'name="radius" value="8"/></action>'))) == ["W307"]
-    # Circled on ArduCopter (turns), or left to the autopilot (no radius written): silent.
+    # Kept by ArduPilot (turns; NAV_LOITER_UNLIM keeps its radius, for a fixed wing to
+    # circle), or left to the autopilot (no radius written): silent.
     assert codes(run(mission_task(loiter("turns=2", "radius=8")))) == []
+    assert codes(run(mission_task(loiter("radius=8")))) == []
     assert codes(run(mission_task(loiter("duration=30")))) == []
     required = run(mission_task('<action name="LANDING_POINT"><argument name="coordinates" '
                                 'value="(0, 0, 0)"/><argument name="precision_mode" '

@@ -252,13 +252,12 @@ class _Checker:
             except ValueError:
                 return None  # E212 already says so
 
-        loiters = spec.name in ("LOITER", "RETURN_HOME_AND_LOITER")
-        if loiters and "radius" in given and ("duration" in given or "turns" not in given):
-            item = "NAV_LOITER_TIME" if "duration" in given else "NAV_LOITER_UNLIM"
+        if spec.name == "LOITER" and "radius" in given and "duration" in given:
             self.found.append(warning(
                 action.location, "W307",
-                f"in a dispatch=\"mission\" task ArduCopter flies {spec.name} without turns as "
-                f"{item}: it holds position over the centre, and the radius is not flown",
+                "in a dispatch=\"mission\" task a LOITER with a duration is NAV_LOITER_TIME, "
+                "of whose radius ArduPilot keeps only the direction: the radius is not flown "
+                "(ArduCopter holds position over the centre)",
                 "give turns to circle, or fly the task with dispatch=\"command\""))
         if value("precision_mode") == "required":
             self.found.append(warning(

@@ -50,7 +50,7 @@ MISSION_REQUEST_INT. ArduPilot keeps home in mission item 0 and overwrites it:
 
 A vehicle reads items back in its own storage form. :func:`read_back_differences` compares
 a read-back with what was sent, through a *form* that says what each field should read
-back as: :func:`exact_form` (every field as sent, as PX4 keeps them) or
+back as: :func:`exact_form` (every field as sent, what other autopilots are held to) or
 :func:`ardupilot_form` (ArduPilot keeps only some params of each command, in C integer
 types, and positions in whole centimetres with the frame's family). It returns every
 difference as an :class:`ItemDifference` naming the item, the field and both values.
@@ -461,10 +461,10 @@ def with_home_placeholder(items: list[MissionItem], home: MissionItem | None = N
 # A vehicle reads its mission back in its own storage form, not as it was sent. A *form*
 # says, field by field, what an item should read back as: a value, None for a field the
 # vehicle does not keep (not compared), or Unstorable for a value the field cannot hold.
-# exact_form is a vehicle that stores items as sent (PX4 does); ardupilot_form is
+# exact_form is a vehicle that stores items as sent; ardupilot_form is
 # ArduPilot, after AP_Mission's mavlink_int_to_mission_cmd / mission_cmd_to_mavlink_int
 # (missions), AC_PolyFence_loader (fences) and AP_Rally (rally points), checked against
-# ArduCopter 4.7 SITL (docs/connections.md lists the rules and how they were measured).
+# ArduCopter 4.7 SITL (docs/run.md, "Upload and read-back", lists the rules).
 
 
 @dataclass(frozen=True)
@@ -563,7 +563,7 @@ def same_items(sent: list[MissionItem], read_back: list[MissionItem], *,
 
 def exact_form(item: MissionItem) -> dict[str, Expected]:
     """Every field as sent, floats as the wire's float32 carries them: a vehicle that stores
-    items verbatim (PX4)."""
+    items verbatim (what tml expects of autopilots other than ArduPilot)."""
     return {"frame": item.frame, "autocontinue": item.autocontinue,
             **{name: _f32(getattr(item, name)) for name in PARAMS},
             "x": item.x, "y": item.y, "z": _f32(item.z)}

@@ -39,7 +39,7 @@ from tml.mavlink.mission import MissionItem
 NAV_WAYPOINT, NAV_LOITER_UNLIM, NAV_LOITER_TURNS, NAV_LOITER_TIME = 16, 17, 18, 19
 NAV_RETURN_TO_LAUNCH, NAV_LAND, NAV_TAKEOFF, NAV_DELAY = 20, 21, 22, 93
 CONDITION_DELAY, CONDITION_YAW = 112, 115
-DO_JUMP, DO_CHANGE_SPEED, DO_SET_HOME, DO_CHANGE_ALTITUDE = 177, 178, 179, 186
+DO_JUMP, DO_CHANGE_SPEED, DO_SET_HOME = 177, 178, 179
 DO_DIGICAM_CONTROL, DO_SET_CAM_TRIGG_DIST, DO_GRIPPER = 203, 206, 211
 IMAGE_START_CAPTURE, IMAGE_STOP_CAPTURE = 2000, 2001
 
@@ -48,7 +48,7 @@ NAMES = {
     NAV_LOITER_TIME: "LoitTime", NAV_RETURN_TO_LAUNCH: "RTL", NAV_LAND: "Land",
     NAV_TAKEOFF: "Takeoff", NAV_DELAY: "Delay", CONDITION_DELAY: "CondDelay",
     CONDITION_YAW: "CondYaw", DO_JUMP: "Jump", DO_CHANGE_SPEED: "ChangeSpeed",
-    DO_SET_HOME: "SetHome", DO_CHANGE_ALTITUDE: "ChangeAlt", DO_DIGICAM_CONTROL: "DigiCam",
+    DO_SET_HOME: "SetHome", DO_DIGICAM_CONTROL: "DigiCam",
     DO_SET_CAM_TRIGG_DIST: "CamTrigDist", DO_GRIPPER: "Gripper",
     IMAGE_START_CAPTURE: "ImageStart", IMAGE_STOP_CAPTURE: "ImageStop",
 }
@@ -206,13 +206,12 @@ class AutoMission:
             return pilot.time - nav.since >= item.param1
         if nav.phase == "descend":
             return pilot.has_landed()
-        radius = item.param2 if command == NAV_WAYPOINT and item.param2 > 0 else (
-            self.waypoint_radius
-        )
         if command == NAV_TAKEOFF:
             return abs(pilot.position[2] - nav.target[2]) < 0.2
         if nav.phase == "go":
-            if not pilot.arrived(nav.target, radius if command == NAV_WAYPOINT else 1.0):
+            # ArduCopter keeps no acceptance radius in a NAV_WAYPOINT: WPNAV_RADIUS decides.
+            radius = self.waypoint_radius if command == NAV_WAYPOINT else 1.0
+            if not pilot.arrived(nav.target, radius):
                 return False
             nav.phase, nav.since = "hold", pilot.time
             if command == NAV_LAND:
@@ -286,12 +285,6 @@ class AutoMission:
             if item.param2 > 0 and int(item.param1) in (
                     SPEED_AIR, SPEED_GROUND, SPEED_CLIMB, SPEED_DESCENT):
                 pilot.set_speed(int(item.param1), item.param2)
-        elif item.command == DO_CHANGE_ALTITUDE:
-            if self.nav is not None:
-                target = self.nav.target
-                self.nav.target = (target[0], target[1], item.param1)
-                if self.nav.phase == "go":
-                    pilot.fly_to(self.nav.target)
         elif item.command == DO_SET_HOME:
             pilot.set_home_from(item)
         elif item.command in NAMES:

@@ -20,6 +20,12 @@ the time alone causes. Behaviour copied from ArduCopter:
 - While an upload of a list is in progress, another client's MISSION_COUNT for it is
   DENIED (the same client's restarts the upload), downloads of it are DENIED and
   MISSION_CLEAR_ALL of it fails with ERROR.
+- Items are stored as ArduCopter stores them (:mod:`sitl.storage`) and read back in that
+  form: frames of positions as GLOBAL / GLOBAL_RELATIVE_ALT / GLOBAL_TERRAIN_ALT, other
+  commands' frames as 0, only the params ArduCopter keeps, whole numbers where it keeps
+  integers. An item ArduCopter refuses (unknown command, NaN param, a position out of
+  range or in a frame it does not take) ends the upload with ArduCopter's MISSION_ACK
+  result.
 - Seq 0 of a mission is home: whatever the client uploads there is replaced by the
   vehicle's home (read back with frame GLOBAL and absolute altitude).
 - Uploads are refused with NO_SPACE for :data:`BOOT_BUSY` seconds after boot, as
@@ -31,11 +37,12 @@ the time alone causes. Behaviour copied from ArduCopter:
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from sitl import storage
 from tml.mavlink.mission import MissionItem
 
 REQUEST_INTERVAL = 1.0  # seconds after a request before the item is requested again
@@ -43,24 +50,28 @@ UPLOAD_TIMEOUT = 8.0  # seconds without an item before the upload is cancelled
 BOOT_BUSY = 1.0  # seconds after boot during which uploads get NO_SPACE
 MAX_ITEMS = {0: 725, 1: 84, 2: 20}  # capacity per MAV_MISSION_TYPE (ArduCopter SITL's)
 
-MISSION, FENCE, RALLY = 0, 1, 2
-GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})
-ALLOWED_FRAMES = GLOBAL_FRAMES | {2}
-FENCE_COMMANDS = frozenset({5000, 5001, 5002, 5003, 5004})
-RALLY_COMMANDS = frozenset({5100})
+MISSION, FENCE, RALLY = storage.MISSION, storage.FENCE, storage.RALLY
 
 
-def item_from_message(msg: Any) -> MissionItem:
-    """A stored item from MISSION_ITEM (float degrees) or MISSION_ITEM_INT (degrees * 1e7)."""
-    if msg.get_type() == "MISSION_ITEM" and msg.frame in GLOBAL_FRAMES:
-        x, y = round(msg.x * 1e7), round(msg.y * 1e7)
-    else:
-        x, y = int(msg.x), int(msg.y)
+def item_from_message(msg: Any) -> MissionItem | int:
+    """The item a MISSION_ITEM (degrees) or MISSION_ITEM_INT (degrees * 1e7) asks to store,
+    in the form the vehicle stores it, or the MAV_MISSION_RESULT refusing it."""
+    mission_type = getattr(msg, "mission_type", MISSION)
+    x, y = msg.x, msg.y
+    if msg.get_type() == "MISSION_ITEM":
+        coordinates = storage.int_coordinates(msg.command, msg.x, msg.y)
+        if isinstance(coordinates, int):
+            return coordinates
+        x, y = coordinates
+    stored = storage.store(mission_type, msg.command, msg.frame,
+                           (msg.param1, msg.param2, msg.param3, msg.param4), x, y, msg.z)
+    if isinstance(stored, int):
+        return stored
     return MissionItem(
-        seq=msg.seq, frame=msg.frame, command=msg.command, current=msg.current,
-        autocontinue=msg.autocontinue, param1=msg.param1, param2=msg.param2,
-        param3=msg.param3, param4=msg.param4, x=x, y=y, z=msg.z,
-        mission_type=getattr(msg, "mission_type", MISSION),
+        seq=msg.seq, frame=stored.frame, command=msg.command, current=0,
+        autocontinue=stored.autocontinue, param1=stored.params[0], param2=stored.params[1],
+        param3=stored.params[2], param4=stored.params[3], x=stored.x, y=stored.y, z=stored.z,
+        mission_type=mission_type,
     )
 
 
@@ -71,9 +82,13 @@ def item_to_message(item: MissionItem, target: tuple[int, int], as_int: bool) ->
     if as_int:
         return mavlink.MAVLink_mission_item_int_message(
             *target, *values, item.x, item.y, item.z, item.mission_type)
-    scale = 1e-7 if item.frame in GLOBAL_FRAMES else 1.0
+    # ArduPilot scales a position's integers back to degrees in float32 arithmetic.
+    if item.command in storage.POSITION or item.mission_type in (FENCE, RALLY):
+        x, y = (storage.f32(storage.f32(v) * storage.f32(1e-7)) for v in (item.x, item.y))
+    else:
+        x, y = float(item.x), float(item.y)
     return mavlink.MAVLink_mission_item_message(
-        *target, *values, item.x * scale, item.y * scale, item.z, item.mission_type)
+        *target, *values, x, y, item.z, item.mission_type)
 
 
 @dataclass
@@ -209,11 +224,10 @@ class MissionServer:
         if client != upload.client:
             return [_ack(client, mavlink.MAV_MISSION_DENIED, mission_type)]
         item = item_from_message(msg)
-        problem = _check(item)
-        if problem is not None:
+        if isinstance(item, int):  # refused, as ArduPilot ends an upload on a bad item
             self._upload = None
-            return [_ack(client, problem, mission_type)]
-        upload.items.append(replace(item, mission_type=mission_type))
+            return [_ack(client, item, mission_type)]
+        upload.items.append(item)
         upload.received_at = now
         if len(upload.items) < upload.count:
             return [self._request(upload, now)]
@@ -221,14 +235,3 @@ class MissionServer:
         self._lists[mission_type] = upload.items
         self._on_change(mission_type)
         return [_ack(client, mavlink.MAV_MISSION_ACCEPTED, mission_type)]
-
-
-def _check(item: MissionItem) -> int | None:
-    """The MAV_MISSION_RESULT that refuses ``item``, or None when it is acceptable."""
-    if item.mission_type == FENCE and item.command not in FENCE_COMMANDS:
-        return mavlink.MAV_MISSION_UNSUPPORTED
-    if item.mission_type == RALLY and item.command not in RALLY_COMMANDS:
-        return mavlink.MAV_MISSION_UNSUPPORTED
-    if item.frame not in ALLOWED_FRAMES:
-        return mavlink.MAV_MISSION_UNSUPPORTED_FRAME
-    return None

@@ -282,12 +282,14 @@ class VehicleModel:
                 self._home_changed()
             return ok
         if command == M.MAV_CMD_MISSION_START:
+            if p[0] or p[1]:
+                return M.MAV_RESULT_DENIED  # ArduPilot takes no first or last item
             if not self.set_mode("AUTO"):
                 return failed
-            if self.auto is not None and (p[0] >= 1 or self.auto.finished):
+            if self.auto is not None and self.auto.finished:
                 # Already in AUTO, set_mode changed nothing: as ArduCopter, a mission that
                 # is not running (here: finished) starts again.
-                self.auto.start(max(round(p[0]), 1))
+                self.auto.start(1)
             return ok
         if command == M.MAV_CMD_DO_SET_MISSION_CURRENT:
             return ok if self._set_current(round(p[0])) else failed

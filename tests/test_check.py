@@ -363,3 +363,32 @@ def test_labels_in_side_by_side_branches_have_no_order() -> None:
     assert run(body).diagnostics == []
     sequential = body.replace(' composition="parallel"', '')
     assert codes(run(sequential)) == ["E231"]
+
+
+def test_mission_arguments_arducopter_does_not_keep_are_warnings() -> None:
+    def mission_task(action: str) -> str:
+        return (TAKE_OFF + f'<task name="Plan" dispatch="mission"><task name="a">{action}'
+                '</task></task>\n')
+
+    def loiter(*arguments: str) -> str:
+        return '<action name="LOITER">' + "".join(
+            f'<argument name="{n}" value="{v}"/>' for n, v in (a.split("=") for a in arguments)
+        ) + "</action>"
+
+    timed = run(mission_task(loiter("duration=30", "radius=8")))
+    assert codes(timed) == ["W307"] and "NAV_LOITER_TIME" in timed.diagnostics[0].message
+    assert timed.valid() and not timed.valid(strict=True)
+    # Kept by ArduPilot (turns; NAV_LOITER_UNLIM keeps its radius, for a fixed wing to
+    # circle), or left to the autopilot (no radius written): silent.
+    assert codes(run(mission_task(loiter("turns=2", "radius=8")))) == []
+    assert codes(run(mission_task(loiter("radius=8")))) == []
+    assert codes(run(mission_task(loiter("duration=30")))) == []
+    required = run(mission_task('<action name="LANDING_POINT"><argument name="coordinates" '
+                                'value="(0, 0, 0)"/><argument name="precision_mode" '
+                                'value="required"/></action>'))
+    assert codes(required) == ["W308"] and "PLND_ENABLED" in required.diagnostics[0].message
+    assert codes(run(mission_task('<action name="RETURN_HOME_AND_LAND"><argument '
+                                  'name="land_mode" value="opportunistic"/></action>'))) == []
+    # Flown with commands, the same actions are flown as written.
+    assert codes(run(TAKE_OFF + f'<task name="a">{loiter("duration=30", "radius=8")}</task>\n'
+                     )) == []

@@ -107,6 +107,13 @@ def test_loiter_variants() -> None:
     assert [local(i) for i in items] == [(0, 0, 10), (5, 5, 20), (0, 10, 15), (0, 0, 15)]
 
 
+def test_more_turns_than_ardupilot_keeps_in_an_item_are_several_items() -> None:
+    plan = compiled(act("LOITER", turns="600", radius="10"), act("LAND"))
+    loiters = [i for i in plan.items if i.command == M.MAV_CMD_NAV_LOITER_TURNS]
+    assert [(i.param1, local(i)) for i in loiters] == [(255, (0, 0, 10))] * 2 + [(90, (0, 0, 10))]
+    assert plan.action_index == (0, 0, 0, 1)
+
+
 def test_landing_point_with_yaw_and_precision() -> None:
     items = compiled(act("LANDING_POINT", coordinates="(8, 2, 5)", yaw="90",
                          precision_mode="opportunistic")).items

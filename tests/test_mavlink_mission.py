@@ -7,8 +7,11 @@ a seeded probability, so the tests neither sleep nor touch sockets.
 from __future__ import annotations
 
 import heapq
+import json
+import math
 import random
 from dataclasses import replace
+from pathlib import Path
 
 import pytest
 
@@ -16,6 +19,7 @@ from tml.errors import MissionTransferError
 from tml.mavlink.mission import (
     Clear,
     Download,
+    ItemDifference,
     MissionAck,
     MissionClearAll,
     MissionCount,
@@ -27,7 +31,11 @@ from tml.mavlink.mission import (
     MissionType,
     Progress,
     Transfer,
+    Unstorable,
     Upload,
+    ardupilot_form,
+    exact_form,
+    read_back_differences,
     result_name,
     same_items,
     with_home_placeholder,
@@ -437,3 +445,155 @@ def test_empty_upload_succeeds_on_the_ack() -> None:
     upload = Upload([])
     run(upload, FakeVehicle(), LossyLink(random.Random(6), 0, 0))
     assert upload.succeeded and upload.progress.total == 0
+
+
+# --- read-back by the vehicle's storage rules -------------------------------------------
+
+LAT, LON = -353632610, 1491652300
+NAN = math.nan
+
+# Items uploaded to ArduCopter 4.7 SITL and what it read back (tests/interop measures them
+# again): "kept" as its storage rules say, "wrapped" where a value did not fit its field.
+ARDUCOPTER = json.loads((Path(__file__).parent / "data" / "arducopter_read_back.json")
+                        .read_text())
+
+
+def sent_and_read(case: dict) -> tuple[MissionItem, MissionItem]:
+    command, frame, *params, x, y, z = case["sent"]
+    frame_back, *params_back, x_back, y_back, z_back = case["read"]
+    return (MissionItem(1, frame, command, 0, 1, *params, x, y, z),
+            MissionItem(1, frame_back, command, 0, 1, *params_back, x_back, y_back, z_back))
+
+
+def case_id(case: dict) -> str:
+    return "-".join(f"{v:g}" for v in case["sent"][:6])
+
+
+@pytest.mark.parametrize("case", ARDUCOPTER["kept"], ids=case_id)
+def test_arducopter_read_back_is_what_ardupilots_rules_predict(case: dict) -> None:
+    sent, read = sent_and_read(case)
+    assert read_back_differences([sent], [read], ardupilot_form) == []
+
+
+@pytest.mark.parametrize("case", ARDUCOPTER["kept"], ids=case_id)
+def test_each_field_arducopter_keeps_is_checked(case: dict) -> None:
+    # Nudging a field that ArduPilot keeps must be seen; a field it drops may read anything.
+    sent, read = sent_and_read(case)
+    form = ardupilot_form(sent)
+    for name, expected in form.items():
+        if expected is None or name == "frame":
+            continue
+        nudged = replace(read, **{name: getattr(read, name) + (1 if name in "xy" else 1.0)})
+        (difference,) = read_back_differences([sent], [nudged], ardupilot_form)
+        assert (difference.field, difference.read) == (name, getattr(nudged, name))
+    for name in ("param1", "param2", "param3", "param4", "x", "y", "z"):
+        if form.get(name) is None:
+            changed = replace(read, **{name: 7 if name in "xy" else 7.0})
+            assert read_back_differences([sent], [changed], ardupilot_form) == []
+
+
+def test_frames_are_compared_by_family_where_arducopter_keeps_a_position() -> None:
+    waypoint = MissionItem(1, 6, 16, x=LAT, y=LON, z=10.0)
+    for frame_back, same in ((3, True), (6, True), (0, False), (5, False), (10, False)):
+        back = replace(waypoint, frame=frame_back)
+        assert (read_back_differences([waypoint], [back], ardupilot_form) == []) is same
+    mission_frame = replace(waypoint, frame=2)  # MAV_FRAME_MISSION: a GLOBAL altitude
+    assert read_back_differences([mission_frame], [replace(waypoint, frame=0)],
+                                 ardupilot_form) == []
+    yaw = MissionItem(1, 2, 115, param1=90.0, param3=1.0)  # no position: frame not kept
+    assert read_back_differences([yaw], [replace(yaw, frame=0)], ardupilot_form) == []
+    (local,) = read_back_differences([replace(waypoint, frame=1)], [waypoint], ardupilot_form)
+    assert local.field == "frame" and "frame 1" in local.why
+
+
+@pytest.mark.parametrize("case", ARDUCOPTER["wrapped"], ids=case_id)
+def test_values_a_field_cannot_hold_are_differences_whatever_reads_back(case: dict) -> None:
+    # ArduCopter SITL stores a hold of -1.5 s as 65535 and 70000 s as 4464 (the C
+    # conversion wraps), and stops on a value beyond int32: none of them is what was meant.
+    sent, read = sent_and_read(case)
+    unstorable = {name for name, expected in ardupilot_form(sent).items()
+                  if isinstance(expected, Unstorable)}
+    assert unstorable
+    for back in (read, sent):  # what came back, or the very value sent
+        differences = read_back_differences([sent], [back], ardupilot_form)
+        assert unstorable <= {d.field for d in differences}
+
+
+def test_an_unstorable_value_says_what_the_field_holds() -> None:
+    hold = MissionItem(1, 6, 16, param1=3e9, x=LAT, y=LON, z=10.0)
+    (difference,) = read_back_differences([hold], [replace(hold, param1=0.0)], ardupilot_form)
+    assert difference.describe() == ("item 1 command 16: param1 sent 3000000000, read back 0 "
+                                     "(ArduPilot keeps whole numbers from 0 to 65535 here)")
+    turns = MissionItem(1, 6, 18, param1=-2.0, param3=5.0, x=LAT, y=LON, z=10.0)
+    assert ardupilot_form(turns)["param1"] == Unstorable("ArduPilot keeps 0 to 255 turns")
+    high = MissionItem(1, 6, 16, x=LAT, y=LON, z=83000.0)
+    assert isinstance(ardupilot_form(high)["z"], Unstorable)
+
+
+def test_autocontinue_is_not_kept_by_ardupilot_but_compared_elsewhere() -> None:
+    sent = MissionItem(1, 6, 16, autocontinue=0, x=LAT, y=LON, z=10.0)
+    read = replace(sent, autocontinue=1)
+    assert read_back_differences([sent], [read], ardupilot_form) == []
+    (difference,) = read_back_differences([sent], [read], exact_form)
+    assert difference.field == "autocontinue"
+
+
+def test_a_command_without_a_rule_is_compared_by_command_only() -> None:
+    sent = MissionItem(1, 2, 31000, param1=1.5, x=3)
+    assert read_back_differences([sent], [replace(sent, param1=9.0, x=0)], ardupilot_form) == []
+    (difference,) = read_back_differences([sent], [replace(sent, command=16)], ardupilot_form)
+    assert (difference.field, difference.sent, difference.read) == ("command", 31000, 16)
+
+
+def test_fence_and_rally_as_arducopter_keeps_them() -> None:
+    # Measured: fence vertices read back in frame 0 without altitude, a circle keeps its
+    # radius; rally points keep the frame's family and whole metres of altitude.
+    vertex = MissionItem(0, 6, 5001, param1=3.0, x=LAT, y=LON, z=10.0,
+                         mission_type=MissionType.FENCE)
+    circle = MissionItem(1, 0, 5003, param1=50.5, param2=1.0, x=LAT, y=LON, z=7.0,
+                         mission_type=MissionType.FENCE)
+    rally = MissionItem(0, 6, 5100, param1=1.0, x=LAT, y=LON, z=12.7,
+                        mission_type=MissionType.RALLY)
+    fence_back = [replace(vertex, frame=0, autocontinue=0, z=0.0),
+                  replace(circle, autocontinue=0, param2=0.0, z=0.0)]
+    assert read_back_differences([vertex, circle], fence_back, ardupilot_form) == []
+    rally_back = replace(rally, frame=3, autocontinue=0, param1=0.0, z=12.0)
+    assert read_back_differences([rally], [rally_back], ardupilot_form) == []
+    (moved,) = read_back_differences([rally], [replace(rally_back, z=13.0)], ardupilot_form)
+    assert (moved.field, moved.sent, moved.read) == ("z", 12.7, 13.0)
+
+
+def test_a_real_difference_names_item_field_and_both_values() -> None:
+    sent = with_home_placeholder([
+        MissionItem(0, 6, 22, z=10.0),
+        MissionItem(1, 6, 16, param1=2.5, x=LAT, y=LON, z=10.0),
+        MissionItem(2, 2, 178, param1=1.0, param2=5.0, param3=-1.0),
+    ])
+    read = [MissionItem(0, 0, 16, x=LAT, y=LON, z=584.0),  # home, not compared
+            replace(sent[1], frame=3),
+            replace(sent[2], frame=3, param1=3.0, y=LON + 10),  # changed behind tml's back
+            replace(sent[3], frame=0, param2=4.0)]
+    differences = read_back_differences(sent, read, ardupilot_form, skip_home=True)
+    assert differences == [
+        ItemDifference(2, 16, "param1", 2.5, 3.0, expected=2.0),
+        ItemDifference(2, 16, "y", LON, LON + 10, expected=LON),
+        ItemDifference(3, 178, "param2", 5.0, 4.0, expected=5.0),
+    ]
+    assert [d.describe(lambda c: {16: "NAV_WAYPOINT"}.get(c, str(c))) for d in differences] == [
+        "item 2 NAV_WAYPOINT: param1 sent 2.5, read back 3 (expected 2)",
+        f"item 2 NAV_WAYPOINT: y sent {LON}, read back {LON + 10}",
+        "item 3 178: param2 sent 5, read back 4",
+    ]
+    (missing,) = read_back_differences(sent, [read[0], replace(sent[1], frame=3)],
+                                       ardupilot_form, skip_home=True)
+    assert missing.describe() == "2 items read back, 4 sent"
+
+
+def test_exact_form_compares_every_field_as_float32_and_nan_as_itself() -> None:
+    sent = MissionItem(0, 6, 16, param1=0.1, param4=NAN, x=LAT, y=LON, z=12.3)
+    read = replace(sent, frame=3, param1=0.10000000149011612, z=12.300000190734863)
+    assert read_back_differences([sent], [read]) == []
+    assert [d.field for d in read_back_differences([sent], [replace(read, param4=0.0)])] == [
+        "param4"]
+    unstored = replace(read, param1=0.0)
+    assert [d.field for d in read_back_differences([sent], [unstored])] == ["param1"]

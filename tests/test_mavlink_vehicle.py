@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import replace
 
 import pytest
 from test_mavlink_link import FakeAutopilot, eventually
@@ -143,7 +144,23 @@ def test_read_back_mismatch_is_a_transfer_error(fake: FakeAutopilot, vehicle: Ve
     fake.store_altitude = 99.0  # a vehicle that does not keep what it was sent
     with pytest.raises(MissionTransferError) as caught:
         vehicle.upload(items(2))
-    assert caught.value.result == "MISMATCH" and "read back differs" in str(caught.value)
+    assert caught.value.result == "MISMATCH"
+    assert str(caught.value).endswith(
+        "mission read back differs from the upload: item 1 NAV_WAYPOINT: z sent 20, read back "
+        "99; item 2 NAV_WAYPOINT: z sent 20, read back 99")
+
+
+def test_ardupilot_read_back_is_compared_by_its_storage_rules(fake: FakeAutopilot,
+                                                             vehicle: Vehicle) -> None:
+    # The fake keeps what it is sent: a hold of 2.5 s that ArduPilot would store as 2 s is
+    # a difference, and a yaw that ArduPilot drops is not compared.
+    hold = [replace(item, param1=2.5, param4=90.0) for item in items(5)]
+    with pytest.raises(MissionTransferError) as caught:
+        vehicle.upload(hold)
+    assert ("item 1 NAV_WAYPOINT: param1 sent 2.5, read back 2.5 (expected 2); item 2 "
+            in str(caught.value))
+    assert str(caught.value).endswith("(and 2 more)")
+    vehicle.upload([replace(item, param1=2.0, param4=90.0) for item in items(5)])
 
 
 # -- against the simulator over loopback ------------------------------------------------

@@ -73,13 +73,13 @@ def test_takeoff_waypoints_land_reports_every_item_and_disarms():
     assert currents >= {1, 2, 3, 4, 5}
 
 
-def test_do_jump_repeats_and_unknown_items_are_skipped():
+def test_do_jump_repeats_and_items_a_copter_cannot_fly_are_skipped():
     _, out = fly([
         item(22, alt=5), item(16, north=10, alt=5), item(16, north=0, alt=5),
-        item(177, 2, 2), item(31000), item(21, alt=0),
+        item(177, 2, 2), item(84), item(21, alt=0),  # 84: NAV_VTOL_TAKEOFF, stored, not flown
     ])
     assert reached(out) == [1, 2, 3, 2, 3, 2, 3, 6]
-    assert "Skipping invalid cmd #31000" in texts(out)
+    assert "Skipping invalid cmd #84" in texts(out)
 
 
 def test_hold_time_delays_and_conditions():
@@ -127,16 +127,6 @@ def test_cam_trigg_dist_takes_a_picture_every_n_metres_of_the_leg():
     assert [round(b - a) for a, b in itertools.pairwise(norths)] == [10, 10, 10, 10]
     assert all(10.0 <= b - a <= 10.6 for a, b in itertools.pairwise(norths))
     assert all(abs(east) < 0.5 for _, east in spots)
-
-
-def test_change_altitude_retargets_the_leg_in_progress():
-    _, out = fly([
-        item(22, alt=10), item(16, north=40, alt=10), item(186, 25),
-        item(16, 3, north=40, east=10, alt=10), item(21, north=40, east=10, alt=0),
-    ], limit=300)
-    assert reached(out)[:2] == [1, 2]
-    heights = [m.relative_alt / 1000 for m in out if m.get_type() == "GLOBAL_POSITION_INT"]
-    assert max(heights) == pytest.approx(25.0, abs=0.3)  # item 2 flown at 25 m, not 10
 
 
 def test_set_home_item_moves_where_the_mission_returns_to():
@@ -190,6 +180,16 @@ def test_only_the_first_do_item_after_the_last_nav_item_runs():
     assert "Mission: 1 Takeoff" in texts(replies + v.step(1))
 
 
+def test_mission_start_with_a_first_or_last_item_is_denied_as_on_arducopter():
+    v, _ = fly([item(22, alt=5), item(16, north=5, alt=5), item(21, alt=0)],
+               until=lambda v: v.auto is not None and v.auto.current == 2)
+    for first, last in ((2, 0), (0, 3)):
+        (ack, *_) = v.handle(M.MAVLink_command_long_message(1, 1, 300, 0, first, last, 0, 0,
+                                                            0, 0, 0))
+        assert ack.result == M.MAV_RESULT_DENIED
+    assert v.auto.current == 2  # still flying what it flew
+
+
 def legs(out: list) -> dict[int, list]:
     """GLOBAL_POSITION_INT samples by the NAV item being flown (between two REACHED)."""
     flown: dict[int, list] = {}
@@ -207,9 +207,9 @@ def test_change_speed_sets_the_speed_its_type_names():
     _, out = fly([
         item(22, alt=10),
         item(change, 3, 0.5, -1, frame=2), item(16, north=60, alt=10),  # descent speed
-        item(change, 1, -1, -1, frame=2), item(16, 0, 0.3, north=60, alt=4),  # -1: no change
-        item(change, 2, 1.0, -1, frame=2), item(16, 0, 0.3, north=60, alt=8),  # climb speed
-        item(change, 0, 3.0, -1, frame=2), item(16, north=0, alt=8),  # horizontal speed
+        item(change, 1, -1, -1, frame=2), item(16, north=60, alt=4),  # -1: no change
+        item(change, 2, 1.0, -1, frame=2), item(16, north=60, alt=14),  # climb speed
+        item(change, 0, 3.0, -1, frame=2), item(16, north=0, alt=14),  # horizontal speed
         item(21, alt=0),
     ], limit=400)
     assert reached(out) == [1, 3, 5, 7, 9, 10]

@@ -3,8 +3,13 @@ the vehicle model, and over a lossy link against tml's own uploader."""
 
 from __future__ import annotations
 
+import json
+import math
+import random
+import struct
 import time
 from dataclasses import replace
+from pathlib import Path
 
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as M
@@ -13,8 +18,14 @@ from sitl.faults import Faults
 from sitl.missions import REQUEST_INTERVAL, UPLOAD_TIMEOUT, MissionServer
 from sitl.model import VehicleModel
 from sitl.server import Simulator
+from tml.geo import to_local
 from tml.mavlink.link import Link
-from tml.mavlink.mission import MissionItem, with_home_placeholder
+from tml.mavlink.mission import (
+    MissionItem,
+    ardupilot_form,
+    read_back_differences,
+    with_home_placeholder,
+)
 from tml.mavlink.vehicle import Vehicle
 from tml.world import DEFAULT_HOME
 
@@ -60,7 +71,8 @@ def test_mission_item_float_replies_are_accepted():
                                               20.0, mission_type)
 
     assert upload(s, 2, reply=float_item)[-1].type == M.MAV_MISSION_ACCEPTED
-    assert (s.items()[1].x, s.items()[1].y) == (-355000000, 1492500000)
+    # Degrees are scaled by 1e7 in float32, as ArduPilot does: 149.25 loses 32e-7 degrees.
+    assert (s.items()[1].x, s.items()[1].y) == (-355000000, 1492499968)
 
 
 def test_a_client_that_uses_request_int_gets_request_int():
@@ -79,7 +91,8 @@ def test_download_reads_back_home_and_items():
     (zero,) = s.handle(M.MAVLink_mission_request_int_message(1, 1, 0, 0), 6.0)
     assert (zero.frame, zero.z, zero.x) == (0, 584.0, HOME.x)
     (two,) = s.handle(M.MAVLink_mission_request_message(1, 1, 2, 0), 6.0)
-    assert two.get_type() == "MISSION_ITEM" and abs(two.x - (-35.363261 + 2e-5)) < 1e-6
+    # Back to degrees in float32 arithmetic, as ArduPilot does: within float32's 4e-6.
+    assert two.get_type() == "MISSION_ITEM" and abs(two.x - (-35.363261 + 2e-5)) < 4e-6
     (bad,) = s.handle(M.MAVLink_mission_request_int_message(1, 1, 9, 0), 6.0)
     assert bad.type == M.MAV_MISSION_INVALID_SEQUENCE
 
@@ -195,7 +208,9 @@ def test_tmls_uploader_gets_a_mission_through_30_percent_loss_each_way(seed):
         # MissionTransferError unless it is what was sent.
         assert vehicle.upload(sent) == with_home_placeholder(sent)
         stored = sim.vehicle(1).mission_items[1:]
-        assert [replace(item, seq=item.seq - 1) for item in stored] == sent
+        # Stored as ArduPilot stores them: frame 6 (INT) as its float twin 3.
+        assert [replace(item, seq=item.seq - 1) for item in stored] == [
+            replace(item, frame=3) for item in sent]
         assert link.telemetry(1).lost > 0  # the loss was real
 
 
@@ -211,3 +226,117 @@ def test_fence_and_rally_lists_are_separate_and_checked():
     assert refused[-1].type == M.MAV_MISSION_UNSUPPORTED
     bad_frame = upload(s, 1, reply=lambda seq, mission_type: item_int(seq, frame=1))
     assert bad_frame[-1].type == M.MAV_MISSION_UNSUPPORTED_FRAME
+
+
+# --- items stored as ArduCopter stores them ----------------------------------------------
+
+ARDUCOPTER = json.loads((Path(__file__).parent / "data" / "arducopter_read_back.json")
+                        .read_text())
+
+
+def case_id(case: dict) -> str:
+    return "-".join(f"{v:g}" for v in case["sent"][:6])
+
+
+def store_and_read(sent: list, mission_type: int = 0) -> object:
+    """Upload home and one item as MISSION_ITEM_INT; the item read back, or the refusal."""
+    command, frame, *params, x, y, z = sent
+    s, _ = server()
+
+    def reply(seq: int, mission_type: int = 0) -> object:
+        if seq == 0 and mission_type == 0:
+            return item_int(0)
+        return M.MAVLink_mission_item_int_message(1, 1, seq, frame, command, 0, 1, *params,
+                                                  x, y, z, mission_type)
+
+    count = 2 if mission_type == 0 else 1
+    last = upload(s, count, mission_type=mission_type, reply=reply)[-1]
+    if last.type != M.MAV_MISSION_ACCEPTED:
+        return last.type
+    (item,) = s.handle(M.MAVLink_mission_request_int_message(1, 1, count - 1, mission_type),
+                       6.0)
+    return item
+
+
+def f32(value: float) -> float:
+    return struct.unpack("<f", struct.pack("<f", value))[0]
+
+
+@pytest.mark.parametrize("case", ARDUCOPTER["kept"] + ARDUCOPTER["wrapped"], ids=case_id)
+def test_an_item_reads_back_as_it_did_from_arducopter(case: dict) -> None:
+    back = store_and_read(case["sent"])
+    frame, *params, x, y, z = case["read"]
+    assert (back.frame, back.param1, back.param2, back.param3, back.param4, back.x, back.y,
+            back.z, back.autocontinue) == (frame, *map(f32, params), x, y, f32(z), 1)
+
+
+@pytest.mark.parametrize("case", ARDUCOPTER["refused"], ids=case_id)
+def test_an_item_arducopter_refuses_ends_the_upload_with_its_result(case: dict) -> None:
+    assert store_and_read(case["sent"]) == getattr(M, case["result"])
+
+
+def test_fences_and_rally_points_keep_what_arducopter_keeps() -> None:
+    lat, lon = -353632610, 1491652300
+    vertex = store_and_read([5001, 6, 3.7, 1, 2, 3, lat, lon, 10.0], mission_type=1)
+    assert (vertex.frame, vertex.param1, vertex.param2, vertex.z, vertex.autocontinue) == (
+        0, 3.0, 0.0, 0.0, 0)
+    circle = store_and_read([5003, 0, 50.5, 1, 2, 3, lat, lon, 7.0], mission_type=1)
+    assert (circle.param1, circle.param2, circle.x, circle.y) == (50.5, 0.0, lat, lon)
+    rally = store_and_read([5100, 6, 1, 2, 3, 4, lat, lon, 12.7], mission_type=2)
+    assert (rally.frame, rally.param1, rally.z, rally.autocontinue) == (3, 0.0, 12.0, 0)
+    assert store_and_read([5100, 0, 0, 0, 0, 0, lat, lon, -5.6], mission_type=2).z == -5.0
+    assert store_and_read([5100, 6, 0, 0, 0, 0, lat, lon, 40000.0], mission_type=2) == (
+        M.MAV_MISSION_INVALID_PARAM7)
+
+
+def test_the_simulators_storage_and_tmls_read_back_rules_agree() -> None:
+    # Two readings of ArduPilot written apart: what the simulator stores must be what tml's
+    # rules expect, for any value the fields can hold.
+    rng = random.Random(11)
+    commands = sorted({case["sent"][0] for case in ARDUCOPTER["kept"]})
+    unstorable = 0
+    for _ in range(2000):
+        command = rng.choice(commands)
+        frame = rng.choice([0, 2, 3, 5, 6, 10, 11])
+        params = [rng.choice([0.0, 1.0, -1.0, round(rng.uniform(-120, 250), rng.randint(0, 3)),
+                              round(rng.uniform(0, 3), 2)]) for _ in range(4)]
+        x, y = -353632610 + rng.randint(-9999, 9999), 1491652300 + rng.randint(-9999, 9999)
+        sent = MissionItem(1, frame, command, 0, 1, *params, x, y,
+                           round(rng.uniform(-50, 3000), rng.randint(0, 4)))
+        back = store_and_read([command, frame, *params, x, y, sent.z])
+        if isinstance(back, int):  # a value ArduPilot refuses (a NaN-free sample: none)
+            pytest.fail(f"{sent} refused with {back}")
+        read = MissionItem(1, back.frame, back.command, 0, back.autocontinue, back.param1,
+                           back.param2, back.param3, back.param4, back.x, back.y, back.z)
+        differences = read_back_differences([sent], [read], ardupilot_form)
+        # Only a value that cannot be stored (which may spoil its neighbours) differs.
+        assert not differences or any(d.why for d in differences), (sent, read, differences)
+        unstorable += bool(differences)
+    assert 0 < unstorable < 1000  # the sample holds both kinds
+
+
+def test_the_auto_executor_flies_the_stored_values() -> None:
+    # A loiter radius of 8.9 m is stored, and so circled, as 8 m, as ArduCopter does.
+    v = VehicleModel(1, DEFAULT_HOME, params={"SIM_GPS_LOCKTIME": 1, "SIM_EKF_GPS_TIME": 2})
+    v.step(3)
+    lat, lon = -353632610, 1491652300
+    mission = [(16, 0, (0, 0, 0, 0), 0, 0, 0.0), (22, 6, (0, 0, 0, 0), 0, 0, 10.0),
+               (18, 6, (1, 0, 8.9, 0), lat, lon, 10.0), (20, 6, (0, 0, 0, 0), 0, 0, 0.0)]
+    replies = v.handle(M.MAVLink_mission_count_message(1, 1, len(mission), 0))
+    while replies[-1].get_type() == "MISSION_REQUEST":
+        command, frame, params, x, y, z = mission[replies[-1].seq]
+        replies = v.handle(M.MAVLink_mission_item_int_message(
+            1, 1, replies[-1].seq, frame, command, 0, 1, *params, x, y, z, 0))
+    assert v.mission_items[2].param3 == 8.0
+    assert v.set_mode("GUIDED")
+    v.handle(M.MAVLink_command_long_message(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0))
+    assert v.set_mode("AUTO")
+    h = DEFAULT_HOME
+    centre = to_local(lat / 1e7, lon / 1e7, h.altitude, h.latitude, h.longitude, h.altitude)
+    distances = []
+    while v.armed and v.time < 300:
+        v.step(0.1)
+        if v.auto is not None and v.auto.nav is not None and v.auto.nav.phase == "circle":
+            distances.append(math.dist(v.position[:2], centre[:2]))
+    on_circle = sorted(distances[len(distances) // 4:])
+    assert on_circle[len(on_circle) // 2] == pytest.approx(8.0, abs=0.3)

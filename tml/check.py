@@ -235,6 +235,38 @@ class _Checker:
                 action.location, "E260",
                 f"{spec.name} cannot be flown as a mission item (dispatch=\"mission\")",
                 'move it to a task with dispatch="command"'))
+        elif dispatch is Dispatch.MISSION:
+            self.check_kept_by_autopilot(action, spec, given)
+
+    def check_kept_by_autopilot(self, action: Action, spec: actions.ActionSpec,
+                                given: dict[str, str]) -> None:
+        """W307/W308: what the author wrote that ArduCopter's mission items do not keep
+        (see docs/run.md, "What ArduCopter keeps of a plan")."""
+        def value(name: str) -> object:
+            argument = action.argument(given[name]) if name in given else None
+            arg_spec = spec.argument(name)
+            if argument is None or argument.value is None or arg_spec is None:
+                return None
+            try:
+                return actions.parse_value(arg_spec, argument.value)
+            except ValueError:
+                return None  # E212 already says so
+
+        if spec.name == "LOITER" and "radius" in given and "duration" in given:
+            self.found.append(warning(
+                action.location, "W307",
+                "in a dispatch=\"mission\" task a LOITER with a duration is NAV_LOITER_TIME, "
+                "of whose radius ArduPilot keeps only the direction: the radius is not flown "
+                "(ArduCopter holds position over the centre)",
+                "give turns to circle, or fly the task with dispatch=\"command\""))
+        if value("precision_mode") == "required":
+            self.found.append(warning(
+                action.location, "W308",
+                "ArduCopter keeps no precision-landing mode in a mission's NAV_LAND: it lands "
+                "on a target whenever its PLND_ENABLED parameter is 1, and without one "
+                "otherwise, so \"required\" is not enforced",
+                "set PLND_ENABLED (and PLND_STRICT) on the vehicle, or land with "
+                "dispatch=\"command\""))
 
     # --- conditions ------------------------------------------------------------------------
 

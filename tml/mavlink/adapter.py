@@ -517,8 +517,11 @@ class MavlinkVehicle:
             # A mission that starts on the ground: arm in GUIDED, then AUTO takes off.
             self.mav.set_mode("GUIDED")
             self.mav.arm()
+        # The first item is made current before AUTO, which starts (or resumes) the mission
+        # there; MISSION_START then names no items: ArduPilot DENIES a first or last item.
+        self.mav.set_current(plan.offset)
         self.mav.set_mode("AUTO")
-        self.mav.start_mission(plan.offset)
+        self.mav.start_mission()
         with self._lock:
             plan.started = True
             plan.finished = plan.last_nav is None  # DO items only: done on starting

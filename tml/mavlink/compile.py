@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 from tml.actions import BoundAction
 from tml.geo import to_global, to_local
 from tml.mavlink.codec import mavlink
-from tml.mavlink.mission import MissionItem
+from tml.mavlink.mission import LOITER_TURNS_MAX, MissionItem
 from tml.world import Home
 
 Point = tuple[float, float, float]
@@ -234,8 +234,13 @@ def _loiter_at(b: _Builder, action: BoundAction, centre: Point, reference: str) 
     radius = _number(action, "radius", 15.0)
     turns, duration = action.get("turns"), action.get("duration")
     if turns is not None:
-        b.add(mavlink.MAV_CMD_NAV_LOITER_TURNS, point=centre, reference=reference,
-              params=(float(turns), 0.0, radius, 0.0))  # type: ignore[arg-type]
+        # ArduPilot keeps at most LOITER_TURNS_MAX turns in an item: more are several items
+        # over the same centre, flown one after the other without leaving the circle.
+        left = float(turns)  # type: ignore[arg-type]
+        while left > 0:
+            b.add(mavlink.MAV_CMD_NAV_LOITER_TURNS, point=centre, reference=reference,
+                  params=(min(left, LOITER_TURNS_MAX), 0.0, radius, 0.0))
+            left -= LOITER_TURNS_MAX
     elif duration is not None:
         b.add(mavlink.MAV_CMD_NAV_LOITER_TIME, point=centre, reference=reference,
               params=(float(duration), 0.0, radius, 0.0))  # type: ignore[arg-type]
@@ -300,8 +305,9 @@ def _set_altitude(b: _Builder, action: BoundAction) -> None:
     altitude = _number(action, "altitude")
     up = altitude - b.home.altitude if reference == "amsl" else altitude
     n, e, _ = b.cursor.position
-    # A waypoint above the expected position: ArduCopter's DO_CHANGE_ALTITUDE only changes
-    # the altitude of the navigation command in progress, which may already be done.
+    # A waypoint above the expected position: DO_CHANGE_ALTITUDE only changes the altitude
+    # of the navigation command in progress, which may already be done (and ArduCopter 4.7
+    # refuses it in a mission upload as UNSUPPORTED).
     b.waypoint((n, e, up), reference)
 
 

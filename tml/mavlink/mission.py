@@ -46,15 +46,23 @@ is as likely as any loss.
 Requests may come out of order or twice; each is answered with the item asked for. The
 legacy MISSION_REQUEST (ArduPilot asks with it) is answered with MISSION_ITEM_INT like
 MISSION_REQUEST_INT. ArduPilot keeps home in mission item 0 and overwrites it:
-:func:`with_home_placeholder` shifts N real items to seq 1..N behind a placeholder, and
-:func:`same_items` compares a read-back from item 1 on.
+:func:`with_home_placeholder` shifts N real items to seq 1..N behind a placeholder.
+
+A vehicle reads items back in its own storage form. :func:`read_back_differences` compares
+a read-back with what was sent, through a *form* that says what each field should read
+back as: :func:`exact_form` (every field as sent, what other autopilots are held to) or
+:func:`ardupilot_form` (ArduPilot keeps only some params of each command, in C integer
+types, and positions in whole centimetres with the frame's family). It returns every
+difference as an :class:`ItemDifference` naming the item, the field and both values.
 """
 
 from __future__ import annotations
 
 import enum
+import math
 import struct
 import types
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 from tml.errors import MissionTransferError
@@ -448,24 +456,319 @@ def with_home_placeholder(items: list[MissionItem], home: MissionItem | None = N
     return [replace(placeholder, seq=0), *shifted]
 
 
+# --- read-back: what a vehicle keeps of an item ------------------------------------------
+#
+# A vehicle reads its mission back in its own storage form, not as it was sent. A *form*
+# says, field by field, what an item should read back as: a value, None for a field the
+# vehicle does not keep (not compared), or Unstorable for a value the field cannot hold.
+# exact_form is a vehicle that stores items as sent; ardupilot_form is
+# ArduPilot, after AP_Mission's mavlink_int_to_mission_cmd / mission_cmd_to_mavlink_int
+# (missions), AC_PolyFence_loader (fences) and AP_Rally (rally points), checked against
+# ArduCopter 4.7 SITL (docs/run.md, "Upload and read-back", lists the rules).
+
+
+@dataclass(frozen=True)
+class Unstorable:
+    """A value the vehicle's field cannot hold: it would wrap, or be refused."""
+
+    why: str
+
+
+Expected = float | int | Unstorable | None
+"""What one field should read back as; None for a field the vehicle does not keep."""
+
+ItemForm = Callable[[MissionItem], dict[str, Expected]]
+"""The expected read-back of an item, field by field (fields left out are not compared)."""
+
+PARAMS = ("param1", "param2", "param3", "param4")
+
+
+@dataclass(frozen=True)
+class ItemDifference:
+    """A field of a sent item that the vehicle read back otherwise.
+
+    ``seq`` and ``command`` are the sent item's; for ``field`` ``"count"`` (the read-back
+    holds another number of items) both are None and ``sent``/``read`` are the counts.
+    ``expected`` is what the vehicle should have kept of ``sent`` (None when it cannot keep
+    it: ``why`` says why).
+    """
+
+    seq: int | None
+    command: int | None
+    field: str
+    sent: float | int
+    read: float | int
+    expected: float | int | None = None
+    why: str = ""
+
+    def describe(self, command_name: Callable[[int], str] = lambda c: f"command {c}") -> str:
+        """E.g. ``item 3 NAV_WAYPOINT: param1 sent 2.5, read back 3 (expected 2)``."""
+        if self.field == "count":
+            return f"{_shown(self.read)} items read back, {_shown(self.sent)} sent"
+        assert self.command is not None
+        text = (f"item {self.seq} {command_name(self.command)}: {self.field} sent "
+                f"{_shown(self.sent)}, read back {_shown(self.read)}")
+        if self.why:
+            return f"{text} ({self.why})"
+        if self.expected is not None and not _same(self.field, self.expected, self.sent):
+            return f"{text} (expected {_shown(self.expected)})"
+        return text
+
+
+def read_back_differences(sent: list[MissionItem], read_back: list[MissionItem],
+                          form: ItemForm | None = None, *, skip_home: bool = False
+                          ) -> list[ItemDifference]:
+    """Every field of ``sent`` that ``read_back`` does not hold as ``form`` predicts.
+
+    ``form`` defaults to :func:`exact_form`. With ``skip_home`` item 0 is not compared
+    (ArduPilot keeps its home there). ``current`` is never compared: vehicles report their
+    own current item. Frames are compared by family: an _INT frame and its float twin say
+    the same thing (MISSION_ITEM_INT carries integer coordinates in either).
+    """
+    form = form or exact_form
+    found: list[ItemDifference] = []
+    if len(sent) != len(read_back):
+        found.append(ItemDifference(None, None, "count", len(sent), len(read_back)))
+    start = 1 if skip_home else 0
+    for item, back in zip(sent[start:], read_back[start:], strict=False):
+        found += _item_differences(item, back, form)
+    return found
+
+
+def _item_differences(item: MissionItem, back: MissionItem, form: ItemForm
+                      ) -> list[ItemDifference]:
+    def difference(name: str, expected: Expected = None) -> ItemDifference:
+        if isinstance(expected, Unstorable):
+            return ItemDifference(item.seq, item.command, name, getattr(item, name),
+                                  getattr(back, name), why=expected.why)
+        return ItemDifference(item.seq, item.command, name, getattr(item, name),
+                              getattr(back, name), expected)
+
+    found = [difference(name) for name in ("seq", "mission_type")
+             if getattr(back, name) != getattr(item, name)]
+    if back.command != item.command:
+        return [*found, difference("command")]  # the rest of the item means something else
+    for name, expected in form(item).items():
+        if isinstance(expected, Unstorable) or (
+                expected is not None and not _same(name, expected, getattr(back, name))):
+            found.append(difference(name, expected))
+    return found
+
+
 def same_items(sent: list[MissionItem], read_back: list[MissionItem], *,
                skip_home: bool = False) -> bool:
-    """True if ``read_back`` holds what ``sent`` held (from item 1 on with ``skip_home``).
+    """True if ``read_back`` holds ``sent`` exactly (:func:`exact_form`)."""
+    return not read_back_differences(sent, read_back, skip_home=skip_home)
 
-    Floats are compared as the wire's float32 carries them; ``current`` is left out because
-    vehicles report their own current item.
+
+def exact_form(item: MissionItem) -> dict[str, Expected]:
+    """Every field as sent, floats as the wire's float32 carries them: a vehicle that stores
+    items verbatim (what tml expects of autopilots other than ArduPilot)."""
+    return {"frame": item.frame, "autocontinue": item.autocontinue,
+            **{name: _f32(getattr(item, name)) for name in PARAMS},
+            "x": item.x, "y": item.y, "z": _f32(item.z)}
+
+
+def ardupilot_form(item: MissionItem) -> dict[str, Expected]:
+    """What ArduPilot (Copter) reads back of ``item``: only what it keeps.
+
+    Missions: each command keeps some params, in C types (whole numbers are truncated
+    toward zero, and a value outside the type is :class:`Unstorable`), drops the others
+    (read back 0, not compared) and never keeps ``autocontinue``. A command with a position
+    keeps x and y, the altitude in whole centimetres and the frame's family (GLOBAL,
+    RELATIVE_ALT or TERRAIN_ALT; MAV_FRAME_MISSION counts as GLOBAL); a command without one
+    keeps neither position nor frame (it reads back frame 0). A command without a rule
+    here is compared by command only. Fences keep x, y and param1 (vertex count or
+    radius); rally points x, y, the frame's family and the altitude in whole metres.
     """
-    start = 1 if skip_home else 0
-    if len(sent) != len(read_back):
-        return False
-    return all(_key(a) == _key(b) for a, b in zip(sent[start:], read_back[start:], strict=True))
+    if item.mission_type == MissionType.FENCE:
+        return _fence_form(item)
+    if item.mission_type == MissionType.RALLY:
+        return {"frame": _position_frame(item.frame), "x": item.x, "y": item.y,
+                "z": _whole(-32768, 32767, "metres")(item.z)}
+    rule = _ARDUPILOT_COMMANDS.get(item.command)
+    if rule is None:
+        return {}
+    form: dict[str, Expected] = {name: store(getattr(item, name))
+                                 for name, store in zip(PARAMS, rule.params, strict=True)}
+    if rule.position:
+        form |= {"frame": _position_frame(item.frame), "x": item.x, "y": item.y,
+                 "z": _centimetres(item.z)}
+    else:
+        form |= {"x": rule.x(item.x), "y": rule.y(item.y)}
+    return form
 
 
 def _f32(value: float) -> float:
     return struct.unpack("<f", struct.pack("<f", value))[0]
 
 
-def _key(item: MissionItem) -> tuple[object, ...]:
-    return (item.seq, item.frame, item.command, item.autocontinue, _f32(item.param1),
-            _f32(item.param2), _f32(item.param3), _f32(item.param4), item.x, item.y,
-            _f32(item.z), item.mission_type)
+_FRAME_FAMILY = {5: 0, 6: 3, 11: 10}  # an _INT frame -> its float twin
+
+
+def _same(name: str, expected: float | int, read: float | int) -> bool:
+    if name == "frame":
+        return _FRAME_FAMILY.get(int(read), read) == _FRAME_FAMILY.get(int(expected), expected)
+    if isinstance(expected, float) and math.isnan(expected):
+        return isinstance(read, float) and math.isnan(read)
+    return _f32(float(read)) == expected if isinstance(read, float) else read == expected
+
+
+def _shown(value: float | int) -> str:
+    """A number as the wire carries it, as short as it reads: 2.0 -> 2, 12.3 -> 12.3."""
+    if isinstance(value, int) or not math.isfinite(value):
+        return str(value)
+    value = _f32(value)
+    if value.is_integer():
+        return str(int(value))
+    for digits in range(1, 10):
+        text = f"{value:.{digits}g}"
+        if _f32(float(text)) == value:
+            return text
+    return repr(value)
+
+
+# ArduPilot's storage of one field, from the value sent (float32 on the wire).
+Store = Callable[[float], Expected]
+
+
+def _not_kept(value: float) -> Expected:
+    return None
+
+
+def _kept(value: float) -> Expected:
+    return _f32(value)
+
+
+def _whole(low: int, high: int, unit: str = "") -> Store:
+    """A C integer field from low to high: the fraction dropped toward zero."""
+    what = f"whole {unit}" if unit else "whole numbers"
+
+    def store(value: float) -> Expected:
+        v = _f32(value)
+        if math.isnan(v) or not low - 1 < v < high + 1:
+            return Unstorable(f"ArduPilot keeps {what} from {low} to {high} here")
+        return float(math.trunc(v))
+    return store
+
+
+_U8, _I8, _U16, _I16 = _whole(0, 255), _whole(-128, 127), _whole(0, 65535), _whole(-32768, 32767)
+
+
+def _direction(value: float) -> Expected:
+    """Only the sign kept, as -1 or 1 (NAV_LOITER_TIME's radius)."""
+    return -1.0 if _f32(value) < 0 else 1.0
+
+
+def _land_direction(value: float) -> Expected:
+    """NAV_LAND param4 (a yaw): kept as its sign, -1 only below -FLT_EPSILON; NaN reads 1."""
+    v = _f32(value)
+    return -1.0 if not math.isnan(v) and v <= -1.1920929e-07 else 1.0
+
+
+def _flag(value: float) -> Expected:
+    """1 when positive, else 0 (a loiter's exit on the tangent)."""
+    return 1.0 if _f32(value) > 0 else 0.0
+
+
+def _signed_whole(value: float) -> Expected:
+    """A radius kept as whole metres (0 to 65535) with its sign (the loiter direction)."""
+    v = _f32(value)
+    metres = _U16(abs(v))
+    if not isinstance(metres, float):
+        return metres
+    return -metres if v < 0 else metres
+
+
+LOITER_TURNS_MAX = 255
+"""The most turns ArduPilot keeps in one NAV_LOITER_TURNS (the low byte of its p1)."""
+
+
+def _turns(value: float) -> Expected:
+    """NAV_LOITER_TURNS param1: whole turns up to 255; below 1, in 256ths of a turn."""
+    v = _f32(value)
+    if 0 < v < 1:
+        return math.trunc(v * 256) / 256
+    if math.isnan(v) or v <= -1:
+        return Unstorable(f"ArduPilot keeps 0 to {LOITER_TURNS_MAX} turns")
+    return float(min(LOITER_TURNS_MAX, math.trunc(v)))
+
+
+def _loiter_radius(value: float) -> Expected:
+    """NAV_LOITER_TURNS param3: whole metres to 255 m, then tens of metres up to 2550 m,
+    signed by the direction."""
+    v = _f32(value)
+    if math.isnan(v):
+        return Unstorable("ArduPilot keeps no NaN radius")
+    radius = abs(v)
+    metres = math.trunc(radius) if radius <= 255 else min(255, math.trunc(radius * 0.1)) * 10
+    return -float(metres) if v < 0 else float(metres)
+
+
+def _centimetres(value: float) -> Expected:
+    """A position's altitude: whole centimetres (float32 arithmetic), below 83 km."""
+    v = _f32(value)
+    if math.isnan(v) or abs(v) >= 83000:
+        return Unstorable("ArduPilot keeps altitudes below 83 km")
+    return _f32(_f32(float(math.trunc(_f32(v * 100.0)))) * _f32(0.01))
+
+
+def _position_frame(frame: int) -> Expected:
+    family = {0: 0, 2: 0, 5: 0, 3: 3, 6: 3, 10: 10, 11: 10}.get(frame)
+    if family is None:
+        return Unstorable(f"ArduPilot takes no position in frame {frame}")
+    return family
+
+
+@dataclass(frozen=True)
+class _Rule:
+    """How ArduPilot stores one command: with a position or not, and each param."""
+
+    position: bool
+    params: tuple[Store, Store, Store, Store]
+    x: Store = _not_kept
+    y: Store = _not_kept
+
+
+_ = _not_kept
+_ARDUPILOT_COMMANDS: dict[int, _Rule] = {
+    16: _Rule(True, (_U16, _, _, _)),  # NAV_WAYPOINT: hold s (Copter; yaw not kept)
+    17: _Rule(True, (_, _, _signed_whole, _)),  # NAV_LOITER_UNLIM: radius
+    18: _Rule(True, (_turns, _, _loiter_radius, _flag)),  # NAV_LOITER_TURNS
+    19: _Rule(True, (_U16, _, _direction, _flag)),  # NAV_LOITER_TIME: s; radius's sign only
+    20: _Rule(False, (_, _, _, _)),  # NAV_RETURN_TO_LAUNCH
+    21: _Rule(True, (_U16, _, _, _land_direction)),  # NAV_LAND: abort alt; yaw's sign
+    22: _Rule(True, (_U16, _, _, _)),  # NAV_TAKEOFF: pitch (Plane)
+    31: _Rule(True, (_, _signed_whole, _, _flag)),  # NAV_LOITER_TO_ALT: radius
+    82: _Rule(True, (_U16, _, _, _)),  # NAV_SPLINE_WAYPOINT: hold s
+    84: _Rule(True, (_, _, _, _)),  # NAV_VTOL_TAKEOFF
+    85: _Rule(True, (_U16, _, _, _)),  # NAV_VTOL_LAND: options
+    92: _Rule(True, (_U16, _, _, _)),  # NAV_GUIDED_ENABLE
+    93: _Rule(False, (_kept, _I8, _I8, _I8)),  # NAV_DELAY: s; UTC hour, min, s
+    112: _Rule(False, (_kept, _, _, _)),  # CONDITION_DELAY
+    114: _Rule(False, (_kept, _, _, _)),  # CONDITION_DISTANCE
+    115: _Rule(False, (_kept, _kept, _I8, _U8)),  # CONDITION_YAW: deg, deg/s, dir, relative
+    177: _Rule(False, (_U16, _I16, _, _)),  # DO_JUMP: target, repeat
+    178: _Rule(False, (_U8, _kept, _kept, _)),  # DO_CHANGE_SPEED: type, m/s, throttle
+    179: _Rule(True, (_U16, _, _, _)),  # DO_SET_HOME: use current
+    181: _Rule(False, (_U8, _U8, _, _)),  # DO_SET_RELAY
+    183: _Rule(False, (_U8, _U16, _, _)),  # DO_SET_SERVO
+    195: _Rule(True, (_U16, _, _, _)),  # DO_SET_ROI_LOCATION
+    197: _Rule(False, (_U16, _, _, _)),  # DO_SET_ROI_NONE
+    201: _Rule(True, (_U16, _, _, _)),  # DO_SET_ROI
+    203: _Rule(False, (_U8, _U8, _I8, _U8), _U8, _U8),  # DO_DIGICAM_CONTROL (+ shoot, id)
+    205: _Rule(False, (_kept, _kept, _kept, _)),  # DO_MOUNT_CONTROL: pitch, roll, yaw
+    206: _Rule(False, (_kept, _, _U8, _)),  # DO_SET_CAM_TRIGG_DIST: m, trigger now
+    211: _Rule(False, (_U8, _U8, _, _)),  # DO_GRIPPER: instance, action
+    2000: _Rule(False, (_U8, _kept, _U16, _U16)),  # IMAGE_START_CAPTURE
+    2001: _Rule(False, (_U16, _, _, _)),  # IMAGE_STOP_CAPTURE
+}
+del _
+
+
+def _fence_form(item: MissionItem) -> dict[str, Expected]:
+    # Fences have no altitude (frame and z read back 0); param1 is a polygon's vertex
+    # count (uint8) or a circle's radius (float).
+    param1 = _U8 if item.command in (5001, 5002) else _kept if item.command in (
+        5003, 5004) else _not_kept
+    return {"param1": param1(item.param1), "x": item.x, "y": item.y}

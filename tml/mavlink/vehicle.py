@@ -22,12 +22,16 @@ from tml.mavlink.link import Link, VehicleInfo
 from tml.mavlink.mission import (
     Clear,
     Download,
+    ItemDifference,
+    ItemForm,
     MissionItem,
     MissionType,
     Progress,
     Transfer,
     Upload,
-    same_items,
+    ardupilot_form,
+    exact_form,
+    read_back_differences,
     with_home_placeholder,
 )
 from tml.mavlink.modes import CONFIRM_TIMEOUT, ModeChange, set_mode_command
@@ -41,6 +45,8 @@ DEFAULT_RATES = {
 """Messages and rates (Hz) :meth:`Vehicle.request_rates` asks for by default."""
 FORCE = 21196.0
 """The magic param2 of COMPONENT_ARM_DISARM that skips the pre-arm checks."""
+SHOWN_DIFFERENCES = 3
+"""How many read-back differences a MISMATCH error names (it counts the others)."""
 
 
 class Vehicle:
@@ -158,7 +164,8 @@ class Vehicle:
                                     z=altitude))
 
     def start_mission(self, first: int = 0, last: int = 0) -> None:
-        """Start the uploaded mission (MISSION_START; ArduPilot needs AUTO and arming)."""
+        """Start the uploaded mission (MISSION_START; ArduPilot needs AUTO and arming, and
+        DENIES any ``first`` or ``last`` but 0: make the first item current instead)."""
         self.command(CommandLong(mavlink.MAV_CMD_MISSION_START, first, last))
 
     def set_current(self, seq: int) -> None:
@@ -203,27 +210,44 @@ class Vehicle:
         """ArduPilot stores home as mission item 0; PX4 does not."""
         return self.info.autopilot == mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
 
+    @property
+    def stored_form(self) -> ItemForm:
+        """How this vehicle reads items back: ArduPilot's storage rules, else as sent."""
+        return ardupilot_form if self.keeps_home_in_item_zero else exact_form
+
     def upload(self, items: list[MissionItem], mission_type: int = MissionType.MISSION, *,
                verify: bool = True, on_progress: Callable[[Progress], None] | None = None
                ) -> list[MissionItem]:
         """Upload ``items`` (seq 0..N-1) and, with ``verify``, read them back and compare.
 
-        On ArduPilot a mission's items go to seq 1..N behind a home placeholder. An upload
-        whose final ACK was lost is settled by reading it back, ``verify`` or not. Returns
-        the items as sent.
+        On ArduPilot a mission's items go to seq 1..N behind a home placeholder, and the
+        read-back is compared by ArduPilot's storage rules (:func:`ardupilot_form`); other
+        autopilots must give back what they were sent. An upload whose final ACK was lost
+        is settled by reading it back, ``verify`` or not. A difference is a
+        MissionTransferError (result ``MISMATCH``) naming the items, fields and values.
+        Returns the items as sent.
         """
         skip_home = mission_type == MissionType.MISSION and self.keeps_home_in_item_zero
         sent = with_home_placeholder(items) if skip_home else list(items)
         upload = Upload(sent, mission_type, system_id=self.system_id)
         self._transfer(upload, on_progress, raise_error=_lost_for_good)
         if verify or upload.unconfirmed:
-            read_back = self.download(mission_type)
-            if not same_items(sent, read_back, skip_home=skip_home):
-                raise MissionTransferError(
-                    f"{MissionType(mission_type).name.lower()} read back differs from the "
-                    f"upload ({len(read_back)} items read, {len(sent)} sent)", "MISMATCH",
-                    self.system_id)
+            self.check_read_back(sent, mission_type)
         return sent
+
+    def check_read_back(self, sent: list[MissionItem],
+                        mission_type: int = MissionType.MISSION) -> None:
+        """Read the vehicle's items back and compare them with ``sent`` (as :meth:`upload`
+        returned them) by this vehicle's storage rules; a difference is a
+        MissionTransferError (result ``MISMATCH``) naming the items, fields and values."""
+        read_back = self.download(mission_type)
+        skip_home = mission_type == MissionType.MISSION and self.keeps_home_in_item_zero
+        differences = read_back_differences(sent, read_back, self.stored_form,
+                                            skip_home=skip_home)
+        if differences:
+            raise MissionTransferError(
+                f"{MissionType(mission_type).name.lower()} read back differs from the "
+                f"upload: {_describe(differences)}", "MISMATCH", self.system_id)
 
     def download(self, mission_type: int = MissionType.MISSION) -> list[MissionItem]:
         """The vehicle's items of ``mission_type`` (ArduPilot's home included as item 0)."""
@@ -242,6 +266,16 @@ class Vehicle:
         self.link.run(transfer, self.system_id, self.component_id, report)
         if transfer.error is not None and raise_error(transfer):
             raise transfer.error
+
+
+def _describe(differences: list[ItemDifference]) -> str:
+    """The first differences in words, and how many more there are."""
+    def name(command: int) -> str:
+        return codec.command_name(command).removeprefix("MAV_CMD_")
+
+    text = "; ".join(d.describe(name) for d in differences[:SHOWN_DIFFERENCES])
+    more = len(differences) - SHOWN_DIFFERENCES
+    return f"{text} (and {more} more)" if more > 0 else text
 
 
 def _lost_for_good(transfer: Transfer) -> bool:

@@ -504,3 +504,24 @@ def test_mission_item_time_limit_comes_from_the_action() -> None:
                          2000.0)
     assert interp.status is Status.FAILED
     assert "WAIT not done within 25 s" in interp.reason  # 2 x 5 s + 15 s
+
+
+def test_plan_tasks_the_autopilot_went_past_are_logged_flown() -> None:
+    # ArduCopter runs the DO items between two waypoints at once: its MISSION_CURRENT may
+    # name the next waypoint before a camera item in between was ever current.
+    interp = Interpreter(mission(
+        '<task name="Auto" dispatch="mission">' + goto("P1", "(10, 0, 10)")
+        + '<task name="Photo"><action name="CAPTURE_PHOTO"/></task>'
+        + goto("P2", "(20, 0, 10)") + '<task name="Last photo"><action name="CAPTURE_PHOTO"/>'
+        '</task></task>\n'))
+    flying = FakeVehicle(armed=True, position=(0.0, 0.0, 10.0)).state()
+    out = interp.start(0.0, flying)
+    [plan] = [r for r in out.requests if isinstance(r, FlyMission)]
+    records = list(out.records)
+    for time, index, finished in ((1.0, 0, False), (2.0, 2, False), (3.0, 2, True)):
+        progress = MissionProgress(plan.plan_id, index, finished)
+        records += interp.step(time, replace(flying, time=time, mission=progress)).records
+    lines = [(r.data["task"], r.data["state"]) for r in records if r.kind == "task"]
+    for task in ("Auto/P1", "Auto/Photo", "Auto/P2", "Auto/Last photo"):
+        assert lines.index((task, "running")) < lines.index((task, "done")), task
+    assert interp.status is Status.COMPLETED

@@ -614,12 +614,23 @@ class Interpreter:
         if index != plan.index:
             if 0 <= plan.index < len(plan.tasks):
                 self._set(plan.tasks[plan.index], TaskState.DONE)
+            # The autopilot runs DO items between two navigation items at once, and may
+            # report the next navigation item before one of them was ever current: the
+            # tasks it went past were flown all the same.
+            for passed in plan.tasks[max(plan.index + 1, 0):index]:
+                self._set(passed, TaskState.RUNNING)
+                self._set(passed, TaskState.DONE)
             plan.index, plan.since = index, self._now
             plan.limit = self._item_limit(plan.actions[index])
             self._terminal = plan.tasks[index]
             self._task_started[self._terminal.path] = self._now
             self._set(self._terminal, TaskState.RUNNING)
         if progress.finished:
+            if 0 <= plan.index < len(plan.tasks):
+                self._set(plan.tasks[plan.index], TaskState.DONE)
+            for task in plan.tasks[plan.index + 1:]:  # flown too, and said in the log
+                self._set(task, TaskState.RUNNING)
+                self._set(task, TaskState.DONE)
             for task in plan.tasks:
                 self._states[task.path_name] = TaskState.DONE
             self._terminal = None

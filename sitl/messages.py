@@ -4,9 +4,9 @@ Each builder reads a :class:`Source` (the vehicle model, or any object with the 
 attributes) and returns one pymavlink message; :data:`BUILDERS` maps the message ids that
 stream or can be requested to their builders, so the model builds what
 :mod:`sitl.streams` says is due with :func:`build`. What the values mean follows
-ArduCopter: GLOBAL_POSITION_INT has lat = lon = 0 until the EKF has a position,
-HOME_POSITION does not exist before it, EXTENDED_SYS_STATE tells taking off from landing,
-MISSION_CURRENT carries the mission state.
+ArduCopter: GLOBAL_POSITION_INT has lat = lon = 0 until the GPS has a fix,
+HOME_POSITION and GPS_GLOBAL_ORIGIN do not exist before the EKF sets its origin,
+EXTENDED_SYS_STATE tells taking off from landing, MISSION_CURRENT carries the mission state.
 
 A message built by the model is addressed with its sender (system, component) in its
 header (:func:`stamp`), so that the server encodes each with the right source ids without
@@ -21,6 +21,7 @@ from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from sitl.arming import ATTITUDE_AT
 from sitl.modes import GUIDED_FLAG_MODES, MODES
 from sitl.physics import Battery
 from tml.world import Home
@@ -29,6 +30,7 @@ M = mavlink
 AUTOPILOT = M.MAV_COMP_ID_AUTOPILOT1  # 1
 COMPANION = M.MAV_COMP_ID_ONBOARD_COMPUTER  # 191
 
+EKF_STARTING = 0x400  # EKF_UNINITIALIZED, before the attitude is known
 EKF_BEFORE_GPS = 0xA7  # attitude, velocities, vertical position, constant-position mode
 EKF_WITH_GPS = 0x33F  # ... plus horizontal position, relative and absolute, and predicted
 FLIGHT_SW_VERSION = (4 << 24) | (6 << 16) | (0 << 8) | 255  # 4.6.0 official
@@ -65,6 +67,7 @@ class Source(Protocol):
     heading: float  # degrees
     roll: float  # radians
     gps_fixed: bool
+    origin_set: bool
     position_ok: bool
     landing: bool  # descending to touch down
     in_failsafe: bool
@@ -132,8 +135,8 @@ def battery_status(v: Source) -> Any:
 
 def gps_raw_int(v: Source) -> Any:
     """GPS_RAW_INT: no fix until the GPS locks, then a 3D fix with a little noise."""
-    if not v.gps_fixed:
-        return M.MAVLink_gps_raw_int_message(int(v.time * 1e6), 1, 0, 0, 0, 9999, 9999,
+    if not v.gps_fixed:  # ArduCopter SITL reports no GPS (fix type 0) before it locks
+        return M.MAVLink_gps_raw_int_message(int(v.time * 1e6), 0, 0, 0, 0, 9999, 9999,
                                              0, 0, 0)
     lat, lon, alt = v.global_position()
     noise = v.gps_noise()
@@ -145,12 +148,12 @@ def gps_raw_int(v: Source) -> Any:
 
 
 def global_position_int(v: Source) -> Any:
-    """GLOBAL_POSITION_INT: lat = lon = 0 before the position estimate, as ArduCopter."""
+    """GLOBAL_POSITION_INT: lat = lon = 0 before the GPS fix, as ArduCopter."""
     u = v.position[2]
     vn, ve, vu = v.velocity
     lat = lon = 0
     alt = round((v.origin.altitude + u) * 1000)
-    if v.position_ok:
+    if v.gps_fixed:
         la, lo, al = v.global_position()
         lat, lon, alt = round(la * 1e7), round(lo * 1e7), round(al * 1000)
     home_up = v.home_local()[2]
@@ -202,19 +205,35 @@ def mission_current(v: Source) -> Any:
 
 def ekf_status_report(v: Source) -> Any:
     """EKF_STATUS_REPORT: the horizontal position flags only once the EKF uses GPS."""
-    flags = EKF_WITH_GPS if v.position_ok else EKF_BEFORE_GPS
+    flags = EKF_WITH_GPS if v.position_ok else EKF_BEFORE_GPS if v.origin_set or (
+        v.time >= ATTITUDE_AT[0]) else EKF_STARTING
     return M.MAVLink_ekf_status_report_message(flags, 0.01, 0.01, 0.01, 0.01, 0.0, 0.0)
 
 
 def home_position(v: Source) -> Any | None:
-    """HOME_POSITION, or None before the position estimate (ArduCopter has no home yet)."""
-    if not v.position_ok:
+    """HOME_POSITION, or None before the EKF origin (ArduCopter has no home yet)."""
+    if not v.origin_set:
         return None
     h = v.home
     x, y, z = v.home_local()
     return M.MAVLink_home_position_message(
         round(h.latitude * 1e7), round(h.longitude * 1e7), round(h.altitude * 1000),
         x, y, -z, _quaternion(h.heading), 0.0, 0.0, 0.0, int(v.time * 1e6))
+
+
+def gps_global_origin(v: Source) -> Any | None:
+    """GPS_GLOBAL_ORIGIN: the EKF origin (the boot position), None before it is set."""
+    if not v.origin_set:
+        return None
+    o = v.origin
+    return M.MAVLink_gps_global_origin_message(
+        round(o.latitude * 1e7), round(o.longitude * 1e7), round(o.altitude * 1000),
+        int(v.time * 1e6))
+
+
+def system_time(v: Source) -> Any:
+    """SYSTEM_TIME: time since boot (no UNIX time: the simulated GPS gives none)."""
+    return M.MAVLink_system_time_message(0, int(v.time * 1000))
 
 
 def autopilot_version(v: Source) -> Any:
@@ -245,6 +264,8 @@ BUILDERS: dict[int, Callable[[Source], Any | None]] = {
     M.MAVLINK_MSG_ID_MISSION_CURRENT: mission_current,
     M.MAVLINK_MSG_ID_EKF_STATUS_REPORT: ekf_status_report,
     M.MAVLINK_MSG_ID_HOME_POSITION: home_position,
+    M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN: gps_global_origin,
+    M.MAVLINK_MSG_ID_SYSTEM_TIME: system_time,
     M.MAVLINK_MSG_ID_AUTOPILOT_VERSION: autopilot_version,
 }
 

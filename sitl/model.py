@@ -38,14 +38,14 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from sitl import auto, fence, messages
+from sitl import arming, auto, fence, messages
 from sitl.camera import COMMANDS as CAMERA_COMMANDS
 from sitl.camera import Camera
 from sitl.companion import Companion
 from sitl.faults import Faults
 from sitl.messages import AUTOPILOT, COMPANION, stamp, statustext, targets
 from sitl.missions import FENCE, MISSION, MissionServer
-from sitl.modes import ARMABLE, FLIP_FROM, MODE_NAMES, MODES, NEEDS_POSITION
+from sitl.modes import FLIP_FROM, MODE_NAMES, MODES, NEEDS_POSITION
 from sitl.obstacles import Obstacles
 from sitl.params import AUTOPILOT_DEFAULTS, Params, param_replies
 from sitl.physics import Battery, Body, Limits, flight_current
@@ -62,6 +62,7 @@ BRAKE_DECEL = 7.5  # m/s², ArduCopter's BRAKE_MODE_DECEL_RATE: BRAKE stops hard
 FORCE_ARM = (2989, 21196)  # param2 magic numbers that skip the checks
 LANDED_AFTER = 1.0  # seconds on the ground before touch-down counts (ArduCopter's detector)
 GUIDED_VELOCITY_TIMEOUT = 3.0  # a velocity target older than this stops the vehicle
+ORIGIN_AFTER_FIX = 10.0  # s of GPS fix before the EKF sets its origin (ArduCopter SITL: 10 -> 20 s)
 
 Vector = tuple[float, float, float]
 
@@ -92,11 +93,14 @@ class VehicleModel:
             self.params.set("FENCE_ENABLE", 1)
         self._rng = random.Random(f"{seed}/{system_id}")
         self.body = Body(heading=home.heading)
-        self.battery = Battery(self.params["BATT_CAPACITY"], self.params["SIM_BATT_VOLTAGE"])
+        self.battery = Battery(self.params["BATT_CAPACITY"], self.params["SIM_BATT_VOLTAGE"],
+                               self.params["SIM_BATT_CAP_AH"] * 1000.0)
         self.missions = MissionServer(self._home_item, self._list_changed)
         self.companion = Companion(system_id, self.world, self._nearest_obstacle)
         self.mode = "STABILIZE"
         self.armed = False
+        self.origin_set = False  # the EKF origin (and the first home) exists
+        self._prearm = arming.PrearmReports()
         self.landed = True
         self.time = 0.0
         self.step_count = 0
@@ -160,7 +164,14 @@ class VehicleModel:
     @property
     def position_ok(self) -> bool:
         """True while the EKF has an absolute horizontal position."""
-        return self.gps_fixed and self.time >= self.params["SIM_EKF_GPS_TIME"]
+        return self.gps_fixed and self.origin_set and self.time >= self.params["SIM_EKF_GPS_TIME"]
+
+    @property
+    def origin_time(self) -> float:
+        """When the EKF sets its origin: after 10 s of GPS fix, as ArduPilot's EKF3 waits for
+        10 s of good GPS, and no later than it uses the GPS (``SIM_EKF_GPS_TIME``)."""
+        return min(self.params["SIM_GPS_LOCKTIME"] + ORIGIN_AFTER_FIX,
+                   self.params["SIM_EKF_GPS_TIME"])
 
     @property
     def _gps_lost(self) -> bool:
@@ -209,6 +220,7 @@ class VehicleModel:
             replies = param_replies(self.params, msg)
             if kind == "PARAM_SET" and replies:
                 self.battery.capacity_mah = self.params["BATT_CAPACITY"]
+                self.battery.cell_capacity_mah = self.params["SIM_BATT_CAP_AH"] * 1000.0
             return replies
         if kind.startswith("MISSION_") and kind not in ("MISSION_SET_CURRENT", "MISSION_ACK"):
             return self.missions.handle(msg, self.time)
@@ -301,10 +313,13 @@ class VehicleModel:
         if command == M.MAV_CMD_SET_MESSAGE_INTERVAL:
             return ok if self.streams.set_interval(round(p[0]), p[1], self.time) else failed
         if command == M.MAV_CMD_REQUEST_MESSAGE:
-            built = messages.build(round(p[0]), self)
-            if built is None:
+            # As ArduCopter: ACCEPTED for a message it knows even when it has nothing to
+            # send yet (HOME_POSITION before the EKF origin), and then sends nothing.
+            if round(p[0]) not in messages.BUILDERS:
                 return failed
-            extra.append(built)
+            built = messages.build(round(p[0]), self)
+            if built is not None:
+                extra.append(built)
             return ok
         if command == M.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
             extra.append(messages.autopilot_version(self))
@@ -337,8 +352,10 @@ class VehicleModel:
             return False
         if name == self.mode:  # as ArduCopter: already there, nothing restarts
             return True
-        if name in NEEDS_POSITION and not self.position_ok:
-            self._text(M.MAV_SEVERITY_WARNING, f"Flight mode change failed: {name}")
+        # As ArduCopter's Copter::set_mode, a disarmed vehicle enters any mode (the arming
+        # checks then refuse to arm without a position); an armed one needs the position.
+        if self.armed and name in NEEDS_POSITION and not self.position_ok:
+            self._text(M.MAV_SEVERITY_WARNING, f"Mode change to {name} failed: requires position")
             return False
         if name == "AUTO" and self.armed and self.landed and not self._starts_with_takeoff():
             self._text(M.MAV_SEVERITY_WARNING, "Auto: Missing Takeoff Cmd")
@@ -348,6 +365,8 @@ class VehicleModel:
             self._text(M.MAV_SEVERITY_WARNING, "Mode change to FLIP failed: init failed")
             return False
         previous, self.mode = self.mode, name
+        if not self.armed:
+            self._prearm.bring_forward(self.time)
         self._target, self._velocity, self._landing, self.auto = None, None, None, None
         self._rtl_phase = ""
         self.roll = 0.0
@@ -388,29 +407,34 @@ class VehicleModel:
         if self.armed:
             return M.MAV_RESULT_ACCEPTED
         if not forced:
-            problem = self._prearm_problem()
-            if problem:
-                self._text(M.MAV_SEVERITY_CRITICAL, problem)
+            problems = arming.failures(self, self.params["SIM_EKF_GPS_TIME"])
+            for problem in problems:
+                self._text(M.MAV_SEVERITY_CRITICAL, f"Arm: {problem}")
+            if problems:
                 return M.MAV_RESULT_FAILED
         self.armed = True
         self._idle_since = self.time
         self._text(M.MAV_SEVERITY_INFO, "Arming motors")
         if self.position_ok:
             self._set_home_here()
+        elif self.origin_set:
+            self._announce_origin()  # ArduCopter sends both at arming, moved or not
         return M.MAV_RESULT_ACCEPTED
 
-    def _prearm_problem(self) -> str:
-        if self.mode not in ARMABLE:
-            return "Arm: Mode not armable"
-        if self.mode in NEEDS_POSITION and not self.position_ok:
-            return "PreArm: Need Position Estimate"
-        if not self.gps_fixed:
-            return "PreArm: GPS 1: Bad fix"
+    def extra_arming_failures(self) -> list[str]:
+        """The simulator's own arming checks, after ArduCopter's start-up ones."""
+        found = []
         if self._failsafes & {"battery", "battery critical"}:
-            return "PreArm: Battery failsafe"
+            found.append("Battery failsafe")
         if self.params["FENCE_ENABLE"] and self._fence_breach(self.position):
-            return "PreArm: Vehicle breaching fence"
-        return ""
+            found.append("Vehicle breaching fence")
+        return found
+
+    def _report_prearm(self) -> None:
+        if self.armed or not self._prearm.due(self.time):
+            return
+        for problem in arming.failures(self, self.params["SIM_EKF_GPS_TIME"]):
+            self._text(M.MAV_SEVERITY_CRITICAL, f"PreArm: {problem}")
 
     def _disarm(self, forced: bool) -> int:
         if not self.armed:
@@ -423,6 +447,7 @@ class VehicleModel:
     def disarm(self) -> None:
         """Stop the motors (a forced disarm in flight drops the vehicle)."""
         self.armed = False
+        self._prearm.bring_forward(self.time)
         self._target, self._velocity, self._landing, self.auto = None, None, None, None
         self._text(M.MAV_SEVERITY_INFO, "Disarming motors")
 
@@ -578,6 +603,10 @@ class VehicleModel:
 
     # ------------------------------------------------------------------ the tick
     def _tick(self) -> None:
+        if not self.origin_set and self.gps_fixed and self.time >= self.origin_time:
+            self.origin_set = True
+            self._announce_origin()
+        self._report_prearm()
         failure_at = self.faults.battery_failure_at
         if failure_at is not None and self.time >= failure_at:
             self.battery.failed = True
@@ -871,8 +900,12 @@ class VehicleModel:
         self._home_changed()
 
     def _home_changed(self) -> None:
-        if self.position_ok:
+        if self.origin_set:
             self._outbox.append(messages.home_position(self))
+
+    def _announce_origin(self) -> None:
+        # Sent unasked, as ArduCopter does when the EKF sets its origin and at arming.
+        self._outbox += [messages.gps_global_origin(self), messages.home_position(self)]
 
     def _home_item(self) -> MissionItem:
         h = self.home

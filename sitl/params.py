@@ -3,7 +3,9 @@
 Names, defaults and units follow ArduCopter (centimetres and centimetres per second where
 ArduCopter uses them) so that a ground station that reads or writes them sees what it
 expects. ``SIM_*`` parameters shape the simulation itself: ``SIM_GPS_LOCKTIME``,
-``SIM_WIND_SPD`` and ``SIM_WIND_DIR`` are ArduPilot SITL's own names; ``SIM_EKF_GPS_TIME``
+``SIM_WIND_SPD``, ``SIM_WIND_DIR``, ``SIM_BATT_VOLTAGE`` and ``SIM_BATT_CAP_AH`` (the
+simulated pack's capacity; 0, the default, keeps the voltage constant as ArduPilot SITL
+does) are ArduPilot SITL's own names; ``SIM_EKF_GPS_TIME``
 (seconds from boot until the EKF uses GPS) is ours, with the delay ArduCopter SITL shows,
 and so is ``SIM_BATT_CHARGE`` (amperes a landed, disarmed vehicle takes from its charging
 pad; 0: no pad).
@@ -75,11 +77,12 @@ AUTOPILOT_DEFAULTS: tuple[tuple[str, float, int], ...] = (
     ("GRIP_ENABLE", 1, INT8),
     ("GRIP_TYPE", 1, INT8),  # 1 servo: a gripper is fitted
     ("CAM_TRIGG_DIST", 0, REAL32),
-    ("SIM_GPS_LOCKTIME", 20, REAL32),
+    ("SIM_GPS_LOCKTIME", 10, REAL32),
     ("SIM_EKF_GPS_TIME", 41, REAL32),
     ("SIM_WIND_SPD", 0, REAL32),
     ("SIM_WIND_DIR", 180, REAL32),
     ("SIM_BATT_VOLTAGE", 12.6, REAL32),
+    ("SIM_BATT_CAP_AH", 0, REAL32),
     ("SIM_BATT_CHARGE", 0, REAL32),
 )
 

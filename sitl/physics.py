@@ -7,11 +7,13 @@ than the acceleration limit; yaw turns toward its target no faster than the yaw-
 A position-holding copter leans into the wind, so wind costs current but moves the vehicle
 only when nothing holds its position (``hold=False``).
 
-The battery integrates current over time: a base load, a hover load while flying and an
-effort term growing with speed, climb and wind. Voltage falls linearly from full to empty
-with the charge and sags with the current through an internal resistance. On a charging
-pad the charge flows back in at the charger's current until the pack is full; the current
-is then reported negative, as a battery monitor shows a pack being charged.
+The battery integrates current over time, drawn as ArduCopter SITL draws it: nothing on
+the ground, a hover load in flight, more to climb and to fly fast, less to descend. Its
+voltage stays at the full value as ArduCopter SITL's does, unless a simulated cell
+capacity is given: then it falls linearly from full to empty with the charge and sags with
+the current through an internal resistance. On a charging pad the charge flows back in at
+the charger's current until the pack is full; the current is then reported negative, as a
+battery monitor shows a pack being charged.
 """
 
 from __future__ import annotations
@@ -120,13 +122,23 @@ def _clamp_past(start: Vector, end: Vector, target: Vector) -> Vector:
 
 
 class Battery:
-    """Charge in mAh, terminal voltage, and the current drawn (A)."""
+    """Charge in mAh, terminal voltage, and the current drawn (A).
+
+    ``capacity_mah`` is the battery monitor's capacity (``BATT_CAPACITY``): the percentage
+    left counts down from it, and the consumed charge goes on counting past it, as on
+    ArduPilot. ``cell_capacity_mah`` is the simulated pack's (``SIM_BATT_CAP_AH`` x 1000):
+    0, ArduPilot SITL's default, keeps the voltage at ``full_volts`` whatever is drawn (as
+    ArduCopter SITL shows it); above 0 the voltage falls linearly to :attr:`EMPTY_VOLTS`
+    as that charge is used and sags with the current through an internal resistance.
+    """
 
     EMPTY_VOLTS = 10.5  # a 3S pack at 3.5 V per cell
     RESISTANCE = 0.015  # ohm: sag under load
 
-    def __init__(self, capacity_mah: float, full_volts: float = 12.6) -> None:
+    def __init__(self, capacity_mah: float, full_volts: float = 12.6,
+                 cell_capacity_mah: float = 0.0) -> None:
         self.capacity_mah = capacity_mah
+        self.cell_capacity_mah = cell_capacity_mah
         self.full_volts = full_volts
         self.consumed_mah = 0.0
         self.current = 0.0
@@ -135,7 +147,7 @@ class Battery:
     def drain(self, dt: float, current: float) -> None:
         """Draw ``current`` amperes for ``dt`` seconds."""
         self.current = current
-        self.consumed_mah = min(self.capacity_mah, self.consumed_mah + current * dt / 3.6)
+        self.consumed_mah += current * dt / 3.6
 
     def charge(self, dt: float, current: float) -> None:
         """Take ``current`` amperes from a charger for ``dt`` seconds, stopping when full.
@@ -159,17 +171,30 @@ class Battery:
         """Terminal voltage under the present load."""
         if self.failed:
             return self.EMPTY_VOLTS - 1.0
-        fraction = 1.0 - self.consumed_mah / self.capacity_mah
+        if self.cell_capacity_mah <= 0:
+            return self.full_volts
+        fraction = max(0.0, 1.0 - self.consumed_mah / self.cell_capacity_mah)
         return self.EMPTY_VOLTS + (self.full_volts - self.EMPTY_VOLTS) * fraction - (
             self.current * self.RESISTANCE
         )
 
 
+# ArduCopter SITL's current (copter.parm, its default quadcopter), measured in GUIDED with
+# velocity targets at 30 m (docs/simulator.md): nothing while disarmed or armed on the ground,
+# 28.1 A hovering, about 0.96 A more per m/s of climb and 0.8 A less per m/s of descent,
+# and a level-flight term that grows with the cube of the speed (+0.2 A at 5 m/s, +0.7 A
+# at 7.5 m/s, +2.2 A at 10 m/s).
+HOVER_AMPS = 28.1
+CLIMB_AMPS = 0.96  # per m/s up
+DESCENT_AMPS = 0.8  # per m/s down
+SPEED_AMPS = 0.0022  # per (m/s)^3 of horizontal speed
+WIND_AMPS = 0.6  # per m/s of wind: holding position against it (not measured on ArduCopter)
+
+
 def flight_current(armed: bool, flying: bool, velocity: Vector, wind_speed: float) -> float:
-    """Amperes drawn: electronics, spinning motors, hovering, and effort."""
-    if not armed:
-        return 0.5
-    if not flying:
-        return 3.0
+    """Amperes drawn, as ArduCopter SITL draws them: only the motors of a flying vehicle."""
+    if not (armed and flying):
+        return 0.0
     horizontal = math.hypot(velocity[0], velocity[1])
-    return 12.0 + 0.4 * horizontal + 3.0 * max(velocity[2], 0.0) + 0.6 * wind_speed
+    vertical = velocity[2] * (CLIMB_AMPS if velocity[2] > 0 else DESCENT_AMPS)
+    return HOVER_AMPS + SPEED_AMPS * horizontal ** 3 + vertical + WIND_AMPS * wind_speed

@@ -1,12 +1,19 @@
-"""Which telemetry messages are due when: default rates, and the two ways to change them.
+"""Which telemetry messages are due when: the port's default rates, and the ways to change them.
 
-A ground station changes a message's rate with MAV_CMD_SET_MESSAGE_INTERVAL (interval in
-microseconds; 0 restores the default, -1 stops it) or a whole group's with the older
-REQUEST_DATA_STREAM (groups as ArduPilot maps them). Unlike a bare ArduPilot serial port,
-the default streams run without being asked for, so a client that never sets rates still
-sees telemetry. A message falls due at most once per control step, keeping its average
-rate; after a step late by a whole interval or more its schedule restarts from that step,
-so a late step never causes a burst of copies.
+As on an ArduPilot serial port, a new link gets nothing streamed but HEARTBEAT (1 Hz): the
+ports' stream rates (ArduPilot's ``SRx_*`` parameters) are zero, so a ground station asks
+for what it needs, per message with MAV_CMD_SET_MESSAGE_INTERVAL (interval in
+microseconds; 0 restores the default, i.e. off, -1 stops it) or per group with the older
+REQUEST_DATA_STREAM (groups as ArduCopter maps them; a message that is in no group, such
+as EXTENDED_SYS_STATE or HOME_POSITION, only by interval). HOME_POSITION and
+GPS_GLOBAL_ORIGIN are also sent once, unasked, when the EKF origin is set, and
+HOME_POSITION whenever home moves (the model does that, not this schedule).
+
+The rates belong to the vehicle's port, not to one connection: as ArduPilot keeps a
+serial port's rates when its client reconnects, a client that connects later gets what an
+earlier one asked for. A message falls due at most once per control step, keeping its
+average rate; after a step late by a whole interval or more its schedule restarts from
+that step, so a late step never causes a burst of copies.
 """
 
 from __future__ import annotations
@@ -14,24 +21,26 @@ from __future__ import annotations
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 M = mavlink
-# Default stream rates in Hz (message id -> rate).
+# The messages that can stream, with the rate (Hz) a port sends them at unasked.
 DEFAULT_RATES = {
     M.MAVLINK_MSG_ID_HEARTBEAT: 1.0,
-    M.MAVLINK_MSG_ID_SYS_STATUS: 1.0,
-    M.MAVLINK_MSG_ID_BATTERY_STATUS: 1.0,
-    M.MAVLINK_MSG_ID_GPS_RAW_INT: 1.0,
-    M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 4.0,
-    M.MAVLINK_MSG_ID_LOCAL_POSITION_NED: 4.0,
-    M.MAVLINK_MSG_ID_ATTITUDE: 4.0,
-    M.MAVLINK_MSG_ID_VFR_HUD: 4.0,
-    M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 1.0,
-    M.MAVLINK_MSG_ID_MISSION_CURRENT: 1.0,
-    M.MAVLINK_MSG_ID_EKF_STATUS_REPORT: 1.0,
+    M.MAVLINK_MSG_ID_SYS_STATUS: 0.0,
+    M.MAVLINK_MSG_ID_BATTERY_STATUS: 0.0,
+    M.MAVLINK_MSG_ID_GPS_RAW_INT: 0.0,
+    M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 0.0,
+    M.MAVLINK_MSG_ID_LOCAL_POSITION_NED: 0.0,
+    M.MAVLINK_MSG_ID_ATTITUDE: 0.0,
+    M.MAVLINK_MSG_ID_VFR_HUD: 0.0,
+    M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 0.0,
+    M.MAVLINK_MSG_ID_MISSION_CURRENT: 0.0,
+    M.MAVLINK_MSG_ID_EKF_STATUS_REPORT: 0.0,
+    M.MAVLINK_MSG_ID_SYSTEM_TIME: 0.0,
     M.MAVLINK_MSG_ID_HOME_POSITION: 0.0,  # sent when home changes and on request
+    M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN: 0.0,  # sent when the origin is set and on request
 }
-# REQUEST_DATA_STREAM groups (MAV_DATA_STREAM) as ArduPilot maps them.
+# REQUEST_DATA_STREAM groups (MAV_DATA_STREAM) as ArduCopter 4.7 fills them (the messages
+# this simulator builds; RAW_SENSORS and RC_CHANNELS hold only messages it does not).
 DATA_STREAMS = {
-    M.MAV_DATA_STREAM_RAW_SENSORS: (M.MAVLINK_MSG_ID_GPS_RAW_INT,),
     M.MAV_DATA_STREAM_EXTENDED_STATUS: (
         M.MAVLINK_MSG_ID_SYS_STATUS, M.MAVLINK_MSG_ID_GPS_RAW_INT,
         M.MAVLINK_MSG_ID_MISSION_CURRENT,
@@ -43,7 +52,7 @@ DATA_STREAMS = {
     M.MAV_DATA_STREAM_EXTRA2: (M.MAVLINK_MSG_ID_VFR_HUD,),
     M.MAV_DATA_STREAM_EXTRA3: (
         M.MAVLINK_MSG_ID_BATTERY_STATUS, M.MAVLINK_MSG_ID_EKF_STATUS_REPORT,
-        M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
+        M.MAVLINK_MSG_ID_SYSTEM_TIME,
     ),
 }
 

@@ -194,17 +194,30 @@ def test_simulated_copter_is_discovered_takes_off_and_reports_it(
     link.wait_telemetry(1, lambda t: not t.armed, timeout=60)
 
 
-def test_simulated_copter_mode_changes_are_confirmed_or_refused(
-        sim_link: tuple[Simulator, Link]) -> None:
-    sim, link = sim_link
-    vehicle = Vehicle.connect(link, 1, timeout=10)
-    with pytest.raises(CommandRejected) as caught:  # GUIDED needs the EKF's position
-        vehicle.set_mode("GUIDED")
-    assert caught.value.result == "MAV_RESULT_FAILED" and sim.vehicle(1).mode == "STABILIZE"
-    vehicle.set_mode("LAND")  # returns only once a HEARTBEAT has shown LAND
-    assert vehicle.telemetry.mode == "LAND" and sim.vehicle(1).mode == "LAND"
-    vehicle.set_mode("stabilize")
-    assert vehicle.telemetry.mode == "STABILIZE"
+def test_simulated_copter_mode_changes_are_confirmed_or_refused() -> None:
+    # The EKF never uses GPS here, and an idle armed vehicle does not disarm by itself.
+    params = {"SIM_EKF_GPS_TIME": 1000, "DISARM_DELAY": 0}
+    with Simulator(vehicles=1, tcp_base_port=0, speedup=20.0, params=params) as sim, \
+            Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}") as link:
+        vehicle = Vehicle.connect(link, 1, timeout=10)
+        vehicle.set_mode("GUIDED")  # disarmed, ArduCopter enters any mode
+        vehicle.set_mode("LAND")  # returns only once a HEARTBEAT has shown LAND
+        assert vehicle.telemetry.mode == "LAND" and sim.vehicle(1).mode == "LAND"
+        vehicle.set_mode("stabilize")
+        assert vehicle.telemetry.mode == "STABILIZE"
+        assert eventually(lambda: arms(vehicle), timeout=30)  # STABILIZE: ~23 s vehicle time
+        with pytest.raises(CommandRejected) as caught:  # armed, GUIDED needs the position
+            vehicle.set_mode("GUIDED")
+        assert caught.value.result == "MAV_RESULT_FAILED" and sim.vehicle(1).mode == "STABILIZE"
+
+
+def arms(vehicle: Vehicle) -> bool:
+    """One arming attempt: True when accepted."""
+    try:
+        vehicle.arm()
+    except CommandRejected:
+        return False
+    return True
 
 
 def test_simulated_copter_keeps_an_uploaded_mission_in_items_1_to_n(
@@ -263,6 +276,7 @@ def test_an_object_under_the_flying_vehicle_is_detected_over_the_link() -> None:
                    params=quick_fix) as sim, \
             Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}") as link:
         vehicle = Vehicle.connect(link, 1, timeout=10)
+        vehicle.request_rates()  # nothing streams until asked, as on ArduPilot
         link.send(mavlink.MAVLink_param_set_message(1, COMPANION_COMPONENT, b"RECOG_MARKERS", 1,
                                                     mavlink.MAV_PARAM_TYPE_REAL32))
         link.wait_telemetry(1, lambda t: t.position_ready, timeout=30)

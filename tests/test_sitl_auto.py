@@ -41,6 +41,7 @@ def load(v: VehicleModel, items: list[tuple]) -> None:
 def fly(items: list[tuple], limit: float = 300.0, until=None) -> tuple[VehicleModel, list]:
     """Fly ``items`` in AUTO until the vehicle disarms (or ``until(v)``); all it sent."""
     v = VehicleModel(1, H, params=FAST)
+    v.handle(M.MAVLink_request_data_stream_message(1, 1, M.MAV_DATA_STREAM_ALL, 4, 1))
     v.step(3)
     load(v, items)
     assert v.set_mode("GUIDED")

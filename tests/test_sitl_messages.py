@@ -34,6 +34,7 @@ class State:
     heading: float = 0.0
     roll: float = 0.0
     gps_fixed: bool = True
+    origin_set: bool = True
     position_ok: bool = True
     landing: bool = False
     in_failsafe: bool = False
@@ -64,9 +65,12 @@ def test_heartbeat_names_the_mode_and_shows_armed_guided_and_failsafe():
     assert messages.heartbeat(State(in_failsafe=True)).system_status == M.MAV_STATE_CRITICAL
 
 
-def test_global_position_is_zero_before_the_estimate_and_relative_to_home_after():
-    early = messages.global_position_int(State(position_ok=False, position=(5.0, 0.0, 3.0)))
+def test_global_position_is_zero_before_the_fix_and_relative_to_home_after():
+    early = messages.global_position_int(State(gps_fixed=False, origin_set=False,
+                                               position_ok=False, position=(5.0, 0.0, 3.0)))
     assert (early.lat, early.lon) == (0, 0) and early.relative_alt == 3000
+    fixed = messages.global_position_int(State(origin_set=False, position_ok=False))
+    assert fixed.lat == round(H.latitude * 1e7)  # ArduCopter: from the GPS fix on
     north = messages.global_position_int(State(position=(100.0, 0.0, 12.0), heading=90.0,
                                                home=Home(H.latitude, H.longitude,
                                                          H.altitude + 2.0)))
@@ -77,7 +81,7 @@ def test_global_position_is_zero_before_the_estimate_and_relative_to_home_after(
 
 
 def test_gps_has_no_fix_until_it_locks():
-    assert messages.gps_raw_int(State(gps_fixed=False)).fix_type == 1
+    assert messages.gps_raw_int(State(gps_fixed=False)).fix_type == 0  # as ArduCopter SITL
     fix = messages.gps_raw_int(State(velocity=(0.0, 2.0, 0.0)))
     assert fix.fix_type == 3 and fix.vel == 200 and fix.cog == 9000
     assert not messages.sys_status(State(gps_fixed=False)).onboard_control_sensors_health & (
@@ -101,10 +105,12 @@ def test_landed_state(state, landed_state):
     assert messages.extended_sys_state(state).landed_state == landed_state
 
 
-def test_home_exists_only_with_a_position_estimate():
-    assert messages.home_position(State(position_ok=False)) is None
-    home = messages.home_position(State())
-    assert (home.latitude, home.longitude) == (round(H.latitude * 1e7), round(H.longitude * 1e7))
+def test_home_and_origin_exist_once_the_ekf_has_its_origin():
+    for builder in (messages.home_position, messages.gps_global_origin):
+        assert builder(State(origin_set=False, position_ok=False)) is None
+        found = builder(State(position_ok=False))
+        assert (found.latitude, found.longitude) == (round(H.latitude * 1e7),
+                                                     round(H.longitude * 1e7))
     assert messages.ekf_status_report(State()).flags & M.EKF_POS_HORIZ_ABS
     assert not messages.ekf_status_report(State(position_ok=False)).flags & M.EKF_POS_HORIZ_ABS
 
@@ -121,7 +127,8 @@ def test_battery_and_mission_state_are_reported_as_they_are():
 
 def test_build_serves_requests_by_id_and_pictures_say_where_they_were_taken():
     assert messages.build(M.MAVLINK_MSG_ID_HEARTBEAT, State()).get_type() == "HEARTBEAT"
-    assert messages.build(M.MAVLINK_MSG_ID_HOME_POSITION, State(position_ok=False)) is None
+    assert messages.build(M.MAVLINK_MSG_ID_HOME_POSITION, State(origin_set=False)) is None
+    assert messages.build(M.MAVLINK_MSG_ID_SYSTEM_TIME, State()).time_boot_ms == 50000
     assert messages.build(99999, State()) is None
     version = messages.build(M.MAVLINK_MSG_ID_AUTOPILOT_VERSION, State())
     assert version.capabilities & M.MAV_PROTOCOL_CAPABILITY_MISSION_INT

@@ -58,15 +58,24 @@ def test_turns_the_short_way_at_the_rate_limit():
 
 
 def test_battery_charge_voltage_and_failure():
-    battery = Battery(capacity_mah=1000.0, full_volts=12.6)
+    battery = Battery(capacity_mah=1000.0, full_volts=12.6, cell_capacity_mah=1000.0)
     assert (battery.remaining, battery.voltage) == (100, pytest.approx(12.6))
     battery.drain(360.0, 5.0)  # 5 A for 6 minutes: 500 mAh
     assert battery.consumed_mah == pytest.approx(500.0) and battery.remaining == 50
-    resting = Battery(1000.0)
+    resting = Battery(1000.0, cell_capacity_mah=1000.0)
     resting.consumed_mah = 500.0
-    assert battery.voltage < resting.voltage  # sag under load
+    assert battery.voltage < resting.voltage < 12.6  # sag under load, and with the charge
     battery.failed = True
     assert battery.remaining == 0 and battery.voltage < Battery.EMPTY_VOLTS
+
+
+def test_without_a_simulated_pack_the_voltage_holds_and_the_count_goes_past_empty():
+    # ArduCopter SITL (SIM_BATT_CAP_AH 0): 12.6 V throughout; mAh consumed count on past
+    # BATT_CAPACITY while the percentage stays at 0.
+    battery = Battery(capacity_mah=1000.0, full_volts=12.6)
+    battery.drain(720.0, 10.0)  # 2000 mAh
+    assert battery.voltage == 12.6 and battery.remaining == 0
+    assert battery.consumed_mah == pytest.approx(2000.0)
 
 
 def test_a_charger_refills_at_its_current_until_full_and_not_a_failed_battery():
@@ -75,8 +84,9 @@ def test_a_charger_refills_at_its_current_until_full_and_not_a_failed_battery():
     battery.charge(360.0, 5.0)  # 5 A for 6 minutes: 500 mAh back
     assert battery.consumed_mah == pytest.approx(100.0) and battery.remaining == 90
     assert battery.current == pytest.approx(-5.0)
-    resting = Battery(1000.0)
+    resting = Battery(1000.0, cell_capacity_mah=1000.0)
     resting.consumed_mah = 100.0
+    battery.cell_capacity_mah = 1000.0
     assert battery.voltage > resting.voltage  # the charger lifts the terminal voltage
     battery.charge(360.0, 5.0)  # only 100 mAh were missing
     assert battery.consumed_mah == 0.0 and battery.remaining == 100
@@ -90,9 +100,13 @@ def test_a_charger_refills_at_its_current_until_full_and_not_a_failed_battery():
     assert failed.consumed_mah == 600.0 and failed.current == 0.0
 
 
-def test_current_grows_with_effort():
+def test_current_is_arducopter_sitls():
     still = (0.0, 0.0, 0.0)
-    assert flight_current(False, False, still, 0) < flight_current(True, False, still, 0)
-    assert flight_current(True, False, still, 0) < flight_current(True, True, still, 0)
-    assert flight_current(True, True, still, 0) < flight_current(True, True, (5, 0, 0), 0)
+    # Measured on ArduCopter SITL (docs/simulator.md): nothing on the ground, 28.1 A hovering.
+    assert flight_current(False, False, still, 0) == flight_current(True, False, still, 0) == 0
+    assert flight_current(True, True, still, 0) == pytest.approx(28.1)
+    assert flight_current(True, True, (0, 0, 2.5), 0) == pytest.approx(30.5, abs=0.1)
+    assert flight_current(True, True, (0, 0, -1.5), 0) == pytest.approx(26.9, abs=0.1)
+    assert flight_current(True, True, (5, 0, 0), 0) == pytest.approx(28.3, abs=0.1)
+    assert flight_current(True, True, (6, 8, 0), 0) == pytest.approx(30.3, abs=0.1)  # 10 m/s
     assert flight_current(True, True, still, 0) < flight_current(True, True, still, 8)

@@ -60,6 +60,14 @@ def drain(link: Link) -> list:
     return link.drain()
 
 
+def streaming(sim: Simulator) -> Simulator:
+    """``sim`` with every vehicle's port streaming all groups at 4 Hz, as if a client had
+    asked (a port streams nothing but HEARTBEAT unasked)."""
+    for vehicle in sim.vehicles:
+        vehicle.handle(M.MAVLink_request_data_stream_message(0, 0, M.MAV_DATA_STREAM_ALL, 4, 1))
+    return sim
+
+
 def settle(sim: Simulator, conn, seconds: float) -> list:
     """Advance and read everything the vehicle sent meanwhile."""
     out = []
@@ -99,7 +107,7 @@ def test_commands_over_tcp_are_acknowledged():
 
 def sequence_numbers(faults: Faults) -> list[int]:
     with Simulator(tcp_base_port=0, realtime=False, faults=faults) as sim:
-        link = connect(sim.tcp_ports[0])
+        link = connect(streaming(sim).tcp_ports[0])
         got = [m.get_seq() for m in settle(sim, link, 5) if m.get_srcComponent() == 1]
         link.close()
         return got
@@ -133,7 +141,7 @@ def test_duplicates_reordering_and_latency():
         assert got and all(got.count(seq) == 2 for seq in got)
         link.close()
     with Simulator(tcp_base_port=0, realtime=False, faults=Faults(seed=1, reorder=0.3)) as sim:
-        link = connect(sim.tcp_ports[0])
+        link = connect(streaming(sim).tcp_ports[0])
         got = [m.get_seq() for m in settle(sim, link, 3) if m.get_srcComponent() == 1]
         assert got != sorted(got) and len(set(got)) == len(got)  # reordered, none lost
         link.close()

@@ -1,13 +1,15 @@
 """ArduCopter's arming checks as the simulated vehicle runs them, and when it reports them.
 
-ArduCopter SITL (4.7, ``copter.parm``, measured at speed-up 10) is not armable at once: its
-checks fail in stages while the simulated sensors and the EKF start. Retrying the arm
+ArduCopter SITL (4.7, ``copter.parm``, measured at speed-up 10) boots for 2.5 s
+(HEARTBEAT ``system_status`` BOOT; a mode selected meanwhile is replaced by STABILIZE when
+it says "ArduPilot Ready"), and is not armable at once: its checks fail in stages while the
+simulated sensors and the EKF start. Retrying the arm
 command every second of vehicle time from boot, the refusals were (times in vehicle s):
 
 ======================  ==================================  ===============================
 until                   every mode                          modes that need a position
 ======================  ==================================  ===============================
-3 s                     ``System not initialised`` (alone)
+2.5 s                   ``System not initialised`` (alone)
 6 s                     ``EKF attitude is bad``
 13.5 s                  ``Accels inconsistent``
 23 s                    ``Gyros inconsistent``
@@ -36,7 +38,7 @@ from sitl.modes import ARMABLE, NEEDS_POSITION
 # the inertial sensors report one failure at a time (accelerometers before gyros).
 INERTIAL_STAGES = ((13.5, "Accels inconsistent"), (23.0, "Gyros inconsistent"))
 ATTITUDE_AT = (6.0, "EKF attitude is bad")
-INITIALISED_AT = 3.0  # s: "System not initialised" before this
+READY_AT = 2.5  # s: "ArduPilot Ready"; "System not initialised" before
 EKF_GPS_DEFAULT = 41.0  # SIM_EKF_GPS_TIME's default, the time the stages are measured against
 REPORT_PERIOD = 30.0  # s between PreArm reports (ArduPilot's PREARM_DISPLAY_PERIOD)
 REPORT_SOON = 2.0  # s from a mode change or disarm to the report it brings forward
@@ -54,10 +56,15 @@ class Vehicle(Protocol):
     def extra_arming_failures(self) -> list[str]: ...
 
 
+def startup_scale(ekf_gps_time: float) -> float:
+    """The factor applied to ArduCopter's start-up times for this ``SIM_EKF_GPS_TIME``."""
+    return min(1.0, max(ekf_gps_time, 0.0) / EKF_GPS_DEFAULT)
+
+
 def failures(v: Vehicle, ekf_gps_time: float) -> list[str]:
     """The checks that fail now, in ArduCopter's order (empty: armable)."""
-    scale = min(1.0, max(ekf_gps_time, 0.0) / EKF_GPS_DEFAULT)
-    if v.time < INITIALISED_AT * scale:
+    scale = startup_scale(ekf_gps_time)
+    if v.time < READY_AT * scale:
         return ["System not initialised"]
     found = []
     if v.mode not in ARMABLE:

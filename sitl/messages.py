@@ -67,6 +67,7 @@ class Source(Protocol):
     heading: float  # degrees
     roll: float  # radians
     gps_fixed: bool
+    booted: bool  # past ArduCopter's boot ("ArduPilot Ready")
     origin_set: bool
     position_ok: bool
     landing: bool  # descending to touch down
@@ -109,7 +110,7 @@ def heartbeat(v: Source) -> Any:
         base |= M.MAV_MODE_FLAG_GUIDED_ENABLED
     if v.armed:
         base |= M.MAV_MODE_FLAG_SAFETY_ARMED
-    state = M.MAV_STATE_CRITICAL if v.in_failsafe else (
+    state = M.MAV_STATE_BOOT if not v.booted else M.MAV_STATE_CRITICAL if v.in_failsafe else (
         M.MAV_STATE_ACTIVE if v.armed else M.MAV_STATE_STANDBY)
     return M.MAVLink_heartbeat_message(M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_ARDUPILOTMEGA,
                                        base, MODES[v.mode], state, 3)

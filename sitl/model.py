@@ -99,6 +99,7 @@ class VehicleModel:
         self.companion = Companion(system_id, self.world, self._nearest_obstacle)
         self.mode = "STABILIZE"
         self.armed = False
+        self.booted = False  # past the boot: "ArduPilot Ready"
         self.origin_set = False  # the EKF origin (and the first home) exists
         self._prearm = arming.PrearmReports()
         self.landed = True
@@ -430,6 +431,13 @@ class VehicleModel:
             found.append("Vehicle breaching fence")
         return found
 
+    def _boot_done(self) -> None:
+        # As ArduCopter: a mode selected while booting gives way to the initial one.
+        self.booted = True
+        self._text(M.MAV_SEVERITY_INFO, "ArduPilot Ready")
+        if not self.armed and self.mode != "STABILIZE":
+            self.set_mode("STABILIZE")
+
     def _report_prearm(self) -> None:
         if self.armed or not self._prearm.due(self.time):
             return
@@ -603,6 +611,9 @@ class VehicleModel:
 
     # ------------------------------------------------------------------ the tick
     def _tick(self) -> None:
+        if not self.booted and self.time >= arming.READY_AT * arming.startup_scale(
+                self.params["SIM_EKF_GPS_TIME"]):
+            self._boot_done()
         if not self.origin_set and self.gps_fixed and self.time >= self.origin_time:
             self.origin_set = True
             self._announce_origin()

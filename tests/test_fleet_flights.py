@@ -28,7 +28,7 @@ from tml.journal import read
 MISSIONS = Path(__file__).parent.parent / "missions"
 FAST = ["--speedup", "40", "--sim-param", "SIM_GPS_LOCKTIME=1",
         "--sim-param", "SIM_EKF_GPS_TIME=2", "--link-lost-limit", "60"]
-BATTERY = ["--sim-param", "BATT_CAPACITY=800", "--sim-param", "SIM_BATT_CHARGE=30"]
+BATTERY = ["--sim-param", "BATT_CAPACITY=1700", "--sim-param", "SIM_BATT_CHARGE=64"]
 
 Log = list[dict]
 

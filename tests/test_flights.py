@@ -20,7 +20,7 @@ FAST = ["--speedup", "50", "--sim-param", "SIM_GPS_LOCKTIME=1",
 # Fleets: an 800 mAh battery and a 30 A charging pad make the rounds drain to 30 % and
 # recharge to 90 % in minutes (see tests/test_fleet_flights.py); several simulated vehicles
 # load the machine, so a stalled link is given longer before the run is aborted.
-FLEET = ["--sim-param", "BATT_CAPACITY=800", "--sim-param", "SIM_BATT_CHARGE=30",
+FLEET = ["--sim-param", "BATT_CAPACITY=1700", "--sim-param", "SIM_BATT_CHARGE=64",
          "--link-lost-limit", "60"]
 
 # mission -> (exit code, text the outcome's reason contains, extra simulator parameters)

@@ -34,6 +34,7 @@ class State:
     heading: float = 0.0
     roll: float = 0.0
     gps_fixed: bool = True
+    booted: bool = True
     origin_set: bool = True
     position_ok: bool = True
     landing: bool = False

@@ -109,12 +109,15 @@ def refusals_until_armed(v: VehicleModel, limit: float = 60.0) -> list[tuple[flo
 
 def test_arming_in_guided_is_refused_until_the_ekf_uses_gps_as_on_arducopter():
     v = VehicleModel(1, DEFAULT_HOME)
+    booting = command(v, M.MAV_CMD_COMPONENT_ARM_DISARM, 1)[1]
+    assert texts(booting) == ["Arm: System not initialised"]
+    booting = v.step(3.0)
+    assert "ArduPilot Ready" in texts(booting)
     # Disarmed, ArduCopter enters any mode: the arming checks then wait for the position.
     assert command(v, M.MAV_CMD_DO_SET_MODE, 1, 4)[0] == M.MAV_RESULT_ACCEPTED
     refused = refusals_until_armed(v)
     assert v.armed and v.mode == "GUIDED" and 41.0 <= v.time <= 42.0
     seen = dict(refused)
-    assert seen[0.0] == ["Arm: System not initialised"]
     assert seen[4.0] == ["Arm: Accels inconsistent", "Arm: EKF attitude is bad",
                          "Arm: AHRS: waiting for home"]
     assert seen[15.0] == ["Arm: Gyros inconsistent", "Arm: AHRS: waiting for home"]
@@ -135,6 +138,19 @@ def test_stabilize_arms_once_the_sensors_settle_but_guided_then_waits_for_the_po
     assert command(v, M.MAV_CMD_NAV_TAKEOFF, *[0] * 6, 10)[0] == M.MAV_RESULT_FAILED
     out = v.step(10.0)  # idle on the ground: ArduCopter disarms after DISARM_DELAY
     assert not v.armed and "Disarming motors" in texts(out)
+
+
+def test_a_mode_selected_while_booting_gives_way_to_stabilize_as_on_arducopter():
+    v = VehicleModel(1, DEFAULT_HOME)
+    v.handle(M.MAVLink_request_data_stream_message(1, 1, M.MAV_DATA_STREAM_ALL, 0, 0))
+    assert command(v, M.MAV_CMD_DO_SET_MODE, 1, 4)[0] == M.MAV_RESULT_ACCEPTED
+    booting = [m.system_status for m in v.step(2.0) if m.get_type() == "HEARTBEAT"
+               and m.get_srcComponent() == 1]
+    assert v.mode == "GUIDED" and set(booting) == {M.MAV_STATE_BOOT}
+    ready = v.step(1.0)
+    assert v.mode == "STABILIZE" and "ArduPilot Ready" in texts(ready)
+    beats = [m for m in ready if m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1]
+    assert (beats[-1].custom_mode, beats[-1].system_status) == (0, M.MAV_STATE_STANDBY)
 
 
 def test_prearm_failures_are_reported_every_30_s_and_soon_after_a_mode_change():
@@ -161,6 +177,7 @@ def test_home_position_on_request_only_once_the_origin_exists():
 
 def test_shorter_start_up_parameters_shorten_every_stage():
     v = VehicleModel(1, DEFAULT_HOME, params={"SIM_GPS_LOCKTIME": 5, "SIM_EKF_GPS_TIME": 30})
+    v.step(2.0)  # booted at 2.5 s x 30 / 41
     assert command(v, M.MAV_CMD_DO_SET_MODE, 1, 5)[0] == M.MAV_RESULT_ACCEPTED  # LOITER
     refused = refusals_until_armed(v)
     assert v.armed and 30.0 <= v.time <= 31.0

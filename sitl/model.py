@@ -7,8 +7,10 @@ MISSION_ITEM_REACHED, companion reports). Time advances in fixed control ticks o
 :data:`TICK` seconds whatever the sizes of the steps, so a run is the same for the same
 seed, the same messages and the same total time.
 
-Each tick: the sensors age (GPS lock after ``SIM_GPS_LOCKTIME`` s, the EKF uses GPS after
-``SIM_EKF_GPS_TIME`` s, faults strike), failsafes are checked, the flight mode turns its
+Each tick: the vehicle boots and its sensors age (the boot ends at 2.5 s, the GPS locks
+after ``SIM_GPS_LOCKTIME`` s, the EKF sets its origin 10 s later and uses GPS after
+``SIM_EKF_GPS_TIME`` s, faults strike), the arming checks report themselves while
+disarmed (:mod:`sitl.arming`), failsafes are checked, the flight mode turns its
 goal into a motion demand (a position target, a velocity, or a landing), the body moves
 within its limits (:mod:`sitl.physics`), touch-down, collisions (:mod:`sitl.obstacles`)
 and the fence (:mod:`sitl.fence`) are detected, the camera (:mod:`sitl.camera`) takes
@@ -19,9 +21,10 @@ reads the model's public state. The mode table is :mod:`sitl.modes`.
 
 What a ground station sees follows ArduCopter: HEARTBEAT type QUADROTOR, autopilot
 ARDUPILOTMEGA, ``custom_mode`` = mode number, at 1 Hz and once more at each mode change
-(so even a FLIP shorter than a second shows); arming refused with "PreArm: ..." and
-COMMAND_ACK FAILED until the position estimate exists; GLOBAL_POSITION_INT with lat = lon
-= 0 until then; auto-disarm ``DISARM_DELAY`` s after landing or when idle on the ground;
+(so even a FLIP shorter than a second shows); any mode entered while disarmed, and arming
+refused with ArduCopter's checks ("Arm: ...", COMMAND_ACK FAILED) until the vehicle can
+fly; only HEARTBEAT streamed until a client asks; GLOBAL_POSITION_INT with lat = lon = 0
+until the GPS fix; auto-disarm ``DISARM_DELAY`` s after landing or when idle on the ground;
 the mission protocol of :mod:`sitl.missions` and the AUTO executor of :mod:`sitl.auto`.
 
 Positions are metres north/east/up of the position the vehicle booted at (the EKF origin,
@@ -416,10 +419,11 @@ class VehicleModel:
         self.armed = True
         self._idle_since = self.time
         self._text(M.MAV_SEVERITY_INFO, "Arming motors")
-        if self.position_ok:
-            self._set_home_here()
-        elif self.origin_set:
-            self._announce_origin()  # ArduCopter sends both at arming, moved or not
+        if self.position_ok:  # home moves to where the vehicle arms
+            lat, lon, alt = self._global(self.position)
+            self.home = Home(lat, lon, alt, self.heading)
+        if self.origin_set:
+            self._announce_origin()  # ArduCopter sends both at arming, home moved or not
         return M.MAV_RESULT_ACCEPTED
 
     def extra_arming_failures(self) -> list[str]:

@@ -5,12 +5,13 @@ Each test runs ``tml run FILE --sim --vehicles N`` and reads the JSON-lines flig
 ``decision`` records carry the vehicle that flew them, and ``telemetry`` gives every
 vehicle's battery, position and whether it is on the ground, once a second of vehicle time.
 
-The Dolphin missions fly with an 800 mAh battery and a 30 A charging pad at home. Hovering
-draws 12 A and surveying at 10 m/s 16 A (sitl/physics.py ``flight_current``), that is
-0.4-0.6 % of the pack a second: from full to the listings' 30 % takes two to three minutes of
-vehicle time, and the return and landing (about 50 s) leaves 5-15 %. The pad puts back
-30 A x 1 s / 3.6 = 8.3 mAh a second, about 1 % a second: back to 90 % in about 80 s. So a
-round lasts about 200 s of vehicle time and a vehicle landed after a round is ready again
+The Dolphin missions fly with a 1700 mAh battery and a 64 A charging pad at home. Hovering
+draws 28.1 A and surveying at 10 m/s 30.3 A, as ArduCopter SITL does (sitl/physics.py
+``flight_current``, measured in docs/simulator.md), that is 0.46-0.50 % of the pack a second:
+from full to the listings' 30 % takes about two and a half minutes of vehicle time, and the
+return and landing (about 50 s) leaves 5-15 %. The pad puts back 64 A x 1 s / 3.6 = 17.8 mAh
+a second, about 1 % a second: back to 90 % in about 80 s. So a round lasts about 200 s of
+vehicle time and a vehicle landed after a round is ready again
 80 s later. The simulator runs at 40x; a round of four vehicles costs about 10 s of wall
 time on two cores. ``--link-lost-limit`` is raised because a busy machine can stall the
 simulator's thread for longer than 10 s of vehicle time (0.25 s of wall time at 40x).

@@ -17,7 +17,7 @@ from tml.journal import read
 MISSIONS = Path(__file__).parent.parent / "missions"
 FAST = ["--speedup", "50", "--sim-param", "SIM_GPS_LOCKTIME=1",
         "--sim-param", "SIM_EKF_GPS_TIME=2"]
-# Fleets: an 800 mAh battery and a 30 A charging pad make the rounds drain to 30 % and
+# Fleets: a 1700 mAh battery and a 64 A charging pad make the rounds drain to 30 % and
 # recharge to 90 % in minutes (see tests/test_fleet_flights.py); several simulated vehicles
 # load the machine, so a stalled link is given longer before the run is aborted.
 FLEET = ["--sim-param", "BATT_CAPACITY=1700", "--sim-param", "SIM_BATT_CHARGE=64",

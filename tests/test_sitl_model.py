@@ -95,12 +95,15 @@ def test_start_up_follows_arducopter_sitl():
     assert v.position_ok and ekf.flags & needed == needed
 
 
-def refusals_until_armed(v: VehicleModel, limit: float = 60.0) -> list[tuple[float, list[str]]]:
-    """Arm once a second from now until accepted: (time, texts) of each refusal."""
+def refusals_until_armed(v: VehicleModel, limit: float = 60.0, accepted: list | None = None
+                         ) -> list[tuple[float, list[str]]]:
+    """Arm once a second from now until accepted: (time, texts) of each refusal; the
+    replies to the accepted command go to ``accepted``."""
     refused = []
     while True:
         result, replies = command(v, M.MAV_CMD_COMPONENT_ARM_DISARM, 1)
         if result == M.MAV_RESULT_ACCEPTED:
+            (accepted if accepted is not None else []).extend(replies)
             return refused
         assert result == M.MAV_RESULT_FAILED and v.time < limit
         refused.append((v.time, texts(replies)))
@@ -128,8 +131,11 @@ def test_arming_in_guided_is_refused_until_the_ekf_uses_gps_as_on_arducopter():
 
 def test_stabilize_arms_once_the_sensors_settle_but_guided_then_waits_for_the_position():
     v = VehicleModel(1, DEFAULT_HOME)
-    refused = refusals_until_armed(v)
+    accepted: list = []
+    refused = refusals_until_armed(v, accepted=accepted)
     assert v.armed and 23.0 <= v.time <= 24.0
+    assert [m.get_type() for m in accepted] == [  # as ArduCopter: origin and home again
+        "COMMAND_ACK", "STATUSTEXT", "GPS_GLOBAL_ORIGIN", "HOME_POSITION"]
     assert refused[-1][1] == ["Arm: Gyros inconsistent"]
     assert all("Position" not in text for _, found in refused for text in found)
     result, replies = command(v, M.MAV_CMD_DO_SET_MODE, 1, 4)

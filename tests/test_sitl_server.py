@@ -105,6 +105,23 @@ def test_commands_over_tcp_are_acknowledged():
         link.close()
 
 
+def test_streams_are_the_ports_not_the_connections():
+    # As an ArduPilot serial port: nothing but HEARTBEAT unasked; what one client asked for
+    # is what a client that connects later gets.
+    with Simulator(tcp_base_port=0, realtime=False) as sim:
+        first = connect(sim.tcp_ports[0])
+        kinds = {m.get_type() for m in settle(sim, first, 2)}
+        assert kinds == {"HEARTBEAT"}
+        first.send(M.MAVLink_command_long_message(
+            1, 1, M.MAV_CMD_SET_MESSAGE_INTERVAL, 0, M.MAVLINK_MSG_ID_SYS_STATUS, 500_000,
+            0, 0, 0, 0, 0))
+        assert [m.get_type() for m in settle(sim, first, 2)].count("SYS_STATUS") >= 4  # 2 Hz
+        first.close()
+        later = connect(sim.tcp_ports[0])
+        assert [m.get_type() for m in settle(sim, later, 2)].count("SYS_STATUS") >= 4
+        later.close()
+
+
 def sequence_numbers(faults: Faults) -> list[int]:
     with Simulator(tcp_base_port=0, realtime=False, faults=faults) as sim:
         link = connect(streaming(sim).tcp_ports[0])

@@ -5,8 +5,8 @@ streams it needs, select GUIDED, arm (retrying until the vehicle accepts), take 
 NAV_TAKEOFF, upload three waypoints and an RTL with the MAVLink mission protocol, read the
 mission back, switch to AUTO, watch MISSION_ITEM_REACHED, and wait for the landing and the
 disarm. The same client flies the simulator (tests/test_ground_station.py) and ArduCopter
-SITL (tests/interop/test_ground_station.py): a simulator kinder than ArduCopter would let a
-client through that ArduCopter stops, and this is the check that it does not.
+SITL (tests/interop/test_ground_station_arducopter.py): a simulator kinder than ArduCopter
+would let a client through that ArduCopter stops, and this is the check that it does not.
 
 Times are wall-clock seconds: the client does not know how fast its vehicle's clock runs.
 """

@@ -25,7 +25,8 @@ all of it. The checks that follow (battery failsafe, fence) are the simulator's 
 Every failing check is reported, each in its own STATUSTEXT (severity CRITICAL): prefixed
 ``Arm:`` when an arm command runs them (answered COMMAND_ACK FAILED), ``PreArm:`` when the
 vehicle reports them by itself while disarmed: every 30 s, and about 2 s after a mode
-change or a disarm (ArduPilot's "report immediately", at most once every 4 s).
+change or a disarm (ArduPilot's "report immediately", at most once every 4 s). SYS_STATUS
+carries the outcome in its MAV_SYS_STATUS_PREARM_CHECK bit, healthy when they pass.
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ INERTIAL_STAGES = ((13.5, "Accels inconsistent"), (23.0, "Gyros inconsistent"))
 ATTITUDE_AT = (6.0, "EKF attitude is bad")
 READY_AT = 2.5  # s: "ArduPilot Ready"; "System not initialised" before
 EKF_GPS_DEFAULT = 41.0  # SIM_EKF_GPS_TIME's default, the time the stages are measured against
+MODE_NOT_ARMABLE = "Mode not armable"  # checked at arming, not among the pre-arm checks
 REPORT_PERIOD = 30.0  # s between PreArm reports (ArduPilot's PREARM_DISPLAY_PERIOD)
 REPORT_SOON = 2.0  # s from a mode change or disarm to the report it brings forward
 REPORT_GAP = 4.0  # s: a report brought forward never follows the last one sooner
@@ -50,6 +52,7 @@ class Vehicle(Protocol):
 
     time: float
     mode: str
+    armed: bool
     origin_set: bool
     position_ok: bool
 
@@ -68,7 +71,7 @@ def failures(v: Vehicle, ekf_gps_time: float) -> list[str]:
         return ["System not initialised"]
     found = []
     if v.mode not in ARMABLE:
-        found.append("Mode not armable")
+        found.append(MODE_NOT_ARMABLE)
     inertial = [failure for passes_at, failure in INERTIAL_STAGES if v.time < passes_at * scale]
     found += inertial[:1]
     if v.time < ATTITUDE_AT[0] * scale:
@@ -79,6 +82,11 @@ def failures(v: Vehicle, ekf_gps_time: float) -> list[str]:
         elif not v.position_ok:
             found.append("Need Position Estimate")
     return found + v.extra_arming_failures()
+
+
+def prearm_passes(v: Vehicle, ekf_gps_time: float) -> bool:
+    """SYS_STATUS's pre-arm check bit: the checks pass in the present mode (armed: always)."""
+    return v.armed or not [f for f in failures(v, ekf_gps_time) if f != MODE_NOT_ARMABLE]
 
 
 class PrearmReports:

@@ -46,6 +46,7 @@ SENSORS = (
     M.MAV_SYS_STATUS_SENSOR_3D_GYRO | M.MAV_SYS_STATUS_SENSOR_3D_ACCEL
     | M.MAV_SYS_STATUS_SENSOR_3D_MAG | M.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
     | M.MAV_SYS_STATUS_SENSOR_GPS | M.MAV_SYS_STATUS_SENSOR_BATTERY
+    | M.MAV_SYS_STATUS_PREARM_CHECK
 )
 
 Vector = tuple[float, float, float]
@@ -70,6 +71,7 @@ class Source(Protocol):
     booted: bool  # past ArduCopter's boot ("ArduPilot Ready")
     origin_set: bool
     position_ok: bool
+    prearm_ok: bool  # the pre-arm checks pass (always when armed)
     landing: bool  # descending to touch down
     in_failsafe: bool
 
@@ -117,8 +119,11 @@ def heartbeat(v: Source) -> Any:
 
 
 def sys_status(v: Source) -> Any:
-    """SYS_STATUS: sensors (GPS unhealthy without a fix) and the battery."""
+    """SYS_STATUS: sensors (GPS unhealthy without a fix), the pre-arm checks (healthy when
+    they pass, as ArduPilot reports them) and the battery."""
     healthy = SENSORS if v.gps_fixed else SENSORS & ~M.MAV_SYS_STATUS_SENSOR_GPS
+    if not v.prearm_ok:
+        healthy &= ~M.MAV_SYS_STATUS_PREARM_CHECK
     b = v.battery
     return M.MAVLink_sys_status_message(
         SENSORS, SENSORS, healthy, 200, round(b.voltage * 1000), round(b.current * 100),

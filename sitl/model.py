@@ -171,6 +171,11 @@ class VehicleModel:
         return self.gps_fixed and self.origin_set and self.time >= self.params["SIM_EKF_GPS_TIME"]
 
     @property
+    def prearm_ok(self) -> bool:
+        """The pre-arm checks pass in the present mode (always True when armed)."""
+        return arming.prearm_passes(self, self.params["SIM_EKF_GPS_TIME"])
+
+    @property
     def origin_time(self) -> float:
         """When the EKF sets its origin: after 10 s of GPS fix, as ArduPilot's EKF3 waits for
         10 s of good GPS, and no later than it uses the GPS (``SIM_EKF_GPS_TIME``)."""

@@ -37,6 +37,7 @@ class State:
     booted: bool = True
     origin_set: bool = True
     position_ok: bool = True
+    prearm_ok: bool = True
     landing: bool = False
     in_failsafe: bool = False
     mission: tuple[int, int, int] = (0, 0, M.MISSION_STATE_NO_MISSION)
@@ -87,6 +88,11 @@ def test_gps_has_no_fix_until_it_locks():
     assert fix.fix_type == 3 and fix.vel == 200 and fix.cog == 9000
     assert not messages.sys_status(State(gps_fixed=False)).onboard_control_sensors_health & (
         M.MAV_SYS_STATUS_SENSOR_GPS)
+    prearm = M.MAV_SYS_STATUS_PREARM_CHECK
+    assert messages.sys_status(State()).onboard_control_sensors_health & prearm
+    waiting = messages.sys_status(State(prearm_ok=False))
+    assert waiting.onboard_control_sensors_present & prearm
+    assert not waiting.onboard_control_sensors_health & prearm
 
 
 def test_local_position_and_attitude_use_ned_and_signed_yaw():

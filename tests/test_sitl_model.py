@@ -121,6 +121,7 @@ def test_arming_in_guided_is_refused_until_the_ekf_uses_gps_as_on_arducopter():
     refused = refusals_until_armed(v)
     assert v.armed and v.mode == "GUIDED" and 41.0 <= v.time <= 42.0
     seen = dict(refused)
+    assert v.prearm_ok  # armed: SYS_STATUS's pre-arm bit is healthy
     assert seen[4.0] == ["Arm: Accels inconsistent", "Arm: EKF attitude is bad",
                          "Arm: AHRS: waiting for home"]
     assert seen[15.0] == ["Arm: Gyros inconsistent", "Arm: AHRS: waiting for home"]
@@ -137,6 +138,7 @@ def test_stabilize_arms_once_the_sensors_settle_but_guided_then_waits_for_the_po
     assert [m.get_type() for m in accepted] == [  # as ArduCopter: origin and home again
         "COMMAND_ACK", "STATUSTEXT", "GPS_GLOBAL_ORIGIN", "HOME_POSITION"]
     assert refused[-1][1] == ["Arm: Gyros inconsistent"]
+    assert v.prearm_ok
     assert all("Position" not in text for _, found in refused for text in found)
     result, replies = command(v, M.MAV_CMD_DO_SET_MODE, 1, 4)
     assert result == M.MAV_RESULT_FAILED and v.mode == "STABILIZE"
@@ -164,7 +166,9 @@ def test_prearm_failures_are_reported_every_30_s_and_soon_after_a_mode_change():
     reports: list[tuple[float, str]] = []
     for _ in range(round(70 / TICK)):
         if v.time == pytest.approx(35.0):
+            assert v.prearm_ok  # SYS_STATUS's pre-arm bit: STABILIZE is armable
             v.set_mode("GUIDED")
+            assert not v.prearm_ok  # GUIDED is not yet
         reports += [(v.time, t) for t in texts(v.step(TICK)) if t.startswith("PreArm:")]
     # STABILIZE is armable from 23 s, so the 30 s report has nothing to say; GUIDED is not.
     assert reports == [(pytest.approx(37.0), "PreArm: Need Position Estimate")]

@@ -88,7 +88,8 @@ class ActionSpec:
     at_most_one_of: tuple[tuple[str, ...], ...] = ()
     # Arguments that must be given together (all or none).
     together: tuple[tuple[str, ...], ...] = ()
-    # Vehicle capability the action needs ("gripper", "flip"); checked before anything is sent.
+    # Vehicle capability the action needs ("gripper", "flip", see CAPABILITIES); a mission
+    # holding the action is refused before take-off by a vehicle without it.
     requires: str = ""
     # Whether the action can be compiled to MAVLink mission items (dispatch="mission").
     mission_item: bool = True
@@ -384,6 +385,14 @@ _BY_NAME: dict[str, ActionSpec] = {}
 for _spec in CATALOGUE:
     for _name in (_spec.name, *_spec.aliases):
         _BY_NAME[_key(_name)] = _spec
+
+
+CAPABILITIES = {
+    "flip": "a FLIP flight mode (ArduCopter's; not fixed wing, rover or PX4)",
+    "gripper": "a gripper (ArduPilot's GRIP_ENABLE set)",
+    "camera": "a camera",
+}
+"""What each capability an action may require stands for, as a refusal says it."""
 
 
 @functools.lru_cache(maxsize=1024)

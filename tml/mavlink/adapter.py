@@ -28,6 +28,18 @@ and come from a listener on the link that sees every message of this vehicle:
   MISSION_ITEM_REACHED seqs are mapped back to action indices with the item map of
   :mod:`tml.mavlink.compile`.
 
+*FLIP.* ArduCopter refuses FLIP from GUIDED: it flips only from a mode flown by the pilot's
+sticks (ACRO, STABILIZE, ALT_HOLD), armed and flying, and returns to that mode when the flip
+is over (ArduCopter's mode_flip.cpp). A :class:`~tml.vehicle.Flip` is therefore carried out
+as a pilot would: the sticks are held by RC_CHANNELS_OVERRIDE (:class:`_Sticks`: throttle
+mid-stick, so that ALT_HOLD neither climbs nor sinks, the others centred), the vehicle is
+switched to ALT_HOLD, the roll or pitch stick leans toward the flip's direction while FLIP is
+asked for (ArduCopter reads the direction from the sticks when the flip starts), the flip is
+waited out (telemetry shows FLIP, or a roll beyond 57 degrees, then the mode it came from),
+the vehicle goes back to GUIDED, and only then are the sticks released. Whatever fails on the
+way, the vehicle is put back in GUIDED before the sticks are let go: in ALT_HOLD a released
+throttle stick is a throttle at zero, and the vehicle would sink.
+
 Skills are bound to the vehicle through :data:`SKILL_BINDINGS` (documented in docs/run.md).
 Every failure becomes a result, never an exception: ``rejected`` (the vehicle refused: the
 COMMAND_ACK or MISSION_ACK result is the detail), ``timeout``, ``unsupported`` (the vehicle
@@ -36,6 +48,7 @@ lacks what the request needs) or ``general``.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import queue
 import threading
@@ -47,6 +60,7 @@ from typing import Any
 
 from tml.errors import CommandRejected, MissionTransferError, VehicleError, VehicleTimeout
 from tml.geo import to_global, to_local
+from tml.mavlink import codec
 from tml.mavlink.codec import mavlink
 from tml.mavlink.command import CommandLong
 from tml.mavlink.compile import SPEED_TYPES, CompiledMission, CompileError, compile_mission
@@ -58,6 +72,7 @@ from tml.vehicle import (
     Arm,
     Camera,
     Disarm,
+    Flip,
     FlyMission,
     GoTo,
     Gripper,
@@ -86,6 +101,23 @@ PARAM_RETRIES = 3
 
 AUTOPILOT = "autopilot"
 COMPANION = "companion"
+
+MID_STICK = 1500
+"""PWM of a centred stick, and of a throttle that holds the altitude in ALT_HOLD."""
+FLIP_LEAN = 100
+"""Microseconds a stick leans toward the flip's direction: ArduCopter's flip pitches when the
+pitch stick is beyond 300 centidegrees (of 4500), rolls left below 0 roll."""
+FLIP_STICKS = {"front": (MID_STICK, MID_STICK - FLIP_LEAN),
+               "back": (MID_STICK, MID_STICK + FLIP_LEAN),
+               "left": (MID_STICK - FLIP_LEAN, MID_STICK),
+               "right": (MID_STICK, MID_STICK)}
+"""Flip direction -> (roll, pitch) stick while FLIP is asked for (a centred roll rolls right)."""
+STICK_PERIOD = 0.04
+"""Seconds between RC_CHANNELS_OVERRIDE messages: ArduPilot drops an override older than
+RC_OVERRIDE_TIME (3 s of its own clock, 0.3 s of wall time at a speed-up of 10), and at 25 Hz
+seven in a row must be lost for that."""
+FLIP_WAIT = 10.0
+"""Wall seconds to wait for a flip to be over (ArduCopter abandons one after 2.5 s)."""
 
 
 @dataclass(frozen=True)
@@ -385,7 +417,7 @@ class MavlinkVehicle:
 
         try:
             handler = _HANDLERS[type(request)]
-            handler(self, request)  # type: ignore[arg-type]
+            detail = handler(self, request)  # type: ignore[arg-type]
         except CommandRejected as error:
             return fail("rejected", f"{error.command}: {error.result}")
         except MissionTransferError as error:
@@ -398,7 +430,7 @@ class MavlinkVehicle:
             return fail("unsupported", str(error))
         except VehicleError as error:
             return fail("general", str(error))
-        return RequestResult(self.vehicle_id, request.request_id, True)
+        return RequestResult(self.vehicle_id, request.request_id, True, detail=detail or "")
 
     # --- one method per request ----------------------------------------------------------
 
@@ -417,6 +449,36 @@ class MavlinkVehicle:
         if request.mode.upper() != "AUTO":
             self._end_plan()
         self.mav.set_mode(request.mode)  # transient modes (FLIP) are confirmed by their ACK
+
+    def _flip(self, request: Flip) -> str:
+        """A flip as a pilot makes it (see the module docstring); returns the modes seen."""
+        began = time.monotonic()
+        sticks = _Sticks(self.link, self.system_id, self.mav.component_id)
+        try:
+            self.mav.set_mode("ALT_HOLD")
+            sticks.hold(*FLIP_STICKS.get(request.direction, FLIP_STICKS["right"]))
+            asked = time.monotonic()
+            try:
+                self.mav.set_mode("FLIP")
+            finally:
+                sticks.hold()
+            # Accepted, so flown; if its telemetry was all lost, it is over by the time limit.
+            with contextlib.suppress(VehicleTimeout):
+                self.link.wait_telemetry(self.system_id, lambda t: t.mode != "FLIP" and (
+                    t.mode_shown_since("FLIP", asked) or (t.tilted_at or 0.0) > asked),
+                    FLIP_WAIT)
+            self.mav.set_mode("GUIDED")
+        finally:
+            try:
+                if self.link.telemetry(self.system_id).mode != "GUIDED":
+                    self.mav.set_mode("GUIDED")
+            except VehicleError:
+                pass  # the error that brought us here is the one to report
+            finally:
+                sticks.release()
+        seen = [mode for when, mode in self.link.telemetry(self.system_id).mode_changes
+                if when >= began]
+        return "modes: " + " > ".join(seen)
 
     def _arm(self, request: Arm) -> None:
         self.mav.arm()
@@ -581,7 +643,46 @@ class _Unsupported(VehicleError):
     """The vehicle lacks what a request needs."""
 
 
-_HANDLERS: dict[type, Callable[[MavlinkVehicle, Any], None]] = {
+class _Sticks:
+    """The pilot's sticks held by RC_CHANNELS_OVERRIDE from a thread of its own, every
+    STICK_PERIOD seconds from the start until :meth:`release`: throttle mid-stick, roll,
+    pitch and yaw as :meth:`hold` sets them."""
+
+    def __init__(self, link: Link, system_id: int, component_id: int) -> None:
+        self.link = link
+        self.target = (system_id, component_id)
+        self.sticks = (MID_STICK, MID_STICK, MID_STICK, MID_STICK)
+        self._stop = threading.Event()
+        self._send()
+        self._thread = threading.Thread(target=self._keep, daemon=True,
+                                        name=f"sticks {system_id}")
+        self._thread.start()
+
+    def hold(self, roll: int = MID_STICK, pitch: int = MID_STICK) -> None:
+        """Hold roll and pitch there (centred by default), from now on."""
+        self.sticks = (roll, pitch, MID_STICK, MID_STICK)
+        for _ in range(3):  # a lost copy would leave the old sticks until the next period
+            self._send()
+
+    def release(self) -> None:
+        """Stop holding and give channels 1-4 back to the radio."""
+        self._stop.set()
+        self._thread.join(timeout=1.0)
+        self.sticks = (codec.RC_RELEASE,) * 4
+        for _ in range(3):  # if all are lost, RC_OVERRIDE_TIME releases them anyway
+            self._send()
+
+    def _send(self) -> None:
+        # A link gone: the vehicle drops the override after RC_OVERRIDE_TIME by itself.
+        with contextlib.suppress(OSError):
+            self.link.send(codec.rc_override(*self.target, self.sticks))
+
+    def _keep(self) -> None:
+        while not self._stop.wait(STICK_PERIOD):
+            self._send()
+
+
+_HANDLERS: dict[type, Callable[[MavlinkVehicle, Any], str | None]] = {
     SetMode: MavlinkVehicle._set_mode, Arm: MavlinkVehicle._arm,
     Disarm: MavlinkVehicle._disarm, TakeOff: MavlinkVehicle._take_off,
     GoTo: MavlinkVehicle._go_to, SetYaw: MavlinkVehicle._set_yaw,
@@ -589,7 +690,7 @@ _HANDLERS: dict[type, Callable[[MavlinkVehicle, Any], None]] = {
     ReturnToLaunch: MavlinkVehicle._return_to_launch, SetSpeed: MavlinkVehicle._set_speed,
     Camera: MavlinkVehicle._camera, Gripper: MavlinkVehicle._gripper,
     SetHome: MavlinkVehicle._set_home, SetSkill: MavlinkVehicle._set_skill,
-    FlyMission: MavlinkVehicle._fly_mission,
+    FlyMission: MavlinkVehicle._fly_mission, Flip: MavlinkVehicle._flip,
 }
 
 

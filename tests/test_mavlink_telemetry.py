@@ -171,6 +171,9 @@ def test_mode_changes_and_tilts_are_kept_with_their_arrival_times() -> None:
     assert t.tilted_at == 4.4
     assert t.mode_shown_since("FLIP", 3.9) and not t.mode_shown_since("FLIP", 4.0)
     assert t.mode_shown_since("ALT_HOLD", 100.0)  # shown now
+    assert (t.armed_at, t.disarmed_at) == (5.0, None)
+    tracker.apply(heartbeat(ap, 2, armed=False), 6.0)
+    assert (tracker.snapshot.armed_at, tracker.snapshot.disarmed_at) == (5.0, 6.0)
 
 
 def test_mode_changes_are_bounded() -> None:

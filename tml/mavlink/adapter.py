@@ -26,7 +26,11 @@ and come from a listener on the link that sees every message of this vehicle:
   else by number; other NAMED_VALUE names are passed through as detection parameters;
 - *mission progress* of the last :class:`~tml.vehicle.FlyMission`: MISSION_CURRENT and
   MISSION_ITEM_REACHED seqs are mapped back to action indices with the item map of
-  :mod:`tml.mavlink.compile`.
+  :mod:`tml.mavlink.compile`;
+- *the GUIDED target kept*: a position target (GoTo, Hold) is a message nobody acknowledges,
+  and one lost on a poor link would leave the vehicle where it was; so the last one is sent
+  again at each HEARTBEAT (at most every ``TARGET_PERIOD`` s) while the vehicle is in GUIDED,
+  until another request takes its place.
 
 *FLIP.* ArduCopter refuses FLIP from GUIDED: it flips only from a mode flown by the pilot's
 sticks (ACRO, STABILIZE, ALT_HOLD), armed and flying, and returns to that mode when the flip
@@ -116,6 +120,10 @@ STICK_PERIOD = 0.04
 """Seconds between RC_CHANNELS_OVERRIDE messages: ArduPilot drops an override older than
 RC_OVERRIDE_TIME (3 s of its own clock, 0.3 s of wall time at a speed-up of 10), and at 25 Hz
 seven in a row must be lost for that."""
+TAKEOFF_ATTEMPTS = 3
+"""Take-offs tried, arming again in between, when the vehicle disarmed by itself meanwhile."""
+TARGET_PERIOD = 0.5
+"""Wall seconds at least between two copies of the GUIDED position target kept."""
 FLIP_WAIT = 10.0
 """Wall seconds to wait for a flip to be over (ArduCopter abandons one after 2.5 s)."""
 
@@ -245,6 +253,8 @@ class MavlinkVehicle:
         self._progress: MissionProgress | None = None
         self._cache: tuple[Any, Any, tuple[float, float, float] | None] = (None, None, None)
         self._companion_seen = False
+        self._target: tuple[float, float, float] | None = None  # lat, lon, alt kept in GUIDED
+        self._target_sent = 0.0
         link.listen(self._on_message)
         self._worker = threading.Thread(target=self._work, daemon=True,
                                         name=f"vehicle {system_id}")
@@ -372,6 +382,7 @@ class MavlinkVehicle:
             self._companion_seen = True
         if kind == "HEARTBEAT" and component == self.mav.component_id:
             self._heartbeat = now
+            self._keep_target(snapshot)
             start, received, lost = self._window
             if now - start >= 1.0:
                 total = (snapshot.received - received) + (snapshot.lost - lost)
@@ -393,6 +404,21 @@ class MavlinkVehicle:
                     self._seen[(name, int(msg.value))] = now
                 else:
                     self._values[name] = msg.value
+
+    def _keep_target(self, snapshot: Telemetry) -> None:
+        target = self._target
+        wall = time.monotonic()
+        if target is None or snapshot.mode != "GUIDED" or wall - self._target_sent < TARGET_PERIOD:
+            return
+        self._target_sent = wall
+        with contextlib.suppress(OSError):
+            self.mav.position_target(*target)
+
+    def _aim(self, latitude: float, longitude: float, altitude: float) -> None:
+        """Send a GUIDED position target, and keep it (see the module docstring)."""
+        self._target = (latitude, longitude, altitude)
+        self._target_sent = time.monotonic()
+        self.mav.position_target(latitude, longitude, altitude)
 
     # --- the worker thread ------------------------------------------------------------
 
@@ -417,6 +443,8 @@ class MavlinkVehicle:
 
         try:
             handler = _HANDLERS[type(request)]
+            if not isinstance(request, (SetYaw, SetSpeed, Camera, Gripper, SetSkill)):
+                self._target = None  # the request takes the kept target's place
             detail = handler(self, request)  # type: ignore[arg-type]
         except CommandRejected as error:
             return fail("rejected", f"{error.command}: {error.result}")
@@ -487,7 +515,17 @@ class MavlinkVehicle:
         self.mav.disarm()
 
     def _take_off(self, request: TakeOff) -> None:
-        self.mav.takeoff(request.altitude)
+        for attempt in range(TAKEOFF_ATTEMPTS):
+            try:
+                self.mav.takeoff(request.altitude)
+                return
+            except CommandRejected:
+                t = self.link.telemetry(self.system_id)
+                if t.armed or t.mode != "GUIDED" or attempt == TAKEOFF_ATTEMPTS - 1:
+                    raise
+            # Armed on the ground, ArduCopter disarms by itself after DISARM_DELAY (10 s);
+            # a take-off lost on the way for that long finds it disarmed, and is refused.
+            self.mav.arm()
 
     def _go_to(self, request: GoTo) -> None:
         home = self._require_home()
@@ -495,7 +533,7 @@ class MavlinkVehicle:
         if request.speed:
             self.mav.change_speed(request.speed)
         latitude, longitude, _ = _global(request.target, home)
-        self.mav.position_target(latitude, longitude, request.target[2])
+        self._aim(latitude, longitude, request.target[2])
 
     def _set_yaw(self, request: SetYaw) -> None:
         self.mav.yaw(abs(request.heading) if request.relative else request.heading % 360.0,
@@ -512,7 +550,7 @@ class MavlinkVehicle:
         home, state = self._require_home(), self.state()
         if state.position is not None:
             latitude, longitude, _ = _global(state.position, home)
-            self.mav.position_target(latitude, longitude, state.position[2])
+            self._aim(latitude, longitude, state.position[2])
 
     def _land(self, request: Land) -> None:
         self._end_plan()

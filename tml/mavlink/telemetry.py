@@ -137,6 +137,10 @@ class Telemetry:
     """(arrival time, mode) of the latest HEARTBEATs that showed a new mode, oldest first."""
     tilted_at: float | None = None
     """Arrival time of the latest ATTITUDE beyond :data:`TILTED` in roll or pitch."""
+    armed_at: float | None = None
+    """Arrival time of the latest HEARTBEAT showing the vehicle armed."""
+    disarmed_at: float | None = None
+    """Arrival time of the latest HEARTBEAT showing the vehicle disarmed."""
     detections: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
     """The latest NAMED_VALUE of each name from the companion computer."""
     sightings: Mapping[tuple[str, int], Sighting] = field(
@@ -242,9 +246,10 @@ class TelemetryTracker:
             mode = mode_name(msg.type, msg.autopilot, msg.base_mode, msg.custom_mode)
             changes = s.mode_changes if mode == s.mode else (
                 (*s.mode_changes, (now, mode))[-MODE_CHANGES_KEPT:])
+            armed = bool(msg.base_mode & ARMED_FLAG)
             return {"vehicle_type": msg.type, "autopilot": msg.autopilot,
-                    "armed": bool(msg.base_mode & ARMED_FLAG), "last_heartbeat": now,
-                    "link_lost": False, "mode": mode, "mode_changes": changes}
+                    "armed": armed, "last_heartbeat": now, "link_lost": False, "mode": mode,
+                    "mode_changes": changes, "armed_at" if armed else "disarmed_at": now}
         if kind == "GLOBAL_POSITION_INT":
             return {"position": GlobalPosition(msg.lat / 1e7, msg.lon / 1e7, msg.alt / 1000,
                                                msg.relative_alt / 1000),

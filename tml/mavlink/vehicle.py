@@ -66,7 +66,10 @@ TakenRule = Callable[[Command, Telemetry, Telemetry], bool]
 
 
 def _armed_as_asked(command: Command, before: Telemetry, now: Telemetry) -> bool:
-    return now.armed == (command.param1 >= 0.5)
+    # Seen at all since the command went out: ArduCopter disarms by itself DISARM_DELAY
+    # (10 s) after arming on the ground, only 1 s of wall time at a speed-up of 10.
+    seen = now.armed_at if command.param1 >= 0.5 else now.disarmed_at
+    return seen is not None and seen > before.time
 
 
 def _off_the_ground(command: Command, before: Telemetry, now: Telemetry) -> bool:
@@ -77,6 +80,13 @@ def _off_the_ground(command: Command, before: Telemetry, now: Telemetry) -> bool
         mavlink.MAV_LANDED_STATE_IN_AIR, mavlink.MAV_LANDED_STATE_TAKEOFF)
     climbing = now.velocity is not None and -now.velocity[2] > CLIMBING
     return now.armed and (lifted or climbing or up(now) - up(before) > TAKEOFF_RISE)
+
+
+def _mission_running(command: Command, before: Telemetry, now: Telemetry) -> bool:
+    # A repeated MISSION_START with a first item restarts the mission from that item.
+    moved = now.mission_current != before.mission_current \
+        or len(now.items_reached) > len(before.items_reached)
+    return now.mode == "AUTO" and (moved or _off_the_ground(command, before, now))
 
 
 def _landing(command: Command, before: Telemetry, now: Telemetry) -> bool:
@@ -112,6 +122,7 @@ TAKEN: dict[int, TakenRule] = {
     mavlink.MAV_CMD_DO_SET_HOME: _home_moved,  # HOME_POSITION moved
     mavlink.MAV_CMD_DO_SET_MODE: _mode_set,  # a HEARTBEAT showed the mode (a FLIP: or a roll)
     mavlink.MAV_CMD_DO_SET_MISSION_CURRENT: _current_item,  # MISSION_CURRENT shows the item
+    mavlink.MAV_CMD_MISSION_START: _mission_running,  # AUTO, and the mission moves on
 }
 """What in the telemetry shows each command carried out, for a retransmission whose first ACK
 was lost (see the module docstring). Commands left out (speed, yaw, message rates ...) are

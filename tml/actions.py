@@ -222,7 +222,10 @@ CATALOGUE: tuple[ActionSpec, ...] = (
     ),
     ActionSpec(
         "FLIP", Category.ROTATION,
-        "Perform a flip (ArduCopter FLIP mode). Needs a vehicle that has the flip mode.",
+        "Perform a flip (ArduCopter FLIP mode, entered from ALT_HOLD with the sticks held by RC "
+        "override), then fly back to where it began; below 10 m the vehicle climbs to 10 m "
+        "first (a flip costs ArduCopter about 4 m). A vehicle without a FLIP mode refuses the "
+        "mission before take-off.",
         (ArgumentSpec("direction", ArgType.CHOICE, "direction of the flip", default="front",
                       choices=("front", "back", "left", "right")),),
         requires="flip", mission_item=False,

@@ -67,6 +67,7 @@ class Source(Protocol):
     velocity: Vector
     heading: float  # degrees
     roll: float  # radians
+    pitch: float  # radians
     gps_fixed: bool
     booted: bool  # past ArduCopter's boot ("ArduPilot Ready")
     origin_set: bool
@@ -175,10 +176,10 @@ def local_position_ned(v: Source) -> Any:
 
 
 def attitude(v: Source) -> Any:
-    """ATTITUDE: roll (non-zero only in a flip), level pitch, yaw in (-pi, pi]."""
+    """ATTITUDE: roll and pitch (non-zero only in a flip), yaw in (-pi, pi]."""
     yaw = math.radians(v.heading)
     yaw = yaw - 2 * math.pi if yaw > math.pi else yaw
-    return M.MAVLink_attitude_message(int(v.time * 1000), v.roll, 0.0, yaw, 0.0, 0.0, 0.0)
+    return M.MAVLink_attitude_message(int(v.time * 1000), v.roll, v.pitch, yaw, 0.0, 0.0, 0.0)
 
 
 def vfr_hud(v: Source) -> Any:

@@ -48,7 +48,14 @@ from sitl.companion import Companion
 from sitl.faults import Faults
 from sitl.messages import AUTOPILOT, COMPANION, stamp, statustext, targets
 from sitl.missions import FENCE, MISSION, MissionServer
-from sitl.modes import FLIP_FROM, MODE_NAMES, MODES, NEEDS_POSITION
+from sitl.modes import (
+    FLIP_FROM,
+    FLIP_NEEDS_THROTTLE,
+    MODE_NAMES,
+    MODES,
+    NEEDS_POSITION,
+    PILOT_MODES,
+)
 from sitl.obstacles import Obstacles
 from sitl.params import AUTOPILOT_DEFAULTS, Params, param_replies
 from sitl.physics import Battery, Body, Limits, flight_current
@@ -61,6 +68,13 @@ TICK = 0.05  # seconds of vehicle time per control step
 
 M = mavlink
 FLIP_RATE = 400.0  # degrees per second of roll, ArduCopter's FLIP_ROTATION_RATE
+FLIP_TIMEOUT = 2.5  # seconds: ArduCopter abandons a flip not over by then (FLIP_TIMEOUT_MS)
+FLIP_ALTITUDE_LOSS = 4.0  # metres a flip costs (ArduCopter SITL: 3.9 and 4.4 m, mid throttle)
+FLIP_STICK = 4000  # centidegrees of roll or pitch stick at which ArduCopter abandons a flip
+FLIP_DIRECTION_STICK = 300  # centidegrees of pitch stick that make it a pitch flip
+RC_RADIO = (1500, 1500, 1000, 1500)  # SITL radio, nobody at the sticks: centred, throttle down
+STICK_DEADZONE = 20  # microseconds around 1500 where roll and pitch read 0 (RCn_DZ)
+THROTTLE_DEADZONE = 30  # microseconds above 1000 where the throttle reads 0 (RC3_DZ)
 BRAKE_DECEL = 7.5  # m/s², ArduCopter's BRAKE_MODE_DECEL_RATE: BRAKE stops harder
 FORCE_ARM = (2989, 21196)  # param2 magic numbers that skip the checks
 LANDED_AFTER = 1.0  # seconds on the ground before touch-down counts (ArduCopter's detector)
@@ -111,8 +125,12 @@ class VehicleModel:
         self.control_period = TICK
         self.gripper_closed = False
         self.images_captured = 0
-        self.roll = 0.0  # radians; only a flip rolls the simulated vehicle
-        self._flip = ("", 0.0)  # (mode to return to, degrees rolled so far)
+        self.roll = 0.0  # radians; only a flip rolls (or pitches) the simulated vehicle
+        self.pitch = 0.0
+        # (mode to return to, degrees turned so far, "roll" or "pitch", direction +1/-1, start)
+        self._flip: tuple[str, float, str, int, float] = ("", 0.0, "roll", 1, 0.0)
+        self._rc_override: dict[int, int] = {}  # channel (1-based) -> PWM
+        self._rc_override_at = -math.inf
         self._pending = 0.0
         self._outbox: list[Any] = []
         self.streams = Streams()
@@ -242,7 +260,9 @@ class VehicleModel:
             ok = self.set_mode(MODE_NAMES.get(msg.custom_mode, ""))
             result = M.MAV_RESULT_ACCEPTED if ok else M.MAV_RESULT_FAILED
             return [M.MAVLink_command_ack_message(M.MAVLINK_MSG_ID_SET_MODE, result)]
-        if kind == "SET_POSITION_TARGET_LOCAL_NED":
+        if kind == "RC_CHANNELS_OVERRIDE":
+            self._override_sticks(msg)
+        elif kind == "SET_POSITION_TARGET_LOCAL_NED":
             self._local_target(msg)
         elif kind == "SET_POSITION_TARGET_GLOBAL_INT":
             self._global_target(msg)
@@ -370,7 +390,7 @@ class VehicleModel:
             self._text(M.MAV_SEVERITY_WARNING, "Auto: Missing Takeoff Cmd")
             return False
         flying = self.armed and not self.landed
-        if name == "FLIP" and (self.mode not in FLIP_FROM or not flying):
+        if name == "FLIP" and not self._flip_allowed():
             self._text(M.MAV_SEVERITY_WARNING, "Mode change to FLIP failed: init failed")
             return False
         previous, self.mode = self.mode, name
@@ -378,11 +398,11 @@ class VehicleModel:
             self._prearm.bring_forward(self.time)
         self._target, self._velocity, self._landing, self.auto = None, None, None, None
         self._rtl_phase = ""
-        self.roll = 0.0
+        self.roll = self.pitch = 0.0
         self._announce_mode()
-        if name == "FLIP":  # roll once around, holding position, then back to ``previous``
-            self._flip = (previous, 0.0)
-            self._target = self.position
+        if name == "FLIP":  # turn once around, then back to ``previous``
+            self._flip = (previous, 0.0, *self._flip_direction(), self.time)
+            self.body.stop()
         elif name in ("GUIDED", "LOITER", "BRAKE") and flying:
             self._target = self._stopping_point()
         elif name == "LAND":
@@ -663,8 +683,11 @@ class VehicleModel:
         accel = BRAKE_DECEL if self.mode == "BRAKE" else p["WPNAV_ACCEL"] / 100.0
         climb = self._climb_speed or p["WPNAV_SPEED_UP"] / 100.0
         descent = self._descent_speed or p["WPNAV_SPEED_DN"] / 100.0
-        return Limits(speed, climb, descent, accel, p["WPNAV_ACCEL_Z"] / 100.0,
-                      p["ATC_RATE_Y_MAX"])
+        accel_z = p["PILOT_ACCEL_Z" if self.mode in PILOT_MODES else "WPNAV_ACCEL_Z"] / 100.0
+        if self.mode in PILOT_MODES:  # the stick's rate, not the navigation's limits
+            climb = p["PILOT_SPEED_UP"] / 100.0
+            descent = (p["PILOT_SPEED_DN"] or p["PILOT_SPEED_UP"]) / 100.0
+        return Limits(speed, climb, descent, accel, accel_z, p["ATC_RATE_Y_MAX"])
 
     def _wind(self) -> tuple[float, float]:
         # SIM_WIND_DIR is where the wind comes from; it blows toward the opposite side.
@@ -685,7 +708,12 @@ class VehicleModel:
             return
         limits = self._limits()
         before = body.position
-        if self._landing is not None:
+        if self.mode == "FLIP":
+            # The flip's sink, spread over the turn: about 4 m, as ArduCopter's.
+            sink = FLIP_ALTITUDE_LOSS * FLIP_RATE / 360.0
+            north, east, up = body.position
+            body.position, body.velocity = (north, east, up - sink * TICK), (0.0, 0.0, -sink)
+        elif self._landing is not None:
             up = body.position[2]
             low = up <= self.params["LAND_ALT_LOW"] / 100.0
             speed = self.params["LAND_SPEED"] if low else (
@@ -700,7 +728,9 @@ class VehicleModel:
             body.move(body.velocity_toward(self._target, limits), limits, TICK,
                       target=self._target)
         else:
-            body.move((0.0, 0.0, 0.0), limits, TICK, self._wind(), hold=self.mode != "STABILIZE")
+            pilot = self.mode in PILOT_MODES
+            climb = self.pilot_climb_rate() if pilot else 0.0
+            body.move((0.0, 0.0, climb), limits, TICK, self._wind(), hold=not pilot)
         if self._blocked(body.position):
             body.position = before
             body.stop()
@@ -719,6 +749,8 @@ class VehicleModel:
             self.body.turn(course, self.params["ATC_RATE_Y_MAX"], TICK)
 
     def _wants_climb(self) -> bool:
+        if self.mode in PILOT_MODES:
+            return self.pilot_climb_rate() > 0.0
         if self._target is not None:
             return self._target[2] > 0.3
         return self._velocity is not None and self._velocity[0][2] > 0.1
@@ -741,16 +773,88 @@ class VehicleModel:
         if self.armed and (landing or self.mode in ("LAND", "RTL")):
             self.disarm()
 
+    def _flip_allowed(self) -> bool:
+        """ArduCopter's ModeFlip::init: from a pilot mode (throttle up in ACRO and
+        STABILIZE), roll stick under 40 degrees, armed and off the ground."""
+        if self.mode not in FLIP_FROM or not self.armed or self.landed:
+            return False
+        if self.mode in FLIP_NEEDS_THROTTLE and self.rc(3) <= RC_RADIO[2] + THROTTLE_DEADZONE:
+            return False
+        return abs(self._stick(1)) < FLIP_STICK
+
+    def _flip_direction(self) -> tuple[str, int]:
+        """As ArduCopter: pitch stick back or forward makes a pitch flip that way, else a
+        roll to the side the roll stick leans (right when centred)."""
+        pitch = self._stick(2)
+        if abs(pitch) > FLIP_DIRECTION_STICK:
+            return "pitch", 1 if pitch > 0 else -1
+        return "roll", 1 if self._stick(1) >= 0 else -1
+
     def _update_flip(self) -> None:
-        previous, rolled = self._flip
-        rolled += FLIP_RATE * TICK
-        if rolled >= 360.0 or not self.armed:
-            # As ArduCopter: back to the mode the flip started from, else STABILIZE.
+        previous, turned, axis, direction, start = self._flip
+        turned += FLIP_RATE * TICK
+        abandon = not self.armed or self.time - start > FLIP_TIMEOUT or max(
+            abs(self._stick(1)), abs(self._stick(2))) >= FLIP_STICK
+        if turned >= 360.0 or abandon:
+            # As ArduCopter: back to the mode the flip started from, else STABILIZE; the
+            # recovery's extra throttle stops the sink.
+            vn, ve, _ = self.body.velocity
+            self.body.velocity = (vn, ve, 0.0)
             if not self.set_mode(previous):
                 self.set_mode("STABILIZE")
             return
-        self._flip = (previous, rolled)
-        self.roll = math.radians(rolled - 360.0 if rolled > 180.0 else rolled)
+        self._flip = (previous, turned, axis, direction, start)
+        angle = direction * math.radians(turned - 360.0 if turned > 180.0 else turned)
+        self.roll, self.pitch = (angle, 0.0) if axis == "roll" else (0.0, angle)
+
+    # ------------------------------------------------------------- the pilot's sticks
+    def rc(self, channel: int) -> int:
+        """The PWM of RC ``channel`` (1-based): the ground station's RC_CHANNELS_OVERRIDE
+        while it is younger than RC_OVERRIDE_TIME (0: overrides off, -1: no time limit),
+        else SITL's idle radio (sticks centred, throttle down)."""
+        limit = self.params["RC_OVERRIDE_TIME"]
+        fresh = limit < 0 or (limit > 0 and self.time - self._rc_override_at <= limit)
+        if fresh and channel in self._rc_override:
+            return self._rc_override[channel]
+        return RC_RADIO[channel - 1] if channel <= len(RC_RADIO) else 1500
+
+    @property
+    def sticks_overridden(self) -> frozenset[int]:
+        """The RC channels a ground station holds (given back ones are not)."""
+        return frozenset(self._rc_override)
+
+    def _override_sticks(self, msg: Any) -> None:
+        # As ArduPilot: only the ground station named by SYSID_MYGCS may hold the sticks.
+        # Channels 1-8: UINT16_MAX leaves a channel as it is, 0 gives it back to the radio.
+        if msg.get_srcSystem() != round(self.params["SYSID_MYGCS"]):
+            return
+        for channel in range(1, 9):
+            value = getattr(msg, f"chan{channel}_raw")
+            if value == 0:
+                self._rc_override.pop(channel, None)
+            elif value != 65535:
+                self._rc_override[channel] = value
+        self._rc_override_at = self.time
+
+    def _stick(self, channel: int) -> float:
+        """Roll (1) or pitch (2) stick in centidegrees, as ArduCopter's control_in."""
+        offset = self.rc(channel) - 1500
+        if abs(offset) <= STICK_DEADZONE:
+            return 0.0
+        return math.copysign(abs(offset) - STICK_DEADZONE, offset) / (500 - STICK_DEADZONE) * 4500
+
+    def pilot_climb_rate(self) -> float:
+        """m/s up the throttle stick asks for in ALT_HOLD (ArduCopter's
+        get_pilot_desired_climb_rate: THR_DZ around mid-stick holds the altitude)."""
+        throttle = min(max(self.rc(3) - 1000, 0), 1000)
+        top, bottom = 500 + self.params["THR_DZ"], 500 - self.params["THR_DZ"]
+        up = self.params["PILOT_SPEED_UP"] / 100.0
+        down = (self.params["PILOT_SPEED_DN"] or self.params["PILOT_SPEED_UP"]) / 100.0
+        if throttle > top:
+            return up * (throttle - top) / (1000 - top)
+        if throttle < bottom:
+            return down * (throttle - bottom) / bottom
+        return 0.0
 
     # --------------------------------------------------------------------- RTL
     def _start_rtl(self) -> None:

@@ -10,14 +10,17 @@ show the GUIDED flag in HEARTBEAT ``base_mode``, and where a FLIP may start.
 from __future__ import annotations
 
 MODES = {
-    "STABILIZE": 0, "AUTO": 3, "GUIDED": 4, "LOITER": 5, "RTL": 6, "LAND": 9, "FLIP": 14,
-    "BRAKE": 17,
+    "STABILIZE": 0, "ACRO": 1, "ALT_HOLD": 2, "AUTO": 3, "GUIDED": 4, "LOITER": 5, "RTL": 6,
+    "LAND": 9, "FLIP": 14, "BRAKE": 17,
 }
 MODE_NAMES = {number: name for name, number in MODES.items()}
-ARMABLE = frozenset({"STABILIZE", "GUIDED", "LOITER"})
+ARMABLE = frozenset({"STABILIZE", "ACRO", "ALT_HOLD", "GUIDED", "LOITER"})
 NEEDS_POSITION = frozenset({"AUTO", "GUIDED", "LOITER", "RTL", "BRAKE"})
 GUIDED_FLAG_MODES = frozenset({"AUTO", "GUIDED", "RTL", "LAND", "LOITER", "BRAKE"})
-# Where FLIP may be entered from, armed and flying. ArduCopter allows ACRO, STABILIZE and
-# ALT_HOLD, whose pilot sticks hold the throttle; this simulator has neither ACRO nor
-# ALT_HOLD, and accepts GUIDED instead so that a mission can flip without a pilot.
-FLIP_FROM = frozenset({"STABILIZE", "GUIDED"})
+# Where FLIP may be entered from, armed and flying: as ArduCopter (Mode::allows_flip), the
+# modes whose throttle is the pilot's stick; never GUIDED or AUTO.
+FLIP_FROM = frozenset({"ACRO", "STABILIZE", "ALT_HOLD"})
+# Where the pilot's throttle must not be at zero for a FLIP (ArduCopter's ap.throttle_zero).
+FLIP_NEEDS_THROTTLE = frozenset({"ACRO", "STABILIZE"})
+PILOT_MODES = frozenset({"ACRO", "STABILIZE", "ALT_HOLD"})
+"""Modes flown by the pilot's sticks (RC input or RC_CHANNELS_OVERRIDE), not by targets."""

@@ -14,6 +14,7 @@ from tml.validation import validate_file
 from tml.vehicle import (
     Disarm,
     FakeVehicle,
+    Flip,
     FlyMission,
     GoTo,
     Gripper,
@@ -331,15 +332,35 @@ def test_timeout_can_be_handled_by_repeating_the_task() -> None:
     assert flight.interp.status is Status.COMPLETED
 
 
-def test_action_the_vehicle_cannot_do_fails_before_anything_is_sent() -> None:
+def test_a_mission_with_an_action_the_vehicle_cannot_do_is_refused_before_take_off() -> None:
     body = TAKE_OFF + '<task name="Grab"><action name="PICK_UP_ITEM"/></task>\n' + LAND
     flight = Flight(body).run()
     assert flight.interp.status is Status.FAILED
-    assert "no gripper" in flight.interp.reason
-    assert flight.sent(Gripper) == []
+    assert flight.interp.reason == ("PICK_UP_ITEM (line 3) needs a gripper (ArduPilot's "
+                                    "GRIP_ENABLE set), and vehicle 1 has none (refused before "
+                                    "take-off)")
+    assert flight.requests == []  # not even the take-off
+    flip = TAKE_OFF + '<task name="Flip"><action name="FLIP"/></task>\n' + LAND
+    refused = Flight(flip).run()
+    assert refused.requests == [] and "FLIP (line 3) needs a FLIP flight mode" in (
+        refused.interp.reason)
     with_gripper = Flight(body, vehicle=FakeVehicle(capabilities=frozenset({"gripper"}))).run()
     assert with_gripper.interp.status is Status.COMPLETED
     assert [g.grab for g in with_gripper.sent(Gripper)] == [True]
+
+
+def test_a_flip_climbs_to_the_flip_altitude_first_and_comes_back_down_after() -> None:
+    body = TAKE_OFF + ('<task name="Flip"><repeat times="2"/><action name="FLIP">'
+                       '<argument name="direction" value="left"/></action></task>\n') + LAND
+    vehicle = FakeVehicle(capabilities=frozenset({"flip"}))
+    altitudes: list[float] = []
+    flight = Flight(body, vehicle=vehicle).run(
+        each=lambda f: altitudes.append(f.vehicle.position[2]))
+    assert flight.interp.status is Status.COMPLETED
+    assert [f.direction for f in flight.sent(Flip)] == ["left", "left"] and vehicle.flips == 2
+    assert max(altitudes) == pytest.approx(10.0, abs=0.6)  # Limits.flip_altitude
+    goes = [g.target[2] for g in flight.sent(GoTo)]
+    assert goes == pytest.approx([10.0, 5.0, 10.0, 5.0], abs=0.6)  # up, flip, back down
 
 
 def test_skills_are_switched_on_with_their_task_and_off_after() -> None:

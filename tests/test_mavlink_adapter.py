@@ -8,6 +8,7 @@ import time
 from collections.abc import Callable, Iterator
 
 import pytest
+from test_mavlink_link import eventually
 
 from sitl.faults import Faults
 from sitl.server import Simulator
@@ -19,6 +20,7 @@ from tml.model import Action, Argument
 from tml.vehicle import (
     Arm,
     Camera,
+    Flip,
     FlyMission,
     GoTo,
     Gripper,
@@ -142,6 +144,28 @@ def test_take_off_go_to_yaw_and_hold(rig: Rig) -> None:
     assert rig.do(Hold(1)).ok
     stopped = rig.until(lambda s: s.ground_speed < 0.1, "stopped")
     assert stopped.position[0] < 39.0
+
+
+def test_a_flip_goes_through_alt_hold_with_the_sticks_held_and_back_to_guided(
+        rig: Rig) -> None:
+    rig.fly(12.0)
+    model = rig.sim.vehicle(1)
+    result = rig.do(Flip(1, "back"))
+    assert result.ok and result.detail == "modes: ALT_HOLD > FLIP > ALT_HOLD > GUIDED"
+    assert model.mode == "GUIDED" and rig.vehicle.state().mode == "GUIDED"
+    # The sticks are given back (RC_CHANNELS_OVERRIDE 0), not left to time out.
+    assert eventually(lambda: not model.sticks_overridden) and model.rc(3) == 1000
+    assert rig.vehicle.state().altitude > 12.0 - 4.0 - 1.0  # a flip costs about 4 m
+
+
+def test_a_flip_that_cannot_start_leaves_the_vehicle_in_guided(rig: Rig) -> None:
+    rig.until(lambda s: s.ready, "ready")
+    assert rig.do(SetMode(1, "GUIDED")).ok and rig.do(Arm(1)).ok
+    result = rig.do(Flip(1))  # on the ground: ALT_HOLD is taken, FLIP refused
+    assert (result.ok, result.reason) == (False, "rejected")
+    assert result.detail == "MAV_CMD_DO_SET_MODE: MAV_RESULT_FAILED"
+    model = rig.sim.vehicle(1)
+    assert model.mode == "GUIDED" and eventually(lambda: not model.sticks_overridden)
 
 
 def test_camera_requests_reach_the_camera(rig: Rig) -> None:

@@ -152,6 +152,39 @@ def test_status_texts_are_bounded() -> None:
     assert len(texts) == 50 and texts[-1].text == "line 79" and texts[0].text == "line 30"
 
 
+def test_mode_changes_and_tilts_are_kept_with_their_arrival_times() -> None:
+    # What a lost ACK leaves to judge by: a FLIP over in a second shows in one HEARTBEAT
+    # and a few ATTITUDEs beyond 57 degrees, and the snapshot after it shows ALT_HOLD again.
+    tracker = TelemetryTracker(1)
+    ap = Source()
+    for when, msg in [(1.0, heartbeat(ap, 4)), (2.0, heartbeat(ap, 4)), (3.0, heartbeat(ap, 2)),
+                      (3.5, ap("attitude", 0, 0.3, 0.0, 0.0, 0, 0, 0)),
+                      (4.0, heartbeat(ap, 14)),
+                      (4.2, ap("attitude", 0, 2.5, 0.0, 0.0, 0, 0, 0)),
+                      (4.4, ap("attitude", 0, 0.0, -1.2, 0.0, 0, 0, 0)),
+                      (4.6, ap("attitude", 0, 0.1, 0.0, 0.0, 0, 0, 0)),
+                      (5.0, heartbeat(ap, 2))]:
+        tracker.apply(msg, when)
+    t = tracker.snapshot
+    assert t.mode_changes == ((1.0, "GUIDED"), (3.0, "ALT_HOLD"), (4.0, "FLIP"),
+                              (5.0, "ALT_HOLD"))
+    assert t.tilted_at == 4.4
+    assert t.mode_shown_since("FLIP", 3.9) and not t.mode_shown_since("FLIP", 4.0)
+    assert t.mode_shown_since("ALT_HOLD", 100.0)  # shown now
+    assert (t.armed_at, t.disarmed_at) == (5.0, None)
+    tracker.apply(heartbeat(ap, 2, armed=False), 6.0)
+    assert (tracker.snapshot.armed_at, tracker.snapshot.disarmed_at) == (5.0, 6.0)
+
+
+def test_mode_changes_are_bounded() -> None:
+    tracker = TelemetryTracker(1)
+    ap = Source()
+    for n in range(30):
+        tracker.apply(heartbeat(ap, 4 if n % 2 else 2), float(n))
+    changes = tracker.snapshot.mode_changes
+    assert len(changes) == 20 and changes[-1] == (29.0, "GUIDED")
+
+
 def test_a_vehicle_is_lost_after_the_limit_without_heartbeat_and_found_by_the_next() -> None:
     tracker = TelemetryTracker(1)
     ap = Source()

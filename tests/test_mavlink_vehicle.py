@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import replace
+from typing import Any
 
 import pytest
 from test_mavlink_link import FakeAutopilot, eventually
@@ -12,10 +13,11 @@ from sitl.faults import Faults
 from sitl.server import Simulator
 from tml.errors import CommandRejected, LinkLost, MissionTransferError, VehicleTimeout
 from tml.mavlink.codec import mavlink
+from tml.mavlink.command import CommandLong
 from tml.mavlink.link import Link
 from tml.mavlink.mission import MissionItem, MissionType, Progress
-from tml.mavlink.telemetry import COMPANION_COMPONENT
-from tml.mavlink.vehicle import Vehicle
+from tml.mavlink.telemetry import COMPANION_COMPONENT, Telemetry
+from tml.mavlink.vehicle import TAKEN, Vehicle
 from tml.world import World, WorldObject
 
 
@@ -33,6 +35,84 @@ def fake() -> Iterator[FakeAutopilot]:
 def vehicle(fake: FakeAutopilot) -> Iterator[Vehicle]:
     with Link(f"udpout:127.0.0.1:{fake.port}") as link:
         yield Vehicle.connect(link, 1, timeout=5)
+
+
+class ForgetfulCopter(FakeAutopilot):
+    """Carries out the first copy of each command but loses its ACK; answers the copies
+    after it as ArduCopter does once the first was taken (FAILED, a FLIP: flips again).
+
+    ``climbs``: a NAV_TAKEOFF makes it report itself in the air and climbing (else it
+    stays on the ground and refuses the repeat all the same). A FLIP rolls it over
+    (ATTITUDE) without a HEARTBEAT showing it, as when the HEARTBEATs of a short flip are
+    lost, and leaves it in ALT_HOLD, where it started.
+    """
+
+    def __init__(self, climbs: bool = True) -> None:
+        super().__init__(system_id=1)
+        self.climbs = climbs
+        self.modes[1] = 2  # ALT_HOLD
+        self.flips = 0
+
+    def heartbeat(self, system_id: int | None = None, **ids: Any) -> None:
+        armed = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+        self.send(mavlink.MAVLink_heartbeat_message(
+            mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, armed,
+            self.modes[1], 4, 3), **ids)
+
+    def _answer(self, msg: Any) -> None:
+        if msg.get_type() != "COMMAND_LONG":
+            return super()._answer(msg)
+        self.commands.append(msg)
+        b = mavlink.MAVLink(None)
+        if msg.command == mavlink.MAV_CMD_DO_SET_MODE and int(msg.param2) == 14:
+            self.flips += 1
+            for roll in (0.5, 1.6, 3.0, -1.4, 0.1):
+                self.send(b.attitude_encode(0, roll, 0.0, 0.0, 0.0, 0.0, 0.0))
+        if msg.confirmation == 0:
+            if msg.command == mavlink.MAV_CMD_NAV_TAKEOFF and self.climbs:
+                self.send(b.extended_sys_state_encode(0, mavlink.MAV_LANDED_STATE_IN_AIR))
+                self.send(b.global_position_int_encode(0, -353632621, 1491652374, 586000,
+                                                       2000, 0, 0, -150, 0))
+            return  # taken, and its ACK lost
+        self.send(b.command_ack_encode(msg.command, mavlink.MAV_RESULT_FAILED, 0, 0, 255, 190))
+
+
+@pytest.fixture
+def forgetful(request: pytest.FixtureRequest) -> Iterator[tuple[ForgetfulCopter, Vehicle]]:
+    with ForgetfulCopter(climbs=getattr(request, "param", True)) as ap, \
+            Link(f"udpout:127.0.0.1:{ap.port}") as link:
+        yield ap, Vehicle(link, link.wait_vehicle(1, timeout=5), command_timeout=0.3)
+
+
+def test_a_take_off_whose_ack_was_lost_is_judged_by_the_climb_not_by_the_refused_repeat(
+        forgetful: tuple[ForgetfulCopter, Vehicle]) -> None:
+    ap, vehicle = forgetful
+    vehicle.takeoff(10.0)  # no ACK, but the vehicle is seen climbing before the timeout
+    assert [c.confirmation for c in ap.commands] == [0]  # so it is not sent again
+
+
+@pytest.mark.parametrize("forgetful", [False], indirect=True)
+def test_a_refused_repeat_of_a_take_off_the_telemetry_does_not_show_is_a_refusal(
+        forgetful: tuple[ForgetfulCopter, Vehicle]) -> None:
+    ap, vehicle = forgetful
+    with pytest.raises(CommandRejected) as caught:
+        vehicle.takeoff(10.0)
+    assert caught.value.result == "MAV_RESULT_FAILED"
+    assert [c.confirmation for c in ap.commands] == [0, 1]
+
+
+def test_a_flip_whose_ack_was_lost_is_not_sent_again_once_the_vehicle_rolled(
+        forgetful: tuple[ForgetfulCopter, Vehicle]) -> None:
+    ap, vehicle = forgetful
+    vehicle.set_mode("FLIP")  # no ACK and no HEARTBEAT in FLIP: the roll shows it
+    assert ap.flips == 1
+    assert vehicle.telemetry.mode == "ALT_HOLD"
+
+
+def test_every_command_judged_by_telemetry_has_a_rule_that_can_say_no() -> None:
+    empty = Telemetry(1)
+    for command, rule in TAKEN.items():
+        assert not rule(CommandLong(command, 1.0, 99.0), empty, empty), command
 
 
 def items(n: int) -> list[MissionItem]:

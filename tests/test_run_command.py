@@ -63,9 +63,9 @@ def test_action_the_vehicle_cannot_do_exits_4(tmp_path: Path,
                  "--sim-param", "GRIP_ENABLE=0"])
     out = " ".join(capsys.readouterr().out.split())
     assert code == 4
-    assert "mission failed: PICK_UP_ITEM failed (unsupported): this vehicle has no gripper" in out
-    assert not [line for line in read(str(log))
-                if line["kind"] == "request" and line["message"] == "Gripper"]
+    assert ("mission failed: PICK_UP_ITEM (line 3) needs a gripper (ArduPilot's GRIP_ENABLE "
+            "set), and vehicle 1 has none (refused before take-off)") in out
+    assert not [line for line in read(str(log)) if line["kind"] == "request"]  # nothing sent
 
 
 def test_invalid_mission_exits_1_before_flying(tmp_path: Path,

@@ -33,6 +33,7 @@ class State:
     velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
     heading: float = 0.0
     roll: float = 0.0
+    pitch: float = 0.0
     gps_fixed: bool = True
     booted: bool = True
     origin_set: bool = True
@@ -98,8 +99,8 @@ def test_gps_has_no_fix_until_it_locks():
 def test_local_position_and_attitude_use_ned_and_signed_yaw():
     local = messages.local_position_ned(State(position=(1.0, 2.0, 3.0), velocity=(0, 0, 1.5)))
     assert (local.x, local.y, local.z, local.vz) == (1.0, 2.0, -3.0, -1.5)
-    att = messages.attitude(State(heading=270.0, roll=0.5))
-    assert att.yaw == pytest.approx(-math.pi / 2) and att.roll == 0.5
+    att = messages.attitude(State(heading=270.0, roll=0.5, pitch=-0.25))
+    assert att.yaw == pytest.approx(-math.pi / 2) and (att.roll, att.pitch) == (0.5, -0.25)
 
 
 @pytest.mark.parametrize("state, landed_state", [

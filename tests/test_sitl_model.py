@@ -466,7 +466,9 @@ def test_wind_drifts_a_vehicle_that_holds_nothing_but_not_one_that_holds_positio
     assert math.dist(v.position, start) < 0.5  # GUIDED holds against the wind
     assert v.set_mode("STABILIZE")
     start = v.position
-    v.step(5)
+    for _ in range(2):
+        sticks(v)  # throttle mid-stick, renewed within RC_OVERRIDE_TIME
+        v.step(2.5)
     south, east = start[0] - v.position[0], v.position[1] - start[1]
     assert south == pytest.approx(20.0, abs=1.0) and abs(east) < 0.1  # 4 m/s for 5 s
     assert v.position[2] == pytest.approx(start[2], abs=0.1)
@@ -518,32 +520,89 @@ def test_avoidance_stops_the_vehicle_avoid_margin_short_of_an_obstacle():
     assert ranges and min(ranges) == pytest.approx(400, abs=60)
 
 
-def test_flip_from_guided_rolls_once_around_in_place_and_returns_to_guided():
-    v = flying(10.0)
+def test_flip_from_alt_hold_turns_once_around_sinks_and_returns_to_alt_hold():
+    v = flying(15.0)  # three flips cost about 12 m
     v.step(2)
+    result, replies = command(v, M.MAV_CMD_DO_SET_MODE, 1, 14)  # from GUIDED: refused
+    assert result == M.MAV_RESULT_FAILED and v.mode == "GUIDED"
+    assert texts(replies) == ["Mode change to FLIP failed: init failed"]
+    sticks(v)  # mid throttle, as ArduCopter needs to hold its altitude in ALT_HOLD
+    assert v.set_mode("ALT_HOLD")
+    command(v, M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_ATTITUDE, 50_000)
     for _ in range(3):  # the TML paper's Example 2 flips three times
+        sticks(v)
+        v.step(1)
         start = v.position
         result, replies = command(v, M.MAV_CMD_DO_SET_MODE, 1, 14)
         assert result == M.MAV_RESULT_ACCEPTED and v.mode == "FLIP"
         # As ArduCopter, a HEARTBEAT right after the ACK shows FLIP, however short it is.
         assert [(m.get_type(), getattr(m, "custom_mode", None)) for m in replies] == [
             ("COMMAND_ACK", None), ("HEARTBEAT", 14)]
-        command(v, M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_ATTITUDE, 50_000)
         began = v.time
         out = run_until(v, lambda: v.mode != "FLIP", 3.0)
-        assert v.mode == "GUIDED" and v.roll == 0.0
+        assert v.mode == "ALT_HOLD" and v.roll == 0.0 and v.pitch == 0.0
         assert 0.8 <= v.time - began <= 1.0  # about a second
         rolls = [m.roll for m in out if m.get_type() == "ATTITUDE"][:-1]  # the last is level
         turns = [(b - a) % (2 * math.pi) for a, b in itertools.pairwise(rolls)]
-        assert all(0 < turn < 1.0 for turn in turns)  # always the same way
+        assert all(0 < turn < 1.0 for turn in turns)  # always the same way: right
         assert math.degrees(rolls[0] + sum(turns)) == pytest.approx(340, abs=25)  # once round
         assert max(abs(r) for r in rolls) > 3.0  # upside down on the way
-        assert math.dist(v.position, start) < 0.2
+        assert math.dist(v.position[:2], start[:2]) < 0.2
+        assert start[2] - v.position[2] == pytest.approx(4.0, abs=0.5)  # as ArduCopter's
         beats = [m.custom_mode for m in out
                  if m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1]
-        assert beats[-1] == 4 and set(beats[:-1]) <= {14}  # and one announces GUIDED again
+        assert beats[-1] == 2 and set(beats[:-1]) <= {14}  # and one announces ALT_HOLD again
+        sticks(v)
+        low = v.position[2]
+        v.step(2)
+        assert v.position[2] == pytest.approx(low, abs=0.2)  # ALT_HOLD holds where it ended
+    assert v.set_mode("GUIDED")
     v.fly_to((10.0, 0.0, 10.0))  # GUIDED obeys again
-    run_until(v, lambda: v.arrived((10.0, 0.0, 10.0), 0.3), 20)
+    run_until(v, lambda: v.arrived((10.0, 0.0, 10.0), 0.3), 30)
+
+
+def sticks(v: VehicleModel, throttle: int = 1500, roll: int = 1500, pitch: int = 1500,
+           source: int = 255) -> None:
+    """RC_CHANNELS_OVERRIDE of channels 1-4 from ground station ``source``; 0 releases."""
+    gcs = M.MAVLink(None, srcSystem=source, srcComponent=190)
+    msg = M.MAVLink_rc_channels_override_message(1, 1, roll, pitch, throttle, 1500,
+                                                 65535, 65535, 65535, 65535)
+    (parsed,) = M.MAVLink(None).parse_buffer(msg.pack(gcs))
+    v.handle(parsed)
+
+
+def test_alt_hold_climbs_and_sinks_with_the_throttle_stick_and_holds_it_mid_stick():
+    v = flying(10.0)
+    sticks(v)
+    assert v.set_mode("ALT_HOLD")
+    v.step(2)
+    assert v.position[2] == pytest.approx(10.0, abs=0.1)
+    sticks(v, throttle=2000)
+    v.step(2)
+    assert v.position[2] > 13.0  # up to PILOT_SPEED_UP, 2.5 m/s
+    sticks(v, throttle=0, roll=0, pitch=0)  # given back to the radio: throttle down
+    high = v.position[2]
+    v.step(4)  # 2 s to turn the climb into a sink at PILOT_ACCEL_Z, then down at 2.5 m/s
+    assert high - v.position[2] > 3.0
+    sticks(v, throttle=1500)
+    v.step(3.5)  # the override is older than RC_OVERRIDE_TIME (3 s): the radio again
+    assert v.rc(3) == 1000
+    sticks(v, throttle=2000, source=200)  # not the ground station of SYSID_MYGCS
+    assert v.rc(3) == 1000
+
+
+def test_a_pitch_stick_makes_a_pitch_flip_that_way():
+    v = flying(15.0)
+    sticks(v)
+    assert v.set_mode("ALT_HOLD")
+    sticks(v, pitch=1400)  # forward
+    assert v.set_mode("FLIP")
+    sticks(v)
+    pitches = []
+    while v.mode == "FLIP":
+        v.step(TICK)
+        pitches.append(v.pitch)
+    assert min(pitches) < -1.5 and max(abs(r) for r in pitches) > 3.0 and v.roll == 0.0
 
 
 def test_a_mode_change_sends_a_heartbeat_at_once_and_the_same_mode_changes_nothing():
@@ -566,9 +625,12 @@ def test_a_mode_change_sends_a_heartbeat_at_once_and_the_same_mode_changes_nothi
                                  and m.get_srcComponent() == 1] == [9]
 
 
-def test_flip_from_stabilize_returns_to_stabilize():
+def test_flip_from_stabilize_needs_the_throttle_up_and_returns_to_stabilize():
     v = flying(10.0)
-    assert v.set_mode("STABILIZE") and v.set_mode("FLIP")
+    assert v.set_mode("STABILIZE")
+    assert not v.set_mode("FLIP")  # nobody at the sticks: throttle at zero
+    sticks(v)
+    assert v.set_mode("FLIP")
     run_until(v, lambda: v.mode != "FLIP", 3.0)
     assert v.mode == "STABILIZE"
 

@@ -88,7 +88,8 @@ class ActionSpec:
     at_most_one_of: tuple[tuple[str, ...], ...] = ()
     # Arguments that must be given together (all or none).
     together: tuple[tuple[str, ...], ...] = ()
-    # Vehicle capability the action needs ("gripper", "flip"); checked before anything is sent.
+    # Vehicle capability the action needs ("gripper", "flip", see CAPABILITIES); a mission
+    # holding the action is refused before take-off by a vehicle without it.
     requires: str = ""
     # Whether the action can be compiled to MAVLink mission items (dispatch="mission").
     mission_item: bool = True
@@ -221,7 +222,10 @@ CATALOGUE: tuple[ActionSpec, ...] = (
     ),
     ActionSpec(
         "FLIP", Category.ROTATION,
-        "Perform a flip (ArduCopter FLIP mode). Needs a vehicle that has the flip mode.",
+        "Perform a flip (ArduCopter FLIP mode, entered from ALT_HOLD with the sticks held by RC "
+        "override), then fly back to where it began; below 10 m the vehicle climbs to 10 m "
+        "first (a flip costs ArduCopter about 4 m). A vehicle without a FLIP mode refuses the "
+        "mission before take-off.",
         (ArgumentSpec("direction", ArgType.CHOICE, "direction of the flip", default="front",
                       choices=("front", "back", "left", "right")),),
         requires="flip", mission_item=False,
@@ -384,6 +388,14 @@ _BY_NAME: dict[str, ActionSpec] = {}
 for _spec in CATALOGUE:
     for _name in (_spec.name, *_spec.aliases):
         _BY_NAME[_key(_name)] = _spec
+
+
+CAPABILITIES = {
+    "flip": "a FLIP flight mode (ArduCopter's; not fixed wing, rover or PX4)",
+    "gripper": "a gripper (ArduPilot's GRIP_ENABLE set)",
+    "camera": "a camera",
+}
+"""What each capability an action may require stands for, as a refusal says it."""
 
 
 @functools.lru_cache(maxsize=1024)

@@ -251,6 +251,18 @@ class SetSkill(Request):
 
 
 @dataclass(frozen=True)
+class Flip(Request):
+    """Flip once (``direction`` front, back, left or right) and come back to GUIDED.
+
+    ArduCopter flips only from a mode flown by the pilot's sticks: the vehicle carries out
+    the whole sequence (see :meth:`tml.mavlink.adapter.MavlinkVehicle`'s FLIP) and is done
+    when it is back in GUIDED; the result's detail lists the modes it went through.
+    """
+
+    direction: str = "front"
+
+
+@dataclass(frozen=True)
 class FlyMission(Request):
     """Compile ``actions`` to mission items, upload them and fly them in AUTO.
 
@@ -333,6 +345,7 @@ class FakeVehicle:
     skills: set[str] = field(default_factory=set)
     gripping: bool = False
     photos: int = 0
+    flips: int = 0
     submitted: list[Request] = field(default_factory=list)
     mission: MissionProgress | None = None
     _target: Point | None = None
@@ -417,6 +430,10 @@ class FakeVehicle:
             self.gripping = request.grab
         elif isinstance(request, SetSkill):
             (self.skills.add if request.enabled else self.skills.discard)(request.skill)
+        elif isinstance(request, Flip):
+            if "flip" not in self.capabilities or self.mode != "GUIDED":
+                return "unsupported" if "flip" not in self.capabilities else "rejected"
+            self.flips += 1
         elif isinstance(request, FlyMission):
             self.mode = "AUTO"
             self.mission = MissionProgress(request.plan_id, 0)

@@ -45,7 +45,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from enum import StrEnum
 
-from tml.actions import BoundAction, Category, bind
+from tml.actions import CAPABILITIES, BoundAction, Category, bind, lookup
 from tml.engine.conditions import Memory, evaluate, evaluate_all
 from tml.engine.scripts import SCRIPTS, ActionFailed, Limits, Script, Send, Sleep, Until
 from tml.model import (
@@ -253,6 +253,10 @@ class Interpreter:
         self._begin(now, state)
         self._start = now
         self._note("mission", f"mission {self.mission.name!r} started", name=self.mission.name)
+        lacking = self._lacking(state)
+        if lacking:
+            self._end(Status.FAILED, lacking)
+            return self._finish()
         for skill in self.mission.skills:
             self._skill(skill.name, True)
         self._stack = [_Frame(self._root)]
@@ -279,6 +283,19 @@ class Interpreter:
         else:
             self._safe_state(reason)
         return self._finish()
+
+    def _lacking(self, state: VehicleState | None) -> str:
+        """Why the vehicle cannot fly this mission, for an action that needs what it has
+        not got (a FLIP mode, a gripper); "" when it can (or its state is not known)."""
+        if state is None:
+            return ""
+        for _, action in self.mission.actions():
+            spec = lookup(action.name)
+            if spec is not None and spec.requires and spec.requires not in state.capabilities:
+                return (f"{spec.name} (line {action.location.line}) needs "
+                        f"{CAPABILITIES[spec.requires]}, and vehicle {self.vehicle_id} has none"
+                        f" (refused before take-off)")
+        return ""
 
     def stop(self, now: float, state: VehicleState, reason: str) -> Output:
         """End the run as stopped from outside (a fleet's until, time limit or sibling):

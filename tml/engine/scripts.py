@@ -26,6 +26,7 @@ from tml.actions import BoundAction
 from tml.vehicle import (
     Arm,
     Camera,
+    Flip,
     GoTo,
     Gripper,
     Hold,
@@ -92,6 +93,7 @@ class Limits:
     acceptance_radius: float = 0.5  # m, horizontal and vertical
     heading_tolerance: float = 5.0  # deg
     ready_timeout: float = 120.0  # s for a position estimate before arming (ArduPilot EKF)
+    flip_altitude: float = 10.0  # m above home a flip starts from: one costs ArduCopter ~4 m
     slack: float = 15.0  # s added to every time limit
     factor: float = 2.0  # time limits are this many times the nominal time
 
@@ -389,13 +391,21 @@ def wait(ctx: Context, bound: BoundAction) -> Script:
 
 
 def flip(ctx: Context, bound: BoundAction) -> Script:
-    """ArduCopter's FLIP mode, then back to GUIDED."""
-    _require_flying(ctx, "FLIP")
+    """One flip as ArduCopter makes it (:class:`~tml.vehicle.Flip`), then back where it began.
+
+    A flip costs ArduCopter about 4 m of height, so below ``flip_altitude`` the vehicle
+    climbs there first; afterwards it flies back to the point it started from.
+    """
+    start = _require_flying(ctx, "FLIP")
     if "flip" not in ctx.state.capabilities:
         raise ActionFailed("unsupported", "this vehicle has no FLIP mode")
-    yield Send(SetMode(ctx.vehicle_id, "FLIP"))
-    yield Sleep(2.5)
-    yield Send(SetMode(ctx.vehicle_id, "GUIDED"))
+    high = max(start[2], ctx.limits.flip_altitude)
+    if high - start[2] > ctx.limits.acceptance_radius:
+        ctx.note(f"FLIP: climbing to {high:g} m first, a flip costs about 4 m",
+                 altitude=high)
+        yield from fly_to(ctx, (start[0], start[1], high), "FLIP")
+    yield Send(Flip(ctx.vehicle_id, str(bound.values.get("direction", "front"))))
+    yield from fly_to(ctx, start, "FLIP")
 
 
 def memorize_point(ctx: Context, bound: BoundAction) -> Script:

@@ -26,7 +26,23 @@ and come from a listener on the link that sees every message of this vehicle:
   else by number; other NAMED_VALUE names are passed through as detection parameters;
 - *mission progress* of the last :class:`~tml.vehicle.FlyMission`: MISSION_CURRENT and
   MISSION_ITEM_REACHED seqs are mapped back to action indices with the item map of
-  :mod:`tml.mavlink.compile`.
+  :mod:`tml.mavlink.compile`;
+- *the GUIDED target kept*: a position target (GoTo, Hold) is a message nobody acknowledges,
+  and one lost on a poor link would leave the vehicle where it was; so the last one is sent
+  again at each HEARTBEAT (at most every ``TARGET_PERIOD`` s) while the vehicle is in GUIDED,
+  until another request takes its place.
+
+*FLIP.* ArduCopter refuses FLIP from GUIDED: it flips only from a mode flown by the pilot's
+sticks (ACRO, STABILIZE, ALT_HOLD), armed and flying, and returns to that mode when the flip
+is over (ArduCopter's mode_flip.cpp). A :class:`~tml.vehicle.Flip` is therefore carried out
+as a pilot would: the sticks are held by RC_CHANNELS_OVERRIDE (:class:`_Sticks`: throttle
+mid-stick, so that ALT_HOLD neither climbs nor sinks, the others centred), the vehicle is
+switched to ALT_HOLD, the roll or pitch stick leans toward the flip's direction while FLIP is
+asked for (ArduCopter reads the direction from the sticks when the flip starts), the flip is
+waited out (telemetry shows FLIP, or a roll beyond 57 degrees, then the mode it came from),
+the vehicle goes back to GUIDED, and only then are the sticks released. Whatever fails on the
+way, the vehicle is put back in GUIDED before the sticks are let go: in ALT_HOLD a released
+throttle stick is a throttle at zero, and the vehicle would sink.
 
 Skills are bound to the vehicle through :data:`SKILL_BINDINGS` (documented in docs/run.md).
 Every failure becomes a result, never an exception: ``rejected`` (the vehicle refused: the
@@ -36,6 +52,7 @@ lacks what the request needs) or ``general``.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import queue
 import threading
@@ -47,6 +64,7 @@ from typing import Any
 
 from tml.errors import CommandRejected, MissionTransferError, VehicleError, VehicleTimeout
 from tml.geo import to_global, to_local
+from tml.mavlink import codec
 from tml.mavlink.codec import mavlink
 from tml.mavlink.command import CommandLong
 from tml.mavlink.compile import SPEED_TYPES, CompiledMission, CompileError, compile_mission
@@ -58,6 +76,7 @@ from tml.vehicle import (
     Arm,
     Camera,
     Disarm,
+    Flip,
     FlyMission,
     GoTo,
     Gripper,
@@ -86,6 +105,27 @@ PARAM_RETRIES = 3
 
 AUTOPILOT = "autopilot"
 COMPANION = "companion"
+
+MID_STICK = 1500
+"""PWM of a centred stick, and of a throttle that holds the altitude in ALT_HOLD."""
+FLIP_LEAN = 100
+"""Microseconds a stick leans toward the flip's direction: ArduCopter's flip pitches when the
+pitch stick is beyond 300 centidegrees (of 4500), rolls left below 0 roll."""
+FLIP_STICKS = {"front": (MID_STICK, MID_STICK - FLIP_LEAN),
+               "back": (MID_STICK, MID_STICK + FLIP_LEAN),
+               "left": (MID_STICK - FLIP_LEAN, MID_STICK),
+               "right": (MID_STICK, MID_STICK)}
+"""Flip direction -> (roll, pitch) stick while FLIP is asked for (a centred roll rolls right)."""
+STICK_PERIOD = 0.04
+"""Seconds between RC_CHANNELS_OVERRIDE messages: ArduPilot drops an override older than
+RC_OVERRIDE_TIME (3 s of its own clock, 0.3 s of wall time at a speed-up of 10), and at 25 Hz
+seven in a row must be lost for that."""
+TAKEOFF_ATTEMPTS = 3
+"""Take-offs tried, arming again in between, when the vehicle disarmed by itself meanwhile."""
+TARGET_PERIOD = 0.5
+"""Wall seconds at least between two copies of the GUIDED position target kept."""
+FLIP_WAIT = 10.0
+"""Wall seconds to wait for a flip to be over (ArduCopter abandons one after 2.5 s)."""
 
 
 @dataclass(frozen=True)
@@ -213,6 +253,8 @@ class MavlinkVehicle:
         self._progress: MissionProgress | None = None
         self._cache: tuple[Any, Any, tuple[float, float, float] | None] = (None, None, None)
         self._companion_seen = False
+        self._target: tuple[float, float, float] | None = None  # lat, lon, alt kept in GUIDED
+        self._target_sent = 0.0
         link.listen(self._on_message)
         self._worker = threading.Thread(target=self._work, daemon=True,
                                         name=f"vehicle {system_id}")
@@ -340,6 +382,7 @@ class MavlinkVehicle:
             self._companion_seen = True
         if kind == "HEARTBEAT" and component == self.mav.component_id:
             self._heartbeat = now
+            self._keep_target(snapshot)
             start, received, lost = self._window
             if now - start >= 1.0:
                 total = (snapshot.received - received) + (snapshot.lost - lost)
@@ -361,6 +404,21 @@ class MavlinkVehicle:
                     self._seen[(name, int(msg.value))] = now
                 else:
                     self._values[name] = msg.value
+
+    def _keep_target(self, snapshot: Telemetry) -> None:
+        target = self._target
+        wall = time.monotonic()
+        if target is None or snapshot.mode != "GUIDED" or wall - self._target_sent < TARGET_PERIOD:
+            return
+        self._target_sent = wall
+        with contextlib.suppress(OSError):
+            self.mav.position_target(*target)
+
+    def _aim(self, latitude: float, longitude: float, altitude: float) -> None:
+        """Send a GUIDED position target, and keep it (see the module docstring)."""
+        self._target = (latitude, longitude, altitude)
+        self._target_sent = time.monotonic()
+        self.mav.position_target(latitude, longitude, altitude)
 
     # --- the worker thread ------------------------------------------------------------
 
@@ -385,7 +443,9 @@ class MavlinkVehicle:
 
         try:
             handler = _HANDLERS[type(request)]
-            handler(self, request)  # type: ignore[arg-type]
+            if not isinstance(request, (SetYaw, SetSpeed, Camera, Gripper, SetSkill)):
+                self._target = None  # the request takes the kept target's place
+            detail = handler(self, request)  # type: ignore[arg-type]
         except CommandRejected as error:
             return fail("rejected", f"{error.command}: {error.result}")
         except MissionTransferError as error:
@@ -398,7 +458,7 @@ class MavlinkVehicle:
             return fail("unsupported", str(error))
         except VehicleError as error:
             return fail("general", str(error))
-        return RequestResult(self.vehicle_id, request.request_id, True)
+        return RequestResult(self.vehicle_id, request.request_id, True, detail=detail or "")
 
     # --- one method per request ----------------------------------------------------------
 
@@ -418,6 +478,36 @@ class MavlinkVehicle:
             self._end_plan()
         self.mav.set_mode(request.mode)  # transient modes (FLIP) are confirmed by their ACK
 
+    def _flip(self, request: Flip) -> str:
+        """A flip as a pilot makes it (see the module docstring); returns the modes seen."""
+        began = time.monotonic()
+        sticks = _Sticks(self.link, self.system_id, self.mav.component_id)
+        try:
+            self.mav.set_mode("ALT_HOLD")
+            sticks.hold(*FLIP_STICKS.get(request.direction, FLIP_STICKS["right"]))
+            asked = time.monotonic()
+            try:
+                self.mav.set_mode("FLIP")
+            finally:
+                sticks.hold()
+            # Accepted, so flown; if its telemetry was all lost, it is over by the time limit.
+            with contextlib.suppress(VehicleTimeout):
+                self.link.wait_telemetry(self.system_id, lambda t: t.mode != "FLIP" and (
+                    t.mode_shown_since("FLIP", asked) or (t.tilted_at or 0.0) > asked),
+                    FLIP_WAIT)
+            self.mav.set_mode("GUIDED")
+        finally:
+            try:
+                if self.link.telemetry(self.system_id).mode != "GUIDED":
+                    self.mav.set_mode("GUIDED")
+            except VehicleError:
+                pass  # the error that brought us here is the one to report
+            finally:
+                sticks.release()
+        seen = [mode for when, mode in self.link.telemetry(self.system_id).mode_changes
+                if when >= began]
+        return "modes: " + " > ".join(seen)
+
     def _arm(self, request: Arm) -> None:
         self.mav.arm()
 
@@ -425,7 +515,17 @@ class MavlinkVehicle:
         self.mav.disarm()
 
     def _take_off(self, request: TakeOff) -> None:
-        self.mav.takeoff(request.altitude)
+        for attempt in range(TAKEOFF_ATTEMPTS):
+            try:
+                self.mav.takeoff(request.altitude)
+                return
+            except CommandRejected:
+                t = self.link.telemetry(self.system_id)
+                if t.armed or t.mode != "GUIDED" or attempt == TAKEOFF_ATTEMPTS - 1:
+                    raise
+            # Armed on the ground, ArduCopter disarms by itself after DISARM_DELAY (10 s);
+            # a take-off lost on the way for that long finds it disarmed, and is refused.
+            self.mav.arm()
 
     def _go_to(self, request: GoTo) -> None:
         home = self._require_home()
@@ -433,7 +533,7 @@ class MavlinkVehicle:
         if request.speed:
             self.mav.change_speed(request.speed)
         latitude, longitude, _ = _global(request.target, home)
-        self.mav.position_target(latitude, longitude, request.target[2])
+        self._aim(latitude, longitude, request.target[2])
 
     def _set_yaw(self, request: SetYaw) -> None:
         self.mav.yaw(abs(request.heading) if request.relative else request.heading % 360.0,
@@ -450,7 +550,7 @@ class MavlinkVehicle:
         home, state = self._require_home(), self.state()
         if state.position is not None:
             latitude, longitude, _ = _global(state.position, home)
-            self.mav.position_target(latitude, longitude, state.position[2])
+            self._aim(latitude, longitude, state.position[2])
 
     def _land(self, request: Land) -> None:
         self._end_plan()
@@ -581,7 +681,46 @@ class _Unsupported(VehicleError):
     """The vehicle lacks what a request needs."""
 
 
-_HANDLERS: dict[type, Callable[[MavlinkVehicle, Any], None]] = {
+class _Sticks:
+    """The pilot's sticks held by RC_CHANNELS_OVERRIDE from a thread of its own, every
+    STICK_PERIOD seconds from the start until :meth:`release`: throttle mid-stick, roll,
+    pitch and yaw as :meth:`hold` sets them."""
+
+    def __init__(self, link: Link, system_id: int, component_id: int) -> None:
+        self.link = link
+        self.target = (system_id, component_id)
+        self.sticks = (MID_STICK, MID_STICK, MID_STICK, MID_STICK)
+        self._stop = threading.Event()
+        self._send()
+        self._thread = threading.Thread(target=self._keep, daemon=True,
+                                        name=f"sticks {system_id}")
+        self._thread.start()
+
+    def hold(self, roll: int = MID_STICK, pitch: int = MID_STICK) -> None:
+        """Hold roll and pitch there (centred by default), from now on."""
+        self.sticks = (roll, pitch, MID_STICK, MID_STICK)
+        for _ in range(3):  # a lost copy would leave the old sticks until the next period
+            self._send()
+
+    def release(self) -> None:
+        """Stop holding and give channels 1-4 back to the radio."""
+        self._stop.set()
+        self._thread.join(timeout=1.0)
+        self.sticks = (codec.RC_RELEASE,) * 4
+        for _ in range(3):  # if all are lost, RC_OVERRIDE_TIME releases them anyway
+            self._send()
+
+    def _send(self) -> None:
+        # A link gone: the vehicle drops the override after RC_OVERRIDE_TIME by itself.
+        with contextlib.suppress(OSError):
+            self.link.send(codec.rc_override(*self.target, self.sticks))
+
+    def _keep(self) -> None:
+        while not self._stop.wait(STICK_PERIOD):
+            self._send()
+
+
+_HANDLERS: dict[type, Callable[[MavlinkVehicle, Any], str | None]] = {
     SetMode: MavlinkVehicle._set_mode, Arm: MavlinkVehicle._arm,
     Disarm: MavlinkVehicle._disarm, TakeOff: MavlinkVehicle._take_off,
     GoTo: MavlinkVehicle._go_to, SetYaw: MavlinkVehicle._set_yaw,
@@ -589,7 +728,7 @@ _HANDLERS: dict[type, Callable[[MavlinkVehicle, Any], None]] = {
     ReturnToLaunch: MavlinkVehicle._return_to_launch, SetSpeed: MavlinkVehicle._set_speed,
     Camera: MavlinkVehicle._camera, Gripper: MavlinkVehicle._gripper,
     SetHome: MavlinkVehicle._set_home, SetSkill: MavlinkVehicle._set_skill,
-    FlyMission: MavlinkVehicle._fly_mission,
+    FlyMission: MavlinkVehicle._fly_mission, Flip: MavlinkVehicle._flip,
 }
 
 

@@ -154,3 +154,17 @@ def position_target(target_system: int, target_component: int, lat_e7: int, lon_
     return _BUILD.set_position_target_global_int_encode(
         0, target_system, target_component, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, ignore,
         lat_e7, lon_e7, alt, 0, 0, 0, 0, 0, 0, yaw or 0.0, 0)
+
+
+RC_IGNORE = 65535
+"""RC_CHANNELS_OVERRIDE channels 1-8: leave the channel as it is (UINT16_MAX)."""
+RC_RELEASE = 0
+"""RC_CHANNELS_OVERRIDE channels 1-8: give the channel back to the radio."""
+
+
+def rc_override(target_system: int, target_component: int, sticks: tuple[int, int, int, int]
+                ) -> mavlink.MAVLink_message:
+    """RC_CHANNELS_OVERRIDE of channels 1-4 (roll, pitch, throttle, yaw: PWM microseconds, or
+    RC_RELEASE each); channels 5-8 are left alone, 9-18 ignored (0, as MAVLink says)."""
+    return _BUILD.rc_channels_override_encode(target_system, target_component, *sticks,
+                                              RC_IGNORE, RC_IGNORE, RC_IGNORE, RC_IGNORE)

@@ -9,6 +9,17 @@ such field and goes out unchanged.
 
 An ACK with MAV_RESULT_IN_PROGRESS stops the retransmissions (the vehicle has the command)
 and extends the wait to ``progress_timeout`` after each such ACK; the final ACK ends it.
+
+*A retransmitted command whose first ACK was lost.* The vehicle may have taken the first
+copy, and then answer the retry by what it is doing now: ArduCopter refuses NAV_TAKEOFF
+with FAILED once it is off the ground, so the ACK of a retry cannot say whether the command
+was carried out. The sender does not know the vehicle's state; its caller may inject
+``taken``, a function saying whether telemetry shows the command carried out (the rules
+are in :data:`tml.mavlink.vehicle.TAKEN`). Then a retry answered FAILED, DENIED or
+TEMPORARILY_REJECTED is held for up to ``settle`` seconds while the telemetry may still
+show the command taken (it counts as accepted, ``by_telemetry``), and a retransmission is
+not sent at all once the telemetry shows it taken: a repeated FLIP would flip twice. The
+answer to the first transmission is always final.
 ``error`` is the one place where an outcome becomes an exception: every result other than
 ACCEPTED becomes :class:`~tml.errors.CommandRejected` with the command's name, the result's
 name and the vehicle; silence becomes :class:`~tml.errors.VehicleTimeout`.
@@ -18,6 +29,7 @@ from __future__ import annotations
 
 import enum
 import types
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 from tml.errors import CommandRejected, VehicleError, VehicleTimeout
@@ -28,6 +40,10 @@ RETRIES = 5
 """Retransmissions before giving up."""
 PROGRESS_TIMEOUT = 10.0
 """Seconds to wait for the final ACK after an IN_PROGRESS one."""
+SETTLE = 1.0
+"""Seconds a refused retransmission waits for telemetry showing the command taken."""
+SETTLE_POLL = 0.1
+"""Seconds between looks at the telemetry while a refusal is held."""
 
 
 class CommandResult(enum.IntEnum):
@@ -118,6 +134,10 @@ class Heartbeat:
 Command = CommandLong | CommandInt
 """A command as plain data, ready for the codec."""
 
+RETRY_REFUSALS = frozenset({CommandResult.MAV_RESULT_TEMPORARILY_REJECTED,
+                            CommandResult.MAV_RESULT_DENIED, CommandResult.MAV_RESULT_FAILED})
+"""Answers to a retransmission that may only mean the first copy was taken."""
+
 
 class CommandSender:
     """Send one command until it is acknowledged, refused, or the vehicle stays silent."""
@@ -127,18 +147,26 @@ class CommandSender:
 
     def __init__(self, command: Command, name: str = "", *, system_id: int | None = None,
                  timeout: float = TIMEOUT, retries: int = RETRIES,
-                 progress_timeout: float = PROGRESS_TIMEOUT) -> None:
+                 progress_timeout: float = PROGRESS_TIMEOUT,
+                 taken: Callable[[], bool] | None = None, settle: float = SETTLE) -> None:
         self.command = command
         self.name = name or f"MAV_CMD_{command.command}"
         self.system_id = system_id
         self.timeout = timeout
         self.retries = retries
         self.progress_timeout = progress_timeout
+        self.taken = taken
+        self.settle = settle
         self.deadline = float("inf")
         self.result: int | None = None
         self.progress: int | None = None
         self.timed_out = False
         self.attempts = 0
+        self.by_telemetry = False
+        """True when telemetry, not an ACK, showed the command taken."""
+        self.refused_retry: int | None = None
+        """The refusal of a retransmission, while it is held (see the module docstring)."""
+        self._settle_by = float("inf")
 
     @property
     def done(self) -> bool:
@@ -172,6 +200,14 @@ class CommandSender:
             self.progress = ack.progress
             self.deadline = now + self.progress_timeout
             return []
+        if ack.result in RETRY_REFUSALS and self.attempts > 1 and self.taken is not None:
+            if self.taken():
+                self._taken()
+            elif self.refused_retry is None:
+                self.refused_retry = ack.result
+                self._settle_by = now + self.settle
+                self.deadline = min(now + SETTLE_POLL, self._settle_by)
+            return []
         self.result = ack.result
         self.deadline = float("inf")
         return []
@@ -180,11 +216,28 @@ class CommandSender:
         """Retransmit or give up once the deadline has passed."""
         if self.done or now < self.deadline:
             return []
+        if self.refused_retry is not None:
+            if self.taken is not None and self.taken():
+                self._taken()
+            elif now >= self._settle_by:
+                self.result = self.refused_retry
+                self.deadline = float("inf")
+            else:
+                self.deadline = min(now + SETTLE_POLL, self._settle_by)
+            return []
+        if self.progress is None and self.taken is not None and self.taken():
+            self._taken()  # the ACK was lost, the vehicle did it: do not send it twice
+            return []
         if self.progress is not None or self.attempts > self.retries:
             self.timed_out = True
             self.deadline = float("inf")
             return []
         return self._transmit(now)
+
+    def _taken(self) -> None:
+        self.result = CommandResult.MAV_RESULT_ACCEPTED
+        self.by_telemetry = True
+        self.deadline = float("inf")
 
     def _transmit(self, now: float) -> list[Command]:
         message = self.command

@@ -7,7 +7,9 @@ A mode is set with MAV_CMD_DO_SET_MODE: param1 the base mode flags, param2 the c
 PX4 main) mode, param3 the PX4 sub mode.
 
 A mode change is confirmed as ArduPilot confirms it (:class:`ModeChange`): the command's
-ACCEPTED, then the vehicle's next HEARTBEAT (1 Hz) showing the new mode. ArduPilot switches
+ACCEPTED, then the vehicle's next HEARTBEAT (1 Hz) showing the new mode -- or, when the ACK
+was lost, the telemetry showing the mode (the ``taken`` judgement of
+:class:`~tml.mavlink.command.CommandSender`). ArduPilot switches
 before it acknowledges, so that HEARTBEAT is the proof; one showing another mode means the
 vehicle did not switch, or left the mode at once (a failsafe), and is a refusal. "Next" is
 by the autopilot's packet sequence numbers: a HEARTBEAT sent shortly before the ACK that
@@ -20,6 +22,7 @@ with the ACK, a FLIP it cannot start.
 from __future__ import annotations
 
 import types
+from collections.abc import Callable
 
 from tml.errors import CommandRejected, VehicleError, VehicleTimeout
 from tml.mavlink.codec import mavlink, mavutil
@@ -74,6 +77,15 @@ def set_mode_command(vehicle_type: int, autopilot: int, name: str,
     raise VehicleError(f"no flight mode {name!r} for this vehicle (modes: {known})", system_id)
 
 
+def commanded_mode(vehicle_type: int, autopilot: int, command: CommandLong) -> str:
+    """The name of the mode a DO_SET_MODE ``command`` selects (the inverse of
+    :func:`set_mode_command`)."""
+    base, custom = round(command.param1), round(command.param2)
+    if autopilot == PX4:
+        custom = (custom << 16) | (round(command.param3) << 24)
+    return mode_name(vehicle_type, autopilot, base, custom)
+
+
 class ModeChange:
     """DO_SET_MODE to mode ``name``, done once the vehicle's next HEARTBEAT shows the mode.
 
@@ -90,9 +102,10 @@ class ModeChange:
 
     def __init__(self, command: CommandLong, name: str, *, system_id: int | None = None,
                  timeout: float = TIMEOUT, retries: int = RETRIES,
-                 confirm_timeout: float = CONFIRM_TIMEOUT) -> None:
+                 confirm_timeout: float = CONFIRM_TIMEOUT,
+                 taken: Callable[[], bool] | None = None) -> None:
         self.sender = CommandSender(command, "MAV_CMD_DO_SET_MODE", system_id=system_id,
-                                    timeout=timeout, retries=retries)
+                                    timeout=timeout, retries=retries, taken=taken)
         self.mode = name.upper()
         self.system_id = system_id
         self.confirm_timeout = confirm_timeout
@@ -110,14 +123,16 @@ class ModeChange:
     @property
     def done(self) -> bool:
         """True once the mode is confirmed or the change failed."""
-        if not self.sender.accepted or self.mode in SELF_ENDING_MODES:
+        if not self.sender.accepted or self.mode in SELF_ENDING_MODES \
+                or self.sender.by_telemetry:
             return self.sender.done
         return self.shown is not None or self.timed_out
 
     @property
     def error(self) -> VehicleError | None:
         """The exception this outcome amounts to, or None if confirmed or still running."""
-        if not self.sender.accepted or self.mode in SELF_ENDING_MODES:
+        if not self.sender.accepted or self.mode in SELF_ENDING_MODES \
+                or self.sender.by_telemetry:
             return self.sender.error
         if self.timed_out:
             return VehicleTimeout(f"{self.sender.name}: {self.mode} accepted, but no HEARTBEAT "

@@ -43,6 +43,11 @@ pre-arm checks, healthy when they pass (ArduPilot)."""
 PREARM_PREFIXES = ("PreArm:", "Arm:")
 """How ArduPilot begins the STATUSTEXTs that say why it will not arm."""
 STATUS_TEXTS_KEPT = 50
+MODE_CHANGES_KEPT = 20
+TILTED = 1.0
+"""Radians of roll or pitch (57 degrees) beyond which a multicopter counts as tilted: it gets
+there only in a flip (or a crash), never in controlled flight (ArduCopter's ANGLE_MAX is 30 to
+45 degrees)."""
 
 
 def _airframes() -> Mapping[int, str]:
@@ -128,6 +133,14 @@ class Telemetry:
     mission_current: int | None = None
     items_reached: tuple[int, ...] = ()
     status_texts: tuple[StatusText, ...] = ()
+    mode_changes: tuple[tuple[float, str], ...] = ()
+    """(arrival time, mode) of the latest HEARTBEATs that showed a new mode, oldest first."""
+    tilted_at: float | None = None
+    """Arrival time of the latest ATTITUDE beyond :data:`TILTED` in roll or pitch."""
+    armed_at: float | None = None
+    """Arrival time of the latest HEARTBEAT showing the vehicle armed."""
+    disarmed_at: float | None = None
+    """Arrival time of the latest HEARTBEAT showing the vehicle disarmed."""
     detections: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
     """The latest NAMED_VALUE of each name from the companion computer."""
     sightings: Mapping[tuple[str, int], Sighting] = field(
@@ -170,6 +183,11 @@ class Telemetry:
     def airframe(self) -> str:
         """The airframe class from the HEARTBEAT type ("quadcopter" ...), "" if unknown."""
         return "" if self.vehicle_type is None else AIRFRAMES.get(self.vehicle_type, "")
+
+    def mode_shown_since(self, mode: str, since: float) -> bool:
+        """True if a HEARTBEAT that arrived after ``since`` showed ``mode`` (or shows it now)."""
+        return self.mode == mode or any(when > since and name == mode
+                                        for when, name in self.mode_changes)
 
     def heartbeat_age(self, now: float) -> float:
         """Seconds since the last HEARTBEAT (infinite if none yet)."""
@@ -225,10 +243,13 @@ class TelemetryTracker:
         kind = msg.get_type()
         s = self.snapshot
         if kind == "HEARTBEAT":
+            mode = mode_name(msg.type, msg.autopilot, msg.base_mode, msg.custom_mode)
+            changes = s.mode_changes if mode == s.mode else (
+                (*s.mode_changes, (now, mode))[-MODE_CHANGES_KEPT:])
+            armed = bool(msg.base_mode & ARMED_FLAG)
             return {"vehicle_type": msg.type, "autopilot": msg.autopilot,
-                    "armed": bool(msg.base_mode & ARMED_FLAG), "last_heartbeat": now,
-                    "link_lost": False,
-                    "mode": mode_name(msg.type, msg.autopilot, msg.base_mode, msg.custom_mode)}
+                    "armed": armed, "last_heartbeat": now, "link_lost": False, "mode": mode,
+                    "mode_changes": changes, "armed_at" if armed else "disarmed_at": now}
         if kind == "GLOBAL_POSITION_INT":
             return {"position": GlobalPosition(msg.lat / 1e7, msg.lon / 1e7, msg.alt / 1000,
                                                msg.relative_alt / 1000),
@@ -239,7 +260,9 @@ class TelemetryTracker:
             return {"home": GlobalPosition(msg.latitude / 1e7, msg.longitude / 1e7,
                                            msg.altitude / 1000)}
         if kind == "ATTITUDE":
-            return {"attitude": (msg.roll, msg.pitch, msg.yaw)}
+            tilted = max(abs(msg.roll), abs(msg.pitch)) > TILTED
+            return {"attitude": (msg.roll, msg.pitch, msg.yaw),
+                    "tilted_at": now if tilted else s.tilted_at}
         if kind == "SYS_STATUS":
             remaining = msg.battery_remaining
             return {"battery_voltage": msg.voltage_battery / 1000,

@@ -7,6 +7,12 @@ MissionTransferError naming the result, silence is VehicleTimeout, a vehicle tha
 sending HEARTBEATs is LinkLost. Methods return when the vehicle has *acknowledged*; that it
 then flies where it was told is watched from telemetry -- except a mode change, which is
 done only when a HEARTBEAT shows the new mode (:class:`~tml.mavlink.modes.ModeChange`).
+
+A command whose ACK was lost is sent again, and the vehicle may refuse the copy because it
+took the first one (ArduCopter refuses NAV_TAKEOFF once it is off the ground). :data:`TAKEN`
+says, per command, what in the telemetry shows the command taken; :meth:`Vehicle.command`
+hands that judgement to the command sender, which then neither repeats a command the vehicle
+is seen carrying out nor takes a refused repeat of it for a refusal.
 """
 
 from __future__ import annotations
@@ -34,7 +40,7 @@ from tml.mavlink.mission import (
     read_back_differences,
     with_home_placeholder,
 )
-from tml.mavlink.modes import CONFIRM_TIMEOUT, ModeChange, set_mode_command
+from tml.mavlink.modes import CONFIRM_TIMEOUT, ModeChange, commanded_mode, set_mode_command
 from tml.mavlink.telemetry import Telemetry
 
 DEFAULT_RATES = {
@@ -47,6 +53,80 @@ FORCE = 21196.0
 """The magic param2 of COMPONENT_ARM_DISARM that skips the pre-arm checks."""
 SHOWN_DIFFERENCES = 3
 """How many read-back differences a MISMATCH error names (it counts the others)."""
+
+
+TAKEOFF_RISE = 0.5
+"""Metres of climb since a NAV_TAKEOFF was first sent that show it taken."""
+CLIMBING = 0.3
+"""m/s upwards that show a NAV_TAKEOFF taken."""
+
+TakenRule = Callable[[Command, Telemetry, Telemetry], bool]
+"""``rule(command, before, now)``: whether telemetry ``now`` shows ``command`` carried out,
+``before`` being the snapshot when it was first sent."""
+
+
+def _armed_as_asked(command: Command, before: Telemetry, now: Telemetry) -> bool:
+    # Seen at all since the command went out: ArduCopter disarms by itself DISARM_DELAY
+    # (10 s) after arming on the ground, only 1 s of wall time at a speed-up of 10.
+    seen = now.armed_at if command.param1 >= 0.5 else now.disarmed_at
+    return seen is not None and seen > before.time
+
+
+def _off_the_ground(command: Command, before: Telemetry, now: Telemetry) -> bool:
+    def up(t: Telemetry) -> float:
+        return t.position.relative_altitude if t.position is not None else 0.0
+
+    lifted = before.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND and now.landed_state in (
+        mavlink.MAV_LANDED_STATE_IN_AIR, mavlink.MAV_LANDED_STATE_TAKEOFF)
+    climbing = now.velocity is not None and -now.velocity[2] > CLIMBING
+    return now.armed and (lifted or climbing or up(now) - up(before) > TAKEOFF_RISE)
+
+
+def _mission_running(command: Command, before: Telemetry, now: Telemetry) -> bool:
+    # A repeated MISSION_START with a first item restarts the mission from that item.
+    moved = now.mission_current != before.mission_current \
+        or len(now.items_reached) > len(before.items_reached)
+    return now.mode == "AUTO" and (moved or _off_the_ground(command, before, now))
+
+
+def _landing(command: Command, before: Telemetry, now: Telemetry) -> bool:
+    return now.mode == "LAND" or now.landed_state == mavlink.MAV_LANDED_STATE_LANDING
+
+
+def _returning(command: Command, before: Telemetry, now: Telemetry) -> bool:
+    return now.mode == "RTL"
+
+
+def _home_moved(command: Command, before: Telemetry, now: Telemetry) -> bool:
+    return now.home is not None and now.home != before.home
+
+
+def _mode_set(command: Command, before: Telemetry, now: Telemetry) -> bool:
+    if now.vehicle_type is None or now.autopilot is None or not isinstance(command, CommandLong):
+        return False
+    mode = commanded_mode(now.vehicle_type, now.autopilot, command)
+    # A FLIP is over in about a second: its HEARTBEAT may be lost, its roll is not.
+    flipped = mode == "FLIP" and now.tilted_at is not None and now.tilted_at > before.time
+    return flipped or now.mode_shown_since(mode, before.time)
+
+
+def _current_item(command: Command, before: Telemetry, now: Telemetry) -> bool:
+    return now.mission_current == round(command.param1)
+
+
+TAKEN: dict[int, TakenRule] = {
+    mavlink.MAV_CMD_COMPONENT_ARM_DISARM: _armed_as_asked,  # already armed / disarmed
+    mavlink.MAV_CMD_NAV_TAKEOFF: _off_the_ground,  # off the ground, climbing, higher
+    mavlink.MAV_CMD_NAV_LAND: _landing,  # in LAND, or landing
+    mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH: _returning,  # in RTL
+    mavlink.MAV_CMD_DO_SET_HOME: _home_moved,  # HOME_POSITION moved
+    mavlink.MAV_CMD_DO_SET_MODE: _mode_set,  # a HEARTBEAT showed the mode (a FLIP: or a roll)
+    mavlink.MAV_CMD_DO_SET_MISSION_CURRENT: _current_item,  # MISSION_CURRENT shows the item
+    mavlink.MAV_CMD_MISSION_START: _mission_running,  # AUTO, and the mission moves on
+}
+"""What in the telemetry shows each command carried out, for a retransmission whose first ACK
+was lost (see the module docstring). Commands left out (speed, yaw, message rates ...) are
+answered alike however often they come, so their ACK is enough."""
 
 
 class Vehicle:
@@ -80,13 +160,21 @@ class Vehicle:
     # -- commands ---------------------------------------------------------------------
 
     def command(self, command: Command) -> None:
-        """Send ``command`` until acknowledged.
+        """Send ``command`` until acknowledged (or, ACK lost, seen taken: :data:`TAKEN`).
 
         Raises CommandRejected, VehicleTimeout, or LinkLost when the vehicle is lost.
         """
         self._run(CommandSender(command, codec.command_name(command.command),
                                 system_id=self.system_id, timeout=self.command_timeout,
-                                retries=self.command_retries))
+                                retries=self.command_retries, taken=self._taken(command)))
+
+    def _taken(self, command: Command) -> Callable[[], bool] | None:
+        """The judgement of :data:`TAKEN` for ``command``, from the snapshot as it is now."""
+        rule = TAKEN.get(command.command)
+        if rule is None:
+            return None
+        before = self.telemetry
+        return lambda: rule(command, before, self.telemetry)
 
     def set_mode(self, name: str) -> None:
         """Switch to flight mode ``name`` (e.g. GUIDED, AUTO, LAND, RTL for ArduCopter).
@@ -98,7 +186,7 @@ class Vehicle:
                                    self.system_id)
         self._run(ModeChange(command, name, system_id=self.system_id,
                              timeout=self.command_timeout, retries=self.command_retries,
-                             confirm_timeout=self.mode_timeout))
+                             confirm_timeout=self.mode_timeout, taken=self._taken(command)))
 
     def _run(self, machine: CommandSender | ModeChange) -> None:
         self.link.run(machine, self.system_id, self.component_id)

@@ -6,10 +6,10 @@ the flight log is then read to check what happened, not only the exit code.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import pytest
+from flight_checks import check_imav2016
 
 from tml.cli import main
 from tml.journal import read
@@ -78,25 +78,7 @@ def test_imav2016_recognises_transports_and_lands_at_the_operating_zone(
         tmp_path: Path) -> None:
     code, lines, _ = fly(tmp_path, "imav2016", [])
     assert code == 0
-    fired = [line["event"] for line in lines if line["kind"] == "event"]
-    assert set(fired) == {"Bucket A found", "Item A found"}  # via RECOGNIZE_ITEMS/BUCKETS
-    skills = {(line["skill"], line["enabled"]) for line in lines
-              if line["kind"] == "request" and line["message"] == "SetSkill"}
-    assert {("RECOGNIZE_ITEMS", True), ("RECOGNIZE_BUCKETS", True)} <= skills
-    memorized = {line["label"]: line["point"] for line in lines
-                 if line["kind"] == "decision" and line["message"].startswith("memorized")}
-    assert math.dist(memorized["item A coordinates"][:2], (8, 2)) < 2.5  # seen from above
-    assert math.dist(memorized["bucket A coordinates"][:2], (8, -2)) < 2.5
-    grips = [line for line in lines if line["kind"] == "request" and line["message"] == "Gripper"]
-    assert [g["grab"] for g in grips] == [True, False]
-    ok = {line["request_id"] for line in lines if line["kind"] == "result" and line["ok"]}
-    assert all(g["request_id"] in ok for g in grips)
-    states = {line["task"]: line["state"] for line in lines if line["kind"] == "task"}
-    assert states["Transport item A"] == "done"
-    landed = [line for line in lines if line["kind"] == "telemetry" and line["landed"]
-              and line["position"] is not None][-1]
-    zone = memorized["operating zone"]
-    assert math.dist(landed["position"][:2], zone[:2]) < 1.0
+    check_imav2016(lines)
 
 
 def test_battery_event_lands_and_aborts(tmp_path: Path) -> None:

@@ -24,11 +24,9 @@ VEHICLE_PROFILE = "vehicle"  # --profile vehicle: read from the connected vehicl
 
 
 def _sim_param(text: str) -> tuple[str, float]:
-    name, _, value = text.partition("=")
-    try:
-        return name.strip().upper(), float(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected NAME=NUMBER, got {text!r}") from None
+    from sitl.cli import param_setting
+
+    return param_setting(text)
 
 
 def _positive(text: str) -> float:

@@ -28,9 +28,17 @@ def companion(address: str, *extra: str) -> subprocess.Popen[str]:
                             text=True)
 
 
+def attached(process: subprocess.Popen[str]) -> str:
+    """The companion's first line, once it has found the autopilot (a busy machine may take
+    seconds to start a Python process: the flight must not start before it is there)."""
+    assert process.stdout is not None
+    return process.stdout.readline()
+
+
 def stop(process: subprocess.Popen[str]) -> tuple[str, str]:
     process.send_signal(signal.SIGTERM)
-    return process.communicate(timeout=10)
+    out, err = process.communicate(timeout=10)
+    return out, err
 
 
 def test_imav2016_flies_with_the_standalone_companion(tmp_path: Path) -> None:
@@ -39,12 +47,13 @@ def test_imav2016_flies_with_the_standalone_companion(tmp_path: Path) -> None:
         address = f"tcp:127.0.0.1:{sim.tcp_ports[0]}"
         process = companion(address, "--world", IMAV)
         try:
+            first = attached(process)
             code = main(["run", IMAV, "--connect", address, "--clock", "vehicle", "-q",
                          "--log", str(log)])
         finally:
             out, err = stop(process)
     assert process.returncode == 0, err
-    assert "component 191 of system 1 attached" in out and "stopped (SIGTERM)" in out
+    assert "component 191 of system 1 attached" in first and "stopped (SIGTERM)" in out
     assert "Detected item 1 A" in out and "Detected bucket 1 A" in out
     assert code == 0
     check_imav2016(read(str(log)))
@@ -56,7 +65,7 @@ def test_the_world_can_be_a_world_file_and_the_system_id_is_kept(tmp_path: Path)
     with Simulator(speedup=20, tcp_base_port=0, params=PARAMS) as sim:
         process = companion(f"tcp:127.0.0.1:{sim.tcp_ports[0]}", "--world", str(world),
                             "--system-id", "1", "--timeout", "20")
-        line = process.stdout.readline() if process.stdout else ""
+        line = attached(process)
         _, err = stop(process)
     assert "component 191 of system 1 attached" in line and "1 object(s)" in line, err
     assert process.returncode == 0

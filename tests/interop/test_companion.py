@@ -37,13 +37,15 @@ def fly_with_companion(sitl: SitlVehicle, name: str, tmp_path: Path
         [sys.executable, "-m", "tml", "companion", "--connect", sitl.companion_address,
          "--world", mission], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
+        # Fly once the companion has found the autopilot (starting Python takes a while).
+        first = companion.stdout.readline() if companion.stdout else ""
         code = main(["run", mission, "--connect", sitl.address, "--clock", "vehicle", "-q",
                      "--log", str(log)])
     finally:
         os.kill(companion.pid, signal.SIGTERM)
         out, err = companion.communicate(timeout=10)
     assert companion.returncode == 0, err
-    assert f"component 191 of system {sitl.system_id} attached" in out
+    assert f"component 191 of system {sitl.system_id} attached" in first
     lines = read(str(log))
     ended = [line for line in lines if line["kind"] == "run" and "outcomes" in line]
     reason = ended[-1]["outcomes"][0]["reason"] if ended else ""

@@ -86,7 +86,7 @@ def test_battery_event_lands_and_aborts(tmp_path: Path) -> None:
     assert code == 3 and "Low battery" in reason
     fired = [line for line in lines if line["kind"] == "event"]
     assert [f["event"] for f in fired] == ["Low battery"]
-    assert fired[0]["read"][0]["value"] < 25
+    assert fired[0]["read"][0]["value"] < 30
     after = [line for line in lines if line["t"] >= fired[0]["t"]]
     assert any(line["kind"] == "request" and line["message"] == "Land" for line in after)
     assert any(line["kind"] == "action" and line["message"] == "LAND done" for line in after)

@@ -29,3 +29,21 @@ def check_imav2016(lines: list[dict]) -> None:
               and line["position"] is not None][-1]
     zone = memorized["operating zone"]
     assert math.dist(landed["position"][:2], zone[:2]) < 1.0
+
+
+def check_catalogue_tour(lines: list[dict]) -> None:
+    """missions/catalogue_tour.xml flown to its end: the window seen during the survey, the
+    crate and the bin recognised and memorized, the crate delivered with the gripper."""
+    fired = {line["event"] for line in lines if line["kind"] == "event"}
+    assert {"Crate seen", "Bin seen", "Window seen during a survey"} <= fired
+    memorized = {line["label"] for line in lines
+                 if line["kind"] == "decision" and line["message"].startswith("memorized")}
+    assert {"crate", "bin"} <= memorized
+    states = {line["task"]: line["state"] for line in lines if line["kind"] == "task"}
+    assert states["Inspection/Deliver the crate"] == "done"
+    grips = [line for line in lines if line["kind"] == "request" and line["message"] == "Gripper"]
+    assert [g["grab"] for g in grips] == [True, False]
+
+
+LOG_CHECKS = {"imav2016": check_imav2016, "catalogue_tour": check_catalogue_tour}
+"""mission -> what its flight log must show besides the outcome, on any vehicle."""

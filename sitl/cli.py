@@ -80,6 +80,23 @@ def _rejection(text: str) -> tuple[int, int]:
     return int(command), int(result or 4)
 
 
+def param_setting(text: str) -> tuple[str, float]:
+    """``NAME=VALUE`` -> (NAME, value) for a vehicle parameter the simulator has (an
+    argparse type, shared with ``tml run --sim-param``)."""
+    from sitl.params import AUTOPILOT_DEFAULTS
+
+    name, _, value = text.partition("=")
+    name = name.strip().upper()
+    try:
+        number = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected NAME=NUMBER, got {text!r}") from None
+    if name not in {known for known, _, _ in AUTOPILOT_DEFAULTS}:
+        raise argparse.ArgumentTypeError(f"unknown simulator parameter {name!r} "
+                                         "(sitl/params.py lists them)")
+    return name, number
+
+
 def _udp(text: str) -> str:
     from sitl.server import parse_udp_address
 
@@ -107,6 +124,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--bind", default="127.0.0.1", help="address to listen on")
     parser.add_argument("--out", action="append", type=_udp, default=[],
                         metavar="udp:HOST:PORT", help="also stream to a ground station (repeat)")
+    parser.add_argument("--param", type=param_setting, action="append", default=[],
+                        metavar="NAME=VALUE",
+                        help="set a parameter of every vehicle (e.g. SIM_COMPANION=0: no "
+                             "embedded companion computer); repeatable")
     faults = parser.add_argument_group("faults")
     faults.add_argument("--loss-in", type=_probability, default=0.0,
                         help="probability a message to the vehicle is lost")
@@ -157,7 +178,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     simulator = Simulator(
         vehicles=args.vehicles, home=args.home, speedup=args.speedup, seed=args.seed,
         world=world, faults=faults, tcp_base_port=args.tcp_base_port, udp_out=args.out,
-        bind=args.bind,
+        bind=args.bind, params=dict(args.param),
     )
     try:
         simulator.start()

@@ -100,8 +100,10 @@ class Companion:
         """Replies to a message addressed to component 191 (the parameter protocol)."""
         return [self._stamp(reply) for reply in param_replies(self.params, msg)]
 
-    def step(self, time: float, position: tuple[float, float, float], heading: float) -> list[Any]:
-        """Messages due at vehicle ``time`` with the vehicle at ``position``."""
+    def step(self, time: float, position: tuple[float, float, float] | None,
+             heading: float) -> list[Any]:
+        """Messages due at vehicle ``time`` with the vehicle at ``position`` (north, east,
+        up from home); with ``position`` None (not known yet) only the HEARTBEAT."""
         out: list[Any] = []
         if time >= self._next_heartbeat:
             self._next_heartbeat = time + 1.0
@@ -110,7 +112,7 @@ class Companion:
                 mavlink.MAV_STATE_ACTIVE, 3,
             ))
         rate = self.params["DET_RATE"]
-        if rate > 0 and time >= self._next_report:
+        if position is not None and rate > 0 and time >= self._next_report:
             self._next_report = time + 1.0 / rate
             out.extend(self._report(time, position, heading))
         return [self._stamp(msg) for msg in out]

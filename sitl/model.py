@@ -179,6 +179,11 @@ class VehicleModel:
         return self.missions.items(MISSION)
 
     @property
+    def has_companion(self) -> bool:
+        """True when the embedded companion computer is on board (``SIM_COMPANION``)."""
+        return self.params["SIM_COMPANION"] > 0
+
+    @property
     def gps_fixed(self) -> bool:
         """True once the GPS has a 3D fix (and has not lost it)."""
         return self.time >= self.params["SIM_GPS_LOCKTIME"] and not self._gps_lost
@@ -214,7 +219,7 @@ class VehicleModel:
                 self._gcs_seen = self.time
             return []
         if getattr(msg, "target_component", 0) == COMPANION:
-            if targets(msg, self.system_id, COMPANION):
+            if self.has_companion and targets(msg, self.system_id, COMPANION):
                 return self.companion.handle(msg)
             return []
         if not targets(msg, self.system_id, AUTOPILOT):
@@ -238,7 +243,8 @@ class VehicleModel:
                        for built in map(self._build, self.streams.due(self.time))
                        if built is not None)
             out.extend(self._flush())
-            out.extend(self.companion.step(self.time, self.position, self.heading))
+            if self.has_companion:
+                out.extend(self.companion.step(self.time, self.position, self.heading))
         return out
 
     # ---------------------------------------------------------------- dispatching
@@ -967,7 +973,8 @@ class VehicleModel:
     def _blocked(self, position: Vector) -> bool:
         """True when ``position`` hits an obstacle; reported once per approach."""
         margin = self.params["AVOID_MARGIN"] if (
-            self.companion.avoiding and self.params["AVOID_ENABLE"]) else 0.0
+            self.has_companion and self.companion.avoiding and self.params["AVOID_ENABLE"]
+        ) else 0.0
         name = self.obstacles.touching(position, margin)
         if name is None:
             nearest = self.obstacles.nearest(position, margin)

@@ -7,8 +7,10 @@ expects. ``SIM_*`` parameters shape the simulation itself: ``SIM_GPS_LOCKTIME``,
 simulated pack's capacity; 0, the default, keeps the voltage constant as ArduPilot SITL
 does) are ArduPilot SITL's own names; ``SIM_EKF_GPS_TIME``
 (seconds from boot until the EKF uses GPS) is ours, with the delay ArduCopter SITL shows,
-and so is ``SIM_BATT_CHARGE`` (amperes a landed, disarmed vehicle takes from its charging
-pad; 0: no pad).
+and so are ``SIM_BATT_CHARGE`` (amperes a landed, disarmed vehicle takes from its charging
+pad; 0: no pad) and ``SIM_COMPANION`` (1: the vehicle carries the embedded companion
+computer, component 191; 0: it has none, and a companion attached from outside, such as
+``tml companion``, takes its place).
 
 :class:`Params` keeps the values in table order (the order PARAM_VALUE indices refer to)
 and remembers each value's MAVLink type: PARAM_SET carries a float whatever the type,
@@ -88,6 +90,7 @@ AUTOPILOT_DEFAULTS: tuple[tuple[str, float, int], ...] = (
     ("SIM_BATT_VOLTAGE", 12.6, REAL32),
     ("SIM_BATT_CAP_AH", 0, REAL32),
     ("SIM_BATT_CHARGE", 0, REAL32),
+    ("SIM_COMPANION", 1, INT8),
 )
 
 # The companion computer (component 191): one switch per TML skill, and its camera.

@@ -8,6 +8,14 @@ reading the replies that come back to it. Everything a vehicle emits goes to eve
 of that vehicle; bytes received are parsed with pymavlink's MAVLink 2 parser (one parser
 per connection) and handed to the vehicle's model.
 
+Like ArduPilot between its serial ports, a vehicle also routes what one client sends to
+its other clients (so a companion computer connected beside the ground station reaches
+it): each connection learns the (system, component) ids it has heard from; a HEARTBEAT
+goes to every other client, a message addressed to a system and component goes to the
+clients that component was heard on, and an unaddressed or broadcast message goes to
+every other client that has said something. Forwarded messages keep their bytes and skip
+the fault channels below.
+
 All vehicles share one clock that advances in the model's control ticks. With
 ``realtime=True`` a background thread keeps vehicle time at ``speedup`` times wall-clock
 time (falling behind instead of skipping when the machine cannot keep up). With
@@ -59,6 +67,7 @@ class _Peer:
         self.parser = mavlink.MAVLink(None)
         self.parser.robust_parsing = True
         self.backlog = bytearray()
+        self.routes: set[tuple[int, int]] = set()  # (system, component) heard on it
 
     def send(self, data: bytes) -> None:
         if self.address is not None:
@@ -287,7 +296,7 @@ class Simulator:
         if not data:
             self._drop(endpoint, peer)
             return
-        self._received(endpoint, peer.parser, data)
+        self._received(endpoint, peer, data)
 
     def _read_udp(self, endpoint: _Endpoint) -> None:
         assert endpoint.udp is not None
@@ -302,20 +311,42 @@ class Simulator:
             if peer is None:  # a ground station answering from another port: serve it too
                 peer = _Peer(endpoint.udp, address)
                 endpoint.udp_peers.append(peer)
-            self._received(endpoint, peer.parser, data)
+            self._received(endpoint, peer, data)
 
-    def _received(self, endpoint: _Endpoint, parser: Any, data: bytes) -> None:
+    def _received(self, endpoint: _Endpoint, peer: _Peer, data: bytes) -> None:
         try:
-            messages = parser.parse_buffer(data) or []
+            messages = peer.parser.parse_buffer(data) or []
         except mavlink.MAVError:
             return
+        routing = len(endpoint.peers()) > 1
         for msg in messages:
             if msg.get_type() == "BAD_DATA":
                 continue
+            if routing:
+                self._route(endpoint, peer, msg)
             if endpoint.incoming is not None:
                 endpoint.incoming.send(self.time, msg)
             else:
                 self._emit(endpoint, endpoint.model.handle(msg))
+
+    def _route(self, endpoint: _Endpoint, source: _Peer, msg: Any) -> None:
+        """Forward ``msg`` from ``source`` to the vehicle's other clients, as ArduPilot's
+        MAVLink routing does (see the module docstring)."""
+        sender = (msg.get_srcSystem(), msg.get_srcComponent())
+        source.routes.add(sender)
+        system = getattr(msg, "target_system", 0)
+        component = getattr(msg, "target_component", 0)
+        for peer in endpoint.peers():
+            if peer is source or sender in peer.routes:
+                continue
+            if msg.get_type() == "HEARTBEAT":
+                wanted = True
+            elif system == 0:
+                wanted = bool(peer.routes)
+            else:
+                wanted = any(s == system and component in (0, c) for s, c in peer.routes)
+            if wanted:
+                peer.send(msg.get_msgbuf())
 
     def _deliver_due(self) -> None:
         for endpoint in self._endpoints:

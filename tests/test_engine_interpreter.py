@@ -5,7 +5,7 @@ from __future__ import annotations
 import subprocess
 import sys
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 
 import pytest
 
@@ -21,6 +21,7 @@ from tml.vehicle import (
     Hold,
     Land,
     MissionProgress,
+    RequestResult,
     ReturnToLaunch,
     SetSkill,
     TakeOff,
@@ -195,6 +196,38 @@ def test_continue_after_a_moving_event_action_resumes_the_stopped_action() -> No
     gotos = flight.sent(GoTo)
     assert gotos[0].target == gotos[-1].target == (40, 0, 5)  # sent again after the event
     assert len(gotos) == 3
+    assert flight.interp.status is Status.COMPLETED
+    assert flight.vehicle.position == pytest.approx((40, 0, 0), abs=0.55)
+
+
+@dataclass
+class LaggingVehicle(FakeVehicle):
+    """A FakeVehicle that answers each request ``lag`` seconds late, as a real link does."""
+
+    lag: float = 0.3
+    _late: list[tuple[float, RequestResult]] = field(default_factory=list)
+
+    def poll(self) -> list[RequestResult]:
+        self._late += [(self.time + self.lag, r) for r in super().poll()]
+        due = [r for t, r in self._late if t <= self.time + 1e-9]
+        self._late = [(t, r) for t, r in self._late if t > self.time + 1e-9]
+        return due
+
+
+def test_continue_resumes_an_action_stopped_before_its_request_was_answered() -> None:
+    """The event stops the action while its GoTo is on its way; the answer, coming while
+    the handler runs, is not the resumed action's: the GoTo is sent again."""
+    far = (40, 0, 5)
+    flight = Flight(TAKE_OFF + goto("Far", str(far)) + LAND,
+                    event("CONTINUE", '<action name="CAPTURE_PHOTO"/>'), SEEN,
+                    vehicle=LaggingVehicle())
+
+    def sees_once_the_goto_is_sent(f: Flight) -> None:
+        f.vehicle.detections["seen"] = any(g.target == far for g in f.sent(GoTo))
+
+    flight.run(seconds=120, each=sees_once_the_goto_is_sent)
+    assert flight.fired() == ["E"]
+    assert [g.target for g in flight.sent(GoTo)] == [far, far]
     assert flight.interp.status is Status.COMPLETED
     assert flight.vehicle.position == pytest.approx((40, 0, 0), abs=0.55)
 

@@ -6,10 +6,10 @@ the flight log is then read to check what happened, not only the exit code.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import pytest
+from flight_checks import LOG_CHECKS
 
 from tml.cli import main
 from tml.journal import read
@@ -72,31 +72,8 @@ def test_mission_flies_to_its_expected_outcome(name: str, tmp_path: Path) -> Non
     assert not [line for line in lines if line["kind"] == "error"]
     last = [line for line in lines if line["kind"] == "telemetry"][-1]
     assert last["mode"] != "AUTO" or last["landed"], "left flying an unwatched AUTO mission"
-
-
-def test_imav2016_recognises_transports_and_lands_at_the_operating_zone(
-        tmp_path: Path) -> None:
-    code, lines, _ = fly(tmp_path, "imav2016", [])
-    assert code == 0
-    fired = [line["event"] for line in lines if line["kind"] == "event"]
-    assert set(fired) == {"Bucket A found", "Item A found"}  # via RECOGNIZE_ITEMS/BUCKETS
-    skills = {(line["skill"], line["enabled"]) for line in lines
-              if line["kind"] == "request" and line["message"] == "SetSkill"}
-    assert {("RECOGNIZE_ITEMS", True), ("RECOGNIZE_BUCKETS", True)} <= skills
-    memorized = {line["label"]: line["point"] for line in lines
-                 if line["kind"] == "decision" and line["message"].startswith("memorized")}
-    assert math.dist(memorized["item A coordinates"][:2], (8, 2)) < 2.5  # seen from above
-    assert math.dist(memorized["bucket A coordinates"][:2], (8, -2)) < 2.5
-    grips = [line for line in lines if line["kind"] == "request" and line["message"] == "Gripper"]
-    assert [g["grab"] for g in grips] == [True, False]
-    ok = {line["request_id"] for line in lines if line["kind"] == "result" and line["ok"]}
-    assert all(g["request_id"] in ok for g in grips)
-    states = {line["task"]: line["state"] for line in lines if line["kind"] == "task"}
-    assert states["Transport item A"] == "done"
-    landed = [line for line in lines if line["kind"] == "telemetry" and line["landed"]
-              and line["position"] is not None][-1]
-    zone = memorized["operating zone"]
-    assert math.dist(landed["position"][:2], zone[:2]) < 1.0
+    if name in LOG_CHECKS:  # IMAV 2016: items and buckets seen, gripper, operating zone
+        LOG_CHECKS[name](lines)
 
 
 def test_battery_event_lands_and_aborts(tmp_path: Path) -> None:
@@ -104,7 +81,7 @@ def test_battery_event_lands_and_aborts(tmp_path: Path) -> None:
     assert code == 3 and "Low battery" in reason
     fired = [line for line in lines if line["kind"] == "event"]
     assert [f["event"] for f in fired] == ["Low battery"]
-    assert fired[0]["read"][0]["value"] < 25
+    assert fired[0]["read"][0]["value"] < 30
     after = [line for line in lines if line["t"] >= fired[0]["t"]]
     assert any(line["kind"] == "request" and line["message"] == "Land" for line in after)
     assert any(line["kind"] == "action" and line["message"] == "LAND done" for line in after)

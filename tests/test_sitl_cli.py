@@ -20,6 +20,8 @@ from sitl.cli import main
     (["--out", "udp:nowhere"], "UDP address"),
     (["--outage", "5:1"], "ends before"),
     (["--reject", "arm"], "CMD_ID"),
+    (["--param", "BATT_CAPACITY=big"], "NAME=NUMBER"),
+    (["--param", "NO_SUCH_PARAM=1"], "unknown simulator parameter 'NO_SUCH_PARAM'"),
 ])
 def test_bad_arguments_exit_2_with_a_reason(argv, message, capsys):
     assert main(argv) == 2

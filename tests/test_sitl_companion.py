@@ -82,3 +82,10 @@ def test_bucket_and_marker_skills_report_their_kinds_only():
     switch(c, "RECOG_MARKERS", 1)
     assert sorted(detections(c.step(2.0, over, 0.0))) == [("FRAME", 1), ("MARKER", 1)]
     assert detections(c.step(3.0, (11.0, 40.0, 10.0), 0.0)) == []  # all out of view
+
+
+def test_without_a_position_only_the_heartbeat_goes_out():
+    c = companion()
+    switch(c, "RECOG_ARUCO", 1)
+    assert [m.get_type() for m in c.step(1.0, None, 0.0)] == ["HEARTBEAT"]
+    assert detections(c.step(1.6, (10.0, 0.0, 10.0), 0.0)) == [("ARUCO", 7)]

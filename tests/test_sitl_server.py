@@ -265,3 +265,51 @@ def test_mavproxy_uploads_arms_and_flies_the_mission_in_auto(tmp_path):
                 process.kill()
                 process.wait()
         assert [item.command for item in sim.vehicle(1).mission_items] == [16, 22, 16, 16, 21]
+
+
+def test_messages_are_routed_between_clients_as_arducopter_routes_its_ports():
+    """A companion computer on the vehicle's port reaches the ground station and back."""
+    params = {**FAST, "SIM_COMPANION": 0}
+    with Simulator(tcp_base_port=0, realtime=False, params=params) as sim:
+        gcs, onboard, watcher = (connect(sim.tcp_ports[0]) for _ in range(3))
+        onboard.mav.srcSystem, onboard.mav.srcComponent = 1, 191
+        watcher.mav.srcSystem = 254
+        gcs.send(M.MAVLink_heartbeat_message(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID,
+                                             0, 0, 4, 3))
+        sim.advance(0.1)
+        onboard.send(M.MAVLink_heartbeat_message(M.MAV_TYPE_ONBOARD_CONTROLLER,
+                                                 M.MAV_AUTOPILOT_INVALID, 0, 0, 4, 3))
+        onboard.send(M.MAVLink_named_value_int_message(100, b"ITEM", 3))
+        sim.advance(0.1)
+        heard = [(m.get_type(), m.get_srcComponent()) for m in gcs.drain()]
+        assert ("HEARTBEAT", 191) in heard and ("NAMED_VALUE_INT", 191) in heard
+        # A client that has said nothing yet gets the HEARTBEAT only (no route learned).
+        assert [m.get_type() for m in watcher.drain() if m.get_srcComponent() == 191] == [
+            "HEARTBEAT"]
+        # Addressed to the companion: to the client it was heard on, not to the others.
+        gcs.send(M.MAVLink_param_set_message(1, 191, b"RECOG_ITEMS", 1, 2))
+        sim.advance(0.1)
+        assert [(m.get_type(), m.get_srcSystem()) for m in onboard.drain()
+                if m.get_type() == "PARAM_SET"] == [("PARAM_SET", 255)]
+        assert "PARAM_SET" not in [m.get_type() for m in watcher.drain()]
+        # The embedded companion is switched off: nobody else answers for component 191.
+        assert [m for m in gcs.drain() if m.get_srcComponent() == 191] == []
+        # Addressed to the autopilot: handled by the vehicle, not passed on.
+        onboard.send(M.MAVLink_command_long_message(1, 1, M.MAV_CMD_REQUEST_MESSAGE, 0,
+                                                    M.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
+                                                    0, 0, 0, 0, 0, 0))
+        sim.advance(0.1)
+        assert "COMMAND_LONG" not in [m.get_type() for m in gcs.drain()]
+        for link in (gcs, onboard, watcher):
+            link.close()
+
+
+def test_the_embedded_companion_is_on_board_unless_switched_off():
+    for on_board in (1, 0):
+        with Simulator(tcp_base_port=0, realtime=False,
+                       params={"SIM_COMPANION": on_board}) as sim:
+            gcs = connect(sim.tcp_ports[0])
+            gcs.send(M.MAVLink_param_request_read_message(1, 191, b"CAM_HFOV", -1))
+            components = {m.get_srcComponent() for m in settle(sim, gcs, 2)}
+            assert (191 in components) == bool(on_board)
+            gcs.close()

@@ -123,3 +123,39 @@ def test_bad_world_file_exits_2_with_its_line(
                      '</world>\n')
     assert main(["verify", str(FEASIBLE), "--world", str(world)]) == 2
     assert f"{world}:3" in capsys.readouterr().err
+
+
+def test_profile_vehicle_needs_an_address_and_an_address_needs_it(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["verify", str(FEASIBLE), "--profile", "vehicle"]) == 2
+    assert "--connect ADDRESS" in capsys.readouterr().err
+    assert main(["verify", str(FEASIBLE), "--connect", "tcp:127.0.0.1:5760"]) == 2
+
+
+def test_profile_from_the_connected_vehicles_parameters(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """A vehicle with twice ArduCopter's battery flies the mission on what the shipped
+    profile calls too little charge."""
+    from sitl.server import Simulator
+
+    assert main(["verify", str(FEASIBLE), "--battery", "55"]) == 1
+    capsys.readouterr()
+    with Simulator(tcp_base_port=0, params={"BATT_CAPACITY": 6600}) as sim:
+        code = main(["verify", str(FEASIBLE), "--battery", "55", "--profile", "vehicle",
+                     "--connect", f"tcp:127.0.0.1:{sim.tcp_ports[0]}", "--format", "json"])
+    out, err = capsys.readouterr()
+    assert code == 0, out
+    assert "profile from vehicle 1's parameters" in err and "BATT_CAPACITY=6600" in err
+    assert json.loads(out)["feasible"] is True
+
+
+def test_profile_vehicle_with_no_vehicle_there_is_an_error(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    import socket
+
+    with socket.create_server(("127.0.0.1", 0)) as silent:
+        code = main(["verify", str(FEASIBLE), "--profile", "vehicle", "--connect",
+                     f"tcp:127.0.0.1:{silent.getsockname()[1]}", "--timeout", "0.5"])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "no heartbeat" in err and "Traceback" not in err

@@ -20,12 +20,14 @@ from tml.verify.motion import VehicleState
 from tml.verify.profile import load_profile
 from tml.world import Cylinder, Geofence, Prism, World
 
-# Round numbers: 5 m/s cruise, 10 m/s max, 0.1 %/m, 0.1 %/s, reserve 20 %, clearance 5 m.
+# Round numbers: 5 m/s cruise, 10 m/s max, 0.1 %/m, 0.1 %/s, reserve 20 %, clearance 5 m;
+# moves start and stop at once, landings at the descent rate, no wait over home.
 PROFILE = replace(load_profile("quadcopter"), cruise_speed=5.0, max_speed=10.0,
                   climb_rate=2.0, descent_rate=1.0, battery_per_metre=0.1,
                   battery_per_second=0.1, battery_reserve=20.0, min_clearance=5.0,
                   min_altitude=0.0, max_altitude=100.0, max_range=500.0,
-                  return_altitude=10.0, min_turn_radius=0.0, max_flight_time=0.0)
+                  return_altitude=10.0, min_turn_radius=0.0, max_flight_time=0.0,
+                  acceleration=0.0, land_speed=0.0, land_altitude=0.0, return_hover=0.0)
 HERE = Location("mission.xml", 42)
 AT_10 = VehicleState(position=(0.0, 0.0, 10.0), flying=True)
 MAST = World(obstacles=(Cylinder("mast", 0.0, 20.0, 2.0),))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import pytest
 
@@ -10,12 +11,21 @@ from tml import geo
 from tml.actions import BoundAction, bind
 from tml.errors import Location
 from tml.model import Action, Argument
-from tml.verify.motion import FlightModel, VehicleState, explore_pattern, survey_pattern
+from tml.patterns import circle_chord
+from tml.verify.motion import (
+    FlightModel,
+    VehicleState,
+    explore_pattern,
+    stop_to_stop,
+    survey_pattern,
+)
 from tml.verify.profile import load_profile
 from tml.world import DEFAULT_HOME, World
 
-# Round numbers: 5 m/s, climb 2.5 m/s, descent 1.5 m/s, yaw 90 deg/s.
-PROFILE = load_profile("quadcopter")
+# Round numbers: 5 m/s, climb 2.5 m/s, descent 1.5 m/s, yaw 90 deg/s; moves start and stop
+# at once, landings at the descent rate, no wait over home (tested apart below).
+PROFILE = replace(load_profile("quadcopter"), cruise_speed=5.0, acceleration=0.0,
+                  land_speed=0.0, land_altitude=0.0, return_hover=0.0)
 MODEL = FlightModel(PROFILE, World())
 HERE = Location("test.xml", 3)
 FLYING = VehicleState(position=(0.0, 0.0, 10.0), flying=True)
@@ -42,12 +52,16 @@ def test_take_off_with_an_altitude_and_when_flying() -> None:
     assert step.after == FLYING and step.notes
 
 
-def test_go_to_point_costs_per_metre_at_cruise_speed() -> None:
+def test_go_to_point_costs_per_metre_or_per_second_whichever_is_more() -> None:
     step = MODEL.step(action("GO_TO_POINT", coordinates="(30, 40, 10)"), FLYING)
     assert step.after.position == (30.0, 40.0, 10.0)
     assert step.distance == pytest.approx(50.0)
     assert step.duration == pytest.approx(50.0 / PROFILE.cruise_speed)
-    assert step.energy == pytest.approx(50.0 * PROFILE.battery_per_metre)
+    assert step.energy == pytest.approx(max(50.0 * PROFILE.battery_per_metre,
+                                            step.duration * PROFILE.battery_per_second))
+    per_metre = FlightModel(replace(PROFILE, battery_per_metre=1.0))
+    assert per_metre.step(action("GO_TO_POINT", coordinates="(30, 40, 10)"),
+                          FLYING).energy == pytest.approx(50.0)
 
 
 def test_set_speed_changes_the_following_legs_capped_at_max_speed() -> None:
@@ -119,7 +133,9 @@ def test_loiter_enters_the_circle_at_its_nearest_point_and_flies_the_turns() -> 
     step = MODEL.step(action("LOITER", coordinates="(50, 0, 10)", radius="10", turns="2"),
                       FLYING)
     assert step.legs[0].points[-1] == pytest.approx((40.0, 0.0, 10.0))
-    assert step.distance == pytest.approx(40.0 + 2 * 2 * math.pi * 10)
+    # Flown as the interpreter flies it: 16 targets a turn.
+    assert step.distance == pytest.approx(40.0 + 2 * 16 * circle_chord(10.0))
+    assert circle_chord(10.0) * 16 == pytest.approx(2 * math.pi * 10, rel=0.01)
 
 
 def test_loiter_without_an_end_counts_only_the_way_to_the_circle() -> None:
@@ -127,6 +143,39 @@ def test_loiter_without_an_end_counts_only_the_way_to_the_circle() -> None:
     assert step.loiter is not None and step.loiter.centre == FLYING.position
     assert step.duration == pytest.approx(15.0 / PROFILE.cruise_speed)
     assert step.notes
+
+
+def test_moves_speed_up_and_brake_at_each_waypoint() -> None:
+    assert stop_to_stop(100.0, 10.0, 0.0) == pytest.approx(10.0)
+    # 100 m at 10 m/s with 2.5 m/s²: 4 s up to speed (20 m), 6 s cruising, 4 s braking.
+    assert stop_to_stop(100.0, 10.0, 2.5) == pytest.approx(14.0)
+    # 10 m never reaches 10 m/s: 2 s speeding up over 5 m, 2 s braking.
+    assert stop_to_stop(10.0, 10.0, 2.5) == pytest.approx(4.0)
+    braking = FlightModel(replace(PROFILE, cruise_speed=10.0, acceleration=2.5))
+    step = braking.step(action("GO_TO_POINT", coordinates="(100, 0, 10)"), FLYING)
+    assert step.duration == pytest.approx(14.0)
+    turn = braking.step(action("LOITER", coordinates="(10, 0, 10)", radius="10", turns="1"),
+                        FLYING)
+    chord = circle_chord(10.0)
+    assert turn.duration == pytest.approx(16 * 2 * math.sqrt(chord / 2.5))
+
+
+def test_landings_slow_down_near_the_ground_and_rtl_waits_over_home() -> None:
+    arducopter = FlightModel(replace(PROFILE, descent_rate=1.5, land_speed=0.5,
+                                     land_altitude=10.0, return_hover=5.0))
+    high = VehicleState(position=(0.0, 0.0, 25.0), flying=True)
+    # 15 m at 1.5 m/s, then 10 m at 0.5 m/s.
+    assert arducopter.step(action("LAND"), high).duration == pytest.approx(30.0)
+    assert arducopter.step(action("LAND"), FLYING).duration == pytest.approx(20.0)
+    # A descent that is not a landing keeps the descent rate.
+    lower = arducopter.step(action("SET_ALTITUDE", altitude="1"), high)
+    assert lower.duration == pytest.approx(24.0 / 1.5)
+    # RTL from home at 25 m: the 5 s wait over home, then the landing.
+    rtl = arducopter.step(action("RETURN_HOME_AND_LAND"), high)
+    assert rtl.duration == pytest.approx(35.0)
+    assert rtl.after.flying is False and rtl.after.position == (0.0, 0.0, 0.0)
+    assert arducopter.return_home_energy((0.0, 0.0, 25.0), (0.0, 0.0, 0.0)) == \
+        pytest.approx(35.0 * PROFILE.battery_per_second)
 
 
 def test_survey_pattern_passes() -> None:

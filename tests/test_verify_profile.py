@@ -9,7 +9,14 @@ from pathlib import Path
 import pytest
 
 from tml.errors import TmlError
-from tml.verify.profile import SHIPPED, load_profile, profile_from_parameters
+from tml.verify.profile import (
+    COPTER_PARAMETERS,
+    NUMBER_KEYS,
+    SHIPPED,
+    load_profile,
+    profile_from_parameters,
+    profile_from_vehicle,
+)
 
 
 @pytest.mark.parametrize("name", SHIPPED)
@@ -75,9 +82,11 @@ def test_parameters_convert_from_ardupilot_units() -> None:
     assert profile.max_altitude == 80.0
     assert profile.max_range == 600.0
     assert profile.yaw_rate == base.yaw_rate  # 0 means "not set" in ArduPilot
-    # Twice the reference capacity: half the percent per metre and per second.
-    assert profile.battery_per_metre == pytest.approx(base.battery_per_metre / 2)
-    assert profile.battery_per_second == pytest.approx(base.battery_per_second / 2)
+    # The same current drawn from a larger battery: a smaller percent per metre and second.
+    scale = base.battery_capacity / 10000.0
+    assert profile.battery_capacity == 10000.0
+    assert profile.battery_per_metre == pytest.approx(base.battery_per_metre * scale)
+    assert profile.battery_per_second == pytest.approx(base.battery_per_second * scale)
     assert profile.battery_reserve == pytest.approx(25.0)
 
 
@@ -102,3 +111,56 @@ def test_every_copter_parameter_read_from_a_vehicle_changes_the_profile() -> Non
         params = {name: value, "BATT_CAPACITY": 9000.0} if name == "BATT_LOW_MAH" \
             else {name: value}
         assert profile_from_parameters(params, base) != base, name
+
+
+def test_arducopters_defaults_give_the_shipped_quadcopter() -> None:
+    """The shipped profile is ArduCopter SITL with copter.parm: its parameters change
+    nothing (the battery figures were measured with BATT_CAPACITY 3300)."""
+    arducopter = {"WPNAV_SPEED": 1000.0, "WPNAV_SPEED_UP": 250.0, "WPNAV_SPEED_DN": 150.0,
+                  "WPNAV_ACCEL": 250.0, "LAND_SPEED": 50.0, "LAND_ALT_LOW": 1000.0,
+                  "RTL_ALT": 1500.0, "RTL_LOIT_TIME": 5000.0, "ATC_RATE_Y_MAX": 0.0,
+                  "BATT_CAPACITY": 3300.0, "BATT_LOW_MAH": 0.0}
+    base = load_profile("quadcopter")
+    assert profile_from_parameters(arducopter, base) == base
+
+
+def test_acceleration_landing_and_rtl_wait_convert_from_ardupilot_units() -> None:
+    params = {"WPNAV_ACCEL": 100.0, "LAND_SPEED": 30.0, "LAND_ALT_LOW": 500.0,
+              "RTL_LOIT_TIME": 2000.0}
+    profile = profile_from_parameters(params, load_profile("quadcopter"))
+    assert (profile.acceleration, profile.land_speed, profile.land_altitude,
+            profile.return_hover) == pytest.approx((1.0, 0.3, 5.0, 2.0))
+
+
+def test_battery_calibration_follows_the_vehicles_capacity() -> None:
+    """The figures are a current: a smaller battery loses it faster, in percent."""
+    base = load_profile("quadcopter")
+    small = profile_from_parameters({"BATT_CAPACITY": base.battery_capacity / 4}, base)
+    assert small.battery_per_second == pytest.approx(4 * base.battery_per_second)
+    assert small.battery_per_metre == pytest.approx(4 * base.battery_per_metre)
+    amperes = base.battery_per_second / 100 * base.battery_capacity * 3.6
+    assert 25 < amperes < 32  # ArduCopter SITL hovers on about 28 A
+
+
+def test_profile_from_a_vehicle_reads_the_copter_parameters() -> None:
+    asked: list[str] = []
+
+    def read(names):  # a vehicle that has only some of them
+        asked.extend(names)
+        return {"BATT_CAPACITY": 6600.0, "WPNAV_SPEED": 500.0}
+
+    base = load_profile("quadcopter")
+    profile, params = profile_from_vehicle(read, base)
+    assert asked == list(COPTER_PARAMETERS)
+    assert params == {"BATT_CAPACITY": 6600.0, "WPNAV_SPEED": 500.0}
+    assert profile.cruise_speed == 5.0
+    assert profile.battery_per_second == pytest.approx(base.battery_per_second / 2)
+
+
+def test_new_keys_may_be_left_out_of_a_full_profile(tmp_path: Path) -> None:
+    path = tmp_path / "old.toml"
+    keys = {f: getattr(load_profile("quadcopter"), f) for f in NUMBER_KEYS
+            if f not in ("acceleration", "land_speed", "land_altitude", "return_hover")}
+    path.write_text("".join(f"{key} = {value!r}\n" for key, value in keys.items()))
+    profile = load_profile(path)
+    assert (profile.acceleration, profile.land_speed, profile.return_hover) == (0, 0, 0)

@@ -16,7 +16,8 @@ from tml.world import Cylinder, World
 
 PROFILE = replace(load_profile("quadcopter"), battery_per_metre=0.1, battery_per_second=0.1,
                   cruise_speed=5.0, climb_rate=2.0, descent_rate=1.0, return_altitude=10.0,
-                  takeoff_altitude=10.0, battery_reserve=20.0, min_clearance=5.0)
+                  takeoff_altitude=10.0, battery_reserve=20.0, min_clearance=5.0,
+                  acceleration=0.0, land_speed=0.0, land_altitude=0.0, return_hover=0.0)
 
 
 def mission(tasks: str, events: str = "", environment: str = "") -> Mission:
@@ -51,6 +52,33 @@ def test_repeats_are_unrolled() -> None:
     # 10 m climb (5 s) and 30 m flown: per metre dominates the climb? 10 m * 0.1 = 1 %.
     assert report.end.battery == pytest.approx(100 - 1.0 - 3.0)
     assert report.feasible
+
+
+def sortie(name: str, at_least: int) -> str:
+    """A 250 s hover (25 % of PROFILE's battery) when the battery is at least ``at_least``."""
+    return (f'<task name="{name}"><condition parameter="BATTERY_CHARGE_PERCENTAGE" '
+            f'comparison="greater than or equal to" value="{at_least}"/>'
+            '<action name="WAIT"><argument name="duration" value="250"/></action></task>')
+
+
+def test_a_battery_condition_false_at_the_predicted_battery_skips_the_task() -> None:
+    # 100 % -> 75 % -> 50 %: a third sortie needs 60 %, which 50 % + 10 points is not.
+    body = TAKE_OFF + sortie("one", 60) + sortie("two", 60) + sortie("three", 60)
+    report = verify_mission(mission(body + '<task name="down"><action name="LAND"/></task>'),
+                            PROFILE)
+    assert [r.task for r in report.rows] == ["up", "one", "two", "down"]
+    assert report.feasible
+    assert any("task three: skipped where its battery condition is false" in note
+               for note in report.notes)
+
+
+def test_a_battery_condition_within_the_margin_is_followed_both_ways() -> None:
+    # After two sorties 50 % is left: "at least 55" may hold (the prediction is 10 points
+    # from certain), so the third sortie is walked, and the worst end is after it.
+    body = TAKE_OFF + sortie("one", 55) + sortie("two", 55) + sortie("three", 55)
+    report = verify_mission(mission(body), PROFILE)
+    assert "three" in [r.task for r in report.rows]
+    assert report.end is not None and report.end.battery < 30
 
 
 def test_a_conditioned_task_may_or_may_not_run() -> None:

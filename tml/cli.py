@@ -116,6 +116,13 @@ def cmd_run(args: argparse.Namespace) -> int:
     return run(args)
 
 
+def cmd_companion(args: argparse.Namespace) -> int:
+    """Run the simulated companion computer (see :mod:`tml.companion_command`)."""
+    from tml.companion_command import run
+
+    return run(args)
+
+
 def cmd_sim(argv: Sequence[str]) -> int:
     """Run the embedded simulator (same options as ``python -m sitl``)."""
     from sitl.cli import main as sim_main
@@ -163,6 +170,19 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_run_arguments(run)
     run.set_defaults(handler=cmd_run)
+
+    companion = commands.add_parser(
+        "companion", help="attach the simulated companion computer to an autopilot",
+        description="Run the simulator's companion computer (MAVLink component 191: "
+                    "recognition skills switched by PARAM_SET, detections as "
+                    "NAMED_VALUE_INT and DEBUG_VECT) as a component of the vehicle at "
+                    "ADDRESS, e.g. ArduPilot's SERIAL1, until SIGINT or SIGTERM. Exit 0 "
+                    "when stopped, 2 on bad arguments or world file, 4 when no autopilot "
+                    "is heard.")
+    from tml.companion_command import add_arguments as add_companion_arguments
+
+    add_companion_arguments(companion)
+    companion.set_defaults(handler=cmd_companion)
 
     sim = commands.add_parser(
         "sim", help="run the embedded MAVLink vehicle simulator", add_help=False,

@@ -10,6 +10,7 @@ reported with a did-you-mean hint.
 from __future__ import annotations
 
 import difflib
+import math
 import re
 from dataclasses import dataclass
 from enum import StrEnum
@@ -122,3 +123,20 @@ def parse_number(text: str) -> float | None:
     """A decimal number as written in mission files (no nan, inf or ``1_0``); else None."""
     text = text.strip()
     return float(text) if _NUMBER.fullmatch(text) else None
+
+
+ORDERINGS = frozenset({Comparison.LESS, Comparison.LESS_OR_EQUAL, Comparison.GREATER,
+                       Comparison.GREATER_OR_EQUAL})
+"""The comparisons that order numbers (monotonic in the value read)."""
+
+
+def compare_numbers(value: float, comparison: Comparison | None, target: float) -> bool:
+    """``value COMPARISON target`` for a number read and a number written."""
+    return {
+        Comparison.EQUAL: math.isclose(value, target, abs_tol=1e-9),
+        Comparison.NOT_EQUAL: not math.isclose(value, target, abs_tol=1e-9),
+        Comparison.LESS: value < target,
+        Comparison.LESS_OR_EQUAL: value <= target,
+        Comparison.GREATER: value > target,
+        Comparison.GREATER_OR_EQUAL: value >= target,
+    }.get(comparison, False)  # type: ignore[arg-type]

@@ -24,11 +24,9 @@ VEHICLE_PROFILE = "vehicle"  # --profile vehicle: read from the connected vehicl
 
 
 def _sim_param(text: str) -> tuple[str, float]:
-    name, _, value = text.partition("=")
-    try:
-        return name.strip().upper(), float(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected NAME=NUMBER, got {text!r}") from None
+    from sitl.cli import param_setting
+
+    return param_setting(text)
 
 
 def _positive(text: str) -> float:
@@ -198,12 +196,11 @@ def _verify(args: argparse.Namespace, mission: Mission, extra: World | None, pro
 
 def _vehicle_profile(vehicle: Any, errors: Any) -> Any:
     """The quadcopter profile filled in from the vehicle's own parameters."""
-    from tml.verify.profile import COPTER_PARAMETERS, load_profile, profile_from_parameters
+    from tml.verify.profile import describe_parameters, load_profile, profile_from_vehicle
 
-    params = vehicle.read_parameters(COPTER_PARAMETERS)
-    profile = profile_from_parameters(params, load_profile("quadcopter"))
+    profile, params = profile_from_vehicle(vehicle.read_parameters, load_profile("quadcopter"))
     errors.print(f"tml run: profile from vehicle {vehicle.vehicle_id}'s parameters: "
-                 + ", ".join(f"{name}={value:g}" for name, value in sorted(params.items())))
+                 + describe_parameters(params), markup=False)
     return profile
 
 

@@ -54,18 +54,25 @@ class Launcher:
     is_script: bool
 
     def command(self, vehicle: str, instance: int, speedup: float, home: str,
-                scratch: Path) -> list[str]:
-        """The command line that starts ``vehicle`` as ``instance``."""
+                scratch: Path, boot_parm: Path | None = None) -> list[str]:
+        """The command line that starts ``vehicle`` as ``instance``; ``boot_parm`` is a
+        parameter file read after ArduPilot's autotest one (for parameters that take
+        effect only at boot, such as GRIP_ENABLE)."""
         if self.is_script:
-            return [str(self.path), "--vehicle", vehicle, "-I", str(instance),
-                    "--speedup", f"{speedup:g}", "--home", home]
+            command = [str(self.path), "--vehicle", vehicle, "-I", str(instance),
+                       "--speedup", f"{speedup:g}", "--home", home]
+            if boot_parm is not None:  # replaces the launcher's --defaults: name both
+                beside = self.path.parent / f"{vehicle}.parm"
+                files = [beside, boot_parm] if beside.is_file() else [boot_parm]
+                command += ["--defaults", ",".join(map(str, files))]
+            return command
         binary = self.path.parent / BINARIES[vehicle]
         command = [str(binary), "--wipe", "--model", MODELS[vehicle], "--speedup",
                    f"{speedup:g}", "-I", str(instance), "--sysid", str(instance + 1),
                    "--home", home]
-        parm = parameter_file(binary, vehicle)
-        if parm is not None:
-            command += ["--defaults", str(parm)]
+        files = [p for p in (parameter_file(binary, vehicle), boot_parm) if p is not None]
+        if files:
+            command += ["--defaults", ",".join(map(str, files))]
         return command
 
 
@@ -176,20 +183,29 @@ class SitlVehicle:
 
 def start_vehicle(launcher: Launcher, vehicle: str = "copter", *, speedup: float = 10.0,
                   home: str = DEFAULT_HOME, params: Mapping[str, float] | None = None,
+                  boot_params: Mapping[str, float] | None = None,
                   scratch: Path | None = None) -> SitlVehicle:
     """Start one vehicle, wait until it answers on SERIAL0, and set ``params`` on it.
 
-    The first connection starts the vehicle's clock; the parameters are set over it and it
-    is closed again, so that the ground station under test connects to a vehicle that has
-    already booted (ArduPilot takes the next client on the same port).
+    ``boot_params`` are read at boot, after ArduPilot's autotest parameters (those that
+    take effect only then: GRIP_ENABLE ...). The first connection starts the vehicle's
+    clock; ``params`` are set over it and it is closed again, so that the ground station
+    under test connects to a vehicle that has already booted (ArduPilot takes the next
+    client on the same port).
     """
     for _ in range(5):
         instance = _claim_instance()
         folder = Path(scratch or tempfile.mkdtemp(prefix="ardupilot-"))
         log = folder / f"{vehicle}-{instance}.log"
+        boot_parm = None
+        if boot_params:
+            boot_parm = folder / "boot.parm"
+            boot_parm.write_text("".join(f"{name} {value:g}\n"
+                                         for name, value in boot_params.items()))
         with log.open("wb") as out:
             process = subprocess.Popen(
-                launcher.command(vehicle, instance, speedup, home, folder), cwd=folder,
+                launcher.command(vehicle, instance, speedup, home, folder, boot_parm),
+                cwd=folder,
                 stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
         sitl = SitlVehicle(vehicle, instance, process, log)
         if _wait_listening(sitl):

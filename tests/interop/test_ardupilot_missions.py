@@ -12,7 +12,11 @@ listed in ``DIFFERENCES`` and in docs/interop.md.
 The simulator's parameters of a flight become ArduCopter's where ArduCopter has the same
 parameter (BATT_CAPACITY); the simulator's charging pad (SIM_BATT_CHARGE) is played by a
 :class:`ChargingPad` on the vehicle's second port; missions whose skills need the companion
-computer fly with ``tml companion`` attached to that port.
+computer fly with ``tml companion`` attached to that port, and the flight starts once it
+is attached. Every vehicle is fitted with a gripper at boot (GRIP_ENABLE takes effect only
+then), as the simulator's vehicle is. Missions with more to show than their outcome
+(``LOG_CHECKS``: IMAV 2016's items, buckets, gripper and landing at the operating zone)
+are held to the same checks of the flight log as on the simulator.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ from pathlib import Path
 
 import pytest
 from ardupilot_sitl import ChargingPad, SitlVehicle
+from flight_checks import LOG_CHECKS
 from test_flights import EXPECTED, MISSIONS
 from test_flights import fly as fly_on_the_simulator
 
@@ -37,6 +42,9 @@ from tml.validation import validate_file
 
 ARDUPILOT_PARAMETERS = frozenset({"BATT_CAPACITY"})
 """Simulator parameters ArduCopter has under the same name and meaning."""
+GRIPPER = {"GRIP_ENABLE": 1, "GRIP_TYPE": 1, "SERVO9_FUNCTION": 28}
+"""Boot parameters that fit a servo gripper, as the simulator's vehicle has."""
+ATTACH_TIMEOUT = 60.0
 DIFFERENCES: dict[str, dict[str, str]] = {}
 """mission -> task -> why it ends differently on ArduCopter (see docs/interop.md)."""
 
@@ -91,11 +99,20 @@ def outcome(lines: Log) -> tuple[int, str]:
 
 
 def companion(sitl: SitlVehicle, mission: Path, log: Path) -> subprocess.Popen[bytes]:
-    """``tml companion`` attached to the vehicle's second port, as a process of its own."""
+    """``tml companion`` attached to the vehicle's second port, as a process of its own;
+    returns once it says it is attached (starting Python can take seconds on a busy
+    machine, while the sped-up vehicle would fly on without it)."""
     with log.open("wb") as out:
-        return subprocess.Popen(
+        process = subprocess.Popen(
             [sys.executable, "-m", "tml", "companion", "--connect", sitl.companion_address,
              "--world", str(mission)], stdout=out, stderr=subprocess.STDOUT)
+    end = time.monotonic() + ATTACH_TIMEOUT
+    while b" attached to " not in log.read_bytes():
+        if process.poll() is not None or time.monotonic() > end:
+            stop(process)
+            raise AssertionError(f"tml companion did not attach: {log.read_text()}")
+        time.sleep(0.1)
+    return process
 
 
 def stop(process: subprocess.Popen[bytes]) -> None:
@@ -138,7 +155,7 @@ def fly_on_ardupilot(name: str, vehicles: list[SitlVehicle], how: Setup, tmp_pat
 def test_mission_flies_on_ardupilot_as_on_the_simulator(name: str, ardupilot, tmp_path: Path
                                                         ) -> None:
     how = setup(name)
-    vehicles = ardupilot(count=how.vehicles, params=how.params)
+    vehicles = ardupilot(count=how.vehicles, params=how.params, boot_params=GRIPPER)
     code, lines, wall = fly_on_ardupilot(name, vehicles, how, tmp_path)
     print(f"{name}: exit {code} in {wall:.1f} s of wall time at speed-up 10")
     expected_code, expected_reason, _ = EXPECTED[name]
@@ -154,5 +171,7 @@ def test_mission_flies_on_ardupilot_as_on_the_simulator(name: str, ardupilot, tm
                  for task in on_sim.keys() | on_ardupilot.keys()
                  if on_sim.get(task) != on_ardupilot.get(task) and task not in allowed}
     assert differing == {}, "task: (on the simulator, on ArduCopter)"
+    if name in LOG_CHECKS:
+        LOG_CHECKS[name](lines)
     last = [line for line in lines if line["kind"] == "telemetry"][-1]
     assert last["mode"] != "AUTO" or last["landed"], "left flying an unwatched AUTO mission"

@@ -155,14 +155,7 @@ def _compare(value: object, comparison: Comparison | None, written: str) -> bool
             target = float(written)
         except ValueError:
             return False
-        return {
-            Comparison.EQUAL: math.isclose(value, target, abs_tol=1e-9),
-            Comparison.NOT_EQUAL: not math.isclose(value, target, abs_tol=1e-9),
-            Comparison.LESS: value < target,
-            Comparison.LESS_OR_EQUAL: value <= target,
-            Comparison.GREATER: value > target,
-            Comparison.GREATER_OR_EQUAL: value >= target,
-        }.get(comparison, False)
+        return parameters.compare_numbers(value, comparison, target)
     equal = str(value).strip().lower() == written.strip().lower()
     return equal if comparison is not Comparison.NOT_EQUAL else not equal
 

@@ -816,10 +816,16 @@ class Interpreter:
         """Continue a stopped action: send its last request again and restart its timer."""
         self._run = run
         run.since = self._now
-        if isinstance(run.step, (Until, Sleep)) and run.last_request is not None:
-            again = replace(run.last_request, request_id=_fresh_id())
+        request = None
+        if isinstance(run.step, Send):
+            # Stopped while its request was on its way: the answer may have come while the
+            # handler ran (and gone unclaimed), and the Hold overrode the request anyway.
+            request = run.step.request
+        elif isinstance(run.step, (Until, Sleep)) and run.last_request is not None:
+            request, run.resume_at = run.last_request, run.step
+        if request is not None:
+            again = replace(request, request_id=_fresh_id())
             self._note("decision", f"{run.bound.name} resumed", action=run.bound.name)
-            run.resume_at = run.step
             run.step = Send(again)
             run.request_id = again.request_id
             run.last_request = again

@@ -23,6 +23,7 @@ from typing import Protocol
 
 from tml import geo
 from tml.actions import BoundAction
+from tml.patterns import CIRCLE_POINTS_PER_TURN, circle_point
 from tml.vehicle import (
     Arm,
     Camera,
@@ -249,19 +250,15 @@ def _circle(ctx: Context, centre: Point, radius: float, turns: float | None,
     here = _position(ctx)
     start = math.atan2(here[1] - centre[1], here[0] - centre[0]) \
         if math.hypot(here[0] - centre[0], here[1] - centre[1]) > 1e-6 else 0.0
-    points_per_turn = 16
     started = None
     step = 0
     while True:
-        if turns is not None and step > turns * points_per_turn:
+        if turns is not None and step > turns * CIRCLE_POINTS_PER_TURN:
             return
         if duration is not None and started is not None and \
                 ctx.state.time - started >= duration:
             return
-        angle = start + 2 * math.pi * step / points_per_turn
-        target = (centre[0] + radius * math.cos(angle), centre[1] + radius * math.sin(angle),
-                  centre[2])
-        yield from fly_to(ctx, target, "loiter")
+        yield from fly_to(ctx, circle_point(centre, radius, start, step), "loiter")
         if started is None:
             started = ctx.state.time  # the time and the turns count once on the circle
         step += 1

@@ -1,23 +1,36 @@
 """``tml verify``: arguments and the command itself.
 
 Exit codes: 0 feasible, 1 infeasible or invalid mission, 2 usage or I/O error (a missing
-file, a bad profile or world file).
+file, a bad profile or world file, a vehicle that cannot be reached for ``--profile
+vehicle``).
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from tml.verify.profile import VehicleProfile
 
 EXIT_FEASIBLE, EXIT_INFEASIBLE, EXIT_USAGE = 0, 1, 2
+VEHICLE_PROFILE = "vehicle"  # --profile vehicle --connect ADDRESS: from its parameters
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the options of ``tml verify``."""
     parser.add_argument("mission", metavar="FILE")
     parser.add_argument("--profile", default="quadcopter", metavar="P",
-                        help="vehicle profile: 'quadcopter', 'fixed-wing' or a TOML file "
-                             "(default: quadcopter)")
+                        help="vehicle profile: 'quadcopter', 'fixed-wing', a TOML file, or "
+                             "'vehicle' to fill the quadcopter profile from the parameters "
+                             "of the vehicle at --connect (default: quadcopter)")
+    parser.add_argument("--connect", metavar="ADDRESS",
+                        help="--profile vehicle: the vehicle's MAVLink address "
+                             "(tcp:127.0.0.1:5760 ...)")
+    parser.add_argument("--timeout", type=float, default=30.0, metavar="S",
+                        help="--profile vehicle: seconds to wait for the vehicle's heartbeat "
+                             "(default 30)")
     parser.add_argument("--world", metavar="W",
                         help="world file laid over the mission's <environment>")
     parser.add_argument("--battery", type=float, default=100.0, metavar="PERCENT",
@@ -41,8 +54,13 @@ def run(args: argparse.Namespace) -> int:
         print(f"tml verify: --battery {args.battery:g}: must be between 0 and 100",
               file=sys.stderr)
         return EXIT_USAGE
+    if (args.profile == VEHICLE_PROFILE) != (args.connect is not None):
+        print("tml verify: --profile vehicle reads the profile from a vehicle: give both it "
+              "and --connect ADDRESS", file=sys.stderr)
+        return EXIT_USAGE
     try:
-        profile = load_profile(args.profile)
+        profile = (_vehicle_profile(args.connect, args.timeout)
+                   if args.profile == VEHICLE_PROFILE else load_profile(args.profile))
         world = load_world(args.world) if args.world else None
         result = validate_file(args.mission)
     except OSError as exc:
@@ -77,3 +95,25 @@ def run(args: argparse.Namespace) -> int:
             console = Console(soft_wrap=True, width=140)
         print_report(report, console)
     return EXIT_FEASIBLE if report.feasible else EXIT_INFEASIBLE
+
+
+def _vehicle_profile(address: str, timeout: float) -> VehicleProfile:
+    """The quadcopter profile filled in from the parameters of the vehicle at ``address``
+    (the first one heard there); says on stderr what was read. Raises a VehicleError when
+    no vehicle answers."""
+    from tml.mavlink.adapter import MavlinkVehicle
+    from tml.mavlink.link import Link, parse_address
+    from tml.verify.profile import describe_parameters, load_profile, profile_from_vehicle
+
+    parse_address(address)
+    with Link(address) as link:
+        info = link.wait_vehicle(None, timeout)
+        vehicle = MavlinkVehicle(link, info.system_id, connect_timeout=timeout)
+        try:
+            profile, params = profile_from_vehicle(vehicle.read_parameters,
+                                                   load_profile("quadcopter"))
+        finally:
+            vehicle.close()
+    print(f"tml verify: profile from vehicle {info.system_id}'s parameters: "
+          + describe_parameters(params), file=sys.stderr)
+    return profile

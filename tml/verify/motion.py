@@ -9,8 +9,13 @@ state after it, with the paths flown, without looking at any constraint; the con
 Energy model: a leg costs the larger of ``battery_per_metre`` times its length and
 ``battery_per_second`` times its duration (a multicopter draws at least its hover power);
 hovering costs ``battery_per_second``. Time: each straight segment takes the longer of its
-ground distance at the current speed and its climb or descent at the profile's rates;
-turning in place takes the angle at ``yaw_rate``.
+ground distance and its climb or descent at the profile's rates; the ground distance is
+flown as the interpreter flies it, from a stop to a stop (every waypoint is a GUIDED
+target reached before the next is sent): speeding up and braking at ``acceleration`` around
+a cruise at the current speed, or, on a segment too short to reach it, speeding up half
+way and braking the other half. A circle is flown as the interpreter flies it too, as
+:data:`~tml.patterns.CIRCLE_POINTS_PER_TURN` such segments a turn. Turning in place takes
+the angle at ``yaw_rate``.
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ from itertools import pairwise
 
 from tml import geo
 from tml.actions import BoundAction
+from tml.patterns import CIRCLE_POINTS_PER_TURN, circle_chord
 from tml.verify.planner import Planner, Point3, Trajectory, straight
 from tml.verify.profile import VehicleProfile
 from tml.world import DEFAULT_HOME, World
@@ -121,18 +127,33 @@ class FlightModel:
 
     # --- the pieces every action is made of --------------------------------------------------
 
-    def leg_time(self, state: VehicleState, trajectory: Trajectory) -> float:
-        """Seconds to fly a trajectory from ``state`` at its speed and climb/descent rates."""
+    def leg_time(self, state: VehicleState, trajectory: Trajectory,
+                 landing: bool = False) -> float:
+        """Seconds to fly a trajectory from ``state`` at its speed and climb/descent rates;
+        ``landing``: its last segment is a landing (LAND, RTL), slower near the ground."""
         speed = min(state.speed or self.profile.cruise_speed, self.profile.max_speed)
         climb = state.climb_rate or self.profile.climb_rate
         descent = state.descent_rate or self.profile.descent_rate
         seconds = 0.0
-        for a, b in pairwise(trajectory.points):
-            ground = math.hypot(b[0] - a[0], b[1] - a[1]) / speed
+        segments = list(pairwise(trajectory.points))
+        for index, (a, b) in enumerate(segments):
+            ground = stop_to_stop(math.hypot(b[0] - a[0], b[1] - a[1]), speed,
+                                  self.profile.acceleration)
             rise = b[2] - a[2]
-            vertical = rise / climb if rise > 0 else -rise / descent
+            if rise > 0:
+                vertical = rise / climb
+            elif landing and index == len(segments) - 1:
+                vertical = self.landing_time(-rise, descent)
+            else:
+                vertical = -rise / descent
             seconds += max(ground, vertical)
         return seconds
+
+    def landing_time(self, height: float, descent: float) -> float:
+        """Seconds to land from ``height`` m: at ``descent`` m/s, and the last
+        ``land_altitude`` metres at ``land_speed`` (ArduPilot's LAND_ALT_LOW, LAND_SPEED)."""
+        slow = min(height, self.profile.land_altitude) if self.profile.land_speed > 0 else 0.0
+        return (height - slow) / descent + (slow / self.profile.land_speed if slow else 0.0)
 
     def energy(self, metres: float, seconds: float) -> float:
         """Percent of the battery used to fly ``metres`` in ``seconds``."""
@@ -145,20 +166,22 @@ class FlightModel:
         found = self.planner.trajectory(start, end)
         return (found, True) if found is not None else (straight(start, end), False)
 
-    def fly(self, state: VehicleState, targets: list[Point3], planned: bool = True) -> tuple[
+    def fly(self, state: VehicleState, targets: list[Point3], planned: bool = True,
+            landing: bool = False) -> tuple[
             VehicleState, list[Trajectory], list[tuple[Point3, Point3]]]:
         """Fly through ``targets`` in order; the state at the end, the legs and the legs
         that had no collision-free path. Not ``planned``: straight lines, which cost a
-        lower bound of what the planned legs cost."""
+        lower bound of what the planned legs cost. ``landing``: the last target is a
+        touch-down."""
         legs: list[Trajectory] = []
         blocked: list[tuple[Point3, Point3]] = []
         position, seconds, energy = state.position, 0.0, 0.0
-        for target in targets:
+        for number, target in enumerate(targets, start=1):
             leg, found = self.plan(position, target) if planned else \
                 (straight(position, target), True)
             if not found:
                 blocked.append((position, target))
-            leg_seconds = self.leg_time(state, leg)
+            leg_seconds = self.leg_time(state, leg, landing and number == len(targets))
             seconds += leg_seconds
             energy += self.energy(leg.length, leg_seconds)
             legs.append(leg)
@@ -174,14 +197,23 @@ class FlightModel:
 
     def return_home_energy(self, point: Point3, home: Point3, planned: bool = True) -> float:
         """Percent of the battery needed to come home from ``point`` and land there the way
-        ArduPilot's RTL does: climb to the return altitude if lower, fly home, descend.
-        Not ``planned``: along straight lines, a lower bound."""
-        altitude = max(point[2], self.profile.return_altitude)
+        ArduPilot's RTL does: climb to the return altitude if lower, fly home, wait
+        ``return_hover`` s, descend. Not ``planned``: along straight lines, a lower bound."""
         probe = VehicleState(position=point, flying=True)
-        targets = [(point[0], point[1], altitude), (home[0], home[1], altitude),
-                   (home[0], home[1], home[2])]
-        after, _, _ = self.fly(probe, targets, planned)
+        after, _, _ = self.fly_home_and_land(probe, home, planned)
         return probe.battery - after.battery
+
+    def fly_home_and_land(self, state: VehicleState, home: Point3, planned: bool = True
+                          ) -> tuple[VehicleState, list[Trajectory], list[tuple[Point3, Point3]]]:
+        """ArduPilot's RTL from ``state``: climb to the return altitude if lower, fly home,
+        hover ``return_hover`` s, land; as :meth:`fly` returns."""
+        point = state.position
+        altitude = max(point[2], self.profile.return_altitude)
+        above = [(point[0], point[1], altitude), (home[0], home[1], altitude)]
+        over, legs, blocked = self.fly(state, above, planned)
+        over = self.hover(over, self.profile.return_hover)
+        after, down, stuck = self.fly(over, [home], planned, landing=True)
+        return after, legs + down, blocked + stuck
 
     def local(self, latitude: float, longitude: float, altitude: float,
               reference: str) -> Point3:
@@ -215,8 +247,8 @@ class FlightModel:
         return (tuple(value), "") if value is not None else (None, "")  # type: ignore[arg-type]
 
     def _go(self, bound: BoundAction, state: VehicleState, labels: Labels,
-            targets: list[Point3], **extra: object) -> Step:
-        after, legs, blocked = self.fly(state, targets)
+            targets: list[Point3], landing: bool = False, **extra: object) -> Step:
+        after, legs, blocked = self.fly(state, targets, landing=landing)
         destination = targets[-1] if targets else None
         fields_: dict[str, object] = {"destination": destination, "cruise": True, **extra}
         return Step(state, after, tuple(legs), tuple(blocked), labels=labels,
@@ -237,7 +269,7 @@ class FlightModel:
 
     def _land(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
         target = (state.position[0], state.position[1], 0.0)
-        step = self._go(bound, state, labels, [target], cruise=False)
+        step = self._go(bound, state, labels, [target], landing=True, cruise=False)
         return replace(step, after=replace(step.after, flying=False))
 
     def _go_to_point(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
@@ -287,10 +319,9 @@ class FlightModel:
 
     def _return_home_and_land(self, bound: BoundAction, state: VehicleState,
                               labels: Labels) -> Step:
-        altitude = max(state.position[2], self.profile.return_altitude)
-        targets = [(*state.position[:2], altitude), (*state.home[:2], altitude), state.home]
-        step = self._go(bound, state, labels, targets, cruise=False)
-        return replace(step, after=replace(step.after, flying=False))
+        after, legs, blocked = self.fly_home_and_land(state, state.home)
+        return Step(state, replace(after, flying=False), tuple(legs), tuple(blocked),
+                    labels=labels, destination=state.home)
 
     def _return_home_and_loiter(self, bound: BoundAction, state: VehicleState,
                                 labels: Labels) -> Step:
@@ -308,7 +339,7 @@ class FlightModel:
                                float(bound.get("altitude")),
                                str(bound.get("altitude_reference")))
         targets = [(point[0], point[1], state.position[2]), (point[0], point[1], 0.0)]
-        step = self._go(bound, state, labels, targets, cruise=False)
+        step = self._go(bound, state, labels, targets, landing=True, cruise=False)
         return replace(step, after=replace(step.after, flying=False))
 
     def _loiter(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
@@ -334,9 +365,14 @@ class FlightModel:
         speed = min(state.speed or self.profile.cruise_speed, self.profile.max_speed)
         if turns is None and duration is None:
             return replace(step, notes=("circles until an event ends it; no time counted",))
-        metres = 2 * math.pi * radius * int(turns) if turns is not None else \
-            speed * float(duration)
-        seconds = metres / speed if turns is not None else float(duration)
+        chord = circle_chord(radius)
+        chord_seconds = stop_to_stop(chord, speed, self.profile.acceleration)
+        if turns is not None:
+            chords = CIRCLE_POINTS_PER_TURN * int(turns)
+            metres, seconds = chords * chord, chords * chord_seconds
+        else:
+            seconds = float(duration)
+            metres = chord * seconds / chord_seconds if chord_seconds else 0.0
         after = replace(step.after, time=step.after.time + seconds,
                         battery=step.after.battery - self.energy(metres, seconds))
         return replace(step, after=after, circle_metres=metres)
@@ -407,6 +443,17 @@ class FlightModel:
             home = self.local(float(bound.get("latitude")), float(bound.get("longitude")),
                               float(bound.get("altitude")), "amsl")
         return Step(state, replace(state, home=home), labels=labels)
+
+
+def stop_to_stop(metres: float, speed: float, acceleration: float) -> float:
+    """Seconds to fly ``metres`` from a stop to a stop: speeding up and braking at
+    ``acceleration`` (m/s²; 0: at once) around a cruise at ``speed``, or, when the distance
+    is too short to reach ``speed``, speeding up half way and braking the other half."""
+    if acceleration <= 0:
+        return metres / speed
+    if metres >= speed * speed / acceleration:
+        return metres / speed + speed / acceleration
+    return 2 * math.sqrt(metres / acceleration)
 
 
 def _add(a: Point3, b: tuple[float, ...]) -> Point3:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, fields, replace
 from importlib import resources
 from pathlib import Path
@@ -30,7 +30,10 @@ class VehicleProfile:
     max_speed: float  # m/s, the paper's k3
     climb_rate: float  # m/s
     descent_rate: float  # m/s
+    land_speed: float  # m/s of the last land_altitude metres of a landing; 0: descent_rate
+    land_altitude: float  # m above the ground where a landing slows to land_speed
     yaw_rate: float  # deg/s
+    acceleration: float  # m/s², speeding up and braking at each waypoint; 0: at once
     battery_capacity: float  # mAh the consumption figures below are measured with
     battery_per_metre: float  # percent per metre flown, the paper's k1
     battery_per_second: float  # percent per second hovering (loitering for a fixed-wing)
@@ -41,13 +44,19 @@ class VehicleProfile:
     max_range: float  # m, farthest horizontal distance from home
     takeoff_altitude: float  # m, used by TAKE_OFF when no altitude is written
     return_altitude: float  # m, RETURN_HOME_AND_LAND climbs to it first (ArduPilot RTL_ALT)
+    return_hover: float  # s RETURN_HOME_AND_LAND hovers over home before it descends
     min_turn_radius: float  # m, smallest loiter circle (0 for a multicopter)
     max_flight_time: float  # s from the start of the mission to its end; 0: no limit
 
 
 # Keys that may be zero; every other number must be strictly positive.
 _MAY_BE_ZERO = frozenset({"min_altitude", "min_turn_radius", "max_flight_time",
-                          "battery_reserve", "min_clearance", "battery_per_second"})
+                          "battery_reserve", "min_clearance", "battery_per_second",
+                          "acceleration", "land_speed", "land_altitude", "return_hover"})
+# Keys a profile file may leave out, and the value they then take (files written before
+# the key existed keep their meaning).
+_OPTIONAL = {"acceleration": 0.0, "land_speed": 0.0, "land_altitude": 0.0,
+             "return_hover": 0.0}
 NUMBER_KEYS = tuple(f.name for f in fields(VehicleProfile) if f.name != "name")
 
 
@@ -82,6 +91,8 @@ def profile_from_mapping(data: Mapping[str, object], file: str,
             raise _problem(file, key, f"must be a finite number {bound}, got {value!r}")
         values[key] = number
     values.setdefault("name", Path(file).stem)
+    for key, default in _OPTIONAL.items():
+        values.setdefault(key, default)
     for key in NUMBER_KEYS:
         if key not in values:
             raise _problem(file, key, "missing (or name a shipped profile with base = "
@@ -131,7 +142,8 @@ def _positive(params: Mapping[str, float], name: str) -> float | None:
     return float(value)
 
 
-COPTER_PARAMETERS = ("WPNAV_SPEED", "WPNAV_SPEED_UP", "WPNAV_SPEED_DN", "RTL_ALT",
+COPTER_PARAMETERS = ("WPNAV_SPEED", "WPNAV_SPEED_UP", "WPNAV_SPEED_DN", "WPNAV_ACCEL",
+                     "LAND_SPEED", "LAND_ALT_LOW", "RTL_ALT", "RTL_LOIT_TIME",
                      "FENCE_ALT_MAX", "FENCE_ALT_MIN", "FENCE_RADIUS", "ATC_RATE_Y_MAX",
                      "BATT_CAPACITY", "BATT_LOW_MAH")
 """The ArduCopter parameters :func:`profile_from_parameters` reads (all exist on Copter)."""
@@ -143,16 +155,24 @@ def profile_from_parameters(params: Mapping[str, float], base: VehicleProfile) -
     Pure: takes the parameter table as read from the vehicle (names as ArduPilot spells
     them, values as it sends them) and returns a new profile. Parameters absent, zero or
     negative (ArduPilot's "not set" / "disabled") leave the base value. Read:
-    WPNAV_SPEED, WPNAV_SPEED_UP, WPNAV_SPEED_DN, RTL_ALT, ALT_HOLD_RTL, TRIM_ARSPD_CM (cm/s
-    or cm); AIRSPEED_CRUISE, AIRSPEED_MAX, ARSPD_FBW_MAX, FENCE_ALT_MAX, FENCE_ALT_MIN,
-    FENCE_RADIUS, TKOFF_ALT (m); ATC_RATE_Y_MAX (deg/s); BATT_CAPACITY and BATT_LOW_MAH
-    (mAh). A larger battery than the profile's ``battery_capacity`` scales the consumption
-    per metre and per second down in proportion.
+    WPNAV_SPEED, WPNAV_SPEED_UP, WPNAV_SPEED_DN, LAND_SPEED, LAND_ALT_LOW, RTL_ALT,
+    ALT_HOLD_RTL, TRIM_ARSPD_CM (cm/s or cm); WPNAV_ACCEL (cm/s²); RTL_LOIT_TIME (ms);
+    AIRSPEED_CRUISE, AIRSPEED_MAX, ARSPD_FBW_MAX,
+    FENCE_ALT_MAX, FENCE_ALT_MIN, FENCE_RADIUS, TKOFF_ALT (m); ATC_RATE_Y_MAX (deg/s);
+    BATT_CAPACITY and BATT_LOW_MAH (mAh).
+
+    The battery calibration: the base's ``battery_per_metre`` and ``battery_per_second``
+    are percent of ``battery_capacity`` mAh, that is a current drawn (the shipped
+    quadcopter's were measured on ArduCopter SITL, docs/verify.md); the same current takes
+    a smaller share of a larger battery, so BATT_CAPACITY scales both by
+    ``battery_capacity / BATT_CAPACITY``.
     """
     changes: dict[str, float] = {}
     centimetres = {"WPNAV_SPEED": "cruise_speed", "TRIM_ARSPD_CM": "cruise_speed",
                    "WPNAV_SPEED_UP": "climb_rate", "WPNAV_SPEED_DN": "descent_rate",
-                   "RTL_ALT": "return_altitude", "ALT_HOLD_RTL": "return_altitude"}
+                   "WPNAV_ACCEL": "acceleration", "LAND_SPEED": "land_speed",
+                   "LAND_ALT_LOW": "land_altitude", "RTL_ALT": "return_altitude",
+                   "ALT_HOLD_RTL": "return_altitude"}
     metres = {"AIRSPEED_CRUISE": "cruise_speed", "ARSPD_FBW_MAX": "max_speed",
               "AIRSPEED_MAX": "max_speed", "FENCE_ALT_MAX": "max_altitude",
               "FENCE_RADIUS": "max_range", "TKOFF_ALT": "takeoff_altitude",
@@ -165,6 +185,9 @@ def profile_from_parameters(params: Mapping[str, float], base: VehicleProfile) -
         value = _positive(params, name)
         if value is not None:
             changes[key] = value
+    hover = _positive(params, "RTL_LOIT_TIME")
+    if hover is not None:
+        changes["return_hover"] = hover / 1000.0
     fence_min = _positive(params, "FENCE_ALT_MIN")
     if fence_min is not None:
         changes["min_altitude"] = fence_min
@@ -181,3 +204,17 @@ def profile_from_parameters(params: Mapping[str, float], base: VehicleProfile) -
     if profile.max_speed < profile.cruise_speed:
         profile = replace(profile, max_speed=profile.cruise_speed)
     return profile
+
+
+def profile_from_vehicle(read_parameters: Callable[[Iterable[str]], Mapping[str, float]],
+                         base: VehicleProfile) -> tuple[VehicleProfile, dict[str, float]]:
+    """``base`` filled in from a connected vehicle: ``read_parameters(names)`` returns the
+    values of those of :data:`COPTER_PARAMETERS` the vehicle has. Returns the profile and
+    the parameters read (to tell the user what was used)."""
+    params = dict(read_parameters(COPTER_PARAMETERS))
+    return profile_from_parameters(params, base), params
+
+
+def describe_parameters(params: Mapping[str, float]) -> str:
+    """``NAME=value, ...`` in name order, for messages."""
+    return ", ".join(f"{name}={value:g}" for name, value in sorted(params.items()))

@@ -3,7 +3,10 @@
 The task tree is walked depth-first as the interpreter will walk it, carrying a set of
 *alternatives*, each a predicted :class:`VehicleState` with the labels memorized so far.
 Repeats are unrolled. A task with conditions may or may not run, so after it the
-alternatives of both ways are kept. Alternatives that end at the same place with the same
+alternatives of both ways are kept -- except where a condition on the battery is false at
+the battery predicted there even :data:`BATTERY_MARGIN` points above it: that alternative
+skips the task (a sortie guarded by "battery at least 60 %" is not flown after one that
+used half the battery). Alternatives that end at the same place with the same
 settings and labels are merged into one that takes the lowest battery and the latest time
 (the worst of them); past :data:`MAX_ALTERNATIVES` the ones with most battery left are
 dropped and the report says the result is approximate.
@@ -40,7 +43,7 @@ from dataclasses import dataclass, field, replace
 
 from tml import actions
 from tml.model import Comparison, Composition, ConditionKind, Event, Mission, Role, Task
-from tml.parameters import lookup, parse_boolean
+from tml.parameters import ORDERINGS, compare_numbers, lookup, parse_boolean
 from tml.verify.constraints import Constraint, Violation, check_step
 from tml.verify.motion import FlightModel, Labels, Step, VehicleState
 from tml.verify.profile import VehicleProfile
@@ -161,8 +164,12 @@ class _Walker:
         when its conditions may skip it (not so for the branch a choice picked)."""
         self.explain(task)
         inner = guarded | _guarded_labels(task)
-        ran = alternatives
-        for iteration in range(task.repeat):  # a loop is walked for one round
+        ran = [a for a in alternatives if not _battery_rules_out(task, a.state.battery)]
+        if len(ran) < len(alternatives):
+            self.notes[f"{task.location}: task {task.path_name}: skipped where its battery "
+                       f"condition is false at the predicted battery + "
+                       f"{BATTERY_MARGIN:g} points"] = None
+        for iteration in range(task.repeat if ran else 0):  # a loop: for one round
             name = task.path_name + (f" #{iteration + 1}" if task.repeat > 1 else "")
             ran = self.task(task, name, ran, inner)
         if task.on_error:
@@ -301,6 +308,31 @@ def _guarded_labels(task: Task) -> frozenset[str]:
         c.subject for c in task.conditions
         if c.kind is ConditionKind.LABEL and c.comparison is Comparison.KNOWN
         and parse_boolean(c.value or "yes") is not False)
+
+
+BATTERY_MARGIN = 10.0
+"""Percentage points by which the real battery may be above the predicted one when a
+battery condition is judged (the prediction is a worst case, and a close one: see
+docs/verify.md)."""
+
+
+def _battery_rules_out(task: Task, battery: float) -> bool:
+    """True when a condition of ``task`` on its own vehicle's battery (an ordering
+    comparison with a number) is false for every charge from ``battery`` to ``battery +
+    BATTERY_MARGIN``."""
+    for condition in task.conditions:
+        if condition.kind is not ConditionKind.PARAMETER or condition.role is not None \
+                or not _reads_battery(condition.subject) \
+                or condition.comparison not in ORDERINGS:
+            continue
+        try:
+            target = float(condition.value or "")
+        except ValueError:
+            continue
+        if not any(compare_numbers(charge, condition.comparison, target)
+                   for charge in (battery, battery + BATTERY_MARGIN)):
+            return True
+    return False
 
 
 def _reads_battery(parameter: str) -> bool:

@@ -240,3 +240,22 @@ def test_link_degrades_then_is_lost_when_heartbeats_stop() -> None:
         lost = rig.until(lambda s: s.link == "lost", "link lost")
         assert up.time < 3.0 < degraded.time < lost.time
         assert degraded.link == "degraded" and lost.time > 3.0 + rig.vehicle.lost_after - 1.0
+
+
+def test_a_stream_that_stays_away_is_asked_for_again(rig: Rig) -> None:
+    from tml.mavlink.codec import mavlink
+    from tml.mavlink.command import CommandLong
+
+    link = rig.vehicle.link
+    rig.until(lambda s: s.position is not None, "position")
+    # Another client on the same port (rates belong to the port) turns the stream off.
+    link.send(CommandLong(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
+                          mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, -1), 1, 1)
+    end = time.monotonic() + WALL_LIMIT
+    stopped = back = False
+    while time.monotonic() < end and not back:
+        age = time.monotonic() - link.arrivals(1)["GLOBAL_POSITION_INT"]
+        stopped = stopped or age > 1.0  # 200 a second at 20x: it has stopped
+        back = stopped and age < 0.1
+        time.sleep(0.01)
+    assert stopped and back

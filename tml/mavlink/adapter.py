@@ -71,7 +71,7 @@ from tml.mavlink.compile import SPEED_TYPES, CompiledMission, CompileError, comp
 from tml.mavlink.link import Link
 from tml.mavlink.modes import mode_names
 from tml.mavlink.telemetry import COMPANION_COMPONENT, Telemetry
-from tml.mavlink.vehicle import Vehicle
+from tml.mavlink.vehicle import DEFAULT_RATES, Vehicle
 from tml.vehicle import (
     Arm,
     Camera,
@@ -100,6 +100,8 @@ Clock = Callable[[], float]
 
 DEGRADED_LOSS = 0.2
 """Fraction of messages missing in the last second above which the link is degraded."""
+STREAM_CHECK_PERIOD = 2.0
+"""Wall seconds between the worker's checks that the streams asked for arrive."""
 PARAM_TIMEOUT = 1.0
 PARAM_RETRIES = 3
 
@@ -423,8 +425,15 @@ class MavlinkVehicle:
     # --- the worker thread ------------------------------------------------------------
 
     def _work(self) -> None:
+        checked = time.monotonic()
         while True:
-            request = self._queue.get()
+            if time.monotonic() - checked >= STREAM_CHECK_PERIOD:
+                checked = time.monotonic()
+                self._keep_streams()
+            try:
+                request = self._queue.get(timeout=STREAM_CHECK_PERIOD)
+            except queue.Empty:
+                continue
             if request is None:
                 self._queue.task_done()
                 return
@@ -436,6 +445,19 @@ class MavlinkVehicle:
                 self._results.append(result)
             if self.on_result is not None:
                 self.on_result()
+
+    def _keep_streams(self) -> None:
+        """Ask again for each stream that stays away (the request or its answer was lost,
+        or the autopilot restarted) and for HOME_POSITION until it has come once."""
+        now = time.monotonic()
+        arrived = self.link.arrivals(self.system_id)
+        for name, hz in DEFAULT_RATES.items():
+            last = arrived.get(name)
+            if name != "HEARTBEAT" and hz > 0 and (
+                    last is None or now - last > max(3.0 / hz, STREAM_CHECK_PERIOD)):
+                self.mav.ask_again(name, hz)
+        if "HOME_POSITION" not in arrived:
+            self.mav.request_message("HOME_POSITION")
 
     def _carry_out(self, request: Request) -> RequestResult:
         def fail(reason: str, detail: str) -> RequestResult:

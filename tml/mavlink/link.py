@@ -237,6 +237,12 @@ class Link:
             tracker = self._trackers.get(system_id)
             return tracker.snapshot if tracker else Telemetry(system_id)
 
+    def arrivals(self, system_id: int) -> dict[str, float]:
+        """When each kind of message last came from the vehicle's autopilot (monotonic s)."""
+        with self._lock:
+            tracker = self._trackers.get(system_id)
+            return dict(tracker.arrived) if tracker else {}
+
     def wait_telemetry(self, system_id: int, until: Callable[[Telemetry], bool],
                        timeout: float, *, lost_ok: bool = False) -> Telemetry:
         """Wait until ``until(snapshot)`` holds.

@@ -202,6 +202,8 @@ class TelemetryTracker:
         self.autopilot_component = autopilot_component
         self.companion_component = companion_component
         self.snapshot = Telemetry(system_id)
+        self.arrived: dict[str, float] = {}
+        """When each kind of message last came from the autopilot (the link's clock)."""
         self._last_seq: dict[int, int] = {}
         self._named: tuple[str, int, int] | None = None  # (name, time_boot_ms, number)
 
@@ -212,6 +214,7 @@ class TelemetryTracker:
         component = msg.get_srcComponent()
         changes = self._count(component, msg.get_seq())
         if component == self.autopilot_component:
+            self.arrived[msg.get_type()] = now
             changes.update(self._vehicle_state(msg, now))
             boot_ms = getattr(msg, "time_boot_ms", None)
             if boot_ms is not None:

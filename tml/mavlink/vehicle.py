@@ -279,17 +279,28 @@ class Vehicle:
         fallback = (CommandResult.MAV_RESULT_UNSUPPORTED.name, CommandResult.MAV_RESULT_DENIED.name)
         try:
             for name, hz in rates.items():
-                message_id = getattr(mavlink, f"MAVLINK_MSG_ID_{name}")
-                self.command(CommandLong(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, message_id,
-                                         1e6 / hz if hz > 0 else -1))
-        except (CommandRejected, VehicleTimeout) as error:
-            if isinstance(error, CommandRejected) and error.result not in fallback:
+                try:
+                    self.command(_interval_command(name, hz))
+                except VehicleTimeout:
+                    continue  # lost on the way: asked again when the stream stays away
+        except CommandRejected as error:
+            if error.result not in fallback:
                 raise
             top = max(rates.values(), default=1.0)
             self.link.send(codec.request_data_stream(self.system_id, self.component_id,
                                                      max(1, round(top))))
             return False
         return True
+
+    def ask_again(self, name: str, hz: float) -> None:
+        """Ask for message ``name`` at ``hz`` once more, without waiting for the answer."""
+        self.link.send(_interval_command(name, hz), self.system_id, self.component_id)
+
+    def request_message(self, name: str) -> None:
+        """Ask for one message ``name`` now (MAV_CMD_REQUEST_MESSAGE), without waiting."""
+        self.link.send(CommandLong(mavlink.MAV_CMD_REQUEST_MESSAGE,
+                                   getattr(mavlink, f"MAVLINK_MSG_ID_{name}")),
+                       self.system_id, self.component_id)
 
     # -- missions ---------------------------------------------------------------------
 
@@ -364,6 +375,12 @@ def _describe(differences: list[ItemDifference]) -> str:
     text = "; ".join(d.describe(name) for d in differences[:SHOWN_DIFFERENCES])
     more = len(differences) - SHOWN_DIFFERENCES
     return f"{text} (and {more} more)" if more > 0 else text
+
+
+def _interval_command(name: str, hz: float) -> CommandLong:
+    """SET_MESSAGE_INTERVAL for message ``name`` at ``hz`` (0 or less: stop it)."""
+    return CommandLong(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
+                       getattr(mavlink, f"MAVLINK_MSG_ID_{name}"), 1e6 / hz if hz > 0 else -1)
 
 
 def _lost_for_good(transfer: Transfer) -> bool:

@@ -3,6 +3,7 @@ both sides; the grouping by action category; the dynamic API."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import pytest
@@ -28,6 +29,9 @@ PROFILE = replace(load_profile("quadcopter"), cruise_speed=5.0, max_speed=10.0,
                   min_altitude=0.0, max_altitude=100.0, max_range=500.0,
                   return_altitude=10.0, min_turn_radius=0.0, max_flight_time=0.0,
                   acceleration=0.0, land_speed=0.0, land_altitude=0.0, return_hover=0.0)
+ROVER = replace(load_profile("rover"), max_range=500.0)
+FIXED_WING = load_profile("fixed-wing")
+NAN = math.nan
 HERE = Location("mission.xml", 42)
 AT_10 = VehicleState(position=(0.0, 0.0, 10.0), flying=True)
 MAST = World(obstacles=(Cylinder("mast", 0.0, 20.0, 2.0),))
@@ -146,6 +150,17 @@ CASES: dict[Constraint, list[Case]] = {
         Case("never memorized", action("GO_TO_POINT", labels={"coordinates": "spot"}),
              fails=(0.0, 1.0)),
     ],
+    # No numbers: the vehicle cannot do the action at all (value and limit are nan).
+    Constraint.VEHICLE: [
+        Case("quadcopter takes off", action("TAKE_OFF"), state=VehicleState()),
+        Case("rover takes off", action("TAKE_OFF"), state=VehicleState(), profile=ROVER,
+             fails=(NAN, NAN)),
+        Case("rover drives to a point", go(10, 0, 0), state=VehicleState(), profile=ROVER),
+        Case("rover moves up", action("MOVE", direction="up", distance="3"),
+             profile=ROVER, fails=(NAN, NAN)),
+        Case("fixed-wing turns in place", action("ROTATE_YAW", angle="90"),
+             profile=FIXED_WING, fails=(NAN, NAN)),
+    ],
 }
 
 
@@ -161,7 +176,8 @@ def test_constraint(constraint: Constraint, case: Case) -> None:
         return
     assert len(mine) == 1, found
     violation = mine[0]
-    assert (violation.value, violation.limit) == pytest.approx(case.fails, abs=0.05)
+    assert (violation.value, violation.limit) == pytest.approx(case.fails, abs=0.05,
+                                                               nan_ok=True)
     assert violation.location == HERE
     assert violation.action == case.bound.name
     assert str(violation).startswith(f"mission.xml:42: {constraint.value}: {case.bound.name}: ")
@@ -186,6 +202,21 @@ def test_actions_are_checked_only_against_their_category() -> None:
 
 def test_take_off_from_the_ground_is_not_an_airborne_violation() -> None:
     assert check_before_action(action("TAKE_OFF"), VehicleState(), PROFILE) == []
+
+
+def test_a_vehicle_violation_says_what_the_vehicle_cannot_do() -> None:
+    violation, = check_before_action(action("TAKE_OFF"), VehicleState(), ROVER)
+    assert str(violation) == ("mission.xml:42: vehicle: TAKE_OFF: a rover cannot take off "
+                              "(it stays on the ground and arms itself for its first move)")
+    assert violation.to_dict()["value"] is None and violation.to_dict()["relation"] is None
+
+
+def test_a_ground_vehicle_needs_no_take_off_to_move() -> None:
+    # Its first move arms it: not an airborne violation, and it drives at 0 m.
+    assessment = assess_action(go(30, 0, 10), VehicleState(), ROVER)
+    assert assessment.feasible
+    assert assessment.step.after.position == (30.0, 0.0, 0.0)
+    assert assessment.step.after.flying
 
 
 def test_assessment_carries_the_prediction() -> None:

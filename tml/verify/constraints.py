@@ -16,7 +16,9 @@ home (``range``), at every point of the path there is battery to come home and l
 the reserve left (``return-reserve``; not asked of the actions that go home, which are what
 the reserve is for), the flight time and deadlines are met (``time``),
 motion needs a flying vehicle (``airborne``), loiter circles are not tighter than the
-vehicle can fly (``turn-radius``), labels read hold a point (``label``).
+vehicle can fly (``turn-radius``), labels read hold a point (``label``), and the vehicle
+can do the action at all (``vehicle``: a rover does not take off, a fixed-wing does not
+turn in place; :func:`tml.kinds.refusal`), whatever its category.
 
 :func:`check_before_action` and :func:`assess_action` are pure: the interpreter gives the
 live state and gets the violations, from which it raises ACTION_FAILURE = infeasible.
@@ -35,6 +37,7 @@ from shapely.geometry import LineString, Point, Polygon
 
 from tml.actions import BoundAction, Category
 from tml.errors import Location
+from tml.kinds import Kind, refusal
 from tml.verify import functions
 from tml.verify.motion import FlightModel, Labels, Step, VehicleState
 from tml.verify.planner import Point3, straight
@@ -57,6 +60,7 @@ class Constraint(StrEnum):
     AIRBORNE = "airborne"
     TURN_RADIUS = "turn-radius"
     LABEL = "label"
+    VEHICLE = "vehicle"
 
 
 _C = Constraint
@@ -79,7 +83,11 @@ _Fail = Callable[[Constraint, str, float, str, float, str], None]
 
 @dataclass(frozen=True)
 class Violation:
-    """A constraint that does not hold: ``value`` should be ``relation`` ``limit``."""
+    """A constraint that does not hold: ``value`` should be ``relation`` ``limit``.
+
+    A ``vehicle`` violation has no numbers (``relation`` is empty): the message says what
+    the vehicle cannot do.
+    """
 
     constraint: Constraint
     message: str
@@ -96,12 +104,14 @@ class Violation:
     @property
     def excess(self) -> float:
         """How far the value is on the wrong side of the limit (for ranking)."""
-        if math.isinf(self.value) or math.isinf(self.limit):
+        if not self.relation or math.isinf(self.value) or math.isinf(self.limit):
             return math.inf
         return self.value - self.limit if self.relation == "<=" else self.limit - self.value
 
     def __str__(self) -> str:
         where = f"{self.location}: " if self.location else ""
+        if not self.relation:
+            return f"{where}{self.constraint.value}: {self.action}: {self.message}"
         return (f"{where}{self.constraint.value}: {self.action}: {self.message}: "
                 f"{_number(self.value)} {self.unit}, must be {self.relation} "
                 f"{_number(self.limit)} {self.unit}")
@@ -112,8 +122,9 @@ class Violation:
             "constraint": self.constraint.value, "action": self.action, "task": self.task,
             "file": self.location.file if self.location else None,
             "line": self.location.line if self.location else None,
-            "message": self.message, "value": _finite(self.value), "relation": self.relation,
-            "limit": _finite(self.limit), "unit": self.unit,
+            "message": self.message, "value": _finite(self.value),
+            "relation": self.relation or None, "limit": _finite(self.limit),
+            "unit": self.unit or None,
         }
 
 
@@ -142,7 +153,13 @@ def check_step(bound: BoundAction, step: Step, model: FlightModel,
                                    bound.name, location))
 
     profile, before, after = model.profile, step.before, step.after
-    if not before.flying and (step.legs or step.loiter or step.duration > 0):
+    cannot = refusal(bound, profile.kind, profile.vehicle_type)
+    if cannot is not None:
+        found.append(Violation(_C.VEHICLE, cannot, math.nan, "", math.nan, "", bound.name,
+                               location))
+    # A ground vehicle is not airborne, ever: its first move arms it.
+    if not before.flying and profile.kind is not Kind.GROUND and \
+            (step.legs or step.loiter or step.duration > 0):
         fail(_C.AIRBORNE, "the vehicle is on the ground; take off first",
              before.position[2], ">", 0.0, "m")
     if step.unknown_label:

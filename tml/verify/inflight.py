@@ -9,19 +9,32 @@ which event handlers can react to; unhandled, the mission ends in its safe state
 
 :func:`router` gives the interpreter the planner's collision-free paths, so that a move the
 verifier judged around an obstacle is flown around it too.
+
+The live check judges the action as the connected vehicle's kind (:mod:`tml.kinds`): when
+the vehicle is of another kind than the profile (a fixed-wing flown with the default
+quadcopter profile), the shipped profile of its kind is used, so that a plane is never
+asked to hover and a rover never to take off. :func:`preflight` does the same for the
+whole mission before the first task: every action a connected vehicle will fly is checked
+against what that vehicle can do (:func:`tml.kinds.refusal`), so that a mission it cannot
+fly is refused before it leaves the ground.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import math
+from collections.abc import Callable, Mapping
+from functools import cache
 
+from tml import actions
 from tml.actions import BoundAction
+from tml.kinds import kind_of, refusal, role_kinds
+from tml.model import Mission
 from tml.vehicle import Point
 from tml.vehicle import VehicleState as LiveState
-from tml.verify.constraints import check_before_action
+from tml.verify.constraints import Constraint, Violation, check_before_action
 from tml.verify.motion import VehicleState
 from tml.verify.planner import Planner
-from tml.verify.profile import VehicleProfile
+from tml.verify.profile import SHIPPED_FOR_KIND, VehicleProfile, load_profile
 from tml.world import World
 
 PreCheck = Callable[[BoundAction, LiveState, dict[str, Point], float], list[str]]
@@ -36,17 +49,64 @@ def live_variables(state: LiveState, mission_time: float) -> VehicleState | None
                         heading=state.heading, flying=state.flying)
 
 
+@cache
+def _shipped(name: str) -> VehicleProfile:
+    return load_profile(name)
+
+
+def profile_for(profile: VehicleProfile, vehicle_type: str) -> VehicleProfile:
+    """``profile``, or the shipped profile of the vehicle's kind when ``vehicle_type`` (as
+    the vehicle reports it; "" while unknown) is of another kind."""
+    kind = kind_of(vehicle_type)
+    if not vehicle_type or kind is profile.kind:
+        return profile
+    return _shipped(SHIPPED_FOR_KIND[kind])
+
+
 def pre_check(profile: VehicleProfile, world: World | None = None) -> PreCheck:
     """The interpreter's hook: the constraints an action would break if started now."""
 
     def check(bound: BoundAction, state: LiveState, labels: dict[str, Point],
               mission_time: float) -> list[str]:
+        cannot = refusal(bound, kind_of(state.vehicle_type), state.vehicle_type)
+        if state.vehicle_type and cannot is not None:
+            return [f"{Constraint.VEHICLE.value}: {bound.name}: {cannot}"]
         variables = live_variables(state, mission_time)
         if variables is None:
             return []  # nothing to judge yet: the action's own checks wait for a position
-        return [str(v) for v in check_before_action(bound, variables, profile, world, labels)]
+        mine = profile_for(profile, state.vehicle_type)
+        return [str(v) for v in check_before_action(bound, variables, mine, world, labels)]
 
     return check
+
+
+def preflight(mission: Mission, vehicle_types: Mapping[int, str]) -> list[Violation]:
+    """What the connected vehicles cannot do of ``mission``, before it starts.
+
+    ``vehicle_types`` maps each vehicle's id to its type. Without roles every vehicle flies
+    every action; with roles, each role's actions are held against the vehicles its type
+    admits (a role no connected vehicle can fly is left to its pick, which names why).
+    Each violation names the vehicle in ``vehicles`` and the role, if any.
+    """
+    found: list[Violation] = []
+    flown = [(t.action, t.role) for t in mission.walk() if t.action is not None]
+    flown += [(a, e.role) for e in mission.events for a in e.actions]
+    roles = {role.name: role for role in mission.roles}
+    for vehicle_id, vehicle_type in sorted(vehicle_types.items()):
+        if not vehicle_type:
+            continue
+        kind = kind_of(vehicle_type)
+        for action, role in flown:
+            assert action is not None
+            if role in roles and kind not in role_kinds(roles[role].vehicle_type):
+                continue  # this vehicle is never picked for that role
+            bound = actions.bind(action)
+            cannot = refusal(bound, kind, vehicle_type)
+            if cannot is not None:
+                found.append(Violation(Constraint.VEHICLE, cannot, math.nan, "", math.nan, "",
+                                       bound.name, action.location, role=role or "",
+                                       vehicles=(vehicle_id,)))
+    return found
 
 
 def router(profile: VehicleProfile, world: World | None) -> Route | None:

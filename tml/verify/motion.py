@@ -16,6 +16,12 @@ a cruise at the current speed, or, on a segment too short to reach it, speeding 
 way and braking the other half. A circle is flown as the interpreter flies it too, as
 :data:`~tml.patterns.CIRCLE_POINTS_PER_TURN` such segments a turn. Turning in place takes
 the angle at ``yaw_rate``.
+
+Kinds of vehicle (:mod:`tml.kinds`, from the profile's ``vehicle_type``): a fixed-wing
+takes off in a climb along its heading and lands along an approach
+(:func:`tml.kinds.landing_approach`), gliding to a touchdown ahead of it or at the point
+it lands on; a ground vehicle drives every point at 0 m, is underway (armed) from its first
+move on, and its RETURN_HOME_AND_LAND drives home and stops.
 """
 
 from __future__ import annotations
@@ -26,6 +32,7 @@ from itertools import pairwise
 
 from tml import geo
 from tml.actions import BoundAction
+from tml.kinds import Kind, landing_approach
 from tml.patterns import CIRCLE_POINTS_PER_TURN, circle_chord
 from tml.verify.planner import Planner, Point3, Trajectory, straight
 from tml.verify.profile import VehicleProfile
@@ -176,6 +183,9 @@ class FlightModel:
         legs: list[Trajectory] = []
         blocked: list[tuple[Point3, Point3]] = []
         position, seconds, energy = state.position, 0.0, 0.0
+        ground = self.profile.kind is Kind.GROUND
+        if ground:  # on the ground whatever the points say
+            targets = [(t[0], t[1], 0.0) for t in targets]
         for number, target in enumerate(targets, start=1):
             leg, found = self.plan(position, target) if planned else \
                 (straight(position, target), True)
@@ -187,7 +197,8 @@ class FlightModel:
             legs.append(leg)
             position = target
         after = replace(state, position=position, time=state.time + seconds,
-                        battery=state.battery - energy)
+                        battery=state.battery - energy, flying=state.flying or (
+                            ground and bool(targets)))
         return after, legs, blocked
 
     def hover(self, state: VehicleState, seconds: float) -> VehicleState:
@@ -198,8 +209,13 @@ class FlightModel:
     def return_home_energy(self, point: Point3, home: Point3, planned: bool = True) -> float:
         """Percent of the battery needed to come home from ``point`` and land there the way
         ArduPilot's RTL does: climb to the return altitude if lower, fly home, wait
-        ``return_hover`` s, descend. Not ``planned``: along straight lines, a lower bound."""
+        ``return_hover`` s, descend. Not ``planned``: along straight lines, a lower bound.
+        A fixed-wing comes home along its landing approach."""
         probe = VehicleState(position=point, flying=True)
+        if self.profile.kind is Kind.FIXED_WING:
+            approach, touchdown = landing_approach(point, 0.0, home)
+            after, _, _ = self.fly(probe, [approach, touchdown], planned, landing=True)
+            return probe.battery - after.battery
         after, _, _ = self.fly_home_and_land(probe, home, planned)
         return probe.battery - after.battery
 
@@ -261,13 +277,30 @@ class FlightModel:
     def _take_off(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
         if state.flying:
             return Step(state, state, labels=labels, notes=("already flying: ignored",))
+        if self.profile.kind is Kind.GROUND:
+            return Step(state, state, labels=labels)  # refused: see the vehicle constraint
         written = bound.action.argument("altitude", "height") is not None
         altitude = float(bound.get("altitude")) if written else self.profile.takeoff_altitude
         target = (state.position[0], state.position[1], altitude)
+        if self.profile.kind is Kind.FIXED_WING:  # a climb along the heading
+            run = altitude / self.profile.climb_rate * self.profile.cruise_speed
+            target = (*_ahead(state.position, state.heading, run)[:2], altitude)
         step = self._go(bound, replace(state, flying=True), labels, [target], cruise=False)
         return replace(step, before=state)
 
+    def _landing(self, bound: BoundAction, state: VehicleState, labels: Labels,
+                 touchdown: Point3 | None) -> Step:
+        """A fixed-wing's approach and glide to ``touchdown`` (None: straight ahead)."""
+        approach, ground = landing_approach(state.position, state.heading, touchdown)
+        targets = [ground] if approach == state.position else [approach, ground]
+        step = self._go(bound, state, labels, targets, cruise=False)
+        return replace(step, after=replace(step.after, flying=False))
+
     def _land(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+        if self.profile.kind is Kind.FIXED_WING:
+            return self._landing(bound, state, labels, None)
+        if self.profile.kind is Kind.GROUND:
+            return Step(state, state, labels=labels)  # refused: see the vehicle constraint
         target = (state.position[0], state.position[1], 0.0)
         step = self._go(bound, state, labels, [target], landing=True, cruise=False)
         return replace(step, after=replace(step.after, flying=False))
@@ -319,6 +352,8 @@ class FlightModel:
 
     def _return_home_and_land(self, bound: BoundAction, state: VehicleState,
                               labels: Labels) -> Step:
+        if self.profile.kind is Kind.FIXED_WING:
+            return self._landing(bound, state, labels, state.home)
         after, legs, blocked = self.fly_home_and_land(state, state.home)
         return Step(state, replace(after, flying=False), tuple(legs), tuple(blocked),
                     labels=labels, destination=state.home)
@@ -338,6 +373,8 @@ class FlightModel:
             point = self.local(float(bound.get("latitude")), float(bound.get("longitude")),
                                float(bound.get("altitude")),
                                str(bound.get("altitude_reference")))
+        if self.profile.kind is Kind.FIXED_WING:
+            return self._landing(bound, state, labels, (point[0], point[1], 0.0))
         targets = [(point[0], point[1], state.position[2]), (point[0], point[1], 0.0)]
         step = self._go(bound, state, labels, targets, landing=True, cruise=False)
         return replace(step, after=replace(step.after, flying=False))

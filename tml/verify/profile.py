@@ -1,10 +1,13 @@
 """Vehicle profiles: the parameters (the paper's k_i) of the feasibility model.
 
 A profile is a flat TOML table of numbers in fixed units (metres, m/s, deg/s, percent of a
-full battery, seconds). Two profiles ship with tml (``quadcopter`` and ``fixed-wing``); a
-file may name one of them as ``base`` and give only the keys it changes. The same numbers
-can be read from a connected ArduPilot vehicle's parameters (:func:`profile_from_parameters`),
-which convert the autopilot's units (cm/s, cm, mAh) into the profile's.
+full battery, seconds) and the ``vehicle_type`` it describes (a word of
+:data:`tml.vehicle.VEHICLE_TYPES`), which says what the vehicle can do at all
+(:mod:`tml.kinds`). Three profiles ship with tml (``quadcopter``, ``fixed-wing`` and
+``rover``); a file may name one of them as ``base`` and give only the keys it changes.
+The same numbers can be read from a connected ArduPilot vehicle's parameters
+(:func:`profile_from_parameters`), which convert the autopilot's units (cm/s, cm, mAh)
+into the profile's.
 """
 
 from __future__ import annotations
@@ -17,8 +20,13 @@ from importlib import resources
 from pathlib import Path
 
 from tml.errors import TmlError
+from tml.kinds import Kind, kind_of
+from tml.vehicle import VEHICLE_TYPES
 
-SHIPPED = ("quadcopter", "fixed-wing")
+SHIPPED = ("quadcopter", "fixed-wing", "rover")
+SHIPPED_FOR_KIND = {Kind.MULTICOPTER: "quadcopter", Kind.FIXED_WING: "fixed-wing",
+                    Kind.GROUND: "rover"}
+"""The shipped profile that describes a vehicle of each kind."""
 
 
 @dataclass(frozen=True)
@@ -47,6 +55,12 @@ class VehicleProfile:
     return_hover: float  # s RETURN_HOME_AND_LAND hovers over home before it descends
     min_turn_radius: float  # m, smallest loiter circle (0 for a multicopter)
     max_flight_time: float  # s from the start of the mission to its end; 0: no limit
+    vehicle_type: str = "quadcopter"  # a word of tml.vehicle.VEHICLE_TYPES
+
+    @property
+    def kind(self) -> Kind:
+        """What the vehicle can do at all (see :mod:`tml.kinds`)."""
+        return kind_of(self.vehicle_type)
 
 
 # Keys that may be zero; every other number must be strictly positive.
@@ -57,7 +71,8 @@ _MAY_BE_ZERO = frozenset({"min_altitude", "min_turn_radius", "max_flight_time",
 # the key existed keep their meaning).
 _OPTIONAL = {"acceleration": 0.0, "land_speed": 0.0, "land_altitude": 0.0,
              "return_hover": 0.0}
-NUMBER_KEYS = tuple(f.name for f in fields(VehicleProfile) if f.name != "name")
+TEXT_KEYS = ("name", "vehicle_type")
+NUMBER_KEYS = tuple(f.name for f in fields(VehicleProfile) if f.name not in TEXT_KEYS)
 
 
 def _problem(file: str, key: str, why: str) -> TmlError:
@@ -79,6 +94,12 @@ def profile_from_mapping(data: Mapping[str, object], file: str,
         if key == "name":
             if not isinstance(value, str) or not value.strip():
                 raise _problem(file, key, "expected a non-empty string")
+            values[key] = value
+            continue
+        if key == "vehicle_type":
+            if value not in VEHICLE_TYPES:
+                raise _problem(file, key, f"expected one of {', '.join(sorted(VEHICLE_TYPES))}"
+                                          f", got {value!r}")
             values[key] = value
             continue
         if key not in NUMBER_KEYS:
@@ -110,7 +131,7 @@ def profile_from_mapping(data: Mapping[str, object], file: str,
 
 
 def load_profile(source: str | Path) -> VehicleProfile:
-    """A shipped profile by name (``quadcopter``, ``fixed-wing``) or a profile file.
+    """A shipped profile by name (``quadcopter``, ``fixed-wing``, ``rover``) or a file.
 
     Raises :class:`TmlError` on bad TOML or bad keys (naming the file and the key), and
     OSError when the file cannot be read.

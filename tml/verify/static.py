@@ -32,7 +32,10 @@ walked for one round (a loop forever cannot be bounded); until and time_limit ca
 shorten a task, so the whole task is walked; wait_for leaves the vehicle as it is (a
 recharge while waiting is not counted). After a task that releases a role, the role's
 next pick may be another vehicle: its next task starts from ``start`` again (with the
-labels kept), and its findings name the next vehicle of the role.
+labels kept), and its findings name the next vehicle of the role. A role is verified with
+the profile given when its ``type`` admits that profile's vehicle type, else with the
+shipped profile of the role's kind (a rover role with the rover profile), which the notes
+say.
 """
 
 from __future__ import annotations
@@ -42,11 +45,12 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 
 from tml import actions
+from tml.kinds import Kind, role_kinds
 from tml.model import Comparison, Composition, ConditionKind, Event, Mission, Role, Task
 from tml.parameters import ORDERINGS, compare_numbers, lookup, parse_boolean
 from tml.verify.constraints import Constraint, Violation, check_step
 from tml.verify.motion import FlightModel, Labels, Step, VehicleState
-from tml.verify.profile import VehicleProfile
+from tml.verify.profile import SHIPPED_FOR_KIND, VehicleProfile, load_profile
 from tml.world import World
 
 MAX_ALTERNATIVES = 16
@@ -355,9 +359,22 @@ def verify_mission(mission: Mission, profile: VehicleProfile, world: World | Non
     event_labels = frozenset(
         bound.labels["coordinates"] for event in mission.events for action in event.actions
         if (bound := actions.bind(action)).name == "MEMORIZE_POINT")
-    walkers = [_Walker(model, start, event_labels, role) for role in mission.roles] or \
-        [_Walker(model, start, event_labels)]
     notes: dict[str, None] = {}
+    models = {profile.name: model}
+
+    def role_model(role: Role) -> FlightModel:
+        kinds = role_kinds(role.vehicle_type)
+        if profile.kind in kinds:
+            return model
+        name = SHIPPED_FOR_KIND[next(kind for kind in Kind if kind in kinds)]
+        notes[f"{role.location}: role {role.name} (type {role.vehicle_type}) verified with "
+              f"the {name} profile"] = None
+        if name not in models:
+            models[name] = FlightModel(load_profile(name), merged)
+        return models[name]
+
+    walkers = [_Walker(role_model(role), start, event_labels, role) for role in mission.roles] \
+        or [_Walker(model, start, event_labels)]
     if mission.roles:
         names = {role.name for role in mission.roles}
         notes |= {f"{task.location}: task {task.path_name}: flown by no declared role; not "

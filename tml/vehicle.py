@@ -94,7 +94,8 @@ class VehicleState:
 
     @property
     def flying(self) -> bool:
-        """Armed and off the ground."""
+        """Armed and off the ground; for a ground vehicle (which reports no landed state):
+        armed, underway."""
         return self.armed and not self.landed
 
     @property
@@ -203,7 +204,24 @@ class Hold(Request):
 
 @dataclass(frozen=True)
 class Land(Request):
-    """Land where the vehicle is."""
+    """Land where the vehicle is, or at ``touchdown`` (a local point on the ground).
+
+    A multicopter descends vertically where it is (the scripts fly it over its touchdown
+    first); a fixed-wing flies a landing approach (:func:`tml.kinds.landing_approach`):
+    straight ahead without a touchdown, else into the touchdown from the side it comes
+    from.
+    """
+
+    touchdown: Point | None = None
+
+
+@dataclass(frozen=True)
+class Circle(Request):
+    """Circle ``centre`` (local) at ``radius`` metres, clockwise, until told otherwise: a
+    fixed-wing's own loiter (a multicopter flies circles as a series of GoTo)."""
+
+    centre: Point
+    radius: float
 
 
 @dataclass(frozen=True)

@@ -47,7 +47,17 @@ from enum import StrEnum
 
 from tml.actions import CAPABILITIES, BoundAction, Category, bind, lookup
 from tml.engine.conditions import Memory, evaluate, evaluate_all
-from tml.engine.scripts import SCRIPTS, ActionFailed, Limits, Script, Send, Sleep, Until
+from tml.engine.scripts import (
+    SCRIPTS,
+    ActionFailed,
+    Limits,
+    Script,
+    Send,
+    Sleep,
+    Until,
+    script_for,
+)
+from tml.kinds import Kind, kind_of
 from tml.model import (
     Action,
     Condition,
@@ -472,7 +482,7 @@ class Interpreter:
         self._note("action", f"{bound.name} started", action=bound.name,
                    task=task.path_name if task else None, line=action.location.line,
                    arguments=dict(bound.values), labels=dict(bound.labels))
-        run = _Run(bound, SCRIPTS[bound.name](self, bound), task, since=self._now)
+        run = _Run(bound, script_for(self, bound), task, since=self._now)
         if self.options.pre_check is not None:
             violations = self.options.pre_check(bound, self._state, self.labels,
                                                 self._now - self._start)
@@ -885,7 +895,10 @@ class Interpreter:
 
 def safe_state_request(state: VehicleState, safe_state: str) -> tuple[Request, str] | None:
     """What puts a vehicle in the safe state, and why; None when it is disarmed on the
-    ground. In the air: ``safe_state`` (rtl, land or hold); armed on the ground: disarm."""
+    ground. In the air: ``safe_state`` (rtl, land or hold); armed on the ground: disarm.
+    A ground vehicle is safe stopped: an armed one is disarmed, wherever it is."""
+    if state.armed and kind_of(state.vehicle_type) is Kind.GROUND:
+        return Disarm(state.vehicle_id), "ground vehicle armed: disarm (it stops)"
     if state.flying:
         request: Request = {"land": Land, "hold": Hold}.get(
             safe_state, ReturnToLaunch)(state.vehicle_id)

@@ -11,6 +11,15 @@ A script fails the action by raising :class:`ActionFailed` with an ACTION_FAILUR
 (``rejected``, ``timeout``, ``unsupported``, ``infeasible``, ``general``). Completion is
 always observed in telemetry: position within the acceptance radius, altitude reached,
 heading reached, landed and disarmed.
+
+Each script flies the action the way the vehicle's kind can (:mod:`tml.kinds`, from the
+type the vehicle reports): a multicopter as ArduCopter in GUIDED; a fixed-wing as
+ArduPlane (it takes off in TAKEOFF mode, circles the points it is sent to, circles
+natively for LOITER, holds by circling, and lands along an approach); a ground vehicle as
+ArduPilot Rover (it arms itself for its first move, drives at 0 m, and its
+RETURN_HOME_AND_LAND drives home, stops and disarms). :func:`script_for` picks the script,
+or refuses the action with ACTION_FAILURE ``infeasible`` when the kind cannot do it at
+all (:func:`tml.kinds.refusal`), before anything is sent.
 """
 
 from __future__ import annotations
@@ -22,11 +31,14 @@ from itertools import pairwise
 from typing import Protocol
 
 from tml import geo
-from tml.actions import BoundAction
+from tml.actions import BoundAction, Category
+from tml.kinds import HANDLING, Kind, final_length, kind_of, refusal
 from tml.patterns import CIRCLE_POINTS_PER_TURN, circle_point
 from tml.vehicle import (
     Arm,
     Camera,
+    Circle,
+    Disarm,
     Flip,
     GoTo,
     Gripper,
@@ -130,6 +142,17 @@ def _position(ctx: Context) -> Point:
     return ctx.state.position
 
 
+def _kind(ctx: Context) -> Kind:
+    return kind_of(ctx.state.vehicle_type)
+
+
+def _tolerances(ctx: Context) -> tuple[float, float]:
+    """(horizontal, vertical) metres within which a move has arrived, for this vehicle."""
+    handling = HANDLING[_kind(ctx)]
+    radius = ctx.limits.acceptance_radius
+    return handling.arrival_radius or radius, handling.vertical_tolerance or radius
+
+
 def _reference(ctx: Context) -> Point:
     """Where relative moves start: the last move's target when the vehicle reached it.
 
@@ -139,16 +162,28 @@ def _reference(ctx: Context) -> Point:
     """
     here = _position(ctx)
     target = ctx.last_target
-    if target is not None and math.dist(here, target) <= 2 * ctx.limits.acceptance_radius:
+    if target is not None and math.dist(here, target) <= 2 * _tolerances(ctx)[0]:
         return target
     return here
 
 
 def _require_flying(ctx: Context, action: str) -> Point:
+    """Where the vehicle is; it must be flying, unless it is a ground vehicle (its moves
+    arm it first, see :func:`script_for`)."""
     position = _position(ctx)
-    if not ctx.state.flying:
+    if not ctx.state.flying and _kind(ctx) is not Kind.GROUND:
         raise ActionFailed("infeasible", f"{action} needs a flying vehicle; take off first")
     return position
+
+
+def _start_driving(ctx: Context) -> Script:
+    """Arm a ground vehicle in GUIDED for its first move (ArduPilot Rover: nothing to take
+    off from, so the first move is its start)."""
+    yield Until(lambda s: s.ready, ctx.limits.ready_timeout,
+                "a position estimate to arm with (EKF using GPS)")
+    yield Send(SetMode(ctx.vehicle_id, "GUIDED"))
+    yield Send(Arm(ctx.vehicle_id))
+    ctx.note("armed to drive")
 
 
 def _travel_time(ctx: Context, start: Point, end: Point) -> float:
@@ -160,12 +195,12 @@ def _travel_time(ctx: Context, start: Point, end: Point) -> float:
 
 
 def _arrived(ctx: Context, target: Point) -> Callable[[VehicleState], bool]:
-    radius = ctx.limits.acceptance_radius
+    radius, vertical = _tolerances(ctx)
 
     def arrived(state: VehicleState) -> bool:
         p = state.position
         return p is not None and math.hypot(p[0] - target[0], p[1] - target[1]) <= radius \
-            and abs(p[2] - target[2]) <= radius
+            and abs(p[2] - target[2]) <= vertical
 
     return arrived
 
@@ -177,7 +212,9 @@ def fly_to(ctx: Context, target: Point, what: str) -> Script:
     one waypoint after the other; without one, a straight line.
     """
     start = _require_flying(ctx, what)
-    if target[2] < 0:
+    if _kind(ctx) is Kind.GROUND:
+        target = (target[0], target[1], 0.0)  # driven on the ground whatever the point says
+    elif target[2] < 0:
         raise ActionFailed("infeasible", f"{what}: target altitude {target[2]:.1f} m is "
                                          "below home")
     path = [start, target]
@@ -245,8 +282,12 @@ def _circle(ctx: Context, centre: Point, radius: float, turns: float | None,
     """Circle ``centre`` clockwise: a number of turns, for a time, or until stopped (neither).
 
     As ArduPilot's loiter items do, the vehicle joins the circle at its nearest point (the
-    centre itself may be what it circles, a mast or a tower) and goes round from there.
+    centre itself may be what it circles, a mast or a tower) and goes round from there. A
+    fixed-wing circles natively (:func:`_orbit`).
     """
+    if _kind(ctx) is Kind.FIXED_WING:
+        yield from _orbit(ctx, centre, radius, turns, duration)
+        return
     here = _position(ctx)
     start = math.atan2(here[1] - centre[1], here[0] - centre[0]) \
         if math.hypot(here[0] - centre[0], here[1] - centre[1]) > 1e-6 else 0.0
@@ -264,36 +305,133 @@ def _circle(ctx: Context, centre: Point, radius: float, turns: float | None,
         step += 1
 
 
+def _orbit(ctx: Context, centre: Point, radius: float, turns: float | None,
+           duration: float | None) -> Script:
+    """A fixed-wing's circle: ArduPlane loiters around a GUIDED target at the radius asked.
+
+    The vehicle is on the circle once its distance from the centre is within the
+    fixed-wing's arrival margin of the radius (ArduPlane flies a little wide of it); turns
+    are counted from its bearing around the centre, the time from then on.
+    """
+    handling = HANDLING[Kind.FIXED_WING]
+    margin = handling.arrival_radius - handling.loiter_radius
+    yield Send(Circle(ctx.vehicle_id, centre, radius))
+    here = _position(ctx)
+
+    def on_circle(state: VehicleState) -> bool:
+        p = state.position
+        return p is not None and abs(math.hypot(p[0] - centre[0], p[1] - centre[1])
+                                     - radius) <= margin \
+            and abs(p[2] - centre[2]) <= handling.vertical_tolerance
+
+    yield Until(on_circle, _travel_time(ctx, here, centre),
+                f"reach the circle around {_fmt(centre)}")
+    if duration is not None:
+        yield Sleep(duration)
+    elif turns is not None:
+        swept = [0.0, _bearing(ctx.state.position or here, centre)]
+
+        def around(state: VehicleState) -> bool:
+            bearing = _bearing(state.position or here, centre)
+            swept[0] += (bearing - swept[1] + 540.0) % 360.0 - 180.0
+            swept[1] = bearing
+            return abs(swept[0]) >= 360.0 * turns
+
+        yield Until(around, ctx.limits.factor * 2 * math.pi * radius * turns / ctx.limits.speed
+                    + ctx.limits.slack, f"circle {turns:g} times",
+                    lambda s: min(1.0, abs(swept[0]) / (360.0 * turns)))
+    else:
+        yield Until(lambda s: False, math.inf, "circle until stopped")
+    ctx.last_target = centre
+
+
+def _bearing(point: Point, centre: Point) -> float:
+    return math.degrees(math.atan2(point[1] - centre[1], point[0] - centre[0]))
+
+
+def _refused(reason: str) -> Script:
+    raise ActionFailed("infeasible", reason)
+    yield  # a generator that fails when it is first run
+
+
+def _driven(ctx: Context, bound: BoundAction) -> Script:
+    """A ground vehicle's move: armed first (it may not even know where it is before)."""
+    if not ctx.state.armed:
+        yield from _start_driving(ctx)
+    yield from SCRIPTS[bound.name](ctx, bound)
+
+
+def script_for(ctx: Context, bound: BoundAction) -> Script:
+    """The script flying ``bound`` on the vehicle of ``ctx``; for an action the vehicle's
+    kind cannot do at all, one that fails with ACTION_FAILURE ``infeasible`` at once."""
+    kind = _kind(ctx)
+    cannot = refusal(bound, kind, ctx.state.vehicle_type)
+    if cannot is not None:
+        return _refused(cannot)
+    if kind is Kind.GROUND and (bound.spec.category is Category.TRANSLATION
+                                or bound.name in ("LOITER", "RETURN_HOME_AND_LOITER")):
+        return _driven(ctx, bound)
+    return SCRIPTS[bound.name](ctx, bound)
+
+
 # --- the actions ----------------------------------------------------------------------------
 
 
 def take_off(ctx: Context, bound: BoundAction) -> Script:
-    """Arm in GUIDED and climb; ignored (as the paper says) when already flying."""
+    """Arm in GUIDED and climb; ignored (as the paper says) when already flying.
+
+    A fixed-wing cannot take off in GUIDED: its TakeOff request is ArduPlane's TAKEOFF mode
+    (a climb along its heading to the altitude, then a circle), which arms it too.
+    """
     altitude = float(bound.values["altitude"])  # type: ignore[arg-type]
     if ctx.state.flying:
         ctx.note("TAKE_OFF ignored: the vehicle is already flying", altitude=ctx.state.altitude)
         return
     yield Until(lambda s: s.ready, ctx.limits.ready_timeout,
                 "a position estimate to arm with (EKF using GPS)")
-    yield Send(SetMode(ctx.vehicle_id, "GUIDED"))
-    yield Send(Arm(ctx.vehicle_id))
+    if _kind(ctx) is not Kind.FIXED_WING:
+        yield Send(SetMode(ctx.vehicle_id, "GUIDED"))
+        yield Send(Arm(ctx.vehicle_id))
     yield Send(TakeOff(ctx.vehicle_id, altitude))
-    tolerance = ctx.limits.acceptance_radius
+    tolerance = _tolerances(ctx)[1]
     yield Until(lambda s: s.altitude >= altitude - tolerance,
                 ctx.limits.factor * altitude / ctx.limits.climb_rate + ctx.limits.slack,
                 f"climb to {altitude:g} m", lambda s: max(0.0, min(1.0, s.altitude / altitude)))
 
 
 def land(ctx: Context, bound: BoundAction) -> Script:
-    """Land where the vehicle is and wait until it is down and disarmed."""
+    """Land where the vehicle is and wait until it is down and disarmed (a fixed-wing:
+    along an approach straight ahead)."""
     if not ctx.state.flying:
         ctx.note("LAND: the vehicle is already on the ground")
+        return
+    if _kind(ctx) is Kind.FIXED_WING:
+        yield from _glide(ctx, None, "LAND")
         return
     start = ctx.state.altitude
     yield Send(Land(ctx.vehicle_id))
     yield Until(_landed_and_disarmed,
                 ctx.limits.factor * start / ctx.limits.land_rate + ctx.limits.slack,
                 "land and disarm", lambda s: max(0.0, min(1.0, 1 - s.altitude / max(start, 1))))
+
+
+LAND_DISARM_DELAY = 30.0
+"""Seconds a fixed-wing may take to disarm after touching down (ArduPlane's
+LAND_DISARMDELAY is 20 s)."""
+
+
+def _glide(ctx: Context, touchdown: Point | None, what: str) -> Script:
+    """A fixed-wing lands along its approach (the Land request; the adapter uploads it as a
+    landing sequence and flies it in AUTO); done once down and disarmed."""
+    here = _position(ctx)
+    yield Send(Land(ctx.vehicle_id, touchdown))
+    way = final_length(here[2])
+    if touchdown is not None:
+        way += math.hypot(here[0] - touchdown[0], here[1] - touchdown[1])
+    limit = ctx.limits.factor * (way / ctx.limits.speed + here[2] / ctx.limits.descent_rate) \
+        + ctx.limits.slack + LAND_DISARM_DELAY
+    yield Until(_landed_and_disarmed, limit, f"{what}: land and disarm",
+                lambda s: max(0.0, min(1.0, 1 - s.altitude / max(here[2], 1))))
 
 
 def go_to_point(ctx: Context, bound: BoundAction) -> Script:
@@ -374,9 +512,12 @@ def rotate_yaw(ctx: Context, bound: BoundAction) -> Script:
 
 
 def stabilize(ctx: Context, bound: BoundAction) -> Script:
-    """Stop all motion and hold."""
+    """Stop all motion and hold (a fixed-wing cannot stop: it circles where it is)."""
     _require_flying(ctx, "STABILIZE")
     yield Send(Hold(ctx.vehicle_id))
+    if _kind(ctx) is Kind.FIXED_WING:
+        ctx.note("STABILIZE: a fixed-wing cannot stop; it circles where it is")
+        return
     yield Until(lambda s: s.ground_speed <= 0.3, ctx.limits.slack, "come to a stop")
 
 
@@ -497,6 +638,12 @@ def landing_point(ctx: Context, bound: BoundAction) -> Script:
     point = _point(ctx, bound, "coordinates")
     if point is None:
         point = _local(ctx, bound)
+    if _kind(ctx) is Kind.FIXED_WING:
+        if "yaw" in bound.values or bound.values.get("precision_mode", "disabled") != "disabled":
+            ctx.note("LANDING_POINT: a fixed-wing lands along its approach; yaw and "
+                     "precision landing are not applied")
+        yield from _glide(ctx, (point[0], point[1], 0.0), "LANDING_POINT")
+        return
     yield from fly_to(ctx, (point[0], point[1], max(here[2], point[2])), "LANDING_POINT")
     if "yaw" in bound.values:
         yield Send(SetYaw(ctx.vehicle_id, float(bound.values["yaw"]) % 360))  # type: ignore[arg-type]
@@ -525,6 +672,13 @@ def return_home_and_land(ctx: Context, bound: BoundAction) -> Script:
     first flies the planned path home in GUIDED, and RTL then only descends.
     """
     here = _require_flying(ctx, "RETURN_HOME_AND_LAND")
+    kind = _kind(ctx)
+    if kind is Kind.FIXED_WING:
+        yield from _glide(ctx, (0.0, 0.0, 0.0), "RETURN_HOME_AND_LAND")
+        return
+    if kind is Kind.GROUND and not ctx.state.armed:
+        ctx.note("RETURN_HOME_AND_LAND: the vehicle is already stopped and disarmed")
+        return
     above_home = (0.0, 0.0, here[2])
     if ctx.route is not None:
         path = ctx.route(here, above_home)
@@ -532,6 +686,16 @@ def return_home_and_land(ctx: Context, bound: BoundAction) -> Script:
             yield from fly_to(ctx, above_home, "RETURN_HOME_AND_LAND")
             here = _position(ctx)
     yield Send(ReturnToLaunch(ctx.vehicle_id))
+    if kind is Kind.GROUND:
+        # Rover's RTL drives home and stops there, armed: then tml disarms it.
+        home = _arrived(ctx, (0.0, 0.0, 0.0))
+        yield Until(lambda s: home(s) and s.ground_speed <= 0.3,
+                    _travel_time(ctx, here, (0.0, 0.0, 0.0)), "drive home and stop",
+                    lambda s: 1.0 - min(1.0, math.dist(s.position or here, (0, 0, 0))
+                                        / max(math.dist(here, (0, 0, 0)), 1.0)))
+        yield Send(Disarm(ctx.vehicle_id))
+        yield Until(lambda s: not s.armed, ctx.limits.slack, "disarm")
+        return
     limit = _travel_time(ctx, here, (0.0, 0.0, 0.0)) + ctx.limits.factor * max(
         here[2], 15.0) / ctx.limits.land_rate
     yield Until(_landed_and_disarmed, limit, "return home and land",

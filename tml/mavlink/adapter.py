@@ -44,6 +44,22 @@ the vehicle goes back to GUIDED, and only then are the sticks released. Whatever
 way, the vehicle is put back in GUIDED before the sticks are let go: in ALT_HOLD a released
 throttle stick is a throttle at zero, and the vehicle would sink.
 
+Requests are carried out the way the vehicle's kind flies them (:mod:`tml.kinds`, from the
+HEARTBEAT type), after ArduPilot's Copter, Plane and Rover as measured on their SITL:
+
+- *fixed-wing* (ArduPlane): TakeOff sets TKOFF_ALT and switches to TAKEOFF mode, which arms
+  and climbs (NAV_TAKEOFF is refused in GUIDED); GoTo, Circle and Hold are DO_REPOSITION
+  (which enters GUIDED; ArduPlane takes only the altitude of a
+  SET_POSITION_TARGET_GLOBAL_INT) with the loiter radius in param3; Land is a landing
+  sequence (:func:`tml.mavlink.compile.glide_items`) uploaded and flown in AUTO, since
+  ArduPlane has no LAND mode and answers NAV_LAND UNSUPPORTED; ReturnToLaunch is RTL,
+  which circles home (the safe state);
+- *ground* (Rover): altitudes are 0 (Rover reports its altitude above sea level as
+  GLOBAL_POSITION_INT.relative_alt, its home being at 0 m); Hold is HOLD mode; a speed
+  is sent after the position target, since Rover takes DO_CHANGE_SPEED only while it
+  drives to one; TakeOff and Land are unsupported (Rover answers NAV_TAKEOFF and NAV_LAND
+  UNSUPPORTED).
+
 Skills are bound to the vehicle through :data:`SKILL_BINDINGS` (documented in docs/run.md).
 Every failure becomes a result, never an exception: ``rejected`` (the vehicle refused: the
 COMMAND_ACK or MISSION_ACK result is the detail), ``timeout``, ``unsupported`` (the vehicle
@@ -64,10 +80,17 @@ from typing import Any
 
 from tml.errors import CommandRejected, MissionTransferError, VehicleError, VehicleTimeout
 from tml.geo import to_global, to_local
+from tml.kinds import HANDLING, Kind, kind_of
 from tml.mavlink import codec
 from tml.mavlink.codec import mavlink
 from tml.mavlink.command import CommandLong
-from tml.mavlink.compile import SPEED_TYPES, CompiledMission, CompileError, compile_mission
+from tml.mavlink.compile import (
+    SPEED_TYPES,
+    CompiledMission,
+    CompileError,
+    compile_mission,
+    glide_items,
+)
 from tml.mavlink.link import Link
 from tml.mavlink.modes import mode_names
 from tml.mavlink.telemetry import COMPANION_COMPONENT, Telemetry
@@ -75,6 +98,7 @@ from tml.mavlink.vehicle import DEFAULT_RATES, Vehicle
 from tml.vehicle import (
     Arm,
     Camera,
+    Circle,
     Disarm,
     Flip,
     FlyMission,
@@ -257,6 +281,7 @@ class MavlinkVehicle:
         self._companion_seen = False
         self._target: tuple[float, float, float] | None = None  # lat, lon, alt kept in GUIDED
         self._target_sent = 0.0
+        self._ground_speed: float | None = None  # a rover's speed, sent with each target
         link.listen(self._on_message)
         self._worker = threading.Thread(target=self._work, daemon=True,
                                         name=f"vehicle {system_id}")
@@ -288,6 +313,8 @@ class MavlinkVehicle:
         now = self.clock()
         home = _home(t)
         position = self._local_position(t, home)
+        if position is not None and kind_of(t.airframe) is Kind.GROUND:
+            position = (position[0], position[1], 0.0)  # see the module docstring
         velocity = t.velocity or (0.0, 0.0, 0.0)
         landed = t.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND \
             if t.landed_state else not t.armed
@@ -536,7 +563,20 @@ class MavlinkVehicle:
     def _disarm(self, request: Disarm) -> None:
         self.mav.disarm()
 
+    def _kind(self) -> Kind:
+        return kind_of(self.link.telemetry(self.system_id).airframe)
+
     def _take_off(self, request: TakeOff) -> None:
+        kind = self._kind()
+        if kind is Kind.GROUND:
+            raise _Unsupported("a ground vehicle does not take off")
+        if kind is Kind.FIXED_WING:
+            self._write_param("TKOFF_ALT", request.altitude, AUTOPILOT)
+            self._end_plan()
+            self.mav.set_mode("TAKEOFF")
+            if not self.link.telemetry(self.system_id).armed:
+                self.mav.arm()
+            return
         for attempt in range(TAKEOFF_ATTEMPTS):
             try:
                 self.mav.takeoff(request.altitude)
@@ -551,11 +591,30 @@ class MavlinkVehicle:
 
     def _go_to(self, request: GoTo) -> None:
         home = self._require_home()
-        self._guided()
-        if request.speed:
-            self.mav.change_speed(request.speed)
         latitude, longitude, _ = _global(request.target, home)
+        kind = self._kind()
+        if kind is Kind.FIXED_WING:
+            self._end_plan()
+            self.mav.reposition(latitude, longitude, request.target[2],
+                                radius=HANDLING[kind].loiter_radius)
+            if request.speed:
+                self.mav.change_speed(request.speed, ground=False)
+            return
+        self._guided()
+        if request.speed and kind is not Kind.GROUND:
+            self.mav.change_speed(request.speed)
         self._aim(latitude, longitude, request.target[2])
+        speed = request.speed or self._ground_speed
+        if speed and kind is Kind.GROUND:
+            self.mav.change_speed(speed)
+
+    def _circle(self, request: Circle) -> None:
+        if self._kind() is not Kind.FIXED_WING:
+            raise _Unsupported("only a fixed-wing circles on its own; a multicopter or a "
+                               "ground vehicle is sent round the circle point by point")
+        self._end_plan()
+        latitude, longitude, _ = _global(request.centre, self._require_home())
+        self.mav.reposition(latitude, longitude, request.centre[2], radius=request.radius)
 
     def _set_yaw(self, request: SetYaw) -> None:
         self.mav.yaw(abs(request.heading) if request.relative else request.heading % 360.0,
@@ -566,6 +625,19 @@ class MavlinkVehicle:
         t = self.link.telemetry(self.system_id)
         if not t.armed or t.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND:
             return
+        kind = self._kind()
+        if kind is Kind.GROUND:
+            self._end_plan()
+            self.mav.set_mode("HOLD")
+            return
+        if kind is Kind.FIXED_WING:  # circle where it is
+            state = self.state()
+            if state.position is not None:
+                self._end_plan()
+                latitude, longitude, _ = _global(state.position, self._require_home())
+                self.mav.reposition(latitude, longitude, state.position[2],
+                                    radius=HANDLING[kind].loiter_radius)
+            return
         if t.mode != "GUIDED":
             self._guided()  # ArduCopter stops at its stopping point on entering GUIDED
             return
@@ -575,14 +647,34 @@ class MavlinkVehicle:
             self._aim(latitude, longitude, state.position[2])
 
     def _land(self, request: Land) -> None:
+        kind = self._kind()
+        if kind is Kind.GROUND:
+            raise _Unsupported("a ground vehicle does not land")
+        if kind is Kind.FIXED_WING:
+            self._glide(request.touchdown)
+            return
         self._end_plan()
-        self.mav.land()
+        self.mav.land()  # where it is: the scripts fly a multicopter over its touchdown
+
+    def _glide(self, touchdown: tuple[float, float, float] | None) -> None:
+        """A fixed-wing's landing: the approach and NAV_LAND uploaded and flown in AUTO."""
+        home, state = self._require_home(), self.state()
+        if state.position is None:
+            raise VehicleError("the vehicle's position is not known yet", self.system_id)
+        items = glide_items(home, state.position, state.heading, touchdown)
+        self._end_plan()
+        self.mav.upload(items)
+        self.mav.set_mode("AUTO")
+        self.mav.start_mission(1 if self.mav.keeps_home_in_item_zero else 0)
 
     def _return_to_launch(self, request: ReturnToLaunch) -> None:
         self._end_plan()
         self.mav.return_to_launch()
 
     def _set_speed(self, request: SetSpeed) -> None:
+        if self._kind() is Kind.GROUND and request.kind in ("airspeed", "ground"):
+            self._ground_speed = request.speed  # sent with the next position target
+            return
         self.mav.command(CommandLong(mavlink.MAV_CMD_DO_CHANGE_SPEED,
                                      SPEED_TYPES.get(request.kind, 1), request.speed, -1))
 
@@ -629,7 +721,8 @@ class MavlinkVehicle:
             self.ready_timeout)
         home = self._require_home()
         state = self.state()
-        compiled = compile_mission(request.actions, home, request.start, state.heading)
+        compiled = compile_mission(request.actions, home, request.start, state.heading,
+                                   kind_of(state.vehicle_type))
         self._end_plan()
         self.mav.upload(list(compiled.items))
         plan = _Plan(request.plan_id, compiled, 1 if self.mav.keeps_home_in_item_zero else 0)
@@ -748,6 +841,7 @@ _HANDLERS: dict[type, Callable[[MavlinkVehicle, Any], str | None]] = {
     GoTo: MavlinkVehicle._go_to, SetYaw: MavlinkVehicle._set_yaw,
     Hold: MavlinkVehicle._hold, Land: MavlinkVehicle._land,
     ReturnToLaunch: MavlinkVehicle._return_to_launch, SetSpeed: MavlinkVehicle._set_speed,
+    Circle: MavlinkVehicle._circle,
     Camera: MavlinkVehicle._camera, Gripper: MavlinkVehicle._gripper,
     SetHome: MavlinkVehicle._set_home, SetSkill: MavlinkVehicle._set_skill,
     FlyMission: MavlinkVehicle._fly_mission, Flip: MavlinkVehicle._flip,

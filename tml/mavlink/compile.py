@@ -18,6 +18,11 @@ and MISSION_ITEM_REACHED tell the interpreter which action is being flown.
 
 The table of what each action becomes is in docs/run.md. The module is pure: no I/O, no
 clock; pymavlink is used for the MAV_CMD and MAV_FRAME numbers only.
+
+For a fixed-wing (:mod:`tml.kinds`) the landings (LAND, LANDING_POINT,
+RETURN_HOME_AND_LAND) become a landing sequence, as ArduPlane lands: a waypoint where the
+final approach starts and NAV_LAND at the touchdown (:func:`glide_items`); ArduPlane's
+NAV_RETURN_TO_LAUNCH would only circle home.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ from dataclasses import dataclass, field
 
 from tml.actions import BoundAction
 from tml.geo import to_global, to_local
+from tml.kinds import Kind, landing_approach
 from tml.mavlink.codec import mavlink
 from tml.mavlink.mission import LOITER_TURNS_MAX, MissionItem
 from tml.world import Home
@@ -81,6 +87,7 @@ class _Builder:
     items: list[MissionItem] = field(default_factory=list)
     owners: list[int] = field(default_factory=list)
     action: int = 0
+    kind: Kind = Kind.MULTICOPTER
 
     def add(self, command: int, *, point: Point | None = None, reference: str = "relative",
             params: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0),
@@ -109,13 +116,16 @@ class _Builder:
 
 
 def compile_mission(actions: tuple[BoundAction, ...] | list[BoundAction], home: Home,
-                    start: Point, heading: float = 0.0) -> CompiledMission:
-    """Mission items for ``actions`` flown from ``start`` (local) facing ``heading``.
+                    start: Point, heading: float = 0.0,
+                    kind: Kind = Kind.MULTICOPTER) -> CompiledMission:
+    """Mission items for ``actions`` flown from ``start`` (local) facing ``heading`` by a
+    vehicle of ``kind``.
 
     Raises :class:`CompileError` for an action that has no mission-item form or whose
     argument is a label the interpreter did not resolve.
     """
-    builder = _Builder(home, _Cursor(tuple(start), heading))  # type: ignore[arg-type]
+    builder = _Builder(home, _Cursor(tuple(start), heading),  # type: ignore[arg-type]
+                       kind=kind)
     for index, action in enumerate(actions):
         builder.action = index
         if action.labels.keys() - action.values.keys():
@@ -177,7 +187,28 @@ def _take_off(b: _Builder, action: BoundAction) -> None:
     b.cursor.position = (n, e, altitude)
 
 
+def _glide(b: _Builder, touchdown: Point | None) -> None:
+    """A fixed-wing's landing sequence from the cursor: to where the approach starts, then
+    NAV_LAND at the touchdown (ArduPlane descends along the line between the two)."""
+    approach, ground = landing_approach(b.cursor.position, b.cursor.heading, touchdown)
+    b.waypoint(approach)
+    b.add(mavlink.MAV_CMD_NAV_LAND, point=ground)
+    b.cursor.position = ground
+
+
+def glide_items(home: Home, here: Point, heading: float,
+                touchdown: Point | None) -> list[MissionItem]:
+    """The landing sequence of a fixed-wing at ``here`` facing ``heading`` (items 0..N-1):
+    straight ahead without a ``touchdown``, else into it."""
+    builder = _Builder(home, _Cursor(here, heading), kind=Kind.FIXED_WING)
+    _glide(builder, touchdown)
+    return builder.items
+
+
 def _land(b: _Builder, action: BoundAction) -> None:
+    if b.kind is Kind.FIXED_WING:
+        _glide(b, None)
+        return
     b.add(mavlink.MAV_CMD_NAV_LAND, point=b.cursor.position)
     b.cursor.position = (*b.cursor.position[:2], 0.0)
 
@@ -259,6 +290,9 @@ def _landing_point(b: _Builder, action: BoundAction) -> None:
         point, reference = _global_point(b, action)
     else:
         point, reference = _point(action, "coordinates") or b.cursor.position, "relative"
+    if b.kind is Kind.FIXED_WING:
+        _glide(b, (point[0], point[1], 0.0))
+        return
     _land_at(b, action, point, reference)
 
 
@@ -286,6 +320,9 @@ def _return_home_and_loiter(b: _Builder, action: BoundAction) -> None:
 
 
 def _return_home_and_land(b: _Builder, action: BoundAction) -> None:
+    if b.kind is Kind.FIXED_WING:
+        _glide(b, (0.0, 0.0, 0.0))
+        return
     if action.get("yaw") is None and action.get("precision_mode", "disabled") == "disabled":
         b.add(mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH)
         b.cursor.position = (0.0, 0.0, 0.0)

@@ -224,11 +224,15 @@ class Vehicle:
                                  1 if clockwise else -1, 1 if relative else 0))
 
     def reposition(self, latitude: float, longitude: float, altitude: float,
-                   speed: float = -1) -> None:
-        """Fly to a point (altitude above home) in GUIDED with DO_REPOSITION, acknowledged."""
+                   speed: float = -1, radius: float = 0.0) -> None:
+        """Fly to a point (altitude above home) in GUIDED with DO_REPOSITION, acknowledged.
+
+        ``radius`` (m, 0: the vehicle's default) is the circle ArduPlane loiters on there,
+        clockwise (param4, the yaw, left NaN: ArduPlane reads it as clockwise).
+        """
         self.command(CommandInt(mavlink.MAV_CMD_DO_REPOSITION,
                                 mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, speed,
-                                mavlink.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE, 0, math.nan,
+                                mavlink.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE, radius, math.nan,
                                 round(latitude * 1e7), round(longitude * 1e7), altitude))
 
     def position_target(self, latitude: float, longitude: float, altitude: float,

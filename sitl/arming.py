@@ -33,7 +33,7 @@ from __future__ import annotations
 
 from typing import Protocol
 
-from sitl.modes import ARMABLE, NEEDS_POSITION
+from sitl.modes import ModeTable
 
 # (ArduCopter's time in s at which the check passes, its failure), in ArduCopter's order;
 # the inertial sensors report one failure at a time (accelerometers before gyros).
@@ -52,6 +52,7 @@ class Vehicle(Protocol):
 
     time: float
     mode: str
+    mode_table: ModeTable  # the vehicle kind's modes: where it arms, which need a position
     armed: bool
     origin_set: bool
     position_ok: bool
@@ -70,13 +71,13 @@ def failures(v: Vehicle, ekf_gps_time: float) -> list[str]:
     if v.time < READY_AT * scale:
         return ["System not initialised"]
     found = []
-    if v.mode not in ARMABLE:
+    if v.mode not in v.mode_table.armable:
         found.append(MODE_NOT_ARMABLE)
     inertial = [failure for passes_at, failure in INERTIAL_STAGES if v.time < passes_at * scale]
     found += inertial[:1]
     if v.time < ATTITUDE_AT[0] * scale:
         found.append(ATTITUDE_AT[1])
-    if v.mode in NEEDS_POSITION:
+    if v.mode in v.mode_table.needs_position:
         if not v.origin_set:
             found.append("AHRS: waiting for home")
         elif not v.position_ok:

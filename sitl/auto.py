@@ -25,6 +25,11 @@ positive (-1: no change) changes nothing (``ModeAuto::do_change_speed``).
 
 The executor moves nothing itself: it tells the vehicle what to do through the
 :class:`Pilot` interface (fly to, circle, land, return home) and asks it where it is.
+How each of those is flown is the vehicle's: a fixed-wing (``lands_vertically`` False)
+starts NAV_LAND's glide at once instead of flying over the point first, and one that
+``orbits`` circles a loiter item's centre at its radius itself, the turns being counted
+at its own rate around the circle; NAV_RETURN_TO_LAUNCH is done when the vehicle says it
+has ``returned`` (landed, for a multicopter).
 """
 
 from __future__ import annotations
@@ -71,9 +76,15 @@ class Pilot(Protocol):
     control_period: float  # seconds per control step
     position: Vector
     heading: float
+    lands_vertically: bool
+    orbits: bool
 
     def item_position(self, item: MissionItem) -> Vector: ...
     def fly_to(self, target: Vector) -> None: ...
+    def take_off(self, target: Vector) -> None: ...
+    def loiter_at(self, centre: Vector, radius: float, clockwise: bool) -> None: ...
+    def circle_rate(self, radius: float) -> float: ...
+    def returned(self) -> bool: ...
     def hold(self) -> None: ...
     def land_at(self, north: float, east: float) -> None: ...
     def return_home(self) -> None: ...
@@ -180,7 +191,9 @@ class AutoMission:
         if item.command == NAV_TAKEOFF:
             here = pilot.position
             nav.target = (here[0], here[1], nav.target[2])
-        elif item.command == NAV_RETURN_TO_LAUNCH:
+            pilot.take_off(nav.target)
+            return
+        if item.command == NAV_RETURN_TO_LAUNCH:
             pilot.return_home()
             return
         elif item.command == NAV_DELAY:
@@ -194,6 +207,10 @@ class AutoMission:
                 pilot.land_at(here[0], here[1])
                 nav.phase = "descend"
                 return
+            if not pilot.lands_vertically:  # glides down to the point from here
+                pilot.land_at(nav.target[0], nav.target[1])
+                nav.phase = "descend"
+                return
             nav.target = (nav.target[0], nav.target[1], here[2])
         pilot.fly_to(nav.target)
 
@@ -201,7 +218,7 @@ class AutoMission:
         item, pilot = self.items[nav.index], self.pilot
         command = item.command
         if command == NAV_RETURN_TO_LAUNCH:
-            return pilot.has_landed()
+            return pilot.returned()
         if command == NAV_DELAY:
             return pilot.time - nav.since >= item.param1
         if nav.phase == "descend":
@@ -220,6 +237,9 @@ class AutoMission:
                 return False
             if command == NAV_LOITER_TURNS:
                 nav.phase = "circle"
+            if pilot.orbits and command in (NAV_LOITER_UNLIM, NAV_LOITER_TIME,
+                                            NAV_LOITER_TURNS):
+                pilot.loiter_at(nav.target, abs(item.param3), item.param3 >= 0)
         if command == NAV_WAYPOINT:
             return pilot.time - nav.since >= item.param1
         if command == NAV_LOITER_TIME:
@@ -231,8 +251,9 @@ class AutoMission:
     def _circle(self, nav: _Nav, item: MissionItem) -> bool:
         radius = abs(item.param3) or 10.0
         clockwise = item.param3 >= 0
-        rate = min(20.0, math.degrees(5.0 / radius))  # ArduCopter's CIRCLE_RATE, 5 m/s cap
-        nav.angle += rate * self.pilot.control_period
+        nav.angle += self.pilot.circle_rate(radius) * self.pilot.control_period
+        if self.pilot.orbits:  # it flies the circle itself
+            return nav.angle >= 360.0 * max(item.param1, 0.0)
         if nav.angle >= 360.0 * max(item.param1, 0.0):
             self.pilot.fly_to(nav.target)
             return True

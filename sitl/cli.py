@@ -81,9 +81,9 @@ def _rejection(text: str) -> tuple[int, int]:
 
 
 def param_setting(text: str) -> tuple[str, float]:
-    """``NAME=VALUE`` -> (NAME, value) for a vehicle parameter the simulator has (an
-    argparse type, shared with ``tml run --sim-param``)."""
-    from sitl.params import AUTOPILOT_DEFAULTS
+    """``NAME=VALUE`` -> (NAME, value) for a vehicle parameter the simulator has, on any
+    of its frames (an argparse type, shared with ``tml run --sim-param``)."""
+    from sitl.params import AUTOPILOT_DEFAULTS, PLANE_DEFAULTS, ROVER_DEFAULTS
 
     name, _, value = text.partition("=")
     name = name.strip().upper()
@@ -91,10 +91,20 @@ def param_setting(text: str) -> tuple[str, float]:
         number = float(value)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected NAME=NUMBER, got {text!r}") from None
-    if name not in {known for known, _, _ in AUTOPILOT_DEFAULTS}:
+    tables = (AUTOPILOT_DEFAULTS, PLANE_DEFAULTS, ROVER_DEFAULTS)
+    if name not in {known for table in tables for known, _, _ in table}:
         raise argparse.ArgumentTypeError(f"unknown simulator parameter {name!r} "
                                          "(sitl/params.py lists them)")
     return name, number
+
+
+def _frames(text: str) -> list[str]:
+    from sitl.frames import parse_frames
+
+    try:
+        return parse_frames(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 def _udp(text: str) -> str:
@@ -111,9 +121,13 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``python -m sitl`` (also used by ``tml sim``)."""
     parser = argparse.ArgumentParser(
         prog="python -m sitl",
-        description="Simulated ArduCopter vehicles speaking MAVLink 2 over TCP and UDP.",
+        description="Simulated ArduPilot vehicles (Copter, Plane, Rover) speaking MAVLink 2 "
+                    "over TCP and UDP.",
     )
     parser.add_argument("--vehicles", type=_count, default=1, help="number of vehicles (ids 1..N)")
+    parser.add_argument("--frame", type=_frames, default=["copter"], metavar="FRAME[,FRAME...]",
+                        help="copter (default), plane or rover; a list gives vehicle 1, 2 ... "
+                             "theirs, the last repeating (e.g. copter,rover)")
     parser.add_argument("--home", type=_home, help="lat,lon,alt[,heading] of vehicle 1")
     parser.add_argument("--speedup", type=_positive, default=1.0, help="times faster than real")
     parser.add_argument("--world", help="world file (obstacles, geofence, objects, home)")
@@ -173,12 +187,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         outages=tuple(args.outage), reject_commands=dict(args.reject),
         gps_loss_at=args.gps_loss_at, battery_failure_at=args.battery_failure_at,
     )
+    from sitl.frames import frame_of
     from sitl.server import Simulator
 
     simulator = Simulator(
         vehicles=args.vehicles, home=args.home, speedup=args.speedup, seed=args.seed,
         world=world, faults=faults, tcp_base_port=args.tcp_base_port, udp_out=args.out,
-        bind=args.bind, params=dict(args.param),
+        bind=args.bind, params=dict(args.param), frames=args.frame,
     )
     try:
         simulator.start()
@@ -197,7 +212,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 where += [f"udp out {a} from port {udp[index]}" for a in args.out]
             home = model.home
             print(f"vehicle {model.system_id}: {', '.join(where) or 'no link'} "
-                  f"(home {home.latitude:.7f},{home.longitude:.7f},{home.altitude:.1f}; "
+                  f"({frame_of(args.frame, index)}; "
+                  f"home {home.latitude:.7f},{home.longitude:.7f},{home.altitude:.1f}; "
                   f"speedup {args.speedup:g})", flush=True)
         while not stop.wait(0.2):
             pass

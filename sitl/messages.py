@@ -22,7 +22,7 @@ from typing import Any, Protocol
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from sitl.arming import ATTITUDE_AT
-from sitl.modes import GUIDED_FLAG_MODES, MODES
+from sitl.modes import ModeTable
 from sitl.physics import Battery
 from tml.world import Home
 
@@ -56,6 +56,9 @@ class Source(Protocol):
     """What the builders read from a vehicle (positions in metres north/east/up of origin)."""
 
     system_id: int
+    mav_type: int  # HEARTBEAT type: QUADROTOR, FIXED_WING, GROUND_ROVER
+    mode_table: ModeTable
+    reports_landed_state: bool  # False: EXTENDED_SYS_STATE says UNDEFINED (Rover)
     time: float
     mode: str
     armed: bool
@@ -107,16 +110,17 @@ def _quaternion(heading: float) -> list[float]:
 
 
 def heartbeat(v: Source) -> Any:
-    """HEARTBEAT: quadrotor, ArduPilot, the mode number; CRITICAL during a failsafe."""
+    """HEARTBEAT: the vehicle's type, ArduPilot, the mode number; CRITICAL during a
+    failsafe."""
     base = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | M.MAV_MODE_FLAG_STABILIZE_ENABLED
-    if v.mode in GUIDED_FLAG_MODES:
+    if v.mode in v.mode_table.guided_flag:
         base |= M.MAV_MODE_FLAG_GUIDED_ENABLED
     if v.armed:
         base |= M.MAV_MODE_FLAG_SAFETY_ARMED
     state = M.MAV_STATE_BOOT if not v.booted else M.MAV_STATE_CRITICAL if v.in_failsafe else (
         M.MAV_STATE_ACTIVE if v.armed else M.MAV_STATE_STANDBY)
-    return M.MAVLink_heartbeat_message(M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_ARDUPILOTMEGA,
-                                       base, MODES[v.mode], state, 3)
+    return M.MAVLink_heartbeat_message(v.mav_type, M.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                                       base, v.mode_table.numbers[v.mode], state, 3)
 
 
 def sys_status(v: Source) -> Any:
@@ -192,8 +196,11 @@ def vfr_hud(v: Source) -> Any:
 
 
 def extended_sys_state(v: Source) -> Any:
-    """EXTENDED_SYS_STATE: on the ground, taking off, in the air or landing."""
-    if v.landed:
+    """EXTENDED_SYS_STATE: on the ground, taking off, in the air or landing (undefined for
+    a vehicle that never leaves the ground, as Rover says)."""
+    if not v.reports_landed_state:
+        state = M.MAV_LANDED_STATE_UNDEFINED
+    elif v.landed:
         state = M.MAV_LANDED_STATE_ON_GROUND
     elif v.landing:
         state = M.MAV_LANDED_STATE_LANDING

@@ -48,14 +48,7 @@ from sitl.companion import Companion
 from sitl.faults import Faults
 from sitl.messages import AUTOPILOT, COMPANION, stamp, statustext, targets
 from sitl.missions import FENCE, MISSION, MissionServer
-from sitl.modes import (
-    FLIP_FROM,
-    FLIP_NEEDS_THROTTLE,
-    MODE_NAMES,
-    MODES,
-    NEEDS_POSITION,
-    PILOT_MODES,
-)
+from sitl.modes import COPTER, FLIP_FROM, FLIP_NEEDS_THROTTLE, PILOT_MODES, ModeTable
 from sitl.obstacles import Obstacles
 from sitl.params import AUTOPILOT_DEFAULTS, Params, param_replies
 from sitl.physics import Battery, Body, Limits, flight_current
@@ -91,7 +84,20 @@ class VehicleModel:
     shorten the start-up delays); ``faults`` supplies command rejection, GPS loss and
     battery failure. State for inspection: ``mode``, ``armed``, ``landed``, ``position``,
     ``battery_remaining``, ``time``, ``mission_items``, ``home``.
+
+    Other kinds of vehicle (:mod:`sitl.plane`, :mod:`sitl.rover`) subclass it: the class
+    attributes say what a ground station sees (HEARTBEAT type, mode table, parameters),
+    and the movement (:meth:`_fly`, :meth:`_enter`, RTL, touch-down, auto-disarm and the
+    Pilot methods the AUTO executor calls) is theirs.
     """
+
+    mav_type: int = M.MAV_TYPE_QUADROTOR
+    mode_table: ModeTable = COPTER
+    parameter_table = AUTOPILOT_DEFAULTS
+    reports_landed_state = True  # EXTENDED_SYS_STATE says on the ground, in the air ...
+    initial_mode = "STABILIZE"  # the mode it is in when it says "ArduPilot Ready"
+    lands_vertically = True  # NAV_LAND: over the point first, then straight down
+    orbits = False  # circles natively (a fixed-wing); else flies round a moving point
 
     def __init__(
         self, system_id: int, home: Home, world: World | None = None, seed: int = 0,
@@ -103,7 +109,7 @@ class VehicleModel:
         self.world = world or World(home=home)
         self.faults = faults or Faults(seed=seed)
         self.params = Params(
-            AUTOPILOT_DEFAULTS, {"MAV_SYSID": system_id, "SYSID_THISMAV": system_id,
+            self.parameter_table, {"MAV_SYSID": system_id, "SYSID_THISMAV": system_id,
                                  **(params or {})}
         )
         if self.world.geofence is not None and "FENCE_ENABLE" not in (params or {}):
@@ -114,7 +120,7 @@ class VehicleModel:
                                self.params["SIM_BATT_CAP_AH"] * 1000.0)
         self.missions = MissionServer(self._home_item, self._list_changed)
         self.companion = Companion(system_id, self.world, self._nearest_obstacle)
-        self.mode = "STABILIZE"
+        self.mode = self.initial_mode
         self.armed = False
         self.booted = False  # past the boot: "ArduPilot Ready"
         self.origin_set = False  # the EKF origin (and the first home) exists
@@ -263,7 +269,7 @@ class VehicleModel:
         if kind in ("COMMAND_LONG", "COMMAND_INT"):
             return self._command(msg)
         if kind == "SET_MODE":
-            ok = self.set_mode(MODE_NAMES.get(msg.custom_mode, ""))
+            ok = self.set_mode(self.mode_table.names.get(msg.custom_mode, ""))
             result = M.MAV_RESULT_ACCEPTED if ok else M.MAV_RESULT_FAILED
             return [M.MAVLink_command_ack_message(M.MAVLINK_MSG_ID_SET_MODE, result)]
         if kind == "RC_CHANNELS_OVERRIDE":
@@ -302,7 +308,7 @@ class VehicleModel:
         if command == M.MAV_CMD_DO_SET_MODE:
             if not round(p[0]) & M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
                 return M.MAV_RESULT_UNSUPPORTED
-            return ok if self.set_mode(MODE_NAMES.get(round(p[1]), "")) else failed
+            return ok if self.set_mode(self.mode_table.names.get(round(p[1]), "")) else failed
         if command == M.MAV_CMD_NAV_TAKEOFF:
             return ok if self._takeoff(p[6]) else failed
         if command == M.MAV_CMD_NAV_LAND:
@@ -383,13 +389,13 @@ class VehicleModel:
     # ------------------------------------------------------------ modes and arming
     def set_mode(self, name: str) -> bool:
         """Change flight mode as ArduCopter would; False (with a STATUSTEXT) when refused."""
-        if name not in MODES:
+        if name not in self.mode_table.numbers:
             return False
         if name == self.mode:  # as ArduCopter: already there, nothing restarts
             return True
         # As ArduCopter's Copter::set_mode, a disarmed vehicle enters any mode (the arming
         # checks then refuse to arm without a position); an armed one needs the position.
-        if self.armed and name in NEEDS_POSITION and not self.position_ok:
+        if self.armed and name in self.mode_table.needs_position and not self.position_ok:
             self._text(M.MAV_SEVERITY_WARNING, f"Mode change to {name} failed: requires position")
             return False
         if name == "AUTO" and self.armed and self.landed and not self._starts_with_takeoff():
@@ -406,6 +412,11 @@ class VehicleModel:
         self._rtl_phase = ""
         self.roll = self.pitch = 0.0
         self._announce_mode()
+        self._enter(name, previous, flying)
+        return True
+
+    def _enter(self, name: str, previous: str, flying: bool) -> None:
+        """What the vehicle starts doing in mode ``name`` (entered from ``previous``)."""
         if name == "FLIP":  # turn once around, then back to ``previous``
             self._flip = (previous, 0.0, *self._flip_direction(), self.time)
             self.body.stop()
@@ -417,7 +428,6 @@ class VehicleModel:
             self._start_rtl()
         elif name == "AUTO":
             self._start_auto(self._mission_current or 1)
-        return True
 
     def _announce_mode(self) -> None:
         # ArduCopter's Copter::set_mode sends a HEARTBEAT at once after every successful
@@ -470,8 +480,8 @@ class VehicleModel:
         # As ArduCopter: a mode selected while booting gives way to the initial one.
         self.booted = True
         self._text(M.MAV_SEVERITY_INFO, "ArduPilot Ready")
-        if not self.armed and self.mode != "STABILIZE":
-            self.set_mode("STABILIZE")
+        if not self.armed and self.mode != self.initial_mode:
+            self.set_mode(self.initial_mode)
 
     def _report_prearm(self) -> None:
         if self.armed or not self._prearm.due(self.time):
@@ -510,15 +520,19 @@ class VehicleModel:
             return M.MAV_RESULT_FAILED
         if self.mode != "GUIDED" and not self.set_mode("GUIDED"):
             return M.MAV_RESULT_FAILED
+        self._go(self._reposition_target(p))
+        return M.MAV_RESULT_ACCEPTED
+
+    def _reposition_target(self, p: list[float]) -> Vector:
+        """DO_REPOSITION's point (latitude and longitude 0: here; altitude NaN: the present
+        one); its speed (param1), when positive, becomes the vehicle's."""
         here = self.position
         north, east = here[:2]
         if p[4] or p[5]:
             north, east, _ = self._local(p[4], p[5], self.origin.altitude)
-        up = here[2] if math.isnan(p[6]) else p[6]
         if p[0] > 0:
             self._speed = p[0]
-        self._go((north, east, up))
-        return M.MAV_RESULT_ACCEPTED
+        return north, east, here[2] if math.isnan(p[6]) else p[6]
 
     def _guided_ready(self) -> bool:
         return self.mode == "GUIDED" and self.armed and not self.landed
@@ -577,6 +591,23 @@ class VehicleModel:
     def fly_to(self, target: Vector) -> None:
         """Fly to ``target`` and hold there."""
         self._go(target)
+
+    def take_off(self, target: Vector) -> None:
+        """NAV_TAKEOFF: climb to ``target`` (straight up for a multicopter)."""
+        self._go(target)
+
+    def loiter_at(self, centre: Vector, radius: float, clockwise: bool) -> None:
+        """Circle ``centre`` (a vehicle that :attr:`orbits`); a multicopter holds it."""
+        self._go(centre)
+
+    def circle_rate(self, radius: float) -> float:
+        """Degrees per second around a loiter circle (ArduCopter's CIRCLE_RATE of 20, at
+        most 5 m/s along the circle)."""
+        return min(20.0, math.degrees(5.0 / radius))
+
+    def returned(self) -> bool:
+        """NAV_RETURN_TO_LAUNCH is done: for a multicopter, landed at home."""
+        return self.landed
 
     def hold(self) -> None:
         """Stop and hold the present position."""
@@ -675,6 +706,10 @@ class VehicleModel:
             wind = self.params["SIM_WIND_SPD"]
             self.battery.drain(TICK, flight_current(
                 self.armed, not self.landed, self.body.velocity, wind))
+        self._auto_disarm()
+
+    def _auto_disarm(self) -> None:
+        """ArduCopter disarms DISARM_DELAY s after landing, or when armed idle on the ground."""
         if self.armed and self.landed and self._target is None and self._landing is None:
             if self.time - self._idle_since >= self.params["DISARM_DELAY"] > 0:
                 self.disarm()
@@ -902,7 +937,7 @@ class VehicleModel:
         if self._gps_lost and "ekf" not in self._failsafes:
             self._failsafes.add("ekf")
             self._text(M.MAV_SEVERITY_CRITICAL, "GPS Glitch or Compass error")
-            if self.armed and not self.landed and self.mode in NEEDS_POSITION:
+            if self.armed and not self.landed and self.mode in self.mode_table.needs_position:
                 self._text(M.MAV_SEVERITY_CRITICAL, "EKF Failsafe: changed to LAND Mode")
                 self.mode = "LAND"
                 self._target, self._velocity, self.auto, self._rtl_phase = None, None, None, ""

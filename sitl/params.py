@@ -1,16 +1,17 @@
-"""The parameter table of a simulated vehicle and of its companion computer.
+"""The parameter tables of the simulated vehicles and of their companion computer.
 
 Names, defaults and units follow ArduCopter (centimetres and centimetres per second where
-ArduCopter uses them) so that a ground station that reads or writes them sees what it
-expects. ``SIM_*`` parameters shape the simulation itself: ``SIM_GPS_LOCKTIME``,
-``SIM_WIND_SPD``, ``SIM_WIND_DIR``, ``SIM_BATT_VOLTAGE`` and ``SIM_BATT_CAP_AH`` (the
-simulated pack's capacity; 0, the default, keeps the voltage constant as ArduPilot SITL
-does) are ArduPilot SITL's own names; ``SIM_EKF_GPS_TIME``
-(seconds from boot until the EKF uses GPS) is ours, with the delay ArduCopter SITL shows,
-and so are ``SIM_BATT_CHARGE`` (amperes a landed, disarmed vehicle takes from its charging
-pad; 0: no pad) and ``SIM_COMPANION`` (1: the vehicle carries the embedded companion
-computer, component 191; 0: it has none, and a companion attached from outside, such as
-``tml companion``, takes its place).
+ArduCopter uses them), ArduPlane and Rover, so that a ground station that reads or writes
+them sees what it expects: the plane and the rover have the parameters all three share and
+their own, never ArduCopter's (:data:`COPTER_ONLY`). ``SIM_*`` parameters shape the
+simulation itself: ``SIM_GPS_LOCKTIME``, ``SIM_WIND_SPD``, ``SIM_WIND_DIR``,
+``SIM_BATT_VOLTAGE`` and ``SIM_BATT_CAP_AH`` (the simulated pack's capacity; 0, the
+default, keeps the voltage constant as ArduPilot SITL does) are ArduPilot SITL's own
+names; ``SIM_EKF_GPS_TIME`` (seconds from boot until the EKF uses GPS) is ours, with the
+delay ArduCopter SITL shows, and so are ``SIM_BATT_CHARGE`` (amperes a landed, disarmed
+vehicle takes from its charging pad; 0: no pad) and ``SIM_COMPANION`` (1: the vehicle
+carries the embedded companion computer, component 191; 0: it has none, and a companion
+attached from outside, such as ``tml companion``, takes its place).
 
 :class:`Params` keeps the values in table order (the order PARAM_VALUE indices refer to)
 and remembers each value's MAVLink type: PARAM_SET carries a float whatever the type,
@@ -91,6 +92,56 @@ AUTOPILOT_DEFAULTS: tuple[tuple[str, float, int], ...] = (
     ("SIM_BATT_CAP_AH", 0, REAL32),
     ("SIM_BATT_CHARGE", 0, REAL32),
     ("SIM_COMPANION", 1, INT8),
+)
+
+# ArduCopter's own parameters: ArduPlane and Rover have none of them.
+COPTER_ONLY = frozenset({
+    "FRAME_CLASS", "FRAME_TYPE", "DISARM_DELAY", "WPNAV_SPEED", "WPNAV_SPEED_UP",
+    "WPNAV_SPEED_DN", "WPNAV_ACCEL", "WPNAV_ACCEL_Z", "WPNAV_RADIUS", "LOIT_SPEED",
+    "ATC_SLEW_YAW", "ATC_RATE_Y_MAX", "PILOT_SPEED_UP", "LAND_SPEED", "LAND_SPEED_HIGH",
+    "LAND_ALT_LOW", "RTL_ALT", "RTL_ALT_FINAL", "RTL_LOIT_TIME", "RTL_SPEED", "CIRCLE_RADIUS",
+    "FS_EKF_ACTION",
+})
+
+
+def _common(*own: tuple[str, float, int]) -> tuple[tuple[str, float, int], ...]:
+    """The parameters every ArduPilot vehicle has here, then a kind's ``own`` (which may
+    give a shared one another default)."""
+    mine = {name for name, _, _ in own}
+    return tuple(p for p in AUTOPILOT_DEFAULTS
+                 if p[0] not in COPTER_ONLY and p[0] not in mine) + own
+
+
+# ArduPlane with the values of ArduPilot's plane.parm (what its SITL flies with).
+PLANE_DEFAULTS = _common(
+    ("AIRSPEED_CRUISE", 22, REAL32),
+    ("AIRSPEED_MIN", 10, INT16),
+    ("AIRSPEED_MAX", 30, INT16),
+    ("ROLL_LIMIT_DEG", 65, REAL32),
+    ("TECS_CLMB_MAX", 5, REAL32),
+    ("TECS_SINK_MAX", 5, REAL32),
+    ("TKOFF_ALT", 50, REAL32),
+    ("TKOFF_DIST", 200, REAL32),
+    ("WP_RADIUS", 50, INT16),
+    ("WP_LOITER_RAD", 80, INT16),
+    ("RTL_ALTITUDE", 100, REAL32),
+    ("RTL_RADIUS", 0, INT16),
+    ("LAND_FLARE_ALT", 3, REAL32),
+    ("LAND_DISARMDELAY", 20, INT8),
+    ("GRIP_ENABLE", 0, INT8),  # no gripper fitted
+)
+# Rover with the values of ArduPilot's rover.parm.
+ROVER_DEFAULTS = _common(
+    ("FRAME_CLASS", 1, INT8),
+    ("CRUISE_SPEED", 5, REAL32),
+    ("WP_SPEED", 5, REAL32),
+    ("WP_RADIUS", 3, REAL32),
+    ("TURN_RADIUS", 0.9, REAL32),
+    ("ATC_ACCEL_MAX", 1, REAL32),
+    ("ATC_TURN_MAX_G", 0.6, REAL32),
+    ("RTL_SPEED", 0, REAL32),
+    ("MIS_DONE_BEHAVE", 0, INT8),
+    ("GRIP_ENABLE", 0, INT8),  # no gripper fitted
 )
 
 # The companion computer (component 191): one switch per TML skill, and its camera.

@@ -40,13 +40,22 @@ from typing import Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from sitl.faults import Faults, WireChannel
+from sitl.frames import FRAMES, frame_of
 from sitl.messages import AUTOPILOT
 from sitl.model import TICK, VehicleModel
+from sitl.params import UnknownParameter
 from tml.geo import to_global
 from tml.world import Home, World
 
 MAX_BACKLOG = 1 << 20  # bytes queued for a client that does not read before we drop
 VEHICLE_SPACING = 5.0  # metres east between the boot positions of consecutive vehicles
+
+
+def _own(kind: type[VehicleModel], params: dict[str, float] | None) -> dict[str, float]:
+    """The parameters of ``params`` that a vehicle of ``kind`` has (a mixed fleet is given
+    one set: a copter's WPNAV_SPEED means nothing to a rover)."""
+    names = {name for name, _, _ in kind.parameter_table}
+    return {name: value for name, value in (params or {}).items() if name in names}
 
 
 def parse_udp_address(text: str) -> tuple[str, int]:
@@ -123,13 +132,18 @@ class _Endpoint:
 
 
 class Simulator:
-    """N simulated ArduCopters served on loopback (see the module docstring)."""
+    """N simulated vehicles served on loopback (see the module docstring).
+
+    ``frames`` says which kind each vehicle is (:mod:`sitl.frames`: copter, plane, rover;
+    the last repeats); ArduCopters by default.
+    """
 
     def __init__(
         self, vehicles: int = 1, home: Home | None = None, speedup: float = 1.0, seed: int = 0,
         world: World | None = None, faults: Faults | None = None,
         tcp_base_port: int | None = 5760, udp_out: list[str] | tuple[str, ...] = (),
         bind: str = "127.0.0.1", realtime: bool = True, params: dict[str, float] | None = None,
+        frames: list[str] | tuple[str, ...] = (),
     ) -> None:
         if vehicles < 1:
             raise ValueError("at least one vehicle is needed")
@@ -143,12 +157,18 @@ class Simulator:
         self.faults = faults or Faults(seed=seed)
         world = world or World()
         base = home or world.home_or_default
+        kinds = {FRAMES[frame_of(frames, index)] for index in range(vehicles)}
+        known = {name for kind in kinds for name, _, _ in kind.parameter_table}
+        for name in params or {}:
+            if name not in known:
+                raise UnknownParameter(name)
         self._endpoints: list[_Endpoint] = []
         for index in range(vehicles):
             lat, lon, alt = to_global(0.0, VEHICLE_SPACING * index, 0.0,
                                       base.latitude, base.longitude, base.altitude)
             own_home = replace(base, latitude=lat, longitude=lon, altitude=alt)
-            model = VehicleModel(index + 1, own_home, world, seed, params, self.faults)
+            kind = FRAMES[frame_of(frames, index)]
+            model = kind(index + 1, own_home, world, seed, _own(kind, params), self.faults)
             self._endpoints.append(_Endpoint(model, self.faults))
         self.time = 0.0
         self._ticks = 0

@@ -22,6 +22,7 @@ from sitl.cli import main
     (["--reject", "arm"], "CMD_ID"),
     (["--param", "BATT_CAPACITY=big"], "NAME=NUMBER"),
     (["--param", "NO_SUCH_PARAM=1"], "unknown simulator parameter 'NO_SUCH_PARAM'"),
+    (["--frame", "copter,blimp"], "unknown frame 'blimp'"),
 ])
 def test_bad_arguments_exit_2_with_a_reason(argv, message, capsys):
     assert main(argv) == 2
@@ -37,12 +38,13 @@ def test_missing_world_file_exits_2(capsys, tmp_path):
 def test_runs_prints_where_it_listens_and_stops_on_signal(sig):
     process = subprocess.Popen(
         [sys.executable, "-m", "sitl", "--vehicles", "2", "--tcp-base-port", "0",
-         "--speedup", "5"],
+         "--speedup", "5", "--frame", "plane,rover"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         lines = [process.stdout.readline() for _ in range(2)]
         assert lines[0].startswith("vehicle 1: tcp:127.0.0.1:")
         assert lines[1].startswith("vehicle 2: tcp:127.0.0.1:")
+        assert "(plane; home" in lines[0] and "(rover; home" in lines[1]
         process.send_signal(sig)
         assert process.wait(timeout=10) == 0
     finally:

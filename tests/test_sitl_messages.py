@@ -10,6 +10,7 @@ from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as M
 
 from sitl import messages
+from sitl.modes import COPTER, PLANE, ROVER, ModeTable
 from sitl.physics import Battery
 from tml.geo import to_global
 from tml.world import DEFAULT_HOME, Home
@@ -22,6 +23,9 @@ class State:
     """A vehicle state with everything :class:`sitl.messages.Source` reads."""
 
     system_id: int = 1
+    mav_type: int = M.MAV_TYPE_QUADROTOR
+    mode_table: ModeTable = COPTER
+    reports_landed_state: bool = True
     time: float = 50.0
     mode: str = "STABILIZE"
     armed: bool = False
@@ -54,6 +58,21 @@ class State:
 
     def mission_status(self) -> tuple[int, int, int]:
         return self.mission
+
+
+def test_heartbeat_of_a_plane_and_a_rover_has_their_type_and_mode_numbers():
+    plane = messages.heartbeat(State(mav_type=M.MAV_TYPE_FIXED_WING, mode_table=PLANE,
+                                     mode="TAKEOFF"))
+    assert plane.type == M.MAV_TYPE_FIXED_WING
+    assert mavutil.mode_mapping_bynumber(plane.type)[plane.custom_mode] == "TAKEOFF"
+    rover = messages.heartbeat(State(mav_type=M.MAV_TYPE_GROUND_ROVER, mode_table=ROVER,
+                                     mode="HOLD"))
+    assert mavutil.mode_mapping_bynumber(rover.type)[rover.custom_mode] == "HOLD"
+
+
+def test_a_rover_reports_no_landed_state():
+    state = messages.extended_sys_state(State(reports_landed_state=False, armed=True))
+    assert state.landed_state == M.MAV_LANDED_STATE_UNDEFINED
 
 
 def test_heartbeat_names_the_mode_and_shows_armed_guided_and_failsafe():

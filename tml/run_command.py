@@ -29,6 +29,15 @@ def _sim_param(text: str) -> tuple[str, float]:
     return param_setting(text)
 
 
+def _sim_frames(text: str) -> list[str]:
+    from sitl.frames import parse_frames
+
+    try:
+        return parse_frames(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
 def _positive(text: str) -> float:
     try:
         value = float(text)
@@ -79,6 +88,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="--sim: run simulated time K times faster (default 1)")
     parser.add_argument("--world", metavar="FILE",
                         help="world file laid over the mission's <environment>")
+    parser.add_argument("--sim-frame", type=_sim_frames, default=["copter"],
+                        metavar="FRAME[,FRAME...]",
+                        help="--sim: copter (default), plane or rover; a list gives vehicle "
+                             "1, 2 ... theirs, the last repeating (e.g. copter,rover)")
     parser.add_argument("--sim-param", type=_sim_param, action="append", default=[],
                         metavar="NAME=VALUE",
                         help="--sim: set a simulator parameter (e.g. SIM_EKF_GPS_TIME=2)")
@@ -135,6 +148,9 @@ def run(args: argparse.Namespace) -> int:
     mission, world, extra, profile = loaded
     try:
         with _vehicles(args, world) as (vehicles, wake, clock):
+            refused = _preflight(args, mission, vehicles, errors)
+            if refused is not None:
+                return refused
             if args.profile == VEHICLE_PROFILE:
                 profile = _vehicle_profile(vehicles[0], errors)
                 refused = _verify(args, mission, extra, profile, errors)
@@ -186,12 +202,32 @@ def _verify(args: argparse.Namespace, mission: Mission, extra: World | None, pro
     if report.feasible:
         return None
     print_report(report, errors)
+    return _refused(args, mission, "infeasible mission", errors)
+
+
+def _refused(args: argparse.Namespace, mission: Mission, what: str, errors: Any) -> int | None:
+    """EXIT_INVALID for a mission refused as ``what``; None when --force flies it anyway."""
     if not args.force:
-        errors.print(f"tml run: {mission.file}: infeasible mission, not flown "
-                     "(--force flies it anyway)")
+        errors.print(f"tml run: {mission.file}: {what}, not flown (--force flies it anyway)")
         return EXIT_INVALID
-    errors.print("tml run: infeasible mission flown anyway (--force)")
+    errors.print(f"tml run: {what} flown anyway (--force)")
     return None
+
+
+def _preflight(args: argparse.Namespace, mission: Mission, vehicles: list[Any],
+               errors: Any) -> int | None:
+    """Refuse, before anything is sent, a mission with actions the connected vehicles
+    cannot do at all (tml.verify.inflight.preflight); the exit code if not flown."""
+    from tml.verify.inflight import preflight
+
+    found = preflight(mission, {v.vehicle_id: v.state().vehicle_type for v in vehicles})
+    if not found:
+        return None
+    for violation in found:
+        whose = f" (role {violation.role})" if violation.role else ""
+        errors.print(f"{violation} (vehicle {violation.vehicles[0]}{whose})", markup=False,
+                     highlight=False)
+    return _refused(args, mission, "mission with actions its vehicles cannot do", errors)
 
 
 def _vehicle_profile(vehicle: Any, errors: Any) -> Any:
@@ -219,7 +255,7 @@ def _vehicles(args: argparse.Namespace, world: World) -> Iterator[tuple[list[Any
             from sitl.server import Simulator
 
             sim = Simulator(vehicles=args.vehicles, speedup=args.speedup, tcp_base_port=0,
-                            world=world, params=dict(args.sim_param))
+                            world=world, params=dict(args.sim_param), frames=args.sim_frame)
             stack.enter_context(sim)
             clock = lambda: sim.time  # noqa: E731 - the vehicles' own time
             addresses = [(f"tcp:127.0.0.1:{port}", index + 1)

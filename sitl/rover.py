@@ -5,12 +5,11 @@ type, modes (:data:`sitl.modes.ROVER`), parameters (:data:`sitl.params.ROVER_DEF
 the values of ArduPilot's rover.parm) and driving. What it does follows Rover SITL as
 measured:
 
-- it stays on the ground: its altitude is 0 and EXTENDED_SYS_STATE says UNDEFINED; its
-  home is at 0 m above sea level, so GLOBAL_POSITION_INT.relative_alt reports the height
-  of the ground above the sea (Rover's own quirk: about 584 m at ArduPilot's test site);
+- it stays on the ground: its altitude is 0 and EXTENDED_SYS_STATE says UNDEFINED;
 - it drives at WP_SPEED (or the speed DO_CHANGE_SPEED set, taken only while it drives to
   a point), accelerating at ATC_ACCEL_MAX, turning no tighter than TURN_RADIUS or the
-  lateral grip ATC_TURN_MAX_G allows, slowing down for turns and to stop on its point;
+  lateral grip ATC_TURN_MAX_G allows, slowing down for turns and, at about 0.6 m/s² as
+  Rover SITL does (its jerk-limited S-curves), to stop on its point or in HOLD;
 - GUIDED drives to a SET_POSITION_TARGET_GLOBAL_INT and stops on it (MISSION_ITEM_REACHED
   0); HOLD stops; RTL (and SMART_RTL) drives home and stops there, still armed ("Reached
   destination"); AUTO flies the mission and stays in AUTO, stopped, at its end; AUTO
@@ -28,11 +27,11 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from sitl.model import TICK, Vector, VehicleModel
 from sitl.modes import ROVER
 from sitl.params import ROVER_DEFAULTS
-from tml.world import Home
 
 M = mavlink
 GRAVITY = 9.81
 STOPPED_WITHIN = 0.5  # metres from its point at which a rover stops
+BRAKING = 0.6  # m/s²: how hard Rover SITL slows down for its point or in HOLD (measured)
 SLOWEST_TURN = 0.5  # m/s: the speed it keeps while turning toward a point behind it
 
 
@@ -47,13 +46,8 @@ class RoverModel(VehicleModel):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.home = _at_sea_level(self.home)
         self.speed = 0.0
         self._announce_arrival = False  # GUIDED: MISSION_ITEM_REACHED 0 on arrival
-
-    def _set_home_here(self) -> None:
-        super()._set_home_here()
-        self.home = _at_sea_level(self.home)
 
     # ------------------------------------------------------------ modes
     def set_mode(self, name: str) -> bool:
@@ -163,23 +157,23 @@ class RoverModel(VehicleModel):
         before = body.position
         accel = max(p["ATC_ACCEL_MAX"], 0.1)
         if target is None:
-            self.speed = max(0.0, self.speed - accel * TICK)
+            self.speed = max(0.0, self.speed - BRAKING * TICK)
             course = self.heading
         else:
             dn, de = target[0] - before[0], target[1] - before[1]
             distance = math.hypot(dn, de)
             if distance <= STOPPED_WITHIN:
                 self._arrive()
-                self.speed = max(0.0, self.speed - accel * TICK)
+                self.speed = max(0.0, self.speed - BRAKING * TICK)
                 course = self.heading
             else:
                 course = math.degrees(math.atan2(de, dn))
                 error = math.radians((course - self.heading + 180.0) % 360.0 - 180.0)
                 cruise = self._speed or p["WP_SPEED"] or p["CRUISE_SPEED"]
-                wanted = min(cruise, math.sqrt(2.0 * accel * max(distance - STOPPED_WITHIN,
-                                                                 0.0)))
+                wanted = min(cruise, math.sqrt(2.0 * BRAKING * max(distance - STOPPED_WITHIN,
+                                                                   0.0)))
                 wanted = max(min(wanted, SLOWEST_TURN), wanted * max(0.0, math.cos(error)))
-                self.speed += max(-accel * TICK, min(accel * TICK, wanted - self.speed))
+                self.speed += max(-BRAKING * TICK, min(accel * TICK, wanted - self.speed))
         if self.speed > 0.0 or target is not None:
             body.turn(course % 360.0, self._turn_rate(), TICK)
         heading = math.radians(self.heading)
@@ -204,8 +198,3 @@ class RoverModel(VehicleModel):
         if self._announce_arrival:
             self._announce_arrival = False
             self._outbox.append(M.MAVLink_mission_item_reached_message(0))
-
-
-def _at_sea_level(home: Home) -> Home:
-    """Rover reports its home at 0 m above sea level."""
-    return Home(home.latitude, home.longitude, 0.0, home.heading)

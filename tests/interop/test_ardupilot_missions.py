@@ -1,13 +1,16 @@
-"""Every mission in missions/ flies on ArduCopter SITL to the outcome it has on the simulator.
+"""Every mission in missions/ flies on ArduPilot SITL to the outcome it has on the simulator.
 
 Each test flies one mission twice, as a user would with ``tml run``: on the embedded
-simulator exactly as tests/test_flights.py does, and on ArduCopter SITL (speed-up 10, one
-instance per vehicle, ``--clock vehicle``). The expected exit code and outcome are
+simulator exactly as tests/test_flights.py does, and on ArduPilot SITL (speed-up 10, one
+instance per vehicle, ``--clock vehicle``): ArduCopter, or the Plane and Rover that the
+simulator's frames (``--sim-frame``) stand for. The expected exit code and outcome are
 tests/test_flights.py's ``EXPECTED`` (one table for both). Both flight logs are then read:
 besides the outcome, every task ends in the same state on both (done, skipped, failed,
 aborted, never started), so no task is skipped on ArduCopter for want of telemetry, and
 the tasks that fly on the simulator fly there too. A difference that has a reason is
-listed in ``DIFFERENCES`` and in docs/interop.md.
+listed in ``DIFFERENCES`` and in docs/interop.md. The missions that tests/test_flights.py
+checks further (``flight_checks.LOG_CHECKS``: what was recognised, where the vehicles went)
+are checked the same on ArduPilot.
 
 The simulator's parameters of a flight become ArduCopter's where ArduCopter has the same
 parameter (BATT_CAPACITY); the simulator's charging pad (SIM_BATT_CHARGE) is played by a
@@ -56,6 +59,7 @@ class Setup:
     """How a mission is flown on ArduPilot, from its simulator arguments."""
 
     vehicles: int = 1
+    frames: list[str] = field(default_factory=lambda: ["copter"])  # per vehicle, last repeats
     params: dict[str, float] = field(default_factory=dict)
     charge_amps: float = 0.0
     tml_args: list[str] = field(default_factory=list)
@@ -78,6 +82,8 @@ def setup(name: str) -> Setup:
                 raise AssertionError(f"{name}: no ArduPilot counterpart for {key}")
         elif arg == "--vehicles":
             found.vehicles = int(args.pop(0))
+        elif arg == "--sim-frame":
+            found.frames = args.pop(0).split(",")
         else:
             found.tml_args.append(arg)
     mission = validate_file(MISSIONS / f"{name}.xml").mission
@@ -155,7 +161,10 @@ def fly_on_ardupilot(name: str, vehicles: list[SitlVehicle], how: Setup, tmp_pat
 def test_mission_flies_on_ardupilot_as_on_the_simulator(name: str, ardupilot, tmp_path: Path
                                                         ) -> None:
     how = setup(name)
-    vehicles = ardupilot(count=how.vehicles, params=how.params, boot_params=GRIPPER)
+    vehicles = [sitl for index in range(how.vehicles) for sitl in ardupilot(
+        vehicle=how.frames[min(index, len(how.frames) - 1)], params=how.params,
+        boot_params=GRIPPER if how.frames[min(index, len(how.frames) - 1)] == "copter"
+        else None)]
     code, lines, wall = fly_on_ardupilot(name, vehicles, how, tmp_path)
     print(f"{name}: exit {code} in {wall:.1f} s of wall time at speed-up 10")
     expected_code, expected_reason, _ = EXPECTED[name]

@@ -54,8 +54,9 @@ HEARTBEAT type), after ArduPilot's Copter, Plane and Rover as measured on their 
   sequence (:func:`tml.mavlink.compile.glide_items`) uploaded and flown in AUTO, since
   ArduPlane has no LAND mode and answers NAV_LAND UNSUPPORTED; ReturnToLaunch is RTL,
   which circles home (the safe state);
-- *ground* (Rover): altitudes are 0 (Rover reports its altitude above sea level as
-  GLOBAL_POSITION_INT.relative_alt, its home being at 0 m); Hold is HOLD mode; a speed
+- *ground* (Rover): altitudes are 0 (a rover has none to report; Rover SITL may even
+  report the ground's height above the sea as GLOBAL_POSITION_INT.relative_alt, when its
+  home was set before its field elevation at start-up); Hold is HOLD mode; a speed
   is sent after the position target, since Rover takes DO_CHANGE_SPEED only while it
   drives to one; TakeOff and Land are unsupported (Rover answers NAV_TAKEOFF and NAV_LAND
   UNSUPPORTED).
@@ -664,8 +665,10 @@ class MavlinkVehicle:
         items = glide_items(home, state.position, state.heading, touchdown)
         self._end_plan()
         self.mav.upload(items)
+        # From its first item: made current, then AUTO and MISSION_START without items.
+        self.mav.set_current(1 if self.mav.keeps_home_in_item_zero else 0)
         self.mav.set_mode("AUTO")
-        self.mav.start_mission(1 if self.mav.keeps_home_in_item_zero else 0)
+        self.mav.start_mission()
 
     def _return_to_launch(self, request: ReturnToLaunch) -> None:
         self._end_plan()

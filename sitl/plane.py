@@ -243,13 +243,15 @@ class PlaneModel(VehicleModel):
             (self.params["RTL_RADIUS"] or self.loiter_radius) * 1.5
 
     def arrived(self, target: Vector, radius: float) -> bool:
-        """Within ``radius`` of the waypoint, or past it (ArduPlane's finish line: the line
-        through the waypoint across the leg)."""
+        """Within ``radius`` of the waypoint, past it (ArduPlane's finish line: the line
+        through the waypoint across the leg), or already circling it."""
         here = self.position
         dn, de = here[0] - target[0], here[1] - target[1]
         if math.hypot(dn, de) <= radius:
             return True
         goal = self._goal
+        if goal is not None and goal.kind == "orbit" and goal.point[:2] == target[:2]:
+            return True
         if goal is None or goal.kind != "direct":
             return False
         leg = (target[0] - goal.start[0], target[1] - goal.start[1])

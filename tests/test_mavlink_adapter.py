@@ -8,6 +8,7 @@ import time
 from collections.abc import Callable, Iterator
 
 import pytest
+from pymavlink.dialects.v20 import ardupilotmega as M
 from test_mavlink_link import eventually
 
 from sitl.faults import Faults
@@ -20,15 +21,18 @@ from tml.model import Action, Argument
 from tml.vehicle import (
     Arm,
     Camera,
+    Circle,
     Flip,
     FlyMission,
     GoTo,
     Gripper,
     Hold,
+    Land,
     Request,
     RequestResult,
     SetMode,
     SetSkill,
+    SetSpeed,
     SetYaw,
     TakeOff,
     VehicleState,
@@ -85,10 +89,10 @@ class Rig:
 
 
 @contextlib.contextmanager
-def make_rig(params: dict[str, float] | None = None, faults: Faults | None = None
-             ) -> Iterator[Rig]:
+def make_rig(params: dict[str, float] | None = None, faults: Faults | None = None,
+             frame: str = "copter") -> Iterator[Rig]:
     sim = Simulator(vehicles=1, speedup=20, tcp_base_port=0, world=WORLD, faults=faults,
-                    params={**FAST, **(params or {})})
+                    params={**FAST, **(params or {})}, frames=[frame])
     with sim, Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}") as link:
         vehicle = MavlinkVehicle(link, 1, clock=lambda: sim.time, world=WORLD)
         vehicle.prepare()
@@ -259,3 +263,70 @@ def test_a_stream_that_stays_away_is_asked_for_again(rig: Rig) -> None:
         back = stopped and age < 0.1
         time.sleep(0.01)
     assert stopped and back
+
+
+# --- a fixed-wing and a rover, flown as ArduPlane and Rover are ------------------------------
+
+def _ready(rig: Rig) -> VehicleState:
+    return rig.until(lambda s: s.ready and s.position is not None and s.home is not None,
+                     "ready")
+
+
+def test_a_fixed_wing_takes_off_in_takeoff_mode_to_the_altitude_asked() -> None:
+    with make_rig(frame="plane") as rig:
+        assert _ready(rig).vehicle_type == "fixed-wing"
+        assert "flip" not in rig.vehicle.state().capabilities
+        assert rig.do(TakeOff(1, 35.0)).ok  # TKOFF_ALT, TAKEOFF mode, armed
+        state = rig.until(lambda s: s.altitude > 34, "climbed to 35 m")
+        assert state.armed and state.mode == "TAKEOFF" and state.ground_speed > 15
+        assert rig.sim.vehicle(1).params["TKOFF_ALT"] == 35.0
+
+
+def test_a_fixed_wing_is_moved_and_held_by_circling() -> None:
+    with make_rig(frame="plane") as rig:
+        _ready(rig)
+        assert rig.do(TakeOff(1, 30.0)).ok
+        rig.until(lambda s: s.altitude > 29, "climbed")
+        assert rig.do(GoTo(1, (0.0, 500.0, 40.0))).ok
+        state = rig.until(lambda s: math.dist(s.position[:2], (0, 500)) < 100
+                          and abs(s.altitude - 40) < 3, "circling (0, 500)")
+        assert state.mode == "GUIDED" and state.ground_speed > 15
+        assert rig.do(Circle(1, (0.0, 500.0, 40.0), 120.0)).ok
+        rig.until(lambda s: abs(math.dist(s.position[:2], (0, 500)) - 120) < 15, "wider")
+        assert rig.do(Hold(1)).ok  # a circle where it is: still flying at its speed
+        assert rig.vehicle.state().ground_speed > 15
+
+
+def test_a_fixed_wing_lands_along_an_uploaded_landing_sequence() -> None:
+    with make_rig(frame="plane") as rig:
+        _ready(rig)
+        assert rig.do(TakeOff(1, 30.0)).ok
+        rig.until(lambda s: s.altitude > 29, "climbed")
+        assert rig.do(Land(1, (0.0, 0.0, 0.0))).ok
+        items = rig.sim.vehicle(1).mission_items
+        assert [i.command for i in items[1:]] == [M.MAV_CMD_NAV_WAYPOINT, M.MAV_CMD_NAV_LAND]
+        state = rig.until(lambda s: s.landed and not s.armed, "landed and disarmed")
+        assert state.mode == "AUTO"
+
+
+def test_a_rover_reports_no_altitude_and_refuses_to_take_off_or_land() -> None:
+    with make_rig(frame="rover") as rig:
+        state = _ready(rig)
+        assert state.vehicle_type == "rover" and state.position[2] == 0.0
+        for request in (TakeOff(1, 5.0), Land(1)):
+            result = rig.do(request)
+            assert (result.ok, result.reason) == (False, "unsupported")
+
+
+def test_a_rover_takes_its_speed_with_the_next_target_and_stops_in_hold() -> None:
+    with make_rig(frame="rover") as rig:
+        _ready(rig)
+        assert rig.do(SetMode(1, "GUIDED")).ok and rig.do(Arm(1)).ok
+        # Rover refuses DO_CHANGE_SPEED while stopped: the speed waits for the next target.
+        assert rig.do(SetSpeed(1, 2.0)).ok
+        assert rig.do(GoTo(1, (40.0, 0.0, 0.0))).ok
+        moving = rig.until(lambda s: s.position[0] > 10, "driving")
+        assert moving.ground_speed == pytest.approx(2.0, abs=0.3) and moving.flying
+        assert rig.do(Hold(1)).ok
+        stopped = rig.until(lambda s: s.ground_speed < 0.05, "stopped")
+        assert stopped.mode == "HOLD" and stopped.armed and stopped.position[2] == 0.0

@@ -12,7 +12,14 @@ from sitl.model import TICK, VehicleModel
 from tml.actions import BoundAction, bind
 from tml.errors import Location
 from tml.geo import to_global, to_local
-from tml.mavlink.compile import CompileError, compile_mission, explore_square, survey_legs
+from tml.kinds import Kind
+from tml.mavlink.compile import (
+    CompileError,
+    compile_mission,
+    explore_square,
+    glide_items,
+    survey_legs,
+)
 from tml.mavlink.mission import MissionItem, with_home_placeholder
 from tml.model import Action, Argument
 from tml.world import DEFAULT_HOME
@@ -273,3 +280,36 @@ def test_trailing_commands_all_run_in_the_simulator() -> None:
                     act("CAPTURE_PHOTO"), act("CAPTURE_PHOTO"), start=(0, 0, 0))
     _, out = fly(plan.items, until_disarmed=False, limit=60.0)
     assert sum(m.get_type() == "CAMERA_IMAGE_CAPTURED" for m in out) == 3
+
+
+# --- a fixed-wing lands along an approach, as ArduPlane does -------------------------------
+
+def test_a_fixed_wing_lands_straight_ahead_with_a_landing_sequence() -> None:
+    mission = compile_mission([act("LAND")], H, (100.0, 0.0, 40.0), 90.0, Kind.FIXED_WING)
+    waypoint, land = mission.items
+    assert (waypoint.command, land.command) == (M.MAV_CMD_NAV_WAYPOINT, M.MAV_CMD_NAV_LAND)
+    assert local(waypoint) == (100.0, 0.0, 40.0)
+    assert local(land) == (100.0, 320.0, 0.0)  # 8 m along for each metre down
+
+
+@pytest.mark.parametrize(("action", "touchdown"), [
+    (act("RETURN_HOME_AND_LAND"), (0.0, 0.0, 0.0)),
+    (act("LANDING_POINT", coordinates="(50, 0, 0)"), (50.0, 0.0, 0.0))])
+def test_a_fixed_wing_lands_at_a_point_from_the_side_it_comes_from(action, touchdown) -> None:
+    mission = compile_mission([action], H, (600.0, 0.0, 30.0), 0.0, Kind.FIXED_WING)
+    approach, land = (local(item) for item in mission.items)
+    assert land == touchdown
+    assert approach == (touchdown[0] + 240.0, 0.0, 30.0)
+    assert M.MAV_CMD_NAV_RETURN_TO_LAUNCH not in [i.command for i in mission.items]
+
+
+def test_glide_items_are_the_adapter_s_landing_sequence() -> None:
+    items = glide_items(H, (0.0, 300.0, 50.0), 0.0, (0.0, 0.0, 0.0))
+    assert [local(i) for i in items] == [(0.0, 400.0, 50.0), (0.0, 0.0, 0.0)]
+    assert [i.seq for i in items] == [0, 1]
+
+
+def test_a_ground_vehicle_returns_with_rtl() -> None:
+    mission = compile_mission([act("RETURN_HOME_AND_LAND")], H, (10.0, 0.0, 0.0), 0.0,
+                              Kind.GROUND)
+    assert [i.command for i in mission.items] == [M.MAV_CMD_NAV_RETURN_TO_LAUNCH]

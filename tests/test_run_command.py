@@ -192,3 +192,24 @@ def test_a_bad_ready_timeout_says_what_it_expects(bad: str,
                                                    capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["run", "m.xml", "--sim", "--ready-timeout", bad]) == 2
     assert "--ready-timeout" in capsys.readouterr().err
+
+
+def test_a_mission_its_vehicle_cannot_do_is_refused_before_the_first_task(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # Feasible for the default quadcopter profile, but the connected vehicle is a rover.
+    log = tmp_path / "flight.jsonl"
+    code = main(["run", write(tmp_path, SHORT), "--sim", "--sim-frame", "rover", "-q",
+                 "--log", str(log), *FAST])
+    err = capsys.readouterr().err
+    assert code == 1
+    assert "m.xml:2:" in err and "vehicle: TAKE_OFF: a rover cannot take off" in err
+    assert "(vehicle 1)" in err and "LAND: a rover cannot land" in err
+    assert "actions its vehicles cannot do, not flown" in err
+    assert not log.exists() or not [line for line in read(str(log))
+                                    if line["kind"] == "request"]
+
+
+def test_an_unknown_simulator_frame_is_a_usage_error(tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", write(tmp_path, SHORT), "--sim", "--sim-frame", "blimp"]) == 2
+    assert "unknown frame 'blimp'" in capsys.readouterr().err

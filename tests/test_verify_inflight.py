@@ -5,10 +5,11 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
+from tml.actions import bind
 from tml.engine import Interpreter, Options, Status
 from tml.validation import validate_file
 from tml.vehicle import FakeVehicle, GoTo, VehicleState
-from tml.verify.inflight import live_variables, pre_check
+from tml.verify.inflight import live_variables, pre_check, preflight
 from tml.verify.profile import load_profile
 from tml.world import Cylinder, World
 
@@ -138,3 +139,32 @@ def test_return_home_and_land_goes_around_obstacles_before_rtl() -> None:
     assert closest >= 5.0 + 5.0 - 0.6  # radius plus the profile's clearance, less tolerance
     rtl = [i for i, r in enumerate(vehicle.submitted) if isinstance(r, ReturnToLaunch)]
     assert len(rtl) == 1 and isinstance(vehicle.submitted[rtl[0] - 1], GoTo)
+
+
+def test_the_live_check_judges_the_vehicle_s_own_kind() -> None:
+    # A rover flown with the default quadcopter profile: TAKE_OFF is refused as the rover's.
+    check = pre_check(load_profile("quadcopter"))
+    take_off = validate_file("m.xml", MISSION.format(north=10, events="").encode()).mission
+    bound = bind(take_off.tasks[0].action)
+    rover = VehicleState(1, 0.0, position=(0.0, 0.0, 0.0), battery=90.0, vehicle_type="rover")
+    (found,) = check(bound, rover, {}, 0.0)
+    assert found.startswith("vehicle: TAKE_OFF: a rover cannot take off")
+    copter = replace(rover, vehicle_type="quadcopter")
+    assert check(bound, copter, {}, 0.0) == []
+
+
+def test_preflight_names_each_vehicle_that_cannot_fly_an_action() -> None:
+    mission = validate_file("m.xml", MISSION.format(north=10, events="").encode()).mission
+    found = preflight(mission, {1: "quadcopter", 2: "rover", 3: "fixed-wing"})
+    assert {(v.action, v.vehicles) for v in found} == {("TAKE_OFF", (2,)), ("LAND", (2,))}
+    assert preflight(mission, {1: "quadcopter", 2: ""}) == []  # unknown type: not judged
+
+
+def test_preflight_holds_a_role_only_against_the_vehicles_its_type_admits() -> None:
+    text = ('<mission name="m"><roles><role name="air" type="UAV"/>'
+            '<role name="ground" type="rover"/></roles>'
+            '<task name="fly" role="air"><action name="TAKE_OFF"/></task>'
+            '<task name="drive" role="ground"><action name="LAND"/></task></mission>')
+    mission = validate_file("m.xml", text.encode()).mission
+    found = preflight(mission, {1: "quadcopter", 2: "rover"})
+    assert [(v.action, v.role, v.vehicles) for v in found] == [("LAND", "ground", (2,))]

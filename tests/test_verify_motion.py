@@ -228,3 +228,43 @@ def test_blocked_leg_is_flown_straight_and_reported() -> None:
     step = model.step(action("GO_TO_POINT", coordinates="(0, 0, 10)"), start)
     assert step.blocked == (((100.0, 0.0, 10.0), (0.0, 0.0, 10.0)),)
     assert step.distance == pytest.approx(100.0)
+
+
+FIXED_WING = FlightModel(load_profile("fixed-wing"), World())
+ROVER = FlightModel(load_profile("rover"), World())
+
+
+def test_a_fixed_wing_takes_off_along_its_heading() -> None:
+    profile = FIXED_WING.profile
+    step = FIXED_WING.step(action("TAKE_OFF", altitude="40"), VehicleState(heading=90.0))
+    north, east, up = step.after.position
+    assert up == 40.0 and abs(north) < 1e-9
+    assert east == pytest.approx(40.0 / profile.climb_rate * profile.cruise_speed)
+
+
+def test_a_fixed_wing_lands_straight_ahead_along_its_glide() -> None:
+    step = FIXED_WING.step(action("LAND"), VehicleState(position=(0.0, 0.0, 50.0),
+                                                        flying=True, heading=0.0))
+    assert step.after.position == pytest.approx((400.0, 0.0, 0.0))
+    assert not step.after.flying
+
+
+def test_a_fixed_wing_comes_home_along_its_approach() -> None:
+    state = VehicleState(position=(600.0, 0.0, 50.0), flying=True)
+    step = FIXED_WING.step(action("RETURN_HOME_AND_LAND"), state)
+    assert [leg.points[-1] for leg in step.legs] == [(400.0, 0.0, 50.0), (0.0, 0.0, 0.0)]
+    assert step.distance == pytest.approx(200.0 + math.hypot(400.0, 50.0))
+
+
+def test_a_ground_vehicle_drives_every_point_at_ground_level_and_is_then_underway() -> None:
+    step = ROVER.step(action("GO_TO_POINT", coordinates="(30, 40, 12)"), VehicleState())
+    assert step.after.position == (30.0, 40.0, 0.0)
+    assert step.after.flying and not step.before.flying
+    assert step.distance == pytest.approx(50.0)
+
+
+def test_a_ground_vehicle_returns_home_and_stops() -> None:
+    state = VehicleState(position=(30.0, 40.0, 0.0), flying=True)
+    step = ROVER.step(action("RETURN_HOME_AND_LAND"), state)
+    assert step.after.position == (0.0, 0.0, 0.0) and not step.after.flying
+    assert step.distance == pytest.approx(50.0)

@@ -9,10 +9,12 @@ from pathlib import Path
 import pytest
 
 from tml.errors import TmlError
+from tml.kinds import Kind
 from tml.verify.profile import (
     COPTER_PARAMETERS,
     NUMBER_KEYS,
     SHIPPED,
+    SHIPPED_FOR_KIND,
     load_profile,
     profile_from_parameters,
     profile_from_vehicle,
@@ -25,6 +27,22 @@ def test_shipped_profiles_load(name: str) -> None:
     assert profile.name == name
     assert 0 < profile.cruise_speed <= profile.max_speed
     assert profile.min_altitude < profile.max_altitude
+
+
+@pytest.mark.parametrize(("name", "kind"), [("quadcopter", Kind.MULTICOPTER),
+                                            ("fixed-wing", Kind.FIXED_WING),
+                                            ("rover", Kind.GROUND)])
+def test_each_shipped_profile_says_what_vehicle_it_describes(name: str, kind: Kind) -> None:
+    assert load_profile(name).kind is kind
+    assert SHIPPED_FOR_KIND[kind] == name
+
+
+def test_a_profile_file_may_name_its_vehicle_type(tmp_path: Path) -> None:
+    path = tmp_path / "boat.toml"
+    path.write_text('base = "rover"\nvehicle_type = "boat"\n')
+    assert load_profile(path).kind is Kind.GROUND
+    path.write_text('base = "quadcopter"\nmax_speed = 12\n')
+    assert load_profile(path).vehicle_type == "quadcopter"  # the base's
 
 
 def test_fixed_wing_cannot_circle_as_tightly_as_a_quadcopter() -> None:
@@ -46,6 +64,7 @@ def test_file_with_base_overrides_only_what_it_gives(tmp_path: Path) -> None:
     ('base = "quadcopter"\nmin_altitude = 500\n', "min_altitude", "not below max_altitude"),
     ('base = "helicopter"\n', "base", "not a shipped profile"),
     ('cruise_speed = 4\n', "max_speed", "missing"),
+    ('base = "quadcopter"\nvehicle_type = "blimp"\n', "vehicle_type", "expected one of"),
 ])
 def test_bad_profile_names_file_and_key(tmp_path: Path, text: str, key: str, why: str) -> None:
     path = tmp_path / "bad.toml"

@@ -296,3 +296,28 @@ def test_events_of_a_role_are_checked_on_its_vehicles_only() -> None:
     tasks = fly("N", "(100, 0, 10)", "north") + fly("S", "(20, 0, 10)", "south")
     report = verify_mission(mission(tasks, events, ROLES), PROFILE)
     assert [(r.event, r.role) for r in report.rows if r.event] == [("look", "south")]
+
+
+FLEET = """<roles><role name="air" type="multicopter"/><role name="ground" type="rover"/></roles>
+<task name="both" composition="parallel">
+  <task name="fly" role="air"><action name="TAKE_OFF"/></task>
+  <task name="drive" role="ground">{ground}</task>
+</task>"""
+
+
+def test_a_role_of_another_kind_is_verified_with_its_own_profile() -> None:
+    drive = ('<action name="GO_TO_POINT"><argument name="coordinates" value="(20, 0, 0)"/>'
+             '</action>')
+    report = verify_mission(mission(FLEET.format(ground=drive)), PROFILE)
+    assert report.feasible, [str(v) for v in report.violations]
+    assert any("role ground (type rover) verified with the rover profile" in note
+               for note in report.notes)
+    # The rover drove at ground level without taking off.
+    assert report.ends["ground"].position == (20.0, 0.0, 0.0)
+
+
+def test_a_role_is_held_to_what_its_vehicle_type_can_do() -> None:
+    report = verify_mission(mission(FLEET.format(ground='<action name="LAND"/>')), PROFILE)
+    (violation,) = report.violations
+    assert violation.constraint is Constraint.VEHICLE and violation.role == "ground"
+    assert "a rover cannot land" in str(violation)

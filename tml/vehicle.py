@@ -22,6 +22,7 @@ from types import MappingProxyType
 from typing import Protocol
 
 from tml.actions import BoundAction
+from tml.kinds import Kind, kind_of
 from tml.world import DEFAULT_HOME, Home
 
 Point = tuple[float, float, float]
@@ -338,7 +339,11 @@ class FakeVehicle:
     (vertical), drains the battery, and lands it when told. Scripting knobs: ``reject``
     (request kinds answered with a failure), ``ignore`` (request kinds never answered),
     ``stuck`` (accepts moves but never moves), ``ready``, ``capabilities``,
-    ``detections`` (set by the test), ``battery``, and ``vehicle_type``.
+    ``detections`` (set by the test), ``battery``, and ``vehicle_type``, whose kind
+    (:mod:`tml.kinds`) it answers as ArduPilot's vehicles do in the main: a fixed-wing's
+    TakeOff arms it (TAKEOFF mode), it lands at a touchdown and flies a Circle round and
+    round; a ground vehicle refuses TakeOff and Land, reports no landed state (landed while
+    disarmed) and its RTL drives home and stops.
     """
 
     vehicle_id: int = 1
@@ -368,16 +373,18 @@ class FakeVehicle:
     mission: MissionProgress | None = None
     _target: Point | None = None
     _target_heading: float | None = None
+    _circle: tuple[Point, float, float] | None = None  # centre, radius, angle (rad)
     _landing: bool = False
     _results: list[RequestResult] = field(default_factory=list)
     _mission_points: list[Point] = field(default_factory=list)
 
     def state(self) -> VehicleState:
         """The current state."""
+        landed = not self.armed if kind_of(self.vehicle_type) is Kind.GROUND else \
+            self.position[2] <= 0.05
         return VehicleState(
             vehicle_id=self.vehicle_id, time=self.time, ready=self.ready, armed=self.armed,
-            armable=self.ready,
-            landed=self.position[2] <= 0.05, mode=self.mode, position=self.position,
+            armable=self.ready, landed=landed, mode=self.mode, position=self.position,
             heading=self.heading, ground_speed=self.speed if self._moving() else 0.0,
             battery=self.battery, gps_fix=3, home=self.home, mission=self.mission,
             detections=MappingProxyType(dict(self.detections)),
@@ -404,6 +411,24 @@ class FakeVehicle:
 
     def _apply(self, request: Request) -> str | None:
         n, e, u = self.position
+        kind = kind_of(self.vehicle_type)
+        self._circle = None
+        if kind is Kind.GROUND and isinstance(request, TakeOff | Land):
+            return "unsupported"
+        if kind is Kind.FIXED_WING and isinstance(request, TakeOff) and self.ready:
+            self.armed, self.mode = True, "TAKEOFF"  # TAKEOFF mode arms and climbs
+        if kind is Kind.GROUND and isinstance(request, ReturnToLaunch):
+            self.mode, self._target, self._landing = "RTL", (0.0, 0.0, 0.0), False
+            return None
+        if isinstance(request, Land) and request.touchdown is not None:
+            self.mode, self._target, self._landing = "AUTO", request.touchdown, True
+            return None
+        if isinstance(request, Circle):
+            self.mode = "GUIDED"
+            self._circle = (request.centre, request.radius, 0.0)
+            self._target = (request.centre[0] + request.radius, request.centre[1],
+                            request.centre[2])
+            return None
         if isinstance(request, SetMode):
             self.mode = request.mode
             if request.mode == "RTL":
@@ -475,6 +500,12 @@ class FakeVehicle:
             self.heading = (self.heading + step) % 360
             if abs(delta) <= self.yaw_rate * dt:
                 self._target_heading = None
+        if self._circle is not None and self._target is not None and not self._moving():
+            centre, radius, angle = self._circle  # on the circle: round it at its speed
+            angle += self.speed * dt / radius
+            self._circle = (centre, radius, angle)
+            self._target = (centre[0] + radius * math.cos(angle),
+                            centre[1] + radius * math.sin(angle), centre[2])
         if self._moving():
             self.position = _towards(self.position, self._target, self.speed * dt,
                                      self.climb_rate * dt)

@@ -143,10 +143,22 @@ def test_profile_from_the_vehicles_parameters(tmp_path: Path,
     assert main(["run", write(tmp_path, far), "--sim", "-q", *FAST, "--profile", "vehicle",
                  "--sim-param", "FENCE_RADIUS=50"]) == 1
     err = capsys.readouterr().err
-    assert "profile from vehicle 1's parameters" in err and "FENCE_RADIUS=50" in err
-    assert "infeasible mission, not flown" in err
+    assert "quadcopter profile from vehicle 1's parameters" in err
+    assert "FENCE_RADIUS=50" in err and "infeasible mission, not flown" in err
     assert main(["run", write(tmp_path, far), "--sim", "-q", *FAST,
                  "--profile", "vehicle"]) == 0
+
+
+def test_the_vehicle_profile_is_that_of_the_vehicle_s_kind(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # A rover's own WP_SPEED and fence: 80 m is beyond its 50 m fence.
+    drive = ('<mission name="Drive"><task name="Out"><action name="GO_TO_POINT">'
+             '<argument name="coordinates" value="(80, 0, 0)"/></action></task></mission>')
+    assert main(["run", write(tmp_path, drive), "--sim", "--sim-frame", "rover", "-q", *FAST,
+                 "--profile", "vehicle", "--sim-param", "FENCE_RADIUS=50"]) == 1
+    err = capsys.readouterr().err
+    assert "rover profile from vehicle 1's parameters: " in err
+    assert "WP_SPEED=5" in err and "WPNAV_SPEED" not in err
 
 
 def test_a_bad_payload_option_says_what_it_expects(capsys: pytest.CaptureFixture[str]) -> None:

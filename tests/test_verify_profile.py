@@ -13,11 +13,13 @@ from tml.kinds import Kind
 from tml.verify.profile import (
     COPTER_PARAMETERS,
     NUMBER_KEYS,
+    PARAMETERS,
     SHIPPED,
     SHIPPED_FOR_KIND,
     load_profile,
     profile_from_parameters,
     profile_from_vehicle,
+    shipped_for,
 )
 
 
@@ -183,3 +185,24 @@ def test_new_keys_may_be_left_out_of_a_full_profile(tmp_path: Path) -> None:
     path.write_text("".join(f"{key} = {value!r}\n" for key, value in keys.items()))
     profile = load_profile(path)
     assert (profile.acceleration, profile.land_speed, profile.return_hover) == (0, 0, 0)
+
+
+def test_arduplane_and_rover_parameters_fill_in_their_own_profiles() -> None:
+    plane = profile_from_parameters({"AIRSPEED_CRUISE": 22, "RTL_ALTITUDE": 100,
+                                     "TKOFF_ALT": 50}, load_profile("fixed-wing"))
+    assert (plane.cruise_speed, plane.return_altitude, plane.takeoff_altitude) == (22, 100, 50)
+    rover = profile_from_parameters({"WP_SPEED": 3}, load_profile("rover"))
+    assert rover.cruise_speed == 3 and rover.kind is Kind.GROUND
+    assert set(PARAMETERS) == set(Kind)
+
+
+def test_a_vehicle_s_parameters_are_read_for_its_own_kind() -> None:
+    asked: list[str] = []
+
+    def read(names):
+        asked.extend(names)
+        return {"WP_SPEED": 3.0}
+
+    assert shipped_for("boat").name == "rover" and shipped_for("").name == "quadcopter"
+    profile, _ = profile_from_vehicle(read, shipped_for("rover"))
+    assert asked == list(PARAMETERS[Kind.GROUND]) and profile.cruise_speed == 3.0

@@ -231,12 +231,13 @@ def _preflight(args: argparse.Namespace, mission: Mission, vehicles: list[Any],
 
 
 def _vehicle_profile(vehicle: Any, errors: Any) -> Any:
-    """The quadcopter profile filled in from the vehicle's own parameters."""
-    from tml.verify.profile import describe_parameters, load_profile, profile_from_vehicle
+    """The shipped profile of the vehicle's kind filled in from its own parameters."""
+    from tml.verify.profile import describe_parameters, profile_from_vehicle, shipped_for
 
-    profile, params = profile_from_vehicle(vehicle.read_parameters, load_profile("quadcopter"))
-    errors.print(f"tml run: profile from vehicle {vehicle.vehicle_id}'s parameters: "
-                 + describe_parameters(params), markup=False)
+    profile, params = profile_from_vehicle(vehicle.read_parameters,
+                                           shipped_for(vehicle.state().vehicle_type))
+    errors.print(f"tml run: {profile.name} profile from vehicle {vehicle.vehicle_id}'s "
+                 "parameters: " + describe_parameters(params), markup=False)
     return profile
 
 

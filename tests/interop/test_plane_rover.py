@@ -4,7 +4,7 @@ tml flies a fixed-wing and a rover the way these behave (tml/kinds.py, the adapt
 the simulator imitates them (sitl/plane.py, sitl/rover.py). Each fact here is checked with
 the same plain pymavlink ground station on ArduPilot SITL and on ``python -m sitl``'s
 frame, so that a difference shows on one side or the other. The missions themselves are
-flown by tests/interop/test_missions.py.
+flown by tests/interop/test_ardupilot_missions.py.
 """
 
 from __future__ import annotations

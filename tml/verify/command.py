@@ -98,12 +98,12 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _vehicle_profile(address: str, timeout: float) -> VehicleProfile:
-    """The quadcopter profile filled in from the parameters of the vehicle at ``address``
-    (the first one heard there); says on stderr what was read. Raises a VehicleError when
-    no vehicle answers."""
+    """The shipped profile of the kind of the vehicle at ``address`` (the first one heard
+    there) filled in from its parameters; says on stderr what was read. Raises a
+    VehicleError when no vehicle answers."""
     from tml.mavlink.adapter import MavlinkVehicle
     from tml.mavlink.link import Link, parse_address
-    from tml.verify.profile import describe_parameters, load_profile, profile_from_vehicle
+    from tml.verify.profile import describe_parameters, profile_from_vehicle, shipped_for
 
     parse_address(address)
     with Link(address) as link:
@@ -111,9 +111,9 @@ def _vehicle_profile(address: str, timeout: float) -> VehicleProfile:
         vehicle = MavlinkVehicle(link, info.system_id, connect_timeout=timeout)
         try:
             profile, params = profile_from_vehicle(vehicle.read_parameters,
-                                                   load_profile("quadcopter"))
+                                                   shipped_for(vehicle.state().vehicle_type))
         finally:
             vehicle.close()
-    print(f"tml verify: profile from vehicle {info.system_id}'s parameters: "
+    print(f"tml verify: {profile.name} profile from vehicle {info.system_id}'s parameters: "
           + describe_parameters(params), file=sys.stderr)
     return profile

@@ -168,6 +168,19 @@ COPTER_PARAMETERS = ("WPNAV_SPEED", "WPNAV_SPEED_UP", "WPNAV_SPEED_DN", "WPNAV_A
                      "FENCE_ALT_MAX", "FENCE_ALT_MIN", "FENCE_RADIUS", "ATC_RATE_Y_MAX",
                      "BATT_CAPACITY", "BATT_LOW_MAH")
 """The ArduCopter parameters :func:`profile_from_parameters` reads (all exist on Copter)."""
+PARAMETERS: dict[Kind, tuple[str, ...]] = {
+    Kind.MULTICOPTER: COPTER_PARAMETERS,
+    Kind.FIXED_WING: ("AIRSPEED_CRUISE", "AIRSPEED_MAX", "TKOFF_ALT", "RTL_ALTITUDE",
+                      "FENCE_ALT_MAX", "FENCE_ALT_MIN", "FENCE_RADIUS", "BATT_CAPACITY",
+                      "BATT_LOW_MAH"),
+    Kind.GROUND: ("WP_SPEED", "FENCE_RADIUS", "BATT_CAPACITY", "BATT_LOW_MAH"),
+}
+"""The parameters to read from a vehicle of each kind (ArduCopter's, ArduPlane's, Rover's)."""
+
+
+def shipped_for(vehicle_type: str) -> VehicleProfile:
+    """The shipped profile of a vehicle type's kind (the quadcopter's while unknown)."""
+    return load_profile(SHIPPED_FOR_KIND[kind_of(vehicle_type)])
 
 
 def profile_from_parameters(params: Mapping[str, float], base: VehicleProfile) -> VehicleProfile:
@@ -178,9 +191,9 @@ def profile_from_parameters(params: Mapping[str, float], base: VehicleProfile) -
     negative (ArduPilot's "not set" / "disabled") leave the base value. Read:
     WPNAV_SPEED, WPNAV_SPEED_UP, WPNAV_SPEED_DN, LAND_SPEED, LAND_ALT_LOW, RTL_ALT,
     ALT_HOLD_RTL, TRIM_ARSPD_CM (cm/s or cm); WPNAV_ACCEL (cm/s²); RTL_LOIT_TIME (ms);
-    AIRSPEED_CRUISE, AIRSPEED_MAX, ARSPD_FBW_MAX,
-    FENCE_ALT_MAX, FENCE_ALT_MIN, FENCE_RADIUS, TKOFF_ALT (m); ATC_RATE_Y_MAX (deg/s);
-    BATT_CAPACITY and BATT_LOW_MAH (mAh).
+    AIRSPEED_CRUISE, AIRSPEED_MAX, ARSPD_FBW_MAX, FENCE_ALT_MAX, FENCE_ALT_MIN,
+    FENCE_RADIUS, TKOFF_ALT, RTL_ALTITUDE (m); WP_SPEED (m/s, Rover's); ATC_RATE_Y_MAX
+    (deg/s); BATT_CAPACITY and BATT_LOW_MAH (mAh).
 
     The battery calibration: the base's ``battery_per_metre`` and ``battery_per_second``
     are percent of ``battery_capacity`` mAh, that is a current drawn (the shipped
@@ -197,6 +210,7 @@ def profile_from_parameters(params: Mapping[str, float], base: VehicleProfile) -
     metres = {"AIRSPEED_CRUISE": "cruise_speed", "ARSPD_FBW_MAX": "max_speed",
               "AIRSPEED_MAX": "max_speed", "FENCE_ALT_MAX": "max_altitude",
               "FENCE_RADIUS": "max_range", "TKOFF_ALT": "takeoff_altitude",
+              "RTL_ALTITUDE": "return_altitude", "WP_SPEED": "cruise_speed",
               "ATC_RATE_Y_MAX": "yaw_rate"}
     for name, key in centimetres.items():
         value = _positive(params, name)
@@ -230,9 +244,10 @@ def profile_from_parameters(params: Mapping[str, float], base: VehicleProfile) -
 def profile_from_vehicle(read_parameters: Callable[[Iterable[str]], Mapping[str, float]],
                          base: VehicleProfile) -> tuple[VehicleProfile, dict[str, float]]:
     """``base`` filled in from a connected vehicle: ``read_parameters(names)`` returns the
-    values of those of :data:`COPTER_PARAMETERS` the vehicle has. Returns the profile and
-    the parameters read (to tell the user what was used)."""
-    params = dict(read_parameters(COPTER_PARAMETERS))
+    values of those of :data:`PARAMETERS` of the base's kind the vehicle has (give the
+    vehicle's own kind: :func:`shipped_for`). Returns the profile and the parameters read
+    (to tell the user what was used)."""
+    params = dict(read_parameters(PARAMETERS[base.kind]))
     return profile_from_parameters(params, base), params
 
 

@@ -703,10 +703,13 @@ class VehicleModel:
             # On its pad the charger also feeds the electronics, so nothing drains.
             self.battery.charge(TICK, charger)
         else:
-            wind = self.params["SIM_WIND_SPD"]
-            self.battery.drain(TICK, flight_current(
-                self.armed, not self.landed, self.body.velocity, wind))
+            self.battery.drain(TICK, self._current())
         self._auto_disarm()
+
+    def _current(self) -> float:
+        """Amperes drawn now (ArduCopter SITL's motors: :func:`sitl.physics.flight_current`)."""
+        return flight_current(self.armed, not self.landed, self.body.velocity,
+                              self.params["SIM_WIND_SPD"])
 
     def _auto_disarm(self) -> None:
         """ArduCopter disarms DISARM_DELAY s after landing, or when armed idle on the ground."""

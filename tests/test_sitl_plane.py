@@ -191,3 +191,9 @@ def test_a_mission_ending_in_the_air_switches_to_rtl() -> None:
     assert v.set_mode("AUTO")
     out = run_until(v, lambda: v.mode == "RTL", 120)
     assert "Mission complete, changing mode to RTL" in texts(out)
+
+
+def test_it_draws_arduplane_s_current_in_cruise() -> None:
+    v = airborne(40)
+    v.step(10)
+    assert v.battery.current == pytest.approx(11.4, abs=0.3)  # measured on ArduPlane SITL

@@ -1,7 +1,8 @@
 """Every mission in missions/ flies on ArduPilot SITL to the outcome it has on the simulator.
 
 Each test flies one mission twice, as a user would with ``tml run``: on the embedded
-simulator exactly as tests/test_flights.py does, and on ArduPilot SITL (speed-up 10, one
+simulator exactly as tests/test_flights.py does (in a process of its own, at the same time,
+so that the two flights share the wall time), and on ArduPilot SITL (speed-up 10, one
 instance per vehicle, ``--clock vehicle``): ArduCopter, or the Plane and Rover that the
 simulator's frames (``--sim-frame``) stand for. The expected exit code and outcome are
 tests/test_flights.py's ``EXPECTED`` (one table for both). Both flight logs are then read:
@@ -35,8 +36,7 @@ from pathlib import Path
 import pytest
 from ardupilot_sitl import ChargingPad, SitlVehicle
 from flight_checks import LOG_CHECKS
-from test_flights import EXPECTED, MISSIONS
-from test_flights import fly as fly_on_the_simulator
+from test_flights import EXPECTED, FAST, MISSIONS
 
 from tml.cli import main
 from tml.journal import read
@@ -131,6 +131,16 @@ def stop(process: subprocess.Popen[bytes]) -> None:
             process.wait()
 
 
+def start_on_the_simulator(name: str, tmp_path: Path) -> tuple[subprocess.Popen[bytes], Path]:
+    """``tml run --sim`` of the mission as tests/test_flights.py flies it, started now."""
+    log = tmp_path / f"{name}.simulator.jsonl"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "tml", "run", str(MISSIONS / f"{name}.xml"), "--sim", "-q",
+         "--log", str(log), *FAST, *EXPECTED[name][2]],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    return process, log
+
+
 def fly_on_ardupilot(name: str, vehicles: list[SitlVehicle], how: Setup, tmp_path: Path
                      ) -> tuple[int, Log, float]:
     log = tmp_path / f"{name}.ardupilot.jsonl"
@@ -165,13 +175,18 @@ def test_mission_flies_on_ardupilot_as_on_the_simulator(name: str, ardupilot, tm
         vehicle=how.frames[min(index, len(how.frames) - 1)], params=how.params,
         boot_params=GRIPPER if how.frames[min(index, len(how.frames) - 1)] == "copter"
         else None)]
-    code, lines, wall = fly_on_ardupilot(name, vehicles, how, tmp_path)
+    simulator, sim_log = start_on_the_simulator(name, tmp_path)
+    try:
+        code, lines, wall = fly_on_ardupilot(name, vehicles, how, tmp_path)
+        sim_code = simulator.wait(timeout=600)
+    finally:
+        stop(simulator)
     print(f"{name}: exit {code} in {wall:.1f} s of wall time at speed-up 10")
     expected_code, expected_reason, _ = EXPECTED[name]
     assert not [line for line in lines if line["kind"] == "error"]
     assert outcome(lines)[0] == code
     assert (code, expected_reason in outcome(lines)[1]) == (expected_code, True), outcome(lines)
-    sim_code, sim_lines, _ = fly_on_the_simulator(tmp_path, name, EXPECTED[name][2])
+    sim_lines = read(str(sim_log))
     assert sim_code == code
     on_sim, on_ardupilot = final_states(sim_lines), final_states(lines)
     allowed = DIFFERENCES.get(name, {})

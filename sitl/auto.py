@@ -16,6 +16,13 @@ as the search for a next NAV command reaches the end of the list.
 Every command started is announced with STATUSTEXT "Mission: N <name>"; commands the
 executor does not know are skipped with "Skipping invalid cmd #<id>".
 
+A multicopter flies waypoints, the approach to a loiter and to a NAV_LAND point as
+ArduCopter's waypoint navigator flies them (S-curve legs, :mod:`sitl.track`; a plane or a
+rover flies each leg its own way, done within its waypoint radius); a NAV_WAYPOINT without a
+hold time whose next NAV command is another waypoint or a timed or unlimited loiter blends
+into the leg after it and counts as reached at the apex of the turn, as ArduCopter's
+``ModeAuto::set_next_wp`` arranges; any other item stops on its point. The take-off climbs
+with the position controller as ``auto_takeoff`` does.
 NAV_LAND with a latitude or longitude flies to that point at the altitude the vehicle
 has when the item starts, and only then descends (ArduCopter's ``ModeAuto::do_land``
 ignores the item's altitude); without one it descends where the vehicle is.
@@ -63,6 +70,8 @@ NAV_COMMANDS = frozenset({
 })
 # Below this id a MAV_CMD is a navigation command in ArduPilot's numbering.
 NAV_LAST = 95
+# NAV commands a waypoint flies on into without stopping (ModeAuto::set_next_wp).
+BLENDS_INTO = frozenset({NAV_WAYPOINT, NAV_LOITER_UNLIM, NAV_LOITER_TIME})
 # DO_CHANGE_SPEED param1 (MAVLink SPEED_TYPE).
 SPEED_AIR, SPEED_GROUND, SPEED_CLIMB, SPEED_DESCENT = 0, 1, 2, 3
 
@@ -85,11 +94,12 @@ class Pilot(Protocol):
     def loiter_at(self, centre: Vector, radius: float, clockwise: bool) -> None: ...
     def circle_rate(self, radius: float) -> float: ...
     def returned(self) -> bool: ...
+    def fly_leg(self, target: Vector, following: Vector | None = None) -> None: ...
+    def leg_done(self, target: Vector, radius: float) -> bool: ...
     def hold(self) -> None: ...
     def land_at(self, north: float, east: float) -> None: ...
     def return_home(self) -> None: ...
     def has_landed(self) -> bool: ...
-    def arrived(self, target: Vector, radius: float) -> bool: ...
     def set_speed(self, speed_type: int, speed: float) -> None: ...
     def set_yaw(self, heading: float, rate: float) -> None: ...
     def yaw_settled(self) -> bool: ...
@@ -173,14 +183,29 @@ class AutoMission:
             return
         self.pilot.hold()
 
-    def _jump(self, index: int, item: MissionItem) -> int:
+    def _jump(self, index: int, item: MissionItem, count: bool = True) -> int:
         repeats = int(item.param2)
         done = self._jumps.get(index, 0)
         target = int(item.param1)
         if (repeats < 0 or done < repeats) and 1 <= target < len(self.items):
-            self._jumps[index] = done + 1
+            if count:
+                self._jumps[index] = done + 1
             return target
         return index + 1
+
+    def _next_nav(self, index: int) -> MissionItem | None:
+        """The NAV command after ``index``, following jumps without counting them."""
+        seen: set[int] = set()
+        while index < len(self.items) and index not in seen:
+            seen.add(index)
+            item = self.items[index]
+            if item.command == DO_JUMP:
+                index = self._jump(index, item, count=False)
+            elif item.command in NAV_COMMANDS:
+                return item
+            else:
+                index += 1
+        return None
 
     def _announce(self, item: MissionItem) -> None:
         name = NAMES.get(item.command, str(item.command))
@@ -212,7 +237,12 @@ class AutoMission:
                 nav.phase = "descend"
                 return
             nav.target = (nav.target[0], nav.target[1], here[2])
-        pilot.fly_to(nav.target)
+        following = None
+        if item.command == NAV_WAYPOINT and item.param1 <= 0:
+            after = self._next_nav(nav.index + 1)
+            if after is not None and after.command in BLENDS_INTO:
+                following = pilot.item_position(after)
+        pilot.fly_leg(nav.target, following)
 
     def _update_nav(self, nav: _Nav) -> bool:
         item, pilot = self.items[nav.index], self.pilot
@@ -226,9 +256,10 @@ class AutoMission:
         if command == NAV_TAKEOFF:
             return abs(pilot.position[2] - nav.target[2]) < 0.2
         if nav.phase == "go":
-            # ArduCopter keeps no acceptance radius in a NAV_WAYPOINT: WPNAV_RADIUS decides.
+            # ArduCopter keeps no acceptance radius in a NAV_WAYPOINT: its waypoint
+            # navigator decides (WPNAV_RADIUS); a plane or a rover its WP_RADIUS.
             radius = self.waypoint_radius if command == NAV_WAYPOINT else 1.0
-            if not pilot.arrived(nav.target, radius):
+            if not pilot.leg_done(nav.target, radius):
                 return False
             nav.phase, nav.since = "hold", pilot.time
             if command == NAV_LAND:

@@ -51,8 +51,16 @@ from sitl.missions import FENCE, MISSION, MissionServer
 from sitl.modes import COPTER, FLIP_FROM, FLIP_NEEDS_THROTTLE, PILOT_MODES, ModeTable
 from sitl.obstacles import Obstacles
 from sitl.params import AUTOPILOT_DEFAULTS, Params, param_replies
-from sitl.physics import Battery, Body, Limits, flight_current
+from sitl.physics import (
+    Battery,
+    Body,
+    Limits,
+    flight_current,
+    sqrt_controller,
+    stopping_distance,
+)
 from sitl.streams import Streams
+from sitl.track import Track, make_leg
 from tml.geo import to_global, to_local
 from tml.mavlink.mission import MissionItem
 from tml.world import Home, World
@@ -68,10 +76,18 @@ FLIP_DIRECTION_STICK = 300  # centidegrees of pitch stick that make it a pitch f
 RC_RADIO = (1500, 1500, 1000, 1500)  # SITL radio, nobody at the sticks: centred, throttle down
 STICK_DEADZONE = 20  # microseconds around 1500 where roll and pitch read 0 (RCn_DZ)
 THROTTLE_DEADZONE = 30  # microseconds above 1000 where the throttle reads 0 (RC3_DZ)
-BRAKE_DECEL = 7.5  # m/s², ArduCopter's BRAKE_MODE_DECEL_RATE: BRAKE stops harder
+# m/s², ArduCopter's BRAKE_MODE_DECEL_RATE; reached at PSC_JERK_XY, so that from 10 m/s
+# BRAKE stops in about 21 m as ArduCopter SITL does, no shorter than GUIDED's stop.
+BRAKE_DECEL = 7.5
 FORCE_ARM = (2989, 21196)  # param2 magic numbers that skip the checks
 LANDED_AFTER = 1.0  # seconds on the ground before touch-down counts (ArduCopter's detector)
 GUIDED_VELOCITY_TIMEOUT = 3.0  # a velocity target older than this stops the vehicle
+# ArduCopter SITL sits 3.0 s on the ground after NAV_TAKEOFF before it climbs: the motors
+# spool up (MOT_SPOOL_TIME), the take-off throttle ramps (TKOFF_SLEW_TIME), and half a
+# second more passes before the climb lifts it (measured, docs/simulator.md).
+LIFT_OFF_AFTER_SLEW = 0.5
+RTL_ALT_MIN = 2.0  # m, ArduCopter's lowest RTL return altitude
+FALLING = Limits(accel_z=9.8, descent=10.0, jerk_z=1000.0)  # disarmed in the air
 ORIGIN_AFTER_FIX = 10.0  # s of GPS fix before the EKF sets its origin (ArduCopter SITL: 10 -> 20 s)
 
 Vector = tuple[float, float, float]
@@ -98,6 +114,9 @@ class VehicleModel:
     initial_mode = "STABILIZE"  # the mode it is in when it says "ArduPilot Ready"
     lands_vertically = True  # NAV_LAND: over the point first, then straight down
     orbits = False  # circles natively (a fixed-wing); else flies round a moving point
+    # Waypoint legs as ArduCopter's S-curves (:mod:`sitl.track`); else (a plane, a rover)
+    # straight to each point, done within the waypoint radius.
+    flies_s_curves = True
 
     def __init__(
         self, system_id: int, home: Home, world: World | None = None, seed: int = 0,
@@ -144,7 +163,9 @@ class VehicleModel:
         self._speed: float | None = None
         self._climb_speed: float | None = None
         self._descent_speed: float | None = None
-        self._target: Vector | None = None
+        self._target: Vector | None = None  # a position-controller goal (GUIDED, take-off)
+        self._track: Track | None = None  # waypoint legs (AUTO, RTL)
+        self._lift_off_at: float | None = None  # end of the take-off run-up
         self._velocity: tuple[Vector, float] | None = None  # (velocity, expiry time)
         self._landing: tuple[float, float] | None = None
         self._yaw: tuple[float, float] | None = None  # (heading, rate)
@@ -408,7 +429,8 @@ class VehicleModel:
         previous, self.mode = self.mode, name
         if not self.armed:
             self._prearm.bring_forward(self.time)
-        self._target, self._velocity, self._landing, self.auto = None, None, None, None
+        self._stop_motion()
+        self.auto = None
         self._rtl_phase = ""
         self.roll = self.pitch = 0.0
         self._announce_mode()
@@ -420,10 +442,14 @@ class VehicleModel:
         if name == "FLIP":  # turn once around, then back to ``previous``
             self._flip = (previous, 0.0, *self._flip_direction(), self.time)
             self.body.stop()
-        elif name in ("GUIDED", "LOITER", "BRAKE") and flying:
+        elif name == "BRAKE" and flying:
+            # ArduCopter's BRAKE shapes the velocity to zero at BRAKE_MODE_DECEL_RATE
+            # (jerk-limited) and holds where that ends.
+            self._velocity = ((0.0, 0.0, 0.0), math.inf)
+        elif name in ("GUIDED", "LOITER") and flying:
             self._target = self._stopping_point()
         elif name == "LAND":
-            self._landing = self.position[:2]
+            self._landing = self._stopping_point()[:2] if flying else self.position[:2]
         elif name == "RTL" and flying:
             self._start_rtl()
         elif name == "AUTO":
@@ -501,7 +527,8 @@ class VehicleModel:
         """Stop the motors (a forced disarm in flight drops the vehicle)."""
         self.armed = False
         self._prearm.bring_forward(self.time)
-        self._target, self._velocity, self._landing, self.auto = None, None, None, None
+        self._stop_motion()
+        self.auto = None
         self._text(M.MAV_SEVERITY_INFO, "Disarming motors")
 
     def _takeoff(self, altitude: float) -> bool:
@@ -567,14 +594,36 @@ class VehicleModel:
         if not mask & 0b111:
             self._go(position)
         elif not mask & 0b111000:
-            self._target = None
+            self._stop_motion()
             self._velocity = (velocity, self.time + GUIDED_VELOCITY_TIMEOUT)
         if not mask & 1024:
             self.set_yaw(math.degrees(yaw) % 360.0, self.params["ATC_RATE_Y_MAX"])
 
     def _go(self, target: Vector) -> None:
-        self._velocity, self._landing = None, None
+        """Fly to ``target`` with the position controller (GUIDED targets, take-off)."""
+        self._stop_motion()
         self._target = target
+
+    def _fly_legs(self, destination: Vector, following: Vector | None = None) -> None:
+        """Fly to ``destination`` as the waypoint navigator does (an S-curve leg), blending
+        into the leg on to ``following`` when there is one."""
+        p, limits = self.params, self._limits()
+        jerk = p["WPNAV_JERK"]
+        track = self._track
+        if track is not None and track.next is not None and math.dist(
+                track.next.destination, destination) < 0.01 and track.promote():
+            track.replan(limits, jerk, self.time)  # the speed may have changed meanwhile
+        else:
+            # A new leg starts from where the vehicle can stop, as ArduCopter's does.
+            track = Track(make_leg(self._stopping_point(keep_altitude=True), destination,
+                                   limits, jerk), self.time, p["WPNAV_RADIUS"] / 100.0)
+        track.set_next(None if following is None else make_leg(destination, following,
+                                                                limits, jerk))
+        self._stop_motion()
+        self._track = track
+
+    def _stop_motion(self) -> None:
+        self._target, self._velocity, self._landing, self._track = None, None, None, None
 
     # ------------------------------------------------------------------- Pilot API
     def item_position(self, item: MissionItem) -> Vector:
@@ -589,7 +638,7 @@ class VehicleModel:
         return self._local(item.x / 1e7, item.y / 1e7, altitude)
 
     def fly_to(self, target: Vector) -> None:
-        """Fly to ``target`` and hold there."""
+        """Fly to ``target`` with the position controller and hold there."""
         self._go(target)
 
     def take_off(self, target: Vector) -> None:
@@ -609,13 +658,34 @@ class VehicleModel:
         """NAV_RETURN_TO_LAUNCH is done: for a multicopter, landed at home."""
         return self.landed
 
+    def fly_leg(self, target: Vector, following: Vector | None = None) -> None:
+        """Fly a waypoint leg to ``target``; on to ``following`` without stopping if given."""
+        if not self.flies_s_curves:
+            self.fly_to(target)
+            return
+        self._fly_legs(target, following)
+
+    def leg_done(self, target: Vector, radius: float) -> bool:
+        """True once the waypoint leg to ``target`` is reached: at the turn's apex for a
+        blended leg, else where its S-curve ends (``WPNAV_RADIUS`` decides, not ``radius``).
+        A vehicle that flies no S-curves is done within ``radius`` of ``target``."""
+        if not self.flies_s_curves:
+            return self.arrived(target, radius)
+        return self._leg_reached()
+
+    def _leg_reached(self) -> bool:
+        track = self._track
+        return track is not None and track.reached and (
+            track.next is not None or math.dist(
+                self.position, track.destination) <= self.params["WPNAV_RADIUS"] / 100)
+
     def hold(self) -> None:
         """Stop and hold the present position."""
         self._go(self._stopping_point())
 
     def land_at(self, north: float, east: float) -> None:
         """Descend to the ground at (north, east)."""
-        self._target, self._velocity = None, None
+        self._stop_motion()
         self._landing = (north, east)
 
     def return_home(self) -> None:
@@ -632,13 +702,18 @@ class VehicleModel:
 
     def set_speed(self, speed_type: int, speed: float) -> None:
         """Set one speed (m/s) for waypoints and guided targets: ``speed_type`` 0 or 1 the
-        horizontal speed, 2 the climb speed, 3 the descent speed (MAVLink SPEED_TYPE)."""
+        horizontal speed, 2 the climb speed, 3 the descent speed (MAVLink SPEED_TYPE).
+
+        A waypoint leg in progress is planned again from where the vehicle is, as
+        ArduCopter recalculates its leg when the speed changes."""
         if speed_type == auto.SPEED_CLIMB:
             self._climb_speed = speed
         elif speed_type == auto.SPEED_DESCENT:
             self._descent_speed = speed
         else:
             self._speed = speed
+        if self._track is not None:
+            self._track.replan(self._limits(), self.params["WPNAV_JERK"], self.time)
 
     def set_yaw(self, heading: float, rate: float) -> None:
         """Turn to ``heading`` degrees at ``rate`` degrees per second, and keep it."""
@@ -713,7 +788,8 @@ class VehicleModel:
 
     def _auto_disarm(self) -> None:
         """ArduCopter disarms DISARM_DELAY s after landing, or when armed idle on the ground."""
-        if self.armed and self.landed and self._target is None and self._landing is None:
+        if self.armed and self.landed and self._target is None and self._landing is None and (
+                self._track is None):
             if self.time - self._idle_since >= self.params["DISARM_DELAY"] > 0:
                 self.disarm()
         elif self.armed:
@@ -731,7 +807,8 @@ class VehicleModel:
         if self.mode in PILOT_MODES:  # the stick's rate, not the navigation's limits
             climb = p["PILOT_SPEED_UP"] / 100.0
             descent = (p["PILOT_SPEED_DN"] or p["PILOT_SPEED_UP"]) / 100.0
-        return Limits(speed, climb, descent, accel, accel_z, p["ATC_RATE_Y_MAX"])
+        return Limits(speed, climb, descent, accel, accel_z, p["ATC_RATE_Y_MAX"], p["PSC_JERK_XY"],
+                      p["PSC_JERK_Z"])
 
     def _wind(self) -> tuple[float, float]:
         # SIM_WIND_DIR is where the wind comes from; it blows toward the opposite side.
@@ -745,9 +822,9 @@ class VehicleModel:
             if self.landed:
                 body.stop()
                 return
-            body.move((0.0, 0.0, -3.0), Limits(accel_z=9.8, descent=10.0), TICK)  # falling
+            body.shape_velocity((0.0, 0.0, -3.0), FALLING, TICK)
             return
-        if self.landed and not self._wants_climb():
+        if self.landed and not (self._wants_climb() and self._lifting_off()):
             body.stop()
             return
         limits = self._limits()
@@ -758,23 +835,21 @@ class VehicleModel:
             north, east, up = body.position
             body.position, body.velocity = (north, east, up - sink * TICK), (0.0, 0.0, -sink)
         elif self._landing is not None:
-            up = body.position[2]
-            low = up <= self.params["LAND_ALT_LOW"] / 100.0
-            speed = self.params["LAND_SPEED"] if low else (
-                self.params["LAND_SPEED_HIGH"] or self.params["WPNAV_SPEED_DN"])
+            speed = self._land_speed()
             north, east = self._landing
-            demand = body.velocity_toward((north, east, up), limits)
-            body.move((demand[0], demand[1], -speed / 100.0),
-                      replace(limits, descent=speed / 100.0), TICK)
+            body.shape((north, east, 0.0), replace(limits, descent=speed), TICK,
+                       climb_rate=-speed)
         elif self._velocity is not None and self.time < self._velocity[1]:
-            body.move(self._velocity[0], limits, TICK)
+            body.shape_velocity(self._velocity[0], limits, TICK)
+        elif self._track is not None:
+            position, velocity, accel = self._track.update(self.time)
+            body.shape(position, limits, TICK, velocity, accel)
         elif self._target is not None:
-            body.move(body.velocity_toward(self._target, limits), limits, TICK,
-                      target=self._target)
+            body.shape(self._target, limits, TICK)
         else:
             pilot = self.mode in PILOT_MODES
             climb = self.pilot_climb_rate() if pilot else 0.0
-            body.move((0.0, 0.0, climb), limits, TICK, self._wind(), hold=not pilot)
+            body.shape_velocity((0.0, 0.0, climb), limits, TICK, self._wind(), hold=not pilot)
         if self._blocked(body.position):
             body.position = before
             body.stop()
@@ -782,6 +857,29 @@ class VehicleModel:
             self.landed = False
             self._text(M.MAV_SEVERITY_INFO, "Takeoff")
         self._turn(before)
+
+    def _land_speed(self) -> float:
+        """The descent rate (m/s) of a landing, as ArduCopter's
+        ``land_run_vertical_control``: ``LAND_SPEED`` below ``LAND_ALT_LOW``; above, a rate
+        braking on a square-root curve toward that altitude, between ``LAND_SPEED`` and
+        ``LAND_SPEED_HIGH`` (or ``WPNAV_SPEED_DN``), so the slow final phase starts there."""
+        p = self.params
+        slow = abs(p["LAND_SPEED"]) / 100.0
+        fast = max(slow, (p["LAND_SPEED_HIGH"] or p["WPNAV_SPEED_DN"]) / 100.0)
+        above = self.position[2] - max(p["LAND_ALT_LOW"], 100.0) / 100.0
+        if above <= 0.0:
+            return slow
+        braking = sqrt_controller(above, p["PSC_POSZ_P"], p["WPNAV_ACCEL_Z"] / 100.0, TICK)
+        return max(slow, min(fast, braking))
+
+    def _lifting_off(self) -> bool:
+        """True once the take-off run-up is over: ArduCopter spools the motors up and ramps
+        the take-off throttle before the vehicle leaves the ground."""
+        if self._lift_off_at is None:
+            p = self.params
+            self._lift_off_at = self.time + p["MOT_SPOOL_TIME"] + p["TKOFF_SLEW_TIME"] + (
+                LIFT_OFF_AFTER_SLEW)
+        return self.time >= self._lift_off_at
 
     def _turn(self, before: Vector) -> None:
         if self._yaw is not None:
@@ -797,12 +895,16 @@ class VehicleModel:
             return self.pilot_climb_rate() > 0.0
         if self._target is not None:
             return self._target[2] > 0.3
+        if self._track is not None:
+            return self._track.destination[2] > 0.3
         return self._velocity is not None and self._velocity[0][2] > 0.1
 
     def _check_landed(self) -> None:
         body = self.body
         if body.position[2] > 0.0 or self.landed:
             self._ground_since = self.time
+            if not self.landed or not self._wants_climb():
+                self._lift_off_at = None
             return
         body.position = (body.position[0], body.position[1], 0.0)
         body.stop()
@@ -811,7 +913,7 @@ class VehicleModel:
         self.landed = True
         self._idle_since = self.time
         landing = self._landing is not None
-        self._target, self._velocity, self._landing = None, None, None
+        self._stop_motion()
         if self.auto is not None:
             self.auto.update()  # lets NAV_LAND / RTL items complete and be reported
         if self.armed and (landing or self.mode in ("LAND", "RTL")):
@@ -902,25 +1004,38 @@ class VehicleModel:
 
     # --------------------------------------------------------------------- RTL
     def _start_rtl(self) -> None:
-        here = self.position
-        altitude = max(here[2], self.params["RTL_ALT"] / 100.0)
+        """ArduCopter's RTL: climb to the return altitude, fly home at it, loiter, land.
+
+        The return altitude is ``RTL_ALT``, or the present altitude (plus ``RTL_CLIMB_MIN``)
+        if higher, but no higher than ``RTL_CONE_SLOPE`` times the distance home, so a
+        vehicle already near home does not climb (``ModeRTL::compute_return_target``). The
+        climb and the return are two waypoint legs, the first blended into the second."""
+        p, here, home = self.params, self._stopping_point(keep_altitude=True), self._home_local()
+        lowest = max(RTL_ALT_MIN, here[2] + max(0.0, p["RTL_CLIMB_MIN"] / 100.0))
+        altitude = max(p["RTL_ALT"] / 100.0, lowest)
+        distance = math.hypot(home[0] - here[0], home[1] - here[1])
+        if p["RTL_CONE_SLOPE"] >= 0.5:
+            altitude = min(altitude, max(distance * p["RTL_CONE_SLOPE"], lowest))
+        altitude = max(altitude, here[2])
         self._rtl_phase = "climb"
-        self._go((here[0], here[1], altitude))
+        self._fly_legs((here[0], here[1], altitude), (home[0], home[1], altitude))
 
     def _update_rtl(self) -> None:
         if not self._rtl_phase or not self.armed:
             return
-        home = self._home_local()
-        target = self._target
-        if self._rtl_phase == "climb" and target is not None and self.arrived(target, 0.3):
+        if self._rtl_phase == "climb" and self._leg_reached():
             self._rtl_phase = "return"
-            self._go((home[0], home[1], target[2]))
-        elif self._rtl_phase == "return" and target is not None and self.arrived(target, 1.0):
+            track = self._track
+            assert track is not None
+            if track.next is not None:
+                self._fly_legs(track.next.destination)
+        elif self._rtl_phase == "return" and self._leg_reached():
             self._rtl_phase, self._rtl_since = "loiter", self.time
         elif self._rtl_phase == "loiter" and (
             self.time - self._rtl_since >= self.params["RTL_LOIT_TIME"] / 1000.0
         ):
             self._rtl_phase = "land"
+            home = self._home_local()
             self.land_at(home[0], home[1])
 
     # ---------------------------------------------------------------- failsafes
@@ -1106,14 +1221,17 @@ class VehicleModel:
             self.auto.start(seq)
         return True
 
-    def _stopping_point(self) -> Vector:
+    def _stopping_point(self, keep_altitude: bool = False) -> Vector:
+        """Where the vehicle can stop, by ArduCopter's ``get_stopping_point``: the
+        position controller's stopping distance ahead along the velocity."""
         (n, e, u), (vn, ve, _) = self.position, self.body.velocity
         accel = BRAKE_DECEL if self.mode == "BRAKE" else self.params["WPNAV_ACCEL"] / 100.0
         speed = math.hypot(vn, ve)
+        up = u if keep_altitude else max(u, 0.0)
         if speed < 1e-6:
-            return n, e, max(u, 0.0)
-        stop = speed / (2.0 * accel)
-        return n + vn * stop, e + ve * stop, max(u, 0.0)
+            return n, e, up
+        stop = stopping_distance(speed, self.params["PSC_POSXY_P"], accel) / speed
+        return n + vn * stop, e + ve * stop, up
 
     def _text(self, severity: int, message: str) -> None:
         self._outbox.append(statustext(severity, message))

@@ -1,9 +1,17 @@
 """Kinematics and battery of a simulated multicopter.
 
-A point mass with a heading, flown the way ArduCopter's position controller flies it:
-the demanded velocity toward a target is capped by the speed limit and by a square-root
-braking curve (v <= sqrt(2 a d)), and the actual velocity approaches the demand no faster
-than the acceleration limit; yaw turns toward its target no faster than the yaw-rate limit.
+A point mass with a heading, flown the way ArduCopter's position controller flies it
+(``AC_PosControl`` and ``AP_Math/control.cpp``): the controller shapes a *target* that
+moves toward the goal, and the simulated vehicle is that target. The shaping is
+ArduPilot's, per control tick: a square-root controller turns the position error into a
+velocity (linear near the goal, ``sqrt(2 a d)`` farther away, with half the acceleration
+limit so that braking never overshoots), a second one turns the velocity error into an
+acceleration within the acceleration limit, and the acceleration changes no faster than
+the jerk limit. Horizontal and vertical axes are shaped apart, each with its own limits
+(``WPNAV_SPEED``/``WPNAV_ACCEL``/``PSC_JERK_XY`` and ``WPNAV_SPEED_UP``/``_DN``/
+``WPNAV_ACCEL_Z``/``PSC_JERK_Z``). A feed-forward velocity and acceleration let the same
+controller follow a moving target: the S-curve legs of :mod:`sitl.track` (AUTO and RTL).
+Yaw turns toward its target no faster than the yaw-rate limit.
 A position-holding copter leans into the wind, so wind costs current but moves the vehicle
 only when nothing holds its position (``hold=False``).
 
@@ -22,11 +30,16 @@ import math
 from dataclasses import dataclass
 
 Vector = tuple[float, float, float]
+ZERO: Vector = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
 class Limits:
-    """Speeds in m/s, accelerations in m/s², yaw rate in degrees per second."""
+    """Speeds in m/s, accelerations in m/s², jerks in m/s³, yaw rate in degrees per second.
+
+    The defaults are ArduCopter's: ``WPNAV_SPEED``, ``WPNAV_SPEED_UP``, ``WPNAV_SPEED_DN``,
+    ``WPNAV_ACCEL``, ``WPNAV_ACCEL_Z``, ``PSC_JERK_XY``, ``PSC_JERK_Z``.
+    """
 
     speed: float = 10.0
     climb: float = 2.5
@@ -34,12 +47,63 @@ class Limits:
     accel: float = 2.5
     accel_z: float = 1.0
     yaw_rate: float = 90.0
+    jerk: float = 5.0
+    jerk_z: float = 5.0
 
 
-def _toward(current: float, desired: float, step: float) -> float:
-    if abs(desired - current) <= step:
-        return desired
-    return current + math.copysign(step, desired - current)
+def sqrt_controller(error: float, gain: float, limit: float, dt: float) -> float:
+    """ArduPilot's ``sqrt_controller``: ``gain * error`` near zero, ``sqrt(2 limit error)``
+    beyond ``limit / gain²``, never more than would cross zero within ``dt``."""
+    linear = limit / (gain * gain)
+    if error > linear:
+        correction = math.sqrt(2.0 * limit * (error - linear / 2.0))
+    elif error < -linear:
+        correction = -math.sqrt(2.0 * limit * (-error - linear / 2.0))
+    else:
+        correction = error * gain
+    step = abs(error) / dt
+    return max(-step, min(step, correction))
+
+
+def _limit(x: float, y: float, length: float) -> tuple[float, float]:
+    size = math.hypot(x, y)
+    if size > length:
+        return x / size * length, y / size * length
+    return x, y
+
+
+def _sqrt_xy(x: float, y: float, gain: float, limit: float, dt: float) -> tuple[float, float]:
+    size = math.hypot(x, y)
+    if size < 1e-9:
+        return 0.0, 0.0
+    scale = sqrt_controller(size, gain, limit, dt) / size
+    return x * scale, y * scale
+
+
+def _corner_limit(vn: float, ve: float, an: float, ae: float, accel: float
+                  ) -> tuple[float, float]:
+    """ArduPilot's ``limit_accel_corner_xy``: within ``accel``, keeping at least 1/sqrt(2)
+    of it across the direction of travel so that a turn is never starved by braking."""
+    speed = math.hypot(vn, ve)
+    if speed < 1e-9:
+        return _limit(an, ae, accel)
+    un, ue = vn / speed, ve / speed
+    along = un * an + ue * ae
+    cn, ce = an - un * along, ae - ue * along
+    if along * along <= cn * cn + ce * ce:
+        return _limit(an, ae, accel)
+    cn, ce = _limit(cn, ce, accel / math.sqrt(2.0))
+    room = math.sqrt(max(0.0, accel * accel - cn * cn - ce * ce))
+    along = max(-room, min(room, along))
+    return cn + un * along, ce + ue * along
+
+
+def _shape_velocity_z(velocity: float, accel: float, demand: float, feed: float,
+                      limit: float, jerk: float, dt: float) -> float:
+    """The new vertical acceleration (ArduPilot's ``shape_vel_accel``)."""
+    target = sqrt_controller(demand - velocity, jerk / limit, jerk, dt)
+    target = max(-limit, min(limit, max(-limit, min(limit, target)) + feed))
+    return accel + max(-jerk * dt, min(jerk * dt, target - accel))
 
 
 def wrap_degrees(angle: float) -> float:
@@ -48,52 +112,58 @@ def wrap_degrees(angle: float) -> float:
 
 
 class Body:
-    """Position (north, east, up) in metres from the origin, velocity, heading in degrees."""
+    """Position (north, east, up) in metres from the origin, velocity, acceleration, and
+    heading in degrees."""
 
     def __init__(self, heading: float = 0.0) -> None:
-        self.position: Vector = (0.0, 0.0, 0.0)
-        self.velocity: Vector = (0.0, 0.0, 0.0)
+        self.position: Vector = ZERO
+        self.velocity: Vector = ZERO
+        self.accel: Vector = ZERO
         self.heading = wrap_degrees(heading)
 
-    def velocity_toward(self, target: Vector, limits: Limits) -> Vector:
-        """The velocity demand that brings the body to ``target`` and stops it there."""
-        dn, de = target[0] - self.position[0], target[1] - self.position[1]
-        du = target[2] - self.position[2]
-        horizontal = math.hypot(dn, de)
-        speed = min(limits.speed, math.sqrt(2.0 * limits.accel * horizontal))
-        vn, ve = (dn / horizontal * speed, de / horizontal * speed) if horizontal > 1e-6 else (0, 0)
-        vertical_limit = limits.climb if du > 0 else limits.descent
-        vu = math.copysign(min(vertical_limit, math.sqrt(2.0 * limits.accel_z * abs(du))), du)
-        return vn, ve, vu
-
-    def move(
-        self, demand: Vector, limits: Limits, dt: float,
-        wind: tuple[float, float] = (0.0, 0.0), hold: bool = True, target: Vector | None = None,
-    ) -> None:
-        """Advance ``dt`` seconds chasing the velocity ``demand``.
-
-        With a ``target``, a step that would cross it ends on it, so the discrete step does
-        not oscillate around the point the square-root curve stops at; the speed left over
-        from the acceleration limit's lag may still carry the body a few centimetres past
-        before it settles back.
-        """
-        step_h, step_v = limits.accel * dt, limits.accel_z * dt
-        vn, ve, vu = self.velocity
-        dvn, dve = demand[0] - vn, demand[1] - ve
-        change = math.hypot(dvn, dve)
-        if change > step_h:
-            dvn, dve = dvn / change * step_h, dve / change * step_h
-        vn, ve, vu = vn + dvn, ve + dve, _toward(vu, demand[2], step_v)
-        if not hold:
-            vn, ve = vn + wind[0], ve + wind[1]
+    def shape(self, target: Vector, limits: Limits, dt: float, velocity: Vector = ZERO,
+              accel: Vector = ZERO, climb_rate: float | None = None) -> None:
+        """Advance ``dt`` seconds toward ``target`` (ArduPilot's ``shape_pos_vel_accel``),
+        with ``velocity`` and ``accel`` fed forward when the target itself moves; with a
+        ``climb_rate`` the vertical axis holds that rate instead of the target's altitude
+        (a landing)."""
         n, e, u = self.position
-        n, e, u = n + vn * dt, e + ve * dt, u + vu * dt
-        if target is not None:
-            n, e, u = _clamp_past(self.position, (n, e, u), target)
+        # Half the acceleration for the approach: braking never overshoots the goal.
+        half, gain = 0.5 * limits.accel, 0.5 * limits.jerk / limits.accel
+        cn, ce = _limit(*_sqrt_xy(target[0] - n, target[1] - e, gain, half, dt), limits.speed)
+        cn, ce = _limit(cn + velocity[0], ce + velocity[1], limits.speed)
+        half_z, gain_z = 0.5 * limits.accel_z, 0.5 * limits.jerk_z / limits.accel_z
+        if climb_rate is None:
+            cu = sqrt_controller(target[2] - u, gain_z, half_z, dt) + velocity[2]
+        else:
+            cu = climb_rate
+        cu = max(-limits.descent, min(limits.climb, cu))
+        self._accelerate((cn, ce, cu), accel, limits, dt)
+
+    def shape_velocity(self, demand: Vector, limits: Limits, dt: float,
+                       wind: tuple[float, float] = (0.0, 0.0), hold: bool = True) -> None:
+        """Advance ``dt`` seconds approaching the velocity ``demand`` (ArduPilot's
+        ``shape_vel_accel``); without ``hold`` the wind carries the body along."""
+        self._accelerate(demand, ZERO, limits, dt)
         if not hold:
-            vn, ve = vn - wind[0], ve - wind[1]
-        self.position = (n, e, u)
-        self.velocity = (vn, ve, vu)
+            n, e, u = self.position
+            self.position = (n + wind[0] * dt, e + wind[1] * dt, u)
+
+    def _accelerate(self, demand: Vector, feed: Vector, limits: Limits, dt: float) -> None:
+        (vn, ve, vu), (an, ae, au) = self.velocity, self.accel
+        gain = limits.jerk / limits.accel
+        tn, te = _sqrt_xy(demand[0] - vn, demand[1] - ve, gain, limits.jerk, dt)
+        tn, te = _corner_limit(demand[0], demand[1], tn, te, limits.accel)
+        tn, te = _limit(tn + feed[0], te + feed[1], limits.accel)
+        dn, de = _limit(tn - an, te - ae, limits.jerk * dt)
+        an, ae = an + dn, ae + de
+        au = _shape_velocity_z(vu, au, demand[2], feed[2], limits.accel_z, limits.jerk_z, dt)
+        n, e, u = self.position
+        half_dt2 = 0.5 * dt * dt
+        self.position = (n + vn * dt + an * half_dt2, e + ve * dt + ae * half_dt2,
+                         u + vu * dt + au * half_dt2)
+        self.velocity = (vn + an * dt, ve + ae * dt, vu + au * dt)
+        self.accel = (an, ae, au)
 
     def turn(self, heading: float, rate: float, dt: float) -> None:
         """Turn toward ``heading`` (degrees) at most ``rate`` degrees per second."""
@@ -101,24 +171,17 @@ class Body:
         self.heading = wrap_degrees(self.heading + max(-rate * dt, min(rate * dt, error)))
 
     def stop(self) -> None:
-        """Zero velocity (touchdown, collision)."""
-        self.velocity = (0.0, 0.0, 0.0)
+        """Zero velocity and acceleration (touchdown, collision)."""
+        self.velocity = ZERO
+        self.accel = ZERO
 
 
-def _clamp_past(start: Vector, end: Vector, target: Vector) -> Vector:
-    """``end``, or the target on each axis group the step would have crossed."""
-    n, e, u = end
-    to_target = (target[0] - start[0], target[1] - start[1])
-    moved = (end[0] - start[0], end[1] - start[1])
-    if to_target[0] * moved[0] + to_target[1] * moved[1] > 0 and math.hypot(*moved) >= math.hypot(
-        *to_target
-    ):
-        n, e = target[0], target[1]
-    if (target[2] - start[2]) * (end[2] - start[2]) > 0 and abs(end[2] - start[2]) >= abs(
-        target[2] - start[2]
-    ):
-        u = target[2]
-    return n, e, u
+def stopping_distance(speed: float, gain: float, accel: float) -> float:
+    """Where ArduCopter's position controller says a vehicle at ``speed`` stops
+    (``AC_PosControl`` ``stopping_distance``, ``gain`` is ``PSC_POSXY_P``)."""
+    if speed <= accel / gain:
+        return speed / gain
+    return accel / (2.0 * gain * gain) + speed * speed / (2.0 * accel)
 
 
 class Battery:

@@ -46,7 +46,7 @@ ROLLOUT_DECEL = 4.0  # m/s² braking after touch-down
 FLARE_SINK = 1.5  # m/s below LAND_FLARE_ALT
 LIFT_OFF = 1.2  # times AIRSPEED_MIN: rotate and climb
 CLIMB_ANGLE = 15.0  # degrees of climb at most (less than TECS_CLMB_MAX when slow)
-FALLING = Limits(speed=10.0, descent=10.0, accel_z=9.8)  # disarmed in the air
+FALLING = Limits(speed=10.0, descent=10.0, accel_z=9.8, jerk_z=1000.0)  # disarmed in the air
 CRUISE_AMPS, CRUISE_SPEED = 11.4, 22.0  # ArduPlane SITL's current in level cruise
 CLIMB_AMPS = 2.0  # A per m/s of climb
 
@@ -72,6 +72,7 @@ class PlaneModel(VehicleModel):
     initial_mode = "MANUAL"
     lands_vertically = False
     orbits = True
+    flies_s_curves = False
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
@@ -281,7 +282,7 @@ class PlaneModel(VehicleModel):
                 body.stop()
                 self._home_follows()
                 return
-            body.move((0.0, 0.0, -5.0), FALLING, TICK)
+            body.shape_velocity((0.0, 0.0, -5.0), FALLING, TICK)
             return
         goal = self._goal
         if self.landed and (goal is None or goal.kind != "climb"):

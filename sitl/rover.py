@@ -45,6 +45,7 @@ class RoverModel(VehicleModel):
     parameter_table = ROVER_DEFAULTS
     initial_mode = "MANUAL"
     reports_landed_state = False
+    flies_s_curves = False
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)

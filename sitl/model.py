@@ -60,7 +60,7 @@ from sitl.physics import (
     stopping_distance,
 )
 from sitl.streams import Streams
-from sitl.track import Track, make_leg
+from sitl.track import Shape, Track, make_leg
 from tml.geo import to_global, to_local
 from tml.mavlink.mission import MissionItem
 from tml.world import Home, World
@@ -607,18 +607,17 @@ class VehicleModel:
     def _fly_legs(self, destination: Vector, following: Vector | None = None) -> None:
         """Fly to ``destination`` as the waypoint navigator does (an S-curve leg), blending
         into the leg on to ``following`` when there is one."""
-        p, limits = self.params, self._limits()
-        jerk = p["WPNAV_JERK"]
+        p, limits, shape = self.params, self._limits(), self._shape()
         track = self._track
         if track is not None and track.next is not None and math.dist(
                 track.next.destination, destination) < 0.01 and track.promote():
-            track.replan(limits, jerk, self.time)  # the speed may have changed meanwhile
+            track.replan(limits, shape, self.time)  # the speed may have changed meanwhile
         else:
             # A new leg starts from where the vehicle can stop, as ArduCopter's does.
             track = Track(make_leg(self._stopping_point(keep_altitude=True), destination,
-                                   limits, jerk), self.time, p["WPNAV_RADIUS"] / 100.0)
+                                   limits, shape), self.time, p["WPNAV_RADIUS"] / 100.0)
         track.set_next(None if following is None else make_leg(destination, following,
-                                                                limits, jerk))
+                                                                limits, shape))
         self._stop_motion()
         self._track = track
 
@@ -713,7 +712,7 @@ class VehicleModel:
         else:
             self._speed = speed
         if self._track is not None:
-            self._track.replan(self._limits(), self.params["WPNAV_JERK"], self.time)
+            self._track.replan(self._limits(), self._shape(), self.time)
 
     def set_yaw(self, heading: float, rate: float) -> None:
         """Turn to ``heading`` degrees at ``rate`` degrees per second, and keep it."""
@@ -809,6 +808,10 @@ class VehicleModel:
             descent = (p["PILOT_SPEED_DN"] or p["PILOT_SPEED_UP"]) / 100.0
         return Limits(speed, climb, descent, accel, accel_z, p["ATC_RATE_Y_MAX"], p["PSC_JERK_XY"],
                       p["PSC_JERK_Z"])
+
+    def _shape(self) -> Shape:
+        p = self.params
+        return Shape(p["WPNAV_JERK"], 2.0 * max(p["ATC_INPUT_TC"], 0.1))
 
     def _wind(self) -> tuple[float, float]:
         # SIM_WIND_DIR is where the wind comes from; it blows toward the opposite side.

@@ -52,6 +52,7 @@ AUTOPILOT_DEFAULTS: tuple[tuple[str, float, int], ...] = (
     ("LOIT_SPEED", 1250, REAL32),
     ("ATC_SLEW_YAW", 6000, REAL32),
     ("ATC_RATE_Y_MAX", 90, REAL32),
+    ("ATC_INPUT_TC", 0.15, REAL32),
     ("PILOT_SPEED_UP", 250, INT16),
     ("PILOT_SPEED_DN", 0, INT16),
     ("PILOT_ACCEL_Z", 250, INT16),

@@ -18,8 +18,8 @@ a right angle; this leg counts as reached (MISSION_ITEM_REACHED) when the next o
 as long as this one had left, the apex of the turn. A last leg is reached when its curve
 ends at the destination.
 
-The curves are those of constant-jerk segments; ArduPilot also limits the snap (the
-jerk's own rate of change), which only rounds the jerk's corners by a fraction of a second.
+The jerk itself rises and falls along raised cosines (ArduPilot limits the snap, the jerk's
+rate of change) over twice ``ATC_INPUT_TC``, 0.3 s, which slows each leg by about as much.
 """
 
 from __future__ import annotations
@@ -42,46 +42,74 @@ def kinematic_limit(unit: Vector, horizontal: float, up: float, down: float) -> 
     return min(horizontal / across, vertical / abs(unit[2]))
 
 
+# Segment kinds: the jerk rises from 0 to its value along a raised cosine (ArduPilot's
+# snap limit), holds it, or falls back to 0 along a raised cosine.
+RISE, HOLD, FALL = 1, 0, -1
+
+
 class SCurve:
     """Motion over ``length`` metres to rest, starting at ``initial`` m/s: jerk ``jerk``,
-    within ``accel`` and ``speed``, as constant-jerk segments (the acceleration ramps up,
-    holds and ramps down to the top speed, the vehicle cruises, and brakes the same way)."""
+    within ``accel`` and ``speed``. Each change of speed ramps the acceleration up, holds
+    it, and ramps it down; a ramp's jerk rises and falls along raised cosines lasting
+    ``jerk_time`` seconds (ArduPilot's snap limit; 0 for instant jerk changes).
+    The curve accelerates to its top speed, cruises, and brakes to rest."""
 
     def __init__(self, length: float, speed: float, accel: float, jerk: float,
-                 initial: float = 0.0) -> None:
+                 initial: float = 0.0, jerk_time: float = 0.0) -> None:
         self.length = length
         self.duration = 0.0
-        self._segments: list[tuple[float, float, float, float, float]] = []  # t, s, v, a, j
+        # start time, distance, speed, acceleration, jerk, kind, span
+        self._segments: list[tuple[float, float, float, float, float, int, float]] = []
         if length <= 0.0 or speed <= 0.0:
             return
-        self._accel, self._jerk = accel, jerk
+        self._accel, self._jerk, self._jerk_time = accel, jerk, jerk_time
         peak = self._peak(length, speed, initial)
         cruise = max(0.0, length - self._distance(initial, peak) - self._distance(peak, 0.0))
-        t = s = v = a = 0.0
-        v = initial
-        for j, span in (*self._change(initial, peak), (0.0, cruise / peak if peak > 0 else 0.0),
-                        *self._change(peak, 0.0)):
+        t, s, v, a = 0.0, 0.0, initial, 0.0
+        plan = (*self._change(initial, peak), (0.0, HOLD, cruise / peak if peak > 0 else 0.0),
+                *self._change(peak, 0.0))
+        for j, kind, span in plan:
             if span <= 0.0:
                 continue
-            self._segments.append((t, s, v, a, j))
-            s, v, a = _advance(s, v, a, j, span)
+            self._segments.append((t, s, v, a, j, kind, span))
+            s, v, a = _advance(s, v, a, j, kind, span, span)
             t += span
         self.duration = t
 
-    def _times(self, change: float) -> tuple[float, float]:
-        """Ramp and hold times of a speed change by ``change`` m/s."""
-        ramp = min(self._accel / self._jerk, math.sqrt(abs(change) / self._jerk))
-        return ramp, max(0.0, abs(change) / self._accel - ramp)
+    def _ramp(self, change: float) -> tuple[float, float, float]:
+        """(jerk, constant-jerk time, time at the peak acceleration) of a change of speed by
+        ``change`` m/s: the acceleration limit when there is room to reach it, less when
+        there is not."""
+        change = abs(change)
+        tj, jerk, accel = self._jerk_time, self._jerk, self._accel
 
-    def _change(self, start: float, end: float) -> tuple[tuple[float, float], ...]:
-        ramp, hold = self._times(end - start)
-        j = self._jerk if end > start else -self._jerk
-        return (j, ramp), (0.0, hold), (-j, ramp)
+        def shape(peak: float) -> tuple[float, float]:  # jerk, constant-jerk time
+            if peak >= jerk * tj:
+                return jerk, peak / jerk - tj
+            return peak / tj, 0.0
+
+        j, t2 = shape(accel)
+        if change >= accel * (2.0 * tj + t2):
+            return j, t2, change / accel - (2.0 * tj + t2)
+        peak = jerk / 2.0 * (-tj + math.sqrt(tj * tj + 4.0 * change / jerk))
+        if peak < jerk * tj:
+            peak = change / (2.0 * tj)
+        j, t2 = shape(peak)
+        return j, t2, 0.0
+
+    def _change(self, start: float, end: float) -> tuple[tuple[float, int, float], ...]:
+        """(jerk, kind, span) of the segments that take the speed from ``start`` to ``end``."""
+        j, t2, hold = self._ramp(end - start)
+        j = j if end > start else -j
+        tj = self._jerk_time
+        return ((j, RISE, tj), (j, HOLD, t2), (j, FALL, tj), (0.0, HOLD, hold),
+                (-j, RISE, tj), (-j, HOLD, t2), (-j, FALL, tj))
 
     def _distance(self, start: float, end: float) -> float:
-        """Metres covered changing speed from ``start`` to ``end`` (a symmetric ramp)."""
-        ramp, hold = self._times(end - start)
-        return (start + end) / 2.0 * (2.0 * ramp + hold)
+        """Metres covered changing speed from ``start`` to ``end``: the ramps are symmetric,
+        so the mean speed is the middle one."""
+        _, t2, hold = self._ramp(end - start)
+        return (start + end) / 2.0 * (2.0 * (2.0 * self._jerk_time + t2) + hold)
 
     def _peak(self, length: float, speed: float, initial: float) -> float:
         """The top speed of the curve: the highest within ``speed`` that still stops in
@@ -106,15 +134,25 @@ class SCurve:
             return 0.0, (self._segments[0][2] if self._segments else 0.0), 0.0
         if elapsed >= self.duration:
             return self.length, 0.0, 0.0
-        for start, s, v, a, j in reversed(self._segments):
+        for start, s, v, a, j, kind, span in reversed(self._segments):
             if elapsed >= start:
-                return _advance(s, v, a, j, elapsed - start)
+                return _advance(s, v, a, j, kind, span, elapsed - start)
         return 0.0, 0.0, 0.0  # pragma: no cover - the first segment starts at 0
 
 
-def _advance(s: float, v: float, a: float, j: float, t: float) -> tuple[float, float, float]:
-    return (s + v * t + a * t * t / 2.0 + j * t ** 3 / 6.0, v + a * t + j * t * t / 2.0,
-            a + j * t)
+def _advance(s: float, v: float, a: float, j: float, kind: int, span: float, t: float
+             ) -> tuple[float, float, float]:
+    """Distance, speed and acceleration ``t`` seconds into a segment."""
+    if kind == HOLD:
+        return (s + v * t + a * t * t / 2.0 + j * t ** 3 / 6.0, v + a * t + j * t * t / 2.0,
+                a + j * t)
+    # Jerk j/2 (1 - kind cos(pi t / span)): rising from 0 (RISE) or falling to 0 (FALL).
+    k = span / math.pi
+    sine, cosine = math.sin(t / k), math.cos(t / k)
+    half = j / 2.0
+    return (s + v * t + a * t * t / 2.0 + half * (t ** 3 / 6.0 + kind * k * k * (k * sine - t)),
+            v + a * t + half * (t * t / 2.0 + kind * k * k * (cosine - 1.0)),
+            a + half * (t - kind * k * sine))
 
 
 @dataclass
@@ -140,18 +178,27 @@ class Leg:
         return max(0.0, self.curve.duration - (time - self.start))
 
 
-def make_leg(origin: Vector, destination: Vector, limits: Limits, jerk: float,
+@dataclass(frozen=True)
+class Shape:
+    """The S-curves' own limits: ``WPNAV_JERK`` (m/s³), and the time the jerk takes to
+    rise or fall, ArduPilot's snap limit: twice ``ATC_INPUT_TC`` (at least 0.2 s)."""
+
+    jerk: float = 1.0
+    jerk_time: float = 0.3
+
+
+def make_leg(origin: Vector, destination: Vector, limits: Limits, shape: Shape,
              initial: float = 0.0) -> Leg:
-    """A leg from ``origin`` to ``destination`` within ``limits`` and with S-curve ``jerk``,
-    starting at ``initial`` m/s along it."""
+    """A leg from ``origin`` to ``destination`` within ``limits`` and ``shape``, starting at
+    ``initial`` m/s along it."""
     delta = tuple(b - a for a, b in zip(origin, destination, strict=True))
     length = math.sqrt(sum(d * d for d in delta))
     unit: Vector = (delta[0] / length, delta[1] / length, delta[2] / length) if (
         length > 1e-9) else ZERO
     speed = kinematic_limit(unit, limits.speed, limits.climb, limits.descent)
     accel = kinematic_limit(unit, limits.accel, limits.accel_z, limits.accel_z)
-    return Leg(origin, destination, unit, SCurve(length, speed, accel, jerk, initial), speed,
-               limits)
+    curve = SCurve(length, speed, accel, shape.jerk, initial, shape.jerk_time)
+    return Leg(origin, destination, unit, curve, speed, limits)
 
 
 class Track:
@@ -191,7 +238,7 @@ class Track:
             self.leg.start = self._now
         return True
 
-    def replan(self, limits: Limits, jerk: float, time: float) -> None:
+    def replan(self, limits: Limits, shape: Shape, time: float) -> None:
         """Plan the leg in progress again within new ``limits`` from where its curve is
         (ArduCopter recalculates its leg when the speed changes), and the next leg too if
         it has not begun."""
@@ -200,11 +247,11 @@ class Track:
             s, v, _ = leg.at(time)
             here = tuple(o + u * s for o, u in zip(leg.origin, leg.unit, strict=True))
             self._base = tuple(b + u * s for b, u in zip(self._base, leg.unit, strict=True))
-            self.leg = make_leg(here, leg.destination, limits, jerk, v)  # type: ignore[arg-type]
+            self.leg = make_leg(here, leg.destination, limits, shape, v)  # type: ignore[arg-type]
             self.leg.start = time
         following = self.next
         if following is not None and following.start is None and following.limits != limits:
-            self.next = make_leg(following.origin, following.destination, limits, jerk)
+            self.next = make_leg(following.origin, following.destination, limits, shape)
 
     def update(self, time: float) -> tuple[Vector, Vector, Vector]:
         """The target's position, velocity and acceleration at ``time``."""

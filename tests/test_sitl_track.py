@@ -8,20 +8,22 @@ import math
 import pytest
 
 from sitl.physics import Body, Limits
-from sitl.track import SCurve, Track, kinematic_limit, make_leg
+from sitl.track import SCurve, Shape, Track, kinematic_limit, make_leg
 
 DT = 0.05
 ARDUCOPTER = Limits()  # WPNAV_SPEED 10 m/s, WPNAV_ACCEL 2.5 m/s², WPNAV_ACCEL_Z 1 m/s², ...
 JERK = 1.0  # WPNAV_JERK
+SHAPE = Shape(JERK, 0.3)  # ... and twice ATC_INPUT_TC
 
 
 def samples(curve: SCurve) -> list[tuple[float, float, float]]:
     return [curve.at(step * DT) for step in range(round(curve.duration / DT) + 2)]
 
 
+@pytest.mark.parametrize("jerk_time", [0.0, 0.3])
 @pytest.mark.parametrize("length", [0.5, 5.0, 40.0, 100.0, 400.0])
-def test_an_s_curve_goes_from_rest_to_rest_within_its_limits(length: float):
-    curve = SCurve(length, 10.0, 2.5, JERK)
+def test_an_s_curve_goes_from_rest_to_rest_within_its_limits(length: float, jerk_time: float):
+    curve = SCurve(length, 10.0, 2.5, JERK, jerk_time=jerk_time)
     points = samples(curve)
     assert curve.at(0.0) == (0.0, 0.0, 0.0)
     assert curve.at(curve.duration) == (length, 0.0, 0.0)
@@ -35,11 +37,14 @@ def test_an_s_curve_goes_from_rest_to_rest_within_its_limits(length: float):
 
 def test_a_40_m_leg_peaks_near_7_m_s_and_takes_about_11_s():
     # ArduCopter SITL flew 40 m legs at up to 6.9 m/s (docs/simulator.md).
-    curve = SCurve(40.0, 10.0, 2.5, JERK)
-    assert curve.duration == pytest.approx(10.9, abs=0.05)
-    assert max(v for _, v, _ in samples(curve)) == pytest.approx(7.35, abs=0.05)
-    long = SCurve(100.0, 10.0, 2.5, JERK)
+    curve = SCurve(40.0, 10.0, 2.5, JERK, jerk_time=0.3)
+    assert curve.duration == pytest.approx(11.3, abs=0.05)
+    assert max(v for _, v, _ in samples(curve)) == pytest.approx(7.1, abs=0.05)
+    sharp = SCurve(40.0, 10.0, 2.5, JERK)  # without the snap limit: a little faster
+    assert sharp.duration == pytest.approx(10.9, abs=0.05)
+    long = SCurve(100.0, 10.0, 2.5, JERK, jerk_time=0.3)
     assert max(v for _, v, _ in samples(long)) == pytest.approx(10.0)  # room to cruise
+    assert long.at(long.duration - 1e-6)[0] == pytest.approx(100.0)  # continuous to the end
 
 
 def test_a_curve_from_a_speed_slows_or_speeds_to_its_new_top_speed_then_stops():
@@ -64,8 +69,8 @@ def fly_square(corner: float = 40.0) -> tuple[list[tuple[int, float, float]], Bo
     is reached, and the body."""
     points = [(0.0, 0.0, 10.0), (corner, 0.0, 10.0), (corner, corner, 10.0),
               (0.0, corner, 10.0), (0.0, 0.0, 10.0)]
-    track = Track(make_leg(points[0], points[1], ARDUCOPTER, JERK), 0.0, 2.0)
-    track.set_next(make_leg(points[1], points[2], ARDUCOPTER, JERK))
+    track = Track(make_leg(points[0], points[1], ARDUCOPTER, SHAPE), 0.0, 2.0)
+    track.set_next(make_leg(points[1], points[2], ARDUCOPTER, SHAPE))
     body = Body()
     body.position = points[0]
     reached, leg, time = [], 1, 0.0
@@ -77,7 +82,7 @@ def fly_square(corner: float = 40.0) -> tuple[list[tuple[int, float, float]], Bo
             reached.append((leg, time, math.hypot(*body.velocity[:2])))
             leg += 1
             if leg < len(points) and track.promote():
-                track.set_next(make_leg(points[leg], points[leg + 1], ARDUCOPTER, JERK)
+                track.set_next(make_leg(points[leg], points[leg + 1], ARDUCOPTER, SHAPE)
                                if leg + 1 < len(points) else None)
     return reached, body
 
@@ -98,7 +103,7 @@ def test_corners_are_rounded_and_flown_at_arducopters_speed():
 
 
 def test_a_leg_without_a_next_one_stops_on_its_destination():
-    track = Track(make_leg((0.0, 0.0, 5.0), (30.0, 0.0, 5.0), ARDUCOPTER, JERK), 0.0, 2.0)
+    track = Track(make_leg((0.0, 0.0, 5.0), (30.0, 0.0, 5.0), ARDUCOPTER, SHAPE), 0.0, 2.0)
     end = track.leg.curve.duration
     assert not track.reached
     track.update(end - DT)
@@ -110,9 +115,9 @@ def test_a_leg_without_a_next_one_stops_on_its_destination():
 
 
 def test_replanning_at_a_new_speed_keeps_the_position_and_goes_on_to_the_destination():
-    track = Track(make_leg((0.0, 0.0, 5.0), (200.0, 0.0, 5.0), ARDUCOPTER, JERK), 0.0, 2.0)
+    track = Track(make_leg((0.0, 0.0, 5.0), (200.0, 0.0, 5.0), ARDUCOPTER, SHAPE), 0.0, 2.0)
     before, speed, _ = track.update(10.0)
-    track.replan(Limits(speed=3.0), JERK, 10.0)
+    track.replan(Limits(speed=3.0), SHAPE, 10.0)
     after, speed_after, _ = track.update(10.0)
     assert after == pytest.approx(before) and speed_after == pytest.approx(speed)
     time = 10.0

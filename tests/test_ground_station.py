@@ -9,29 +9,12 @@ must refuse the arm as ArduCopter does until it can take off, and then fly the s
 
 from __future__ import annotations
 
-import os
-import signal
-import subprocess
-import sys
-from pathlib import Path
-
-from interop.ground_station import fly, same_mission
-
-ROOT = Path(__file__).resolve().parents[1]
+from interop.ground_station import fly, python_sitl, same_mission
 
 
 def test_an_independent_ground_station_flies_the_simulator_as_it_flies_arducopter() -> None:
-    process = subprocess.Popen(
-        [sys.executable, "-m", "sitl", "--tcp-base-port", "0", "--speedup", "20"],
-        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        line = process.stdout.readline() if process.stdout else ""
-        assert line.startswith("vehicle 1: tcp:127.0.0.1:"), process.stderr
-        address = line.split()[2]
+    with python_sitl(speedup=20) as address:
         flight = fly(address, timeout=60.0)
-    finally:
-        os.kill(process.pid, signal.SIGTERM)
-        process.communicate(timeout=10)
     # Refused until the EKF uses GPS, with ArduCopter's reason; then flown like ArduCopter.
     assert "Arm: Need Position Estimate" in flight.arm_refusals
     assert flight.takeoff_result == 0

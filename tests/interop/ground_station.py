@@ -13,10 +13,16 @@ Times are wall-clock seconds: the client does not know how fast its vehicle's cl
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
+import signal
+import subprocess
+import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from pymavlink import mavutil
@@ -247,3 +253,20 @@ def same_mission(sent: list[tuple[int, int, int, float]],
     return len(sent) == len(read) and all(
         a[0] == b[0] and abs(a[1] - b[1]) <= 1 and abs(a[2] - b[2]) <= 1
         and abs(a[3] - b[3]) < 0.01 for a, b in zip(sent, read, strict=True))
+
+
+@contextlib.contextmanager
+def python_sitl(speedup: float = 20.0) -> Iterator[str]:
+    """``python -m sitl`` with its default parameters, on a free port: its address. It is
+    stopped by its pid on leaving."""
+    process = subprocess.Popen(
+        [sys.executable, "-m", "sitl", "--tcp-base-port", "0", "--speedup", str(speedup)],
+        cwd=Path(__file__).resolve().parents[2], stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True)
+    try:
+        line = process.stdout.readline() if process.stdout else ""
+        assert line.startswith("vehicle 1: tcp:127.0.0.1:"), process.stderr
+        yield line.split()[2]
+    finally:
+        os.kill(process.pid, signal.SIGTERM)
+        process.communicate(timeout=10)

@@ -11,8 +11,9 @@ Each tick: the vehicle boots and its sensors age (the boot ends at 2.5 s, the GP
 after ``SIM_GPS_LOCKTIME`` s, the EKF sets its origin 10 s later and uses GPS after
 ``SIM_EKF_GPS_TIME`` s, faults strike), the arming checks report themselves while
 disarmed (:mod:`sitl.arming`), failsafes are checked, the flight mode turns its
-goal into a motion demand (a position target, a velocity, or a landing), the body moves
-within its limits (:mod:`sitl.physics`), touch-down, collisions (:mod:`sitl.obstacles`)
+goal into a motion demand (a position target, a velocity, a landing, or the waypoint legs
+of :mod:`sitl.track`), the body moves as ArduCopter's position controller moves its target
+(:mod:`sitl.physics`), touch-down, collisions (:mod:`sitl.obstacles`)
 and the fence (:mod:`sitl.fence`) are detected, the camera (:mod:`sitl.camera`) takes
 the pictures that fell due, the battery drains (or, landed and disarmed with
 ``SIM_BATT_CHARGE`` set, charges on its pad), the mission protocol's timeouts run, and

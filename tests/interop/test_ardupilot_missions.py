@@ -167,6 +167,9 @@ def fly_on_ardupilot(name: str, vehicles: list[SitlVehicle], how: Setup, tmp_pat
     return code, read(str(log)), wall
 
 
+# Each test flies its mission twice at ArduCopter's pace: four ArduCopter instances and then
+# four simulated vehicles for the fleet relay take over two minutes of wall time.
+@pytest.mark.timeout(300)
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_mission_flies_on_ardupilot_as_on_the_simulator(name: str, ardupilot, tmp_path: Path
                                                         ) -> None:

@@ -599,6 +599,10 @@ class VehicleModel:
             self._velocity = (velocity, self.time + GUIDED_VELOCITY_TIMEOUT)
         if not mask & 1024:
             self.set_yaw(math.degrees(yaw) % 360.0, self.params["ATC_RATE_Y_MAX"])
+        elif not mask & 0b111:
+            # ArduCopter hands the heading back to its default yaw behaviour on a position
+            # target without a yaw: a CONDITION_YAW turn in progress stops where it is.
+            self._yaw = None
 
     def _go(self, target: Vector) -> None:
         """Fly to ``target`` with the position controller (GUIDED targets, take-off)."""

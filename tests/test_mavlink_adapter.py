@@ -90,8 +90,8 @@ class Rig:
 
 @contextlib.contextmanager
 def make_rig(params: dict[str, float] | None = None, faults: Faults | None = None,
-             frame: str = "copter") -> Iterator[Rig]:
-    sim = Simulator(vehicles=1, speedup=20, tcp_base_port=0, world=WORLD, faults=faults,
+             frame: str = "copter", speedup: float = 20.0) -> Iterator[Rig]:
+    sim = Simulator(vehicles=1, speedup=speedup, tcp_base_port=0, world=WORLD, faults=faults,
                     params={**FAST, **(params or {})}, frames=[frame])
     with sim, Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}") as link:
         vehicle = MavlinkVehicle(link, 1, clock=lambda: sim.time, world=WORLD)
@@ -330,3 +330,16 @@ def test_a_rover_takes_its_speed_with_the_next_target_and_stops_in_hold() -> Non
         assert rig.do(Hold(1)).ok
         stopped = rig.until(lambda s: s.ground_speed < 0.05, "stopped")
         assert stopped.mode == "HOLD" and stopped.armed and stopped.position[2] == 0.0
+
+
+def test_a_turn_is_not_undone_by_the_kept_position_target() -> None:
+    # The GUIDED target is sent again at each HEARTBEAT (at most every 0.5 s of wall time);
+    # ArduCopter stops a CONDITION_YAW turn on a position target without a yaw. At speed-up
+    # 2 the target goes out again about once a vehicle second, during the 3 s turn.
+    with make_rig(speedup=2.0) as rig:
+        rig.fly(5.0)
+        here = rig.vehicle.state()
+        assert rig.do(GoTo(1, here.position)).ok
+        heading = (here.heading + 180.0) % 360.0
+        assert rig.do(SetYaw(1, heading)).ok
+        rig.until(lambda s: abs((s.heading - heading + 180) % 360 - 180) < 2, "turned")

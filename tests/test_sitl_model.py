@@ -737,3 +737,29 @@ def test_gripper_works_as_a_command_in_guided_and_a_ground_station_can_tell_it_i
         assert command(bare, M.MAV_CMD_DO_GRIPPER, 1, M.GRIPPER_ACTION_GRAB)[0] == (
             M.MAV_RESULT_FAILED)
         assert not bare.gripper_closed
+
+
+def hold_here(v: VehicleModel, yaw: float | None) -> None:
+    """A GUIDED position target where the vehicle is, with a yaw or leaving it out."""
+    lat, lon, _ = v._global(v.position)
+    mask = 0b110111111000 if yaw is None else 0b100111111000
+    v.handle(M.MAVLink_set_position_target_global_int_message(
+        0, 1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, mask, round(lat * 1e7), round(lon * 1e7),
+        v.position[2], 0, 0, 0, 0, 0, 0, math.radians(yaw or 0.0), 0))
+
+
+def test_a_position_target_without_yaw_stops_a_turn_as_on_arducopter():
+    # ArduCopter hands the heading to WP_YAW_BEHAVIOR on a position target without a yaw:
+    # a CONDITION_YAW turn in progress stops where it is (seen on ArduCopter SITL).
+    v = flying()
+    start = v.heading
+    assert command(v, M.MAV_CMD_CONDITION_YAW, (start + 180) % 360, 20)[0] == \
+        M.MAV_RESULT_ACCEPTED
+    v.step(2.0)
+    hold_here(v, None)
+    stopped_at = v.heading
+    v.step(10.0)
+    assert abs((v.heading - stopped_at + 180) % 360 - 180) < 1.0
+    assert abs((v.heading - (start + 180) + 180) % 360 - 180) > 90
+    hold_here(v, (start + 180) % 360)  # the same target carrying the heading turns it
+    run_until(v, v.yaw_settled, 30)

@@ -30,7 +30,9 @@ and come from a listener on the link that sees every message of this vehicle:
 - *the GUIDED target kept*: a position target (GoTo, Hold) is a message nobody acknowledges,
   and one lost on a poor link would leave the vehicle where it was; so the last one is sent
   again at each HEARTBEAT (at most every ``TARGET_PERIOD`` s) while the vehicle is in GUIDED,
-  until another request takes its place.
+  until another request takes its place. After a SetYaw the kept target carries that
+  heading: a target without a yaw hands the heading back to the autopilot (ArduCopter's
+  WP_YAW_BEHAVIOR), which would stop the turn where it is.
 
 *FLIP.* ArduCopter refuses FLIP from GUIDED: it flips only from a mode flown by the pilot's
 sticks (ACRO, STABILIZE, ALT_HOLD), armed and flying, and returns to that mode when the flip
@@ -280,7 +282,8 @@ class MavlinkVehicle:
         self._progress: MissionProgress | None = None
         self._cache: tuple[Any, Any, tuple[float, float, float] | None] = (None, None, None)
         self._companion_seen = False
-        self._target: tuple[float, float, float] | None = None  # lat, lon, alt kept in GUIDED
+        # lat, lon, alt and yaw (degrees, None: the autopilot's choice) kept in GUIDED
+        self._target: tuple[float, float, float, float | None] | None = None
         self._target_sent = 0.0
         self._ground_speed: float | None = None  # a rover's speed, sent with each target
         link.listen(self._on_message)
@@ -446,7 +449,7 @@ class MavlinkVehicle:
 
     def _aim(self, latitude: float, longitude: float, altitude: float) -> None:
         """Send a GUIDED position target, and keep it (see the module docstring)."""
-        self._target = (latitude, longitude, altitude)
+        self._target = (latitude, longitude, altitude, None)
         self._target_sent = time.monotonic()
         self.mav.position_target(latitude, longitude, altitude)
 
@@ -621,6 +624,12 @@ class MavlinkVehicle:
         self.mav.yaw(abs(request.heading) if request.relative else request.heading % 360.0,
                      relative=request.relative,
                      clockwise=not (request.relative and request.heading < 0))
+        target = self._target
+        if target is not None and not request.relative:
+            # A position target without a yaw hands the heading back to the autopilot
+            # (ArduCopter: WP_YAW_BEHAVIOR), which would undo the turn when the kept
+            # target is sent again: from now on it carries the heading asked for.
+            self._target = (*target[:3], request.heading % 360.0)
 
     def _hold(self, request: Hold) -> None:
         t = self.link.telemetry(self.system_id)

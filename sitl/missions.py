@@ -218,7 +218,9 @@ class MissionServer:
         mission_type = getattr(msg, "mission_type", MISSION)
         upload = self._upload
         if upload is None or upload.mission_type != mission_type:
-            return []  # no upload of this list: ArduPilot says nothing, not even a late ACK
+            # No upload of this list (it ended, or timed out): ArduPilot answers an item it
+            # does not expect with MAV_MISSION_ERROR, never with a late ACCEPTED.
+            return [_ack(client, mavlink.MAV_MISSION_ERROR, mission_type)]
         if msg.seq != len(upload.items):
             return [_ack(client, mavlink.MAV_MISSION_INVALID_SEQUENCE, mission_type)]
         if client != upload.client:

@@ -111,8 +111,8 @@ class FakeVehicle:
         return []
 
     def _receive_item(self, item: MissionItem, now: float) -> list[MissionMessage]:
-        if self._incoming is None:
-            return []
+        if self._incoming is None:  # as ArduPilot answers an item it is not receiving
+            return [MissionAck(MissionResult.MAV_MISSION_ERROR, item.mission_type)]
         if item.seq != len(self._incoming):
             return [MissionAck(MissionResult.MAV_MISSION_INVALID_SEQUENCE, item.mission_type)]
         self._incoming.append(item)
@@ -194,7 +194,8 @@ def test_hundred_uploads_of_hundred_items_survive_30_percent_loss_each_way() -> 
         delivered = upload.succeeded or upload.unconfirmed
         outcomes.append((delivered, download.succeeded, same_items(items, download.items)))
         if not upload.succeeded:
-            assert upload.error is not None and upload.error.result == "TIMEOUT"
+            assert upload.error is not None
+            assert upload.error.result in ("TIMEOUT", "MAV_MISSION_ERROR")
     assert outcomes == [(True, True, True)] * 100
 
 
@@ -242,6 +243,27 @@ def test_unconfirmed_only_when_the_last_item_went_out() -> None:
     assert not silent_after([0], 2, offer_next=False).unconfirmed
     assert not silent_after([0], 5).unconfirmed
     assert not silent_after([], 2).unconfirmed
+
+
+def test_an_error_for_an_item_after_the_last_one_went_out_leaves_the_upload_unconfirmed(
+        ) -> None:
+    # ArduPilot answers MAV_MISSION_ERROR to an item that comes when it is no longer
+    # receiving: an offer or repeat arriving after it stored the last item (its ACCEPTED
+    # lost), or after it cancelled the upload. Only the read-back can tell which.
+    items = mission(3)
+    upload = Upload(items)
+    upload.start(0.0)
+    for seq in (0, 1, 2):
+        upload.receive(MissionRequest(seq), 0.1)
+    upload.tick(upload.deadline)
+    upload.receive(MissionAck(MissionResult.MAV_MISSION_ERROR), upload.deadline)
+    assert upload.done and upload.unconfirmed
+    early = Upload(items, offer_next=False)
+    early.start(0.0)
+    early.receive(MissionRequest(0), 0.1)
+    early.receive(MissionAck(MissionResult.MAV_MISSION_ERROR), 0.2)
+    assert early.error is not None and early.error.result == "MAV_MISSION_ERROR"
+    assert not early.unconfirmed  # items never sent: a failure, not a doubt
 
 
 def test_a_lost_final_ack_is_given_up_on_sooner_once_the_last_item_was_asked_for() -> None:

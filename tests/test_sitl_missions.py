@@ -140,7 +140,8 @@ def test_an_upload_that_gets_no_item_for_eight_seconds_is_cancelled():
     assert {m.seq for _, m in sent[:-1]} == {1}
     cancelled_at, ack = sent[-1]
     assert ack.type == M.MAV_MISSION_OPERATION_CANCELLED and cancelled_at > 10.0 + UPLOAD_TIMEOUT
-    assert s.handle(item_int(1), now) == []  # too late: nothing is waiting for it
+    (late,) = s.handle(item_int(1), now)  # too late: ArduPilot is no longer receiving
+    assert late.type == M.MAV_MISSION_ERROR
     assert len(s.items()) == 2 and changes == [0]  # the earlier mission is kept
 
 
@@ -156,7 +157,9 @@ def test_items_other_than_the_awaited_one_get_invalid_sequence_and_change_nothin
     assert future.type == M.MAV_MISSION_INVALID_SEQUENCE
     assert s.handle(item_int(1), 5.2)[0].type == M.MAV_MISSION_ACCEPTED
     assert s.items()[1].z == 10.0 and len(s.items()) == 2  # the repeat was not stored
-    assert s.handle(item_int(1), 5.3) == []  # final ACK lost: ArduPilot does not repeat it
+    # A repeat after the final ACK (lost): ArduPilot does not repeat the ACK, it answers
+    # MAV_MISSION_ERROR as to any item that comes when it is not receiving.
+    assert s.handle(item_int(1), 5.3)[0].type == M.MAV_MISSION_ERROR
 
 
 def test_a_list_being_uploaded_is_not_read_cleared_or_taken_over():

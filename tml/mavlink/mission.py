@@ -285,6 +285,10 @@ class Transfer:
         self._fail(name, name)
 
 
+_UNCONFIRMED = ("TIMEOUT", MissionResult.MAV_MISSION_ERROR.name)
+"""How an upload whose every item went out can end without telling whether it landed."""
+
+
 class Upload(Transfer):
     """Send ``items`` (seq 0..N-1, in order) to the vehicle."""
 
@@ -312,9 +316,12 @@ class Upload(Transfer):
     def unconfirmed(self) -> bool:
         """True if every item went out but no final ACK came (ArduPilot does not resend it).
 
-        Only reading the mission back can tell whether the vehicle has it all.
+        That is silence, or MAV_MISSION_ERROR: ArduPilot's answer to an item that comes
+        when it is no longer receiving, as an offer or a repeat does once the vehicle has
+        stored the last item and its ACCEPTED was lost. Only reading the mission back can
+        tell whether the vehicle has it all.
         """
-        return (self.error is not None and self.error.result == "TIMEOUT"
+        return (self.error is not None and self.error.result in _UNCONFIRMED
                 and len(self._sent) == len(self.items) > 0)
 
     def _opening(self) -> MissionMessage:

@@ -45,7 +45,7 @@ import math
 from dataclasses import dataclass
 from typing import Protocol
 
-from tml.mavlink.mission import MissionItem
+from sitl.items import MissionItem
 
 # MAV_CMD ids the executor knows.
 NAV_WAYPOINT, NAV_LOITER_UNLIM, NAV_LOITER_TURNS, NAV_LOITER_TIME = 16, 17, 18, 19

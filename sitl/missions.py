@@ -43,7 +43,7 @@ from typing import Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from sitl import storage
-from tml.mavlink.mission import MissionItem
+from sitl.items import MissionItem
 
 REQUEST_INTERVAL = 1.0  # seconds after a request before the item is requested again
 UPLOAD_TIMEOUT = 8.0  # seconds without an item before the upload is cancelled

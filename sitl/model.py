@@ -47,6 +47,7 @@ from sitl.camera import COMMANDS as CAMERA_COMMANDS
 from sitl.camera import Camera
 from sitl.companion import Companion
 from sitl.faults import Faults
+from sitl.items import MissionItem
 from sitl.messages import AUTOPILOT, COMPANION, stamp, statustext, targets
 from sitl.missions import FENCE, MISSION, MissionServer
 from sitl.modes import COPTER, FLIP_FROM, FLIP_NEEDS_THROTTLE, PILOT_MODES, ModeTable
@@ -63,7 +64,6 @@ from sitl.physics import (
 from sitl.streams import Streams
 from sitl.track import Shape, Track, make_leg
 from tml.geo import to_global, to_local
-from tml.mavlink.mission import MissionItem
 from tml.world import Home, World
 
 TICK = 0.05  # seconds of vehicle time per control step

@@ -190,10 +190,10 @@ def param_set(system_id: int, name: str, value: float) -> Any:
 def fly(vehicles: int, speedup: float, seconds: float) -> Result:
     """Fly the generated mission on ``vehicles`` simulated vehicles; measure it."""
     from tml.engine import Options
+    from tml.language.validation import validate_file
     from tml.mavlink.adapter import MavlinkVehicle
     from tml.mavlink.link import Link
-    from tml.runner import Runner, RunOptions
-    from tml.validation import validate_file
+    from tml.run.runner import Runner, RunOptions
 
     source = MISSION.format(count=vehicles, altitude=ALTITUDE, low=LOW).encode()
     mission = validate_file("fleet.xml", source).mission

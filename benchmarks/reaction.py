@@ -130,10 +130,10 @@ def trials(proxy: Proxy, count: int, settle: float) -> list[float]:
 
 def tml_side(port: int, stop: threading.Event) -> None:
     from tml.engine import Options
+    from tml.language.validation import validate_file
     from tml.mavlink.adapter import MavlinkVehicle
     from tml.mavlink.link import Link
-    from tml.runner import Runner, RunOptions
-    from tml.validation import validate_file
+    from tml.run.runner import Runner, RunOptions
 
     mission = validate_file("reaction.xml", MISSION).mission
     wake = threading.Event()

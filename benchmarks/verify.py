@@ -16,7 +16,7 @@ import math
 import random
 import time
 
-from tml.validation import validate_file
+from tml.language.validation import validate_file
 from tml.verify.profile import load_profile
 from tml.verify.static import verify_mission
 from tml.world import Cylinder, World

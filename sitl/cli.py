@@ -164,7 +164,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _load_world(path: str) -> World:
-    from tml.parse import load_world
+    from tml.language.build import load_world
 
     return load_world(path)
 

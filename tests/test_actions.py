@@ -1,13 +1,13 @@
-"""The action catalogue (tml.actions)."""
+"""The action catalogue (tml.language.actions)."""
 
 from __future__ import annotations
 
 import pytest
 
-from tml import actions
-from tml.actions import ArgType, LabelUse
 from tml.errors import Location, MissionSemanticError
-from tml.model import Action, Argument
+from tml.language import actions
+from tml.language.actions import ArgType, LabelUse
+from tml.language.model import Action, Argument
 
 HERE = Location("a.xml", 1, 1)
 

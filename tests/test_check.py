@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from tml.validation import validate_file
+from tml.language.validation import validate_file
 
 
 def run(body: str, extra: str = ""):

@@ -1,4 +1,4 @@
-"""The tml command line (tml.cli)."""
+"""The tml command line (tml.commands.cli)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from tml.cli import main
+from tml.commands.cli import main
 
 VALID = ('<mission name="m">\n  <task name="Take off"><action name="TAKE_OFF"/></task>\n'
          '  <task name="Land"><action name="LAND"/></task>\n</mission>\n')
@@ -96,7 +96,8 @@ def test_python_dash_m_and_console_script(files: Path) -> None:
 
 
 def test_validate_does_not_load_pymavlink(files: Path) -> None:
-    code = ("import sys; from tml.cli import main; rc = main(['validate', '-q', sys.argv[1]]);"
+    code = ("import sys; from tml.commands.cli import main; "
+            "rc = main(['validate', '-q', sys.argv[1]]);"
             "print(rc, 'pymavlink' in sys.modules)")
     done = subprocess.run([sys.executable, "-c", code, str(files / "valid.xml")],
                           capture_output=True, text=True, check=True)
@@ -106,15 +107,15 @@ def test_validate_does_not_load_pymavlink(files: Path) -> None:
 def test_many_files_are_validated_in_parallel_with_the_same_output(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import tml.cli
+    import tml.commands.cli
 
     for index in range(120):
         (tmp_path / f"m{index:03d}.xml").write_text(INVALID if index % 40 == 7 else VALID)
-    monkeypatch.setattr(tml.cli, "PARALLEL_BATCH", 10)
-    monkeypatch.setattr(tml.cli.os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(tml.commands.cli, "PARALLEL_BATCH", 10)
+    monkeypatch.setattr(tml.commands.cli.os, "cpu_count", lambda: 2)
     assert main(["validate", str(tmp_path)]) == 1
     parallel = capsys.readouterr().out
-    monkeypatch.setattr(tml.cli, "PARALLEL_BATCH", 10**6)
+    monkeypatch.setattr(tml.commands.cli, "PARALLEL_BATCH", 10**6)
     assert main(["validate", str(tmp_path)]) == 1
     serial = capsys.readouterr().out
     assert parallel == serial

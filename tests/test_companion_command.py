@@ -12,8 +12,8 @@ import pytest
 from flight_checks import check_imav2016
 
 from sitl.server import Simulator
-from tml.cli import main
-from tml.journal import read
+from tml.commands.cli import main
+from tml.run.journal import read
 
 MISSIONS = Path(__file__).parent.parent / "missions"
 IMAV = str(MISSIONS / "imav2016.xml")

@@ -1,11 +1,11 @@
-"""Printing diagnostics (tml.diagnostics)."""
+"""Printing diagnostics (tml.language.diagnostics)."""
 
 from __future__ import annotations
 
 import json
 
-from tml.diagnostics import error, format_github, format_human, format_json, warning
 from tml.errors import Location
+from tml.language.diagnostics import error, format_github, format_human, format_json, warning
 
 SOURCE = '<mission name="m">\n  <task name="t" bogus="1">\n</mission>\n'
 

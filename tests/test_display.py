@@ -6,9 +6,9 @@ import io
 
 from rich.console import Console
 
-from tml.display import LineDisplay, render_text
 from tml.engine import Interpreter
-from tml.validation import validate_file
+from tml.language.validation import validate_file
+from tml.run.display import LineDisplay, render_text
 from tml.vehicle import FakeVehicle
 
 XML = b"""<mission name="Show">

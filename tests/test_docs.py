@@ -14,9 +14,9 @@ from pathlib import Path
 import pytest
 from lxml import etree
 
-from tml import actions, parameters, skills
-from tml.model import Comparison, TerminationMode
-from tml.validation import validate_file
+from tml.language import actions, parameters, skills
+from tml.language.model import Comparison, TerminationMode
+from tml.language.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent
 DOC_PATH = ROOT / "docs" / "language.md"
@@ -93,7 +93,8 @@ def test_every_schema_element_is_documented(element: str) -> None:
 
 def test_every_diagnostic_code_is_documented() -> None:
     sources = "".join((ROOT / "tml" / f).read_text(encoding="utf-8")
-                      for f in ("parse.py", "schema.py", "check.py"))
+                      for f in ("language/xml.py", "language/build.py", "language/schema.py",
+                                "language/check.py"))
     codes = set(re.findall(r'"([EW]\d{3})"', sources))
     assert codes, "no diagnostic codes found in the sources"
     missing = sorted(c for c in codes if f"| {c} |" not in DOC)

@@ -6,7 +6,7 @@ import pytest
 
 from tml.engine.conditions import Memory, evaluate, read_parameter
 from tml.errors import Location
-from tml.model import Comparison, Condition, ConditionKind
+from tml.language.model import Comparison, Condition, ConditionKind
 from tml.vehicle import VehicleState
 
 HERE = Location("m.xml", 1, 1)

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field, replace
 import pytest
 
 from tml.engine import Interpreter, Options, Status, TaskState
-from tml.validation import validate_file
+from tml.language.validation import validate_file
 from tml.vehicle import (
     Disarm,
     FakeVehicle,

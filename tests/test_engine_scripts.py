@@ -7,11 +7,11 @@ import math
 import pytest
 from test_engine_interpreter import Flight
 
-from tml.actions import bind
 from tml.engine import Options, Status
 from tml.engine.scripts import _displaced, _expanding_square, survey_legs
 from tml.errors import Location
-from tml.model import Action, Argument
+from tml.language.actions import bind
+from tml.language.model import Action, Argument
 from tml.vehicle import Circle, Disarm, FakeVehicle, GoTo, Land, ReturnToLaunch
 
 HERE = Location("m.xml", 1, 1)

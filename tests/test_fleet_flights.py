@@ -23,8 +23,8 @@ import math
 import statistics
 from pathlib import Path
 
-from tml.cli import main
-from tml.journal import read
+from tml.commands.cli import main
+from tml.run.journal import read
 
 MISSIONS = Path(__file__).parent.parent / "missions"
 FAST = ["--speedup", "40", "--sim-param", "SIM_GPS_LOCKTIME=1",

@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 from flight_checks import LOG_CHECKS
 
-from tml.cli import main
-from tml.journal import read
+from tml.commands.cli import main
+from tml.run.journal import read
 
 MISSIONS = Path(__file__).parent.parent / "missions"
 FAST = ["--speedup", "50", "--sim-param", "SIM_GPS_LOCKTIME=1",

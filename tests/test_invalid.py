@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from tml.cli import main
-from tml.validation import validate_file
+from tml.commands.cli import main
+from tml.language.validation import validate_file
 
 INVALID = Path(__file__).parent / "data" / "invalid"
 EXPECTED = tomllib.loads((INVALID / "expected.toml").read_text())

@@ -7,7 +7,7 @@ import json
 import math
 from types import MappingProxyType
 
-from tml.journal import Journal, jsonable, read, telemetry_fields
+from tml.run.journal import Journal, jsonable, read, telemetry_fields
 from tml.vehicle import MissionProgress, VehicleState
 
 

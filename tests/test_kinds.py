@@ -1,4 +1,4 @@
-"""Kinds of vehicle (tml.kinds): what each can do, and a fixed-wing's landing approach."""
+"""Kinds of vehicle (tml.language.kinds): what each can do, and a fixed-wing's landing approach."""
 
 from __future__ import annotations
 
@@ -6,11 +6,12 @@ import math
 
 import pytest
 
-from tml.actions import bind
 from tml.errors import Location
-from tml.kinds import (
+from tml.language.actions import bind
+from tml.language.kinds import (
     GLIDE_RATIO,
     MIN_FINAL,
+    VEHICLE_TYPES,
     Kind,
     cannot,
     kind_of,
@@ -18,8 +19,7 @@ from tml.kinds import (
     refusal,
     role_kinds,
 )
-from tml.model import Action, Argument
-from tml.vehicle import VEHICLE_TYPES
+from tml.language.model import Action, Argument
 
 HERE = Location("m.xml", 1, 1)
 

@@ -14,8 +14,8 @@ import pytest
 from lossy_proxy import LossyProxy
 
 from sitl.server import Simulator
-from tml.cli import main
-from tml.journal import read
+from tml.commands.cli import main
+from tml.run.journal import read
 
 MISSIONS = Path(__file__).parent.parent / "missions"
 # DISARM_DELAY 0: an armed vehicle on the ground is not disarmed by itself. At ten times

@@ -13,11 +13,11 @@ from test_mavlink_link import eventually
 
 from sitl.faults import Faults
 from sitl.server import Simulator
-from tml.actions import BoundAction, bind
 from tml.errors import Location
+from tml.language.actions import BoundAction, bind
+from tml.language.model import Action, Argument
 from tml.mavlink.adapter import MavlinkVehicle, detection_names
 from tml.mavlink.link import Link
-from tml.model import Action, Argument
 from tml.vehicle import (
     Arm,
     Camera,

@@ -9,10 +9,11 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as M
 
 from sitl.model import TICK, VehicleModel
-from tml.actions import BoundAction, bind
 from tml.errors import Location
 from tml.geo import to_global, to_local
-from tml.kinds import Kind
+from tml.language.actions import BoundAction, bind
+from tml.language.kinds import Kind
+from tml.language.model import Action, Argument
 from tml.mavlink.compile import (
     CompileError,
     compile_mission,
@@ -21,7 +22,6 @@ from tml.mavlink.compile import (
     survey_legs,
 )
 from tml.mavlink.mission import MissionItem, with_home_placeholder
-from tml.model import Action, Argument
 from tml.world import DEFAULT_HOME
 
 H = DEFAULT_HOME
@@ -254,7 +254,7 @@ def test_compiled_survey_flies_and_lands_at_the_pad() -> None:
 def test_docs_table_names_every_action() -> None:
     from pathlib import Path
 
-    from tml.actions import CATALOGUE
+    from tml.language.actions import CATALOGUE
 
     doc = (Path(__file__).parent.parent / "docs" / "run.md").read_text()
     table = doc[doc.index("## `dispatch=\"mission\"`"):]

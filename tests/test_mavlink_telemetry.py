@@ -7,9 +7,9 @@ from typing import Any
 import pytest
 
 from sitl.model import VehicleModel
+from tml.language.kinds import VEHICLE_TYPES
 from tml.mavlink.codec import mavlink
 from tml.mavlink.telemetry import AIRFRAMES, Sighting, TelemetryTracker
-from tml.vehicle import VEHICLE_TYPES
 from tml.world import DEFAULT_HOME
 
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from tml.validation import validate_file
+from tml.language.validation import validate_file
 
 MISSIONS = sorted((Path(__file__).parent.parent / "missions").glob("*.xml"))
 

@@ -1,11 +1,11 @@
-"""The language model (tml.model)."""
+"""The language model (tml.language.model)."""
 
 from __future__ import annotations
 
 import pytest
 
 from tml.errors import Location
-from tml.model import Action, Argument, Mission, Task, normalize_name
+from tml.language.model import Action, Argument, Mission, Task, normalize_name
 
 HERE = Location("m.xml", 1, 1)
 

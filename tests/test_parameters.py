@@ -1,12 +1,12 @@
-"""Built-in condition parameters (tml.parameters)."""
+"""Built-in condition parameters (tml.language.parameters)."""
 
 from __future__ import annotations
 
 import pytest
 
-from tml import parameters
-from tml.model import Comparison
-from tml.parameters import ParamType
+from tml.language import parameters
+from tml.language.model import Comparison
+from tml.language.parameters import ParamType
 
 
 @pytest.mark.parametrize(

@@ -6,9 +6,10 @@ from pathlib import Path
 
 import pytest
 
-from tml import parse
 from tml.errors import Location, MissionSyntaxError
-from tml.model import (
+from tml.language import build as builder
+from tml.language import xml
+from tml.language.model import (
     Comparison,
     Composition,
     ConditionKind,
@@ -56,8 +57,8 @@ MISSION = b"""<?xml version="1.0" encoding="UTF-8"?>
 
 
 def build(data: bytes = MISSION):
-    doc = parse.read_xml("m.xml", data)
-    return parse.build_mission(doc)
+    doc = xml.read_xml("m.xml", data)
+    return builder.build_mission(doc)
 
 
 def test_builds_the_whole_model() -> None:
@@ -123,7 +124,7 @@ def test_environment_is_converted_to_the_local_frame() -> None:
 )
 def test_hostile_or_broken_input_gives_one_clear_error(data: bytes, code: str) -> None:
     with pytest.raises(MissionSyntaxError) as info:
-        parse.read_xml("bad.xml", data)
+        xml.read_xml("bad.xml", data)
     assert info.value.code == code
     assert info.value.location.file == "bad.xml"
     assert info.value.location.line >= 1
@@ -133,34 +134,34 @@ def test_entities_are_never_expanded() -> None:
     laughs = (b'<!DOCTYPE l [<!ENTITY a "aaaaaaaaaa"><!ENTITY b "&a;&a;&a;&a;">]>'
               b'<mission name="&b;"/>')
     with pytest.raises(MissionSyntaxError, match="DOCTYPE"):
-        parse.read_xml("laughs.xml", laughs)
+        xml.read_xml("laughs.xml", laughs)
 
 
 def test_size_limit(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(parse, "MAX_BYTES", 100)
+    monkeypatch.setattr(xml, "MAX_BYTES", 100)
     with pytest.raises(MissionSyntaxError) as info:
-        parse.read_xml("big.xml", b"<mission name='x'>" + b" " * 200 + b"</mission>")
+        xml.read_xml("big.xml", b"<mission name='x'>" + b" " * 200 + b"</mission>")
     assert info.value.code == "E005"
 
 
 def test_depth_limit(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(parse, "MAX_DEPTH", 3)
+    monkeypatch.setattr(xml, "MAX_DEPTH", 3)
     data = b"<mission name='x'>\n<task name='a'>\n<task name='b'>\n<task name='c'>\n" \
            b"<action name='LAND'/></task></task></task></mission>"
     with pytest.raises(MissionSyntaxError) as info:
-        parse.read_xml("deep.xml", data)
+        xml.read_xml("deep.xml", data)
     assert info.value.code == "E006"
     assert info.value.location.line == 4
 
 
 def test_utf8_bom_and_non_ascii_names_are_fine() -> None:
-    doc = parse.read_xml("bom.xml", '\ufeff<mission name="Misión"/>'.encode())
+    doc = xml.read_xml("bom.xml", '\ufeff<mission name="Misión"/>'.encode())
     assert doc.root.get("name") == "Misión"
 
 
 def test_columns_count_characters_not_bytes() -> None:
     text = '<mission name="ñañá">\n  <task name="é" x="1"/></mission>'
-    doc = parse.read_xml("u.xml", text.encode())
+    doc = xml.read_xml("u.xml", text.encode())
     task = doc.root[0]
     assert doc.location(task).column == 3
     assert doc.location(task, "x").column == 18
@@ -187,7 +188,7 @@ def test_load_world(tmp_path: Path) -> None:
                     '  <home latitude="47" longitude="8" altitude="400"/>\n'
                     '  <cylinder name="pole" north="3" east="4" radius="0.5" top="10"/>\n'
                     '</world>\n')
-    world = parse.load_world(path)
+    world = builder.load_world(path)
     assert world.home.latitude == 47 and world.obstacles[0].name == "pole"
 
 
@@ -195,17 +196,17 @@ def test_load_world_rejects_bad_files_with_location(tmp_path: Path) -> None:
     path = tmp_path / "field.xml"
     path.write_text('<world>\n  <cylinder north="3" east="4"/>\n</world>\n')
     with pytest.raises(MissionSyntaxError) as info:
-        parse.load_world(path)
+        builder.load_world(path)
     assert (info.value.code, info.value.location.line) == ("E104", 2)
     assert "radius" in str(info.value)
     path.write_text('<mission name="m"><task name="t"><action name="LAND"/></task></mission>')
     with pytest.raises(MissionSyntaxError, match="expected a <world>"):
-        parse.load_world(path)
+        builder.load_world(path)
 
 
 def test_attribute_columns_skip_quoted_values() -> None:
     text = '<mission name="m">\n<parameter name="x" description="a > b typo=" typo="1"/></mission>'
-    doc = parse.read_xml("q.xml", text.encode())
+    doc = xml.read_xml("q.xml", text.encode())
     assert doc.location(doc.root[0], "typo").column == 47
     assert doc.location(doc.root[0], "description").column == 21
 
@@ -325,7 +326,7 @@ def test_empty_until_or_wait_for_is_reported_while_building() -> None:
 def test_attribute_location_from_the_source_text() -> None:
     text = 'ab\n<mission name="m">\n  <task\n    name="t" role="r"/></mission>'
     task = Location("x.xml", 3, 3)
-    assert parse.attribute_location(text, task, "role") == Location("x.xml", 4, 14)
-    assert parse.attribute_location(text, task, "missing") == task
-    assert parse.attribute_location(text, Location("x.xml", 9, 1), "role") == Location(
+    assert xml.attribute_location(text, task, "role") == Location("x.xml", 4, 14)
+    assert xml.attribute_location(text, task, "missing") == task
+    assert xml.attribute_location(text, Location("x.xml", 9, 1), "role") == Location(
         "x.xml", 9, 1)

@@ -1,4 +1,4 @@
-"""``tml run`` end to end through tml.cli.main: exit codes, log, refusals, interruption."""
+"""``tml run`` end to end through tml.commands.cli.main: exit codes, log, refusals, interruption."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from tml.cli import main
-from tml.journal import read
+from tml.commands.cli import main
+from tml.run.journal import read
 
 FAST = ["--sim-param", "SIM_GPS_LOCKTIME=0.5", "--sim-param", "SIM_EKF_GPS_TIME=1",
         "--speedup", "40"]

@@ -7,9 +7,9 @@ import itertools
 import json
 
 from tml.engine import Status
-from tml.journal import Journal
-from tml.runner import ExitCode, Runner, RunOptions
-from tml.validation import validate_file
+from tml.language.validation import validate_file
+from tml.run.journal import Journal
+from tml.run.runner import ExitCode, Runner, RunOptions
 from tml.vehicle import FakeVehicle, Hold, Land, ReturnToLaunch, VehicleState
 
 TAKE_OFF = ('<task name="Take off"><action name="TAKE_OFF"><argument name="altitude" '

@@ -1,4 +1,4 @@
-"""XML Schema validation and its diagnostics (tml.schema)."""
+"""XML Schema validation and its diagnostics (tml.language.schema)."""
 
 from __future__ import annotations
 
@@ -9,11 +9,12 @@ from pathlib import Path
 
 import pytest
 
-from tml import parse, schema
+from tml.language import schema
+from tml.language.xml import read_xml
 
 
 def problems(xml: str, root: str = "mission"):
-    return schema.validate(parse.read_xml("s.xml", xml.encode()), root)
+    return schema.validate(read_xml("s.xml", xml.encode()), root)
 
 
 def test_schema_files_are_found() -> None:
@@ -24,7 +25,7 @@ def test_schema_files_are_found() -> None:
 def test_installed_package_ships_the_schemas(tmp_path) -> None:
     # Run from an empty directory so the import comes from the installed distribution.
     code = ("import json, importlib.metadata as m, importlib.resources as r\n"
-            "from tml.schema import schema_path\n"
+            "from tml.language.schema import schema_path\n"
             "url = m.distribution('tml').read_text('direct_url.json') or '{}'\n"
             "editable = json.loads(url).get('dir_info', {}).get('editable', False)\n"
             "shipped = [] if editable else sorted(\n"

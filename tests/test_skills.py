@@ -1,8 +1,8 @@
-"""The skill catalogue (tml.skills)."""
+"""The skill catalogue (tml.language.skills)."""
 
 from __future__ import annotations
 
-from tml import skills
+from tml.language import skills
 
 
 def test_paper_and_aerostack_skills_are_known() -> None:

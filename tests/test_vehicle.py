@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import pytest
 
+from tml.language.kinds import VEHICLE_TYPE_CLASSES, VEHICLE_TYPES, vehicle_type_matches
 from tml.vehicle import (
-    VEHICLE_TYPE_CLASSES,
-    VEHICLE_TYPES,
     Arm,
     FakeVehicle,
     GoTo,
@@ -16,7 +15,6 @@ from tml.vehicle import (
     TakeOff,
     VehicleState,
     awaiting,
-    vehicle_type_matches,
 )
 from tml.world import DEFAULT_HOME
 

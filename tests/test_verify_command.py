@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from tml.cli import main
+from tml.commands.cli import main
 
 ROOT = Path(__file__).parent.parent
 FEASIBLE = ROOT / "missions" / "verify_obstacles.xml"

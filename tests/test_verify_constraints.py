@@ -8,9 +8,9 @@ from dataclasses import dataclass, field, replace
 
 import pytest
 
-from tml.actions import BoundAction, bind
 from tml.errors import Location
-from tml.model import Action, Argument
+from tml.language.actions import BoundAction, bind
+from tml.language.model import Action, Argument
 from tml.verify.constraints import (
     BY_CATEGORY,
     Constraint,

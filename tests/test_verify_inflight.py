@@ -5,9 +5,9 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
-from tml.actions import bind
 from tml.engine import Interpreter, Options, Status
-from tml.validation import validate_file
+from tml.language.actions import bind
+from tml.language.validation import validate_file
 from tml.vehicle import FakeVehicle, GoTo, VehicleState
 from tml.verify.inflight import live_variables, pre_check, preflight
 from tml.verify.profile import load_profile

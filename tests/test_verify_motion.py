@@ -8,9 +8,9 @@ from dataclasses import replace
 import pytest
 
 from tml import geo
-from tml.actions import BoundAction, bind
 from tml.errors import Location
-from tml.model import Action, Argument
+from tml.language.actions import BoundAction, bind
+from tml.language.model import Action, Argument
 from tml.patterns import circle_chord
 from tml.verify.motion import (
     FlightModel,

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from tml.errors import TmlError
-from tml.kinds import Kind
+from tml.language.kinds import Kind
 from tml.verify.profile import (
     COPTER_PARAMETERS,
     NUMBER_KEYS,

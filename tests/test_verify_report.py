@@ -8,7 +8,7 @@ from dataclasses import replace
 
 from rich.console import Console
 
-from tml.validation import validate_file
+from tml.language.validation import validate_file
 from tml.verify.profile import load_profile
 from tml.verify.report import print_report, report_json
 from tml.verify.static import verify_mission

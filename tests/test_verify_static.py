@@ -6,8 +6,8 @@ from dataclasses import replace
 
 import pytest
 
-from tml.model import Mission
-from tml.validation import validate_file
+from tml.language.model import Mission
+from tml.language.validation import validate_file
 from tml.verify.constraints import Constraint
 from tml.verify.motion import VehicleState
 from tml.verify.profile import load_profile

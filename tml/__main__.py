@@ -1,5 +1,5 @@
 """``python -m tml`` is the same as the ``tml`` command."""
 
-from tml.cli import entry_point
+from tml.commands.cli import entry_point
 
 entry_point()

@@ -21,41 +21,13 @@ from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 from typing import Protocol
 
-from tml.actions import BoundAction
-from tml.kinds import Kind, kind_of
+from tml.language.actions import BoundAction
+from tml.language.kinds import Kind, kind_of
 from tml.world import DEFAULT_HOME, Home
 
 Point = tuple[float, float, float]
 
 _EMPTY: Mapping[str, object] = MappingProxyType({})
-
-MULTICOPTERS = frozenset({"quadcopter", "hexacopter", "octocopter", "tricopter", "coaxial"})
-"""The vehicle types a role asking for "multicopter" accepts."""
-GROUND_AND_WATER = frozenset({"rover", "boat", "submarine"})
-"""The vehicle types that are not aircraft (a "UAV" role accepts all the others)."""
-VEHICLE_TYPES = MULTICOPTERS | GROUND_AND_WATER | frozenset(
-    {"helicopter", "fixed-wing", "vtol", "airship"})
-"""The airframe classes a vehicle reports (:attr:`VehicleState.vehicle_type`)."""
-VEHICLE_TYPE_CLASSES = frozenset({"multicopter", "uav"})
-"""Words a role may ask for that stand for several vehicle types ("UAV" as Dolphin writes it)."""
-
-
-def vehicle_type_matches(wanted: str, actual: str) -> bool:
-    """Whether a vehicle of type ``actual`` is what a role asking for ``wanted`` needs.
-
-    ``wanted`` is a word of :data:`VEHICLE_TYPES` (that type only) or of
-    :data:`VEHICLE_TYPE_CLASSES`: "multicopter" (any multirotor) or "UAV", any case (any
-    aircraft, not a rover, boat or submarine). An unknown ``actual`` ("") matches nothing.
-    """
-    if not actual:
-        return False
-    if wanted == actual:
-        return True
-    if wanted == "multicopter":
-        return actual in MULTICOPTERS
-    if wanted.lower() == "uav":
-        return actual in VEHICLE_TYPES - GROUND_AND_WATER
-    return False
 
 
 @dataclass(frozen=True)
@@ -208,7 +180,7 @@ class Land(Request):
     """Land where the vehicle is, or at ``touchdown`` (a local point on the ground).
 
     A multicopter descends vertically where it is (the scripts fly it over its touchdown
-    first); a fixed-wing flies a landing approach (:func:`tml.kinds.landing_approach`):
+    first); a fixed-wing flies a landing approach (:func:`tml.language.kinds.landing_approach`):
     straight ahead without a touchdown, else into the touchdown from the side it comes
     from.
     """
@@ -340,7 +312,7 @@ class FakeVehicle:
     (request kinds answered with a failure), ``ignore`` (request kinds never answered),
     ``stuck`` (accepts moves but never moves), ``ready``, ``capabilities``,
     ``detections`` (set by the test), ``battery``, and ``vehicle_type``, whose kind
-    (:mod:`tml.kinds`) it answers as ArduPilot's vehicles do in the main: a fixed-wing's
+    (:mod:`tml.language.kinds`) it answers as ArduPilot's vehicles do in the main: a fixed-wing's
     TakeOff arms it (TAKEOFF mode), it lands at a touchdown and flies a Circle round and
     round; a ground vehicle refuses TakeOff and Land, reports no landed state (landed while
     disarmed) and its RTL drives home and stops.

@@ -1,7 +1,8 @@
 """What the planner and the simulator know of the world, in the local frame.
 
 A world comes from an ``<environment>`` block inside a mission or from a separate world
-file (root ``<world>``, schema ``schemas/world.xsd``); :mod:`tml.parse` reads both. All
+file (root ``<world>``, schema ``schemas/world.xsd``); :mod:`tml.language.xml` reads both and
+:mod:`tml.language.build` builds them. All
 coordinates here are local metres (see :mod:`tml.geo`): points given as latitude/longitude
 in the file are converted when the file is read, relative to the world's home.
 """

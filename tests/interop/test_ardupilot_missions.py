@@ -38,10 +38,10 @@ from ardupilot_sitl import ChargingPad, SitlVehicle
 from flight_checks import LOG_CHECKS
 from test_flights import EXPECTED, FAST, MISSIONS
 
-from tml.cli import main
-from tml.journal import read
+from tml.commands.cli import main
+from tml.language.validation import validate_file
 from tml.mavlink.adapter import COMPANION, SKILL_BINDINGS
-from tml.validation import validate_file
+from tml.run.journal import read
 
 ARDUPILOT_PARAMETERS = frozenset({"BATT_CAPACITY"})
 """Simulator parameters ArduCopter has under the same name and meaning."""

@@ -8,8 +8,8 @@ import pytest
 from command_repeats import ARDUCOPTER, probe
 from test_flights import MISSIONS
 
-from tml.cli import main
-from tml.journal import read
+from tml.commands.cli import main
+from tml.run.journal import read
 
 
 @pytest.mark.timeout(300)

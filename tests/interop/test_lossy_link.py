@@ -14,8 +14,8 @@ import pytest
 from lossy_proxy import LossyProxy
 from test_flights import MISSIONS
 
-from tml.cli import main
-from tml.journal import read
+from tml.commands.cli import main
+from tml.run.journal import read
 
 # DISARM_DELAY 0: at ten times real time ArduCopter's 10 s before it disarms an idle armed
 # vehicle are 1 s of the ground station's wall clock, less than one command timeout (1.5 s),

@@ -20,9 +20,8 @@ from pathlib import Path
 import pytest
 from pymavlink import mavutil
 
-from tml.cli import main
+from tml.commands.cli import main
 from tml.errors import MissionTransferError
-from tml.journal import read
 from tml.mavlink.codec import mavlink
 from tml.mavlink.link import Link
 from tml.mavlink.mission import (
@@ -33,6 +32,7 @@ from tml.mavlink.mission import (
     read_back_differences,
 )
 from tml.mavlink.vehicle import Vehicle
+from tml.run.journal import read
 
 ROOT = Path(__file__).resolve().parents[2]
 RECORDED = json.loads((ROOT / "tests" / "data" / "arducopter_read_back.json").read_text())

@@ -1,6 +1,6 @@
 """What ArduPlane and Rover SITL do, held against the embedded simulator's plane and rover.
 
-tml flies a fixed-wing and a rover the way these behave (tml/kinds.py, the adapter), and
+tml flies a fixed-wing and a rover the way these behave (tml/language/kinds.py, the adapter), and
 the simulator imitates them (sitl/plane.py, sitl/rover.py). Each fact here is checked with
 the same plain pymavlink ground station on ArduPilot SITL and on ``python -m sitl``'s
 frame, so that a difference shows on one side or the other. The missions themselves are

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import pytest
 
-from tml.cli import main
-from tml.journal import read
-from tml.validation import load_mission
+from tml.commands.cli import main
+from tml.language.validation import load_mission
+from tml.run.journal import read
 from tml.verify.profile import load_profile
 from tml.verify.static import verify_mission
 

@@ -18,9 +18,9 @@ import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
-from tml import parameters
-from tml.model import Comparison, Condition, ConditionKind
-from tml.parameters import ParamType
+from tml.language import parameters
+from tml.language.model import Comparison, Condition, ConditionKind
+from tml.language.parameters import ParamType
 from tml.vehicle import VehicleState
 
 

@@ -57,7 +57,8 @@ from tml.engine.interpreter import (
     safe_state_request,
 )
 from tml.engine.scripts import Limits
-from tml.model import Composition, Condition, Event, Mission, Role, Task
+from tml.language.kinds import vehicle_type_matches
+from tml.language.model import Composition, Condition, Event, Mission, Role, Task
 from tml.vehicle import (
     Hold,
     Point,
@@ -65,7 +66,6 @@ from tml.vehicle import (
     RequestResult,
     SetSkill,
     VehicleState,
-    vehicle_type_matches,
 )
 
 # A branch's roles and the one vehicle each stands for in it (None: the mission has no

@@ -45,7 +45,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from enum import StrEnum
 
-from tml.actions import CAPABILITIES, BoundAction, Category, bind, lookup
 from tml.engine.conditions import Memory, evaluate, evaluate_all
 from tml.engine.scripts import (
     SCRIPTS,
@@ -57,8 +56,9 @@ from tml.engine.scripts import (
     Until,
     script_for,
 )
-from tml.kinds import Kind, kind_of
-from tml.model import (
+from tml.language.actions import CAPABILITIES, BoundAction, Category, bind, lookup
+from tml.language.kinds import Kind, kind_of
+from tml.language.model import (
     Action,
     Condition,
     ConditionKind,

@@ -12,14 +12,14 @@ A script fails the action by raising :class:`ActionFailed` with an ACTION_FAILUR
 always observed in telemetry: position within the acceptance radius, altitude reached,
 heading reached, landed and disarmed.
 
-Each script flies the action the way the vehicle's kind can (:mod:`tml.kinds`, from the
+Each script flies the action the way the vehicle's kind can (:mod:`tml.language.kinds`, from the
 type the vehicle reports): a multicopter as ArduCopter in GUIDED; a fixed-wing as
 ArduPlane (it takes off in TAKEOFF mode, circles the points it is sent to, circles
 natively for LOITER, holds by circling, and lands along an approach); a ground vehicle as
 ArduPilot Rover (it arms itself for its first move, drives at 0 m, and its
 RETURN_HOME_AND_LAND drives home, stops and disarms). :func:`script_for` picks the script,
 or refuses the action with ACTION_FAILURE ``infeasible`` when the kind cannot do it at
-all (:func:`tml.kinds.refusal`), before anything is sent.
+all (:func:`tml.language.kinds.refusal`), before anything is sent.
 """
 
 from __future__ import annotations
@@ -31,8 +31,8 @@ from itertools import pairwise
 from typing import Protocol
 
 from tml import geo
-from tml.actions import BoundAction, Category
-from tml.kinds import HANDLING, Kind, final_length, kind_of, refusal
+from tml.language.actions import BoundAction, Category
+from tml.language.kinds import HANDLING, Kind, final_length, kind_of, refusal
 from tml.patterns import CIRCLE_POINTS_PER_TURN, circle_point
 from tml.vehicle import (
     Arm,

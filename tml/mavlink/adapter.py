@@ -46,7 +46,7 @@ the vehicle goes back to GUIDED, and only then are the sticks released. Whatever
 way, the vehicle is put back in GUIDED before the sticks are let go: in ALT_HOLD a released
 throttle stick is a throttle at zero, and the vehicle would sink.
 
-Requests are carried out the way the vehicle's kind flies them (:mod:`tml.kinds`, from the
+Requests are carried out the way the vehicle's kind flies them (:mod:`tml.language.kinds`, from the
 HEARTBEAT type), after ArduPilot's Copter, Plane and Rover as measured on their SITL:
 
 - *fixed-wing* (ArduPlane): TakeOff sets TKOFF_ALT and switches to TAKEOFF mode, which arms
@@ -83,7 +83,7 @@ from typing import Any
 
 from tml.errors import CommandRejected, MissionTransferError, VehicleError, VehicleTimeout
 from tml.geo import to_global, to_local
-from tml.kinds import HANDLING, Kind, kind_of
+from tml.language.kinds import HANDLING, Kind, kind_of
 from tml.mavlink import codec
 from tml.mavlink.codec import mavlink
 from tml.mavlink.command import CommandLong

@@ -19,7 +19,7 @@ and MISSION_ITEM_REACHED tell the interpreter which action is being flown.
 The table of what each action becomes is in docs/run.md. The module is pure: no I/O, no
 clock; pymavlink is used for the MAV_CMD and MAV_FRAME numbers only.
 
-For a fixed-wing (:mod:`tml.kinds`) the landings (LAND, LANDING_POINT,
+For a fixed-wing (:mod:`tml.language.kinds`) the landings (LAND, LANDING_POINT,
 RETURN_HOME_AND_LAND) become a landing sequence, as ArduPlane lands: a waypoint where the
 final approach starts and NAV_LAND at the touchdown (:func:`glide_items`); ArduPlane's
 NAV_RETURN_TO_LAUNCH would only circle home.
@@ -30,9 +30,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from tml.actions import BoundAction
 from tml.geo import to_global, to_local
-from tml.kinds import Kind, landing_approach
+from tml.language.actions import BoundAction
+from tml.language.kinds import Kind, landing_approach
 from tml.mavlink.codec import mavlink
 from tml.mavlink.mission import LOITER_TURNS_MAX, MissionItem
 from tml.world import Home

@@ -63,7 +63,7 @@ def _airframes() -> Mapping[int, str]:
 
 
 AIRFRAMES = _airframes()
-"""HEARTBEAT.type (MAV_TYPE) -> airframe class, a word of :data:`tml.vehicle.VEHICLE_TYPES`.
+"""HEARTBEAT.type (MAV_TYPE) -> airframe class, a word of :data:`tml.language.kinds.VEHICLE_TYPES`.
 
 Types that are not vehicles (GCS, gimbal, camera ...) and generic ones are left out.
 """

@@ -18,7 +18,7 @@ the reserve is for), the flight time and deadlines are met (``time``),
 motion needs a flying vehicle (``airborne``), loiter circles are not tighter than the
 vehicle can fly (``turn-radius``), labels read hold a point (``label``), and the vehicle
 can do the action at all (``vehicle``: a rover does not take off, a fixed-wing does not
-turn in place; :func:`tml.kinds.refusal`), whatever its category.
+turn in place; :func:`tml.language.kinds.refusal`), whatever its category.
 
 :func:`check_before_action` and :func:`assess_action` are pure: the interpreter gives the
 live state and gets the violations, from which it raises ACTION_FAILURE = infeasible.
@@ -35,9 +35,9 @@ from functools import lru_cache
 import shapely
 from shapely.geometry import LineString, Point, Polygon
 
-from tml.actions import BoundAction, Category
 from tml.errors import Location
-from tml.kinds import Kind, refusal
+from tml.language.actions import BoundAction, Category
+from tml.language.kinds import Kind, refusal
 from tml.verify import functions
 from tml.verify.motion import FlightModel, Labels, Step, VehicleState
 from tml.verify.planner import Point3, straight

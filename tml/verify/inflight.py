@@ -10,12 +10,12 @@ which event handlers can react to; unhandled, the mission ends in its safe state
 :func:`router` gives the interpreter the planner's collision-free paths, so that a move the
 verifier judged around an obstacle is flown around it too.
 
-The live check judges the action as the connected vehicle's kind (:mod:`tml.kinds`): when
+The live check judges the action as the connected vehicle's kind (:mod:`tml.language.kinds`): when
 the vehicle is of another kind than the profile (a fixed-wing flown with the default
 quadcopter profile), the shipped profile of its kind is used, so that a plane is never
 asked to hover and a rover never to take off. :func:`preflight` does the same for the
 whole mission before the first task: every action a connected vehicle will fly is checked
-against what that vehicle can do (:func:`tml.kinds.refusal`), so that a mission it cannot
+against what that vehicle can do (:func:`tml.language.kinds.refusal`), so that a mission it cannot
 fly is refused before it leaves the ground.
 """
 
@@ -25,10 +25,10 @@ import math
 from collections.abc import Callable, Mapping
 from functools import cache
 
-from tml import actions
-from tml.actions import BoundAction
-from tml.kinds import kind_of, refusal, role_kinds
-from tml.model import Mission
+from tml.language import actions
+from tml.language.actions import BoundAction
+from tml.language.kinds import kind_of, refusal, role_kinds
+from tml.language.model import Mission
 from tml.vehicle import Point
 from tml.vehicle import VehicleState as LiveState
 from tml.verify.constraints import Constraint, Violation, check_before_action

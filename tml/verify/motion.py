@@ -17,9 +17,9 @@ way and braking the other half. A circle is flown as the interpreter flies it to
 :data:`~tml.patterns.CIRCLE_POINTS_PER_TURN` such segments a turn. Turning in place takes
 the angle at ``yaw_rate``.
 
-Kinds of vehicle (:mod:`tml.kinds`, from the profile's ``vehicle_type``): a fixed-wing
+Kinds of vehicle (:mod:`tml.language.kinds`, from the profile's ``vehicle_type``): a fixed-wing
 takes off in a climb along its heading and lands along an approach
-(:func:`tml.kinds.landing_approach`), gliding to a touchdown ahead of it or at the point
+(:func:`tml.language.kinds.landing_approach`), gliding to a touchdown ahead of it or at the point
 it lands on; a ground vehicle drives every point at 0 m, is underway (armed) from its first
 move on, and its RETURN_HOME_AND_LAND drives home and stops.
 """
@@ -31,8 +31,8 @@ from dataclasses import dataclass, field, replace
 from itertools import pairwise
 
 from tml import geo
-from tml.actions import BoundAction
-from tml.kinds import Kind, landing_approach
+from tml.language.actions import BoundAction
+from tml.language.kinds import Kind, landing_approach
 from tml.patterns import CIRCLE_POINTS_PER_TURN, circle_chord
 from tml.verify.planner import Planner, Point3, Trajectory, straight
 from tml.verify.profile import VehicleProfile

@@ -2,8 +2,8 @@
 
 A profile is a flat TOML table of numbers in fixed units (metres, m/s, deg/s, percent of a
 full battery, seconds) and the ``vehicle_type`` it describes (a word of
-:data:`tml.vehicle.VEHICLE_TYPES`), which says what the vehicle can do at all
-(:mod:`tml.kinds`). Three profiles ship with tml (``quadcopter``, ``fixed-wing`` and
+:data:`tml.language.kinds.VEHICLE_TYPES`), which says what the vehicle can do at all
+(:mod:`tml.language.kinds`). Three profiles ship with tml (``quadcopter``, ``fixed-wing`` and
 ``rover``); a file may name one of them as ``base`` and give only the keys it changes.
 The same numbers can be read from a connected ArduPilot vehicle's parameters
 (:func:`profile_from_parameters`), which convert the autopilot's units (cm/s, cm, mAh)
@@ -20,8 +20,7 @@ from importlib import resources
 from pathlib import Path
 
 from tml.errors import TmlError
-from tml.kinds import Kind, kind_of
-from tml.vehicle import VEHICLE_TYPES
+from tml.language.kinds import VEHICLE_TYPES, Kind, kind_of
 
 SHIPPED = ("quadcopter", "fixed-wing", "rover")
 SHIPPED_FOR_KIND = {Kind.MULTICOPTER: "quadcopter", Kind.FIXED_WING: "fixed-wing",
@@ -55,11 +54,11 @@ class VehicleProfile:
     return_hover: float  # s RETURN_HOME_AND_LAND hovers over home before it descends
     min_turn_radius: float  # m, smallest loiter circle (0 for a multicopter)
     max_flight_time: float  # s from the start of the mission to its end; 0: no limit
-    vehicle_type: str = "quadcopter"  # a word of tml.vehicle.VEHICLE_TYPES
+    vehicle_type: str = "quadcopter"  # a word of tml.language.kinds.VEHICLE_TYPES
 
     @property
     def kind(self) -> Kind:
-        """What the vehicle can do at all (see :mod:`tml.kinds`)."""
+        """What the vehicle can do at all (see :mod:`tml.language.kinds`)."""
         return kind_of(self.vehicle_type)
 
 

@@ -44,10 +44,10 @@ import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 
-from tml import actions
-from tml.kinds import Kind, role_kinds
-from tml.model import Comparison, Composition, ConditionKind, Event, Mission, Role, Task
-from tml.parameters import ORDERINGS, compare_numbers, lookup, parse_boolean
+from tml.language import actions
+from tml.language.kinds import Kind, role_kinds
+from tml.language.model import Comparison, Composition, ConditionKind, Event, Mission, Role, Task
+from tml.language.parameters import ORDERINGS, compare_numbers, lookup, parse_boolean
 from tml.verify.constraints import Constraint, Violation, check_step
 from tml.verify.motion import FlightModel, Labels, Step, VehicleState
 from tml.verify.profile import SHIPPED_FOR_KIND, VehicleProfile, load_profile

@@ -41,10 +41,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``tml verify``; return the exit code."""
-    from tml.diagnostics import format_human, format_json
     from tml.errors import TmlError
-    from tml.parse import load_world
-    from tml.validation import validate_file
+    from tml.language.build import load_world
+    from tml.language.diagnostics import format_human, format_json
+    from tml.language.validation import validate_file
     from tml.verify.motion import VehicleState
     from tml.verify.profile import load_profile
     from tml.verify.static import verify_mission

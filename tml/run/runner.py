@@ -45,8 +45,8 @@ from enum import IntEnum
 from typing import Any
 
 from tml.engine import Fleet, Options, Output, Status, View
-from tml.journal import Journal, telemetry_fields
-from tml.model import Mission
+from tml.language.model import Mission
+from tml.run.journal import Journal, telemetry_fields
 from tml.vehicle import (
     Disarm,
     Hold,

@@ -16,7 +16,7 @@ from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from tml.model import Mission
+    from tml.language.model import Mission
     from tml.world import World
 
 EXIT_OK, EXIT_INVALID, EXIT_ABORTED, EXIT_FAILURE = 0, 1, 3, 4
@@ -169,9 +169,9 @@ def _load(args: argparse.Namespace,
           errors: Any) -> tuple[Mission, World, World | None, Any] | int:
     """The validated (and verified) mission, its world, the --world file's world and the
     verifier's profile; or an exit code."""
-    from tml.diagnostics import format_human
-    from tml.parse import load_world
-    from tml.validation import validate_file
+    from tml.language.build import load_world
+    from tml.language.diagnostics import format_human
+    from tml.language.validation import validate_file
     from tml.world import World
 
     result = validate_file(args.mission)
@@ -295,10 +295,10 @@ def _discover(link: Any, timeout: float) -> list[int]:
 
 def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
          vehicles: list[Any], wake: threading.Event, clock: Any, console: Any) -> int:
-    from tml.display import LineDisplay, LiveDisplay
     from tml.engine import Options
-    from tml.journal import Journal
-    from tml.runner import Runner, RunOptions
+    from tml.run.display import LineDisplay, LiveDisplay
+    from tml.run.journal import Journal
+    from tml.run.runner import Runner, RunOptions
     from tml.verify.inflight import pre_check, router
 
     # In flight, each action is checked again against live telemetry before it starts, and

@@ -5,8 +5,8 @@ element it came from, so that every later stage (checks, verifier, interpreter, 
 log) can point the author at the source. Nothing here knows about XML or MAVLink.
 
 Values are kept as the author wrote them (argument values are strings); the action
-catalogue (:mod:`tml.actions`) gives them types and units, and the semantic checks
-(:mod:`tml.check`) report what does not fit.
+catalogue (:mod:`tml.language.actions`) gives them types and units, and the semantic checks
+(:mod:`tml.language.check`) report what does not fit.
 """
 
 from __future__ import annotations

@@ -1,34 +1,21 @@
-"""Hardened reading of mission and world files, and building the model from them.
+"""Building the model from a read mission or world document.
 
-Reading is defensive because mission files come from anywhere: the bytes must be UTF-8,
-no DOCTYPE is accepted (so no entity expansion, no external entities, no network or file
-access from the document), and size and nesting depth are bounded. Each of those problems,
-an empty file, or XML that is not well-formed gives one :class:`MissionSyntaxError` that
-says where, never a traceback.
-
-lxml reports an element's line only (and the line of the *end* of its start tag), so the
-text is scanned once for start tags in document order; the i-th start tag is the i-th
-element, which gives every element and attribute an exact line and column.
-
-Building the model assumes the document passed the XML Schema (:mod:`tml.schema`); what the
+Building assumes the document passed the XML Schema (:mod:`tml.language.schema`); what the
 schema cannot express is reported as diagnostics by the builder (structure found while
-building) and by :mod:`tml.check` (everything else).
+building) and by :mod:`tml.language.check` (everything else).
 """
 
 from __future__ import annotations
 
-import bisect
-import functools
-import re
-from dataclasses import dataclass, field
 from pathlib import Path
 
 from lxml import etree
 
 from tml import geo
-from tml.diagnostics import Diagnostic, error
 from tml.errors import Location, MissionSyntaxError
-from tml.model import (
+from tml.language import schema
+from tml.language.diagnostics import Diagnostic, error
+from tml.language.model import (
     Action,
     Argument,
     Comparison,
@@ -48,178 +35,8 @@ from tml.model import (
     Termination,
     TerminationMode,
 )
+from tml.language.xml import XmlDocument, read_xml
 from tml.world import Cylinder, Geofence, Home, Prism, World, WorldObject
-
-MAX_BYTES = 8 * 1024 * 1024
-MAX_DEPTH = 64
-
-_MARKUP = re.compile(
-    r"<!--.*?-->|<!\[CDATA\[.*?\]\]>|<\?.*?\?>|<!DOCTYPE|<(?P<tag>[A-Za-z_][\w.\-:]*)",
-    re.S,
-)
-_ATTRIBUTE = re.compile(r"""\s+([^\s=/>]+)\s*=\s*(?:"[^"]*"|'[^']*')""")
-_ENCODING_DECL = re.compile(rb"^\s*<\?xml[^>]*encoding\s*=\s*[\"']([^\"']+)[\"']")
-
-
-@dataclass
-class XmlDocument:
-    """A parsed, safe XML document with exact positions of elements and attributes."""
-
-    file: str
-    text: str
-    root: etree._Element
-    # Each element's start tag: character offset, line and column (found in one sweep).
-    _starts: dict[etree._Element, tuple[int, int, int]] = field(repr=False)
-
-    @functools.cached_property
-    def _line_starts(self) -> list[int]:
-        # Only attribute positions need it, and only for files with problems.
-        return [0] + [m.end() for m in re.finditer("\n", self.text)]
-
-    def location_of_offset(self, offset: int) -> Location:
-        """Line and column (1-based, in characters) of a character offset in the text."""
-        index = bisect.bisect_right(self._line_starts, offset) - 1
-        return Location(self.file, index + 1, offset - self._line_starts[index] + 1)
-
-    def location(self, element: etree._Element, attribute: str | None = None) -> Location:
-        """Where an element's start tag (or one of its attributes) begins."""
-        found = self._starts.get(element)
-        if found is None:
-            return Location(self.file, element.sourceline or 0, 0)
-        start, line, column = found
-        if attribute is not None:
-            offset = _attribute_offset(self.text, start, attribute)
-            if offset is not None:
-                return self.location_of_offset(offset)
-        return Location(self.file, line, column)
-
-    def element_at(self, xpath: str) -> etree._Element | None:
-        """The element an lxml error path (``/mission/task[2]``) names, if any."""
-        try:
-            found = self.root.getroottree().xpath(xpath)
-        except etree.XPathError:
-            return None
-        return found[0] if found and isinstance(found[0], etree._Element) else None
-
-
-_TAG_NAME = re.compile(r"<[A-Za-z_][\w.\-:]*")
-
-
-def _attribute_offset(text: str, start: int, attribute: str) -> int | None:
-    """Offset of ``attribute``'s name in the start tag that begins at ``start``, if written."""
-    tag = _TAG_NAME.match(text, start)
-    if tag is None:
-        return None
-    # Walk the start tag attribute by attribute, so that a ">" or a name inside an earlier
-    # quoted value is not taken for the end of the tag or for the attribute.
-    position = tag.end()
-    while match := _ATTRIBUTE.match(text, position):
-        if match.group(1) == attribute:
-            return match.start(1)
-        position = match.end()
-    return None
-
-
-def attribute_location(text: str, element: Location, attribute: str) -> Location:
-    """Where ``attribute`` is written in the start tag at ``element`` (the location of its
-    ``<`` in ``text``, the whole document); ``element`` itself if the attribute is not there.
-
-    For stages that hold only the model and the source text, such as the semantic checks.
-    """
-    start = 0
-    for _ in range(element.line - 1):
-        start = text.find("\n", start) + 1
-        if start == 0:
-            return element
-    offset = _attribute_offset(text, start + element.column - 1, attribute)
-    if offset is None:
-        return element
-    line_start = text.rfind("\n", 0, offset) + 1
-    return Location(element.file, element.line + text.count("\n", start, line_start),
-                    offset - line_start + 1)
-
-
-def read_xml(source: str | Path, data: bytes | None = None) -> XmlDocument:
-    """Read a file (or ``data`` under the name ``source``) safely into an :class:`XmlDocument`.
-
-    Raises :class:`MissionSyntaxError` (with file:line:column and a code) for empty input,
-    input that is too large, not UTF-8, has a DOCTYPE, is not well-formed, or nests too deep.
-    """
-    file = str(source)
-    if data is None:
-        data = Path(source).read_bytes()
-    start = Location(file, 1, 1)
-    if len(data) > MAX_BYTES:
-        raise MissionSyntaxError(
-            f"file is {len(data)} bytes; mission files are limited to {MAX_BYTES} bytes",
-            start, "E005")
-    if not data.strip():
-        raise MissionSyntaxError("file is empty; expected a <mission> document", start, "E001")
-    text = _decode(file, data)
-
-    def at(offset: int) -> Location:
-        line_start = text.rfind("\n", 0, offset) + 1
-        return Location(file, text.count("\n", 0, offset) + 1, offset - line_start + 1)
-
-    tags: list[tuple[int, int, int]] = []  # offset, line, column of each start tag
-    line, previous = 1, 0
-    for match in _MARKUP.finditer(text):
-        if match.group("tag"):
-            offset = match.start()
-            line += text.count("\n", previous, offset)  # counted in C, tag to tag
-            previous = offset
-            tags.append((offset, line, offset - text.rfind("\n", 0, offset)))
-        elif match.group(0) == "<!DOCTYPE":
-            raise MissionSyntaxError(
-                "DOCTYPE declarations are not accepted (no DTDs or entities in mission files)",
-                at(match.start()), "E003")
-    parser = etree.XMLParser(
-        resolve_entities=False, no_network=True, load_dtd=False, dtd_validation=False,
-        huge_tree=False, remove_blank_text=False, collect_ids=False,
-    )
-    try:
-        root = etree.fromstring(data, parser)
-    except etree.XMLSyntaxError as exc:
-        line, column = exc.position if exc.position else (1, 0)
-        message = re.sub(r", line \d+, column \d+$", "", exc.msg or "not well-formed")
-        raise MissionSyntaxError(f"not well-formed XML: {message}",
-                                 Location(file, line, column), "E002") from None
-    elements = list(root.iter(etree.Element))
-    starts = dict(zip(elements, tags, strict=False)) if len(elements) == len(tags) else {}
-    depths = {root: 0}
-    for element in elements:
-        parent = element.getparent()
-        depth = depths[element] = depths[parent] + 1 if parent is not None else 0
-        if depth >= MAX_DEPTH:
-            where = starts.get(element)
-            raise MissionSyntaxError(
-                f"elements nest {depth + 1} deep; the limit is {MAX_DEPTH}",
-                Location(file, where[1], where[2]) if where
-                else Location(file, element.sourceline or 1, 0), "E006")
-    return XmlDocument(file, text, root, starts)
-
-
-def _decode(file: str, data: bytes) -> str:
-    if data.startswith((b"\xff\xfe", b"\xfe\xff")) or b"\x00" in data[:4]:
-        raise MissionSyntaxError("file is UTF-16; mission files must be UTF-8",
-                                 Location(file, 1, 1), "E004")
-    declared = _ENCODING_DECL.match(data)
-    if declared and declared.group(1).decode("ascii", "replace").lower() not in (
-            "utf-8", "utf8", "us-ascii", "ascii"):
-        raise MissionSyntaxError(
-            f"file declares encoding {declared.group(1).decode('ascii', 'replace')!r}; "
-            "mission files must be UTF-8", Location(file, 1, 1), "E004")
-    try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + 1
-        column = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
-        raise MissionSyntaxError(
-            f"byte 0x{data[exc.start]:02x} is not UTF-8; mission files must be UTF-8",
-            Location(file, line, column), "E004") from None
-
-
-# --- model building ------------------------------------------------------------------------
 
 
 class _Builder:
@@ -552,8 +369,6 @@ def build_world(doc: XmlDocument) -> tuple[World, list[Diagnostic]]:
 def load_world(path: str | Path) -> World:
     """Read, schema-validate and build a world file; raises :class:`MissionSyntaxError`
     (schema or structure problems, the first one, with the count) on bad input."""
-    from tml import schema  # tml.schema imports this module
-
     doc = read_xml(path)
     problems = schema.validate(doc, "world")
     world, structural = (None, []) if problems else build_world(doc)

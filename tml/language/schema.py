@@ -19,9 +19,9 @@ from pathlib import Path
 
 from lxml import etree
 
-from tml.diagnostics import Diagnostic, error
 from tml.errors import Location
-from tml.parse import XmlDocument
+from tml.language.diagnostics import Diagnostic, error
+from tml.language.xml import XmlDocument
 
 ROOTS = {"mission": "tml.xsd", "world": "world.xsd"}
 
@@ -34,7 +34,7 @@ def schema_path(name: str = "tml.xsd") -> Path:
             return Path(str(resource))
     except ModuleNotFoundError:
         pass
-    return Path(__file__).resolve().parent.parent / "schemas" / name
+    return Path(__file__).resolve().parents[2] / "schemas" / name  # a source checkout
 
 
 @functools.cache

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 from tml import __version__
 
 if TYPE_CHECKING:
-    from tml.validation import ValidationResult
+    from tml.language.validation import ValidationResult
 
 EXIT_OK, EXIT_INVALID, EXIT_USAGE = 0, 1, 2
 # Files per worker task when validating many files on several cores; below twice this
@@ -43,7 +43,7 @@ def _mission_files(paths: Sequence[str]) -> tuple[list[Path], list[str]]:
 
 def _validate_for_report(path: Path) -> ValidationResult | str:
     """Validate one file for printing: its diagnostics, or the text of an I/O error."""
-    from tml.validation import ValidationResult, validate_file
+    from tml.language.validation import ValidationResult, validate_file
 
     try:
         result = validate_file(path)
@@ -67,7 +67,7 @@ def _validate_all(files: list[Path]) -> list[ValidationResult | str]:
 
 def cmd_validate(args: argparse.Namespace) -> int:
     """Validate mission files and print every problem."""
-    from tml.diagnostics import format_github, format_human, format_json
+    from tml.language.diagnostics import format_github, format_human, format_json
 
     files, problems = _mission_files(args.paths)
     for problem in problems:
@@ -103,22 +103,22 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 
 def cmd_verify(args: argparse.Namespace) -> int:
-    """Check a mission's physical feasibility (see :mod:`tml.verify.command`)."""
-    from tml.verify.command import run
+    """Check a mission's physical feasibility (see :mod:`tml.commands.verify`)."""
+    from tml.commands.verify import run
 
     return run(args)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    """Fly a mission (see :mod:`tml.run_command`)."""
-    from tml.run_command import run
+    """Fly a mission (see :mod:`tml.commands.run`)."""
+    from tml.commands.run import run
 
     return run(args)
 
 
 def cmd_companion(args: argparse.Namespace) -> int:
-    """Run the simulated companion computer (see :mod:`tml.companion_command`)."""
-    from tml.companion_command import run
+    """Run the simulated companion computer (see :mod:`tml.commands.companion`)."""
+    from tml.commands.companion import run
 
     return run(args)
 
@@ -157,7 +157,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "and check them against a vehicle profile and a world. Exit 0 when "
                     "feasible, 1 when a constraint fails or the mission is invalid, 2 on "
                     "usage or I/O errors.")
-    from tml.verify.command import add_arguments
+    from tml.commands.verify import add_arguments
 
     add_arguments(verify)
     verify.set_defaults(handler=cmd_verify)
@@ -166,7 +166,7 @@ def build_parser() -> argparse.ArgumentParser:
         "run", help="fly a mission on the embedded simulator or a MAVLink vehicle",
         description="Validate, verify and fly a mission. Exit 0 completed, 1 invalid "
                     "mission, 3 mission aborted, 4 vehicle or link failure.")
-    from tml.run_command import add_arguments as add_run_arguments
+    from tml.commands.run import add_arguments as add_run_arguments
 
     add_run_arguments(run)
     run.set_defaults(handler=cmd_run)
@@ -179,7 +179,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "ADDRESS, e.g. ArduPilot's SERIAL1, until SIGINT or SIGTERM. Exit 0 "
                     "when stopped, 2 on bad arguments or world file, 4 when no autopilot "
                     "is heard.")
-    from tml.companion_command import add_arguments as add_companion_arguments
+    from tml.commands.companion import add_arguments as add_companion_arguments
 
     add_companion_arguments(companion)
     companion.set_defaults(handler=cmd_companion)

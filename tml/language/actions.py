@@ -20,8 +20,8 @@ from dataclasses import dataclass, replace
 from enum import StrEnum
 
 from tml.errors import MissionSemanticError
-from tml.model import Action, normalize_name
-from tml.parameters import NUMBER_PATTERN, parse_boolean, parse_number
+from tml.language.model import Action, normalize_name
+from tml.language.parameters import NUMBER_PATTERN, parse_boolean, parse_number
 
 
 class Category(StrEnum):
@@ -478,7 +478,7 @@ class BoundAction:
 
 
 def bind(action: Action) -> BoundAction:
-    """Type an action's arguments. For actions that passed :mod:`tml.check`; raises
+    """Type an action's arguments. For actions that passed :mod:`tml.language.check`; raises
     :class:`MissionSemanticError` on the first problem otherwise."""
     spec = lookup(action.name)
     if spec is None:

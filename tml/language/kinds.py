@@ -1,7 +1,7 @@
 """Kinds of vehicle and what each can do: one source for the verifier, the interpreter and
 the MAVLink adapter.
 
-A vehicle reports its airframe (:data:`tml.vehicle.VEHICLE_TYPES`, from the HEARTBEAT
+A vehicle reports its airframe (:data:`VEHICLE_TYPES`, from the HEARTBEAT
 type); tml flies three kinds of them, after ArduPilot's Copter, Plane and Rover:
 
 - **multicopter** (and every other aircraft that hovers: helicopters, VTOLs, airships):
@@ -28,7 +28,36 @@ import math
 from dataclasses import dataclass
 from enum import StrEnum
 
-from tml.actions import BoundAction
+from tml.language.actions import BoundAction
+
+MULTICOPTERS = frozenset({"quadcopter", "hexacopter", "octocopter", "tricopter", "coaxial"})
+"""The vehicle types a role asking for "multicopter" accepts."""
+GROUND_AND_WATER = frozenset({"rover", "boat", "submarine"})
+"""The vehicle types that are not aircraft (a "UAV" role accepts all the others)."""
+VEHICLE_TYPES = MULTICOPTERS | GROUND_AND_WATER | frozenset(
+    {"helicopter", "fixed-wing", "vtol", "airship"})
+"""The airframe classes a vehicle reports (:attr:`tml.vehicle.VehicleState.vehicle_type`)."""
+VEHICLE_TYPE_CLASSES = frozenset({"multicopter", "uav"})
+"""Words a role may ask for that stand for several vehicle types ("UAV" as Dolphin writes it)."""
+
+
+def vehicle_type_matches(wanted: str, actual: str) -> bool:
+    """Whether a vehicle of type ``actual`` is what a role asking for ``wanted`` needs.
+
+    ``wanted`` is a word of :data:`VEHICLE_TYPES` (that type only) or of
+    :data:`VEHICLE_TYPE_CLASSES`: "multicopter" (any multirotor) or "UAV", any case (any
+    aircraft, not a rover, boat or submarine). An unknown ``actual`` ("") matches nothing.
+    """
+    if not actual:
+        return False
+    if wanted == actual:
+        return True
+    if wanted == "multicopter":
+        return actual in MULTICOPTERS
+    if wanted.lower() == "uav":
+        return actual in VEHICLE_TYPES - GROUND_AND_WATER
+    return False
+
 
 Point = tuple[float, float, float]
 
@@ -49,7 +78,7 @@ _KINDS = {"fixed-wing": Kind.FIXED_WING, "rover": Kind.GROUND, "boat": Kind.GROU
 
 
 def kind_of(vehicle_type: str) -> Kind:
-    """The kind of a vehicle type (a word of :data:`tml.vehicle.VEHICLE_TYPES`); an unknown
+    """The kind of a vehicle type (a word of :data:`VEHICLE_TYPES`); an unknown
     or empty type is a multicopter, the vehicle tml flies by default."""
     return _KINDS.get(vehicle_type, Kind.MULTICOPTER)
 

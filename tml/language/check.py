@@ -24,10 +24,10 @@ import re
 from collections import defaultdict
 from collections.abc import Iterable
 
-from tml import actions, parameters, skills, vehicle
-from tml.diagnostics import Diagnostic, error, warning
 from tml.errors import Location
-from tml.model import (
+from tml.language import actions, kinds, parameters, skills
+from tml.language.diagnostics import Diagnostic, error, warning
+from tml.language.model import (
     Action,
     Comparison,
     Composition,
@@ -41,8 +41,8 @@ from tml.model import (
     Termination,
     TerminationMode,
 )
-from tml.parameters import ParamType
-from tml.parse import attribute_location
+from tml.language.parameters import ParamType
+from tml.language.xml import attribute_location
 
 # Built-in parameters the interpreter keeps itself; every other parameter (telemetry,
 # recognitions, detection parameters) is read from a vehicle (tml.engine.conditions).
@@ -485,9 +485,9 @@ class _Checker:
                     f"{seen[role.name].location.line})", "give each role its own name"))
             seen.setdefault(role.name, role)
             wanted = role.vehicle_type
-            if wanted is not None and not any(vehicle.vehicle_type_matches(wanted, actual)
-                                               for actual in vehicle.VEHICLE_TYPES):
-                known_types = sorted(vehicle.VEHICLE_TYPES | vehicle.VEHICLE_TYPE_CLASSES)
+            if wanted is not None and not any(kinds.vehicle_type_matches(wanted, actual)
+                                               for actual in kinds.VEHICLE_TYPES):
+                known_types = sorted(kinds.VEHICLE_TYPES | kinds.VEHICLE_TYPE_CLASSES)
                 self.found.append(error(
                     self.at(role.location, "type"), "E272",
                     f"role {role.name!r}: unknown vehicle type {wanted!r}",

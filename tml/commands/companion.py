@@ -43,7 +43,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--system-id", type=_system_id, metavar="N",
                         help="the vehicle's MAVLink system id (default: the first autopilot "
                              "heard)")
-    from tml.run_command import _positive
+    from tml.commands.run import _positive
 
     parser.add_argument("--timeout", type=_positive, default=30.0, metavar="S",
                         help="seconds to wait for the autopilot's heartbeat (default 30)")
@@ -57,8 +57,9 @@ def load_world_file(path: str) -> World:
     Raises OSError when the file cannot be read and a MissionError when it is not a valid
     world or mission.
     """
-    from tml.parse import load_world, read_xml
-    from tml.validation import load_mission
+    from tml.language.build import load_world
+    from tml.language.validation import load_mission
+    from tml.language.xml import read_xml
     from tml.world import World
 
     if read_xml(path).root.tag == "mission":

@@ -15,7 +15,7 @@ import re
 from dataclasses import dataclass
 from enum import StrEnum
 
-from tml.model import Comparison, normalize_name
+from tml.language.model import Comparison, normalize_name
 
 
 class ParamType(StrEnum):

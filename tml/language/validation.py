@@ -9,10 +9,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from tml import check, parse, schema
-from tml.diagnostics import Diagnostic, error, sort_key
 from tml.errors import Location, MissionError, MissionSemanticError, MissionSyntaxError
-from tml.model import Mission
+from tml.language import build, check, schema, xml
+from tml.language.diagnostics import Diagnostic, error, sort_key
+from tml.language.model import Mission
 
 
 @dataclass
@@ -38,7 +38,7 @@ def validate_file(path: str | Path, data: bytes | None = None) -> ValidationResu
     """Validate one mission file; I/O errors (missing file) raise OSError."""
     file = str(path)
     try:
-        doc = parse.read_xml(file, data)
+        doc = xml.read_xml(file, data)
     except MissionSyntaxError as exc:
         location = exc.location or Location(file, 1, 1)
         source = _text_of(path, data)
@@ -46,7 +46,7 @@ def validate_file(path: str | Path, data: bytes | None = None) -> ValidationResu
     problems = schema.validate(doc, "mission")
     if problems:
         return ValidationResult(file, None, sorted(problems, key=sort_key), doc.text)
-    mission, structural = parse.build_mission(doc)
+    mission, structural = build.build_mission(doc)
     found = structural + check.check(mission)
     return ValidationResult(file, mission, sorted(found, key=sort_key), doc.text)
 

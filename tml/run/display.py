@@ -19,7 +19,7 @@ from rich.text import Text
 from rich.tree import Tree
 
 from tml.engine import TaskState, View
-from tml.model import Mission, Task
+from tml.language.model import Mission, Task
 from tml.vehicle import VehicleState, awaiting
 
 Views = Sequence[tuple[View, VehicleState | None]]

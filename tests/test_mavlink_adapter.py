@@ -246,6 +246,29 @@ def test_link_degrades_then_is_lost_when_heartbeats_stop() -> None:
         assert degraded.link == "degraded" and lost.time > 3.0 + rig.vehicle.lost_after - 1.0
 
 
+def test_link_health_is_timed_on_its_own_clock_when_given_one() -> None:
+    # Under --clock vehicle the mission's clock is extrapolated between the vehicle's stamps
+    # at its speed-up: a SITL that stalls looks silent for many seconds of that clock. The
+    # link's health is timed on link_clock instead. Here the mission's clock runs 50 times
+    # ahead of the vehicle's heartbeats.
+    sim = Simulator(vehicles=1, speedup=20.0, tcp_base_port=0, world=WORLD, params=FAST)
+    with sim, Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}") as link:
+        ahead = MavlinkVehicle(link, 1, clock=lambda: 50 * sim.time, world=WORLD)
+        kept = MavlinkVehicle(link, 1, clock=lambda: 50 * sim.time, world=WORLD,
+                              link_clock=lambda: sim.time)
+        end = time.monotonic() + WALL_LIMIT
+        while time.monotonic() < end and sim.time < 3.0:
+            time.sleep(0.01)
+        states = []
+        for _ in range(20):  # heartbeats come every second of the vehicle's time
+            states.append((ahead.state().link, kept.state().link))
+            time.sleep(0.01)
+        ahead.close()
+        kept.close()
+    assert {k for _, k in states} == {"ok"}
+    assert {a for a, _ in states} != {"ok"}
+
+
 def test_a_stream_that_stays_away_is_asked_for_again(rig: Rig) -> None:
     from tml.mavlink.codec import mavlink
     from tml.mavlink.command import CommandLong

@@ -265,6 +265,7 @@ def _vehicles(args: argparse.Namespace, world: World) -> Iterator[tuple[list[Any
             clock = time.monotonic
             addresses = [(url, None) for url in args.connect]
         vehicles = []
+        link_clock = None  # the runner's clock
         for address, system_id in addresses:
             link = stack.enter_context(Link(address, outputs=args.out))
             link.listen(lambda *_: wake.set())
@@ -274,10 +275,13 @@ def _vehicles(args: argparse.Namespace, world: World) -> Iterator[tuple[list[Any
 
                 # The first vehicle's clock times the mission and every vehicle's link.
                 clock = VehicleClock(link, ids[0])
+                # Link health stays on the local clock: see tml.mavlink.adapter.
+                link_clock = time.monotonic
             for sid in ids:
                 vehicle = MavlinkVehicle(link, sid, clock=clock, world=world,
                                          vehicle_id=len(vehicles) + 1 if not args.sim else sid,
-                                         connect_timeout=args.timeout, on_result=wake.set)
+                                         connect_timeout=args.timeout, on_result=wake.set,
+                                         link_clock=link_clock)
                 stack.callback(vehicle.close)
                 vehicle.prepare()
                 vehicles.append(vehicle)

@@ -15,10 +15,14 @@ snapshot: local position from GLOBAL_POSITION_INT relative to HOME_POSITION (via
 EXTENDED_SYS_STATE, ``ready`` from the EKF flags. Three things need more than the snapshot,
 and come from a listener on the link that sees every message of this vehicle:
 
-- *link health*, timed with the runner's clock (the simulator's clock in ``--sim``, so that a
-  speed-up does not make the link look faster than the vehicle): ``lost`` after
-  ``lost_after`` s without a HEARTBEAT, ``degraded`` after ``degraded_after`` s or when more
-  than ``DEGRADED_LOSS`` of the messages of the last second went missing;
+- *link health*, timed with ``link_clock``: the runner's clock by default (the simulator's
+  clock in ``--sim``, so that a speed-up does not make the link look faster than the
+  vehicle), the local clock under ``--clock vehicle``, whose time between the vehicle's
+  stamps is extrapolated (an ArduPilot SITL starved of CPU falls silent without its own
+  time passing; extrapolated at its speed-up, that silence would look like a failing
+  link): ``lost`` after ``lost_after`` s without a HEARTBEAT, ``degraded`` after
+  ``degraded_after`` s or when more than ``DEGRADED_LOSS`` of the messages of the last
+  second went missing;
 - *detections* from the companion computer (component 191, see sitl/companion.py for the
   protocol): each NAMED_VALUE_INT ``ITEM``/``BUCKET``/``MARKER``/``ARUCO``/``FRAME`` report
   keeps the object in the matching ``RECOGNIZED_*`` set for ``detection_hold`` s; objects
@@ -254,13 +258,15 @@ class MavlinkVehicle:
                  lost_after: float = 5.0, degraded_after: float = 2.5,
                  detection_hold: float = 1.5, command_timeout: float = 1.5,
                  connect_timeout: float = 10.0, ready_timeout: float = 120.0,
-                 on_result: Callable[[], None] | None = None) -> None:
+                 on_result: Callable[[], None] | None = None,
+                 link_clock: Clock | None = None) -> None:
         self.link = link
         self.mav = Vehicle(link, link.wait_vehicle(system_id, connect_timeout),
                            command_timeout=command_timeout)
         self.system_id = system_id
         self.vehicle_id = system_id if vehicle_id is None else vehicle_id
         self.clock = clock
+        self.link_clock = clock if link_clock is None else link_clock  # see the module doc
         self.lost_after = lost_after
         self.degraded_after = degraded_after
         self.detection_hold = detection_hold
@@ -274,7 +280,7 @@ class MavlinkVehicle:
         self._params: dict[tuple[int, str], float] = {}
         self._param_arrived = threading.Condition()
         self._heartbeat: float | None = None
-        self._window = (clock(), 0, 0)  # (start, received, lost) of the loss window
+        self._window = (self.link_clock(), 0, 0)  # (start, received, lost) of the loss window
         self._loss = 0.0
         self._seen: dict[tuple[str, int], float] = {}
         self._values: dict[str, float] = {}
@@ -331,7 +337,7 @@ class MavlinkVehicle:
                 landed = True  # EXTENDED_SYS_STATE may lag the final MISSION_ITEM_REACHED
             progress = plan.progress() if plan is not None else self._progress
         return VehicleState(
-            vehicle_id=self.vehicle_id, time=now, link=self._link_state(now),
+            vehicle_id=self.vehicle_id, time=now, link=self._link_state(self.link_clock()),
             ready=t.position_ready, armable=t.prearm_ok, prearm=t.prearm_text if not t.armed
             else "", armed=t.armed, landed=landed, mode=t.mode,
             position=position,
@@ -414,13 +420,14 @@ class MavlinkVehicle:
         if component == COMPANION_COMPONENT:
             self._companion_seen = True
         if kind == "HEARTBEAT" and component == self.mav.component_id:
-            self._heartbeat = now
+            link_now = self.link_clock()
+            self._heartbeat = link_now
             self._keep_target(snapshot)
             start, received, lost = self._window
-            if now - start >= 1.0:
+            if link_now - start >= 1.0:
                 total = (snapshot.received - received) + (snapshot.lost - lost)
                 self._loss = (snapshot.lost - lost) / total if total else 0.0
-                self._window = (now, snapshot.received, snapshot.lost)
+                self._window = (link_now, snapshot.received, snapshot.lost)
         elif kind == "PARAM_VALUE":
             with self._param_arrived:
                 self._params[(component, _text(msg.param_id))] = msg.param_value

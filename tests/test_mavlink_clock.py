@@ -69,3 +69,20 @@ def test_vehicle_clock_reads_the_links_latest_stamp() -> None:
     assert clock() == 0.0
     link.snapshot = replace(link.snapshot, boot_time=30.0, boot_time_received=49.5)
     assert clock() == pytest.approx(30.5)  # rate 1 until the rate is measured
+
+
+def test_waiting_for_the_first_stamp_ends_when_it_comes_or_at_the_timeout() -> None:
+    link = TelemetryOnly()
+    now = [10.0]
+
+    def wait(seconds: float) -> None:  # the local clock moves only while waiting
+        now[0] += seconds
+        if now[0] >= 10.5:
+            link.snapshot = replace(link.snapshot, boot_time=3.0, boot_time_received=10.5)
+
+    clock = VehicleClock(link, 1, local=lambda: now[0])  # type: ignore[arg-type]
+    assert clock.wait_started(5.0, wait) and 10.5 <= now[0] < 10.6
+    assert clock() == pytest.approx(3.0, abs=0.1)
+    silent = VehicleClock(TelemetryOnly(), 1, local=lambda: now[0])  # type: ignore[arg-type]
+    start = now[0]
+    assert not silent.wait_started(2.0, wait) and now[0] - start == pytest.approx(2.0, abs=0.05)

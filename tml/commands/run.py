@@ -247,6 +247,7 @@ def _vehicles(args: argparse.Namespace, world: World) -> Iterator[tuple[list[Any
     """Start the simulator or open the links; yield (vehicles, wake event, clock)."""
     import time
 
+    from tml.errors import TmlError
     from tml.mavlink.adapter import MavlinkVehicle
     from tml.mavlink.link import Link
 
@@ -285,6 +286,9 @@ def _vehicles(args: argparse.Namespace, world: World) -> Iterator[tuple[list[Any
                 stack.callback(vehicle.close)
                 vehicle.prepare()
                 vehicles.append(vehicle)
+        if link_clock is not None and not clock.wait_started(args.timeout):
+            raise TmlError(f"vehicle {vehicles[0].vehicle_id} sent no time stamp "
+                           f"(time_boot_ms) in {args.timeout:g} s; --clock vehicle needs one")
         yield vehicles, wake, clock
 
 

@@ -90,6 +90,18 @@ class VehicleClock:
         self.estimator = VehicleClockEstimator()
         self._fed: float | None = None
 
+    def wait_started(self, timeout: float, wake: Callable[[float], object] = time.sleep
+                     ) -> bool:
+        """Wait up to ``timeout`` local seconds for the vehicle's first time stamp, so that
+        a mission is never timed from 0 before the vehicle has said what time it is.
+        ``wake(seconds)`` waits between looks. Returns whether the clock has started."""
+        deadline = self.local() + timeout
+        while True:
+            self()
+            if self.estimator.started or self.local() >= deadline:
+                return self.estimator.started
+            wake(0.02)
+
     def __call__(self) -> float:
         t = self.link.telemetry(self.system_id)
         if t.boot_time is not None and t.boot_time_received is not None \

@@ -22,6 +22,7 @@ from tml.vehicle import (
     Land,
     Request,
     ReturnToLaunch,
+    SetSkill,
     VehicleState,
 )
 
@@ -826,3 +827,54 @@ def test_an_on_error_with_the_same_role_picks_another_vehicle_when_one_is_lost()
     assert flight.fleet.status is Status.COMPLETED
     assert [p.data["vehicles"] for p in flight.picks()] == [[1], [2]]
     assert flight.flown_by("B/Cover/Cover hover") == {2}
+
+
+# --- regressions ------------------------------------------------------------------------------
+
+
+@pytest.mark.xfail(raises=TypeError, strict=True,
+                   reason="fleet.py _mission_frame calls geo.to_global with 2 arguments of 6")
+def test_a_region_is_read_in_the_missions_frame_when_both_homes_are_known() -> None:
+    """A vehicle's position is converted from its own home to the mission's before the
+    region is tested: here the vehicle stands at its own home, which is 100 m north of the
+    mission's."""
+    from tml import geo
+    from tml.world import DEFAULT_HOME, Home
+
+    south = geo.to_global(-100.0, 0.0, 0.0, DEFAULT_HOME.latitude, DEFAULT_HOME.longitude,
+                          DEFAULT_HOME.altitude)
+    mission_home = Home(south[0], south[1], DEFAULT_HOME.altitude)
+    environment = (f'<environment><home latitude="{mission_home.latitude:.8f}" '
+                   f'longitude="{mission_home.longitude:.8f}" '
+                   f'altitude="{mission_home.altitude:g}"/></environment>\n')
+    role = ('<role name="r" pick_timeout="2"><region><circle north="100" east="0" '
+            'radius="20"/></region></role>')
+    vehicles = [FakeVehicle(vehicle_id=1, home=mission_home),  # at the mission's home
+                FakeVehicle(vehicle_id=2)]  # at its own home, 100 m north of it
+    flight = FleetFlight(take_off() + land(), vehicles, extra=environment + roles(role)).run()
+    assert flight.fleet.status is Status.COMPLETED
+    assert [p.data["vehicles"] for p in flight.picks()] == [[2]]
+    assert flight.flown_by("Take off") == {2}
+    alone = FleetFlight(take_off() + land(), vehicles[:1], extra=environment + roles(role))
+    alone.run()
+    assert pick_failure(alone).data["refused"] == {1: "outside the region (at 0 m N, 0 m E)"}
+
+
+@pytest.mark.xfail(strict=True, reason="the fleet switches the outer task's skills directly "
+                   "while the segment interpreter counts the sub-task's: off when Inner ends")
+def test_a_skill_declared_by_a_bounded_task_and_its_sub_task_stays_on_until_the_task_ends(
+) -> None:
+    """Skill uses are counted per vehicle: the sub-task's end does not switch off the skill
+    that the task around it (orchestrated by its time limit) still uses."""
+    body = ('<task name="Outer" time_limit="500"><skill name="RECOGNIZE_ITEMS"/>'
+            + take_off() + '<task name="Inner"><skill name="RECOGNIZE_ITEMS"/>'
+            + hover("Look", 2) + '</task>' + hover("After", 3) + '</task>\n' + land())
+    vehicle = FakeVehicle()
+    on_while: list[tuple[float, bool]] = []
+    flight = FleetFlight(body, [vehicle])
+    flight.run(each=lambda f: on_while.append((f.time, "RECOGNIZE_ITEMS" in vehicle.skills)))
+    assert flight.fleet.status is Status.COMPLETED
+    outer = (flight.began("Outer"), flight.ended("Outer"))
+    switches = [(t, r.enabled) for t, r in flight.requests(SetSkill, 1)]
+    assert switches == [(outer[0], True), (outer[1], False)]
+    assert all(on for t, on in on_while if outer[0] < t <= outer[1])

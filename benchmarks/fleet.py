@@ -5,7 +5,7 @@ Run by hand: ``python benchmarks/fleet.py [--vehicles 10,50,100] [--speedup 1] [
 For each fleet size N the simulator runs in its own process (``python -m sitl --vehicles N
 --speedup K --tcp-base-port 0``, ports read from what it prints, all on 127.0.0.1), and
 this process flies it as ``tml run --connect`` would: one Link and one MavlinkVehicle per
-vehicle, and one Runner whose single Fleet engine drives them all. The mission, generated
+vehicle, and one Runner whose single Interpreter drives them all. The mission, generated
 below, declares one role with ``count=N`` (every vehicle) flying two tasks: take off to
 5 m, then hover until an event. The event, ``BATTERY_CHARGE_PERCENTAGE < 25``, lands the
 vehicle.

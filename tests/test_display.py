@@ -22,18 +22,18 @@ XML = b"""<mission name="Show">
 </mission>"""
 
 
-def flown(seconds: float):
-    mission = validate_file("show.xml", XML).mission
+def flown(seconds: float, xml: bytes = XML):
+    mission = validate_file("show.xml", xml).mission
     vehicle = FakeVehicle()
-    interp = Interpreter(mission)
-    for request in interp.start(0.0, vehicle.state()).requests:
+    interp = Interpreter(mission, [1])
+    for request in interp.start(0.0, {1: vehicle.state()}).requests:
         vehicle.submit(request)
     for tick in range(1, round(seconds * 10) + 1):
         vehicle.advance(0.1)
         t = tick / 10
-        for request in interp.step(t, vehicle.state(), vehicle.poll()).requests:
+        for request in interp.step(t, {1: vehicle.state()}, {1: vehicle.poll()}).requests:
             vehicle.submit(request)
-    return mission, [(interp.view(), vehicle.state())]
+    return mission, [(interp.views()[1], vehicle.state())]
 
 
 def test_view_shows_tree_states_action_progress_telemetry_and_events() -> None:
@@ -52,8 +52,8 @@ def test_view_shows_tree_states_action_progress_telemetry_and_events() -> None:
 
 def test_view_before_anything_happened() -> None:
     mission = validate_file("show.xml", XML).mission
-    interp = Interpreter(mission)
-    text = render_text(mission, [(interp.view(), None)])
+    interp = Interpreter(mission, [1])
+    text = render_text(mission, [(interp.views()[1], None)])
     assert "· Take off" in text and "events: none yet" in text
 
 
@@ -68,3 +68,4 @@ def test_line_display_prints_each_change_once() -> None:
     assert sum("event 'Far'" in line for line in printed) == 1
     display.say("vehicle 1: ReturnToLaunch")
     assert out.getvalue().endswith("vehicle 1: ReturnToLaunch\n")
+

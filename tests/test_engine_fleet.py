@@ -1,4 +1,5 @@
-"""The fleet engine (tml.engine.fleet), driven by FakeVehicles and an injected clock.
+"""Fleets (tml.engine.interpreter with roles and orchestration), driven by FakeVehicles and
+an injected clock.
 
 Every test asserts who flew what, when: the records (with their vehicle ids and times),
 the requests each vehicle received, and where the vehicles ended up.
@@ -12,8 +13,7 @@ from itertools import pairwise
 import pytest
 from test_engine_interpreter import SEEN, goto, hover, mission
 
-from tml.engine import Fleet, Interpreter, Options, Status, TaskState
-from tml.engine.interpreter import Record
+from tml.engine import Interpreter, Options, Record, Status, TaskState
 from tml.vehicle import (
     Disarm,
     FakeVehicle,
@@ -63,8 +63,8 @@ class FleetFlight:
         if isinstance(vehicles, int):
             vehicles = [FakeVehicle(vehicle_id=i) for i in range(1, vehicles + 1)]
         self.vehicles = {v.vehicle_id: v for v in vehicles}
-        self.fleet = Fleet(mission(body, events, extra), list(self.vehicles), options,
-                           payloads)
+        self.fleet = Interpreter(mission(body, events, extra), list(self.vehicles), options,
+                                 payloads)
         self.records: list[Record] = []
         self.sent: list[tuple[float, Request]] = []
         self.track: list[tuple[float, dict[int, VehicleState]]] = []
@@ -120,9 +120,9 @@ class FleetFlight:
     def flown_by(self, path: str) -> set[int | None]:
         return {r.vehicle_id for r in self.task(path, "running")}
 
-    def state_of(self, path: str, vid: int = 1) -> TaskState | None:
-        """The task's state in ``vid``'s view (None: the vehicle never flew it)."""
-        return self.fleet.views()[vid].task_states.get(path)
+    def state_of(self, path: str, vid: int = 1) -> TaskState:
+        """The task's state in ``vid``'s view (PENDING: the vehicle never flew it)."""
+        return self.fleet.views()[vid].task_states[path]
 
     def decisions(self, text: str) -> list[Record]:
         return [r for r in self.records if r.kind == "decision" and text in r.data["message"]]
@@ -227,6 +227,20 @@ def test_until_stops_an_endless_loiter_and_the_next_task_runs() -> None:
     assert vehicle.position[2] == 0 and not vehicle.armed
 
 
+def test_a_task_stopped_by_until_is_logged_running_once_and_done_once() -> None:
+    body = (take_off() + '<task name="Patrol"><until>'
+            + condition("BATTERY_CHARGE_PERCENTAGE", "less than", "90") + '</until>'
+            '<action name="LOITER"><argument name="radius" value="5"/></action></task>\n'
+            + land())
+    flight = FleetFlight(body, [FakeVehicle(drain_per_second=1.0)]).run()
+    states = [r.data["state"] for r in flight.records
+              if r.kind == "task" and r.data["task"] == "Patrol"]
+    assert states == ["running", "done"]
+    [stopped] = [r for r in flight.records if r.kind == "action" and "stopped" in
+                 r.data["message"]]
+    assert stopped.data["why"] == "Patrol: its until conditions hold"
+
+
 def test_wait_for_holds_the_task_until_its_conditions_hold() -> None:
     body = ('<task name="Go"><wait_for>'
             + condition("BATTERY_CHARGE_PERCENTAGE", "greater than or equal to", "90")
@@ -289,7 +303,7 @@ def test_on_error_runs_the_handler_then_the_mission_goes_on_after_the_task() -> 
     flight.run(each=reject_while(1, "GoTo", 0.0, 2.05))  # only the first GO_TO, at 2 s
     assert flight.fleet.status is Status.COMPLETED
     assert flight.state_of("Guarded") is TaskState.FAILED
-    assert flight.state_of("Guarded/Further") is None
+    assert flight.state_of("Guarded/Further") is TaskState.PENDING
     [failed] = flight.decisions("its on_error tasks run")
     assert "rejected" in failed.data["detail"]
     assert flight.began("Guarded/Recover") == failed.time
@@ -329,10 +343,12 @@ def test_unhandled_failure_fails_the_mission_and_every_flying_vehicle_is_made_sa
     assert held == home_2 == home_1 == end
     kinds = [type(r) for _, r in flight.sent if r.vehicle_id == 2]
     assert kinds.index(Hold) < kinds.index(ReturnToLaunch)
+    assert flight.state_of("Both/A", 1) is TaskState.FAILED
     assert flight.state_of("Both/B", 2) is TaskState.ABORTED
-    branch_ends = {r.vehicle_id: r.data["status"] for r in flight.records
-                   if r.kind == "branch" and "status" in r.data and r.time == end}
-    assert branch_ends == {1: "failed", 2: "aborted"}
+    [stopped] = [r for r in flight.records if r.kind == "action" and "stopped" in
+                 r.data["message"]]
+    assert (stopped.time, stopped.vehicle_id) == (end, 2)
+    assert stopped.data["message"] == "GO_TO_POINT stopped: a sibling branch failed"
 
 
 def test_forever_loop_is_ended_by_the_time_limit_and_rounds_are_counted() -> None:
@@ -671,38 +687,23 @@ def test_a_vehicle_that_ignores_every_request_never_stalls_the_other() -> None:
     assert "vehicle 2: no heartbeat for 5 s" in flight.fleet.reason
 
 
-def request_fields(request: Request) -> tuple[str, dict[str, object]]:
-    return request.name, {k: v for k, v in vars(request).items() if k != "request_id"}
-
-
-def test_a_mission_without_roles_or_orchestration_flies_as_the_interpreter_does() -> None:
+def test_a_mission_without_roles_or_orchestration_is_a_fleet_of_one() -> None:
+    """Every record is its one vehicle's, the mission's own included; each task says it
+    runs once and how it ended once, after its sub-tasks."""
     body = (take_off() + goto("Out", "(8, 3, 5)") + '<task name="Look"><skill '
             'name="RECOGNIZE_ITEMS"/>' + hover("Scan", 2) + '</task>\n' + land())
-    events = memorize("Seen")
-    flight = FleetFlight(body, 1, events, SEEN).run(each=seen_on(1, 4.0))
+    flight = FleetFlight(body, 1, memorize("Seen"), SEEN).run(each=seen_on(1, 4.0))
     assert flight.fleet.status is Status.COMPLETED
-    vehicle = FakeVehicle()
-    interpreter = Interpreter(mission(body, events, SEEN))
-    alone: list[tuple[float, Request]] = []
-    records: list[Record] = []
-    out, time = interpreter.start(0.0, vehicle.state()), 0.0
-    while True:
-        alone += [(time, r) for r in out.requests]
-        records += out.records
-        for request in out.requests:
-            vehicle.submit(request)
-        if interpreter.status is not Status.RUNNING:
-            break
-        vehicle.advance(STEP)
-        time = round(time + STEP, 6)
-        vehicle.detections["seen"] = time >= 4.0
-        out = interpreter.step(time, vehicle.state(), vehicle.poll())
-    assert [(t, request_fields(r)) for t, r in flight.sent] == \
-        [(t, request_fields(r)) for t, r in alone]
-    def logged(rs: list[Record]) -> list[tuple[float, str, str]]:
-        return [(r.time, r.kind, r.data["message"]) for r in rs if r.kind != "request"]
-    assert logged(flight.records) == logged(records)
     assert {r.vehicle_id for r in flight.records} == {1}
+    lines = [(r.data["task"], r.data["state"]) for r in flight.records if r.kind == "task"]
+    assert lines == [("Take off", "running"), ("Take off", "done"), ("Out", "running"),
+                     ("Out", "done"), ("Look", "running"), ("Look/Scan", "running"),
+                     ("Look/Scan", "done"), ("Look", "done"), ("Land", "running"),
+                     ("Land", "done")]
+    skills = [(t, r.enabled) for t, r in flight.requests(SetSkill, 1)]
+    assert skills == [(flight.began("Look"), True), (flight.ended("Look"), False)]
+    assert [(r.time, r.data["event"]) for r in flight.records if r.kind == "event"] == \
+        [(4.0, "Seen")]
 
 
 def test_a_mission_without_roles_but_with_until_flies_on_its_one_vehicle() -> None:
@@ -832,8 +833,6 @@ def test_an_on_error_with_the_same_role_picks_another_vehicle_when_one_is_lost()
 # --- regressions ------------------------------------------------------------------------------
 
 
-@pytest.mark.xfail(raises=TypeError, strict=True,
-                   reason="fleet.py _mission_frame calls geo.to_global with 2 arguments of 6")
 def test_a_region_is_read_in_the_missions_frame_when_both_homes_are_known() -> None:
     """A vehicle's position is converted from its own home to the mission's before the
     region is tested: here the vehicle stands at its own home, which is 100 m north of the
@@ -860,8 +859,6 @@ def test_a_region_is_read_in_the_missions_frame_when_both_homes_are_known() -> N
     assert pick_failure(alone).data["refused"] == {1: "outside the region (at 0 m N, 0 m E)"}
 
 
-@pytest.mark.xfail(strict=True, reason="the fleet switches the outer task's skills directly "
-                   "while the segment interpreter counts the sub-task's: off when Inner ends")
 def test_a_skill_declared_by_a_bounded_task_and_its_sub_task_stays_on_until_the_task_ends(
 ) -> None:
     """Skill uses are counted per vehicle: the sub-task's end does not switch off the skill

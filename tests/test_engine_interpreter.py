@@ -9,7 +9,9 @@ from dataclasses import dataclass, field, replace
 
 import pytest
 
-from tml.engine import Interpreter, Options, Status, TaskState
+from tml.engine import Interpreter, Options, Status, TaskState, View
+from tml.engine.context import Duty
+from tml.errors import EngineError
 from tml.language.validation import validate_file
 from tml.vehicle import (
     Disarm,
@@ -19,6 +21,7 @@ from tml.vehicle import (
     GoTo,
     Gripper,
     Hold,
+    IdSource,
     Land,
     MissionProgress,
     RequestResult,
@@ -52,11 +55,12 @@ class Flight:
     def __init__(self, body: str, events: str = "", extra: str = "",
                  vehicle: FakeVehicle | None = None, options: Options | None = None) -> None:
         self.vehicle = vehicle or FakeVehicle()
-        self.interp = Interpreter(mission(body, events, extra), options=options)
+        self.vid = self.vehicle.vehicle_id
+        self.interp = Interpreter(mission(body, events, extra), [self.vid], options)
         self.records = []
         self.requests = []
         self.time = 0.0
-        self._take(self.interp.start(0.0, self.vehicle.state()))
+        self._take(self.interp.start(0.0, {self.vid: self.vehicle.state()}))
 
     def _take(self, out) -> None:
         self.records += out.records
@@ -72,8 +76,12 @@ class Flight:
             self.time = round(self.time + 0.1, 6)
             if each:
                 each(self)
-            self._take(self.interp.step(self.time, self.vehicle.state(), self.vehicle.poll()))
+            self._take(self.interp.step(self.time, {self.vid: self.vehicle.state()},
+                                        {self.vid: self.vehicle.poll()}))
         return self
+
+    def view(self) -> View:
+        return self.interp.views()[self.vid]
 
     def started(self) -> list[str]:
         return [r.data["task"] for r in self.records
@@ -96,7 +104,7 @@ def test_depth_first_order_and_completion() -> None:
     assert flight.started() == ["Take off", "A/A1", "A/A2/A2a", "B", "Land"]
     assert flight.vehicle.position == pytest.approx((5, 0, 0), abs=0.55)
     assert not flight.vehicle.armed
-    assert set(flight.interp.view().task_states.values()) == {TaskState.DONE}
+    assert set(flight.view().task_states.values()) == {TaskState.DONE}
 
 
 def test_repeat_of_terminal_and_non_terminal_tasks() -> None:
@@ -122,7 +130,7 @@ def test_false_condition_skips_the_task_and_logs_the_value_read() -> None:
     [skip] = [r for r in flight.records if r.kind == "decision" and "skipped" in r.data["message"]]
     assert skip.data["task"] == "High only" and skip.data["read"] == pytest.approx(5.0, abs=0.6)
     assert skip.data["expected"] == "20" and skip.data["line"] == 3
-    assert flight.interp.view().task_states["High only"] is TaskState.SKIPPED
+    assert flight.view().task_states["High only"] is TaskState.SKIPPED
 
 
 def test_take_off_when_flying_does_nothing() -> None:
@@ -182,7 +190,7 @@ def test_memorizing_event_does_not_disturb_the_running_action() -> None:
                           'name="coordinates" label="spot"/></action>'), SEEN)
     flight.run(each=see_at(6.0))
     assert flight.sent(Hold) == []
-    spot = flight.interp.labels["spot"]
+    spot = flight.view().labels["spot"]
     assert 0 < spot[0] < 40 and spot[2] == pytest.approx(5.0)
     assert flight.vehicle.position == pytest.approx((40, 0, 0), abs=0.55)
 
@@ -255,7 +263,7 @@ def test_abort_task_abandons_the_task_the_event_is_scoped_to() -> None:
                     SEEN)
     flight.run(each=see_at(8.0))
     assert flight.started() == ["Take off", "Search/Look", "After", "Land"]
-    states = flight.interp.view().task_states
+    states = flight.view().task_states
     assert states["Search"] is TaskState.ABORTED and states["Search/Look more"] is TaskState.PENDING
 
 
@@ -324,7 +332,7 @@ def test_memory_labels_feed_go_to_point_and_known_conditions() -> None:
              'value="1000"/><action name="MEMORIZE_POINT"><argument name="coordinates" '
              'label="other"/></action><termination mode="CONTINUE"/></event>')
     flight = Flight(body, never).run()
-    assert flight.interp.labels["spot"] == pytest.approx((6, 2, 5), abs=0.55)
+    assert flight.view().labels["spot"] == pytest.approx((6, 2, 5), abs=0.55)
     assert "Never" not in flight.started() and "Back" in flight.started()
     assert flight.vehicle.position == pytest.approx((6, 2, 0), abs=0.55)
 
@@ -416,12 +424,12 @@ def test_detections_named_after_objects_feed_conditions() -> None:
     flight = Flight(TAKE_OFF + hover("Scan", 10) + LAND, events, extra)
     flight.run(each=lambda f: f.vehicle.detections.__setitem__(
         "RECOGNIZED_ITEMS", frozenset({"A"}) if f.time > 7 else frozenset()))
-    assert flight.fired() == ["Item A found"] and "item A" in flight.interp.labels
+    assert flight.fired() == ["Item A found"] and "item A" in flight.view().labels
 
 
 def test_runner_abort_commands_the_safe_state() -> None:
     flight = Flight(TAKE_OFF + hover() + LAND).run(seconds=8)
-    out = flight.interp.abort(flight.time, flight.vehicle.state(), "operator pressed Ctrl-C")
+    out = flight.interp.abort(flight.time, {1: flight.vehicle.state()}, "operator pressed Ctrl-C")
     assert [type(r) for r in out.requests] == [ReturnToLaunch]
     assert flight.interp.status is Status.ABORTED
     assert any(r.kind == "safety" for r in out.records)
@@ -429,9 +437,9 @@ def test_runner_abort_commands_the_safe_state() -> None:
 
 def test_abort_on_the_ground_disarms_an_armed_vehicle() -> None:
     vehicle = FakeVehicle(armed=True)
-    interp = Interpreter(mission(hover()))
-    interp.start(0.0, vehicle.state())
-    out = interp.abort(0.1, vehicle.state(), "link lost")
+    interp = Interpreter(mission(hover()), [1])
+    interp.start(0.0, {1: vehicle.state()})
+    out = interp.abort(0.1, {1: vehicle.state()}, "link lost")
     assert [type(r) for r in out.requests] == [Disarm]
 
 
@@ -440,7 +448,7 @@ def test_mission_dispatch_sends_one_plan_and_follows_its_progress() -> None:
                        + goto("P2", "(10, 10, 5)") + '</task>\n') + LAND
     seen_tasks: list[str] = []
     flight = Flight(body)
-    flight.run(each=lambda f: seen_tasks.append(f.interp.view().current_task))
+    flight.run(each=lambda f: seen_tasks.append(f.view().current_task))
     [plan] = flight.sent(FlyMission)
     assert [a.name for a in plan.actions] == ["GO_TO_POINT", "GO_TO_POINT"]
     assert plan.start == pytest.approx((0, 0, 5), abs=0.6)
@@ -463,7 +471,7 @@ def test_mission_dispatch_can_be_interrupted_by_an_event() -> None:
         '</task>\n' + LAND
     flight = Flight(body, event("NEXT_TASK"), SEEN).run(each=see_at(8.0))
     assert len(flight.sent(Hold)) == 1
-    assert flight.interp.view().task_states["Auto"] is TaskState.ABORTED
+    assert flight.view().task_states["Auto"] is TaskState.ABORTED
     assert flight.interp.status is Status.COMPLETED
     assert flight.vehicle.position[0] < 60
 
@@ -481,7 +489,7 @@ def test_pre_check_makes_an_infeasible_action_abort() -> None:
 
 def test_view_reports_current_action_and_progress() -> None:
     flight = Flight(TAKE_OFF + goto("Far", "(40, 0, 5)") + LAND).run(seconds=7)
-    view = flight.interp.view()
+    view = flight.view()
     assert view.current_task == "Far" and view.current_action == "GO_TO_POINT"
     assert 0.0 < view.progress < 1.0
     assert view.task_states["Take off"] is TaskState.DONE
@@ -536,21 +544,21 @@ def test_refused_mission_fails_at_once() -> None:
 def plan_flight(action: str, seconds: float) -> Interpreter:
     """A dispatch="mission" plan whose vehicle stays on its first item for ``seconds``."""
     interp = Interpreter(mission(
-        f'<task name="Auto" dispatch="mission"><task name="A">{action}</task></task>\n'))
+        f'<task name="Auto" dispatch="mission"><task name="A">{action}</task></task>\n'), [1])
     flying = FakeVehicle(armed=True, position=(0.0, 0.0, 10.0)).state()
-    out = interp.start(0.0, flying)
+    out = interp.start(0.0, {1: flying})
     [plan] = [r for r in out.requests if isinstance(r, FlyMission)]
     time = 0.0
     while interp.status is Status.RUNNING and time < seconds:
         time += 1.0
         state = replace(flying, time=time, mission=MissionProgress(plan.plan_id, 0))
-        interp.step(time, state)
+        interp.step(time, {1: state})
     return interp
 
 
 def test_endless_loiter_in_a_mission_never_stalls() -> None:
     interp = plan_flight('<action name="LOITER"/>', 2000.0)
-    assert interp.status is Status.RUNNING and interp.view().current_task == "Auto/A"
+    assert interp.status is Status.RUNNING and interp.views()[1].current_task == "Auto/A"
 
 
 def test_mission_item_time_limit_comes_from_the_action() -> None:
@@ -567,15 +575,97 @@ def test_plan_tasks_the_autopilot_went_past_are_logged_flown() -> None:
         '<task name="Auto" dispatch="mission">' + goto("P1", "(10, 0, 10)")
         + '<task name="Photo"><action name="CAPTURE_PHOTO"/></task>'
         + goto("P2", "(20, 0, 10)") + '<task name="Last photo"><action name="CAPTURE_PHOTO"/>'
-        '</task></task>\n'))
+        '</task></task>\n'), [1])
     flying = FakeVehicle(armed=True, position=(0.0, 0.0, 10.0)).state()
-    out = interp.start(0.0, flying)
+    out = interp.start(0.0, {1: flying})
     [plan] = [r for r in out.requests if isinstance(r, FlyMission)]
     records = list(out.records)
     for time, index, finished in ((1.0, 0, False), (2.0, 2, False), (3.0, 2, True)):
         progress = MissionProgress(plan.plan_id, index, finished)
-        records += interp.step(time, replace(flying, time=time, mission=progress)).records
+        records += interp.step(time, {1: replace(flying, time=time, mission=progress)}).records
     lines = [(r.data["task"], r.data["state"]) for r in records if r.kind == "task"]
     for task in ("Auto/P1", "Auto/Photo", "Auto/P2", "Auto/Last photo"):
         assert lines.index((task, "running")) < lines.index((task, "done")), task
     assert interp.status is Status.COMPLETED
+
+
+# --- one engine: ids, explicit states, the log --------------------------------------------------
+
+
+def test_requests_and_plans_are_numbered_from_the_source_the_engine_is_given() -> None:
+    ids = IdSource(first=500)
+    body = TAKE_OFF + '<task name="Auto" dispatch="mission">' + goto("P1", "(5, 0, 5)") + \
+        '</task>\n' + LAND
+    one = Interpreter(mission(body), [1], ids=ids)
+    two = Interpreter(mission(body), [2], ids=ids)
+    sent = one.start(0.0, {1: FakeVehicle().state()}).requests
+    sent += two.start(0.0, {2: FakeVehicle(vehicle_id=2).state()}).requests
+    numbers = [r.request_id for r in sent]
+    assert numbers[0] == 500 and len(set(numbers)) == len(numbers)
+    flight = Flight(body).run()
+    [plan] = flight.sent(FlyMission)
+    ids_seen = [r.request_id for r in flight.requests]
+    assert len(set(ids_seen)) == len(ids_seen) and plan.plan_id not in (0, plan.request_id)
+
+
+def test_a_vehicle_s_duty_changes_only_as_its_table_allows() -> None:
+    flight = Flight(TAKE_OFF + LAND)
+    pilot = flight.interp.run.pilots[1]
+    pilot.become(Duty.LOST)
+    with pytest.raises(EngineError, match="vehicle 1 cannot go from lost to watching"):
+        pilot.become(Duty.WATCHING)
+
+
+def task_lines(flight: Flight) -> list[tuple[str, str]]:
+    return [(r.data["task"], r.data["state"]) for r in flight.records if r.kind == "task"]
+
+
+def test_next_task_leaves_the_running_task_aborted() -> None:
+    flight = Flight(TAKE_OFF + hover() + LAND, event("NEXT_TASK"), SEEN).run(each=see_at(8.0))
+    assert task_lines(flight).count(("Hover", "running")) == 1
+    assert ("Hover", "aborted") in task_lines(flight)
+    assert flight.view().task_states["Hover"] is TaskState.ABORTED
+
+
+def test_abort_task_without_current_task_abandons_only_the_running_task() -> None:
+    body = TAKE_OFF + ('<task name="Search">' + hover("Look", 20) + hover("Look more", 5)
+                       + '</task>\n') + LAND
+    flight = Flight(body, event("ABORT_TASK"), SEEN).run(each=see_at(8.0, 8.05))
+    assert flight.started() == ["Take off", "Search/Look", "Search/Look more", "Land"]
+    states = flight.view().task_states
+    assert states["Search/Look"] is TaskState.ABORTED and states["Search"] is TaskState.DONE
+
+
+def test_a_failure_answered_by_a_memorizing_event_lets_the_task_go_on() -> None:
+    events = ('<event name="Note it"><condition parameter="ACTION_FAILURE" comparison="equal" '
+              'value="rejected"/><action name="MEMORIZE_POINT"><argument name="coordinates" '
+              'label="refused here"/></action><termination mode="CONTINUE"/></event>')
+    vehicle = FakeVehicle(reject={"GoTo": "rejected"})
+    flight = Flight(TAKE_OFF + goto("Out", "(9, 0, 5)") + LAND, events, vehicle=vehicle)
+    flight.run(seconds=120)
+    assert flight.fired() == ["Note it"] and "refused here" in flight.view().labels
+    assert flight.interp.status is Status.COMPLETED
+    assert flight.started() == ["Take off", "Out", "Land"]
+
+
+def test_each_task_state_change_is_logged_once_children_first() -> None:
+    body = TAKE_OFF + ('<task name="Group"><task name="Mark"><action name="MEMORIZE_POINT">'
+                       '<argument name="coordinates" label="p"/></action></task>'
+                       + hover("Look", 30) + '</task>\n') + LAND
+    flight = Flight(body, event("END_MISSION"), SEEN).run(each=see_at(8.0))
+    assert task_lines(flight) == [
+        ("Take off", "running"), ("Take off", "done"), ("Group", "running"),
+        ("Group/Mark", "running"), ("Group/Mark", "done"), ("Group/Look", "running"),
+        ("Group/Look", "aborted"), ("Group", "aborted")]
+
+
+def test_a_plan_resumed_after_an_event_says_its_item_runs_once() -> None:
+    body = TAKE_OFF + ('<task name="Auto" dispatch="mission">' + goto("P1", "(30, 0, 5)")
+                       + goto("P2", "(30, 10, 5)") + '</task>\n') + LAND
+    flight = Flight(body, event("CONTINUE", '<action name="CAPTURE_PHOTO"/>'), SEEN)
+    flight.run(each=see_at(6.0))
+    assert flight.interp.status is Status.COMPLETED
+    assert len(flight.sent(FlyMission)) == 2  # the rest of the plan, sent again
+    lines = task_lines(flight)
+    assert lines.count(("Auto/P1", "running")) == 1 and lines.count(("Auto/P1", "done")) == 1
+    assert lines.index(("Auto/P2", "done")) < lines.index(("Auto", "done"))

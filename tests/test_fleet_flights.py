@@ -196,9 +196,10 @@ def test_compositions_first_choice_time_limit_on_error_and_roles(tmp_path: Path)
     # first: the lead's 5 m hop ends the race; the pair's 60 m leg is stopped, held.
     hop = first("task", 1, "Race/Lead hops: done")
     for vehicle in (2, 3):
-        stopped = [line for line in of(lines, "branch", vehicle)
-                   if line["message"] == "branch stopped: another branch finished first"]
+        stopped = [line for line in of(lines, "action", vehicle)
+                   if line["message"] == "MOVE stopped: another branch finished first"]
         assert [line["t"] for line in stopped] == [hop]
+        assert first("task", vehicle, "Race/Pair flies far: aborted") == hop
         assert any(line["message"] == "Hold" and line["t"] == hop
                    for line in of(lines, "request", vehicle))
         assert max(line["position"][1] for line in of(lines, "telemetry", vehicle)

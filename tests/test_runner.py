@@ -57,14 +57,14 @@ def run(body: str, events: str = "", vehicles: int = 1, options: RunOptions | No
                     options=options or RunOptions(), journal=Journal(log), wait=sim.wait,
                     on_safety=said.append)
     if broken_engine:
-        fleet = runner.crews[0].fleet
-        step = fleet.step
+        engine = runner.crews[0].engine
+        step = engine.step
 
         def explode_in_flight(now, states, results):  # type: ignore[no-untyped-def]
             if now > 3.0:
                 raise RuntimeError("boom")
             return step(now, states, results)
-        fleet.step = explode_in_flight  # type: ignore[method-assign]
+        engine.step = explode_in_flight  # type: ignore[method-assign]
     outcome = runner.run()
     lines = [json.loads(line) for line in log.getvalue().splitlines()]
     return outcome, sim, lines, said, runner

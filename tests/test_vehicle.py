@@ -9,6 +9,7 @@ from tml.vehicle import (
     Arm,
     FakeVehicle,
     GoTo,
+    IdSource,
     Land,
     RequestResult,
     SetMode,
@@ -55,8 +56,12 @@ def test_not_ready_vehicle_refuses_to_arm() -> None:
     assert vehicle.poll()[0].reason == "rejected"
 
 
-def test_request_ids_are_unique() -> None:
-    assert len({Arm(1).request_id for _ in range(100)}) == 100
+def test_an_id_source_gives_each_id_once_and_counts_on_its_own() -> None:
+    ids = IdSource()
+    taken = [ids.take() for _ in range(100)]
+    assert len(set(taken)) == 100 and taken[0] == 1
+    assert IdSource().take() == 1  # nothing is numbered process-wide
+    assert Arm(1).request_id == 0  # numbered when sent
 
 
 def test_the_fake_vehicle_reports_its_type() -> None:

@@ -24,14 +24,14 @@ def fly(north: float, battery: float, events: str = "", world: World | None = No
     text = MISSION.format(north=north, events=events)
     mission = validate_file("m.xml", text.encode()).mission
     vehicle = FakeVehicle(battery=battery, drain_per_second=0.0, speed=10.0)
-    interp = Interpreter(mission, options=Options(pre_check=pre_check(profile, world)))
-    out, time = interp.start(0.0, vehicle.state()), 0.0
+    interp = Interpreter(mission, [1], Options(pre_check=pre_check(profile, world)))
+    out, time = interp.start(0.0, {1: vehicle.state()}), 0.0
     while interp.status is Status.RUNNING and time < 600:
         for request in out.requests:
             vehicle.submit(request)
         vehicle.advance(0.1)
         time += 0.1
-        out = interp.step(time, vehicle.state(), vehicle.poll())
+        out = interp.step(time, {1: vehicle.state()}, {1: vehicle.poll()})
     return interp, vehicle
 
 
@@ -101,9 +101,9 @@ def closest_approach(mission_text: str, obstacle: Cylinder) -> tuple[Interpreter
     world = World(obstacles=(obstacle,))
     route = router(load_profile("quadcopter"), world)
     mission = validate_file("m.xml", mission_text.encode()).mission
-    interp = Interpreter(mission, options=Options(route=route))
+    interp = Interpreter(mission, [1], Options(route=route))
     vehicle = FakeVehicle(drain_per_second=0.0, speed=10.0)
-    out, time, closest = interp.start(0.0, vehicle.state()), 0.0, math.inf
+    out, time, closest = interp.start(0.0, {1: vehicle.state()}), 0.0, math.inf
     while interp.status is Status.RUNNING and time < 900:
         for request in out.requests:
             vehicle.submit(request)
@@ -111,7 +111,7 @@ def closest_approach(mission_text: str, obstacle: Cylinder) -> tuple[Interpreter
         time += 0.1
         north, east, _ = vehicle.position
         closest = min(closest, math.hypot(north - obstacle.north, east - obstacle.east))
-        out = interp.step(time, vehicle.state(), vehicle.poll())
+        out = interp.step(time, {1: vehicle.state()}, {1: vehicle.poll()})
     return interp, vehicle, closest
 
 

@@ -55,6 +55,11 @@ class MissionInfeasibleError(MissionError):
     """The mission cannot be flown within the vehicle's physical limits or the map."""
 
 
+class EngineError(TmlError):
+    """The engine was asked for a change its rules do not allow (a defect in tml): the runner
+    stops the run and commands every vehicle to its safe state."""
+
+
 class VehicleError(TmlError):
     """A vehicle or its link did not do what was asked."""
 

@@ -14,7 +14,6 @@ in the state.
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
@@ -114,15 +113,36 @@ def awaiting(state: VehicleState) -> tuple[str, ...]:
 
 # --- requests -------------------------------------------------------------------------------
 
-_ids = itertools.count(1)
+class IdSource:
+    """Hands out ids, each once: the ids of requests and of autopilot plans.
+
+    One source serves a whole run -- the engine and whoever else sends to its vehicles (the
+    runner's own safety requests) -- so that no two requests to a vehicle share an id and
+    a vehicle's progress in one plan is never taken for another's. Nothing is numbered
+    process-wide: each run (each test) counts from ``first``.
+    """
+
+    def __init__(self, first: int = 1) -> None:
+        self._next = first
+
+    def take(self) -> int:
+        """A new id."""
+        taken = self._next
+        self._next += 1
+        return taken
 
 
 @dataclass(frozen=True)
 class Request:
-    """Something the engine asks a vehicle to do. ``request_id`` is unique in the process."""
+    """Something the engine asks a vehicle to do.
+
+    ``request_id`` is 0 until the request is sent: the sender numbers each request it sends
+    from the run's :class:`IdSource`, and the vehicle's :class:`RequestResult` carries the
+    number back.
+    """
 
     vehicle_id: int
-    request_id: int = field(default_factory=lambda: next(_ids), kw_only=True)
+    request_id: int = field(default=0, kw_only=True)
 
     @property
     def name(self) -> str:

@@ -1,11 +1,13 @@
-"""The interpreter engine: pure, I/O-free, driven by the runner with the time and state.
+"""The interpreter engine: pure, I/O-free, driven by the runner with the time and states.
 
 See :mod:`tml.engine.interpreter` for the theory of operation.
 """
 
-from tml.engine.fleet import Fleet
-from tml.engine.interpreter import Interpreter, Options, Output, Record, Status, TaskState, View
+from tml.engine.context import Options
+from tml.engine.failures import FailureReason
+from tml.engine.interpreter import Interpreter
+from tml.engine.records import Change, Output, Record, Status, TaskState, View
 from tml.engine.scripts import Limits
 
-__all__ = ["Fleet", "Interpreter", "Limits", "Options", "Output", "Record", "Status", "TaskState",
-           "View"]
+__all__ = ["Change", "FailureReason", "Interpreter", "Limits", "Options", "Output", "Record",
+           "Status", "TaskState", "View"]

@@ -102,7 +102,7 @@ def evaluate(condition: Condition, state: VehicleState, memory: Memory) -> tuple
     """Whether a condition holds, and the value it read (for the flight log)."""
     if condition.kind is ConditionKind.CURRENT_TASK:
         wanted = condition.subject
-        holds = any(_names_task(wanted, path) for path in memory.running_paths)
+        holds = any(names_task(wanted, path) for path in memory.running_paths)
         return holds, "/".join(memory.current_task)
     if condition.kind is ConditionKind.LABEL:
         known = condition.subject in memory.labels
@@ -129,7 +129,8 @@ def evaluate_all(condition: Condition, states: Sequence[VehicleState],
     return all(holds for holds, _ in readings), readings[0][1]
 
 
-def _names_task(wanted: str, path: tuple[str, ...]) -> bool:
+def names_task(wanted: str, path: tuple[str, ...]) -> bool:
+    """Whether ``wanted`` (a task's name, or its path written with ``/``) names ``path``."""
     if "/" in wanted:
         return tuple(part.strip() for part in wanted.split("/")) == path
     return bool(path) and path[-1] == wanted.strip()

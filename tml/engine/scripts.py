@@ -31,6 +31,7 @@ from itertools import pairwise
 from typing import Protocol
 
 from tml import geo
+from tml.engine.failures import FailureReason
 from tml.language.actions import BoundAction, Category
 from tml.language.kinds import HANDLING, Kind, final_length, kind_of, refusal
 from tml.patterns import CIRCLE_POINTS_PER_TURN, circle_point
@@ -60,9 +61,9 @@ from tml.world import World
 class ActionFailed(Exception):
     """An action could not be completed; ``reason`` is the ACTION_FAILURE value."""
 
-    def __init__(self, reason: str, detail: str) -> None:
+    def __init__(self, reason: FailureReason | str, detail: str) -> None:
         super().__init__(f"{reason}: {detail}")
-        self.reason = reason
+        self.reason = FailureReason(reason)
         self.detail = detail
 
 

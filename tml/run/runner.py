@@ -2,13 +2,14 @@
 
 Theory of operation
 -------------------
-One :class:`~tml.engine.Interpreter` per vehicle flies the mission (each relative to its
-own home). The loop wakes ``rate`` times a second, and at once whenever ``wake`` is set --
-the link sets it on every message it receives, so an event reacts to the message that made
-its condition true without waiting for the next tick. Each wake, for every vehicle still
-running: read its state, collect the results of its requests, step its interpreter with the
-time, submit the requests that come out, and write everything to the journal; then refresh
-the display.
+A mission with roles is flown by one :class:`~tml.engine.Interpreter` that picks its
+vehicles; one without is flown by every vehicle on its own, one interpreter each (each
+relative to its own home). The loop wakes ``rate`` times a second, and at once whenever
+``wake`` is set -- the link sets it on every message it receives, so an event reacts to the
+message that made its condition true without waiting for the next tick. Each wake, for
+every vehicle still running: read its state, collect the results of its requests, step its
+interpreter with the time, submit the requests that come out, and write everything to the
+journal; then refresh the display.
 
 *Time.* The interpreter sees the runner's ``clock``. For a real vehicle that is the
 monotonic clock; for the embedded simulator it is the simulator's own vehicle time, so a
@@ -27,7 +28,9 @@ first conditions never read a value that has not arrived as if it were real.
 longer than ``link_lost_limit`` seconds, or on :meth:`Runner.stop` (Ctrl-C, SIGTERM). Then
 every vehicle still running is handed to its interpreter's :meth:`abort`, which commands
 the safe state (``rtl``, ``land`` or ``hold`` when flying, disarm when armed on the
-ground); if the interpreter itself is broken, the runner builds that request itself. After
+ground); if the interpreter itself is broken, the runner sends the same request itself
+(:func:`~tml.engine.safety.safe_state_request`, the one rule). Requests are numbered from
+one :class:`~tml.vehicle.IdSource` for the whole run, the interpreters' and the runner's. After
 the interpreters have ended, the runner waits (up to ``settle_timeout`` wall seconds) until
 the vehicles have carried out what was asked, and if one is still flying an uploaded
 mission in AUTO that nobody watches any more, commands the safe state to it as well. Every
@@ -40,26 +43,15 @@ import threading
 import time
 import traceback
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import IntEnum
 from typing import Any
 
-from tml.engine import Fleet, Options, Output, Status, View
+from tml.engine import Interpreter, Options, Output, Status, View
+from tml.engine.safety import safe_state_request
 from tml.language.model import Mission
 from tml.run.journal import Journal, telemetry_fields
-from tml.vehicle import (
-    Disarm,
-    Hold,
-    Land,
-    Request,
-    RequestResult,
-    ReturnToLaunch,
-    Vehicle,
-    VehicleState,
-    awaiting,
-)
-
-SAFE_STATES = {"rtl": ReturnToLaunch, "land": Land, "hold": Hold}
+from tml.vehicle import IdSource, RequestResult, Vehicle, VehicleState, awaiting
 
 
 class ExitCode(IntEnum):
@@ -124,16 +116,16 @@ class _Flight:
 
 
 class _Crew:
-    """A fleet engine and the vehicles it flies."""
+    """An interpreter and the vehicles it flies."""
 
-    def __init__(self, fleet: Fleet, flights: list[_Flight]) -> None:
-        self.fleet = fleet
+    def __init__(self, engine: Interpreter, flights: list[_Flight]) -> None:
+        self.engine = engine
         self.flights = flights
         self.broken = False  # the engine raised: it is not asked anything again
 
     @property
     def running(self) -> bool:
-        return self.fleet.status is Status.RUNNING and not self.broken
+        return self.engine.status is Status.RUNNING and not self.broken
 
     def states(self) -> dict[int, VehicleState]:
         return {f.vehicle.vehicle_id: f.state for f in self.flights if f.state is not None}
@@ -161,12 +153,14 @@ class Runner:
         engine = self.options.engine
         engine.safe_state = self.options.safe_state
         self.flights = [_Flight(v) for v in vehicles]
-        ids = [f.vehicle.vehicle_id for f in self.flights]
-        if mission.roles:  # one fleet picks its vehicles for the roles
-            self.crews = [_Crew(Fleet(mission, ids, engine, payloads), self.flights)]
+        self.ids = IdSource()  # one numbering for every request of the run
+        vids = [f.vehicle.vehicle_id for f in self.flights]
+        if mission.roles:  # one interpreter picks its vehicles for the roles
+            self.crews = [_Crew(Interpreter(mission, vids, engine, payloads, self.ids),
+                                self.flights)]
         else:  # every vehicle flies the whole mission on its own
-            self.crews = [_Crew(Fleet(mission, [f.vehicle.vehicle_id], engine, payloads), [f])
-                          for f in self.flights]
+            self.crews = [_Crew(Interpreter(mission, [f.vehicle.vehicle_id], engine, payloads,
+                                            self.ids), [f]) for f in self.flights]
         self._stop_reason = ""
         self.safety_actions: list[str] = []
 
@@ -181,14 +175,14 @@ class Runner:
         """The display's view of each vehicle: the engine's view and the last state."""
         views = []
         for crew in self.crews:
-            found = crew.fleet.views()
+            found = crew.engine.views()
             views.extend((found[f.vehicle.vehicle_id], f.state) for f in crew.flights)
         return views
 
     # --- the loop ----------------------------------------------------------------------------
 
     def run(self) -> Outcome:
-        """Fly until every fleet has ended; return how it went."""
+        """Fly until every interpreter has ended; return how it went."""
         now = self.clock()
         self.journal.write(now, "run", message="run started", mission=self.mission.name,
                            file=self.mission.file, vehicles=[f.vehicle.vehicle_id
@@ -202,7 +196,7 @@ class Runner:
         for flight in self.flights:
             flight.state = flight.vehicle.state()
         for crew in self.crews:
-            self._guarded(crew, now, lambda c=crew: c.fleet.start(now, c.states()))
+            self._guarded(crew, now, lambda c=crew: c.engine.start(now, c.states()))
         while any(c.running for c in self.crews):
             self._wait(1.0 / self.options.rate)
             now = self.clock()
@@ -216,7 +210,7 @@ class Runner:
                 self.on_update(self)
         self._settle()
         return self._end(Outcome(tuple(
-            VehicleOutcome(f.vehicle.vehicle_id, c.fleet.status, c.fleet.reason, f.cause)
+            VehicleOutcome(f.vehicle.vehicle_id, c.engine.status, c.engine.reason, f.cause)
             for c in self.crews for f in c.flights)))
 
     def _end(self, outcome: Outcome) -> Outcome:
@@ -305,10 +299,10 @@ class Runner:
             flight.cause = "link"
             reason = f"link lost for more than {self.options.link_lost_limit:g} s"
             self._said(f"vehicle {flight.vehicle.vehicle_id}: {reason}")
-            self._guarded(crew, now, lambda f=flight, r=reason: crew.fleet.lost(
+            self._guarded(crew, now, lambda f=flight, r=reason: crew.engine.lost(
                 now, f.vehicle.vehicle_id, r))
         if crew.running:
-            self._guarded(crew, now, lambda: crew.fleet.step(now, crew.states(), results))
+            self._guarded(crew, now, lambda: crew.engine.step(now, crew.states(), results))
 
     def _guarded(self, crew: _Crew, now: float, call: Callable[[], Output]) -> None:
         """Run an engine call; an exception aborts every vehicle."""
@@ -344,20 +338,17 @@ class Runner:
                 self._said(f"vehicle{'s' if len(crew.flights) > 1 else ''} "
                            f"{', '.join(str(f.vehicle.vehicle_id) for f in crew.flights)}: "
                            f"aborting: {reason}")
-                self._guarded(crew, now, lambda c=crew: c.fleet.abort(now, c.states(), reason))
+                self._guarded(crew, now, lambda c=crew: c.engine.abort(now, c.states(), reason))
 
     # --- the end -----------------------------------------------------------------------------
 
     def _fallback_safe_state(self, flight: _Flight, now: float, reason: str) -> None:
-        """The safe-state request, built here when the engine cannot be asked."""
+        """The safe-state request, sent from here when the engine cannot be asked."""
         state = flight.state = flight.vehicle.state()
-        request: Request | None = None
-        vid = flight.vehicle.vehicle_id
-        if state.flying or not state.landed:
-            request = SAFE_STATES.get(self.options.safe_state, ReturnToLaunch)(vid)
-        elif state.armed:
-            request = Disarm(vid)
-        if request is not None:
+        safe = safe_state_request(state, self.options.safe_state)
+        if safe is not None:
+            request = replace(safe[0], request_id=self.ids.take())
+            vid = flight.vehicle.vehicle_id
             self.journal.write(now, "safety", vid, message=f"{request.name} ({reason})",
                                request=request.name, request_id=request.request_id)
             self._said(f"vehicle {vid}: {request.name} ({reason})")

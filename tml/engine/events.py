@@ -1,0 +1,224 @@
+"""Event handlers: checked for each vehicle while it flies a task, run on that vehicle, and
+their termination applied to that vehicle's work.
+
+On every step, before the task tree is stepped, each vehicle that flies a task and is not
+handling an event checks the handlers that apply to it (no role, or its role) in document
+order, and the first that triggers fires: on the rising edge of its conditions, or at every
+check while they hold with ``trigger="level"``. An action's failure is checked at once, in
+the step it happens (ACTION_FAILURE has just changed).
+
+A handler whose actions only memorize points and that continues runs them at once and
+disturbs nothing. Any other holds the vehicle's work (the vehicle is told to hold), runs its
+actions one after the other on the vehicle (a :class:`Handler`), and then its termination
+decides for the work it held, or for the action whose failure fired it: CONTINUE resumes
+it (or, after a failure, goes on as if it were done), NEXT_TASK abandons its task,
+REPEAT_TASK begins the action anew, ABORT_TASK abandons the task the handler is scoped to
+with ``current_task`` (else the running task), JUMP_TO_TASK goes on from the named task,
+END_MISSION and ABORT_MISSION end the mission. A failure of a handler's own action lets the
+other handlers react; if none does, the held work fails with it.
+"""
+
+from __future__ import annotations
+
+from tml.engine.composites import NodeStatus, SequenceNode
+from tml.engine.conditions import names_task
+from tml.engine.context import Duty, Pilot, Run, TaskOwner, Verdict, Work, WorkMode
+from tml.engine.leaves import ActionLeaf
+from tml.engine.records import Status
+from tml.engine.scripts import SCRIPTS, ActionFailed
+from tml.language.actions import Category, bind
+from tml.language.model import ConditionKind, Event, EventTrigger, TerminationMode
+from tml.vehicle import Hold
+
+
+class Handler(SequenceNode):
+    """An event's actions, run one after the other on one vehicle."""
+
+    def __init__(self, run: Run, pilot: Pilot, event: Event) -> None:
+        super().__init__(run, len(event.actions), lambda i: ActionLeaf(
+            run, pilot, event.actions[i], None, None, event.name))
+        self.event = event
+
+
+class Events:
+    """The event handling of a run; see the module docstring."""
+
+    def __init__(self, run: Run) -> None:
+        self.run = run
+        self.handlers: dict[int, Handler] = {}  # the handler running on each vehicle
+        run.react = self.react
+
+    def watch(self, pilot: Pilot) -> None:
+        """A step's event handling for one vehicle: its running handler goes on, or its
+        handlers are checked."""
+        handler = self.handlers.get(pilot.vehicle_id)
+        if handler is not None:
+            self._drive(pilot, handler)
+        elif pilot.duty is Duty.WATCHING and pilot.flying_a_task():
+            self._check(pilot)
+
+    def react(self, pilot: Pilot) -> bool:
+        """An action failed on the vehicle: True when a handler fired and decides what
+        follows."""
+        return pilot.duty is Duty.WATCHING and self._check(pilot)
+
+    def stop(self, why: str) -> None:
+        """Stop every running handler (the mission ends)."""
+        for vid, handler in list(self.handlers.items()):
+            self._drop(self.run.pilots[vid])
+            handler.stop(why)
+
+    def drop(self, pilot: Pilot, why: str) -> None:
+        """Stop the vehicle's running handler, if any (its link is lost)."""
+        handler = self._drop(pilot)
+        if handler is not None:
+            handler.stop(why)
+
+    def _drop(self, pilot: Pilot) -> Handler | None:
+        handler = self.handlers.pop(pilot.vehicle_id, None)
+        if handler is not None and pilot.duty is Duty.HANDLING:
+            pilot.become(Duty.WATCHING)
+        return handler
+
+    # --- firing ----------------------------------------------------------------------------
+
+    def _check(self, pilot: Pilot) -> bool:
+        """Evaluate the vehicle's handlers; fire the first that triggers. True if one fired."""
+        run, vid = self.run, pilot.vehicle_id
+        memory = pilot.memory(run.now, run.log.mission_time)
+        roles = {pilot.role: vid}
+        fired: Event | None = None
+        for event in run.mission.events:
+            if event.role is not None and event.role != pilot.role:
+                continue
+            readings = [run.reading(c, pilot, memory, roles) for c in event.conditions]
+            holds = all(h for h, _ in readings)
+            was = pilot.holding.get(event.name, False)
+            triggers = holds and (event.trigger is EventTrigger.LEVEL or not was)
+            if triggers and fired is None:
+                fired = event
+                pilot.holding[event.name] = True
+                run.note("event", f"event {event.name!r} fired", vid, event=event.name,
+                         line=event.location.line,
+                         read=[{"subject": c.subject, "value": v}
+                               for c, (_, v) in zip(event.conditions, readings, strict=True)])
+            elif not triggers or not holds:
+                pilot.holding[event.name] = holds  # a rising edge left pending fires next
+        if fired is None:
+            return False
+        pilot.events.append((run.log.mission_time, fired.name))
+        self._fire(pilot, fired)
+        return True
+
+    def _fire(self, pilot: Pilot, event: Event) -> None:
+        run = self.run
+        if event.termination.mode is TerminationMode.CONTINUE and all(
+                bind(a).spec.category is Category.MEMORY for a in event.actions):
+            self._memorize(pilot, event)  # without disturbing the running action
+            for work in _held(pilot):  # an action's failure fired it: its task goes on
+                work.decide(Verdict.GO_ON)
+            return
+        pilot.become(Duty.HANDLING)
+        held = [work.hold() for work in pilot.work if work.owner is not None]
+        if any(held) and pilot.state.flying:
+            run.send(Hold(pilot.vehicle_id))
+        handler = self.handlers[pilot.vehicle_id] = Handler(run, pilot, event)
+        self._drive(pilot, handler)
+
+    def _memorize(self, pilot: Pilot, event: Event) -> None:
+        run, vid = self.run, pilot.vehicle_id
+        for action in event.actions:
+            bound = bind(action)
+            run.note("action", f"{bound.name} (event {event.name!r})", vid, action=bound.name,
+                     line=action.location.line)
+            try:
+                for _ in SCRIPTS[bound.name](pilot, bound):
+                    pass  # memory actions finish without waiting
+            except ActionFailed as failure:
+                pilot.failure = failure.reason
+                run.note("action", f"{bound.name} failed: {failure}", vid, action=bound.name,
+                         reason=failure.reason.value)
+
+    def _drive(self, pilot: Pilot, handler: Handler) -> None:
+        status = handler.tick()
+        if status is NodeStatus.RUNNING:
+            return
+        self._drop(pilot)
+        if status is NodeStatus.SUCCESS:
+            self._terminate(pilot, handler.event)
+            return
+        failure = handler.failure
+        assert failure is not None
+        if self._check(pilot):  # another handler reacts to the failure
+            return
+        held = _held(pilot)
+        for work in held:
+            work.decide(Verdict.FAIL, failure)
+        if not held:
+            self.run.finish = (failure.status, failure.message)
+
+    # --- terminations ----------------------------------------------------------------------
+
+    def _terminate(self, pilot: Pilot, event: Event) -> None:
+        run, mode = self.run, event.termination.mode
+        run.note("decision", f"event {event.name!r}: {mode.value}", pilot.vehicle_id,
+                 event=event.name, termination=mode.value)
+        why = f"event {event.name!r}: {mode.value}"
+        held = _held(pilot)
+        if mode is TerminationMode.CONTINUE:
+            for work in held:
+                work.decide(Verdict.RESUME if work.mode is WorkMode.HELD else Verdict.GO_ON)
+        elif mode is TerminationMode.NEXT_TASK:
+            for owner in _owners(held):
+                owner.abandon(why)
+        elif mode is TerminationMode.REPEAT_TASK:
+            for work in held:
+                work.decide(Verdict.RESTART)
+        elif mode is TerminationMode.ABORT_TASK:
+            for owner in _scopes(event, held):
+                owner.abandon(why)
+        elif mode is TerminationMode.JUMP_TO_TASK:
+            run.jump_to = _find(run, event.termination.task or "")
+        elif mode is TerminationMode.END_MISSION:
+            run.finish = (Status.COMPLETED, f"event {event.name!r} ended the mission")
+        else:
+            run.finish = (Status.ABORTED, f"event {event.name!r} aborted the mission")
+
+
+def _held(pilot: Pilot) -> list[Work]:
+    """The vehicle's task work that a handler holds, or whose failure fired it."""
+    return [w for w in pilot.work
+            if w.owner is not None and w.mode in (WorkMode.HELD, WorkMode.AWAITING)]
+
+
+def _owners(held: list[Work]) -> list[TaskOwner]:
+    owners: list[TaskOwner] = []
+    for work in held:
+        if work.owner is not None and work.owner not in owners:
+            owners.append(work.owner)
+    return owners
+
+
+def _scopes(event: Event, held: list[Work]) -> list[TaskOwner]:
+    """The tasks ABORT_TASK abandons: the one its ``current_task`` condition names among
+    those each held work runs in, else (or for a task inside a plan) the work's own."""
+    named = next((c.subject for c in event.conditions
+                  if c.kind is ConditionKind.CURRENT_TASK), None)
+    scopes: list[TaskOwner] = []
+    for owner in _owners(held):
+        scope: TaskOwner | None = owner
+        if named is not None:
+            while scope is not None and not names_task(named, scope.task.path):
+                scope = scope.owner
+        scope = scope or owner
+        if scope not in scopes:
+            scopes.append(scope)
+    return scopes
+
+
+def _find(run: Run, reference: str) -> tuple[str, ...]:
+    """The path of the task a JUMP_TO_TASK names (checked to exist: E240, E244)."""
+    if "/" in reference:
+        return tuple(p.strip() for p in reference.split("/"))
+    return next(t.path for t in run.mission.walk() if t.name == reference.strip())
+

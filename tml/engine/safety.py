@@ -1,0 +1,36 @@
+"""The safe state: what a vehicle is told when nobody flies it any more.
+
+One rule for every place that needs it: the end of a mission, a role's release, a lost
+vehicle, and the runner when the engine itself cannot be asked.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from tml.language.kinds import Kind, kind_of
+from tml.vehicle import Disarm, Hold, Land, Request, ReturnToLaunch, VehicleState
+
+SAFE_STATES: dict[str, Callable[[int], Request]] = {
+    "rtl": ReturnToLaunch, "land": Land, "hold": Hold}
+"""The safe states a run may choose (``--safe-state``), RTL being the default."""
+
+
+def safe_state_request(state: VehicleState, safe_state: str) -> tuple[Request, str] | None:
+    """What puts a vehicle in the safe state, and why; None when it is safe already.
+
+    A ground vehicle is safe stopped: an armed one is disarmed, wherever it is. Any other
+    that is not on the ground -- flying, or saying it is not landed even when disarmed (in
+    doubt it is taken to be in the air) -- is told ``safe_state`` (rtl, land or hold); one
+    armed on the ground is disarmed.
+    """
+    if kind_of(state.vehicle_type) is Kind.GROUND:
+        if state.armed:
+            return Disarm(state.vehicle_id), "ground vehicle armed: disarm (it stops)"
+        return None
+    if state.flying or not state.landed:
+        request = SAFE_STATES.get(safe_state, ReturnToLaunch)(state.vehicle_id)
+        return request, f"vehicle in the air: {request.name}"
+    if state.armed:
+        return Disarm(state.vehicle_id), "vehicle armed on the ground: disarm"
+    return None

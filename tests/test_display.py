@@ -69,3 +69,27 @@ def test_line_display_prints_each_change_once() -> None:
     display.say("vehicle 1: ReturnToLaunch")
     assert out.getvalue().endswith("vehicle 1: ReturnToLaunch\n")
 
+
+NESTED = b"""<mission name="Nested">
+  <task name="Take off"><action name="TAKE_OFF"><argument name="altitude" value="5"/></action>
+  </task>
+  <task name="Survey">
+    <task name="Mark"><action name="MEMORIZE_POINT"><argument name="coordinates" label="p"/>
+    </action></task>
+    <task name="Leg"><action name="GO_TO_POINT"><argument name="coordinates" value="(5, 0, 5)"/>
+    </action></task>
+  </task>
+</mission>"""
+
+
+def test_line_display_prints_every_change_once_in_the_order_it_happened() -> None:
+    _, views = flown(12.0, NESTED)
+    out = io.StringIO()
+    display = LineDisplay(Console(file=out, width=200, color_system=None))
+    display.update(views)
+    display.update(views)
+    printed = [line.split("vehicle 1: ", 1)[1] for line in out.getvalue().splitlines()
+               if "vehicle 1: " in line and ": " in line.split("vehicle 1: ", 1)[1]]
+    assert printed == ["Take off: running", "Take off: done", "Survey: running",
+                       "Survey/Mark: running", "Survey/Mark: done", "Survey/Leg: running",
+                       "Survey/Leg: done", "Survey: done"]

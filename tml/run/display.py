@@ -3,7 +3,8 @@
 :func:`render` turns the interpreters' views and the vehicles' last states into one rich
 renderable; :class:`LiveDisplay` redraws it in place on a terminal (at most
 ``refresh_per_second`` times a second, however often the runner asks), and
-:class:`LineDisplay` prints one line per change (task state, event, end) for logs and pipes.
+:class:`LineDisplay` prints one line per change (task state, event, end) for logs and pipes,
+in the order the changes happened.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from rich.table import Table
 from rich.text import Text
 from rich.tree import Tree
 
-from tml.engine import TaskState, View
+from tml.engine import Change, TaskState, View
 from tml.language.model import Mission, Task
 from tml.vehicle import VehicleState, awaiting
 
@@ -163,11 +164,13 @@ class LiveDisplay:
 
 
 class LineDisplay:
-    """Prints one line per task state change and per event, for pipes and log files."""
+    """Prints one line per task state change and per event, for pipes and log files: each
+    change once, in the order it happened (a sub-task's end before its task's)."""
 
     def __init__(self, console: Console | None = None) -> None:
         self.console = console or Console(highlight=False)
-        self._states: dict[tuple[int, str], TaskState] = {}
+        self._printed: dict[int, int] = {}  # how many of each view's changes are printed
+        self._shared: set[Change] = set()  # the changes of tasks no vehicle flies, printed
         self._events: set[tuple[int, float, str]] = set()
         self._awaiting: dict[int, tuple[str, ...]] = {}
 
@@ -187,12 +190,16 @@ class LineDisplay:
                 self._awaiting[index] = missing
                 self.console.print(f"{who}: waiting for {', '.join(missing)}" if missing
                                    else f"{who}: ready")
-            for path, state in view.task_states.items():
-                key = (index, path)
-                if state is not TaskState.PENDING and self._states.get(key) is not state:
-                    self._states[key] = state
-                    self.console.print(f"[{view.mission_time:7.1f} s] {who}: "
-                                       f"{path}: {state.value}")
+            for change in view.changes[self._printed.get(index, 0):]:
+                if change.vehicle_id is None:  # the same in every vehicle's view: once
+                    if change not in self._shared:
+                        self._shared.add(change)
+                        self.console.print(f"[{change.time:7.1f} s] {change.task}: "
+                                           f"{change.state.value}")
+                else:
+                    self.console.print(f"[{change.time:7.1f} s] {who}: {change.task}: "
+                                       f"{change.state.value}")
+            self._printed[index] = len(view.changes)
             for t, name in view.events:
                 if (index, t, name) not in self._events:
                     self._events.add((index, t, name))

@@ -875,3 +875,15 @@ def test_a_skill_declared_by_a_bounded_task_and_its_sub_task_stays_on_until_the_
     switches = [(t, r.enabled) for t, r in flight.requests(SetSkill, 1)]
     assert switches == [(outer[0], True), (outer[1], False)]
     assert all(on for t, on in on_while if outer[0] < t <= outer[1])
+
+
+def test_work_that_would_start_on_a_lost_vehicle_fails_at_once() -> None:
+    body = (take_off() + '<task name="Guarded">' + hover("Long", 60)
+            + '<on_error>' + land("Down") + '</on_error></task>\n')
+    flight = FleetFlight(body, 1).run(seconds=5)
+    flight.take(flight.fleet.lost(flight.time, 1, "link lost"))
+    assert flight.fleet.status is Status.FAILED
+    assert flight.fleet.reason == "link: vehicle 1: link lost"
+    assert flight.state_of("Guarded/Down") is TaskState.FAILED
+    assert flight.requests(Land) == []  # nothing more is sent to it but the safe state
+    assert [type(r) for t, r in flight.sent if t == flight.time] == [Hold, ReturnToLaunch]

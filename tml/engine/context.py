@@ -243,6 +243,11 @@ class Pilot:
         """Write a decision about this vehicle to the flight log."""
         self.log.note("decision", message, self.vehicle_id, **data)
 
+    def link_failure(self) -> Failure:
+        """The failure of the work of a vehicle whose link is lost."""
+        return Failure(FailureReason.LINK, f"link: vehicle {self.vehicle_id}: {self.lost}",
+                       self.vehicle_id)
+
     def become(self, duty: Duty) -> None:
         """Change duty, as :data:`DUTY_MOVES` allows."""
         self.duty = moved(DUTY_MOVES, self.duty, duty, f"vehicle {self.vehicle_id}")

@@ -61,7 +61,6 @@ from collections.abc import Iterable, Mapping, Sequence
 from tml.engine.composites import NodeStatus, TasksNode
 from tml.engine.context import Duty, Options, Pilot, Run, Verdict
 from tml.engine.events import Events
-from tml.engine.failures import Failure, FailureReason
 from tml.engine.records import Output, Status, View
 from tml.engine.tasks import TaskNode
 from tml.language.actions import CAPABILITIES, lookup
@@ -150,8 +149,7 @@ class Interpreter:
         run.note("vehicle", f"vehicle {vehicle_id}: {reason}", vehicle_id, vehicle=vehicle_id,
                  reason=reason)
         if run.status is Status.RUNNING:
-            failure = Failure(FailureReason.LINK, f"link: vehicle {vehicle_id}: {reason}",
-                              vehicle_id)
+            failure = pilot.link_failure()
             for work in list(pilot.work):
                 work.decide(Verdict.FAIL, failure)
             self._tick()  # its task fails (and is handled) now

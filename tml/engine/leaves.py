@@ -116,7 +116,10 @@ class Leaf(Node):
         self.pilot.work.append(self)
 
     def step(self) -> NodeStatus:
-        if self._mode is WorkMode.READY:
+        if self._mode is WorkMode.READY and self.verdict is None:
+            if self.pilot.duty is Duty.LOST:
+                self.finish(NodeStatus.FAILURE, self.pilot.link_failure())
+                return self.outcome
             if self._owner is not None and self.pilot.duty is Duty.HANDLING:
                 return NodeStatus.RUNNING  # begins once its vehicle's event handler is over
             self.begin()
@@ -143,10 +146,10 @@ class Leaf(Node):
         self.outcome, self.failure = outcome, failure
         self.become(WorkMode.ENDED)
 
-    def fail(self, reason: FailureReason, detail: str, failure: Failure) -> None:
+    def fail(self, failure: Failure) -> None:
         """The work failed: ACTION_FAILURE says why; an event handler may decide what follows,
         else the work fails."""
-        self.pilot.failure = reason
+        self.pilot.failure = failure.reason
         self.close()
         if self._owner is None:  # an event handler's own action: the handler decides
             self.finish(NodeStatus.FAILURE, failure)
@@ -172,7 +175,7 @@ class Leaf(Node):
         elif verdict is Verdict.FAIL and self._mode is not WorkMode.ENDED:
             failure = failure or self.pending
             assert failure is not None
-            if self._mode is not WorkMode.AWAITING:
+            if self._mode in (WorkMode.ACTIVE, WorkMode.HELD):
                 self.stopped(failure.message)
             self.finish(NodeStatus.FAILURE, failure)
 
@@ -318,8 +321,7 @@ class ActionLeaf(Leaf):
         name = self.bound.name
         self.run.note("action", f"{name} failed: {reason.value}: {detail}", self.vehicle_id,
                       **self._data(), reason=reason.value, detail=detail)
-        self.fail(reason, detail, Failure(reason, f"{name} failed ({reason.value}): {detail}",
-                                          self.vehicle_id))
+        self.fail(Failure(reason, f"{name} failed ({reason.value}): {detail}", self.vehicle_id))
 
     def resume(self) -> None:
         """Continue a held action: send its last request again and restart its timer."""
@@ -481,7 +483,7 @@ class PlanLeaf(Leaf):
         self.run.note("action", f"mission flight of {path} failed: {detail}", self.vehicle_id,
                       task=path, reason=reason.value, detail=detail)
         self._end_item(TaskState.FAILED)
-        self.fail(reason, detail, Failure(reason, f"{path}: {detail}", self.vehicle_id))
+        self.fail(Failure(reason, f"{path}: {detail}", self.vehicle_id))
 
     def _end_item(self, state: TaskState) -> None:
         if self.flying is not None:

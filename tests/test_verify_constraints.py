@@ -17,7 +17,7 @@ from tml.verify.constraints import (
     assess_action,
     check_before_action,
 )
-from tml.verify.motion import VehicleState
+from tml.verify.motion import PredictedState
 from tml.verify.profile import load_profile
 from tml.world import Cylinder, Geofence, Prism, World
 
@@ -33,7 +33,7 @@ ROVER = replace(load_profile("rover"), max_range=500.0)
 FIXED_WING = load_profile("fixed-wing")
 NAN = math.nan
 HERE = Location("mission.xml", 42)
-AT_10 = VehicleState(position=(0.0, 0.0, 10.0), flying=True)
+AT_10 = PredictedState(position=(0.0, 0.0, 10.0), flying=True)
 MAST = World(obstacles=(Cylinder("mast", 0.0, 20.0, 2.0),))
 FENCE = World(geofence=Geofence(((-100.0, -100.0), (100.0, -100.0), (100.0, 100.0),
                                  (-100.0, 100.0)), max_altitude=50.0))
@@ -58,7 +58,7 @@ def go(north: float, east: float, up: float) -> BoundAction:
 class Case:
     name: str
     bound: BoundAction
-    state: VehicleState = AT_10
+    state: PredictedState = AT_10
     world: World | None = None
     profile: object = PROFILE
     labels: dict[str, tuple[float, float, float]] = field(default_factory=dict)
@@ -136,7 +136,7 @@ CASES: dict[Constraint, list[Case]] = {
     ],
     Constraint.AIRBORNE: [
         Case("flying", go(10, 0, 10)),
-        Case("on the ground", go(10, 0, 10), state=VehicleState(), fails=(0.0, 0.0)),
+        Case("on the ground", go(10, 0, 10), state=PredictedState(), fails=(0.0, 0.0)),
     ],
     Constraint.TURN_RADIUS: [
         Case("50 m circle", action("LOITER", radius="50", turns="1"),
@@ -152,10 +152,10 @@ CASES: dict[Constraint, list[Case]] = {
     ],
     # No numbers: the vehicle cannot do the action at all (value and limit are nan).
     Constraint.VEHICLE: [
-        Case("quadcopter takes off", action("TAKE_OFF"), state=VehicleState()),
-        Case("rover takes off", action("TAKE_OFF"), state=VehicleState(), profile=ROVER,
+        Case("quadcopter takes off", action("TAKE_OFF"), state=PredictedState()),
+        Case("rover takes off", action("TAKE_OFF"), state=PredictedState(), profile=ROVER,
              fails=(NAN, NAN)),
-        Case("rover drives to a point", go(10, 0, 0), state=VehicleState(), profile=ROVER),
+        Case("rover drives to a point", go(10, 0, 0), state=PredictedState(), profile=ROVER),
         Case("rover moves up", action("MOVE", direction="up", distance="3"),
              profile=ROVER, fails=(NAN, NAN)),
         Case("fixed-wing turns in place", action("ROTATE_YAW", angle="90"),
@@ -191,7 +191,7 @@ def test_every_constraint_has_cases_that_hold_and_fail() -> None:
 
 
 def test_actions_are_checked_only_against_their_category() -> None:
-    outside = VehicleState(position=(300.0, 0.0, 80.0), flying=True, battery=21.0)
+    outside = PredictedState(position=(300.0, 0.0, 80.0), flying=True, battery=21.0)
     photo = action("CAPTURE_PHOTO")
     assert Constraint.GEOFENCE not in BY_CATEGORY[photo.spec.category]
     assert check_before_action(photo, outside, PROFILE, FENCE) == []
@@ -201,11 +201,11 @@ def test_actions_are_checked_only_against_their_category() -> None:
 
 
 def test_take_off_from_the_ground_is_not_an_airborne_violation() -> None:
-    assert check_before_action(action("TAKE_OFF"), VehicleState(), PROFILE) == []
+    assert check_before_action(action("TAKE_OFF"), PredictedState(), PROFILE) == []
 
 
 def test_a_vehicle_violation_says_what_the_vehicle_cannot_do() -> None:
-    violation, = check_before_action(action("TAKE_OFF"), VehicleState(), ROVER)
+    violation, = check_before_action(action("TAKE_OFF"), PredictedState(), ROVER)
     assert str(violation) == ("mission.xml:42: vehicle: TAKE_OFF: a rover cannot take off "
                               "(it stays on the ground and arms itself for its first move)")
     assert violation.to_dict()["value"] is None and violation.to_dict()["relation"] is None
@@ -213,7 +213,7 @@ def test_a_vehicle_violation_says_what_the_vehicle_cannot_do() -> None:
 
 def test_a_ground_vehicle_needs_no_take_off_to_move() -> None:
     # Its first move arms it: not an airborne violation, and it drives at 0 m.
-    assessment = assess_action(go(30, 0, 10), VehicleState(), ROVER)
+    assessment = assess_action(go(30, 0, 10), PredictedState(), ROVER)
     assert assessment.feasible
     assert assessment.step.after.position == (30.0, 0.0, 0.0)
     assert assessment.step.after.flying

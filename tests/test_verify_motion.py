@@ -14,7 +14,7 @@ from tml.language.model import Action, Argument
 from tml.patterns import circle_chord
 from tml.verify.motion import (
     FlightModel,
-    VehicleState,
+    PredictedState,
     explore_pattern,
     stop_to_stop,
     survey_pattern,
@@ -28,7 +28,7 @@ PROFILE = replace(load_profile("quadcopter"), cruise_speed=5.0, acceleration=0.0
                   land_speed=0.0, land_altitude=0.0, return_hover=0.0)
 MODEL = FlightModel(PROFILE, World())
 HERE = Location("test.xml", 3)
-FLYING = VehicleState(position=(0.0, 0.0, 10.0), flying=True)
+FLYING = PredictedState(position=(0.0, 0.0, 10.0), flying=True)
 
 
 def action(name: str, labels: dict[str, str] | None = None, **values: str) -> BoundAction:
@@ -38,7 +38,7 @@ def action(name: str, labels: dict[str, str] | None = None, **values: str) -> Bo
 
 
 def test_take_off_climbs_to_the_profile_altitude_at_the_climb_rate() -> None:
-    step = MODEL.step(action("TAKE_OFF"), VehicleState())
+    step = MODEL.step(action("TAKE_OFF"), PredictedState())
     assert step.after.position == (0.0, 0.0, PROFILE.takeoff_altitude)
     assert step.after.flying
     assert step.duration == pytest.approx(PROFILE.takeoff_altitude / PROFILE.climb_rate)
@@ -47,7 +47,7 @@ def test_take_off_climbs_to_the_profile_altitude_at_the_climb_rate() -> None:
 
 
 def test_take_off_with_an_altitude_and_when_flying() -> None:
-    assert MODEL.step(action("TAKE_OFF", altitude="25"), VehicleState()).after.position[2] == 25
+    assert MODEL.step(action("TAKE_OFF", altitude="25"), PredictedState()).after.position[2] == 25
     step = MODEL.step(action("TAKE_OFF", altitude="25"), FLYING)
     assert step.after == FLYING and step.notes
 
@@ -71,7 +71,7 @@ def test_set_speed_changes_the_following_legs_capped_at_max_speed() -> None:
 
 
 def test_move_directions_follow_the_heading() -> None:
-    facing_east = VehicleState(position=(0.0, 0.0, 10.0), flying=True, heading=90.0)
+    facing_east = PredictedState(position=(0.0, 0.0, 10.0), flying=True, heading=90.0)
     ahead = MODEL.step(action("MOVE_FORWARDS", distance="10"), facing_east).after.position
     left = MODEL.step(action("MOVE", direction="left", distance="10"), facing_east).after.position
     up = MODEL.step(action("MOVE", direction="up", distance="5"), facing_east).after.position
@@ -81,7 +81,7 @@ def test_move_directions_follow_the_heading() -> None:
 
 
 def test_rotate_yaw_takes_the_short_way_at_the_yaw_rate() -> None:
-    state = VehicleState(position=(0.0, 0.0, 10.0), flying=True, heading=350.0)
+    state = PredictedState(position=(0.0, 0.0, 10.0), flying=True, heading=350.0)
     step = MODEL.step(action("ROTATE_YAW", orientation_angle="10"), state)
     assert step.after.heading == pytest.approx(10.0)
     assert step.duration == pytest.approx(20.0 / PROFILE.yaw_rate)
@@ -94,7 +94,7 @@ def test_wait_hovers() -> None:
 
 
 def test_labels_are_memorized_and_read() -> None:
-    here = VehicleState(position=(20.0, 5.0, 10.0), flying=True)
+    here = PredictedState(position=(20.0, 5.0, 10.0), flying=True)
     memorized = MODEL.step(action("MEMORIZE_POINT", labels={"coordinates": "spot"}), here)
     assert memorized.labels == {"spot": (20.0, 5.0, 10.0)}
     back = MODEL.step(action("GO_TO_POINT", labels={"coordinates": "spot"}), FLYING,
@@ -114,7 +114,7 @@ def test_go_to_position_converts_from_wgs84() -> None:
 
 
 def test_return_home_and_land_climbs_to_the_return_altitude_first() -> None:
-    state = VehicleState(position=(100.0, 0.0, 10.0), flying=True)
+    state = PredictedState(position=(100.0, 0.0, 10.0), flying=True)
     step = MODEL.step(action("RETURN_HOME_AND_LAND"), state)
     assert not step.after.flying
     assert step.after.position == (0.0, 0.0, 0.0)
@@ -123,7 +123,7 @@ def test_return_home_and_land_climbs_to_the_return_altitude_first() -> None:
 
 
 def test_set_home_moves_where_return_home_goes() -> None:
-    state = VehicleState(position=(40.0, 40.0, 10.0), flying=True)
+    state = PredictedState(position=(40.0, 40.0, 10.0), flying=True)
     moved = MODEL.step(action("SET_HOME"), state).after
     away = MODEL.step(action("GO_TO_POINT", coordinates="(0, 0, 10)"), moved).after
     assert MODEL.step(action("RETURN_HOME"), away).after.position == (40.0, 40.0, 10.0)
@@ -163,7 +163,7 @@ def test_moves_speed_up_and_brake_at_each_waypoint() -> None:
 def test_landings_slow_down_near_the_ground_and_rtl_waits_over_home() -> None:
     arducopter = FlightModel(replace(PROFILE, descent_rate=1.5, land_speed=0.5,
                                      land_altitude=10.0, return_hover=5.0))
-    high = VehicleState(position=(0.0, 0.0, 25.0), flying=True)
+    high = PredictedState(position=(0.0, 0.0, 25.0), flying=True)
     # 15 m at 1.5 m/s, then 10 m at 0.5 m/s.
     assert arducopter.step(action("LAND"), high).duration == pytest.approx(30.0)
     assert arducopter.step(action("LAND"), FLYING).duration == pytest.approx(20.0)
@@ -224,7 +224,7 @@ def test_blocked_leg_is_flown_straight_and_reported() -> None:
              Prism("e", ((-20, 20), (22, 20), (22, 22), (-20, 22))),
              Prism("w", ((-22, -22), (20, -22), (20, -20), (-22, -20))))
     model = FlightModel(PROFILE, World(obstacles=walls))
-    start = VehicleState(position=(100.0, 0.0, 10.0), flying=True)
+    start = PredictedState(position=(100.0, 0.0, 10.0), flying=True)
     step = model.step(action("GO_TO_POINT", coordinates="(0, 0, 10)"), start)
     assert step.blocked == (((100.0, 0.0, 10.0), (0.0, 0.0, 10.0)),)
     assert step.distance == pytest.approx(100.0)
@@ -236,35 +236,35 @@ ROVER = FlightModel(load_profile("rover"), World())
 
 def test_a_fixed_wing_takes_off_along_its_heading() -> None:
     profile = FIXED_WING.profile
-    step = FIXED_WING.step(action("TAKE_OFF", altitude="40"), VehicleState(heading=90.0))
+    step = FIXED_WING.step(action("TAKE_OFF", altitude="40"), PredictedState(heading=90.0))
     north, east, up = step.after.position
     assert up == 40.0 and abs(north) < 1e-9
     assert east == pytest.approx(40.0 / profile.climb_rate * profile.cruise_speed)
 
 
 def test_a_fixed_wing_lands_straight_ahead_along_its_glide() -> None:
-    step = FIXED_WING.step(action("LAND"), VehicleState(position=(0.0, 0.0, 50.0),
+    step = FIXED_WING.step(action("LAND"), PredictedState(position=(0.0, 0.0, 50.0),
                                                         flying=True, heading=0.0))
     assert step.after.position == pytest.approx((400.0, 0.0, 0.0))
     assert not step.after.flying
 
 
 def test_a_fixed_wing_comes_home_along_its_approach() -> None:
-    state = VehicleState(position=(600.0, 0.0, 50.0), flying=True)
+    state = PredictedState(position=(600.0, 0.0, 50.0), flying=True)
     step = FIXED_WING.step(action("RETURN_HOME_AND_LAND"), state)
     assert [leg.points[-1] for leg in step.legs] == [(400.0, 0.0, 50.0), (0.0, 0.0, 0.0)]
     assert step.distance == pytest.approx(200.0 + math.hypot(400.0, 50.0))
 
 
 def test_a_ground_vehicle_drives_every_point_at_ground_level_and_is_then_underway() -> None:
-    step = ROVER.step(action("GO_TO_POINT", coordinates="(30, 40, 12)"), VehicleState())
+    step = ROVER.step(action("GO_TO_POINT", coordinates="(30, 40, 12)"), PredictedState())
     assert step.after.position == (30.0, 40.0, 0.0)
     assert step.after.flying and not step.before.flying
     assert step.distance == pytest.approx(50.0)
 
 
 def test_a_ground_vehicle_returns_home_and_stops() -> None:
-    state = VehicleState(position=(30.0, 40.0, 0.0), flying=True)
+    state = PredictedState(position=(30.0, 40.0, 0.0), flying=True)
     step = ROVER.step(action("RETURN_HOME_AND_LAND"), state)
     assert step.after.position == (0.0, 0.0, 0.0) and not step.after.flying
     assert step.distance == pytest.approx(50.0)

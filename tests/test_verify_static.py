@@ -9,7 +9,7 @@ import pytest
 from tml.language.model import Mission
 from tml.language.validation import validate_file
 from tml.verify.constraints import Constraint
-from tml.verify.motion import VehicleState
+from tml.verify.motion import PredictedState
 from tml.verify.profile import load_profile
 from tml.verify.static import verify_mission
 from tml.world import Cylinder, World
@@ -130,7 +130,7 @@ def test_return_home_event_is_judged_from_the_worst_point() -> None:
     tasks = TAKE_OFF + go("far", "(250, 0, 10)") + go("near", "(10, 0, 10)") + \
         '<task name="land"><action name="LAND"/></task>'
     report = verify_mission(mission(tasks, events), PROFILE,
-                            start=VehicleState(battery=60.0))
+                            start=PredictedState(battery=60.0))
     worst = [r for r in report.rows if r.event == "low battery"]
     # From 250 m out: 60 - 1 - 25 = 34 % there, then 250 m home and 10 m down = 26 %.
     assert worst[0].battery == pytest.approx(34 - 26)

@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     from tml.language.build import load_world
     from tml.language.diagnostics import format_human, format_json
     from tml.language.validation import validate_file
-    from tml.verify.motion import VehicleState
+    from tml.verify.motion import PredictedState
     from tml.verify.profile import load_profile
     from tml.verify.static import verify_mission
     from tml.world import World
@@ -79,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_INFEASIBLE
     mission = result.mission
     home = (mission.world or World()).merged(world).home_or_default
-    start = VehicleState(battery=args.battery, heading=home.heading)
+    start = PredictedState(battery=args.battery, heading=home.heading)
     report = verify_mission(mission, profile, world, start)
     if args.format == "json":
         from tml.verify.report import report_json

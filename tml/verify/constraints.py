@@ -39,7 +39,7 @@ from tml.errors import Location
 from tml.language.actions import BoundAction, Category
 from tml.language.kinds import Kind, refusal
 from tml.verify import functions
-from tml.verify.motion import FlightModel, Labels, Step, VehicleState
+from tml.verify.motion import FlightModel, Labels, PredictedState, Step
 from tml.verify.planner import Point3, straight
 from tml.verify.profile import VehicleProfile
 from tml.world import World
@@ -233,7 +233,7 @@ def _battery(step: Step, model: FlightModel, homeward: bool, fail: _Fail) -> Non
              worst[0], ">=", profile.battery_reserve, "%")
 
 
-def _airborne(point: Point3, before: VehicleState, after: VehicleState) -> bool:
+def _airborne(point: Point3, before: PredictedState, after: PredictedState) -> bool:
     return before.flying or after.flying or point[2] > 0
 
 
@@ -312,7 +312,7 @@ def flight_model(profile: VehicleProfile, world: World | None) -> FlightModel:
     return FlightModel(profile, world)
 
 
-def assess_action(bound: BoundAction, state: VehicleState, profile: VehicleProfile,
+def assess_action(bound: BoundAction, state: PredictedState, profile: VehicleProfile,
                   world: World | None = None, labels: Labels | None = None,
                   deadline: float | None = None) -> Assessment:
     """Predict ``bound`` from the live ``state`` and check its category's constraints.
@@ -325,7 +325,7 @@ def assess_action(bound: BoundAction, state: VehicleState, profile: VehicleProfi
     return Assessment(step, tuple(check_step(bound, step, model, deadline)))
 
 
-def check_before_action(bound: BoundAction, state: VehicleState, profile: VehicleProfile,
+def check_before_action(bound: BoundAction, state: PredictedState, profile: VehicleProfile,
                         world: World | None = None, labels: Labels | None = None,
                         deadline: float | None = None) -> list[Violation]:
     """The constraints ``bound`` would break if started now from ``state`` (empty: go).

@@ -29,24 +29,23 @@ from tml.language import actions
 from tml.language.actions import BoundAction
 from tml.language.kinds import kind_of, refusal, role_kinds
 from tml.language.model import Mission
-from tml.vehicle import Point
-from tml.vehicle import VehicleState as LiveState
+from tml.vehicle import Point, VehicleState
 from tml.verify.constraints import Constraint, Violation, check_before_action
-from tml.verify.motion import VehicleState
+from tml.verify.motion import PredictedState
 from tml.verify.planner import Planner
 from tml.verify.profile import SHIPPED_FOR_KIND, VehicleProfile, load_profile
 from tml.world import World
 
-PreCheck = Callable[[BoundAction, LiveState, dict[str, Point], float], list[str]]
+PreCheck = Callable[[BoundAction, VehicleState, dict[str, Point], float], list[str]]
 Route = Callable[[Point, Point], list[Point] | None]
 
 
-def live_variables(state: LiveState, mission_time: float) -> VehicleState | None:
+def live_variables(state: VehicleState, mission_time: float) -> PredictedState | None:
     """The verifier's variables from a live state; None while position or battery is unknown."""
     if state.position is None or state.battery is None:
         return None
-    return VehicleState(position=state.position, battery=state.battery, time=mission_time,
-                        heading=state.heading, flying=state.flying)
+    return PredictedState(position=state.position, battery=state.battery, time=mission_time,
+                          heading=state.heading, flying=state.flying)
 
 
 @cache
@@ -66,7 +65,7 @@ def profile_for(profile: VehicleProfile, vehicle_type: str) -> VehicleProfile:
 def pre_check(profile: VehicleProfile, world: World | None = None) -> PreCheck:
     """The interpreter's hook: the constraints an action would break if started now."""
 
-    def check(bound: BoundAction, state: LiveState, labels: dict[str, Point],
+    def check(bound: BoundAction, state: VehicleState, labels: dict[str, Point],
               mission_time: float) -> list[str]:
         cannot = refusal(bound, kind_of(state.vehicle_type), state.vehicle_type)
         if state.vehicle_type and cannot is not None:

@@ -1,6 +1,6 @@
 """Abstract execution of one action: where the vehicle goes, how long it takes, what it costs.
 
-The variables of the feasibility model (the paper's x_i) are a :class:`VehicleState`:
+The variables of the feasibility model (the paper's x_i) are a :class:`PredictedState`:
 position, battery, time, heading, the speeds set so far, whether the vehicle is flying and
 where home is. :meth:`FlightModel.step` takes a state and a bound action and predicts the
 state after it, with the paths flown, without looking at any constraint; the constraints
@@ -42,8 +42,13 @@ Labels = dict[str, Point3]
 
 
 @dataclass(frozen=True)
-class VehicleState:
-    """The variables: what the vehicle is and has at one moment."""
+class PredictedState:
+    """The variables: what the vehicle is predicted to be and have at one moment.
+
+    Not the vehicle's state as the engine reads it in flight
+    (:class:`tml.vehicle.VehicleState`, from telemetry): a prediction holds only what the
+    feasibility model reasons about, with no link, mode or sensor in it, and always a
+    position (:func:`tml.verify.inflight.live_variables` makes one from the other)."""
 
     position: Point3 = (0.0, 0.0, 0.0)  # local metres from home
     battery: float = 100.0  # percent
@@ -74,8 +79,8 @@ class Loiter:
 class Step:
     """What one action does, as predicted from the state before it."""
 
-    before: VehicleState
-    after: VehicleState
+    before: PredictedState
+    after: PredictedState
     legs: tuple[Trajectory, ...] = ()  # paths flown, in order
     blocked: tuple[tuple[Point3, Point3], ...] = ()  # legs with no collision-free path
     destination: Point3 | None = None  # the point the action flies to (checked by c1)
@@ -134,7 +139,7 @@ class FlightModel:
 
     # --- the pieces every action is made of --------------------------------------------------
 
-    def leg_time(self, state: VehicleState, trajectory: Trajectory,
+    def leg_time(self, state: PredictedState, trajectory: Trajectory,
                  landing: bool = False) -> float:
         """Seconds to fly a trajectory from ``state`` at its speed and climb/descent rates;
         ``landing``: its last segment is a landing (LAND, RTL), slower near the ground."""
@@ -173,9 +178,9 @@ class FlightModel:
         found = self.planner.trajectory(start, end)
         return (found, True) if found is not None else (straight(start, end), False)
 
-    def fly(self, state: VehicleState, targets: list[Point3], planned: bool = True,
+    def fly(self, state: PredictedState, targets: list[Point3], planned: bool = True,
             landing: bool = False) -> tuple[
-            VehicleState, list[Trajectory], list[tuple[Point3, Point3]]]:
+            PredictedState, list[Trajectory], list[tuple[Point3, Point3]]]:
         """Fly through ``targets`` in order; the state at the end, the legs and the legs
         that had no collision-free path. Not ``planned``: straight lines, which cost a
         lower bound of what the planned legs cost. ``landing``: the last target is a
@@ -201,7 +206,7 @@ class FlightModel:
                             ground and bool(targets)))
         return after, legs, blocked
 
-    def hover(self, state: VehicleState, seconds: float) -> VehicleState:
+    def hover(self, state: PredictedState, seconds: float) -> PredictedState:
         """The state after hovering in place."""
         return replace(state, time=state.time + seconds,
                        battery=state.battery - self.profile.battery_per_second * seconds)
@@ -211,7 +216,7 @@ class FlightModel:
         ArduPilot's RTL does: climb to the return altitude if lower, fly home, wait
         ``return_hover`` s, descend. Not ``planned``: along straight lines, a lower bound.
         A fixed-wing comes home along its landing approach."""
-        probe = VehicleState(position=point, flying=True)
+        probe = PredictedState(position=point, flying=True)
         if self.profile.kind is Kind.FIXED_WING:
             approach, touchdown = landing_approach(point, 0.0, home)
             after, _, _ = self.fly(probe, [approach, touchdown], planned, landing=True)
@@ -219,8 +224,8 @@ class FlightModel:
         after, _, _ = self.fly_home_and_land(probe, home, planned)
         return probe.battery - after.battery
 
-    def fly_home_and_land(self, state: VehicleState, home: Point3, planned: bool = True
-                          ) -> tuple[VehicleState, list[Trajectory], list[tuple[Point3, Point3]]]:
+    def fly_home_and_land(self, state: PredictedState, home: Point3, planned: bool = True
+                          ) -> tuple[PredictedState, list[Trajectory], list[tuple[Point3, Point3]]]:
         """ArduPilot's RTL from ``state``: climb to the return altitude if lower, fly home,
         hover ``return_hover`` s, land; as :meth:`fly` returns."""
         point = state.position
@@ -243,7 +248,7 @@ class FlightModel:
 
     # --- the actions ----------------------------------------------------------------------
 
-    def step(self, bound: BoundAction, state: VehicleState,
+    def step(self, bound: BoundAction, state: PredictedState,
              labels: Labels | None = None) -> Step:
         """Predict one action from ``state`` (pure: neither argument is changed)."""
         labels = dict(labels or {})
@@ -262,7 +267,7 @@ class FlightModel:
         value = bound.get(name)
         return (tuple(value), "") if value is not None else (None, "")  # type: ignore[arg-type]
 
-    def _go(self, bound: BoundAction, state: VehicleState, labels: Labels,
+    def _go(self, bound: BoundAction, state: PredictedState, labels: Labels,
             targets: list[Point3], landing: bool = False, **extra: object) -> Step:
         after, legs, blocked = self.fly(state, targets, landing=landing)
         destination = targets[-1] if targets else None
@@ -270,11 +275,11 @@ class FlightModel:
         return Step(state, after, tuple(legs), tuple(blocked), labels=labels,
                     **fields_)  # type: ignore[arg-type]
 
-    def _unknown(self, state: VehicleState, labels: Labels, label: str) -> Step:
+    def _unknown(self, state: PredictedState, labels: Labels, label: str) -> Step:
         return Step(state, state, labels=labels, unknown_label=label,
                     notes=(f"label {label!r} holds no point here; the move is not predicted",))
 
-    def _take_off(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+    def _take_off(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         if state.flying:
             return Step(state, state, labels=labels, notes=("already flying: ignored",))
         if self.profile.kind is Kind.GROUND:
@@ -288,7 +293,7 @@ class FlightModel:
         step = self._go(bound, replace(state, flying=True), labels, [target], cruise=False)
         return replace(step, before=state)
 
-    def _landing(self, bound: BoundAction, state: VehicleState, labels: Labels,
+    def _landing(self, bound: BoundAction, state: PredictedState, labels: Labels,
                  touchdown: Point3 | None) -> Step:
         """A fixed-wing's approach and glide to ``touchdown`` (None: straight ahead)."""
         approach, ground = landing_approach(state.position, state.heading, touchdown)
@@ -296,7 +301,7 @@ class FlightModel:
         step = self._go(bound, state, labels, targets, cruise=False)
         return replace(step, after=replace(step.after, flying=False))
 
-    def _land(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+    def _land(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         if self.profile.kind is Kind.FIXED_WING:
             return self._landing(bound, state, labels, None)
         if self.profile.kind is Kind.GROUND:
@@ -305,7 +310,7 @@ class FlightModel:
         step = self._go(bound, state, labels, [target], landing=True, cruise=False)
         return replace(step, after=replace(step.after, flying=False))
 
-    def _go_to_point(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+    def _go_to_point(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         point, unknown = self._point(bound, labels)
         if unknown:
             return self._unknown(state, labels, unknown)
@@ -314,7 +319,7 @@ class FlightModel:
             point = _add(state.position, tuple(offset))  # type: ignore[arg-type]
         return self._go(bound, state, labels, [point])
 
-    def _move(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+    def _move(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         offset = bound.get("coordinates")
         if offset is not None:
             return self._go(bound, state, labels, [_add(state.position, tuple(offset))])
@@ -328,29 +333,29 @@ class FlightModel:
             target = _ahead(state.position, state.heading + turn, distance)
         return self._go(bound, state, labels, [target])
 
-    def _move_forwards(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+    def _move_forwards(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         target = _ahead(state.position, state.heading, float(bound.get("distance")))
         return self._go(bound, state, labels, [target])
 
-    def _move_from_home(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+    def _move_from_home(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         offset = tuple(bound.get("coordinates"))  # type: ignore[arg-type]
         return self._go(bound, state, labels, [_add(state.home, offset)])
 
-    def _go_to_position(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+    def _go_to_position(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         target = self.local(float(bound.get("latitude")), float(bound.get("longitude")),
                             float(bound.get("altitude")), str(bound.get("altitude_reference")))
         return self._go(bound, state, labels, [target])
 
-    def _set_altitude(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+    def _set_altitude(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         altitude = float(bound.get("altitude"))
         if bound.get("altitude_reference") == "amsl":
             altitude -= self.home.altitude
         return self._go(bound, state, labels, [(*state.position[:2], altitude)])
 
-    def _return_home(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+    def _return_home(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         return self._go(bound, state, labels, [(*state.home[:2], state.position[2])])
 
-    def _return_home_and_land(self, bound: BoundAction, state: VehicleState,
+    def _return_home_and_land(self, bound: BoundAction, state: PredictedState,
                               labels: Labels) -> Step:
         if self.profile.kind is Kind.FIXED_WING:
             return self._landing(bound, state, labels, state.home)
@@ -358,14 +363,14 @@ class FlightModel:
         return Step(state, replace(after, flying=False), tuple(legs), tuple(blocked),
                     labels=labels, destination=state.home)
 
-    def _return_home_and_loiter(self, bound: BoundAction, state: VehicleState,
+    def _return_home_and_loiter(self, bound: BoundAction, state: PredictedState,
                                 labels: Labels) -> Step:
         centre = (*state.home[:2], state.position[2])
         step = self._go(bound, state, labels, [centre])
         return replace(step, loiter=Loiter(centre, float(bound.get("radius"))),
                        notes=("circles home until an event ends it; no time counted for it",))
 
-    def _landing_point(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+    def _landing_point(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         point, unknown = self._point(bound, labels)
         if unknown:
             return self._unknown(state, labels, unknown)
@@ -379,7 +384,7 @@ class FlightModel:
         step = self._go(bound, state, labels, targets, landing=True, cruise=False)
         return replace(step, after=replace(step.after, flying=False))
 
-    def _loiter(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+    def _loiter(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         centre, unknown = self._point(bound, labels)
         if unknown:
             return self._unknown(state, labels, unknown)
@@ -414,7 +419,7 @@ class FlightModel:
                         battery=step.after.battery - self.energy(metres, seconds))
         return replace(step, after=after, circle_metres=metres)
 
-    def _survey_area(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+    def _survey_area(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         base, unknown = self._point(bound, labels)
         if unknown:
             return self._unknown(state, labels, unknown)
@@ -428,12 +433,12 @@ class FlightModel:
                                  str(bound.get("direction")))
         return self._go(bound, state, labels, targets)
 
-    def _explore_space(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+    def _explore_space(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         targets = explore_pattern(state.position, float(bound.get("radius")),
                                   float(bound.get("spacing")))
         return self._go(bound, state, labels, targets)
 
-    def _go_to_rectangle(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+    def _go_to_rectangle(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         colour = str(bound.get("frame_color")).lower()
         frames = [o for o in self.world.objects if o.kind == "frame" and o.color.lower() == colour]
         if not frames:
@@ -442,7 +447,7 @@ class FlightModel:
         frame = frames[0]
         return self._go(bound, state, labels, [(frame.north, frame.east, frame.altitude)])
 
-    def _rotate_yaw(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+    def _rotate_yaw(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         if bound.get("angle") is not None:
             turn = float(bound.get("angle"))
         else:
@@ -450,20 +455,20 @@ class FlightModel:
         after = self.hover(state, abs(turn) / self.profile.yaw_rate)
         return Step(state, replace(after, heading=(state.heading + turn) % 360.0), labels=labels)
 
-    def _wait(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+    def _wait(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         return Step(state, self.hover(state, float(bound.get("duration"))), labels=labels)
 
-    def _capture_photos(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+    def _capture_photos(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         seconds = (int(bound.get("count")) - 1) * float(bound.get("interval"))
         return Step(state, self.hover(state, seconds), labels=labels)
 
-    def _memorize_point(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+    def _memorize_point(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         label = bound.labels.get("coordinates")
         if label:
             labels[label] = state.position
         return Step(state, state, labels=labels)
 
-    def _set_speed(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+    def _set_speed(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         kind, value = str(bound.get("speed_type")), float(bound.get("speed"))
         if kind == "climb":
             after = replace(state, climb_rate=min(value, self.profile.climb_rate))
@@ -473,7 +478,7 @@ class FlightModel:
             after = replace(state, speed=value)
         return Step(state, after, labels=labels, requested_speed=(kind, value))
 
-    def _set_home(self, bound: BoundAction, state: VehicleState, labels: Labels) -> Step:
+    def _set_home(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         if bound.get("latitude") is None:
             home = state.position
         else:

@@ -13,7 +13,7 @@ from rich.console import Console
 from rich.table import Table
 
 from tml.verify.constraints import Violation
-from tml.verify.motion import VehicleState
+from tml.verify.motion import PredictedState
 from tml.verify.static import Report, vehicles_text
 
 
@@ -62,7 +62,7 @@ def print_report(report: Report, console: Console) -> None:
     console.print(f"{report.file}: {verdict}{summary}", markup=False, highlight=False)
 
 
-def _end(end: VehicleState | None) -> dict[str, object] | None:
+def _end(end: PredictedState | None) -> dict[str, object] | None:
     return None if end is None else {
         "position": [round(v, 3) for v in end.position], "battery": round(end.battery, 3),
         "time": round(end.time, 3), "flying": end.flying}

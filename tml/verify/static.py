@@ -1,7 +1,7 @@
 """Static verification: abstract execution of a whole mission before flight.
 
 The task tree is walked depth-first as the interpreter will walk it, carrying a set of
-*alternatives*, each a predicted :class:`VehicleState` with the labels memorized so far.
+*alternatives*, each a predicted :class:`PredictedState` with the labels memorized so far.
 Repeats are unrolled. A task with conditions may or may not run, so after it the
 alternatives of both ways are kept -- except where a condition on the battery is false at
 the battery predicted there even :data:`BATTERY_MARGIN` points above it: that alternative
@@ -49,7 +49,7 @@ from tml.language.kinds import Kind, role_kinds
 from tml.language.model import Comparison, Composition, ConditionKind, Event, Mission, Role, Task
 from tml.language.parameters import ORDERINGS, compare_numbers, lookup, parse_boolean
 from tml.verify.constraints import Constraint, Violation, check_step
-from tml.verify.motion import FlightModel, Labels, Step, VehicleState
+from tml.verify.motion import FlightModel, Labels, PredictedState, Step
 from tml.verify.profile import SHIPPED_FOR_KIND, VehicleProfile, load_profile
 from tml.world import World
 
@@ -94,10 +94,10 @@ class Report:
     rows: list[Row] = field(default_factory=list)
     violations: list[Violation] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
-    end: VehicleState | None = None  # the worst predicted state at the end
+    end: PredictedState | None = None  # the worst predicted state at the end
     approximate: bool = False
     roles: tuple[str, ...] = ()  # the roles verified, each as its own vehicle
-    ends: dict[str, VehicleState] = field(default_factory=dict)  # role -> worst end
+    ends: dict[str, PredictedState] = field(default_factory=dict)  # role -> worst end
 
     @property
     def feasible(self) -> bool:
@@ -113,7 +113,7 @@ def vehicles_text(vehicles: tuple[int, ...]) -> str:
 
 @dataclass(frozen=True)
 class _Alternative:
-    state: VehicleState
+    state: PredictedState
     labels: tuple[tuple[str, tuple[float, float, float]], ...] = ()
     pick: int = 0  # releases of the role so far: which of its vehicles flies now
     released: bool = False  # the role was released: its next task is flown by a fresh pick
@@ -123,14 +123,14 @@ class _Alternative:
         return dict(self.labels)
 
 
-def _alternative(state: VehicleState, labels: Labels, pick: int = 0) -> _Alternative:
+def _alternative(state: PredictedState, labels: Labels, pick: int = 0) -> _Alternative:
     return _Alternative(state, tuple(sorted(labels.items())), pick)
 
 
 class _Walker:
     """Walks the task tree for one vehicle: every terminal task, or a role's only."""
 
-    def __init__(self, model: FlightModel, start: VehicleState,
+    def __init__(self, model: FlightModel, start: PredictedState,
                  event_labels: frozenset[str] = frozenset(), role: Role | None = None) -> None:
         self.model = model
         self.start = start  # also the state of a fresh vehicle picked after a release
@@ -142,7 +142,7 @@ class _Walker:
         self.rows: list[Row] = []
         self.notes: dict[str, None] = {}
         # Where events may fire: (task, state, labels, pick).
-        self.sources: list[tuple[str, VehicleState, Labels, int]] = []
+        self.sources: list[tuple[str, PredictedState, Labels, int]] = []
         self.approximate = False
 
     @property
@@ -233,7 +233,7 @@ class _Walker:
         self.row(bound, steps, name)
         return self.merge([_alternative(s.after, s.labels, pick) for pick, s in steps])
 
-    def farthest(self, step: Step) -> VehicleState | None:
+    def farthest(self, step: Step) -> PredictedState | None:
         points = step.waypoints()
         if not points:
             return None
@@ -345,7 +345,7 @@ def _reads_battery(parameter: str) -> bool:
 
 
 def verify_mission(mission: Mission, profile: VehicleProfile, world: World | None = None,
-                   start: VehicleState | None = None) -> Report:
+                   start: PredictedState | None = None) -> Report:
     """Predict and check every action of ``mission`` (and of its event handlers).
 
     ``world`` is laid over the mission's own ``<environment>``; ``start`` is the state
@@ -355,7 +355,7 @@ def verify_mission(mission: Mission, profile: VehicleProfile, world: World | Non
     merged = (mission.world or World()).merged(world)
     model = FlightModel(profile, merged)
     if start is None:
-        start = VehicleState(heading=merged.home_or_default.heading)
+        start = PredictedState(heading=merged.home_or_default.heading)
     event_labels = frozenset(
         bound.labels["coordinates"] for event in mission.events for action in event.actions
         if (bound := actions.bind(action)).name == "MEMORIZE_POINT")
@@ -381,7 +381,7 @@ def verify_mission(mission: Mission, profile: VehicleProfile, world: World | Non
                   "verified": None
                   for task in mission.walk() if task.action is not None and task.role not in names}
     violations: list[Violation] = []
-    ends: dict[str, VehicleState] = {}
+    ends: dict[str, PredictedState] = {}
     for walker in walkers:
         finals = walker.tasks(mission.tasks, [_alternative(start, {})])
         for event in mission.events:

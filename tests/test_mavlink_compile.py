@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import pytest
@@ -17,11 +16,10 @@ from tml.language.model import Action, Argument
 from tml.mavlink.compile import (
     CompileError,
     compile_mission,
-    explore_square,
     glide_items,
-    survey_legs,
 )
 from tml.mavlink.mission import MissionItem, with_home_placeholder
+from tml.patterns import expanding_square
 from tml.world import DEFAULT_HOME
 
 H = DEFAULT_HOME
@@ -169,38 +167,16 @@ def test_gripper_items() -> None:
     assert release.param2 == M.GRIPPER_ACTION_RELEASE
 
 
-@pytest.mark.parametrize(("direction", "signs"), [
-    ("NORTH_EAST", (1, 1)), ("NORTH_WEST", (1, -1)), ("SOUTH_EAST", (-1, 1)),
-    ("SOUTH_WEST", (-1, -1))])
-def test_survey_legs_cover_the_rectangle_in_the_quadrant(direction: str, signs) -> None:
-    legs = survey_legs((10.0, 20.0, 30.0), 30.0, 100.0, 5.0, direction)
-    assert len(legs) == 2 * 21  # 21 passes of 30 m, as the Dolphin listing says
-    norths = {round((p[0] - 10) * signs[0], 6) for p in legs}
-    easts = sorted({round((p[1] - 20) * signs[1], 6) for p in legs})
-    assert norths == {0.0, 30.0}
-    assert easts == [5.0 * i for i in range(21)]
-    assert all(p[2] == 30.0 for p in legs)
-    for a, b in zip(legs[::2], legs[1::2], strict=True):  # each pass runs along the length
-        assert a[1] == b[1] and abs(a[0] - b[0]) == 30.0
-
-
-def test_survey_last_pass_lands_on_the_far_edge() -> None:
-    easts = sorted({p[1] for p in survey_legs((0, 0, 10), 10, 7, 3, "NORTH_EAST")})
-    assert easts == [0, 3, 6, 7]
-
-
 def test_survey_from_a_base_point_and_altitude() -> None:
     items = compiled(act("SURVEY_AREA", length="10", width="10", spacing="10",
                          direction="SOUTH_EAST", coordinates="(5, 5, 0)", altitude="40")).items
     assert [local(i) for i in items] == [(5, 5, 40), (-5, 5, 40), (-5, 15, 40), (5, 15, 40)]
 
 
-def test_explore_square_grows_to_the_radius_and_returns() -> None:
-    points = explore_square((0, 0, 2), 3.0, 1.0)
-    assert max(abs(c) for p in points for c in p[:2]) == 3.0
-    steps = [math.dist(a, b) for a, b in itertools.pairwise(points)]
-    assert steps == sorted(steps)  # legs only grow
-    items = compiled(act("EXPLORE_SPACE", radius="3"), start=(1, 1, 2)).items
+def test_explore_space_flies_the_expanding_square_and_returns() -> None:
+    items = compiled(act("EXPLORE_SPACE", radius="3", spacing="1"), start=(1, 1, 2)).items
+    assert [local(i) for i in items] == [
+        (p[0], p[1], p[2]) for p in expanding_square((1.0, 1.0, 2.0), 3.0, 1.0)]
     assert local(items[-1]) == (1, 1, 2)
 
 

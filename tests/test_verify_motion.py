@@ -15,9 +15,7 @@ from tml.patterns import circle_chord
 from tml.verify.motion import (
     FlightModel,
     PredictedState,
-    explore_pattern,
     stop_to_stop,
-    survey_pattern,
 )
 from tml.verify.profile import load_profile
 from tml.world import DEFAULT_HOME, World
@@ -178,26 +176,11 @@ def test_landings_slow_down_near_the_ground_and_rtl_waits_over_home() -> None:
         pytest.approx(35.0 * PROFILE.battery_per_second)
 
 
-def test_survey_pattern_passes() -> None:
-    points = survey_pattern((0.0, 0.0, 20.0), 100.0, 50.0, 20.0, "NORTH_EAST")
-    assert points == [(0, 0, 20), (100, 0, 20), (100, 20, 20), (0, 20, 20), (0, 40, 20),
-                      (100, 40, 20), (100, 50, 20), (0, 50, 20)]
-    south_west = survey_pattern((0.0, 0.0, 20.0), 100.0, 40.0, 20.0, "SOUTH_WEST")
-    assert south_west[-1] == (-100, -40, 20)
-
-
 def test_survey_area_flies_to_the_base_then_the_passes() -> None:
     step = MODEL.step(action("SURVEY_AREA", length="100", width="40", spacing="20",
                              direction="NORTH_EAST", coordinates="(0, 30, 10)"), FLYING)
     # 30 m to the base, three passes of 100 m, two 20 m steps across.
     assert step.distance == pytest.approx(30 + 300 + 40)
-
-
-def test_explore_pattern_is_an_expanding_square_within_the_radius() -> None:
-    points = explore_pattern((0.0, 0.0, 5.0), 4.0, 2.0)
-    assert points == [(2, 0, 5), (2, 2, 5), (-2, 2, 5), (-2, -2, 5), (4, -2, 5), (4, 4, 5),
-                      (-4, 4, 5), (-4, -4, 5)]
-    assert all(max(abs(n), abs(e)) <= 4 for n, e, _ in points)
 
 
 def test_capture_photos_hovers_between_photos() -> None:

@@ -10,7 +10,9 @@ An action is a generator that yields steps to the interpreter and never does I/O
 A script fails the action by raising :class:`ActionFailed` with an ACTION_FAILURE reason
 (``rejected``, ``timeout``, ``unsupported``, ``infeasible``, ``general``). Completion is
 always observed in telemetry: position within the acceptance radius, altitude reached,
-heading reached, landed and disarmed.
+heading reached, landed and disarmed. The points of a pattern (SURVEY_AREA's lawnmower,
+EXPLORE_SPACE's expanding square, a LOITER's circle, a MOVE in the body frame) come from
+:mod:`tml.patterns`, as the mission compiler and the verifier take them.
 
 Each script flies the action the way the vehicle's kind can (:mod:`tml.language.kinds`, from the
 type the vehicle reports): a multicopter as ArduCopter in GUIDED; a fixed-wing as
@@ -25,7 +27,7 @@ all (:func:`tml.language.kinds.refusal`), before anything is sent.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Generator, Iterator
+from collections.abc import Callable, Generator
 from dataclasses import dataclass
 from itertools import pairwise
 from typing import Protocol
@@ -34,7 +36,14 @@ from tml import geo
 from tml.engine.failures import FailureReason
 from tml.language.actions import BoundAction, Category
 from tml.language.kinds import HANDLING, Kind, final_length, kind_of, refusal
-from tml.patterns import CIRCLE_POINTS_PER_TURN, circle_point
+from tml.patterns import (
+    CIRCLE_POINTS_PER_TURN,
+    circle_entry,
+    circle_point,
+    displaced,
+    expanding_square,
+    survey,
+)
 from tml.vehicle import (
     Arm,
     Camera,
@@ -289,9 +298,7 @@ def _circle(ctx: Context, centre: Point, radius: float, turns: float | None,
     if _kind(ctx) is Kind.FIXED_WING:
         yield from _orbit(ctx, centre, radius, turns, duration)
         return
-    here = _position(ctx)
-    start = math.atan2(here[1] - centre[1], here[0] - centre[0]) \
-        if math.hypot(here[0] - centre[0], here[1] - centre[1]) > 1e-6 else 0.0
+    start = circle_entry(centre, _position(ctx))
     started = None
     step = 0
     while True:
@@ -453,25 +460,14 @@ def move(ctx: Context, bound: BoundAction) -> Script:
         target = (here[0] + dn, here[1] + de, here[2] + du)
     else:
         distance = float(bound.values["distance"])  # type: ignore[arg-type]
-        target = _displaced(here, ctx.state.heading, str(bound.values["direction"]), distance)
+        target = displaced(here, ctx.state.heading, str(bound.values["direction"]), distance)
     yield from fly_to(ctx, target, bound.name)
-
-
-def _displaced(here: Point, heading: float, direction: str, distance: float) -> Point:
-    if direction == "up":
-        return (here[0], here[1], here[2] + distance)
-    if direction == "down":
-        return (here[0], here[1], here[2] - distance)
-    offset = {"forward": 0.0, "right": 90.0, "backward": 180.0, "left": 270.0}[direction]
-    bearing = math.radians(heading + offset)
-    return (here[0] + distance * math.cos(bearing), here[1] + distance * math.sin(bearing),
-            here[2])
 
 
 def move_forwards(ctx: Context, bound: BoundAction) -> Script:
     """Move straight ahead along the heading."""
     here = _reference(ctx)
-    target = _displaced(here, ctx.state.heading, "forward",
+    target = displaced(here, ctx.state.heading, "forward",
                         float(bound.values["distance"]))  # type: ignore[arg-type]
     yield from fly_to(ctx, target, "MOVE_FORWARDS")
 
@@ -572,27 +568,13 @@ def go_to_rectangle(ctx: Context, bound: BoundAction) -> Script:
 
 
 def explore_space(ctx: Context, bound: BoundAction) -> Script:
-    """An expanding square around the start, passes ``spacing`` apart, out to ``radius``."""
+    """An expanding square around the start out to ``radius``, passes ``spacing`` apart,
+    then back to the start (:func:`tml.patterns.expanding_square`)."""
     here = _require_flying(ctx, "EXPLORE_SPACE")
     radius = float(bound.values["radius"])  # type: ignore[arg-type]
     spacing = float(bound.values["spacing"])  # type: ignore[arg-type]
-    for north, east in _expanding_square(radius, spacing):
-        yield from fly_to(ctx, (here[0] + north, here[1] + east, here[2]), "EXPLORE_SPACE")
-    yield from fly_to(ctx, here, "EXPLORE_SPACE")
-
-
-def _expanding_square(radius: float, spacing: float) -> Iterator[tuple[float, float]]:
-    north = east = 0.0
-    leg, heading = spacing, 0
-    moves = ((1, 0), (0, 1), (-1, 0), (0, -1))
-    while leg <= 2 * radius + 1e-9:
-        for _ in range(2):
-            dn, de = moves[heading % 4]
-            north = max(-radius, min(radius, north + dn * leg))
-            east = max(-radius, min(radius, east + de * leg))
-            yield north, east
-            heading += 1
-        leg += spacing
+    for point in expanding_square(here, radius, spacing):
+        yield from fly_to(ctx, point, "EXPLORE_SPACE")
 
 
 def pick_up_item(ctx: Context, bound: BoundAction) -> Script:
@@ -718,34 +700,20 @@ def set_speed(ctx: Context, bound: BoundAction) -> Script:
 
 
 def survey_area(ctx: Context, bound: BoundAction) -> Script:
-    """Lawnmower passes over the area, each along its length, ``spacing`` apart."""
+    """Lawnmower passes over the area, each along its length, ``spacing`` apart, the last
+    on the far edge (:func:`tml.patterns.survey`)."""
     here = _require_flying(ctx, "SURVEY_AREA")
     base = _point(ctx, bound, "coordinates")
     if base is None and "latitude" in bound.values:
         base = _local(ctx, bound)
     base = base or here
     altitude = float(bound.values.get("altitude", here[2]))  # type: ignore[arg-type]
-    for north, east in survey_legs(base[0], base[1], bound):
-        yield from fly_to(ctx, (north, east, altitude), "SURVEY_AREA")
-
-
-def survey_legs(north: float, east: float, bound: BoundAction) -> list[tuple[float, float]]:
-    """The corners of the lawnmower pattern of a SURVEY_AREA, from its base point."""
     length = float(bound.values["length"])  # type: ignore[arg-type]
     width = float(bound.values["width"])  # type: ignore[arg-type]
     spacing = float(bound.values["spacing"])  # type: ignore[arg-type]
-    direction = str(bound.values["direction"])
-    sign_north = 1.0 if direction.startswith("NORTH") else -1.0
-    sign_east = 1.0 if direction.endswith("EAST") else -1.0
-    passes = int(width // spacing) + 1
-    corners = []
-    for index in range(passes):
-        offset = min(index * spacing, width) * sign_east
-        ends = (0.0, length * sign_north)
-        if index % 2:
-            ends = ends[::-1]
-        corners += [(north + ends[0], east + offset), (north + ends[1], east + offset)]
-    return corners
+    for point in survey((base[0], base[1], altitude), length, width, spacing,
+                        str(bound.values["direction"])):
+        yield from fly_to(ctx, point, "SURVEY_AREA")
 
 
 def camera(ctx: Context, bound: BoundAction) -> Script:

@@ -16,8 +16,11 @@ from 0; :meth:`tml.mavlink.vehicle.Vehicle.upload` shifts them behind ArduPilot'
 item. ``action_index[i]`` says which action item ``i`` came from, so that MISSION_CURRENT
 and MISSION_ITEM_REACHED tell the interpreter which action is being flown.
 
-The table of what each action becomes is in docs/run.md. The module is pure: no I/O, no
-clock; pymavlink is used for the MAV_CMD and MAV_FRAME numbers only.
+The table of what each action becomes is in docs/run.md. The points of the patterns (the
+survey's lawnmower, the expanding square, moves in the body frame) come from
+:mod:`tml.patterns`, where the scripts and the verifier take them too: the items carry the
+path the interpreter flies with commands and the verifier checks. The module is pure: no
+I/O, no clock; pymavlink is used for the MAV_CMD and MAV_FRAME numbers only.
 
 For a fixed-wing (:mod:`tml.language.kinds`) the landings (LAND, LANDING_POINT,
 RETURN_HOME_AND_LAND) become a landing sequence, as ArduPlane lands: a waypoint where the
@@ -27,7 +30,6 @@ NAV_RETURN_TO_LAUNCH would only circle home.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 from tml.geo import to_global, to_local
@@ -35,6 +37,7 @@ from tml.language.actions import BoundAction
 from tml.language.kinds import Kind, landing_approach
 from tml.mavlink.codec import mavlink
 from tml.mavlink.mission import LOITER_TURNS_MAX, MissionItem
+from tml.patterns import displaced, expanding_square, survey
 from tml.world import Home
 
 Point = tuple[float, float, float]
@@ -46,14 +49,6 @@ FRAMES = {
 }
 SPEED_TYPES = {"airspeed": 0, "ground": 1, "climb": 2, "descent": 3}
 PRECISION_MODES = {"disabled": 0, "opportunistic": 1, "required": 2}
-# Directions of MOVE, as (forward, right, up) unit steps in the body frame.
-BODY_DIRECTIONS = {
-    "forward": (1.0, 0.0, 0.0), "backward": (-1.0, 0.0, 0.0), "right": (0.0, 1.0, 0.0),
-    "left": (0.0, -1.0, 0.0), "up": (0.0, 0.0, 1.0), "down": (0.0, 0.0, -1.0),
-}
-# SURVEY_AREA quadrants as (north sign, east sign).
-QUADRANTS = {"NORTH_WEST": (1, -1), "NORTH_EAST": (1, 1), "SOUTH_WEST": (-1, -1),
-             "SOUTH_EAST": (-1, 1)}
 
 
 class CompileError(ValueError):
@@ -220,24 +215,19 @@ def _go_to_point(b: _Builder, action: BoundAction) -> None:
     b.waypoint(point)
 
 
-def _body_offset(heading: float, forward: float, right: float, up: float) -> Point:
-    yaw = math.radians(heading)
-    return (forward * math.cos(yaw) - right * math.sin(yaw),
-            forward * math.sin(yaw) + right * math.cos(yaw), up)
-
-
 def _move(b: _Builder, action: BoundAction) -> None:
-    displacement = _point(action, "coordinates")
-    if displacement is None:
-        unit = BODY_DIRECTIONS[str(action.get("direction", "forward"))]
-        distance = _number(action, "distance")
-        displacement = _body_offset(b.cursor.heading, *(distance * u for u in unit))
-    b.waypoint(_plus(b.cursor.position, displacement))
+    offset = _point(action, "coordinates")
+    if offset is not None:
+        b.waypoint(_plus(b.cursor.position, offset))
+    else:
+        b.waypoint(displaced(b.cursor.position, b.cursor.heading,
+                             str(action.get("direction", "forward")),
+                             _number(action, "distance")))
 
 
 def _move_forwards(b: _Builder, action: BoundAction) -> None:
-    offset = _body_offset(b.cursor.heading, _number(action, "distance"), 0.0, 0.0)
-    b.waypoint(_plus(b.cursor.position, offset))
+    b.waypoint(displaced(b.cursor.position, b.cursor.heading, "forward",
+                         _number(action, "distance")))
 
 
 def _move_from_home(b: _Builder, action: BoundAction) -> None:
@@ -371,58 +361,22 @@ def _rotate_yaw(b: _Builder, action: BoundAction) -> None:
         _yaw_item(b, _number(action, "orientation_angle") % 360.0, relative=False)
 
 
-def survey_legs(base: Point, length: float, width: float, spacing: float,
-                direction: str) -> list[Point]:
-    """The lawnmower waypoints of SURVEY_AREA: passes along north/south ``length`` metres,
-    ``spacing`` apart across ``width``, from ``base`` into the ``direction`` quadrant."""
-    north_sign, east_sign = QUADRANTS[direction]
-    passes = math.ceil(width / spacing - 1e-9) + 1
-    points: list[Point] = []
-    for index in range(passes):
-        across = min(index * spacing, width) * east_sign
-        ends = (0.0, length * north_sign)
-        if index % 2:
-            ends = ends[::-1]
-        points.extend((base[0] + along, base[1] + across, base[2]) for along in ends)
-    return points
-
-
 def _survey_area(b: _Builder, action: BoundAction) -> None:
     if action.get("latitude") is not None:
         base, _ = _global_point(b, action)
     else:
         base = _point(action, "coordinates") or b.cursor.position
     altitude = _number(action, "altitude", b.cursor.position[2])
-    for point in survey_legs((base[0], base[1], altitude), _number(action, "length"),
-                             _number(action, "width"), _number(action, "spacing", 50.0),
-                             str(action.get("direction", "NORTH_WEST"))):
+    for point in survey((base[0], base[1], altitude), _number(action, "length"),
+                        _number(action, "width"), _number(action, "spacing", 50.0),
+                        str(action.get("direction", "NORTH_WEST"))):
         b.waypoint(point)
-
-
-def explore_square(centre: Point, radius: float, spacing: float) -> list[Point]:
-    """An expanding square around ``centre``: legs grow by ``spacing`` up to ``radius``."""
-    points: list[Point] = []
-    n, e = 0.0, 0.0
-    steps = ((1, 0), (0, 1), (-1, 0), (0, -1))
-    leg, turn = spacing, 0
-    while True:
-        dn, de = steps[turn % 4]
-        n = max(-radius, min(radius, n + dn * leg))
-        e = max(-radius, min(radius, e + de * leg))
-        points.append((centre[0] + n, centre[1] + e, centre[2]))
-        if leg >= 2 * radius:
-            return points
-        turn += 1
-        if turn % 2 == 0:
-            leg += spacing
 
 
 def _explore_space(b: _Builder, action: BoundAction) -> None:
-    centre = b.cursor.position
-    for point in explore_square(centre, _number(action, "radius", 10.0),
-                                _number(action, "spacing", 2.0)):
+    for point in expanding_square(b.cursor.position, _number(action, "radius", 10.0),
+                                  _number(action, "spacing", 2.0)):
         b.waypoint(point)
-    b.waypoint(centre)
 
 
 def _capture_photo(b: _Builder, action: BoundAction) -> None:

@@ -15,7 +15,9 @@ target reached before the next is sent): speeding up and braking at ``accelerati
 a cruise at the current speed, or, on a segment too short to reach it, speeding up half
 way and braking the other half. A circle is flown as the interpreter flies it too, as
 :data:`~tml.patterns.CIRCLE_POINTS_PER_TURN` such segments a turn. Turning in place takes
-the angle at ``yaw_rate``.
+the angle at ``yaw_rate``. The points of the patterns (the survey's lawnmower, the
+expanding square, the circle, moves in the body frame) come from :mod:`tml.patterns`,
+which the scripts and the mission compiler fly too: the path predicted is the path flown.
 
 Kinds of vehicle (:mod:`tml.language.kinds`, from the profile's ``vehicle_type``): a fixed-wing
 takes off in a climb along its heading and lands along an approach
@@ -33,7 +35,16 @@ from itertools import pairwise
 from tml import geo
 from tml.language.actions import BoundAction
 from tml.language.kinds import Kind, landing_approach
-from tml.patterns import CIRCLE_POINTS_PER_TURN, circle_chord
+from tml.patterns import (
+    CIRCLE_POINTS_PER_TURN,
+    circle,
+    circle_chord,
+    circle_entry,
+    circle_point,
+    displaced,
+    expanding_square,
+    survey,
+)
 from tml.verify.planner import Planner, Point3, Trajectory, straight
 from tml.verify.profile import VehicleProfile
 from tml.world import DEFAULT_HOME, World
@@ -63,16 +74,16 @@ class PredictedState:
 
 @dataclass(frozen=True)
 class Loiter:
-    """A circle flown around a centre."""
+    """A circle flown around a centre, joined at the bearing ``start`` (radians)."""
 
     centre: Point3
     radius: float
+    start: float = 0.0
 
     def points(self) -> list[Point3]:
-        """The circle as a closed polygonal line at the centre's altitude."""
-        north, east, up = self.centre
-        return [(north + self.radius * math.cos(a), east + self.radius * math.sin(a), up)
-                for a in (2 * math.pi * k / 32 for k in range(33))]
+        """One turn of the circle as it is flown (:func:`tml.patterns.circle`): a closed
+        polygonal line through the targets, at the centre's altitude."""
+        return circle(self.centre, self.radius, self.start)
 
 
 @dataclass(frozen=True)
@@ -289,7 +300,7 @@ class FlightModel:
         target = (state.position[0], state.position[1], altitude)
         if self.profile.kind is Kind.FIXED_WING:  # a climb along the heading
             run = altitude / self.profile.climb_rate * self.profile.cruise_speed
-            target = (*_ahead(state.position, state.heading, run)[:2], altitude)
+            target = (*displaced(state.position, state.heading, "forward", run)[:2], altitude)
         step = self._go(bound, replace(state, flying=True), labels, [target], cruise=False)
         return replace(step, before=state)
 
@@ -323,18 +334,13 @@ class FlightModel:
         offset = bound.get("coordinates")
         if offset is not None:
             return self._go(bound, state, labels, [_add(state.position, tuple(offset))])
-        direction = str(bound.get("direction"))
-        distance = float(bound.get("distance"))
-        if direction in ("up", "down"):
-            rise = distance if direction == "up" else -distance
-            target = (state.position[0], state.position[1], state.position[2] + rise)
-        else:
-            turn = {"forward": 0.0, "right": 90.0, "backward": 180.0, "left": 270.0}[direction]
-            target = _ahead(state.position, state.heading + turn, distance)
+        target = displaced(state.position, state.heading, str(bound.get("direction")),
+                           float(bound.get("distance")))
         return self._go(bound, state, labels, [target])
 
     def _move_forwards(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        target = _ahead(state.position, state.heading, float(bound.get("distance")))
+        target = displaced(state.position, state.heading, "forward",
+                           float(bound.get("distance")))
         return self._go(bound, state, labels, [target])
 
     def _move_from_home(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
@@ -365,10 +371,9 @@ class FlightModel:
 
     def _return_home_and_loiter(self, bound: BoundAction, state: PredictedState,
                                 labels: Labels) -> Step:
-        centre = (*state.home[:2], state.position[2])
-        step = self._go(bound, state, labels, [centre])
-        return replace(step, loiter=Loiter(centre, float(bound.get("radius"))),
-                       notes=("circles home until an event ends it; no time counted for it",))
+        step = self._circle(bound, state, labels, (*state.home[:2], state.position[2]))
+        return replace(step, notes=(
+            "circles home until an event ends it; no time counted for it",))
 
     def _landing_point(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         point, unknown = self._point(bound, labels)
@@ -396,13 +401,18 @@ class FlightModel:
             centre = self.local(float(bound.get("latitude")), float(bound.get("longitude")),
                                 float(bound.get("altitude")),
                                 str(bound.get("altitude_reference")))
-        centre = centre or state.position
+        return self._circle(bound, state, labels, centre or state.position)
+
+    def _circle(self, bound: BoundAction, state: PredictedState, labels: Labels,
+                centre: Point3) -> Step:
+        """Join the circle around ``centre`` and go round it, as the scripts fly it: to its
+        nearest point (not to its centre, often the very thing it circles around), then
+        from target to target (:mod:`tml.patterns`) for the action's turns or duration."""
         radius = float(bound.get("radius"))
-        # The vehicle flies to the nearest point of the circle, not to its centre (which
-        # is often the very thing it circles around).
-        entry = _on_circle(centre, radius, state.position)
+        start = circle_entry(centre, state.position)
+        entry = circle_point(centre, radius, start, 0)
         step = self._go(bound, state, labels, [entry] if entry != state.position else [])
-        step = replace(step, destination=centre, loiter=Loiter(centre, radius))
+        step = replace(step, destination=centre, loiter=Loiter(centre, radius, start))
         turns, duration = bound.get("turns"), bound.get("duration")
         speed = min(state.speed or self.profile.cruise_speed, self.profile.max_speed)
         if turns is None and duration is None:
@@ -428,14 +438,14 @@ class FlightModel:
                               0.0, "relative")
         base = base or state.position
         altitude = float(bound.get("altitude") or state.position[2])
-        targets = survey_pattern((base[0], base[1], altitude), float(bound.get("length")),
-                                 float(bound.get("width")), float(bound.get("spacing")),
-                                 str(bound.get("direction")))
+        targets = survey((base[0], base[1], altitude), float(bound.get("length")),
+                         float(bound.get("width")), float(bound.get("spacing")),
+                         str(bound.get("direction")))
         return self._go(bound, state, labels, targets)
 
     def _explore_space(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        targets = explore_pattern(state.position, float(bound.get("radius")),
-                                  float(bound.get("spacing")))
+        targets = expanding_square(state.position, float(bound.get("radius")),
+                                   float(bound.get("spacing")))
         return self._go(bound, state, labels, targets)
 
     def _go_to_rectangle(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
@@ -500,55 +510,3 @@ def stop_to_stop(metres: float, speed: float, acceleration: float) -> float:
 
 def _add(a: Point3, b: tuple[float, ...]) -> Point3:
     return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
-
-
-def _on_circle(centre: Point3, radius: float, position: Point3) -> Point3:
-    dn, de = position[0] - centre[0], position[1] - centre[1]
-    ground = math.hypot(dn, de)
-    if ground == 0:
-        return (centre[0] + radius, centre[1], centre[2])
-    return (centre[0] + radius * dn / ground, centre[1] + radius * de / ground, centre[2])
-
-
-def _ahead(position: Point3, heading: float, distance: float) -> Point3:
-    angle = math.radians(heading)
-    return (position[0] + distance * math.cos(angle), position[1] + distance * math.sin(angle),
-            position[2])
-
-
-def survey_pattern(base: Point3, length: float, width: float, spacing: float,
-                   direction: str) -> list[Point3]:
-    """The lawnmower points of SURVEY_AREA: from the base point, passes ``length`` metres
-    long along north/south, ``spacing`` apart across ``width`` metres east/west, into the
-    quadrant ``direction`` names; the last pass lies on the far edge."""
-    north_sign = 1.0 if direction.startswith("NORTH") else -1.0
-    east_sign = 1.0 if direction.endswith("EAST") else -1.0
-    offsets = [spacing * k for k in range(int(width // spacing) + 1)]
-    if width - offsets[-1] > 1e-9:
-        offsets.append(width)
-    points = [base]
-    for index, across in enumerate(offsets):
-        ends = (0.0, length) if index % 2 == 0 else (length, 0.0)
-        for along in ends:
-            point = (base[0] + north_sign * along, base[1] + east_sign * across, base[2])
-            if point != points[-1]:
-                points.append(point)
-    return points
-
-
-def explore_pattern(centre: Point3, radius: float, spacing: float) -> list[Point3]:
-    """The expanding-square points of EXPLORE_SPACE around ``centre``: legs north, east,
-    south, west of 1, 1, 2, 2, 3, 3 ... times ``spacing``, while inside ``radius``."""
-    points: list[Point3] = []
-    north, east = 0.0, 0.0
-    directions = ((1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0))
-    leg = 0
-    while True:
-        size = spacing * (leg // 2 + 1)
-        dn, de = directions[leg % 4]
-        north, east = north + dn * size, east + de * size
-        if max(abs(north), abs(east)) > radius + 1e-9:
-            break
-        points.append((centre[0] + north, centre[1] + east, centre[2]))
-        leg += 1
-    return points

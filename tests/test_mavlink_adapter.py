@@ -245,7 +245,7 @@ def test_link_degrades_then_is_lost_when_heartbeats_stop() -> None:
         degraded = rig.until(lambda s: s.link != "ok", "link degraded")
         lost = rig.until(lambda s: s.link == "lost", "link lost")
         assert up.time < 8.0 < degraded.time < lost.time
-        assert degraded.link == "degraded" and lost.time > 8.0 + rig.vehicle.lost_after - 1.0
+        assert degraded.link == "degraded" and lost.time > 8.0 + rig.vehicle.health.lost_after - 1.0
 
 
 def test_link_health_is_timed_on_its_own_clock_when_given_one() -> None:

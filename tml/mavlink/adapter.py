@@ -15,14 +15,13 @@ snapshot: local position from GLOBAL_POSITION_INT relative to HOME_POSITION (via
 EXTENDED_SYS_STATE, ``ready`` from the EKF flags. Three things need more than the snapshot,
 and come from a listener on the link that sees every message of this vehicle:
 
-- *link health*, timed with ``link_clock``: the runner's clock by default (the simulator's
-  clock in ``--sim``, so that a speed-up does not make the link look faster than the
-  vehicle), the local clock under ``--clock vehicle``, whose time between the vehicle's
-  stamps is extrapolated (an ArduPilot SITL starved of CPU falls silent without its own
-  time passing; extrapolated at its speed-up, that silence would look like a failing
-  link): ``lost`` after ``lost_after`` s without a HEARTBEAT, ``degraded`` after
-  ``degraded_after`` s or when more than ``DEGRADED_LOSS`` of the messages of the last
-  second went missing;
+- *link health* (:class:`~tml.mavlink.health.LinkHealth`): how long since the last
+  HEARTBEAT, in the vehicle's own stamps and on ``link_clock``, and the messages lost.
+  ``link_clock`` is the runner's clock by default (the simulator's clock in ``--sim``, so
+  that a speed-up does not make the link look faster than the vehicle), the local clock
+  under ``--clock vehicle``, whose time between the vehicle's stamps is extrapolated (an
+  ArduPilot SITL starved of CPU falls silent without its own time passing; extrapolated at
+  its speed-up, that silence would look like a failing link);
 - *detections* from the companion computer (component 191, see sitl/companion.py for the
   protocol): each NAMED_VALUE_INT ``ITEM``/``BUCKET``/``MARKER``/``ARUCO``/``FRAME`` report
   keeps the object in the matching ``RECOGNIZED_*`` set for ``detection_hold`` s; objects
@@ -98,6 +97,7 @@ from tml.mavlink.compile import (
     compile_mission,
     glide_items,
 )
+from tml.mavlink.health import LinkHealth
 from tml.mavlink.link import Link
 from tml.mavlink.modes import mode_names
 from tml.mavlink.telemetry import COMPANION_COMPONENT, Telemetry
@@ -129,8 +129,6 @@ from tml.world import Home, World
 
 Clock = Callable[[], float]
 
-DEGRADED_LOSS = 0.2
-"""Fraction of messages missing in the last second above which the link is degraded."""
 STREAM_CHECK_PERIOD = 2.0
 """Wall seconds between the worker's checks that the streams asked for arrive."""
 PARAM_TIMEOUT = 1.0
@@ -267,8 +265,7 @@ class MavlinkVehicle:
         self.vehicle_id = system_id if vehicle_id is None else vehicle_id
         self.clock = clock
         self.link_clock = clock if link_clock is None else link_clock  # see the module doc
-        self.lost_after = lost_after
-        self.degraded_after = degraded_after
+        self.health = LinkHealth(lost_after, degraded_after)
         self.detection_hold = detection_hold
         self.ready_timeout = ready_timeout  # wall s a mission upload waits for home/EKF
         self.on_result = on_result  # called when a result is ready (wakes the runner)
@@ -279,9 +276,6 @@ class MavlinkVehicle:
         self._queue: queue.Queue[Request | None] = queue.Queue()
         self._params: dict[tuple[int, str], float] = {}
         self._param_arrived = threading.Condition()
-        self._heartbeat: float | None = None
-        self._window = (self.link_clock(), 0, 0)  # (start, received, lost) of the loss window
-        self._loss = 0.0
         self._seen: dict[tuple[str, int], float] = {}
         self._values: dict[str, float] = {}
         self._plan: _Plan | None = None
@@ -337,7 +331,7 @@ class MavlinkVehicle:
                 landed = True  # EXTENDED_SYS_STATE may lag the final MISSION_ITEM_REACHED
             progress = plan.progress() if plan is not None else self._progress
         return VehicleState(
-            vehicle_id=self.vehicle_id, time=now, link=self._link_state(self.link_clock()),
+            vehicle_id=self.vehicle_id, time=now, link=self.health.state(self.link_clock()),
             ready=t.position_ready, armable=t.prearm_ok, prearm=t.prearm_text if not t.armed
             else "", armed=t.armed, landed=landed, mode=t.mode,
             position=position,
@@ -391,14 +385,6 @@ class MavlinkVehicle:
         self._cache = (p, home, local)
         return local
 
-    def _link_state(self, now: float) -> str:
-        age = math.inf if self._heartbeat is None else now - self._heartbeat
-        if age > self.lost_after:
-            return "lost"
-        if age > self.degraded_after or self._loss > DEGRADED_LOSS:
-            return "degraded"
-        return "ok"
-
     def _detections(self, now: float) -> Mapping[str, object]:
         found: dict[str, object] = dict(self._values)
         for (tag, number), when in self._seen.items():
@@ -419,15 +405,11 @@ class MavlinkVehicle:
         now = self.clock()
         if component == COMPANION_COMPONENT:
             self._companion_seen = True
+        if component == self.mav.component_id:
+            self.health.heard(self.link_clock(), kind == "HEARTBEAT", snapshot.boot_time,
+                              snapshot.received, snapshot.lost)
         if kind == "HEARTBEAT" and component == self.mav.component_id:
-            link_now = self.link_clock()
-            self._heartbeat = link_now
             self._keep_target(snapshot)
-            start, received, lost = self._window
-            if link_now - start >= 1.0:
-                total = (snapshot.received - received) + (snapshot.lost - lost)
-                self._loss = (snapshot.lost - lost) / total if total else 0.0
-                self._window = (link_now, snapshot.received, snapshot.lost)
         elif kind == "PARAM_VALUE":
             with self._param_arrived:
                 self._params[(component, _text(msg.param_id))] = msg.param_value

@@ -105,7 +105,38 @@ def test_bind_types_arguments_and_fills_defaults() -> None:
     assert bound.name == "LOITER"
     assert bound.values == {"turns": 3, "coordinates": (1.0, 2.0, 10.0), "radius": 15.0,
                             "altitude_reference": "relative"}
-    assert bound.get("duration") is None
+    assert "duration" not in bound.values
+
+
+def test_accessors_give_each_argument_its_type() -> None:
+    bound = actions.bind(action("LOITER", turns="3", point="(1, 2, 10)"))
+    assert bound.integer("turns") == 3 and type(bound.integer("turns")) is int
+    assert bound.number("turns") == 3.0 and type(bound.number("turns")) is float
+    assert bound.number("radius") == 15.0  # the default
+    assert bound.point("coordinates") == (1.0, 2.0, 10.0)
+    assert bound.choice("altitude_reference") == "relative"
+    explore = actions.bind(action("EXPLORE_SPACE", build_map="yes"))
+    assert explore.flag("build_map") is True
+    rectangle = actions.bind(action("GO_TO_RECTANGLE", color="red"))
+    assert rectangle.text("frame_color") == "red"
+
+
+def test_an_absent_argument_gives_the_default_or_raises() -> None:
+    bound = actions.bind(action("LOITER"))
+    assert bound.number("duration", None) is None
+    assert bound.point("from_home", (0.0, 0.0, 5.0)) == (0.0, 0.0, 5.0)
+    with pytest.raises(KeyError, match="duration"):
+        bound.number("duration")
+
+
+def test_an_accessor_refuses_an_argument_of_another_type_or_name() -> None:
+    bound = actions.bind(action("LOITER", turns="3"))
+    with pytest.raises(TypeError, match="no point argument 'turns'"):
+        bound.point("turns")
+    with pytest.raises(TypeError, match="no number or integer argument 'time'"):
+        bound.number("time")  # an alias: accessors take the canonical name (duration)
+    with pytest.raises(TypeError, match="argument 'speed'"):
+        bound.number("speed", None)
 
 
 def test_bind_keeps_labels() -> None:

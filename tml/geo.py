@@ -10,11 +10,14 @@ from __future__ import annotations
 
 import math
 
+Point = tuple[float, float, float]
+"""A local point: (north, east, up) in metres from home."""
+
 
 def to_local(
     latitude: float, longitude: float, altitude_amsl: float,
     home_latitude: float, home_longitude: float, home_altitude_amsl: float,
-) -> tuple[float, float, float]:
+) -> Point:
     """(north, east, up) in metres of a WGS84 point relative to home."""
     import pymap3d  # imports numpy: only when a conversion is needed
 
@@ -42,6 +45,6 @@ def horizontal_distance(a: tuple[float, ...], b: tuple[float, ...]) -> float:
     return math.hypot(a[0] - b[0], a[1] - b[1])
 
 
-def distance(a: tuple[float, float, float], b: tuple[float, float, float]) -> float:
+def distance(a: Point, b: Point) -> float:
     """Straight-line distance in metres between two local points."""
     return math.dist(a, b)

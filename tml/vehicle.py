@@ -20,11 +20,10 @@ from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 from typing import Protocol
 
+from tml.geo import Point
 from tml.language.actions import BoundAction
 from tml.language.kinds import Kind, kind_of
 from tml.world import DEFAULT_HOME, Home
-
-Point = tuple[float, float, float]
 
 _EMPTY: Mapping[str, object] = MappingProxyType({})
 
@@ -532,9 +531,8 @@ def _towards(position: Point, target: Point, horizontal: float, vertical: float)
 
 def _mission_point(action: BoundAction, start: Point, here: Point) -> Point:
     """Where a mission action leads, for the fake vehicle (a crude stand-in for AUTO)."""
-    point = action.values.get("coordinates")
-    if isinstance(point, tuple):
-        return point  # type: ignore[return-value]
+    if "coordinates" in action.values:
+        return action.point("coordinates")
     if action.name == "TAKE_OFF":
-        return (start[0], start[1], float(action.values.get("altitude", 10.0)))  # type: ignore[arg-type]
+        return (start[0], start[1], action.number("altitude"))
     return here

@@ -16,10 +16,13 @@ from __future__ import annotations
 
 import functools
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
-from enum import StrEnum
+from enum import Enum, StrEnum
+from typing import TypeVar, overload
 
 from tml.errors import MissionSemanticError
+from tml.geo import Point
 from tml.language.model import Action, normalize_name
 from tml.language.parameters import NUMBER_PATTERN, parse_boolean, parse_number
 
@@ -48,6 +51,11 @@ class ArgType(StrEnum):
     BOOLEAN = "boolean"  # yes/no, true/false, 1/0
 
 
+ArgumentValue = float | int | bool | str | Point
+"""A typed argument value: NUMBER float, INTEGER int, BOOLEAN bool, STRING and CHOICE str,
+POINT a local point."""
+
+
 class LabelUse(StrEnum):
     """How an argument given with ``label=`` uses the label."""
 
@@ -63,7 +71,8 @@ class ArgumentSpec:
     type: ArgType
     description: str
     unit: str = ""
-    default: object = None  # None: no default (optional arguments are then simply absent)
+    # None: no default (optional arguments are then simply absent)
+    default: ArgumentValue | None = None
     required: bool = False
     aliases: tuple[str, ...] = ()
     choices: tuple[str, ...] = ()
@@ -104,12 +113,19 @@ class ActionSpec:
                 for name in (spec.name, *spec.aliases)}
 
 
-def _number(name: str, description: str, unit: str, **kw: object) -> ArgumentSpec:
-    return ArgumentSpec(name, ArgType.NUMBER, description, unit, **kw)  # type: ignore[arg-type]
+def _number(name: str, description: str, unit: str, *, default: float | None = None,
+            required: bool = False, aliases: tuple[str, ...] = (),
+            minimum: float | None = None, maximum: float | None = None,
+            positive: bool = False) -> ArgumentSpec:
+    return ArgumentSpec(name, ArgType.NUMBER, description, unit, default=default,
+                        required=required, aliases=aliases, minimum=minimum, maximum=maximum,
+                        positive=positive)
 
 
-def _point(name: str, description: str, **kw: object) -> ArgumentSpec:
-    return ArgumentSpec(name, ArgType.POINT, description, "m", **kw)  # type: ignore[arg-type]
+def _point(name: str, description: str, *, required: bool = False,
+           aliases: tuple[str, ...] = (), label: LabelUse | None = None) -> ArgumentSpec:
+    return ArgumentSpec(name, ArgType.POINT, description, "m", required=required,
+                        aliases=aliases, label=label)
 
 
 _LATITUDE = _number("latitude", "WGS84 latitude", "deg", minimum=-90.0, maximum=90.0)
@@ -413,14 +429,15 @@ _NUMBER = NUMBER_PATTERN
 _POINT = re.compile(rf"^\(?\s*({_NUMBER})\s*,\s*({_NUMBER})\s*,\s*({_NUMBER})\s*\)?$")
 
 
-def parse_value(spec: ArgumentSpec, raw: str) -> object:
+def parse_value(spec: ArgumentSpec, raw: str) -> ArgumentValue:
     """The typed value of ``raw`` for ``spec``; raises ValueError saying what was expected."""
     text = raw.strip()
     if spec.type is ArgType.POINT:
         match = _POINT.match(text)
         if not match:
             raise ValueError("expected a point '(north, east, up)' of three numbers in metres")
-        return tuple(float(g) for g in match.groups())
+        north, east, up = (float(g) for g in match.groups())
+        return north, east, up
     if spec.type is ArgType.BOOLEAN:
         flag = parse_boolean(text)
         if flag is None:
@@ -458,23 +475,117 @@ def _check_range(spec: ArgumentSpec, value: float) -> None:
         raise ValueError(f"must be at most {spec.maximum:g}{unit}")
 
 
+class _Absent(Enum):
+    """The default of an accessor called without one: the argument must be there."""
+
+    ABSENT = "absent"
+
+
+_ABSENT = _Absent.ABSENT
+_D = TypeVar("_D")
+
+
 @dataclass(frozen=True)
 class BoundAction:
-    """An action with its arguments typed, named canonically, and defaults filled in."""
+    """An action with its arguments typed, named canonically, and defaults filled in.
+
+    Read a value with the accessor of its argument's type: :meth:`number`, :meth:`integer`,
+    :meth:`point`, :meth:`choice`, :meth:`text`, :meth:`flag`. Each takes the canonical
+    argument name and an optional default: without one an absent argument raises KeyError
+    (the argument rules make it present), with one (None included) the default is returned.
+    Naming an argument the action does not have, or one of another type, raises TypeError.
+    """
 
     spec: ActionSpec
     action: Action
-    values: dict[str, object]  # canonical argument name -> typed value
-    labels: dict[str, str]  # canonical argument name -> label given with label=
+    values: Mapping[str, ArgumentValue]  # canonical argument name -> typed value
+    labels: Mapping[str, str]  # canonical argument name -> label given with label=
 
     @property
     def name(self) -> str:
         """The canonical action name."""
         return self.spec.name
 
+    @overload
+    def number(self, name: str) -> float: ...
+    @overload
+    def number(self, name: str, default: _D) -> float | _D: ...
+    def number(self, name: str, default: object = _ABSENT) -> object:
+        """A NUMBER (or INTEGER) argument, as a float."""
+        value = self._value(name, ArgType.NUMBER, ArgType.INTEGER)
+        if isinstance(value, int | float):
+            return float(value)
+        return self._absent(name, default)
+
+    @overload
+    def integer(self, name: str) -> int: ...
+    @overload
+    def integer(self, name: str, default: _D) -> int | _D: ...
+    def integer(self, name: str, default: object = _ABSENT) -> object:
+        """An INTEGER argument."""
+        value = self._value(name, ArgType.INTEGER)
+        if isinstance(value, int):
+            return value
+        return self._absent(name, default)
+
+    @overload
+    def point(self, name: str) -> Point: ...
+    @overload
+    def point(self, name: str, default: _D) -> Point | _D: ...
+    def point(self, name: str, default: object = _ABSENT) -> object:
+        """A POINT argument: (north, east, up) metres."""
+        value = self._value(name, ArgType.POINT)
+        if isinstance(value, tuple):
+            return value
+        return self._absent(name, default)
+
+    @overload
+    def choice(self, name: str) -> str: ...
+    @overload
+    def choice(self, name: str, default: _D) -> str | _D: ...
+    def choice(self, name: str, default: object = _ABSENT) -> object:
+        """A CHOICE argument, spelt as in the argument's choices."""
+        value = self._value(name, ArgType.CHOICE)
+        if isinstance(value, str):
+            return value
+        return self._absent(name, default)
+
+    @overload
+    def text(self, name: str) -> str: ...
+    @overload
+    def text(self, name: str, default: _D) -> str | _D: ...
+    def text(self, name: str, default: object = _ABSENT) -> object:
+        """A STRING argument."""
+        value = self._value(name, ArgType.STRING)
+        if isinstance(value, str):
+            return value
+        return self._absent(name, default)
+
+    @overload
+    def flag(self, name: str) -> bool: ...
+    @overload
+    def flag(self, name: str, default: _D) -> bool | _D: ...
+    def flag(self, name: str, default: object = _ABSENT) -> object:
+        """A BOOLEAN argument."""
+        value = self._value(name, ArgType.BOOLEAN)
+        if isinstance(value, bool):
+            return value
+        return self._absent(name, default)
+
+    def _value(self, name: str, *types: ArgType) -> ArgumentValue | None:
+        spec = self.spec.argument(name)
+        if spec is None or spec.name != name or spec.type not in types:
+            raise TypeError(f"{self.name} has no {' or '.join(types)} argument {name!r}")
+        return self.values.get(name)
+
     def get(self, name: str, default: object = None) -> object:
-        """The typed value of an argument, or ``default`` when absent and without default."""
+        """The value of an argument, or ``default`` when absent and without default."""
         return self.values.get(name, default)
+
+    def _absent(self, name: str, default: object) -> object:
+        if default is _ABSENT:
+            raise KeyError(f"{self.name} has no value for {name!r}")
+        return default
 
 
 def bind(action: Action) -> BoundAction:
@@ -483,7 +594,7 @@ def bind(action: Action) -> BoundAction:
     spec = lookup(action.name)
     if spec is None:
         raise MissionSemanticError(f"unknown action {action.name!r}", action.location, "E201")
-    values: dict[str, object] = {}
+    values: dict[str, ArgumentValue] = {}
     labels: dict[str, str] = {}
     for argument in action.arguments:
         arg_spec = spec.argument(argument.name)

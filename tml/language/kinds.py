@@ -28,6 +28,7 @@ import math
 from dataclasses import dataclass
 from enum import StrEnum
 
+from tml.geo import Point
 from tml.language.actions import BoundAction
 
 MULTICOPTERS = frozenset({"quadcopter", "hexacopter", "octocopter", "tricopter", "coaxial"})
@@ -57,9 +58,6 @@ def vehicle_type_matches(wanted: str, actual: str) -> bool:
     if wanted.lower() == "uav":
         return actual in VEHICLE_TYPES - GROUND_AND_WATER
     return False
-
-
-Point = tuple[float, float, float]
 
 
 class Kind(StrEnum):
@@ -161,7 +159,7 @@ def refusal(bound: BoundAction, kind: Kind, vehicle_type: str = "") -> str | Non
     """
     reason = _CANNOT.get(kind, {}).get(bound.name)
     if reason is None and kind is Kind.GROUND and bound.name == "MOVE" \
-            and bound.values.get("direction") in ("up", "down") and "distance" in bound.values:
+            and bound.choice("direction") in ("up", "down") and "distance" in bound.values:
         reason = "cannot move up or down"
     return None if reason is None else f"a {vehicle_type or NOUNS[kind]} {reason}"
 

@@ -25,11 +25,12 @@ import math
 from collections.abc import Callable, Mapping
 from functools import cache
 
+from tml.geo import Point
 from tml.language import actions
 from tml.language.actions import BoundAction
 from tml.language.kinds import kind_of, refusal, role_kinds
 from tml.language.model import Mission
-from tml.vehicle import Point, VehicleState
+from tml.vehicle import VehicleState
 from tml.verify.constraints import Constraint, Violation, check_before_action
 from tml.verify.motion import PredictedState
 from tml.verify.planner import Planner

@@ -55,7 +55,9 @@ class Vehicle(Protocol):
     mode_table: ModeTable  # the vehicle kind's modes: where it arms, which need a position
     armed: bool
     origin_set: bool
-    position_ok: bool
+
+    @property
+    def position_ok(self) -> bool: ...  # read-only: the model derives it
 
     def extra_arming_failures(self) -> list[str]: ...
 

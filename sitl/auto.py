@@ -83,10 +83,13 @@ class Pilot(Protocol):
 
     time: float
     control_period: float  # seconds per control step
-    position: Vector
-    heading: float
     lands_vertically: bool
     orbits: bool
+
+    @property
+    def position(self) -> Vector: ...  # read-only: the model derives it from its state
+    @property
+    def heading(self) -> float: ...
 
     def item_position(self, item: MissionItem) -> Vector: ...
     def fly_to(self, target: Vector) -> None: ...

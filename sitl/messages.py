@@ -66,18 +66,28 @@ class Source(Protocol):
     origin: Home
     home: Home
     battery: Battery
-    position: Vector
-    velocity: Vector
-    heading: float  # degrees
     roll: float  # radians
     pitch: float  # radians
-    gps_fixed: bool
     booted: bool  # past ArduCopter's boot ("ArduPilot Ready")
     origin_set: bool
-    position_ok: bool
-    prearm_ok: bool  # the pre-arm checks pass (always when armed)
-    landing: bool  # descending to touch down
-    in_failsafe: bool
+
+    # Read-only: the model derives them from its state.
+    @property
+    def position(self) -> Vector: ...
+    @property
+    def velocity(self) -> Vector: ...
+    @property
+    def heading(self) -> float: ...  # degrees
+    @property
+    def gps_fixed(self) -> bool: ...
+    @property
+    def position_ok(self) -> bool: ...
+    @property
+    def prearm_ok(self) -> bool: ...  # the pre-arm checks pass (always when armed)
+    @property
+    def landing(self) -> bool: ...  # descending to touch down
+    @property
+    def in_failsafe(self) -> bool: ...
 
     def global_position(self) -> Vector: ...  # latitude, longitude, altitude (AMSL)
     def home_local(self) -> Vector: ...

@@ -44,6 +44,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from sitl import storage
 from sitl.items import MissionItem
+from sitl.results import MissionResult
 
 REQUEST_INTERVAL = 1.0  # seconds after a request before the item is requested again
 UPLOAD_TIMEOUT = 8.0  # seconds without an item before the upload is cancelled
@@ -53,7 +54,7 @@ MAX_ITEMS = {0: 725, 1: 84, 2: 20}  # capacity per MAV_MISSION_TYPE (ArduCopter 
 MISSION, FENCE, RALLY = storage.MISSION, storage.FENCE, storage.RALLY
 
 
-def item_from_message(msg: Any) -> MissionItem | int:
+def item_from_message(msg: Any) -> MissionItem | MissionResult:
     """The item a MISSION_ITEM (degrees) or MISSION_ITEM_INT (degrees * 1e7) asks to store,
     in the form the vehicle stores it, or the MAV_MISSION_RESULT refusing it."""
     mission_type = getattr(msg, "mission_type", MISSION)
@@ -105,7 +106,7 @@ def _sender(msg: Any) -> tuple[int, int]:
     return msg.get_srcSystem(), msg.get_srcComponent()
 
 
-def _ack(target: tuple[int, int], result: int, mission_type: int) -> Any:
+def _ack(target: tuple[int, int], result: MissionResult, mission_type: int) -> Any:
     return mavlink.MAVLink_mission_ack_message(target[0], target[1], result, mission_type)
 
 
@@ -143,10 +144,10 @@ class MissionServer:
         mission_type = getattr(msg, "mission_type", MISSION)
         if kind in ("MISSION_REQUEST_LIST", "MISSION_REQUEST", "MISSION_REQUEST_INT") and (
                 self._uploading(mission_type)):  # no reading a list while it is being written
-            return [_ack(_sender(msg), mavlink.MAV_MISSION_DENIED, mission_type)]
+            return [_ack(_sender(msg), MissionResult.DENIED, mission_type)]
         if kind == "MISSION_REQUEST_LIST":
             if mission_type not in self._lists:
-                return [_ack(_sender(msg), mavlink.MAV_MISSION_UNSUPPORTED, mission_type)]
+                return [_ack(_sender(msg), MissionResult.UNSUPPORTED, mission_type)]
             count = len(self.items(mission_type))
             return [mavlink.MAVLink_mission_count_message(*_sender(msg), count, mission_type)]
         if kind in ("MISSION_REQUEST", "MISSION_REQUEST_INT"):
@@ -154,20 +155,20 @@ class MissionServer:
             self._client_uses_int = self._client_uses_int or as_int
             items = self.items(mission_type) if mission_type in self._lists else []
             if not 0 <= msg.seq < len(items):
-                return [_ack(_sender(msg), mavlink.MAV_MISSION_INVALID_SEQUENCE, mission_type)]
+                return [_ack(_sender(msg), MissionResult.INVALID_SEQUENCE, mission_type)]
             return [item_to_message(items[msg.seq], _sender(msg), as_int)]
         if kind == "MISSION_CLEAR_ALL":
             types = list(self._lists) if mission_type == mavlink.MAV_MISSION_TYPE_ALL else [
                 mission_type
             ]
             if any(t not in self._lists for t in types):
-                return [_ack(_sender(msg), mavlink.MAV_MISSION_UNSUPPORTED, mission_type)]
+                return [_ack(_sender(msg), MissionResult.UNSUPPORTED, mission_type)]
             if any(self._uploading(t) for t in types):
-                return [_ack(_sender(msg), mavlink.MAV_MISSION_ERROR, mission_type)]
+                return [_ack(_sender(msg), MissionResult.ERROR, mission_type)]
             for t in types:
                 self._lists[t] = []
                 self._on_change(t)
-            return [_ack(_sender(msg), mavlink.MAV_MISSION_ACCEPTED, mission_type)]
+            return [_ack(_sender(msg), MissionResult.ACCEPTED, mission_type)]
         return []
 
     def tick(self, now: float) -> list[Any]:
@@ -177,7 +178,7 @@ class MissionServer:
             return []
         if now - upload.received_at > UPLOAD_TIMEOUT:
             self._upload = None
-            return [_ack(upload.client, mavlink.MAV_MISSION_OPERATION_CANCELLED,
+            return [_ack(upload.client, MissionResult.OPERATION_CANCELLED,
                          upload.mission_type)]
         if now - upload.requested_at > REQUEST_INTERVAL:
             return [self._request(upload, now)]
@@ -199,17 +200,17 @@ class MissionServer:
         client = _sender(msg)
         mission_type = getattr(msg, "mission_type", MISSION)
         if mission_type not in self._lists:
-            return [_ack(client, mavlink.MAV_MISSION_UNSUPPORTED, mission_type)]
+            return [_ack(client, MissionResult.UNSUPPORTED, mission_type)]
         busy = self._upload
         if busy is not None and busy.mission_type == mission_type and busy.client != client:
-            return [_ack(client, mavlink.MAV_MISSION_DENIED, mission_type)]
+            return [_ack(client, MissionResult.DENIED, mission_type)]
         if now < BOOT_BUSY or msg.count > MAX_ITEMS[mission_type]:
-            return [_ack(client, mavlink.MAV_MISSION_NO_SPACE, mission_type)]
+            return [_ack(client, MissionResult.NO_SPACE, mission_type)]
         if msg.count == 0:
             self._upload = None
             self._lists[mission_type] = []
             self._on_change(mission_type)
-            return [_ack(client, mavlink.MAV_MISSION_ACCEPTED, mission_type)]
+            return [_ack(client, MissionResult.ACCEPTED, mission_type)]
         self._upload = _Upload(mission_type, msg.count, client, [], now, now)
         return [self._request(self._upload, now)]
 
@@ -220,11 +221,11 @@ class MissionServer:
         if upload is None or upload.mission_type != mission_type:
             # No upload of this list (it ended, or timed out): ArduPilot answers an item it
             # does not expect with MAV_MISSION_ERROR, never with a late ACCEPTED.
-            return [_ack(client, mavlink.MAV_MISSION_ERROR, mission_type)]
+            return [_ack(client, MissionResult.ERROR, mission_type)]
         if msg.seq != len(upload.items):
-            return [_ack(client, mavlink.MAV_MISSION_INVALID_SEQUENCE, mission_type)]
+            return [_ack(client, MissionResult.INVALID_SEQUENCE, mission_type)]
         if client != upload.client:
-            return [_ack(client, mavlink.MAV_MISSION_DENIED, mission_type)]
+            return [_ack(client, MissionResult.DENIED, mission_type)]
         item = item_from_message(msg)
         if isinstance(item, int):  # refused, as ArduPilot ends an upload on a bad item
             self._upload = None
@@ -236,4 +237,4 @@ class MissionServer:
         self._upload = None
         self._lists[mission_type] = upload.items
         self._on_change(mission_type)
-        return [_ack(client, mavlink.MAV_MISSION_ACCEPTED, mission_type)]
+        return [_ack(client, MissionResult.ACCEPTED, mission_type)]

@@ -61,6 +61,7 @@ from sitl.physics import (
     sqrt_controller,
     stopping_distance,
 )
+from sitl.results import Result
 from sitl.streams import Streams
 from sitl.track import Shape, Track, make_leg
 from tml.geo import to_global, to_local
@@ -292,7 +293,7 @@ class VehicleModel:
             return self._command(msg)
         if kind == "SET_MODE":
             ok = self.set_mode(self.mode_table.names.get(msg.custom_mode, ""))
-            result = M.MAV_RESULT_ACCEPTED if ok else M.MAV_RESULT_FAILED
+            result = Result.ACCEPTED if ok else Result.FAILED
             return [M.MAVLink_command_ack_message(M.MAVLINK_MSG_ID_SET_MODE, result)]
         if kind == "RC_CHANNELS_OVERRIDE":
             self._override_sticks(msg)
@@ -322,14 +323,14 @@ class VehicleModel:
         )
         return [ack, *extra]
 
-    def _execute(self, command: int, p: list[float], extra: list[Any]) -> int:
-        ok, failed = M.MAV_RESULT_ACCEPTED, M.MAV_RESULT_FAILED
+    def _execute(self, command: int, p: list[float], extra: list[Any]) -> Result:
+        ok, failed = Result.ACCEPTED, Result.FAILED
         if command == M.MAV_CMD_COMPONENT_ARM_DISARM:
             forced = round(p[1]) in FORCE_ARM
             return self._arm(forced) if p[0] >= 0.5 else self._disarm(forced)
         if command == M.MAV_CMD_DO_SET_MODE:
             if not round(p[0]) & M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
-                return M.MAV_RESULT_UNSUPPORTED
+                return Result.UNSUPPORTED
             return ok if self.set_mode(self.mode_table.names.get(round(p[1]), "")) else failed
         if command == M.MAV_CMD_NAV_TAKEOFF:
             return ok if self._takeoff(p[6]) else failed
@@ -358,7 +359,7 @@ class VehicleModel:
             return ok
         if command == M.MAV_CMD_MISSION_START:
             if p[0] or p[1]:
-                return M.MAV_RESULT_DENIED  # ArduPilot takes no first or last item
+                return Result.DENIED  # ArduPilot takes no first or last item
             if not self.set_mode("AUTO"):
                 return failed
             if self.auto is not None and self.auto.finished:
@@ -393,20 +394,20 @@ class VehicleModel:
                 return failed
             extra.append(built)
             return ok
-        return M.MAV_RESULT_UNSUPPORTED
+        return Result.UNSUPPORTED
 
-    def _change_speed(self, speed_type: float, speed: float) -> int:
+    def _change_speed(self, speed_type: float, speed: float) -> Result:
         """DO_CHANGE_SPEED as a command, as ArduCopter answers it: DENIED for a speed that
         is not positive or an unknown speed type, FAILED in a mode that has no speed to
         change (only AUTO, GUIDED and RTL have one)."""
         kind = int(speed_type) if math.isfinite(speed_type) else -1
         if not speed > 0 or kind not in (auto.SPEED_AIR, auto.SPEED_GROUND, auto.SPEED_CLIMB,
                                          auto.SPEED_DESCENT):
-            return M.MAV_RESULT_DENIED
+            return Result.DENIED
         if self.mode not in ("AUTO", "GUIDED", "RTL"):
-            return M.MAV_RESULT_FAILED
+            return Result.FAILED
         self.set_speed(kind, speed)
-        return M.MAV_RESULT_ACCEPTED
+        return Result.ACCEPTED
 
     # ------------------------------------------------------------ modes and arming
     def set_mode(self, name: str) -> bool:
@@ -475,15 +476,15 @@ class VehicleModel:
         )
         self.auto.start(index)
 
-    def _arm(self, forced: bool) -> int:
+    def _arm(self, forced: bool) -> Result:
         if self.armed:
-            return M.MAV_RESULT_ACCEPTED
+            return Result.ACCEPTED
         if not forced:
             problems = arming.failures(self, self.params["SIM_EKF_GPS_TIME"])
             for problem in problems:
                 self._text(M.MAV_SEVERITY_CRITICAL, f"Arm: {problem}")
             if problems:
-                return M.MAV_RESULT_FAILED
+                return Result.FAILED
         self.armed = True
         self._idle_since = self.time
         self._text(M.MAV_SEVERITY_INFO, "Arming motors")
@@ -492,7 +493,7 @@ class VehicleModel:
             self.home = Home(lat, lon, alt, self.heading)
         if self.origin_set:
             self._announce_origin()  # ArduCopter sends both at arming, home moved or not
-        return M.MAV_RESULT_ACCEPTED
+        return Result.ACCEPTED
 
     def extra_arming_failures(self) -> list[str]:
         """The simulator's own arming checks, after ArduCopter's start-up ones."""
@@ -516,13 +517,13 @@ class VehicleModel:
         for problem in arming.failures(self, self.params["SIM_EKF_GPS_TIME"]):
             self._text(M.MAV_SEVERITY_CRITICAL, f"PreArm: {problem}")
 
-    def _disarm(self, forced: bool) -> int:
+    def _disarm(self, forced: bool) -> Result:
         if not self.armed:
-            return M.MAV_RESULT_ACCEPTED
+            return Result.ACCEPTED
         if not self.landed and not forced:
-            return M.MAV_RESULT_FAILED
+            return Result.FAILED
         self.disarm()
-        return M.MAV_RESULT_ACCEPTED
+        return Result.ACCEPTED
 
     def disarm(self) -> None:
         """Stop the motors (a forced disarm in flight drops the vehicle)."""
@@ -540,16 +541,16 @@ class VehicleModel:
         return True
 
     # ------------------------------------------------------------ guided targets
-    def _reposition(self, p: list[float]) -> int:
+    def _reposition(self, p: list[float]) -> Result:
         change_mode = round(p[1]) & M.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE
         if self.mode != "GUIDED" and not change_mode:
-            return M.MAV_RESULT_DENIED
+            return Result.DENIED
         if not self.armed or self.landed:
-            return M.MAV_RESULT_FAILED
+            return Result.FAILED
         if self.mode != "GUIDED" and not self.set_mode("GUIDED"):
-            return M.MAV_RESULT_FAILED
+            return Result.FAILED
         self._go(self._reposition_target(p))
-        return M.MAV_RESULT_ACCEPTED
+        return Result.ACCEPTED
 
     def _reposition_target(self, p: list[float]) -> Vector:
         """DO_REPOSITION's point (latitude and longitude 0: here; altitude NaN: the present

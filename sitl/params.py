@@ -239,7 +239,7 @@ def param_replies(params: Params, msg: Any) -> list[Any]:
         return [param_value(params, name) for name in params]
     if kind == "PARAM_REQUEST_READ":
         name = params.name_at(msg.param_index) if msg.param_index >= 0 else _name(msg)
-        return [param_value(params, name)] if name in params else []
+        return [param_value(params, name)] if name is not None and name in params else []
     if kind == "PARAM_SET":
         name = _name(msg)
         if name not in params:

@@ -37,6 +37,7 @@ from sitl.model import TICK, Vector, VehicleModel
 from sitl.modes import PLANE
 from sitl.params import PLANE_DEFAULTS
 from sitl.physics import Limits
+from sitl.results import Result
 
 M = mavlink
 GRAVITY = 9.81
@@ -89,9 +90,10 @@ class PlaneModel(VehicleModel):
     def _cruise(self) -> float:
         return self._speed or self.params["AIRSPEED_CRUISE"]
 
-    def _orbit(self, centre: Vector, radius: float = 0.0, clockwise: bool = True) -> None:
+    def _orbit(self, centre: Vector, radius: float = 0.0, clockwise: bool = True) -> _Goal:
         self._goal = _Goal("orbit", centre, abs(radius) or self.loiter_radius, clockwise)
         self._landing = None
+        return self._goal
 
     def _orbit_here(self) -> None:
         self._orbit(self.position)
@@ -147,9 +149,9 @@ class PlaneModel(VehicleModel):
         """RTL circles home until told otherwise: nothing changes on the way."""
 
     # ------------------------------------------------------------ arming
-    def _arm(self, forced: bool) -> int:
+    def _arm(self, forced: bool) -> Result:
         result = super()._arm(forced)
-        if result == M.MAV_RESULT_ACCEPTED and self.landed:
+        if result == Result.ACCEPTED and self.landed:
             self._disarm_at = None
             if self.mode == "TAKEOFF":
                 self._text(M.MAV_SEVERITY_INFO, "Triggered AUTO. GPS speed = 0.0")
@@ -179,27 +181,27 @@ class PlaneModel(VehicleModel):
             self._text(M.MAV_SEVERITY_INFO, "Auto disarmed")
 
     # ------------------------------------------------------------ commands
-    def _execute(self, command: int, p: list[float], extra: list[Any]) -> int:
+    def _execute(self, command: int, p: list[float], extra: list[Any]) -> Result:
         if command == M.MAV_CMD_NAV_TAKEOFF:
-            return M.MAV_RESULT_FAILED  # only a quadplane takes off on command
+            return Result.FAILED  # only a quadplane takes off on command
         if command in (M.MAV_CMD_NAV_LAND, M.MAV_CMD_CONDITION_YAW):
-            return M.MAV_RESULT_UNSUPPORTED
+            return Result.UNSUPPORTED
         return super()._execute(command, p, extra)
 
-    def _reposition(self, p: list[float]) -> int:
+    def _reposition(self, p: list[float]) -> Result:
         """DO_REPOSITION: circle the point (param3 the radius, param4 non-zero
         counter-clockwise) in GUIDED; taken on the ground too, where nothing moves."""
         change_mode = round(p[1]) & M.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE
         if not change_mode and self.mode != "GUIDED":
-            return M.MAV_RESULT_FAILED
+            return Result.FAILED
         if self.mode != "GUIDED" and not self.set_mode("GUIDED"):
-            return M.MAV_RESULT_FAILED
+            return Result.FAILED
         target = self._reposition_target(p)
         clockwise = math.isnan(p[3]) or p[3] == 0
         radius = p[2] if not math.isnan(p[2]) and p[2] > 0 else 0.0
         if self.armed and not self.landed:
             self._orbit(target, radius, clockwise)
-        return M.MAV_RESULT_ACCEPTED
+        return Result.ACCEPTED
 
     def _global_target(self, msg: Any) -> None:
         """ArduPlane takes only the altitude of a SET_POSITION_TARGET_GLOBAL_INT."""
@@ -311,8 +313,7 @@ class PlaneModel(VehicleModel):
         to_centre = math.degrees(math.atan2(de, dn))
         if goal.kind == "direct":
             if distance < self._turn_radius(cruise):  # nothing moved it on: circle it
-                self._orbit(centre)
-                return self._steer(self._goal)  # type: ignore[arg-type]
+                return self._steer(self._orbit(centre))
             return to_centre, centre[2], cruise
         if goal.kind == "glide":
             # Down the line from where the glide started, aimed so that the flare (below

@@ -28,6 +28,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from sitl.model import TICK, Vector, VehicleModel
 from sitl.modes import ROVER
 from sitl.params import ROVER_DEFAULTS
+from sitl.results import Result
 
 M = mavlink
 GRAVITY = 9.81
@@ -99,15 +100,15 @@ class RoverModel(VehicleModel):
         """Rover never disarms by itself."""
 
     # ------------------------------------------------------------ commands
-    def _execute(self, command: int, p: list[float], extra: list[Any]) -> int:
+    def _execute(self, command: int, p: list[float], extra: list[Any]) -> Result:
         if command in (M.MAV_CMD_NAV_TAKEOFF, M.MAV_CMD_NAV_LAND, M.MAV_CMD_CONDITION_YAW):
-            return M.MAV_RESULT_UNSUPPORTED
+            return Result.UNSUPPORTED
         return super()._execute(command, p, extra)
 
-    def _change_speed(self, speed_type: float, speed: float) -> int:
+    def _change_speed(self, speed_type: float, speed: float) -> Result:
         """Rover takes a speed in AUTO, and in GUIDED only while it drives to a point."""
         if self.mode == "GUIDED" and self._target is None:
-            return M.MAV_RESULT_FAILED
+            return Result.FAILED
         return super()._change_speed(speed_type, speed)
 
     def _guided_ready(self) -> bool:
@@ -117,14 +118,14 @@ class RoverModel(VehicleModel):
         super()._go((target[0], target[1], 0.0))
         self._announce_arrival = self.mode == "GUIDED"
 
-    def _reposition(self, p: list[float]) -> int:
+    def _reposition(self, p: list[float]) -> Result:
         change_mode = round(p[1]) & M.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE
         if self.mode != "GUIDED" and not change_mode:
-            return M.MAV_RESULT_DENIED
+            return Result.DENIED
         if not self.armed or (self.mode != "GUIDED" and not self.set_mode("GUIDED")):
-            return M.MAV_RESULT_FAILED
+            return Result.FAILED
         self._go(self._reposition_target(p))
-        return M.MAV_RESULT_ACCEPTED
+        return Result.ACCEPTED
 
     # ------------------------------------------------------------ Pilot API
     def fly_to(self, target: Vector) -> None:

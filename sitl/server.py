@@ -123,7 +123,7 @@ class _Endpoint:
         if encoder is None:
             encoder = mavlink.MAVLink(None, self.model.system_id, component)
             self.encoders[component] = encoder
-        packet = msg.pack(encoder)
+        packet: bytes = msg.pack(encoder)
         encoder.seq = (encoder.seq + 1) % 256  # pack() leaves counting to send()
         return packet
 

@@ -59,6 +59,8 @@ from dataclasses import dataclass, field
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from sitl.results import MissionResult
+
 MISSION, FENCE, RALLY = 0, 1, 2
 
 Params = tuple[float, float, float, float]
@@ -78,7 +80,8 @@ class Stored:
 
 def f32(value: float) -> float:
     """``value`` rounded to a C float, as MAVLink carries and ArduPilot computes it."""
-    return struct.unpack("<f", struct.pack("<f", value))[0]
+    rounded: float = struct.unpack("<f", struct.pack("<f", value))[0]
+    return rounded
 
 
 def c_integer(value: float, bits: int, signed: bool = False) -> int:
@@ -289,7 +292,7 @@ def _longitude_ok(lng: float) -> bool:
     return abs(lng) <= 180e7
 
 
-def int_coordinates(command: int, x: float, y: float) -> tuple[int, int] | int:
+def int_coordinates(command: int, x: float, y: float) -> tuple[int, int] | MissionResult:
     """x and y of a legacy MISSION_ITEM as MISSION_ITEM_INT carries them, or the refusal.
 
     A position's degrees are scaled by 1e7 in float32 arithmetic, as ArduPilot does: the
@@ -298,15 +301,15 @@ def int_coordinates(command: int, x: float, y: float) -> tuple[int, int] | int:
     if command not in POSITION:
         return c_integer(f32(x), 32, True), c_integer(f32(y), 32, True)
     if not _latitude_ok(f32(x) * 1e7):
-        return M.MAV_MISSION_INVALID_PARAM5_X
+        return MissionResult.INVALID_PARAM5_X
     if not _longitude_ok(f32(y) * 1e7):
-        return M.MAV_MISSION_INVALID_PARAM6_Y
+        return MissionResult.INVALID_PARAM6_Y
     return (c_integer(f32(f32(x) * f32(1e7)), 32, True),
             c_integer(f32(f32(y) * f32(1e7)), 32, True))
 
 
 def store(mission_type: int, command: int, frame: int, params: Params, x: int, y: int,
-          z: float) -> Stored | int:
+          z: float) -> Stored | MissionResult:
     """What the vehicle reads back of an item, or the MAV_MISSION_RESULT refusing it."""
     p: Params = (f32(params[0]), f32(params[1]), f32(params[2]), f32(params[3]))
     if mission_type == FENCE:
@@ -317,27 +320,27 @@ def store(mission_type: int, command: int, frame: int, params: Params, x: int, y
 
 
 def _store_mission(command: int, frame: int, p: Params, x: int, y: int, z: float
-                   ) -> Stored | int:
+                   ) -> Stored | MissionResult:
     for index, value in enumerate(p):
         nan_allowed = (index == 3 and command in NAN_PARAM4) or (
             command == M.MAV_CMD_NAV_VTOL_LAND and index >= 2)
         if math.isinf(value) or (math.isnan(value) and not nan_allowed):
-            return M.MAV_MISSION_INVALID_PARAM1 + index
+            return MissionResult.invalid_param(index)
     conversion = CONVERSIONS.get(command)
     if conversion is None:
-        return M.MAV_MISSION_UNSUPPORTED
+        return MissionResult.UNSUPPORTED
     into, back = conversion
     cmd = _Command(command)
     into(cmd, p)
     if command in POSITION:
         if not _latitude_ok(x):
-            return M.MAV_MISSION_INVALID_PARAM5_X
+            return MissionResult.INVALID_PARAM5_X
         if not _longitude_ok(y):
-            return M.MAV_MISSION_INVALID_PARAM6_Y
+            return MissionResult.INVALID_PARAM6_Y
         if math.isnan(z) or abs(z) >= ALTITUDE_LIMIT:
-            return M.MAV_MISSION_INVALID_PARAM7
+            return MissionResult.INVALID_PARAM7
         if frame not in _POSITION_FRAMES:
-            return M.MAV_MISSION_UNSUPPORTED_FRAME
+            return MissionResult.UNSUPPORTED_FRAME
         cmd.lat, cmd.lng = x, y
         cmd.alt = c_integer(f32(z * 100.0), 32, True)
         cmd.relative, cmd.terrain = _POSITION_FRAMES[frame]
@@ -357,9 +360,9 @@ def _read_back(cmd: _Command, back: Back) -> Stored:
                   int(cmd.content.get("y", 0)), z, 1)
 
 
-def _store_fence(command: int, frame: int, p: Params, x: int, y: int) -> Stored | int:
+def _store_fence(command: int, frame: int, p: Params, x: int, y: int) -> Stored | MissionResult:
     if frame not in FENCE_FRAMES:
-        return M.MAV_MISSION_UNSUPPORTED_FRAME
+        return MissionResult.UNSUPPORTED_FRAME
     if command in (M.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
                    M.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION):
         param1 = float(c_integer(p[0], 8))  # the vertex count
@@ -368,21 +371,21 @@ def _store_fence(command: int, frame: int, p: Params, x: int, y: int) -> Stored 
     elif command == M.MAV_CMD_NAV_FENCE_RETURN_POINT:
         param1 = 0.0
     else:
-        return M.MAV_MISSION_UNSUPPORTED
+        return MissionResult.UNSUPPORTED
     return Stored(M.MAV_FRAME_GLOBAL, (param1, 0.0, 0.0, 0.0), x, y, 0.0, 0)
 
 
-def _store_rally(command: int, frame: int, x: int, y: int, z: float) -> Stored | int:
+def _store_rally(command: int, frame: int, x: int, y: int, z: float) -> Stored | MissionResult:
     if command != M.MAV_CMD_NAV_RALLY_POINT:
-        return M.MAV_MISSION_UNSUPPORTED
+        return MissionResult.UNSUPPORTED
     if frame not in RALLY_FRAMES:
-        return M.MAV_MISSION_UNSUPPORTED_FRAME
+        return MissionResult.UNSUPPORTED_FRAME
     if not _latitude_ok(x):
-        return M.MAV_MISSION_INVALID_PARAM5_X
+        return MissionResult.INVALID_PARAM5_X
     if not _longitude_ok(y):
-        return M.MAV_MISSION_INVALID_PARAM6_Y
+        return MissionResult.INVALID_PARAM6_Y
     if not -32768 <= z <= 32767:
-        return M.MAV_MISSION_INVALID_PARAM7
+        return MissionResult.INVALID_PARAM7
     relative = frame in (M.MAV_FRAME_GLOBAL_RELATIVE_ALT, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT)
     return Stored(M.MAV_FRAME_GLOBAL_RELATIVE_ALT if relative else M.MAV_FRAME_GLOBAL,
                   (0.0, 0.0, 0.0, 0.0), x, y, float(c_integer(z, 16, True)), 0)

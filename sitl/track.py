@@ -187,6 +187,12 @@ class Shape:
     jerk_time: float = 0.3
 
 
+def _along(origin: Vector, unit: Vector, distance: float) -> Vector:
+    """The point ``distance`` metres from ``origin`` along ``unit``."""
+    return (origin[0] + unit[0] * distance, origin[1] + unit[1] * distance,
+            origin[2] + unit[2] * distance)
+
+
 def make_leg(origin: Vector, destination: Vector, limits: Limits, shape: Shape,
              initial: float = 0.0) -> Leg:
     """A leg from ``origin`` to ``destination`` within ``limits`` and ``shape``, starting at
@@ -245,9 +251,9 @@ class Track:
         leg = self.leg
         if leg.start is not None and not self.reached and leg.limits != limits:
             s, v, _ = leg.at(time)
-            here = tuple(o + u * s for o, u in zip(leg.origin, leg.unit, strict=True))
-            self._base = tuple(b + u * s for b, u in zip(self._base, leg.unit, strict=True))
-            self.leg = make_leg(here, leg.destination, limits, shape, v)  # type: ignore[arg-type]
+            here = _along(leg.origin, leg.unit, s)
+            self._base = _along(self._base, leg.unit, s)
+            self.leg = make_leg(here, leg.destination, limits, shape, v)
             self.leg.start = time
         following = self.next
         if following is not None and following.start is None and following.limits != limits:
@@ -282,8 +288,7 @@ class Track:
     _now = 0.0
 
     def _fold(self, leg: Leg) -> None:
-        self._base = tuple(b + u * leg.curve.length for b, u in zip(
-            self._base, leg.unit, strict=True))  # type: ignore[assignment]
+        self._base = _along(self._base, leg.unit, leg.curve.length)
 
     def _may_turn(self, time: float) -> bool:
         """ArduPilot's conditions for starting the next leg of a fast waypoint."""

@@ -330,3 +330,13 @@ def test_attribute_location_from_the_source_text() -> None:
     assert xml.attribute_location(text, task, "missing") == task
     assert xml.attribute_location(text, Location("x.xml", 9, 1), "role") == Location(
         "x.xml", 9, 1)
+
+
+def test_a_required_attribute_missing_outside_the_schema_is_a_syntax_error() -> None:
+    # The builder trusts the schema; a document built without it gets a located error for
+    # an attribute the schema requires, not a traceback.
+    doc = xml.read_xml("w.xml", b'<world>\n  <home latitude="1" longitude="2"/>\n</world>')
+    with pytest.raises(MissionSyntaxError, match="<home> is missing the required attribute "
+                       "'altitude'") as info:
+        builder.build_world(doc)
+    assert info.value.location == Location("w.xml", 2, 3) and info.value.code == "E104"

@@ -35,7 +35,7 @@ from tml.language.model import (
     Termination,
     TerminationMode,
 )
-from tml.language.xml import XmlDocument, read_xml
+from tml.language.xml import XmlDocument, element_name, read_xml
 from tml.world import Cylinder, Geofence, Home, Prism, World, WorldObject
 
 
@@ -50,12 +50,16 @@ class _Builder:
     def loc(self, element: etree._Element, attribute: str | None = None) -> Location:
         return self.doc.location(element, attribute)
 
+    def number(self, element: etree._Element, attribute: str) -> float:
+        """A number attribute the schema requires."""
+        return float(self.doc.required(element, attribute))
+
     def children(self, element: etree._Element, tag: str) -> list[etree._Element]:
         groups = self._children.get(element)
         if groups is None:  # group once: the builder asks each element for several tags
             groups = self._children[element] = {}
             for child in element:
-                groups.setdefault(child.tag, []).append(child)
+                groups.setdefault(element_name(child), []).append(child)
         return groups.get(tag, [])
 
     def mission(self, root: etree._Element) -> Mission:
@@ -219,8 +223,8 @@ class _Builder:
         return Action(element.get("name", "").strip(), tuple(arguments), self.loc(element))
 
     def condition(self, element: etree._Element) -> Condition:
-        given = [(a, element.get(a)) for a in ("parameter", "label", "current_task",
-                                               "currentTask") if element.get(a) is not None]
+        given = [(a, value) for a in ("parameter", "label", "current_task", "currentTask")
+                 if (value := element.get(a)) is not None]
         if len(given) != 1:
             self.diagnostics.append(error(
                 self.loc(element), "E220",
@@ -265,8 +269,8 @@ class _Builder:
         home = None
         if homes:
             h = homes[0]
-            home = Home(float(h.get("latitude")), float(h.get("longitude")),
-                        float(h.get("altitude")), float(h.get("heading", "0")), self.loc(h))
+            home = Home(self.number(h, "latitude"), self.number(h, "longitude"),
+                        self.number(h, "altitude"), float(h.get("heading", "0")), self.loc(h))
         fences = self.children(element, "geofence")
         for extra in fences[1:]:
             self.diagnostics.append(error(self.loc(extra), "E253",
@@ -294,7 +298,7 @@ class _Builder:
                 north, east = self.point(child, home)
                 obstacles.append(Cylinder(
                     child.get("name", f"cylinder at line {child.sourceline}"), north, east,
-                    float(child.get("radius")), float(child.get("bottom", "0")),
+                    self.number(child, "radius"), float(child.get("bottom", "0")),
                     self.top(child), self.loc(child)))
             elif child.tag == "prism":
                 obstacles.append(Prism(
@@ -304,7 +308,8 @@ class _Builder:
             elif child.tag == "object":
                 north, east = self.point(child, home)
                 objects.append(WorldObject(
-                    child.get("kind"), child.get("id").strip(), north, east,
+                    self.doc.required(child, "kind"), self.doc.required(child, "id").strip(),
+                    north, east,
                     float(child.get("altitude", "0")), child.get("color", ""),
                     child.get("name", ""), self.loc(child)))
         return World(home, geofence, tuple(obstacles), tuple(objects), self.loc(element))
@@ -326,25 +331,25 @@ class _Builder:
         if local == world:
             self.diagnostics.append(error(
                 self.loc(element), "E253",
-                f"<{element.tag}> needs either north= and east= (metres from home) or "
+                f"<{element_name(element)}> needs either north= and east= (metres from home) or "
                 "latitude= and longitude=, not " + ("both" if local else "neither")))
             return (0.0, 0.0)
         names = ("north", "east") if local else ("latitude", "longitude")
         missing = [n for n in names if element.get(n) is None]
         if missing:
             self.diagnostics.append(error(
-                self.loc(element), "E253", f"<{element.tag}> is missing {missing[0]}="))
+                self.loc(element), "E253", f"<{element_name(element)}> is missing {missing[0]}="))
             return (0.0, 0.0)
         if local:
-            return float(element.get("north")), float(element.get("east"))
+            return self.number(element, "north"), self.number(element, "east")
         if home is None:
             self.diagnostics.append(error(
                 self.loc(element, "latitude"), "E253",
                 "latitude/longitude positions need a <home> in the same block",
                 "add <home latitude=... longitude=... altitude=.../>"))
             return (0.0, 0.0)
-        north, east, _ = geo.to_local(float(element.get("latitude")),
-                                      float(element.get("longitude")), home.altitude,
+        north, east, _ = geo.to_local(self.number(element, "latitude"),
+                                      self.number(element, "longitude"), home.altitude,
                                       home.latitude, home.longitude, home.altitude)
         return north, east
 

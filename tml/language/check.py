@@ -29,6 +29,7 @@ from tml.language import actions, kinds, parameters, skills
 from tml.language.diagnostics import Diagnostic, error, warning
 from tml.language.model import (
     Action,
+    Argument,
     Comparison,
     Composition,
     Condition,
@@ -415,7 +416,7 @@ class _Checker:
         order = {id(task): index for index, task in enumerate(self.tasks)}
         set_in_tasks: dict[str, list[int]] = defaultdict(list)
         set_by_events: set[str] = set()
-        reads: list[tuple[str, int | None, object]] = []
+        reads: list[tuple[str, int | None, Argument]] = []
         for holder, action in self.mission.actions():
             bound = self.label_arguments(action)
             index = order.get(id(holder))
@@ -462,7 +463,7 @@ class _Checker:
                     "memorize the point in an earlier task"))
 
     @staticmethod
-    def label_arguments(action: Action) -> list[tuple[str, actions.LabelUse, object]]:
+    def label_arguments(action: Action) -> list[tuple[str, actions.LabelUse, Argument]]:
         spec = actions.lookup(action.name)
         if spec is None:
             return []

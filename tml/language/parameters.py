@@ -132,6 +132,8 @@ ORDERINGS = frozenset({Comparison.LESS, Comparison.LESS_OR_EQUAL, Comparison.GRE
 
 def compare_numbers(value: float, comparison: Comparison | None, target: float) -> bool:
     """``value COMPARISON target`` for a number read and a number written."""
+    if comparison is None:
+        return False
     return {
         Comparison.EQUAL: math.isclose(value, target, abs_tol=1e-9),
         Comparison.NOT_EQUAL: not math.isclose(value, target, abs_tol=1e-9),
@@ -139,4 +141,4 @@ def compare_numbers(value: float, comparison: Comparison | None, target: float) 
         Comparison.LESS_OR_EQUAL: value <= target,
         Comparison.GREATER: value > target,
         Comparison.GREATER_OR_EQUAL: value >= target,
-    }.get(comparison, False)  # type: ignore[arg-type]
+    }.get(comparison, False)

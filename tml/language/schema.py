@@ -21,7 +21,7 @@ from lxml import etree
 
 from tml.errors import Location
 from tml.language.diagnostics import Diagnostic, error
-from tml.language.xml import XmlDocument
+from tml.language.xml import XmlDocument, element_name
 
 ROOTS = {"mission": "tml.xsd", "world": "world.xsd"}
 
@@ -45,22 +45,27 @@ def _lxml_schema(name: str) -> etree.XMLSchema:
 @functools.cache
 def _vocabulary(name: str) -> dict[str, tuple[set[str], set[str]]]:
     """For each element name: (allowed attribute names, allowed child element names)."""
-    import xmlschema  # slower to import; only needed when a file is invalid
+    # Slower to import; only needed when a file is invalid.
+    from xmlschema import XMLSchema
+    from xmlschema.validators import XsdComplexType, XsdElement, XsdGroup
 
-    schema = xmlschema.XMLSchema(str(schema_path(name)))
+    schema = XMLSchema(str(schema_path(name)))
     vocabulary: dict[str, tuple[set[str], set[str]]] = {}
 
-    def visit(element: object, seen: set[int]) -> None:
-        if id(element) in seen:
+    def visit(element: XsdElement, seen: set[int]) -> None:
+        if id(element) in seen or element.name is None:
             return
         seen.add(id(element))
         attributes, children = vocabulary.setdefault(element.name, (set(), set()))
         element_type = element.type
-        attributes.update(a for a in getattr(element_type, "attributes", {}) if a)
-        if element_type.has_complex_content():
+        if not isinstance(element_type, XsdComplexType):
+            return  # a simple type: text only, no attributes
+        attributes.update(a for a in element_type.attributes if a)
+        if element_type.has_complex_content() and isinstance(element_type.content, XsdGroup):
             for child in element_type.content.iter_elements():
-                children.add(child.name)
-                visit(child, seen)
+                if isinstance(child, XsdElement) and child.name is not None:
+                    children.add(child.name)
+                    visit(child, seen)
 
     for element in schema.elements.values():
         visit(element, set())
@@ -70,8 +75,9 @@ def _vocabulary(name: str) -> dict[str, tuple[set[str], set[str]]]:
 def validate(doc: XmlDocument, expected_root: str = "mission") -> list[Diagnostic]:
     """All schema violations of ``doc``, as diagnostics (empty when valid)."""
     root = doc.root
-    if root.tag != expected_root:
-        other = "a world file" if root.tag == "world" else f"<{root.tag}>"
+    name = element_name(root)
+    if name != expected_root:
+        other = "a world file" if name == "world" else f"<{name}>"
         return [error(doc.location(root), "E007",
                       f"expected a <{expected_root}> document, found {other}",
                       f"the root element must be <{expected_root}>")]
@@ -109,17 +115,17 @@ def _translate(doc: XmlDocument, entry: etree._LogEntry, schema_name: str) -> Di
 
 def _attribute_problem(doc: XmlDocument, element: etree._Element, attribute: str,
                        detail: str, schema_name: str) -> Diagnostic:
-    tag = element.tag
-    allowed = sorted(_vocabulary(schema_name).get(tag, (set(), set()))[0])
+    name = element_name(element)
+    allowed = sorted(_vocabulary(schema_name).get(name, (set(), set()))[0])
     if "is not allowed" in detail:
         guess = difflib.get_close_matches(attribute, allowed, n=1)
         hint = (f"did you mean {guess[0]!r}? " if guess else "") + \
-            f"<{tag}> accepts: {', '.join(allowed) or 'no attributes'}"
+            f"<{name}> accepts: {', '.join(allowed) or 'no attributes'}"
         return error(doc.location(element, attribute), "E103",
-                     f"<{tag}> has no attribute {attribute!r}", hint)
+                     f"<{name}> has no attribute {attribute!r}", hint)
     if "is required but missing" in detail:
         return error(doc.location(element), "E104",
-                     f"<{tag}> is missing the required attribute {attribute!r}",
+                     f"<{name}> is missing the required attribute {attribute!r}",
                      f'add {attribute}="..."')
     value = element.get(attribute, "")
     enumeration = re.search(r"set \{(.*)\}", detail)
@@ -129,10 +135,10 @@ def _attribute_problem(doc: XmlDocument, element: etree._Element, attribute: str
         hint = (f"did you mean {guess[0]!r}? " if guess else "") + \
             "expected one of: " + ", ".join(choices)
         return error(doc.location(element, attribute), "E105",
-                     f"<{tag} {attribute}={value!r}> is not an accepted value", hint)
+                     f"<{name} {attribute}={value!r}> is not an accepted value", hint)
     expected = _expected_type(detail)
     return error(doc.location(element, attribute), "E105",
-                 f"<{tag} {attribute}={value!r}> is not {expected}",
+                 f"<{name} {attribute}={value!r}> is not {expected}",
                  f"give {attribute}= as {expected}")
 
 
@@ -163,42 +169,42 @@ def _expected_type(detail: str) -> str:
 
 def _element_problem(doc: XmlDocument, element: etree._Element, detail: str,
                      schema_name: str) -> Diagnostic:
-    tag = element.tag
+    name = element_name(element)
     parent = element.getparent()
     if "This element is not expected" in detail:
-        context = parent.tag if parent is not None else ""
+        context = element_name(parent) if parent is not None else ""
         allowed = sorted(_vocabulary(schema_name).get(context, (set(), set()))[1])
-        guess = difflib.get_close_matches(str(tag), allowed, n=1)
+        guess = difflib.get_close_matches(name, allowed, n=1)
         expected = re.search(r"Expected is (?:one of )?\( ([^)]*) \)", detail)
         if expected:
             here = "expected here: " + expected.group(1)
         else:
             here = "nothing more is expected here"
-        hint = (f"did you mean <{guess[0]}>? " if guess and guess[0] != tag else "") + here
-        if tag == "action" and parent is not None and parent.tag == "task":
+        hint = (f"did you mean <{guess[0]}>? " if guess and guess[0] != name else "") + here
+        if name == "action" and parent is not None and parent.tag == "task":
             hint = ("a terminal task holds exactly one <action>, after its skills, "
                     "repeat and conditions, and no sub-tasks")
-        elif tag == "task" and parent is not None and parent.tag == "task":
+        elif name == "task" and parent is not None and parent.tag == "task":
             hint = "a task holds either one <action> or sub-tasks, not both"
         return error(doc.location(element), "E101",
-                     f"<{tag}> is not allowed here (inside <{context}>)", hint)
+                     f"<{name}> is not allowed here (inside <{context}>)", hint)
     required = re.search(r"The attribute '([^']+)' is required but missing", detail)
     if required:
         return _attribute_problem(doc, element, required.group(1), detail, schema_name)
     if "Missing child element" in detail:
-        if tag == "task":
+        if name == "task":
             return error(doc.location(element), "E102",
                          f"task {element.get('name', '')!r} holds neither an <action> "
                          "nor sub-tasks", "a terminal task holds one <action>; "
                          "a non-terminal task holds <task>s")
-        if tag == "mission":
+        if name == "mission":
             return error(doc.location(element), "E102", "the mission has no <task>",
                          "add at least one <task>")
-        if tag == "event":
+        if name == "event":
             return error(doc.location(element), "E102",
                          f"event {element.get('name', '')!r} has no <termination>",
                          'end it with <termination mode="CONTINUE"/> (or another mode)')
         expected = re.search(r"Expected is (?:one of )?\( ([^)]*) \)", detail)
-        return error(doc.location(element), "E102", f"<{tag}> is missing child elements",
+        return error(doc.location(element), "E102", f"<{name}> is missing child elements",
                      f"expected: {expected.group(1)}" if expected else "")
-    return error(doc.location(element), "E100", f"<{tag}>: {detail}")
+    return error(doc.location(element), "E100", f"<{name}>: {detail}")

@@ -66,6 +66,16 @@ class XmlDocument:
                 return self.location_of_offset(offset)
         return Location(self.file, line, column)
 
+    def required(self, element: etree._Element, attribute: str) -> str:
+        """The value of an attribute the schema requires; a missing one (a document built
+        without passing the schema) is a :class:`MissionSyntaxError` at the element."""
+        value = element.get(attribute)
+        if value is None:
+            raise MissionSyntaxError(
+                f"<{element_name(element)}> is missing the required attribute {attribute!r}",
+                self.location(element), "E104")
+        return value
+
     def element_at(self, xpath: str) -> etree._Element | None:
         """The element an lxml error path (``/mission/task[2]``) names, if any."""
         try:
@@ -73,6 +83,13 @@ class XmlDocument:
         except etree.XPathError:
             return None
         return found[0] if found and isinstance(found[0], etree._Element) else None
+
+
+def element_name(element: etree._Element) -> str:
+    """An element's name; "" for a comment or processing instruction. (lxml types a tag
+    wider, as bytes or QName, because a program may set one; a parsed tag is a str.)"""
+    name = element.tag
+    return name if isinstance(name, str) else ""
 
 
 _TAG_NAME = re.compile(r"<[A-Za-z_][\w.\-:]*")

@@ -376,7 +376,7 @@ class FakeVehicle:
         return VehicleState(
             vehicle_id=self.vehicle_id, time=self.time, ready=self.ready, armed=self.armed,
             armable=self.ready, landed=landed, mode=self.mode, position=self.position,
-            heading=self.heading, ground_speed=self.speed if self._moving() else 0.0,
+            heading=self.heading, ground_speed=self.speed if self._moving() is not None else 0.0,
             battery=self.battery, gps_fix=3, home=self.home, mission=self.mission,
             detections=MappingProxyType(dict(self.detections)),
             capabilities=self.capabilities, vehicle_type=self.vehicle_type)
@@ -476,9 +476,12 @@ class FakeVehicle:
             self._target = self._mission_points[0] if self._mission_points else None
         return None
 
-    def _moving(self) -> bool:
-        return self._target is not None and not self.stuck and \
-            math.dist(self._target, self.position) > 0.01
+    def _moving(self) -> Point | None:
+        """The target the vehicle is moving towards; None when it is not moving."""
+        target = self._target
+        if target is None or self.stuck or not math.dist(target, self.position) > 0.01:
+            return None
+        return target
 
     def advance(self, dt: float) -> None:
         """Move the clock and the vehicle on by ``dt`` seconds."""
@@ -491,14 +494,15 @@ class FakeVehicle:
             self.heading = (self.heading + step) % 360
             if abs(delta) <= self.yaw_rate * dt:
                 self._target_heading = None
-        if self._circle is not None and self._target is not None and not self._moving():
+        if self._circle is not None and self._target is not None and self._moving() is None:
             centre, radius, angle = self._circle  # on the circle: round it at its speed
             angle += self.speed * dt / radius
             self._circle = (centre, radius, angle)
             self._target = (centre[0] + radius * math.cos(angle),
                             centre[1] + radius * math.sin(angle), centre[2])
-        if self._moving():
-            self.position = _towards(self.position, self._target, self.speed * dt,
+        target = self._moving()
+        if target is not None:
+            self.position = _towards(self.position, target, self.speed * dt,
                                      self.climb_rate * dt)
         elif self._landing and self._target is not None:
             self._target = None  # over the landing point: descend from here

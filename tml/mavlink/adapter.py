@@ -386,14 +386,15 @@ class MavlinkVehicle:
         return local
 
     def _detections(self, now: float) -> Mapping[str, object]:
-        found: dict[str, object] = dict(self._values)
+        sets: dict[str, set[str]] = {}
         for (tag, number), when in self._seen.items():
             if now - when > self.detection_hold:
                 continue
             name = self._names.get((tag, number), str(number))
-            found.setdefault(DETECTION_SETS[tag], set()).add(name)  # type: ignore[union-attr]
-        return MappingProxyType({k: frozenset(v) if isinstance(v, set) else v
-                                 for k, v in found.items()})
+            sets.setdefault(DETECTION_SETS[tag], set()).add(name)
+        found: dict[str, object] = dict(self._values)
+        found.update((k, frozenset(v)) for k, v in sets.items())
+        return MappingProxyType(found)
 
     # --- the link listener (receive thread: must be quick) --------------------------------
 
@@ -487,7 +488,7 @@ class MavlinkVehicle:
             handler = _HANDLERS[type(request)]
             if not isinstance(request, (SetYaw, SetSpeed, Camera, Gripper, SetSkill)):
                 self._target = None  # the request takes the kept target's place
-            detail = handler(self, request)  # type: ignore[arg-type]
+            detail = handler(self, request)
         except CommandRejected as error:
             return fail("rejected", f"{error.command}: {error.result}")
         except MissionTransferError as error:

@@ -93,9 +93,11 @@ def parse_address(text: str, baud: int = 57600) -> Address:
 class Machine(Protocol):
     """What :meth:`Link.run` drives: a transfer, a command sender, a mode change."""
 
-    deadline: float
     inputs: Any
     """The plain message type(s) (a type or a union) the machine is fed."""
+
+    @property
+    def deadline(self) -> float: ...
 
     @property
     def done(self) -> bool: ...
@@ -159,11 +161,12 @@ class Link:
                 raise VehicleError("a MAVLink 2 signing key is 32 bytes")
             self._conn.setup_signing(signing_key, sign_outgoing=True,
                                      allow_unsigned_callback=lambda _mav, _msgid: False)
-        self._lock = threading.Condition()
+        lock = threading.RLock()
+        self._lock = threading.Condition(lock)
         # Woken only when a machine finishes or its deadline comes closer, so that a
         # transfer's caller does not wake (and take the GIL from the receive thread) on
         # every message.
-        self._machine_done = threading.Condition(self._lock)
+        self._machine_done = threading.Condition(lock)
         self._send_lock = threading.Lock()
         self._vehicles: dict[int, VehicleInfo] = {}
         self._trackers: dict[int, TelemetryTracker] = {}

@@ -64,6 +64,7 @@ import struct
 import types
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import TypedDict, Unpack
 
 from tml.errors import MissionTransferError
 
@@ -189,6 +190,15 @@ class Progress:
     total: int
 
 
+class TransferOptions(TypedDict, total=False):
+    """The options every transfer takes (see :class:`Transfer`)."""
+
+    system_id: int | None
+    timeout: float
+    item_timeout: float
+    retries: int
+
+
 class Transfer:
     """What upload, download and clear share: the timer, the retry count, the outcome."""
 
@@ -295,8 +305,8 @@ class Upload(Transfer):
     operation = "upload"
 
     def __init__(self, items: list[MissionItem], mission_type: int = MissionType.MISSION,
-                 offer_next: bool = True, **options: float | int | None) -> None:
-        super().__init__(mission_type, **options)  # type: ignore[arg-type]
+                 offer_next: bool = True, **options: Unpack[TransferOptions]) -> None:
+        super().__init__(mission_type, **options)
         self.offer_next = offer_next
         self._round = 0
         for index, item in enumerate(items):
@@ -388,8 +398,8 @@ class Download(Transfer):
     operation = "download"
 
     def __init__(self, mission_type: int = MissionType.MISSION,
-                 **options: float | int | None) -> None:
-        super().__init__(mission_type, **options)  # type: ignore[arg-type]
+                 **options: Unpack[TransferOptions]) -> None:
+        super().__init__(mission_type, **options)
         self.count: int | None = None
         self._received: dict[int, MissionItem] = {}
 
@@ -607,7 +617,8 @@ def ardupilot_form(item: MissionItem) -> dict[str, Expected]:
 
 
 def _f32(value: float) -> float:
-    return struct.unpack("<f", struct.pack("<f", value))[0]
+    rounded: float = struct.unpack("<f", struct.pack("<f", value))[0]
+    return rounded
 
 
 _FRAME_FAMILY = {5: 0, 6: 3, 11: 10}  # an _INT frame -> its float twin

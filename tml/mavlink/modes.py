@@ -29,13 +29,15 @@ from tml.mavlink.codec import mavlink, mavutil
 from tml.mavlink.command import (
     RETRIES,
     TIMEOUT,
+    Command,
     CommandAck,
     CommandLong,
     CommandSender,
     Heartbeat,
 )
 
-PX4 = mavlink.MAV_AUTOPILOT_PX4
+PX4: int = mavlink.MAV_AUTOPILOT_PX4
+ARDUPILOT: int = mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
 CONFIRM_TIMEOUT = 3.0
 """Seconds after the ACK within which a HEARTBEAT must show the mode (three heartbeats)."""
 STRAGGLER_WINDOW = 32
@@ -55,8 +57,8 @@ def mode_names(vehicle_type: int, autopilot: int) -> list[str]:
 def mode_name(vehicle_type: int, autopilot: int, base_mode: int, custom_mode: int) -> str:
     """The name of the mode a HEARTBEAT reports (``Mode(<n>)`` when unknown)."""
     if autopilot == PX4:
-        return mavutil.interpret_px4_mode(base_mode, custom_mode)
-    table = mavutil.mode_mapping_bynumber(vehicle_type) or {}
+        return str(mavutil.interpret_px4_mode(base_mode, custom_mode))
+    table: dict[int, str] = mavutil.mode_mapping_bynumber(vehicle_type) or {}
     return table.get(custom_mode, f"Mode({custom_mode})")
 
 
@@ -142,11 +144,11 @@ class ModeChange:
                                    f"{self.shown}, not {self.mode}", self.system_id)
         return None
 
-    def start(self, now: float) -> list[CommandLong]:
+    def start(self, now: float) -> list[Command]:
         """The first transmission of the command."""
-        return self.sender.start(now)  # type: ignore[return-value]
+        return self.sender.start(now)
 
-    def receive(self, msg: CommandAck | Heartbeat, now: float) -> list[CommandLong]:
+    def receive(self, msg: CommandAck | Heartbeat, now: float) -> list[Command]:
         """Feed a COMMAND_ACK or an autopilot HEARTBEAT."""
         if isinstance(msg, CommandAck):
             waiting = not self.sender.done
@@ -160,10 +162,10 @@ class ModeChange:
             self._confirm_by = float("inf")
         return []
 
-    def tick(self, now: float) -> list[CommandLong]:
+    def tick(self, now: float) -> list[Command]:
         """Retransmit the command, or give up waiting for the HEARTBEAT."""
         if not self.sender.done:
-            return self.sender.tick(now)  # type: ignore[return-value]
+            return self.sender.tick(now)
         if self.sender.accepted and not self.done and now >= self._confirm_by:
             self.timed_out = True
             self._confirm_by = float("inf")

@@ -40,7 +40,13 @@ from tml.mavlink.mission import (
     read_back_differences,
     with_home_placeholder,
 )
-from tml.mavlink.modes import CONFIRM_TIMEOUT, ModeChange, commanded_mode, set_mode_command
+from tml.mavlink.modes import (
+    ARDUPILOT,
+    CONFIRM_TIMEOUT,
+    ModeChange,
+    commanded_mode,
+    set_mode_command,
+)
 from tml.mavlink.telemetry import Telemetry
 
 DEFAULT_RATES = {
@@ -311,7 +317,7 @@ class Vehicle:
     @property
     def keeps_home_in_item_zero(self) -> bool:
         """ArduPilot stores home as mission item 0; PX4 does not."""
-        return self.info.autopilot == mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
+        return self.info.autopilot == ARDUPILOT
 
     @property
     def stored_form(self) -> ItemForm:

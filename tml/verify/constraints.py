@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from enum import StrEnum
 from functools import lru_cache
 
+import numpy as np
 import shapely
 from shapely.geometry import LineString, Point, Polygon
 
@@ -285,7 +286,7 @@ def _limits(step: Step, model: FlightModel, fail: _Fail) -> None:
         outside = path.difference(polygon)
         if not outside.is_empty:
             corners = shapely.points(shapely.get_coordinates(outside))
-            beyond = float(max(shapely.distance(corners, polygon)))
+            beyond = float(np.max(shapely.distance(corners, polygon)))
             fail(_C.GEOFENCE, "the path leaves the geofence polygon", beyond, "<=", 0.0, "m")
 
 

@@ -71,7 +71,8 @@ class Planner:
     def __init__(self, obstacles: Sequence[Obstacle], clearance: float) -> None:
         self.obstacles = tuple(obstacles)
         self.clearance = clearance
-        cores, radii = [], []
+        cores: list[Point | Polygon] = []
+        radii: list[float] = []
         for obstacle in self.obstacles:
             if isinstance(obstacle, Cylinder):
                 cores.append(Point(obstacle.north, obstacle.east))
@@ -144,8 +145,8 @@ class Planner:
         return self._nodes[index]
 
     def _flat_distance(self, index: int, point: tuple[float, float]) -> float:
-        return max(float(shapely.distance(self.cores[index], Point(point))) - self.radii[index],
-                   0.0)
+        return max(float(shapely.distance(self.cores[index], Point(point)))
+                   - float(self.radii[index]), 0.0)
 
     def _shortest(self, a2: tuple[float, float], b2: tuple[float, float],
                   active: list[int], soft: set[int]) -> list[tuple[float, float]] | None:
@@ -183,7 +184,10 @@ class Planner:
             segments = shapely.linestrings(np.stack(
                 [np.broadcast_to(nodes[node], (len(others), 2)), nodes[others]], axis=1))
             hit, polygon = tree.query(segments, predicate="intersects")
-            hit = hit[self._blocking(hit, polygon, node, others, segments, active, soft)]
+            # An (n, 2, 2) array makes n lines, an array; shapely's annotations cannot tell
+            # an array's shape and also allow the single LineString of a 2-D one.
+            hit = hit[self._blocking(hit, polygon, node, others,
+                                     segments, active, soft)]  # type: ignore[arg-type]
             visible = np.ones(len(others), dtype=bool)
             visible[hit] = False
             reached = others[visible]

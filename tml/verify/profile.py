@@ -23,6 +23,8 @@ from tml.errors import TmlError
 from tml.language.kinds import VEHICLE_TYPES, Kind, kind_of
 
 SHIPPED = ("quadcopter", "fixed-wing", "rover")
+DEFAULT_VEHICLE_TYPE = "quadcopter"
+"""The vehicle type of a profile that does not say."""
 SHIPPED_FOR_KIND = {Kind.MULTICOPTER: "quadcopter", Kind.FIXED_WING: "fixed-wing",
                     Kind.GROUND: "rover"}
 """The shipped profile that describes a vehicle of each kind."""
@@ -54,7 +56,7 @@ class VehicleProfile:
     return_hover: float  # s RETURN_HOME_AND_LAND hovers over home before it descends
     min_turn_radius: float  # m, smallest loiter circle (0 for a multicopter)
     max_flight_time: float  # s from the start of the mission to its end; 0: no limit
-    vehicle_type: str = "quadcopter"  # a word of tml.language.kinds.VEHICLE_TYPES
+    vehicle_type: str = DEFAULT_VEHICLE_TYPE  # a word of tml.language.kinds.VEHICLE_TYPES
 
     @property
     def kind(self) -> Kind:
@@ -74,6 +76,15 @@ TEXT_KEYS = ("name", "vehicle_type")
 NUMBER_KEYS = tuple(f.name for f in fields(VehicleProfile) if f.name not in TEXT_KEYS)
 
 
+def _numbers(profile: VehicleProfile) -> dict[str, float]:
+    numbers: dict[str, float] = {key: getattr(profile, key) for key in NUMBER_KEYS}
+    return numbers
+
+
+def _profile(name: str, vehicle_type: str, numbers: Mapping[str, float]) -> VehicleProfile:
+    return VehicleProfile(name=name, vehicle_type=vehicle_type, **numbers)
+
+
 def _problem(file: str, key: str, why: str) -> TmlError:
     return TmlError(f"{file}: key {key!r}: {why}")
 
@@ -85,21 +96,22 @@ def profile_from_mapping(data: Mapping[str, object], file: str,
     Raises :class:`TmlError` naming the file and the key on an unknown key, a missing key,
     a value that is not a number, or a number out of range.
     """
-    values: dict[str, object] = {} if base is None else {
-        f.name: getattr(base, f.name) for f in fields(VehicleProfile)}
+    name = None if base is None else base.name
+    vehicle_type = DEFAULT_VEHICLE_TYPE if base is None else base.vehicle_type
+    values = {} if base is None else _numbers(base)
     for key, value in data.items():
         if key == "base":
             continue
         if key == "name":
             if not isinstance(value, str) or not value.strip():
                 raise _problem(file, key, "expected a non-empty string")
-            values[key] = value
+            name = value
             continue
         if key == "vehicle_type":
-            if value not in VEHICLE_TYPES:
+            if not isinstance(value, str) or value not in VEHICLE_TYPES:
                 raise _problem(file, key, f"expected one of {', '.join(sorted(VEHICLE_TYPES))}"
                                           f", got {value!r}")
-            values[key] = value
+            vehicle_type = value
             continue
         if key not in NUMBER_KEYS:
             raise _problem(file, key, "unknown key; known keys: " + ", ".join(NUMBER_KEYS))
@@ -110,14 +122,13 @@ def profile_from_mapping(data: Mapping[str, object], file: str,
             bound = "at least 0" if key in _MAY_BE_ZERO else "greater than 0"
             raise _problem(file, key, f"must be a finite number {bound}, got {value!r}")
         values[key] = number
-    values.setdefault("name", Path(file).stem)
     for key, default in _OPTIONAL.items():
         values.setdefault(key, default)
     for key in NUMBER_KEYS:
         if key not in values:
             raise _problem(file, key, "missing (or name a shipped profile with base = "
                                       f"\"{SHIPPED[0]}\" to take the rest from it)")
-    profile = VehicleProfile(**values)  # type: ignore[arg-type]
+    profile = _profile(Path(file).stem if name is None else name, vehicle_type, values)
     if profile.cruise_speed > profile.max_speed:
         raise _problem(file, "cruise_speed", f"{profile.cruise_speed:g} m/s is above "
                                              f"max_speed {profile.max_speed:g} m/s")
@@ -137,8 +148,8 @@ def load_profile(source: str | Path) -> VehicleProfile:
     """
     text_source = str(source)
     if text_source in SHIPPED:
-        data = resources.files("tml.verify").joinpath(f"profiles/{text_source}.toml")
-        return profile_from_mapping(tomllib.loads(data.read_text("utf-8")), text_source)
+        shipped = resources.files("tml.verify").joinpath(f"profiles/{text_source}.toml")
+        return profile_from_mapping(tomllib.loads(shipped.read_text("utf-8")), text_source)
     path = Path(source)
     try:
         data = tomllib.loads(path.read_text("utf-8"))
@@ -234,7 +245,7 @@ def profile_from_parameters(params: Mapping[str, float], base: VehicleProfile) -
         low = _positive(params, "BATT_LOW_MAH")
         if low is not None and low < capacity:
             changes["battery_reserve"] = 100.0 * low / capacity
-    profile = replace(base, **changes)
+    profile = _profile(base.name, base.vehicle_type, _numbers(base) | changes)
     if profile.max_speed < profile.cruise_speed:
         profile = replace(profile, max_speed=profile.cruise_speed)
     return profile

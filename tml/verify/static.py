@@ -302,8 +302,8 @@ class _Walker:
                 state, labels = step.after, step.labels
             if worst is None or steps[-1][1].after.battery < worst[-1][1].after.battery:
                 worst = steps
-        for bound, step in zip(bounds, worst or [], strict=False):
-            self.row(bound, [step], "", event.name)
+        for bound, picked in zip(bounds, worst or [], strict=False):
+            self.row(bound, [picked], "", event.name)
 
 
 def _guarded_labels(task: Task) -> frozenset[str]:

@@ -252,6 +252,7 @@ def _vehicles(args: argparse.Namespace, world: World) -> Iterator[tuple[list[Any
     from tml.mavlink.link import Link
 
     wake = threading.Event()
+    addresses: list[tuple[str, int | None]]
     with contextlib.ExitStack() as stack:
         if args.sim:
             from sitl.server import Simulator
@@ -265,7 +266,7 @@ def _vehicles(args: argparse.Namespace, world: World) -> Iterator[tuple[list[Any
         else:
             clock = time.monotonic
             addresses = [(url, None) for url in args.connect]
-        vehicles = []
+        vehicles: list[MavlinkVehicle] = []
         link_clock = None  # the runner's clock
         for address, system_id in addresses:
             link = stack.enter_context(Link(address, outputs=args.out))

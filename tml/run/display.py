@@ -99,8 +99,8 @@ def _events(views: Views) -> Text:
     if not fired:
         text.append("none yet", "dim")
     for t, index, name in fired[-EVENTS_SHOWN:]:
-        who = f" (vehicle {views[index][1].vehicle_id})" \
-            if len(views) > 1 and views[index][1] else ""
+        state = views[index][1]
+        who = f" (vehicle {state.vehicle_id})" if len(views) > 1 and state is not None else ""
         text.append(f"\n  {t:7.1f} s  {name}{who}", "magenta")
     return text
 
@@ -128,9 +128,10 @@ def render(mission: Mission, views: Views) -> RenderableType:
 
 def render_text(mission: Mission, views: Views, width: int = 160) -> str:
     """The view as plain text (no colours), e.g. for tests and logs."""
-    console = Console(file=io.StringIO(), width=width, color_system=None, force_terminal=False)
+    text = io.StringIO()
+    console = Console(file=text, width=width, color_system=None, force_terminal=False)
     console.print(render(mission, views))
-    return console.file.getvalue()  # type: ignore[attr-defined]
+    return text.getvalue()
 
 
 class LiveDisplay:

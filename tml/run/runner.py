@@ -45,6 +45,7 @@ import traceback
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from enum import IntEnum
+from functools import partial
 from typing import Any
 
 from tml.engine import Interpreter, Options, Output, Status, View
@@ -173,7 +174,7 @@ class Runner:
 
     def views(self) -> list[tuple[View, VehicleState | None]]:
         """The display's view of each vehicle: the engine's view and the last state."""
-        views = []
+        views: list[tuple[View, VehicleState | None]] = []
         for crew in self.crews:
             found = crew.engine.views()
             views.extend((found[f.vehicle.vehicle_id], f.state) for f in crew.flights)
@@ -196,7 +197,7 @@ class Runner:
         for flight in self.flights:
             flight.state = flight.vehicle.state()
         for crew in self.crews:
-            self._guarded(crew, now, lambda c=crew: c.engine.start(now, c.states()))
+            self._guarded(crew, now, partial(crew.engine.start, now, crew.states()))
         while any(c.running for c in self.crews):
             self._wait(1.0 / self.options.rate)
             now = self.clock()
@@ -299,8 +300,8 @@ class Runner:
             flight.cause = "link"
             reason = f"link lost for more than {self.options.link_lost_limit:g} s"
             self._said(f"vehicle {flight.vehicle.vehicle_id}: {reason}")
-            self._guarded(crew, now, lambda f=flight, r=reason: crew.engine.lost(
-                now, f.vehicle.vehicle_id, r))
+            self._guarded(crew, now, partial(crew.engine.lost, now, flight.vehicle.vehicle_id,
+                                             reason))
         if crew.running:
             self._guarded(crew, now, lambda: crew.engine.step(now, crew.states(), results))
 
@@ -338,7 +339,7 @@ class Runner:
                 self._said(f"vehicle{'s' if len(crew.flights) > 1 else ''} "
                            f"{', '.join(str(f.vehicle.vehicle_id) for f in crew.flights)}: "
                            f"aborting: {reason}")
-                self._guarded(crew, now, lambda c=crew: c.engine.abort(now, c.states(), reason))
+                self._guarded(crew, now, partial(crew.engine.abort, now, crew.states(), reason))
 
     # --- the end -----------------------------------------------------------------------------
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -10,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from tml.commands.cli import main
+from tml.errors import ExitCode
 
 VALID = ('<mission name="m">\n  <task name="Take off"><action name="TAKE_OFF"/></task>\n'
          '  <task name="Land"><action name="LAND"/></task>\n</mission>\n')
@@ -144,3 +146,15 @@ def test_sim_help_is_the_simulator_help(capsys: pytest.CaptureFixture[str]) -> N
     assert main(["sim", "--help"]) == 0
     assert "--vehicles" in capsys.readouterr().out
     assert main(["sim", "--vehicles", "0"]) == 2
+
+
+def test_the_documented_exit_codes_are_the_enums() -> None:
+    # The numbers are an interface to shells and scripts: docs/run.md's table and the one
+    # ExitCode enum every command returns must agree.
+    doc = (Path(__file__).resolve().parent.parent / "docs" / "run.md").read_text("utf-8")
+    section = doc.split("## Exit codes", 1)[1].split("\n## ", 1)[0]
+    rows = re.findall(r"^\| (\d) \| (.+?) \|$", section, re.M)
+    assert [int(code) for code, _ in rows] == [
+        ExitCode.OK, ExitCode.INVALID, ExitCode.ABORTED, ExitCode.FAILURE]
+    assert "completed" in rows[0][1] and "invalid" in rows[1][1]
+    assert "aborted" in rows[2][1] and "failure" in rows[3][1]

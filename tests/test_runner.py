@@ -7,9 +7,10 @@ import itertools
 import json
 
 from tml.engine import Status
+from tml.errors import ExitCode
 from tml.language.validation import validate_file
 from tml.run.journal import Journal
-from tml.run.runner import ExitCode, Runner, RunOptions
+from tml.run.runner import Runner, RunOptions
 from tml.vehicle import FakeVehicle, Hold, Land, ReturnToLaunch, VehicleState
 
 TAKE_OFF = ('<task name="Take off"><action name="TAKE_OFF"><argument name="altitude" '
@@ -72,7 +73,7 @@ def run(body: str, events: str = "", vehicles: int = 1, options: RunOptions | No
 
 def test_completed_mission_exits_zero_and_logs_everything() -> None:
     outcome, sim, lines, said, _ = run(TAKE_OFF + GO + LAND)
-    assert outcome.exit_code == ExitCode.COMPLETED
+    assert outcome.exit_code == ExitCode.OK
     assert [v.status for v in outcome.vehicles] == [Status.COMPLETED]
     kinds = {line["kind"] for line in lines}
     assert {"run", "mission", "task", "action", "request", "result", "telemetry"} <= kinds
@@ -88,7 +89,7 @@ def test_completed_mission_exits_zero_and_logs_everything() -> None:
 def test_every_vehicle_flies_the_mission() -> None:
     outcome, _, lines, _, _ = run(TAKE_OFF + GO + LAND, vehicles=2)
     assert [v.vehicle_id for v in outcome.vehicles] == [1, 2]
-    assert outcome.exit_code == ExitCode.COMPLETED
+    assert outcome.exit_code == ExitCode.OK
     assert {line.get("vehicle") for line in lines if line["kind"] == "telemetry"} == {1, 2}
 
 
@@ -136,7 +137,7 @@ def test_link_lost_beyond_the_limit_aborts_with_exit_four() -> None:
     runner = Runner(mission(TAKE_OFF + GO + LAND), sim.vehicles, clock=sim.clock,
                     options=RunOptions(link_lost_limit=2.0), wait=sim.wait)
     outcome = runner.run()
-    assert outcome.exit_code == ExitCode.VEHICLE_FAILURE
+    assert outcome.exit_code == ExitCode.FAILURE
     assert outcome.vehicles[0].cause == "link"
     assert "link lost" in outcome.vehicles[0].reason
     assert isinstance(sim.vehicles[0].submitted[-1], ReturnToLaunch)
@@ -145,7 +146,7 @@ def test_link_lost_beyond_the_limit_aborts_with_exit_four() -> None:
 
 def test_interpreter_exception_commands_the_safe_state_without_it() -> None:
     outcome, sim, lines, said, _ = run(TAKE_OFF + GO + LAND, broken_engine=True)
-    assert outcome.exit_code == ExitCode.VEHICLE_FAILURE
+    assert outcome.exit_code == ExitCode.FAILURE
     assert isinstance(sim.vehicles[0].submitted[-1], ReturnToLaunch)
     assert any("ReturnToLaunch (interpreter error" in s for s in said)
     assert outcome.vehicles[0].cause == "error"
@@ -158,7 +159,7 @@ def test_unhandled_action_failure_exits_four() -> None:
     runner = Runner(mission(TAKE_OFF + LAND), sim.vehicles, clock=sim.clock, wait=sim.wait)
     outcome = runner.run()
     assert outcome.vehicles[0].status is Status.FAILED
-    assert outcome.exit_code == ExitCode.VEHICLE_FAILURE
+    assert outcome.exit_code == ExitCode.FAILURE
 
 
 def test_vehicle_left_flying_in_auto_is_brought_back() -> None:
@@ -168,7 +169,7 @@ def test_vehicle_left_flying_in_auto_is_brought_back() -> None:
     events = ('<event name="Stop"><condition parameter="ALTITUDE" comparison="greater than" '
               'value="3"/><termination mode="END_MISSION"/></event>')
     outcome, sim, lines, said, _ = run(body, events, options=RunOptions(safe_state="hold"))
-    assert outcome.exit_code == ExitCode.COMPLETED
+    assert outcome.exit_code == ExitCode.OK
     vehicle = sim.vehicles[0]
     safety = [line for line in lines if line["kind"] == "safety"]
     assert safety and safety[0]["request"] == "Hold", "the run must say what it did"
@@ -190,7 +191,7 @@ def test_a_mission_with_roles_picks_vehicles_with_the_payloads_given() -> None:
     runner = Runner(mission(FLEET), sim.vehicles, clock=sim.clock, wait=sim.wait,
                     journal=Journal(log), payloads={3: ["sidescan"]})
     outcome = runner.run()
-    assert outcome.exit_code == ExitCode.COMPLETED
+    assert outcome.exit_code == ExitCode.OK
     picks = {line["role"]: line["vehicles"] for line in map(json.loads, log.getvalue().split(
         "\n")[:-1]) if line["kind"] == "pick"}
     assert picks == {"scout": [3], "spare": [1]}  # only 3 carries the sidescan
@@ -210,7 +211,7 @@ def test_a_lost_vehicle_fails_its_branch_and_the_other_is_stopped_safely() -> No
     runner = Runner(mission(FLEET), sim.vehicles, clock=sim.clock, wait=sim.wait,
                     options=RunOptions(link_lost_limit=2.0), payloads={1: ["sidescan"]})
     outcome = runner.run()
-    assert outcome.exit_code == ExitCode.VEHICLE_FAILURE
+    assert outcome.exit_code == ExitCode.FAILURE
     assert [v.cause for v in outcome.vehicles] == ["", "link"]
     assert "vehicle 2: link lost" in outcome.vehicles[0].reason
     # The healthy vehicle's branch was stopped and it was sent home, as was the lost one.
@@ -248,7 +249,7 @@ def test_the_first_task_waits_until_the_vehicle_is_ready() -> None:
                     journal=Journal(log))
     outcome = runner.run()
     lines = [json.loads(line) for line in log.getvalue().splitlines()]
-    assert outcome.exit_code == ExitCode.COMPLETED
+    assert outcome.exit_code == ExitCode.OK
     ready = [(line["t"], line["awaiting"]) for line in lines if line["kind"] == "ready"]
     unarmable = ["GPS fix", "pre-arm checks", "autopilot: PreArm: Need Position Estimate"]
     assert ready[0] == (0.0, ["GPS status", "position", "home position", "battery status",
@@ -269,7 +270,7 @@ def test_a_vehicle_never_ready_fails_the_run_with_the_autopilots_reason() -> Non
     runner = Runner(mission(TAKE_OFF + LAND), sim.vehicles, clock=sim.clock, wait=sim.wait,
                     options=RunOptions(ready_timeout=5.0), on_safety=said.append)
     outcome = runner.run()
-    assert outcome.exit_code == ExitCode.VEHICLE_FAILURE
+    assert outcome.exit_code == ExitCode.FAILURE
     (vehicle,) = outcome.vehicles
     assert (vehicle.status, vehicle.cause) == (Status.FAILED, "ready")
     assert vehicle.reason == ("not ready after 5 s: waiting for GPS fix, pre-arm checks, "

@@ -1,13 +1,30 @@
-"""The one error hierarchy of tml.
+"""The one error hierarchy of tml, and the exit codes its commands end with.
 
 Mission errors (what the author wrote) are apart from vehicle and link errors (what
 happened in flight). Every mission error carries the file, line and column it is about;
-every vehicle error carries the vehicle (MAVLink system id) it is about.
+every vehicle error carries the vehicle (MAVLink system id) it is about. :class:`ExitCode`
+is how an outcome reaches the shell: each command documents which of them it uses.
 """
 
 from __future__ import annotations
 
+from enum import IntEnum
 from typing import NamedTuple
+
+
+class ExitCode(IntEnum):
+    """The exit codes of the ``tml`` commands (one number, one meaning, for all of them)."""
+
+    OK = 0
+    """Every file valid, the mission feasible, completed on every vehicle, or stopped."""
+    INVALID = 1
+    """A file invalid or a mission infeasible (``run``: also bad arguments)."""
+    USAGE = 2
+    """A usage or I/O error: bad arguments, a file that cannot be read."""
+    ABORTED = 3
+    """The mission was aborted (ABORT_MISSION, an infeasible action, Ctrl-C, SIGTERM)."""
+    FAILURE = 4
+    """A vehicle or link failed: a failed action no event handled, no answer, a lost link."""
 
 
 class Location(NamedTuple):

@@ -13,11 +13,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from tml import __version__
+from tml.errors import ExitCode
 
 if TYPE_CHECKING:
     from tml.language.validation import ValidationResult
 
-EXIT_OK, EXIT_INVALID, EXIT_USAGE = 0, 1, 2
 # Files per worker task when validating many files on several cores; below twice this
 # many files, forking workers costs more than it saves.
 PARALLEL_BATCH = 50
@@ -65,7 +65,7 @@ def _validate_all(files: list[Path]) -> list[ValidationResult | str]:
         return list(pool.map(_validate_for_report, files, chunksize=PARALLEL_BATCH))
 
 
-def cmd_validate(args: argparse.Namespace) -> int:
+def cmd_validate(args: argparse.Namespace) -> ExitCode:
     """Validate mission files and print every problem."""
     from tml.language.diagnostics import format_github, format_human, format_json
 
@@ -98,25 +98,25 @@ def cmd_validate(args: argparse.Namespace) -> int:
             print(f"{len(results)} file(s) checked: {len(results) - len(invalid)} valid, "
                   f"{len(invalid)} invalid ({errors} error(s), {warnings} warning(s))")
     if io_error:
-        return EXIT_USAGE
-    return EXIT_INVALID if invalid else EXIT_OK
+        return ExitCode.USAGE
+    return ExitCode.INVALID if invalid else ExitCode.OK
 
 
-def cmd_verify(args: argparse.Namespace) -> int:
+def cmd_verify(args: argparse.Namespace) -> ExitCode:
     """Check a mission's physical feasibility (see :mod:`tml.commands.verify`)."""
     from tml.commands.verify import run
 
     return run(args)
 
 
-def cmd_run(args: argparse.Namespace) -> int:
+def cmd_run(args: argparse.Namespace) -> ExitCode:
     """Fly a mission (see :mod:`tml.commands.run`)."""
     from tml.commands.run import run
 
     return run(args)
 
 
-def cmd_companion(args: argparse.Namespace) -> int:
+def cmd_companion(args: argparse.Namespace) -> ExitCode:
     """Run the simulated companion computer (see :mod:`tml.commands.companion`)."""
     from tml.commands.companion import run
 
@@ -212,5 +212,5 @@ def entry_point() -> None:
     except BrokenPipeError:
         # The reader (``| head``) went away: stop quietly, as command-line tools do.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        code = EXIT_INVALID
+        code = ExitCode.INVALID
     sys.exit(code)

@@ -19,10 +19,11 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from tml.errors import ExitCode
+
 if TYPE_CHECKING:
     from tml.world import World
 
-EXIT_STOPPED, EXIT_USAGE, EXIT_FAILURE = 0, 2, 4
 
 
 def _system_id(text: str) -> int:
@@ -67,25 +68,25 @@ def load_world_file(path: str) -> World:
     return load_world(path)
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> ExitCode:
     """Run ``tml companion``; return the exit code."""
     from tml.errors import TmlError, VehicleError
     from tml.mavlink.link import parse_address
 
-    def fail(message: str, code: int) -> int:
+    def fail(message: str, code: ExitCode) -> ExitCode:
         print(f"tml companion: {message}", file=sys.stderr)
         return code
 
     try:
         parse_address(args.connect)
     except VehicleError as error:
-        return fail(str(error), EXIT_USAGE)
+        return fail(str(error), ExitCode.USAGE)
     try:
         world = load_world_file(args.world)
     except OSError as error:
-        return fail(f"{args.world}: {error.strerror or error}", EXIT_USAGE)
+        return fail(f"{args.world}: {error.strerror or error}", ExitCode.USAGE)
     except TmlError as error:
-        return fail(str(error), EXIT_USAGE)
+        return fail(str(error), ExitCode.USAGE)
 
     from sitl.companion_link import CompanionLink
 
@@ -108,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
             signal.signal(sig, on_signal)
     try:
         if not link.open(args.timeout, stop):
-            return EXIT_STOPPED
+            return ExitCode.OK
         if not args.quiet:
             print(f"tml companion: component 191 of system {link.system_id} attached to "
                   f"{args.connect} (autopilot component {link.autopilot_component}); "
@@ -116,9 +117,9 @@ def run(args: argparse.Namespace) -> int:
                   f"{len(world.obstacles)} obstacle(s)", flush=True)
         link.serve(stop)
     except VehicleError as error:
-        return fail(str(error), EXIT_FAILURE)
+        return fail(str(error), ExitCode.FAILURE)
     except OSError as error:
-        return fail(f"link to {args.connect} failed: {error}", EXIT_FAILURE)
+        return fail(f"link to {args.connect} failed: {error}", ExitCode.FAILURE)
     finally:
         link.close()
         if main_thread:
@@ -126,4 +127,4 @@ def run(args: argparse.Namespace) -> int:
                 signal.signal(sig, handler)
     if not args.quiet:
         print(f"tml companion: stopped ({', '.join(stopped_by) or 'asked'})", flush=True)
-    return EXIT_STOPPED
+    return ExitCode.OK

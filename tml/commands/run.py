@@ -15,11 +15,12 @@ import threading
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
+from tml.errors import ExitCode
+
 if TYPE_CHECKING:
     from tml.language.model import Mission
     from tml.world import World
 
-EXIT_OK, EXIT_INVALID, EXIT_ABORTED, EXIT_FAILURE = 0, 1, 3, 4
 VEHICLE_PROFILE = "vehicle"  # --profile vehicle: read from the connected vehicle
 
 
@@ -130,7 +131,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "always uses the simulator's")
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> ExitCode:
     """Run ``tml run``; return the exit code."""
     from rich.console import Console
 
@@ -142,8 +143,8 @@ def run(args: argparse.Namespace) -> int:
         loaded = _load(args, errors)
     except (OSError, TmlError) as error:
         errors.print(f"tml run: {error}")
-        return EXIT_INVALID
-    if isinstance(loaded, int):
+        return ExitCode.INVALID
+    if isinstance(loaded, ExitCode):
         return loaded
     mission, world, extra, profile = loaded
     try:
@@ -159,14 +160,14 @@ def run(args: argparse.Namespace) -> int:
             return _fly(args, mission, world, profile, vehicles, wake, clock, console)
     except TmlError as error:
         errors.print(f"tml run: {error}")
-        return EXIT_FAILURE
+        return ExitCode.FAILURE
     except OSError as error:
         errors.print(f"tml run: cannot open the vehicle link: {error}")
-        return EXIT_FAILURE
+        return ExitCode.FAILURE
 
 
 def _load(args: argparse.Namespace,
-          errors: Any) -> tuple[Mission, World, World | None, Any] | int:
+          errors: Any) -> tuple[Mission, World, World | None, Any] | ExitCode:
     """The validated (and verified) mission, its world, the --world file's world and the
     verifier's profile; or an exit code."""
     from tml.language.build import load_world
@@ -179,7 +180,7 @@ def _load(args: argparse.Namespace,
         for diagnostic in result.diagnostics:
             errors.print(format_human(diagnostic, {result.file: result.source}), markup=False)
         errors.print(f"tml run: {result.file}: invalid mission, not flown")
-        return EXIT_INVALID
+        return ExitCode.INVALID
     mission = result.mission
     extra = load_world(args.world) if args.world else None
     world = (mission.world or World()).merged(extra)
@@ -193,7 +194,7 @@ def _load(args: argparse.Namespace,
 
 
 def _verify(args: argparse.Namespace, mission: Mission, extra: World | None, profile: Any,
-            errors: Any) -> int | None:
+            errors: Any) -> ExitCode | None:
     """Verify the mission with ``profile``; the exit code if it must not be flown."""
     from tml.verify.report import print_report
     from tml.verify.static import verify_mission
@@ -205,17 +206,17 @@ def _verify(args: argparse.Namespace, mission: Mission, extra: World | None, pro
     return _refused(args, mission, "infeasible mission", errors)
 
 
-def _refused(args: argparse.Namespace, mission: Mission, what: str, errors: Any) -> int | None:
-    """EXIT_INVALID for a mission refused as ``what``; None when --force flies it anyway."""
+def _refused(args: argparse.Namespace, mission: Mission, what: str, errors: Any) -> ExitCode | None:
+    """ExitCode.INVALID for a mission refused as ``what``; None when --force flies it anyway."""
     if not args.force:
         errors.print(f"tml run: {mission.file}: {what}, not flown (--force flies it anyway)")
-        return EXIT_INVALID
+        return ExitCode.INVALID
     errors.print(f"tml run: {what} flown anyway (--force)")
     return None
 
 
 def _preflight(args: argparse.Namespace, mission: Mission, vehicles: list[Any],
-               errors: Any) -> int | None:
+               errors: Any) -> ExitCode | None:
     """Refuse, before anything is sent, a mission with actions the connected vehicles
     cannot do at all (tml.verify.inflight.preflight); the exit code if not flown."""
     from tml.verify.inflight import preflight
@@ -303,7 +304,7 @@ def _discover(link: Any, timeout: float) -> list[int]:
 
 
 def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
-         vehicles: list[Any], wake: threading.Event, clock: Any, console: Any) -> int:
+         vehicles: list[Any], wake: threading.Event, clock: Any, console: Any) -> ExitCode:
     from tml.engine import Options
     from tml.run.display import LineDisplay, LiveDisplay
     from tml.run.journal import Journal
@@ -356,4 +357,4 @@ def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
             console.print(message, markup=False)
     if args.log:
         console.print(f"flight log: {args.log} ({journal.lines} lines)", markup=False)
-    return int(outcome.exit_code)
+    return outcome.exit_code

@@ -11,10 +11,11 @@ import argparse
 import sys
 from typing import TYPE_CHECKING
 
+from tml.errors import ExitCode
+
 if TYPE_CHECKING:
     from tml.verify.profile import VehicleProfile
 
-EXIT_FEASIBLE, EXIT_INFEASIBLE, EXIT_USAGE = 0, 1, 2
 VEHICLE_PROFILE = "vehicle"  # --profile vehicle --connect ADDRESS: from its parameters
 
 
@@ -39,7 +40,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="output format (default: table)")
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> ExitCode:
     """Run ``tml verify``; return the exit code."""
     from tml.errors import TmlError
     from tml.language.build import load_world
@@ -53,11 +54,11 @@ def run(args: argparse.Namespace) -> int:
     if not 0 <= args.battery <= 100:
         print(f"tml verify: --battery {args.battery:g}: must be between 0 and 100",
               file=sys.stderr)
-        return EXIT_USAGE
+        return ExitCode.USAGE
     if (args.profile == VEHICLE_PROFILE) != (args.connect is not None):
         print("tml verify: --profile vehicle reads the profile from a vehicle: give both it "
               "and --connect ADDRESS", file=sys.stderr)
-        return EXIT_USAGE
+        return ExitCode.USAGE
     try:
         profile = (_vehicle_profile(args.connect, args.timeout)
                    if args.profile == VEHICLE_PROFILE else load_profile(args.profile))
@@ -65,10 +66,10 @@ def run(args: argparse.Namespace) -> int:
         result = validate_file(args.mission)
     except OSError as exc:
         print(f"tml verify: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
-        return EXIT_USAGE
+        return ExitCode.USAGE
     except TmlError as exc:
         print(f"tml verify: {exc}", file=sys.stderr)
-        return EXIT_USAGE
+        return ExitCode.USAGE
     if result.errors or result.mission is None:
         if args.format == "json":
             print(format_json([(result.file, False, result.diagnostics)]))
@@ -76,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
             for diagnostic in result.diagnostics:
                 print(format_human(diagnostic, {result.file: result.source}))
             print(f"{result.file}: invalid mission, not verified")
-        return EXIT_INFEASIBLE
+        return ExitCode.INVALID
     mission = result.mission
     home = (mission.world or World()).merged(world).home_or_default
     start = PredictedState(battery=args.battery, heading=home.heading)
@@ -94,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
         if not console.is_terminal:  # a pipe or a file: wide enough for every column
             console = Console(soft_wrap=True, width=140)
         print_report(report, console)
-    return EXIT_FEASIBLE if report.feasible else EXIT_INFEASIBLE
+    return ExitCode.OK if report.feasible else ExitCode.INVALID
 
 
 def _vehicle_profile(address: str, timeout: float) -> VehicleProfile:

@@ -44,24 +44,15 @@ import time
 import traceback
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from enum import IntEnum
 from functools import partial
 from typing import Any
 
 from tml.engine import Interpreter, Options, Output, Status, View
 from tml.engine.safety import safe_state_request
+from tml.errors import ExitCode
 from tml.language.model import Mission
 from tml.run.journal import Journal, telemetry_fields
 from tml.vehicle import IdSource, RequestResult, Vehicle, VehicleState, awaiting
-
-
-class ExitCode(IntEnum):
-    """Exit codes of ``tml run``."""
-
-    COMPLETED = 0
-    INVALID = 1
-    ABORTED = 3
-    VEHICLE_FAILURE = 4
 
 
 @dataclass
@@ -98,10 +89,10 @@ class Outcome:
         """0 all completed, 4 a vehicle or link failed (or the engine broke), 3 aborted."""
         if any(v.status is Status.FAILED or v.cause in ("link", "error", "ready")
                for v in self.vehicles):
-            return ExitCode.VEHICLE_FAILURE
+            return ExitCode.FAILURE
         if any(v.status is not Status.COMPLETED for v in self.vehicles):
             return ExitCode.ABORTED
-        return ExitCode.COMPLETED
+        return ExitCode.OK
 
 
 class _Flight:

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 from typing import Protocol
 
-from tml.geo import Point
+from tml.geo import Point as Point  # re-exported: requests and states speak in local points
 from tml.language.actions import BoundAction
 from tml.language.kinds import Kind, kind_of
 from tml.world import DEFAULT_HOME, Home

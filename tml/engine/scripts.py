@@ -34,6 +34,7 @@ from typing import Protocol
 
 from tml import geo
 from tml.engine.failures import FailureReason
+from tml.geo import Point
 from tml.language.actions import BoundAction, Category
 from tml.language.kinds import HANDLING, Kind, final_length, kind_of, refusal
 from tml.patterns import (
@@ -54,7 +55,6 @@ from tml.vehicle import (
     Gripper,
     Hold,
     Land,
-    Point,
     Request,
     ReturnToLaunch,
     SetHome,
@@ -267,11 +267,10 @@ def _local(ctx: Context, bound: BoundAction, altitude_key: str = "altitude") -> 
     home = ctx.state.home
     if home is None:
         raise ActionFailed("general", "the vehicle's home position is not known yet")
-    altitude = float(bound.values.get(altitude_key, ctx.state.altitude))  # type: ignore[arg-type]
+    altitude = bound.number(altitude_key, ctx.state.altitude)
     if bound.values.get("altitude_reference") == "amsl":
         altitude -= home.altitude
-    north, east, _ = geo.to_local(float(bound.values["latitude"]),  # type: ignore[arg-type]
-                                  float(bound.values["longitude"]),  # type: ignore[arg-type]
+    north, east, _ = geo.to_local(bound.number("latitude"), bound.number("longitude"),
                                   home.altitude, home.latitude, home.longitude, home.altitude)
     return (north, east, altitude)
 
@@ -283,8 +282,7 @@ def _point(ctx: Context, bound: BoundAction, name: str) -> Point | None:
         if label not in ctx.labels:
             raise ActionFailed("infeasible", f"label {label!r} has not been memorized")
         return ctx.labels[label]
-    value = bound.values.get(name)
-    return value if isinstance(value, tuple) else None  # type: ignore[return-value]
+    return bound.point(name, None)
 
 
 def _circle(ctx: Context, centre: Point, radius: float, turns: float | None,
@@ -391,7 +389,7 @@ def take_off(ctx: Context, bound: BoundAction) -> Script:
     A fixed-wing cannot take off in GUIDED: its TakeOff request is ArduPlane's TAKEOFF mode
     (a climb along its heading to the altitude, then a circle), which arms it too.
     """
-    altitude = float(bound.values["altitude"])  # type: ignore[arg-type]
+    altitude = bound.number("altitude")
     if ctx.state.flying:
         ctx.note("TAKE_OFF ignored: the vehicle is already flying", altitude=ctx.state.altitude)
         return
@@ -447,7 +445,7 @@ def go_to_point(ctx: Context, bound: BoundAction) -> Script:
     here = _reference(ctx)
     target = _point(ctx, bound, "coordinates")
     if target is None:
-        dn, de, du = bound.values["relative_coordinates"]  # type: ignore[misc]
+        dn, de, du = bound.point("relative_coordinates")
         target = (here[0] + dn, here[1] + de, here[2] + du)
     yield from fly_to(ctx, target, "GO_TO_POINT")
 
@@ -456,25 +454,24 @@ def move(ctx: Context, bound: BoundAction) -> Script:
     """Move by a displacement, or a distance in a direction relative to the heading."""
     here = _reference(ctx)
     if "coordinates" in bound.values:
-        dn, de, du = bound.values["coordinates"]  # type: ignore[misc]
+        dn, de, du = bound.point("coordinates")
         target = (here[0] + dn, here[1] + de, here[2] + du)
     else:
-        distance = float(bound.values["distance"])  # type: ignore[arg-type]
-        target = displaced(here, ctx.state.heading, str(bound.values["direction"]), distance)
+        target = displaced(here, ctx.state.heading, bound.choice("direction"),
+                           bound.number("distance"))
     yield from fly_to(ctx, target, bound.name)
 
 
 def move_forwards(ctx: Context, bound: BoundAction) -> Script:
     """Move straight ahead along the heading."""
     here = _reference(ctx)
-    target = displaced(here, ctx.state.heading, "forward",
-                        float(bound.values["distance"]))  # type: ignore[arg-type]
+    target = displaced(here, ctx.state.heading, "forward", bound.number("distance"))
     yield from fly_to(ctx, target, "MOVE_FORWARDS")
 
 
 def move_from_home(ctx: Context, bound: BoundAction) -> Script:
     """Fly to an offset from home (the local frame's origin)."""
-    yield from fly_to(ctx, bound.values["coordinates"], "MOVE_FROM_HOME")  # type: ignore[arg-type]
+    yield from fly_to(ctx, bound.point("coordinates"), "MOVE_FROM_HOME")
 
 
 def go_to_position(ctx: Context, bound: BoundAction) -> Script:
@@ -485,8 +482,8 @@ def go_to_position(ctx: Context, bound: BoundAction) -> Script:
 def set_altitude(ctx: Context, bound: BoundAction) -> Script:
     """Climb or descend where the vehicle is."""
     here = _reference(ctx)
-    altitude = float(bound.values["altitude"])  # type: ignore[arg-type]
-    if bound.values.get("altitude_reference") == "amsl" and ctx.state.home is not None:
+    altitude = bound.number("altitude")
+    if bound.choice("altitude_reference") == "amsl" and ctx.state.home is not None:
         altitude -= ctx.state.home.altitude
     yield from fly_to(ctx, (here[0], here[1], altitude), "SET_ALTITUDE")
 
@@ -495,10 +492,11 @@ def rotate_yaw(ctx: Context, bound: BoundAction) -> Script:
     """Turn by an angle, or to a heading; done when the heading is within tolerance."""
     _require_flying(ctx, "ROTATE_YAW")
     heading = ctx.state.heading
-    if "angle" in bound.values:
-        target = (heading + float(bound.values["angle"])) % 360  # type: ignore[arg-type]
+    angle = bound.number("angle", None)
+    if angle is not None:
+        target = (heading + angle) % 360
     else:
-        target = float(bound.values["orientation_angle"]) % 360  # type: ignore[arg-type]
+        target = bound.number("orientation_angle") % 360
     # Sent as a heading, not a turn: a resent request (after an event) must not turn again.
     yield Send(SetYaw(ctx.vehicle_id, target))
     turn = abs((target - heading + 540) % 360 - 180)
@@ -522,7 +520,7 @@ def wait(ctx: Context, bound: BoundAction) -> Script:
     """Hold position (when flying) for a time."""
     if ctx.state.flying:
         yield Send(Hold(ctx.vehicle_id))
-    yield Sleep(float(bound.values["duration"]))  # type: ignore[arg-type]
+    yield Sleep(bound.number("duration"))
 
 
 def flip(ctx: Context, bound: BoundAction) -> Script:
@@ -539,7 +537,7 @@ def flip(ctx: Context, bound: BoundAction) -> Script:
         ctx.note(f"FLIP: climbing to {high:g} m first, a flip costs about 4 m",
                  altitude=high)
         yield from fly_to(ctx, (start[0], start[1], high), "FLIP")
-    yield Send(Flip(ctx.vehicle_id, str(bound.values.get("direction", "front"))))
+    yield Send(Flip(ctx.vehicle_id, bound.choice("direction")))
     yield from fly_to(ctx, start, "FLIP")
 
 
@@ -553,7 +551,7 @@ def memorize_point(ctx: Context, bound: BoundAction) -> Script:
 
 def go_to_rectangle(ctx: Context, bound: BoundAction) -> Script:
     """Fly to the coloured frame known in the environment, 1 m in front of it."""
-    colour = str(bound.values["frame_color"]).lower()
+    colour = bound.text("frame_color").lower()
     frames = [o for o in (ctx.world.objects if ctx.world else ())
               if o.kind == "frame" and o.color.lower() == colour]
     if not frames:
@@ -571,9 +569,7 @@ def explore_space(ctx: Context, bound: BoundAction) -> Script:
     """An expanding square around the start out to ``radius``, passes ``spacing`` apart,
     then back to the start (:func:`tml.patterns.expanding_square`)."""
     here = _require_flying(ctx, "EXPLORE_SPACE")
-    radius = float(bound.values["radius"])  # type: ignore[arg-type]
-    spacing = float(bound.values["spacing"])  # type: ignore[arg-type]
-    for point in expanding_square(here, radius, spacing):
+    for point in expanding_square(here, bound.number("radius"), bound.number("spacing")):
         yield from fly_to(ctx, point, "EXPLORE_SPACE")
 
 
@@ -600,19 +596,17 @@ def loiter(ctx: Context, bound: BoundAction) -> Script:
     """Fly to the centre and circle it: turns, a time, or until an event stops it."""
     here = _require_flying(ctx, "LOITER")
     centre = _point(ctx, bound, "coordinates")
-    if centre is None and "relative_coordinates" in bound.values:
-        dn, de, du = bound.values["relative_coordinates"]  # type: ignore[misc]
+    relative = bound.point("relative_coordinates", None)
+    if centre is None and relative is not None:
+        dn, de, du = relative
         centre = (here[0] + dn, here[1] + de, here[2] + du)
-    if centre is None and "from_home" in bound.values:
-        centre = bound.values["from_home"]  # type: ignore[assignment]
+    if centre is None:
+        centre = bound.point("from_home", None)
     if centre is None and "latitude" in bound.values:
         centre = _local(ctx, bound)
     centre = centre or here
-    turns = bound.values.get("turns")
-    duration = bound.values.get("duration")
-    yield from _circle(ctx, centre, float(bound.values["radius"]),  # type: ignore[arg-type]
-                       float(turns) if turns is not None else None,  # type: ignore[arg-type]
-                       float(duration) if duration is not None else None)  # type: ignore[arg-type]
+    yield from _circle(ctx, centre, bound.number("radius"), bound.number("turns", None),
+                       bound.number("duration", None))
 
 
 def landing_point(ctx: Context, bound: BoundAction) -> Script:
@@ -621,16 +615,18 @@ def landing_point(ctx: Context, bound: BoundAction) -> Script:
     point = _point(ctx, bound, "coordinates")
     if point is None:
         point = _local(ctx, bound)
+    yaw = bound.number("yaw", None)
+    precision = bound.choice("precision_mode") != "disabled"
     if _kind(ctx) is Kind.FIXED_WING:
-        if "yaw" in bound.values or bound.values.get("precision_mode", "disabled") != "disabled":
+        if yaw is not None or precision:
             ctx.note("LANDING_POINT: a fixed-wing lands along its approach; yaw and "
                      "precision landing are not applied")
         yield from _glide(ctx, (point[0], point[1], 0.0), "LANDING_POINT")
         return
     yield from fly_to(ctx, (point[0], point[1], max(here[2], point[2])), "LANDING_POINT")
-    if "yaw" in bound.values:
-        yield Send(SetYaw(ctx.vehicle_id, float(bound.values["yaw"]) % 360))  # type: ignore[arg-type]
-    if bound.values.get("precision_mode", "disabled") != "disabled":
+    if yaw is not None:
+        yield Send(SetYaw(ctx.vehicle_id, yaw % 360))
+    if precision:
         ctx.note("precision landing is applied only to dispatch=\"mission\" (NAV_LAND)")
     yield from land(ctx, bound)
 
@@ -644,8 +640,7 @@ def return_home(ctx: Context, bound: BoundAction) -> Script:
 def return_home_and_loiter(ctx: Context, bound: BoundAction) -> Script:
     """Fly back over home and circle it until an event stops it."""
     here = _require_flying(ctx, "RETURN_HOME_AND_LOITER")
-    yield from _circle(ctx, (0.0, 0.0, here[2]),
-                       float(bound.values["radius"]), None, None)  # type: ignore[arg-type]
+    yield from _circle(ctx, (0.0, 0.0, here[2]), bound.number("radius"), None, None)
 
 
 def return_home_and_land(ctx: Context, bound: BoundAction) -> Script:
@@ -688,8 +683,8 @@ def return_home_and_land(ctx: Context, bound: BoundAction) -> Script:
 
 def set_speed(ctx: Context, bound: BoundAction) -> Script:
     """Change the speed of the following moves."""
-    speed = float(bound.values["speed"])  # type: ignore[arg-type]
-    kind = str(bound.values["speed_type"])
+    speed = bound.number("speed")
+    kind = bound.choice("speed_type")
     yield Send(SetSpeed(ctx.vehicle_id, speed, kind))
     if kind in ("airspeed", "ground"):
         ctx.limits.speed = speed
@@ -707,12 +702,10 @@ def survey_area(ctx: Context, bound: BoundAction) -> Script:
     if base is None and "latitude" in bound.values:
         base = _local(ctx, bound)
     base = base or here
-    altitude = float(bound.values.get("altitude", here[2]))  # type: ignore[arg-type]
-    length = float(bound.values["length"])  # type: ignore[arg-type]
-    width = float(bound.values["width"])  # type: ignore[arg-type]
-    spacing = float(bound.values["spacing"])  # type: ignore[arg-type]
-    for point in survey((base[0], base[1], altitude), length, width, spacing,
-                        str(bound.values["direction"])):
+    altitude = bound.number("altitude", here[2])
+    for point in survey((base[0], base[1], altitude), bound.number("length"),
+                        bound.number("width"), bound.number("spacing"),
+                        bound.choice("direction")):
         yield from fly_to(ctx, point, "SURVEY_AREA")
 
 
@@ -721,13 +714,12 @@ def camera(ctx: Context, bound: BoundAction) -> Script:
     if bound.name == "CAPTURE_PHOTO":
         yield Send(Camera(ctx.vehicle_id, "photo", 1))
     elif bound.name == "CAPTURE_PHOTOS":
-        count = int(bound.values["count"])  # type: ignore[call-overload]
-        interval = float(bound.values["interval"])  # type: ignore[arg-type]
+        count = bound.integer("count")
+        interval = bound.number("interval")
         yield Send(Camera(ctx.vehicle_id, "photo", count, interval))
         yield Sleep(interval * (count - 1))
     elif bound.name == "START_CAPTURING":
-        yield Send(Camera(ctx.vehicle_id, "start", 0,
-                          float(bound.values["interval"])))  # type: ignore[arg-type]
+        yield Send(Camera(ctx.vehicle_id, "start", 0, bound.number("interval")))
     else:
         yield Send(Camera(ctx.vehicle_id, "stop"))
 
@@ -736,8 +728,8 @@ def set_home(ctx: Context, bound: BoundAction) -> Script:
     """Home at the current position, or at a WGS84 position."""
     position = None
     if "latitude" in bound.values:
-        position = (float(bound.values["latitude"]), float(bound.values["longitude"]),  # type: ignore[arg-type]
-                    float(bound.values["altitude"]))  # type: ignore[arg-type]
+        position = (bound.number("latitude"), bound.number("longitude"),
+                    bound.number("altitude"))
     yield Send(SetHome(ctx.vehicle_id, position))
 
 

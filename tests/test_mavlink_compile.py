@@ -173,6 +173,16 @@ def test_survey_from_a_base_point_and_altitude() -> None:
     assert [local(i) for i in items] == [(5, 5, 40), (-5, 5, 40), (-5, 15, 40), (5, 15, 40)]
 
 
+def test_survey_from_a_global_base_point_is_relative_to_home() -> None:
+    # SURVEY_AREA has no altitude_reference: its altitude is above home.
+    lat, lon, _ = to_global(5, 5, 0, H.latitude, H.longitude, H.altitude)
+    items = compiled(act("SURVEY_AREA", length="10", width="10", spacing="10",
+                         direction="SOUTH_EAST", latitude=str(lat), longitude=str(lon),
+                         altitude="40")).items
+    assert {i.frame for i in items} == {M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT}
+    assert [local(i) for i in items] == [(5, 5, 40), (-5, 5, 40), (-5, 15, 40), (5, 15, 40)]
+
+
 def test_explore_space_flies_the_expanding_square_and_returns() -> None:
     items = compiled(act("EXPLORE_SPACE", radius="3", spacing="1"), start=(1, 1, 2)).items
     assert [local(i) for i in items] == [

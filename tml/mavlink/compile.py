@@ -32,15 +32,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from tml.geo import to_global, to_local
+from tml.geo import Point, to_global, to_local
 from tml.language.actions import BoundAction
 from tml.language.kinds import Kind, landing_approach
 from tml.mavlink.codec import mavlink
 from tml.mavlink.mission import LOITER_TURNS_MAX, MissionItem
 from tml.patterns import displaced, expanding_square, survey
 from tml.world import Home
-
-Point = tuple[float, float, float]
 
 FRAMES = {
     "relative": mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
@@ -119,8 +117,7 @@ def compile_mission(actions: tuple[BoundAction, ...] | list[BoundAction], home: 
     Raises :class:`CompileError` for an action that has no mission-item form or whose
     argument is a label the interpreter did not resolve.
     """
-    builder = _Builder(home, _Cursor(tuple(start), heading),  # type: ignore[arg-type]
-                       kind=kind)
+    builder = _Builder(home, _Cursor(start, heading), kind=kind)
     for index, action in enumerate(actions):
         builder.action = index
         if action.labels.keys() - action.values.keys():
@@ -150,34 +147,25 @@ def _close_trailing_commands(b: _Builder) -> None:
 
 # --- one function per action ------------------------------------------------------------
 
-def _number(action: BoundAction, name: str, default: float = 0.0) -> float:
-    value = action.get(name)
-    return default if value is None else float(value)  # type: ignore[arg-type]
-
-
-def _point(action: BoundAction, name: str) -> Point | None:
-    value = action.get(name)
-    return tuple(float(v) for v in value) if value is not None else None  # type: ignore[return-value,union-attr]
-
-
 def _plus(a: Point, b: Point) -> Point:
     return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
 
 
-def _global_point(b: _Builder, action: BoundAction) -> tuple[Point, str]:
-    """The local point of latitude/longitude/altitude arguments, and the altitude reference."""
-    reference = str(action.get("altitude_reference", "relative"))
-    altitude = _number(action, "altitude", b.cursor.position[2])
+def _global_point(b: _Builder, action: BoundAction,
+                  reference: str = "relative") -> tuple[Point, str]:
+    """The local point of latitude/longitude/altitude arguments whose altitude is measured
+    from ``reference``, and the reference."""
+    altitude = action.number("altitude", b.cursor.position[2])
     amsl = altitude if reference == "amsl" else b.home.altitude + altitude
-    north, east, up = to_local(_number(action, "latitude"), _number(action, "longitude"), amsl,
+    north, east, up = to_local(action.number("latitude"), action.number("longitude"), amsl,
                                b.home.latitude, b.home.longitude, b.home.altitude)
     return (north, east, up if reference == "amsl" else altitude), reference
 
 
 def _take_off(b: _Builder, action: BoundAction) -> None:
-    altitude = _number(action, "altitude", 10.0)
+    altitude = action.number("altitude")
     b.add(mavlink.MAV_CMD_NAV_TAKEOFF, altitude=altitude,
-          params=(_number(action, "pitch"), 0.0, 0.0, 0.0))
+          params=(action.number("pitch"), 0.0, 0.0, 0.0))
     n, e, _ = b.cursor.position
     b.cursor.position = (n, e, altitude)
 
@@ -209,62 +197,60 @@ def _land(b: _Builder, action: BoundAction) -> None:
 
 
 def _go_to_point(b: _Builder, action: BoundAction) -> None:
-    point = _point(action, "coordinates")
+    point = action.point("coordinates", None)
     if point is None:
-        point = _plus(b.cursor.position, _point(action, "relative_coordinates") or (0, 0, 0))
+        point = _plus(b.cursor.position, action.point("relative_coordinates", (0.0, 0.0, 0.0)))
     b.waypoint(point)
 
 
 def _move(b: _Builder, action: BoundAction) -> None:
-    offset = _point(action, "coordinates")
+    offset = action.point("coordinates", None)
     if offset is not None:
         b.waypoint(_plus(b.cursor.position, offset))
     else:
-        b.waypoint(displaced(b.cursor.position, b.cursor.heading,
-                             str(action.get("direction", "forward")),
-                             _number(action, "distance")))
+        b.waypoint(displaced(b.cursor.position, b.cursor.heading, action.choice("direction"),
+                             action.number("distance")))
 
 
 def _move_forwards(b: _Builder, action: BoundAction) -> None:
     b.waypoint(displaced(b.cursor.position, b.cursor.heading, "forward",
-                         _number(action, "distance")))
+                         action.number("distance")))
 
 
 def _move_from_home(b: _Builder, action: BoundAction) -> None:
-    b.waypoint(_point(action, "coordinates") or (0.0, 0.0, b.cursor.position[2]))
+    b.waypoint(action.point("coordinates", (0.0, 0.0, b.cursor.position[2])))
 
 
 def _go_to_position(b: _Builder, action: BoundAction) -> None:
-    point, reference = _global_point(b, action)
+    point, reference = _global_point(b, action, action.choice("altitude_reference"))
     b.waypoint(point, reference)
 
 
 def _loiter_centre(b: _Builder, action: BoundAction) -> tuple[Point, str]:
-    if action.get("latitude") is not None:
-        return _global_point(b, action)
-    point = _point(action, "coordinates")
+    if "latitude" in action.values:
+        return _global_point(b, action, action.choice("altitude_reference"))
+    point = action.point("coordinates", None)
     if point is not None:
         return point, "relative"
-    relative = _point(action, "relative_coordinates")
+    relative = action.point("relative_coordinates", None)
     if relative is not None:
         return _plus(b.cursor.position, relative), "relative"
-    return _point(action, "from_home") or b.cursor.position, "relative"
+    return action.point("from_home", b.cursor.position), "relative"
 
 
-def _loiter_at(b: _Builder, action: BoundAction, centre: Point, reference: str) -> None:
-    radius = _number(action, "radius", 15.0)
-    turns, duration = action.get("turns"), action.get("duration")
+def _loiter_at(b: _Builder, centre: Point, reference: str, radius: float,
+               turns: float | None = None, duration: float | None = None) -> None:
     if turns is not None:
         # ArduPilot keeps at most LOITER_TURNS_MAX turns in an item: more are several items
         # over the same centre, flown one after the other without leaving the circle.
-        left = float(turns)  # type: ignore[arg-type]
+        left = turns
         while left > 0:
             b.add(mavlink.MAV_CMD_NAV_LOITER_TURNS, point=centre, reference=reference,
                   params=(min(left, LOITER_TURNS_MAX), 0.0, radius, 0.0))
             left -= LOITER_TURNS_MAX
     elif duration is not None:
         b.add(mavlink.MAV_CMD_NAV_LOITER_TIME, point=centre, reference=reference,
-              params=(float(duration), 0.0, radius, 0.0))  # type: ignore[arg-type]
+              params=(duration, 0.0, radius, 0.0))
     else:
         b.add(mavlink.MAV_CMD_NAV_LOITER_UNLIM, point=centre, reference=reference,
               params=(0.0, 0.0, radius, 0.0))
@@ -272,14 +258,15 @@ def _loiter_at(b: _Builder, action: BoundAction, centre: Point, reference: str) 
 
 
 def _loiter(b: _Builder, action: BoundAction) -> None:
-    _loiter_at(b, action, *_loiter_centre(b, action))
+    _loiter_at(b, *_loiter_centre(b, action), action.number("radius"),
+               action.number("turns", None), action.number("duration", None))
 
 
 def _landing_point(b: _Builder, action: BoundAction) -> None:
-    if action.get("latitude") is not None:
-        point, reference = _global_point(b, action)
+    if "latitude" in action.values:
+        point, reference = _global_point(b, action, action.choice("altitude_reference"))
     else:
-        point, reference = _point(action, "coordinates") or b.cursor.position, "relative"
+        point, reference = action.point("coordinates", b.cursor.position), "relative"
     if b.kind is Kind.FIXED_WING:
         _glide(b, (point[0], point[1], 0.0))
         return
@@ -287,17 +274,17 @@ def _landing_point(b: _Builder, action: BoundAction) -> None:
 
 
 def _land_at(b: _Builder, action: BoundAction, point: Point, reference: str) -> None:
-    precision = PRECISION_MODES[str(action.get("precision_mode", "disabled"))]
-    yaw = action.get("yaw")
+    precision = PRECISION_MODES[action.choice("precision_mode")]
+    yaw = action.number("yaw", None)
     if yaw is not None:
         # ArduCopter keeps its heading while it descends: turn first, then land facing yaw.
-        _yaw_item(b, float(yaw) % 360.0, relative=False)  # type: ignore[arg-type]
+        _yaw_item(b, yaw % 360.0, relative=False)
     # ArduCopter flies to a NAV_LAND's position at its present altitude and ignores the
     # item's altitude: the approach altitude is given, so that a simulator or autopilot
     # that does fly to it does not descend on the way.
     point = (point[0], point[1], b.cursor.position[2]) if reference == "relative" else point
     b.add(mavlink.MAV_CMD_NAV_LAND, point=point, reference=reference,
-          params=(0.0, float(precision), 0.0, 0.0 if yaw is None else float(yaw)))  # type: ignore[arg-type]
+          params=(0.0, float(precision), 0.0, 0.0 if yaw is None else yaw))
     b.cursor.position = (point[0], point[1], 0.0)
 
 
@@ -306,14 +293,14 @@ def _return_home(b: _Builder, action: BoundAction) -> None:
 
 
 def _return_home_and_loiter(b: _Builder, action: BoundAction) -> None:
-    _loiter_at(b, action, (0.0, 0.0, b.cursor.position[2]), "relative")
+    _loiter_at(b, (0.0, 0.0, b.cursor.position[2]), "relative", action.number("radius"))
 
 
 def _return_home_and_land(b: _Builder, action: BoundAction) -> None:
     if b.kind is Kind.FIXED_WING:
         _glide(b, (0.0, 0.0, 0.0))
         return
-    if action.get("yaw") is None and action.get("precision_mode", "disabled") == "disabled":
+    if action.number("yaw", None) is None and action.choice("precision_mode") == "disabled":
         b.add(mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH)
         b.cursor.position = (0.0, 0.0, 0.0)
         return
@@ -323,13 +310,13 @@ def _return_home_and_land(b: _Builder, action: BoundAction) -> None:
 
 
 def _set_speed(b: _Builder, action: BoundAction) -> None:
-    kind = SPEED_TYPES[str(action.get("speed_type", "airspeed"))]
-    b.add(mavlink.MAV_CMD_DO_CHANGE_SPEED, params=(kind, _number(action, "speed"), -1.0, 0.0))
+    kind = SPEED_TYPES[action.choice("speed_type")]
+    b.add(mavlink.MAV_CMD_DO_CHANGE_SPEED, params=(kind, action.number("speed"), -1.0, 0.0))
 
 
 def _set_altitude(b: _Builder, action: BoundAction) -> None:
-    reference = str(action.get("altitude_reference", "relative"))
-    altitude = _number(action, "altitude")
+    reference = action.choice("altitude_reference")
+    altitude = action.number("altitude")
     up = altitude - b.home.altitude if reference == "amsl" else altitude
     n, e, _ = b.cursor.position
     # A waypoint above the expected position: DO_CHANGE_ALTITUDE only changes the altitude
@@ -340,7 +327,7 @@ def _set_altitude(b: _Builder, action: BoundAction) -> None:
 
 def _wait(b: _Builder, action: BoundAction) -> None:
     # NAV_DELAY param1 is seconds; params 2-4 (a time of day) are -1: not used.
-    b.add(mavlink.MAV_CMD_NAV_DELAY, params=(_number(action, "duration"), -1.0, -1.0, -1.0))
+    b.add(mavlink.MAV_CMD_NAV_DELAY, params=(action.number("duration"), -1.0, -1.0, -1.0))
 
 
 def _stabilize(b: _Builder, action: BoundAction) -> None:
@@ -355,27 +342,28 @@ def _yaw_item(b: _Builder, angle: float, relative: bool) -> None:
 
 
 def _rotate_yaw(b: _Builder, action: BoundAction) -> None:
-    if action.get("angle") is not None:
-        _yaw_item(b, _number(action, "angle"), relative=True)
+    angle = action.number("angle", None)
+    if angle is not None:
+        _yaw_item(b, angle, relative=True)
     else:
-        _yaw_item(b, _number(action, "orientation_angle") % 360.0, relative=False)
+        _yaw_item(b, action.number("orientation_angle") % 360.0, relative=False)
 
 
 def _survey_area(b: _Builder, action: BoundAction) -> None:
-    if action.get("latitude") is not None:
+    if "latitude" in action.values:
         base, _ = _global_point(b, action)
     else:
-        base = _point(action, "coordinates") or b.cursor.position
-    altitude = _number(action, "altitude", b.cursor.position[2])
-    for point in survey((base[0], base[1], altitude), _number(action, "length"),
-                        _number(action, "width"), _number(action, "spacing", 50.0),
-                        str(action.get("direction", "NORTH_WEST"))):
+        base = action.point("coordinates", b.cursor.position)
+    altitude = action.number("altitude", b.cursor.position[2])
+    for point in survey((base[0], base[1], altitude), action.number("length"),
+                        action.number("width"), action.number("spacing"),
+                        action.choice("direction")):
         b.waypoint(point)
 
 
 def _explore_space(b: _Builder, action: BoundAction) -> None:
-    for point in expanding_square(b.cursor.position, _number(action, "radius", 10.0),
-                                  _number(action, "spacing", 2.0)):
+    for point in expanding_square(b.cursor.position, action.number("radius"),
+                                  action.number("spacing")):
         b.waypoint(point)
 
 
@@ -386,12 +374,12 @@ def _capture_photo(b: _Builder, action: BoundAction) -> None:
 
 def _capture_photos(b: _Builder, action: BoundAction) -> None:
     b.add(mavlink.MAV_CMD_IMAGE_START_CAPTURE,
-          params=(0.0, _number(action, "interval", 2.0), _number(action, "count", 1.0), 0.0))
+          params=(0.0, action.number("interval"), action.number("count"), 0.0))
 
 
 def _start_capturing(b: _Builder, action: BoundAction) -> None:
     b.add(mavlink.MAV_CMD_IMAGE_START_CAPTURE,
-          params=(0.0, _number(action, "interval", 2.0), 0.0, 0.0))
+          params=(0.0, action.number("interval"), 0.0, 0.0))
 
 
 def _stop_capturing(b: _Builder, action: BoundAction) -> None:
@@ -407,12 +395,12 @@ def _drop_item(b: _Builder, action: BoundAction) -> None:
 
 
 def _set_home(b: _Builder, action: BoundAction) -> None:
-    if action.get("latitude") is None:
+    if "latitude" not in action.values:
         b.add(mavlink.MAV_CMD_DO_SET_HOME, params=(1.0, 0.0, 0.0, 0.0))
         return
     b.add(mavlink.MAV_CMD_DO_SET_HOME, frame=mavlink.MAV_FRAME_GLOBAL_INT,
-          raw=(round(_number(action, "latitude") * 1e7),
-               round(_number(action, "longitude") * 1e7), _number(action, "altitude")))
+          raw=(round(action.number("latitude") * 1e7),
+               round(action.number("longitude") * 1e7), action.number("altitude")))
 
 
 _COMPILERS = {

@@ -578,10 +578,6 @@ class BoundAction:
             raise TypeError(f"{self.name} has no {' or '.join(types)} argument {name!r}")
         return self.values.get(name)
 
-    def get(self, name: str, default: object = None) -> object:
-        """The value of an argument, or ``default`` when absent and without default."""
-        return self.values.get(name, default)
-
     def _absent(self, name: str, default: object) -> object:
         if default is _ABSENT:
             raise KeyError(f"{self.name} has no value for {name!r}")

@@ -29,6 +29,7 @@ move on, and its RETURN_HOME_AND_LAND drives home and stops.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from itertools import pairwise
 
@@ -263,7 +264,8 @@ class FlightModel:
              labels: Labels | None = None) -> Step:
         """Predict one action from ``state`` (pure: neither argument is changed)."""
         labels = dict(labels or {})
-        handler = getattr(self, "_" + bound.name.lower(), None)
+        handler: Callable[[BoundAction, PredictedState, Labels], Step] | None = getattr(
+            self, "_" + bound.name.lower(), None)
         if handler is None:
             return Step(state, state, labels=labels,
                         notes=(f"{bound.name} takes no time or battery in the model",))
@@ -275,16 +277,19 @@ class FlightModel:
         if name in bound.labels:
             label = bound.labels[name]
             return labels.get(label), ("" if label in labels else label)
-        value = bound.get(name)
-        return (tuple(value), "") if value is not None else (None, "")  # type: ignore[arg-type]
+        return bound.point(name, None), ""
+
+    def _global(self, bound: BoundAction) -> Point3:
+        """The local point of the action's latitude, longitude, altitude and reference."""
+        return self.local(bound.number("latitude"), bound.number("longitude"),
+                          bound.number("altitude"), bound.choice("altitude_reference"))
 
     def _go(self, bound: BoundAction, state: PredictedState, labels: Labels,
-            targets: list[Point3], landing: bool = False, **extra: object) -> Step:
+            targets: list[Point3], landing: bool = False, cruise: bool = True) -> Step:
         after, legs, blocked = self.fly(state, targets, landing=landing)
         destination = targets[-1] if targets else None
-        fields_: dict[str, object] = {"destination": destination, "cruise": True, **extra}
         return Step(state, after, tuple(legs), tuple(blocked), labels=labels,
-                    **fields_)  # type: ignore[arg-type]
+                    destination=destination, cruise=cruise)
 
     def _unknown(self, state: PredictedState, labels: Labels, label: str) -> Step:
         return Step(state, state, labels=labels, unknown_label=label,
@@ -296,7 +301,7 @@ class FlightModel:
         if self.profile.kind is Kind.GROUND:
             return Step(state, state, labels=labels)  # refused: see the vehicle constraint
         written = bound.action.argument("altitude", "height") is not None
-        altitude = float(bound.get("altitude")) if written else self.profile.takeoff_altitude
+        altitude = bound.number("altitude") if written else self.profile.takeoff_altitude
         target = (state.position[0], state.position[1], altitude)
         if self.profile.kind is Kind.FIXED_WING:  # a climb along the heading
             run = altitude / self.profile.climb_rate * self.profile.cruise_speed
@@ -326,35 +331,30 @@ class FlightModel:
         if unknown:
             return self._unknown(state, labels, unknown)
         if point is None:
-            offset = bound.get("relative_coordinates")
-            point = _add(state.position, tuple(offset))  # type: ignore[arg-type]
+            point = _add(state.position, bound.point("relative_coordinates"))
         return self._go(bound, state, labels, [point])
 
     def _move(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        offset = bound.get("coordinates")
+        offset = bound.point("coordinates", None)
         if offset is not None:
-            return self._go(bound, state, labels, [_add(state.position, tuple(offset))])
-        target = displaced(state.position, state.heading, str(bound.get("direction")),
-                           float(bound.get("distance")))
+            return self._go(bound, state, labels, [_add(state.position, offset)])
+        target = displaced(state.position, state.heading, bound.choice("direction"),
+                           bound.number("distance"))
         return self._go(bound, state, labels, [target])
 
     def _move_forwards(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        target = displaced(state.position, state.heading, "forward",
-                           float(bound.get("distance")))
+        target = displaced(state.position, state.heading, "forward", bound.number("distance"))
         return self._go(bound, state, labels, [target])
 
     def _move_from_home(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        offset = tuple(bound.get("coordinates"))  # type: ignore[arg-type]
-        return self._go(bound, state, labels, [_add(state.home, offset)])
+        return self._go(bound, state, labels, [_add(state.home, bound.point("coordinates"))])
 
     def _go_to_position(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        target = self.local(float(bound.get("latitude")), float(bound.get("longitude")),
-                            float(bound.get("altitude")), str(bound.get("altitude_reference")))
-        return self._go(bound, state, labels, [target])
+        return self._go(bound, state, labels, [self._global(bound)])
 
     def _set_altitude(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        altitude = float(bound.get("altitude"))
-        if bound.get("altitude_reference") == "amsl":
+        altitude = bound.number("altitude")
+        if bound.choice("altitude_reference") == "amsl":
             altitude -= self.home.altitude
         return self._go(bound, state, labels, [(*state.position[:2], altitude)])
 
@@ -371,7 +371,8 @@ class FlightModel:
 
     def _return_home_and_loiter(self, bound: BoundAction, state: PredictedState,
                                 labels: Labels) -> Step:
-        step = self._circle(bound, state, labels, (*state.home[:2], state.position[2]))
+        step = self._circle(bound, state, labels, (*state.home[:2], state.position[2]),
+                            bound.number("radius"))
         return replace(step, notes=(
             "circles home until an event ends it; no time counted for it",))
 
@@ -380,9 +381,7 @@ class FlightModel:
         if unknown:
             return self._unknown(state, labels, unknown)
         if point is None:
-            point = self.local(float(bound.get("latitude")), float(bound.get("longitude")),
-                               float(bound.get("altitude")),
-                               str(bound.get("altitude_reference")))
+            point = self._global(bound)
         if self.profile.kind is Kind.FIXED_WING:
             return self._landing(bound, state, labels, (point[0], point[1], 0.0))
         targets = [(point[0], point[1], state.position[2]), (point[0], point[1], 0.0)]
@@ -393,38 +392,40 @@ class FlightModel:
         centre, unknown = self._point(bound, labels)
         if unknown:
             return self._unknown(state, labels, unknown)
-        if centre is None and bound.get("relative_coordinates") is not None:
-            centre = _add(state.position, tuple(bound.get("relative_coordinates")))  # type: ignore[arg-type]
-        elif centre is None and bound.get("from_home") is not None:
-            centre = _add(state.home, tuple(bound.get("from_home")))  # type: ignore[arg-type]
-        elif centre is None and bound.get("latitude") is not None:
-            centre = self.local(float(bound.get("latitude")), float(bound.get("longitude")),
-                                float(bound.get("altitude")),
-                                str(bound.get("altitude_reference")))
-        return self._circle(bound, state, labels, centre or state.position)
+        relative = bound.point("relative_coordinates", None)
+        from_home = bound.point("from_home", None)
+        if centre is None and relative is not None:
+            centre = _add(state.position, relative)
+        elif centre is None and from_home is not None:
+            centre = _add(state.home, from_home)
+        elif centre is None and "latitude" in bound.values:
+            centre = self._global(bound)
+        return self._circle(bound, state, labels, centre or state.position,
+                            bound.number("radius"), bound.integer("turns", None),
+                            bound.number("duration", None))
 
     def _circle(self, bound: BoundAction, state: PredictedState, labels: Labels,
-                centre: Point3) -> Step:
+                centre: Point3, radius: float, turns: int | None = None,
+                duration: float | None = None) -> Step:
         """Join the circle around ``centre`` and go round it, as the scripts fly it: to its
         nearest point (not to its centre, often the very thing it circles around), then
-        from target to target (:mod:`tml.patterns`) for the action's turns or duration."""
-        radius = float(bound.get("radius"))
+        from target to target (:mod:`tml.patterns`) for ``turns`` or ``duration`` seconds
+        (neither: until an event ends it)."""
         start = circle_entry(centre, state.position)
         entry = circle_point(centre, radius, start, 0)
         step = self._go(bound, state, labels, [entry] if entry != state.position else [])
         step = replace(step, destination=centre, loiter=Loiter(centre, radius, start))
-        turns, duration = bound.get("turns"), bound.get("duration")
         speed = min(state.speed or self.profile.cruise_speed, self.profile.max_speed)
-        if turns is None and duration is None:
-            return replace(step, notes=("circles until an event ends it; no time counted",))
         chord = circle_chord(radius)
         chord_seconds = stop_to_stop(chord, speed, self.profile.acceleration)
         if turns is not None:
-            chords = CIRCLE_POINTS_PER_TURN * int(turns)
+            chords = CIRCLE_POINTS_PER_TURN * turns
             metres, seconds = chords * chord, chords * chord_seconds
-        else:
-            seconds = float(duration)
+        elif duration is not None:
+            seconds = duration
             metres = chord * seconds / chord_seconds if chord_seconds else 0.0
+        else:
+            return replace(step, notes=("circles until an event ends it; no time counted",))
         after = replace(step.after, time=step.after.time + seconds,
                         battery=step.after.battery - self.energy(metres, seconds))
         return replace(step, after=after, circle_metres=metres)
@@ -433,23 +434,23 @@ class FlightModel:
         base, unknown = self._point(bound, labels)
         if unknown:
             return self._unknown(state, labels, unknown)
-        if base is None and bound.get("latitude") is not None:
-            base = self.local(float(bound.get("latitude")), float(bound.get("longitude")),
-                              0.0, "relative")
+        if base is None and "latitude" in bound.values:
+            base = self.local(bound.number("latitude"), bound.number("longitude"), 0.0,
+                              "relative")
         base = base or state.position
-        altitude = float(bound.get("altitude") or state.position[2])
-        targets = survey((base[0], base[1], altitude), float(bound.get("length")),
-                         float(bound.get("width")), float(bound.get("spacing")),
-                         str(bound.get("direction")))
+        altitude = bound.number("altitude", None) or state.position[2]
+        targets = survey((base[0], base[1], altitude), bound.number("length"),
+                         bound.number("width"), bound.number("spacing"),
+                         bound.choice("direction"))
         return self._go(bound, state, labels, targets)
 
     def _explore_space(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        targets = expanding_square(state.position, float(bound.get("radius")),
-                                   float(bound.get("spacing")))
+        targets = expanding_square(state.position, bound.number("radius"),
+                                   bound.number("spacing"))
         return self._go(bound, state, labels, targets)
 
     def _go_to_rectangle(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        colour = str(bound.get("frame_color")).lower()
+        colour = bound.text("frame_color").lower()
         frames = [o for o in self.world.objects if o.kind == "frame" and o.color.lower() == colour]
         if not frames:
             return Step(state, state, labels=labels, notes=(
@@ -458,18 +459,19 @@ class FlightModel:
         return self._go(bound, state, labels, [(frame.north, frame.east, frame.altitude)])
 
     def _rotate_yaw(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        if bound.get("angle") is not None:
-            turn = float(bound.get("angle"))
+        angle = bound.number("angle", None)
+        if angle is not None:
+            turn = angle
         else:
-            turn = (float(bound.get("orientation_angle")) - state.heading + 180.0) % 360.0 - 180.0
+            turn = (bound.number("orientation_angle") - state.heading + 180.0) % 360.0 - 180.0
         after = self.hover(state, abs(turn) / self.profile.yaw_rate)
         return Step(state, replace(after, heading=(state.heading + turn) % 360.0), labels=labels)
 
     def _wait(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        return Step(state, self.hover(state, float(bound.get("duration"))), labels=labels)
+        return Step(state, self.hover(state, bound.number("duration")), labels=labels)
 
     def _capture_photos(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        seconds = (int(bound.get("count")) - 1) * float(bound.get("interval"))
+        seconds = (bound.integer("count") - 1) * bound.number("interval")
         return Step(state, self.hover(state, seconds), labels=labels)
 
     def _memorize_point(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
@@ -479,7 +481,7 @@ class FlightModel:
         return Step(state, state, labels=labels)
 
     def _set_speed(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        kind, value = str(bound.get("speed_type")), float(bound.get("speed"))
+        kind, value = bound.choice("speed_type"), bound.number("speed")
         if kind == "climb":
             after = replace(state, climb_rate=min(value, self.profile.climb_rate))
         elif kind == "descent":
@@ -489,11 +491,11 @@ class FlightModel:
         return Step(state, after, labels=labels, requested_speed=(kind, value))
 
     def _set_home(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        if bound.get("latitude") is None:
+        if "latitude" not in bound.values:
             home = state.position
         else:
-            home = self.local(float(bound.get("latitude")), float(bound.get("longitude")),
-                              float(bound.get("altitude")), "amsl")
+            home = self.local(bound.number("latitude"), bound.number("longitude"),
+                              bound.number("altitude"), "amsl")
         return Step(state, replace(state, home=home), labels=labels)
 
 

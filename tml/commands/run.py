@@ -250,6 +250,7 @@ def _vehicles(args: argparse.Namespace, world: World) -> Iterator[tuple[list[Any
 
     from tml.errors import TmlError
     from tml.mavlink.adapter import MavlinkVehicle
+    from tml.mavlink.clock import VehicleClock
     from tml.mavlink.link import Link
 
     wake = threading.Event()
@@ -269,15 +270,14 @@ def _vehicles(args: argparse.Namespace, world: World) -> Iterator[tuple[list[Any
             addresses = [(url, None) for url in args.connect]
         vehicles: list[MavlinkVehicle] = []
         link_clock = None  # the runner's clock
+        vehicle_clock: VehicleClock | None = None
         for address, system_id in addresses:
             link = stack.enter_context(Link(address, outputs=args.out))
             link.listen(lambda *_: wake.set())
             ids = [system_id] if system_id else _discover(link, args.timeout)
             if not args.sim and args.clock == "vehicle" and not vehicles:
-                from tml.mavlink.clock import VehicleClock
-
                 # The first vehicle's clock times the mission and every vehicle's link.
-                clock = VehicleClock(link, ids[0])
+                clock = vehicle_clock = VehicleClock(link, ids[0])
                 # Link health stays on the local clock: see tml.mavlink.adapter.
                 link_clock = time.monotonic
             for sid in ids:
@@ -288,7 +288,7 @@ def _vehicles(args: argparse.Namespace, world: World) -> Iterator[tuple[list[Any
                 stack.callback(vehicle.close)
                 vehicle.prepare()
                 vehicles.append(vehicle)
-        if link_clock is not None and not clock.wait_started(args.timeout):
+        if vehicle_clock is not None and not vehicle_clock.wait_started(args.timeout):
             raise TmlError(f"vehicle {vehicles[0].vehicle_id} sent no time stamp "
                            f"(time_boot_ms) in {args.timeout:g} s; --clock vehicle needs one")
         yield vehicles, wake, clock

@@ -16,12 +16,12 @@ from itertools import pairwise
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from tml.language.actions import BoundAction, bind
-from tml.language.model import Action, Argument
 
 from tml.engine.scripts import Limits, Send, Sleep, Until, script_for
 from tml.errors import Location
 from tml.geo import to_local
+from tml.language.actions import BoundAction, bind
+from tml.language.model import Action, Argument
 from tml.mavlink.codec import mavlink
 from tml.mavlink.compile import compile_mission
 from tml.patterns import (

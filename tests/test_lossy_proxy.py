@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import threading
 from collections.abc import Iterator
@@ -30,8 +31,10 @@ class Vehicle:
         self.client, _ = self.server.accept()
         self.connected.set()
         self.client.settimeout(10.0)
-        while data := self.client.recv(65536):
-            self.received += data
+        # close() may shut the socket under this loop: that ends it too.
+        with contextlib.suppress(OSError):
+            while data := self.client.recv(65536):
+                self.received += data
         self.closed.set()
 
     def close(self) -> None:

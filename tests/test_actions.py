@@ -139,6 +139,13 @@ def test_an_accessor_refuses_an_argument_of_another_type_or_name() -> None:
         bound.number("speed", None)
 
 
+def test_takes_says_which_canonical_arguments_an_action_has() -> None:
+    bound = actions.bind(action("LOITER", turns="3"))
+    assert bound.takes("turns") and bound.takes("duration")
+    assert not bound.takes("time")  # an alias, not the canonical name
+    assert not bound.takes("speed")
+
+
 def test_bind_keeps_labels() -> None:
     memorize = Action("MEMORIZE_POINT", (Argument("coordinates", None, "door", HERE),), HERE)
     assert actions.bind(memorize).labels == {"coordinates": "door"}

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from itertools import pairwise
 
 from tml.engine.composites import Node, NodeStatus
 from tml.engine.context import (
@@ -37,6 +38,7 @@ from tml.engine.records import TaskState
 from tml.engine.scripts import ActionFailed, Script, Send, Sleep, Until, script_for
 from tml.language.actions import BoundAction, Category, bind
 from tml.language.model import Action, Task
+from tml.patterns import survey
 from tml.vehicle import FlyMission, Hold, Request, RequestResult
 
 
@@ -521,15 +523,13 @@ def item_limit(bound: BoundAction, pilot: Pilot, stall: float) -> float:
     seconds = duration or 0.0
     if turns is not None:
         seconds += 2 * math.pi * (_number(bound, "radius") or 0.0) * turns / limits.speed
-    target = bound.values.get("coordinates")
-    point = (float(target[0]), float(target[1]), float(target[2])) \
-        if isinstance(target, tuple) and len(target) == 3 else None
+    point = bound.point("coordinates", None) if bound.takes("coordinates") else None
     if point is not None:
         seconds += math.dist(here, point) / limits.speed
-    if bound.name == "SURVEY_AREA":
-        length, width = _number(bound, "length") or 0.0, _number(bound, "width") or 0.0
-        spacing = _number(bound, "spacing") or 1.0
-        seconds += (length * (width / spacing + 1) + width) / limits.speed
+    if bound.name == "SURVEY_AREA":  # the lawnmower flown (tml.patterns), from its base
+        passes = survey((0.0, 0.0, 0.0), bound.number("length"), bound.number("width"),
+                        bound.number("spacing"), bound.choice("direction"))
+        seconds += sum(math.dist(a, b) for a, b in pairwise(passes)) / limits.speed
     if bound.name == "TAKE_OFF":
         seconds += (_number(bound, "altitude") or 0.0) / limits.climb_rate
     if bound.spec.category is Category.TAKE_OFF_LANDING and bound.name != "TAKE_OFF":
@@ -545,5 +545,6 @@ def item_limit(bound: BoundAction, pilot: Pilot, stall: float) -> float:
 
 
 def _number(bound: BoundAction, name: str) -> float | None:
-    value = bound.values.get(name)
-    return float(value) if isinstance(value, (int, float)) else None
+    """A number argument of the action, None when it has no such argument or it is
+    absent."""
+    return bound.number(name, None) if bound.takes(name) else None

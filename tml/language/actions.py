@@ -506,6 +506,11 @@ class BoundAction:
         """The canonical action name."""
         return self.spec.name
 
+    def takes(self, name: str) -> bool:
+        """Whether the action has an argument of canonical name ``name``."""
+        spec = self.spec.argument(name)
+        return spec is not None and spec.name == name
+
     @overload
     def number(self, name: str) -> float: ...
     @overload
@@ -574,7 +579,7 @@ class BoundAction:
 
     def _value(self, name: str, *types: ArgType) -> ArgumentValue | None:
         spec = self.spec.argument(name)
-        if spec is None or spec.name != name or spec.type not in types:
+        if not self.takes(name) or spec is None or spec.type not in types:
             raise TypeError(f"{self.name} has no {' or '.join(types)} argument {name!r}")
         return self.values.get(name)
 

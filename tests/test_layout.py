@@ -18,7 +18,8 @@ ROOT = Path(__file__).resolve().parent.parent
 LAYERS: list[set[str]] = [
     {"tml.__main__"},
     {"tml.commands"},
-    {"tml.run"},
+    {"tml.report"},
+    {"tml.run", "tml.plans"},
     {"tml.engine", "tml.mavlink", "tml.verify"},
     {"tml.vehicle"},
     {"tml.language"},

@@ -4,18 +4,16 @@ from __future__ import annotations
 
 import contextlib
 import os
-import queue
-import re
 import shutil
 import socket
 import subprocess
 import sys
-import threading
 import time
 
 import pytest
 
 os.environ.setdefault("MAVLINK20", "1")
+from process_lines import follow, wait_for
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as M
 
@@ -198,19 +196,6 @@ def test_bad_udp_addresses(text):
         parse_udp_address(text)
 
 
-def _lines(stream, sink: queue.Queue) -> None:
-    for line in stream:
-        sink.put(line)
-
-
-def _wait_for(sink: queue.Queue, seen: list[str], pattern: str, deadline: float) -> None:
-    while not any(re.search(pattern, line) for line in seen):
-        remaining = deadline - time.monotonic()
-        assert remaining > 0, f"MAVProxy never printed {pattern!r}; got:\n{''.join(seen[-40:])}"
-        with contextlib.suppress(queue.Empty):
-            seen.append(sink.get(timeout=min(remaining, 0.5)))
-
-
 def test_mavproxy_uploads_arms_and_flies_the_mission_in_auto(tmp_path):
     """MAVProxy (an independent ground station) flies a mission and sees every item reached."""
     mavproxy = shutil.which("mavproxy.py", path=os.path.dirname(sys.executable))
@@ -231,8 +216,7 @@ def test_mavproxy_uploads_arms_and_flies_the_mission_in_auto(tmp_path):
              "--default-modules=wp,mode,arm", f"--state-basedir={tmp_path}"],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
             cwd=tmp_path, env={**os.environ, "MAVLINK20": "1"})
-        sink: queue.Queue = queue.Queue()
-        threading.Thread(target=_lines, args=(process.stdout, sink), daemon=True).start()
+        sink = follow(process.stdout)
         seen: list[str] = []
         deadline = time.monotonic() + 60
 
@@ -244,18 +228,18 @@ def test_mavproxy_uploads_arms_and_flies_the_mission_in_auto(tmp_path):
             while not sim.vehicle(1).position_ok:  # the vehicle's own start-up, not MAVProxy's
                 assert time.monotonic() < deadline
                 time.sleep(0.05)
-            _wait_for(sink, seen, r"Detected vehicle 1:1 ", deadline)  # the autopilot
+            wait_for(sink, seen, r"Detected vehicle 1:1 ", deadline)  # the autopilot
             say("watch MISSION_ITEM_REACHED")
             say(f"wp load {mission}")
-            _wait_for(sink, seen, r"Sent all 5 waypoints|Loaded 5 waypoints? in", deadline)
+            wait_for(sink, seen, r"Sent all 5 waypoints|Loaded 5 waypoints? in", deadline)
             say("mode guided")
-            _wait_for(sink, seen, r"GUIDED", deadline)
+            wait_for(sink, seen, r"GUIDED", deadline)
             say("arm throttle")
-            _wait_for(sink, seen, r"ARMED|Arming motors", deadline)
+            wait_for(sink, seen, r"ARMED|Arming motors", deadline)
             say("mode auto")
             for seq in range(1, 5):
-                _wait_for(sink, seen, rf"MISSION_ITEM_REACHED \{{seq : {seq}\}}", deadline)
-            _wait_for(sink, seen, r"DISARMED|Disarming motors", deadline)
+                wait_for(sink, seen, rf"MISSION_ITEM_REACHED \{{seq : {seq}\}}", deadline)
+            wait_for(sink, seen, r"DISARMED|Disarming motors", deadline)
         finally:
             with contextlib.suppress(OSError):
                 process.stdin.close()

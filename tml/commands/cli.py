@@ -123,6 +123,20 @@ def cmd_companion(args: argparse.Namespace) -> ExitCode:
     return run(args)
 
 
+def cmd_export(args: argparse.Namespace) -> int:
+    """Write a mission as a plan or a map (see :mod:`tml.commands.plans`)."""
+    from tml.commands.plans import export
+
+    return export(args)
+
+
+def cmd_import(args: argparse.Namespace) -> int:
+    """Make a plan file into a mission (see :mod:`tml.commands.plans`)."""
+    from tml.commands.plans import import_
+
+    return import_(args)
+
+
 def cmd_sim(argv: Sequence[str]) -> int:
     """Run the embedded simulator (same options as ``python -m sitl``)."""
     from sitl.cli import main as sim_main
@@ -183,6 +197,28 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_companion_arguments(companion)
     companion.set_defaults(handler=cmd_companion)
+
+    from tml.commands.plans import add_export_arguments, add_import_arguments
+
+    export = commands.add_parser(
+        "export", help="write a mission as a QGroundControl plan, a waypoint file or a map",
+        description="Write what a mission would fly as mission items: a QGroundControl "
+                    ".plan (with the geofence and obstacles), a QGC WPL 110 waypoint file "
+                    "(MAVProxy's wp load), or KML / GeoJSON of the path, obstacles and "
+                    "geofence. Actions with no mission item are named on standard error. "
+                    "Exit 0 written, 1 invalid mission, 2 usage or I/O error.")
+    add_export_arguments(export)
+    export.set_defaults(handler=cmd_export)
+
+    imports = commands.add_parser(
+        "import", help="make a QGroundControl plan or a waypoint file into a mission",
+        description="Turn a QGroundControl .plan or a QGC WPL waypoint file (MAVProxy, "
+                    "Mission Planner) into a TML mission: a task per item in a task flown "
+                    "as an autopilot mission (dispatch=\"mission\"), home and geofence in "
+                    "its <environment>. Exit 0 written, 1 a file that cannot be read as a "
+                    "plan, 2 usage or I/O error.")
+    add_import_arguments(imports)
+    imports.set_defaults(handler=cmd_import)
 
     sim = commands.add_parser(
         "sim", help="run the embedded MAVLink vehicle simulator", add_help=False,

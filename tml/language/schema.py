@@ -24,6 +24,16 @@ from tml.language.diagnostics import Diagnostic, error
 from tml.language.xml import XmlDocument, element_name
 
 ROOTS = {"mission": "tml.xsd", "world": "world.xsd"}
+SCHEMA_FILES = ("tml.xsd", "world.xsd", "environment.xsd")
+SCHEMA_LOCATION = "urn:tml:schemas:tml.xsd"
+"""The stable name a mission may give its schema (``xsi:noNamespaceSchemaLocation``), for
+editors that map it to the installed file through an XML catalog (``tml schema
+--catalog``). tml itself validates with the shipped schema whatever a file names."""
+
+
+def stable_location(name: str) -> str:
+    """The stable name of a shipped XSD file (``urn:tml:schemas:world.xsd``)."""
+    return SCHEMA_LOCATION.rsplit(":", 1)[0] + ":" + name
 
 
 def schema_path(name: str = "tml.xsd") -> Path:

@@ -431,3 +431,8 @@ _COMPILERS = {
     "STOP_CAPTURING": _stop_capturing,
     "SET_HOME": _set_home,
 }
+
+
+def has_items(action_name: str) -> bool:
+    """Whether the action called ``action_name`` (canonical) has a mission-item form."""
+    return action_name in _COMPILERS

@@ -1,0 +1,222 @@
+"""Plans for other tools: a mission's mission items, .plan and WPL files, maps, import."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+from lxml import etree
+
+from tml.language.kinds import Kind
+from tml.language.validation import load_mission, validate_file
+from tml.mavlink.codec import mavlink
+from tml.mavlink.mission import MissionItem
+from tml.plans.imported import import_plan
+from tml.plans.maps import KML_NAMESPACE, write_geojson, write_kml
+from tml.plans.planned import Plan, PlanError, plan_mission
+from tml.plans.qgc import PlanFileError, read_plan, write_plan
+from tml.plans.wpl import read_wpl, write_wpl
+
+ROOT = Path(__file__).resolve().parent.parent
+MISSIONS = sorted((ROOT / "missions").glob("*.xml"))
+FORMATS = {"plan": (write_plan, read_plan), "wpl": (write_wpl, read_wpl)}
+
+
+def _plans(path: Path) -> list[Plan]:
+    mission = load_mission(path)
+    return [plan_mission(mission, role.name) for role in mission.roles] \
+        or [plan_mission(mission)]
+
+
+def _same_items(sent: tuple[MissionItem, ...], back: tuple[MissionItem, ...]) -> None:
+    assert len(back) == len(sent)
+    for a, b in zip(sent, back, strict=True):
+        # The compiler's altitudes AMSL go through the geodesy both ways: a micrometre.
+        assert replace(b, z=0.0) == replace(a, z=0.0), (a, b)
+        assert b.z == pytest.approx(a.z, abs=1e-6)
+
+
+def _imported_plan(text: str, kind: Kind, tmp_path: Path) -> Plan:
+    path = tmp_path / "imported.xml"
+    path.write_text(text)
+    result = validate_file(path)
+    assert not result.errors, [str(d) for d in result.errors]
+    assert result.mission is not None
+    return plan_mission(result.mission, kind=kind)
+
+
+@pytest.mark.parametrize("form", FORMATS)
+@pytest.mark.parametrize("path", MISSIONS, ids=lambda p: p.name)
+def test_export_then_import_keeps_the_items(path: Path, form: str, tmp_path: Path) -> None:
+    write, read = FORMATS[form]
+    for plan in _plans(path):
+        imported = import_plan(read(write(plan)), plan.name)
+        back = _imported_plan(imported.text, plan.kind, tmp_path)
+        _same_items(plan.items, back.items)
+        assert (back.home.latitude, back.home.longitude, back.home.altitude) == (
+            plan.home.latitude, plan.home.longitude, plan.home.altitude)
+
+
+def test_guided_actions_become_their_mission_items() -> None:
+    plan = plan_mission(load_mission(ROOT / "missions/paper_example1.xml"))
+    assert [i.command for i in plan.items] == [
+        mavlink.MAV_CMD_NAV_TAKEOFF, mavlink.MAV_CMD_NAV_DELAY, mavlink.MAV_CMD_NAV_WAYPOINT,
+        mavlink.MAV_CMD_NAV_LAND]
+    assert plan.tasks[2] == "Navigate avoiding obstacles/Go to destination"
+    # The GO_TO_POINT to (3, 4, 1.5) as a WGS84 waypoint 1.5 m above home.
+    lat, lon, alt = plan.position(plan.items[2]) or (0, 0, 0)
+    assert alt == pytest.approx(plan.home.altitude + 1.5)
+    assert math.hypot((lat - plan.home.latitude) * 111_000,
+                      (lon - plan.home.longitude) * 111_000 * math.cos(math.radians(lat))
+                      ) == pytest.approx(5.0, abs=0.05)
+    assert plan.notes == ("1 event handler(s) not in the plan: the autopilot flies the items "
+                          "without them",)
+
+
+def test_actions_without_a_mission_item_are_named_once() -> None:
+    plan = plan_mission(load_mission(ROOT / "missions/paper_example2.xml"))
+    assert [(s.action, s.line) for s in plan.skipped] == [("FLIP", 29)]  # repeated 3 times
+    assert "flown with commands only" in plan.skipped[0].reason
+    labels = plan_mission(load_mission(ROOT / "missions/jump_and_repeat.xml")).skipped
+    assert ("GO_TO_POINT", "reads label 'start'") in [
+        (s.action, "reads label 'start'") for s in labels if "label 'start'" in s.reason]
+
+
+def test_a_kind_that_cannot_fly_an_action_leaves_it_out() -> None:
+    plan = plan_mission(load_mission(ROOT / "missions/paper_example1.xml"), kind=Kind.GROUND)
+    assert {s.action for s in plan.skipped} == {"TAKE_OFF", "LAND"}
+    assert mavlink.MAV_CMD_NAV_TAKEOFF not in [i.command for i in plan.items]
+
+
+def test_a_mission_with_roles_needs_one_chosen() -> None:
+    mission = load_mission(ROOT / "missions/dolphin_uav_surface.xml")
+    with pytest.raises(PlanError, match="roles scout, surface: --role"):
+        plan_mission(mission)
+    with pytest.raises(PlanError, match="no role 'boat'"):
+        plan_mission(mission, "boat")
+    surface = plan_mission(mission, "surface")
+    assert surface.kind is Kind.GROUND and surface.role == "surface"
+    assert mavlink.MAV_CMD_NAV_TAKEOFF not in [i.command for i in surface.items]
+
+
+def test_repeats_are_unrolled() -> None:
+    once = plan_mission(load_mission(ROOT / "missions/paper_example2.xml"))
+    assert len(once.items) == 3
+    mission = load_mission(ROOT / "missions/battery_event.xml")
+    repeated = [t for t in mission.walk() if t.repeat > 1]
+    assert repeated, "battery_event.xml repeats a task"
+    plan = plan_mission(mission)
+    assert sum(1 for t in plan.tasks if t.startswith(repeated[0].path_name)) >= repeated[0].repeat
+
+
+def test_plan_file_has_fence_obstacles_and_home() -> None:
+    plan = plan_mission(load_mission(ROOT / "missions/verify_obstacles.xml"))
+    document = json.loads(write_plan(plan))
+    assert document["fileType"] == "Plan" and document["version"] == 1
+    mission = document["mission"]
+    assert mission["plannedHomePosition"] == [plan.home.latitude, plan.home.longitude,
+                                              plan.home.altitude]
+    assert [i["command"] for i in mission["items"]] == [i.command for i in plan.items]
+    assert all(len(i["params"]) == 7 for i in mission["items"])
+    fence = document["geoFence"]
+    inclusion = [p for p in fence["polygons"] if p["inclusion"]]
+    assert len(inclusion) == 1 and len(inclusion[0]["polygon"]) == 4
+    assert len(fence["circles"]) + len(fence["polygons"]) - 1 == len(plan.world.obstacles)
+    read = read_plan(json.dumps(document))
+    assert [z.inclusion for z in read.zones].count(True) == 1
+
+
+def test_waypoint_file_is_tab_separated_with_home_first() -> None:
+    plan = plan_mission(load_mission(ROOT / "missions/mission_dispatch.xml"))
+    lines = write_wpl(plan).splitlines()
+    assert lines[0] == "QGC WPL 110"
+    assert [len(line.split("\t")) for line in lines[1:]] == [12] * (len(plan.items) + 1)
+    home = lines[1].split("\t")
+    assert home[:4] == ["0", "1", "0", "16"]
+    assert [float(v) for v in home[8:11]] == [plan.home.latitude, plan.home.longitude,
+                                               plan.home.altitude]
+    assert [int(line.split("\t")[0]) for line in lines[2:]] == list(
+        range(1, len(plan.items) + 1))
+
+
+def test_a_survey_made_in_qgroundcontrol_is_read_with_its_items() -> None:
+    simple = {"type": "SimpleItem", "command": 16, "frame": 3, "autoContinue": True,
+              "params": [0, 0, 0, None, -35.3630, 149.1650, 30]}
+    document = {"fileType": "Plan", "version": 1, "mission": {"items": [
+        {"type": "SimpleItem", "command": 22, "frame": 3, "params": [0, 0, 0, None, 0, 0, 30]},
+        {"type": "ComplexItem", "complexItemType": "survey",
+         "TransectStyleComplexItem": {"Items": [simple, simple]}},
+        {"type": "ComplexItem", "complexItemType": "CorridorScan"},
+        {"type": "SimpleItem", "command": 20, "frame": 2, "params": [0] * 7}]}}
+    plan = read_plan(json.dumps(document))
+    assert [i.command for i in plan.items] == [22, 16, 16, 20]
+    assert plan.items[1].x == -353630000 and plan.items[1].seq == 1
+    assert len(plan.skipped) == 1 and "CorridorScan" in plan.skipped[0]
+
+
+@pytest.mark.parametrize("text, message", [
+    ("{", "not JSON"),
+    ('{"fileType": "Mission"}', "not a QGroundControl plan"),
+    ('{"fileType": "Plan", "mission": {"items": [{"type": "SimpleItem", "command": 16, '
+     '"frame": 3, "params": [1, 2]}]}}', "expected 7 params"),
+])
+def test_bad_plan_files_are_refused_saying_why(text: str, message: str) -> None:
+    with pytest.raises(PlanFileError, match=message):
+        read_plan(text, "bad.plan")
+
+
+@pytest.mark.parametrize("text, message", [
+    ("", "not a waypoint file"),
+    ("QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\t1\t2\t3\n", r"bad:2: expected 12 fields, got 11"),
+    ("QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\tx\t2\t3\t1\n", "bad:2: could not convert"),
+])
+def test_bad_waypoint_files_are_refused_saying_where(text: str, message: str) -> None:
+    with pytest.raises(PlanFileError, match=message):
+        read_wpl(text, "bad")
+
+
+def test_items_with_no_action_are_left_out_with_a_warning(tmp_path: Path) -> None:
+    text = ("QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\t-35.36\t149.16\t584\t1\n"
+            "1\t0\t3\t22\t0\t0\t0\t0\t0\t0\t12\t1\n"
+            "2\t0\t0\t177\t1\t3\t0\t0\t0\t0\t0\t1\n"  # DO_JUMP
+            "3\t0\t3\t20\t0\t0\t0\t0\t0\t0\t0\t1\n")
+    imported = import_plan(read_wpl(text), "jumps")
+    assert imported.warnings == ("item 2: DO_JUMP has no TML action: left out",)
+    back = _imported_plan(imported.text, Kind.MULTICOPTER, tmp_path)
+    assert [i.command for i in back.items] == [22, 20]
+    root = etree.fromstring(imported.text.encode())
+    assert root.find("task").get("dispatch") == "mission"
+    assert [t.get("name") for t in root.find("task")] == ["item 1: TAKE_OFF",
+                                                          "item 3: RETURN_HOME_AND_LAND"]
+
+
+def test_geojson_and_kml_hold_the_path_obstacles_and_fence() -> None:
+    plan = plan_mission(load_mission(ROOT / "missions/verify_obstacles.xml"))
+    features = json.loads(write_geojson([plan], plan.world))["features"]
+    kinds = [f["properties"]["kind"] for f in features]
+    assert kinds.count("geofence") == 1 and kinds.count("path") == 1
+    assert kinds.count("obstacle") == len(plan.world.obstacles)
+    path = next(f for f in features if f["properties"]["kind"] == "path")
+    assert path["geometry"]["type"] == "LineString"
+    assert [round(c, 7) for c in path["geometry"]["coordinates"][0][:2]] == [
+        plan.home.longitude, plan.home.latitude]  # GeoJSON: longitude first
+    for feature in features:
+        if feature["geometry"]["type"] == "Polygon":
+            ring = feature["geometry"]["coordinates"][0]
+            assert ring[0] == ring[-1]  # closed, as RFC 7946 requires
+    root = etree.fromstring(write_kml([plan], plan.world, "x").encode())
+    marks = root.findall(f".//{{{KML_NAMESPACE}}}Placemark")
+    assert len(marks) == len(features)
+    line = root.find(f".//{{{KML_NAMESPACE}}}LineString/{{{KML_NAMESPACE}}}coordinates")
+    assert line is not None and line.text is not None
+    assert len(line.text.split()) == len(path["geometry"]["coordinates"])
+
+
+def test_every_role_is_drawn_on_a_map() -> None:
+    plans = _plans(ROOT / "missions/dolphin_uav_surface.xml")
+    features = json.loads(write_geojson(plans, plans[0].world))["features"]
+    assert sorted(f["properties"]["role"] for f in features
+                  if f["properties"]["kind"] == "path") == ["scout", "surface"]

@@ -1,0 +1,142 @@
+"""``tml export`` and ``tml import`` from the command line, and MAVProxy loading the export."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import fields
+from pathlib import Path
+
+import pytest
+from process_lines import follow, wait_for
+
+from tml.commands.cli import main
+from tml.language.validation import load_mission
+from tml.mavlink.mission import (
+    MissionItem,
+    ardupilot_form,
+    read_back_differences,
+    with_home_placeholder,
+)
+from tml.plans.planned import plan_mission
+
+ROOT = Path(__file__).resolve().parent.parent
+DISPATCH = str(ROOT / "missions/mission_dispatch.xml")
+
+
+def test_export_writes_each_format_by_suffix(tmp_path: Path, capsys) -> None:
+    for suffix in (".plan", ".waypoints", ".kml", ".geojson"):
+        out = tmp_path / f"m{suffix}"
+        assert main(["export", DISPATCH, "-o", str(out)]) == 0
+        assert out.stat().st_size > 0
+    err = capsys.readouterr().err
+    assert f"tml export: 15 mission item(s) written to {tmp_path / 'm.plan'}" in err
+    assert json.loads((tmp_path / "m.plan").read_text())["fileType"] == "Plan"
+    assert (tmp_path / "m.waypoints").read_text().startswith("QGC WPL 110\n")
+
+
+def test_export_names_what_it_leaves_out(capsys) -> None:
+    assert main(["export", str(ROOT / "missions/paper_example2.xml"), "--format", "wpl"]) == 0
+    out, err = capsys.readouterr()
+    assert out.startswith("QGC WPL 110\n")
+    assert "paper_example2.xml: line 29: task 'Flip and move if green/Flip three times': " \
+           "FLIP not exported" in err
+    assert err.rstrip().endswith("1 action(s) not exported")
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["export", DISPATCH], "--format plan|wpl|kml|geojson is needed"),
+    (["export", DISPATCH, "-o", "x.txt.bak"], "(-o x.txt.bak: the suffix does not say)"),
+    (["export", "nowhere.xml", "--format", "plan"], "nowhere.xml: No such file or directory"),
+    (["export", str(ROOT / "missions/dolphin_uav_surface.xml"), "--format", "plan"],
+     "--role names the one whose plan to write"),
+    (["export", DISPATCH, "--format", "plan", "-o", "/nonexistent/dir/m.plan"],
+     "-o /nonexistent/dir/m.plan: cannot write"),
+    (["import", "nowhere.plan"], "nowhere.plan: No such file or directory"),
+])
+def test_usage_errors_exit_2_naming_the_value(argv: list[str], message: str, capsys) -> None:
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+
+
+def test_an_invalid_mission_is_not_exported(tmp_path: Path, capsys) -> None:
+    bad = tmp_path / "bad.xml"
+    bad.write_text('<mission name="m"><task name="t"><action name="GO_TO_PIONT"/></task>'
+                   '</mission>')
+    assert main(["export", str(bad), "--format", "plan"]) == 1
+    assert "invalid mission, not exported" in capsys.readouterr().err
+
+
+def test_import_of_a_file_that_is_not_a_plan_exits_1(tmp_path: Path, capsys) -> None:
+    bad = tmp_path / "bad.waypoints"
+    bad.write_text("hello\n")
+    assert main(["import", str(bad)]) == 1
+    assert "bad.waypoints:1: not a waypoint file" in capsys.readouterr().err
+
+
+def test_export_then_import_then_validate(tmp_path: Path, capsys) -> None:
+    plan = tmp_path / "m.plan"
+    mission = tmp_path / "m.xml"
+    assert main(["export", DISPATCH, "-o", str(plan)]) == 0
+    assert main(["import", str(plan), "-o", str(mission)]) == 0
+    assert "15 mission item(s) as 14 task(s) written" in capsys.readouterr().err
+    assert main(["validate", str(mission)]) == 0
+    assert main(["export", str(mission), "-o", str(tmp_path / "again.plan")]) == 0
+    first = json.loads(plan.read_text())["mission"]["items"]
+    again = json.loads((tmp_path / "again.plan").read_text())["mission"]["items"]
+    assert [(i["command"], i["frame"]) for i in again] == [
+        (i["command"], i["frame"]) for i in first]
+
+
+def test_mavproxy_loads_the_exported_waypoint_file_into_the_simulator(tmp_path: Path) -> None:
+    """MAVProxy's ``wp load`` (as benchmarks/upload.py drives it) reads the WPL export, and
+    the vehicle stores every item as exported, home first."""
+    from sitl.server import Simulator
+
+    mavproxy = shutil.which("mavproxy.py", path=os.path.dirname(sys.executable))
+    assert mavproxy, "MAVProxy is part of the test extra"
+    waypoints = tmp_path / "mission.waypoints"
+    assert main(["export", DISPATCH, "-o", str(waypoints)]) == 0
+    plan = plan_mission(load_mission(DISPATCH))
+    with Simulator(tcp_base_port=0, speedup=10) as sim:
+        process = subprocess.Popen(
+            [sys.executable, mavproxy, f"--master=tcp:127.0.0.1:{sim.tcp_ports[0]}",
+             "--target-system=1", "--target-component=1", "--no-state",
+             "--default-modules=wp", f"--state-basedir={tmp_path}"],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+            cwd=tmp_path, env={**os.environ, "MAVLINK20": "1"})
+        sink = follow(process.stdout)
+        seen: list[str] = []
+        deadline = time.monotonic() + 60
+        try:
+            wait_for(sink, seen, r"Detected vehicle 1:1 ", deadline)
+            assert process.stdin is not None
+            process.stdin.write(f"wp load {waypoints}\n")
+            process.stdin.flush()
+            count = len(plan.items) + 1
+            wait_for(sink, seen, rf"Loaded {count} waypoints? from", deadline)
+            wait_for(sink, seen, r"Sent all \d+ waypoints|MISSION_ACK.*ACCEPTED", deadline)
+            stored = sim.vehicle(1).mission_items
+            while len(stored) < count and time.monotonic() < deadline:
+                time.sleep(0.05)
+                stored = sim.vehicle(1).mission_items
+        finally:
+            with contextlib.suppress(OSError):
+                process.stdin.close()  # type: ignore[union-attr]
+            try:
+                process.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait()
+    assert [item.command for item in stored[1:]] == [item.command for item in plan.items]
+    # Each item as ArduPilot keeps what tml itself uploads (the simulator stores as it does).
+    read_back = [MissionItem(**{f.name: getattr(item, f.name) for f in fields(MissionItem)})
+                 for item in stored]
+    assert read_back_differences(with_home_placeholder(list(plan.items)), read_back,
+                                 ardupilot_form, skip_home=True) == []

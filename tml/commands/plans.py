@@ -1,0 +1,165 @@
+"""``tml export`` and ``tml import``: a mission as other tools' plans, and back.
+
+Exit codes: 0 written (actions with no mission item are named on standard error, and the
+plan is written without them), 1 an invalid mission or a plan file that cannot be read, 2
+usage or I/O error (a missing file, an unwritable output, a role to choose).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from tml.language.kinds import Kind
+
+FORMATS = {"plan": ".plan", "wpl": ".waypoints", "kml": ".kml", "geojson": ".geojson"}
+SUFFIXES = {".plan": "plan", ".waypoints": "wpl", ".txt": "wpl", ".kml": "kml",
+            ".geojson": "geojson", ".json": "geojson"}
+EXIT_OK, EXIT_INVALID, EXIT_USAGE = 0, 1, 2
+
+
+def add_export_arguments(parser: argparse.ArgumentParser) -> None:
+    """Declare the options of ``tml export``."""
+    parser.add_argument("mission", metavar="FILE")
+    parser.add_argument("--format", choices=tuple(FORMATS),
+                        help="plan (QGroundControl), wpl (QGC WPL 110, MAVProxy's wp load), "
+                             "kml or geojson (the path, obstacles and geofence for a map); "
+                             "default: from the suffix of -o")
+    parser.add_argument("-o", "--output", metavar="OUT",
+                        help="write here (default: standard output)")
+    parser.add_argument("--role", metavar="ROLE",
+                        help="in a mission with roles: the role whose tasks to export "
+                             "(kml and geojson draw every role without it)")
+    parser.add_argument("--kind", choices=[k.value for k in Kind], default=None,
+                        help="the kind of vehicle the items are for (default: the role's, "
+                             "else multicopter)")
+    parser.add_argument("--world", metavar="FILE",
+                        help="world file laid over the mission's <environment>")
+
+
+def add_import_arguments(parser: argparse.ArgumentParser) -> None:
+    """Declare the options of ``tml import``."""
+    parser.add_argument("plan", metavar="FILE", help="a .plan or a QGC WPL waypoint file")
+    parser.add_argument("-o", "--output", metavar="OUT",
+                        help="write the mission here (default: standard output)")
+    parser.add_argument("--name", help="the mission's name (default: the file's name)")
+
+
+def _say(command: str, message: str) -> None:
+    print(f"tml {command}: {message}", file=sys.stderr)
+
+
+def _write(command: str, output: str | None, text: str) -> bool:
+    """Write ``text`` to ``output`` (standard output for None); False when it cannot."""
+    if output is None:
+        sys.stdout.write(text)
+        return True
+    try:
+        Path(output).write_text(text, encoding="utf-8")
+    except OSError as error:
+        _say(command, f"-o {output}: cannot write: {error.strerror or error}")
+        return False
+    return True
+
+
+def export(args: argparse.Namespace) -> int:
+    """Run ``tml export``; return the exit code."""
+    from tml.errors import TmlError
+    from tml.language.build import load_world
+    from tml.language.diagnostics import format_human
+    from tml.language.validation import validate_file
+    from tml.plans.maps import write_geojson, write_kml
+    from tml.plans.planned import PlanError, plan_mission
+    from tml.plans.qgc import write_plan
+    from tml.plans.wpl import write_wpl
+
+    form = args.format or SUFFIXES.get(Path(args.output or "").suffix.lower())
+    if form is None:
+        _say("export", "--format plan|wpl|kml|geojson is needed"
+             + (f" (-o {args.output}: the suffix does not say)" if args.output else ""))
+        return EXIT_USAGE
+    try:
+        result = validate_file(args.mission)
+        extra = load_world(args.world) if args.world else None
+    except OSError as error:
+        _say("export", f"{error.filename}: {error.strerror or error}")
+        return EXIT_USAGE
+    except TmlError as error:
+        _say("export", f"--world {args.world}: {error}")
+        return EXIT_USAGE
+    if result.errors or result.mission is None:
+        for diagnostic in result.diagnostics:
+            print(format_human(diagnostic, {result.file: result.source}), file=sys.stderr)
+        _say("export", f"{result.file}: invalid mission, not exported")
+        return EXIT_INVALID
+    mission = result.mission
+    kind = Kind(args.kind) if args.kind else None
+    try:
+        if form in ("kml", "geojson") and args.role is None and mission.roles:
+            plans = [plan_mission(mission, r.name, kind, extra) for r in mission.roles]
+        else:
+            plans = [plan_mission(mission, args.role, kind, extra)]
+    except PlanError as error:
+        _say("export", str(error))
+        return EXIT_USAGE
+    said: dict[str, None] = {}  # each once, in order, when several roles say the same
+    for plan in plans:
+        said.update({f"{mission.file}: {skipped}": None for skipped in plan.skipped})
+        said.update({f"note: {note}": None for note in plan.notes})
+    for message in said:
+        _say("export", message)
+    world = plans[0].world
+    if form == "plan":
+        text = write_plan(plans[0])
+    elif form == "wpl":
+        text = write_wpl(plans[0])
+    elif form == "kml":
+        text = write_kml(plans, world, mission.name)
+    else:
+        text = write_geojson(plans, world)
+    if not _write("export", args.output, text):
+        return EXIT_USAGE
+    items = sum(len(p.items) for p in plans)
+    skipped = sum(len(p.skipped) for p in plans)
+    _say("export", f"{items} mission item(s) written to {args.output or 'standard output'}"
+         + (f"; {skipped} action(s) not exported" if skipped else ""))
+    return EXIT_OK
+
+
+def import_(args: argparse.Namespace) -> int:
+    """Run ``tml import``; return the exit code."""
+    from tml.language.diagnostics import format_human
+    from tml.language.validation import validate_file
+    from tml.plans.imported import import_plan
+    from tml.plans.qgc import PlanFileError, read_plan
+    from tml.plans.wpl import read_wpl
+
+    path = Path(args.plan)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as error:
+        reason = error.strerror if isinstance(error, OSError) else "not UTF-8 text"
+        _say("import", f"{args.plan}: {reason or error}")
+        return EXIT_USAGE
+    try:
+        plan = read_plan(text, args.plan) if text.lstrip().startswith("{") \
+            else read_wpl(text, args.plan)
+    except PlanFileError as error:
+        _say("import", str(error))
+        return EXIT_INVALID
+    imported = import_plan(plan, args.name or path.stem)
+    for warning in imported.warnings:
+        _say("import", f"{args.plan}: {warning}")
+    # What is written must validate: check it as the file it becomes.
+    result = validate_file(args.output or f"{path.stem}.xml", imported.text.encode("utf-8"))
+    if result.errors:
+        for diagnostic in result.diagnostics:
+            print(format_human(diagnostic, {result.file: result.source}), file=sys.stderr)
+        _say("import", f"{args.plan}: the mission made of it is invalid, not written")
+        return EXIT_INVALID
+    if not _write("import", args.output, imported.text):
+        return EXIT_USAGE
+    _say("import", f"{len(plan.items)} mission item(s) as {imported.actions} task(s) written "
+         f"to {args.output or 'standard output'}")
+    return EXIT_OK

@@ -1,0 +1,202 @@
+"""What a mission would fly, as the mission items of one autopilot plan.
+
+Theory of operation
+-------------------
+A plan file holds one vehicle's list of mission items, flown in order in AUTO: no events,
+no conditions, no second vehicle. :func:`plan_mission` therefore takes the mission's
+*nominal* path: the terminal tasks in document order (of one role, in a mission with
+roles), each repeat unrolled, and compiles their actions with the mission compiler
+(:mod:`tml.mavlink.compile`), the one that compiles ``dispatch="mission"`` tasks in
+flight. Actions flown as GUIDED commands become the mission items that do the same thing
+in AUTO; an action with no such item (MEMORIZE_POINT, FLIP, an argument read from a
+label only known in flight) or that the vehicle's kind cannot fly is left out, and the
+plan says which and why (:attr:`Plan.skipped`). What the plan cannot keep of the
+mission's structure (event handlers, conditions, loops, parallel branches, error
+handlers) is said in :attr:`Plan.notes`.
+
+Positions are relative to the mission's home (its ``<environment>``, or ArduPilot SITL's
+default location), which the plan carries as its planned home.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+from tml.geo import to_global
+from tml.language.actions import bind
+from tml.language.kinds import Kind, refusal, role_kinds
+from tml.language.model import Composition, Mission, Task
+from tml.mavlink.codec import mavlink
+from tml.mavlink.compile import FRAMES, CompileError, compile_mission, has_items
+from tml.mavlink.mission import MissionItem
+from tml.world import Home, World
+
+AMSL_FRAMES = frozenset({mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_FRAME_GLOBAL_INT})
+RELATIVE_FRAMES = frozenset({mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+                             mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT})
+TERRAIN_FRAMES = frozenset({mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT,
+                            mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT})
+GLOBAL_FRAMES = AMSL_FRAMES | RELATIVE_FRAMES | TERRAIN_FRAMES | frozenset(FRAMES.values())
+"""The frames whose x and y are latitude and longitude (degrees * 1e7)."""
+
+
+@dataclass(frozen=True)
+class Skipped:
+    """An action the plan leaves out, and why."""
+
+    task: str  # the task's path, "phase one/take off"
+    action: str
+    line: int
+    reason: str
+
+    def __str__(self) -> str:
+        return f"line {self.line}: task {self.task!r}: {self.action} not exported: {self.reason}"
+
+
+@dataclass(frozen=True)
+class Plan:
+    """The mission items of a mission (seq 0..N-1, home not among them), with the task each
+    item comes from, and what could not be kept."""
+
+    name: str
+    home: Home
+    kind: Kind
+    world: World
+    items: tuple[MissionItem, ...]
+    tasks: tuple[str, ...]  # the task path of each item
+    skipped: tuple[Skipped, ...] = ()
+    notes: tuple[str, ...] = ()
+    role: str | None = None
+
+    def position(self, item: MissionItem) -> tuple[float, float, float] | None:
+        """Latitude, longitude and altitude AMSL of an item that has a position."""
+        if item.frame not in GLOBAL_FRAMES or (item.x == 0 and item.y == 0):
+            return None
+        altitude = item.z if item.frame in AMSL_FRAMES else self.home.altitude + item.z
+        return item.x / 1e7, item.y / 1e7, altitude
+
+    def path(self) -> list[tuple[float, float, float]]:
+        """The points flown, from home: latitude, longitude, altitude AMSL.
+
+        A take-off climbs over the point where the vehicle is, a return to launch flies
+        home and lands there; the other items with a position are flown to in order.
+        """
+        here = (self.home.latitude, self.home.longitude, self.home.altitude)
+        points = [here]
+        for item in self.items:
+            position = self.position(item)
+            if item.command == mavlink.MAV_CMD_NAV_TAKEOFF:
+                position = (here[0], here[1], self.home.altitude + item.z)
+            elif item.command == mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+                points.append((self.home.latitude, self.home.longitude, here[2]))
+                position = (self.home.latitude, self.home.longitude, self.home.altitude)
+            elif item.command == mavlink.MAV_CMD_NAV_LAND and position is None:
+                position = (here[0], here[1], self.home.altitude)
+            if position is not None:
+                points.append(position)
+                here = position
+        return points
+
+
+def local_to_global(home: Home, north: float, east: float,
+                    up: float = 0.0) -> tuple[float, float, float]:
+    """Latitude, longitude and altitude AMSL of a point in metres from ``home``."""
+    return to_global(north, east, up, home.latitude, home.longitude, home.altitude)
+
+
+class PlanError(ValueError):
+    """A mission that cannot be made into one plan (says why: which role to choose)."""
+
+
+def plan_mission(mission: Mission, role: str | None = None, kind: Kind | None = None,
+                 world: World | None = None) -> Plan:
+    """The plan of ``mission`` (of ``role``'s tasks, in a mission with roles) for a vehicle
+    of ``kind`` (default: the role's kind, else a multicopter), in the mission's world with
+    ``world`` (a world file) laid over it.
+
+    Raises :class:`PlanError` for a role the mission does not declare, and when the
+    mission has several roles and none is chosen.
+    """
+    if mission.roles:
+        names = [r.name for r in mission.roles]
+        if role is None and len(names) == 1:
+            role = names[0]
+        if role is None:
+            raise PlanError(f"the mission has the roles {', '.join(names)}: "
+                            "--role names the one whose plan to write")
+        declared = mission.role(role)
+        if declared is None:
+            raise PlanError(f"the mission has no role {role!r} (roles: {', '.join(names)})")
+        if kind is None:
+            kinds = role_kinds(declared.vehicle_type)
+            kind = Kind.MULTICOPTER if Kind.MULTICOPTER in kinds else min(kinds)
+    elif role is not None:
+        raise PlanError(f"the mission declares no roles, so there is no role {role!r}")
+    kind = kind or Kind.MULTICOPTER
+    world = (mission.world or World()).merged(world)
+    home = world.home_or_default
+    notes = _notes(mission, role)
+    skipped: dict[Skipped, None] = {}  # in order, each once (a repeat skips it again)
+    flown = []
+    for task in _nominal(mission.tasks, role, notes):
+        assert task.action is not None
+        bound = bind(task.action)
+        line = task.action.location.line
+        why = refusal(bound, kind)
+        if why is None and not has_items(bound.name):
+            why = "no mission item does this (it is flown with commands only)"
+        if why is None:
+            try:  # alone: whether the action has items at all, whatever came before it
+                compile_mission([bound], home, (0.0, 0.0, 0.0), home.heading, kind)
+            except CompileError as error:
+                why = str(error)
+        if why is not None:
+            skipped.setdefault(Skipped(task.path_name, bound.name, line, why))
+        else:
+            flown.append((task, bound))
+    compiled = compile_mission([b for _, b in flown], home, (0.0, 0.0, 0.0), home.heading,
+                               kind)
+    tasks = tuple(flown[index][0].path_name for index in compiled.action_index)
+    return Plan(mission.name, home, kind, world, compiled.items, tasks, tuple(skipped),
+                tuple(notes), role)
+
+
+def _nominal(tasks: tuple[Task, ...], role: str | None, notes: list[str]) -> Iterator[Task]:
+    """The terminal tasks flown when nothing goes wrong, in order, repeats unrolled."""
+    for task in tasks:
+        children = task.children
+        if task.composition in (Composition.CHOICE, Composition.FIRST) and children:
+            notes.append(f"task {task.path_name!r} flies one of its sub-tasks "
+                         f"({task.composition.value}): the plan has the first, "
+                         f"{children[0].name!r}")
+            children = children[:1]
+        for _ in range(task.repeat):
+            if task.is_terminal:
+                if role is None or task.role == role:
+                    yield task
+            else:
+                yield from _nominal(children, role, notes)
+
+
+def _notes(mission: Mission, role: str | None) -> list[str]:
+    """What of the mission's structure a list of items cannot say."""
+    notes = []
+    if mission.events:
+        notes.append(f"{len(mission.events)} event handler(s) not in the plan: the autopilot "
+                     "flies the items without them")
+    for task in mission.walk():
+        if role is not None and task.role not in (role, None):
+            continue
+        if task.conditions:
+            notes.append(f"task {task.path_name!r} has conditions: the plan flies it always")
+        if task.loop is not None:
+            notes.append(f"task {task.path_name!r} loops: the plan flies one round")
+        if task.on_error:
+            notes.append(f"task {task.path_name!r} has an error handler: not in the plan")
+        flown = [c for c in task.children if any(
+            t.is_terminal and (role is None or t.role == role) for t in c.walk())]
+        if task.composition is Composition.PARALLEL and len(flown) > 1:
+            notes.append(f"the sub-tasks of {task.path_name!r} run in parallel: the plan "
+                         "flies them one after the other")
+    return notes

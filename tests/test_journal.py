@@ -7,8 +7,11 @@ import json
 import math
 from types import MappingProxyType
 
-from tml.run.journal import Journal, jsonable, read, telemetry_fields
-from tml.vehicle import MissionProgress, VehicleState
+import pytest
+
+from tml.run.journal import Journal, autopilot_fields, jsonable, read, telemetry_fields
+from tml.vehicle import AutopilotMessage, MissionProgress, VehicleState
+from tml.world import Home
 
 
 def test_lines_are_json_with_time_kind_and_vehicle(tmp_path) -> None:
@@ -60,3 +63,20 @@ def test_telemetry_fields() -> None:
     assert fields["mission"] == {"plan": 3, "action": 2, "finished": False}
     assert fields["detections"] == {"RECOGNIZED_ITEMS": ["A"]}
     assert json.dumps(fields)
+
+
+def test_telemetry_gives_the_position_on_the_globe_too() -> None:
+    home = Home(-35.363261, 149.165230, 584.0)
+    fields = telemetry_fields(VehicleState(1, 5.0, position=(100.0, 0.0, 20.0), home=home))
+    lat, lon, alt = fields["global"]
+    assert lat == pytest.approx(home.latitude + 100.0 / 110_950, abs=2e-6)  # 100 m north
+    assert lon == pytest.approx(home.longitude, abs=1e-7)
+    assert alt == pytest.approx(604.0, abs=0.01)  # AMSL: home's 584 m + 20 m
+    assert telemetry_fields(VehicleState(1, 5.0, position=(1.0, 2.0, 3.0)))["global"] is None
+    assert telemetry_fields(VehicleState(1, 5.0, home=home))["global"] is None
+
+
+def test_autopilot_fields_name_the_severity() -> None:
+    message = AutopilotMessage(3, 2, "PreArm: Need Position Estimate")
+    assert autopilot_fields(message) == {"severity": "critical", "level": 2,
+                                         "text": "PreArm: Need Position Estimate"}

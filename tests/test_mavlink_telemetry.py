@@ -8,6 +8,7 @@ import pytest
 
 from sitl.model import VehicleModel
 from tml.language.kinds import VEHICLE_TYPES
+from tml.mavlink.adapter import _messages
 from tml.mavlink.codec import mavlink
 from tml.mavlink.telemetry import AIRFRAMES, Sighting, TelemetryTracker
 from tml.world import DEFAULT_HOME
@@ -150,6 +151,12 @@ def test_status_texts_are_bounded() -> None:
         tracker.apply(ap("statustext", 6, f"line {n}".encode()), float(n))
     texts = tracker.snapshot.status_texts
     assert len(texts) == 50 and texts[-1].text == "line 79" and texts[0].text == "line 30"
+    assert tracker.snapshot.status_text_count == 80
+    # The vehicle's state carries the last ten, numbered from the link's first.
+    messages = _messages(tracker.snapshot)
+    assert [(m.number, m.text) for m in messages] == [(n + 1, f"line {n}")
+                                                       for n in range(70, 80)]
+    assert {m.severity_name for m in messages} == {"info"}
 
 
 def test_mode_changes_and_tilts_are_kept_with_their_arrival_times() -> None:

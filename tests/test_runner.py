@@ -262,6 +262,23 @@ def test_the_first_task_waits_until_the_vehicle_is_ready() -> None:
     assert first_request["t"] >= ready[2][0]
 
 
+def test_each_autopilot_message_is_logged_once_with_its_severity() -> None:
+    def talk(sim: Sim) -> None:
+        if sim.time == 0.5:
+            sim.vehicles[0].say(2, "PreArm: Need Position Estimate")
+        if sim.time == 3.0:
+            sim.vehicles[0].say(6, "Mode change to GUIDED")
+            sim.vehicles[0].say(4, "Battery 1 is low")
+
+    _, _, lines, _, _ = run(TAKE_OFF + LAND, hooks=[talk])
+    told = [(line["t"], line["vehicle"], line["severity"], line["level"], line["text"])
+            for line in lines if line["kind"] == "autopilot"]
+    assert [t[1:] for t in told] == [(1, "critical", 2, "PreArm: Need Position Estimate"),
+                                     (1, "info", 6, "Mode change to GUIDED"),
+                                     (1, "warning", 4, "Battery 1 is low")]
+    assert [t[0] for t in told] == [0.5, 3.0, 3.0]
+
+
 def test_a_vehicle_never_ready_fails_the_run_with_the_autopilots_reason() -> None:
     never = Booting()
     never.armable_at = 1e9

@@ -37,6 +37,28 @@ class MissionProgress:
     finished: bool = False
 
 
+SEVERITIES = ("emergency", "alert", "critical", "error", "warning", "notice", "info", "debug")
+"""MAV_SEVERITY by number: 0 is the worst."""
+MESSAGES_KEPT = 10
+"""Autopilot messages a state carries (the latest)."""
+
+
+@dataclass(frozen=True)
+class AutopilotMessage:
+    """A message of the autopilot (MAVLink STATUSTEXT: PreArm reasons, failsafes, mode
+    changes ...). ``number`` counts a vehicle's messages from 1, so that each is told once."""
+
+    number: int
+    severity: int  # MAV_SEVERITY: 0 emergency ... 7 debug
+    text: str
+
+    @property
+    def severity_name(self) -> str:
+        """``warning``, ``critical`` ...: MAV_SEVERITY's word for the severity."""
+        return SEVERITIES[self.severity] if 0 <= self.severity < len(SEVERITIES) \
+            else str(self.severity)
+
+
 @dataclass(frozen=True)
 class VehicleState:
     """What the engine knows of one vehicle at ``time``."""
@@ -60,7 +82,8 @@ class VehicleState:
     mission: MissionProgress | None = None
     detections: Mapping[str, object] = field(default_factory=lambda: _EMPTY)
     capabilities: frozenset[str] = frozenset()  # "gripper", "flip", "camera"
-    status_text: str = ""  # the last STATUSTEXT, for the log and the display
+    status_text: str = ""  # the last STATUSTEXT
+    messages: tuple[AutopilotMessage, ...] = ()  # the latest STATUSTEXTs, oldest first
     vehicle_type: str = ""  # a word of VEHICLE_TYPES, "" while unknown
 
     @property
@@ -368,6 +391,11 @@ class FakeVehicle:
     _landing: bool = False
     _results: list[RequestResult] = field(default_factory=list)
     _mission_points: list[Point] = field(default_factory=list)
+    _messages: list[AutopilotMessage] = field(default_factory=list)
+
+    def say(self, severity: int, text: str) -> None:
+        """The autopilot says ``text`` (a STATUSTEXT of MAV_SEVERITY ``severity``)."""
+        self._messages.append(AutopilotMessage(len(self._messages) + 1, severity, text))
 
     def state(self) -> VehicleState:
         """The current state."""
@@ -379,7 +407,9 @@ class FakeVehicle:
             heading=self.heading, ground_speed=self.speed if self._moving() is not None else 0.0,
             battery=self.battery, gps_fix=3, home=self.home, mission=self.mission,
             detections=MappingProxyType(dict(self.detections)),
-            capabilities=self.capabilities, vehicle_type=self.vehicle_type)
+            capabilities=self.capabilities, vehicle_type=self.vehicle_type,
+            status_text=self._messages[-1].text if self._messages else "",
+            messages=tuple(self._messages[-MESSAGES_KEPT:]))
 
     def submit(self, request: Request) -> None:
         """Record and carry out a request (answered at the next ``poll``)."""

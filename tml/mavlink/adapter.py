@@ -103,7 +103,9 @@ from tml.mavlink.modes import mode_names
 from tml.mavlink.telemetry import COMPANION_COMPONENT, Telemetry
 from tml.mavlink.vehicle import DEFAULT_RATES, Vehicle
 from tml.vehicle import (
+    MESSAGES_KEPT,
     Arm,
+    AutopilotMessage,
     Camera,
     Circle,
     Disarm,
@@ -341,7 +343,8 @@ class MavlinkVehicle:
             battery=None if t.battery_remaining is None else float(t.battery_remaining),
             gps_fix=t.gps_fix, home=home, mission=progress, detections=detections,
             capabilities=self.capabilities, vehicle_type=t.airframe,
-            status_text=t.status_texts[-1].text if t.status_texts else "")
+            status_text=t.status_texts[-1].text if t.status_texts else "",
+            messages=_messages(t))
 
     def submit(self, request: Request) -> None:
         """Queue a request for the worker thread; never blocks.
@@ -848,6 +851,13 @@ _HANDLERS: dict[type, Callable[[MavlinkVehicle, Any], str | None]] = {
     SetHome: MavlinkVehicle._set_home, SetSkill: MavlinkVehicle._set_skill,
     FlyMission: MavlinkVehicle._fly_mission, Flip: MavlinkVehicle._flip,
 }
+
+
+def _messages(t: Telemetry) -> tuple[AutopilotMessage, ...]:
+    """The latest STATUSTEXTs, numbered from the first the link received."""
+    texts = t.status_texts[-MESSAGES_KEPT:]
+    first = t.status_text_count - len(texts) + 1
+    return tuple(AutopilotMessage(first + i, s.severity, s.text) for i, s in enumerate(texts))
 
 
 def _home(t: Telemetry) -> Home | None:

@@ -133,6 +133,8 @@ class Telemetry:
     mission_current: int | None = None
     items_reached: tuple[int, ...] = ()
     status_texts: tuple[StatusText, ...] = ()
+    status_text_count: int = 0
+    """STATUSTEXTs received since the link opened (the last ``status_texts`` are kept)."""
     mode_changes: tuple[tuple[float, str], ...] = ()
     """(arrival time, mode) of the latest HEARTBEATs that showed a new mode, oldest first."""
     tilted_at: float | None = None
@@ -284,7 +286,8 @@ class TelemetryTracker:
             return {"items_reached": (*s.items_reached, msg.seq)}
         if kind == "STATUSTEXT":
             text = StatusText(now, msg.severity, _text(msg.text))
-            return {"status_texts": (*s.status_texts, text)[-STATUS_TEXTS_KEPT:]}
+            return {"status_texts": (*s.status_texts, text)[-STATUS_TEXTS_KEPT:],
+                    "status_text_count": s.status_text_count + 1}
         return {}
 
     def _detection(self, msg: Any, now: float) -> dict[str, Any]:

@@ -5,10 +5,12 @@ Every line has ``t`` (mission clock, seconds), ``kind`` and, when it is about a 
 kinds (``mission``, ``task``, ``action``, ``decision``, ``event``, ``request``,
 ``result``, ``safety``); the runner adds ``run`` (start and end of the run, with the
 mission file and options), ``result`` (every request outcome a vehicle reported),
-``telemetry`` (a vehicle's state once a second), ``ready`` (what a vehicle still lacks
-before the first task, each time that changes) and ``safety`` (what it did to leave the
-vehicles safe). docs/run.md lists the fields. Lines are flushed at once, so that a log
-survives a crash of the run up to its last event.
+``telemetry`` (a vehicle's state once a second, its position both in the local frame and
+as latitude, longitude and altitude AMSL, so that a log can be drawn on any map),
+``autopilot`` (each message of a vehicle's autopilot, a STATUSTEXT, with its severity),
+``ready`` (what a vehicle still lacks before the first task, each time that changes) and
+``safety`` (what it did to leave the vehicles safe). docs/run.md lists the fields. Lines
+are flushed at once, so that a log survives a crash of the run up to its last event.
 """
 
 from __future__ import annotations
@@ -18,7 +20,8 @@ import math
 from collections.abc import Mapping
 from typing import IO, Any
 
-from tml.vehicle import VehicleState
+from tml.geo import to_global
+from tml.vehicle import AutopilotMessage, VehicleState
 
 
 def jsonable(value: Any) -> Any:
@@ -39,9 +42,15 @@ def jsonable(value: Any) -> Any:
 def telemetry_fields(state: VehicleState) -> dict[str, Any]:
     """The fields of a ``telemetry`` line for one vehicle state."""
     position = state.position
+    home = state.home
+    where = None
+    if position is not None and home is not None:
+        lat, lon, alt = to_global(*position, home.latitude, home.longitude, home.altitude)
+        where = [round(lat, 7), round(lon, 7), round(alt, 2)]
     return {
         "link": state.link, "mode": state.mode, "armed": state.armed, "landed": state.landed,
         "position": None if position is None else [round(v, 2) for v in position],
+        "global": where,
         "heading": round(state.heading, 1), "ground_speed": round(state.ground_speed, 2),
         "battery": state.battery, "gps_fix": state.gps_fix,
         "mission": None if state.mission is None else {
@@ -49,6 +58,12 @@ def telemetry_fields(state: VehicleState) -> dict[str, Any]:
             "finished": state.mission.finished},
         "detections": jsonable(state.detections),
     }
+
+
+def autopilot_fields(message: AutopilotMessage) -> dict[str, Any]:
+    """The fields of an ``autopilot`` line: the severity's word and number, and the text."""
+    return {"severity": message.severity_name, "level": message.severity,
+            "text": message.text}
 
 
 class Journal:

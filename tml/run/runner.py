@@ -51,7 +51,7 @@ from tml.engine import Interpreter, Options, Output, Status, View
 from tml.engine.safety import safe_state_request
 from tml.errors import ExitCode
 from tml.language.model import Mission
-from tml.run.journal import Journal, telemetry_fields
+from tml.run.journal import Journal, autopilot_fields, telemetry_fields
 from tml.vehicle import IdSource, RequestResult, Vehicle, VehicleState, awaiting
 
 
@@ -105,6 +105,7 @@ class _Flight:
         self.lost = False  # reported to the engine
         self.next_telemetry = 0.0
         self.cause = ""
+        self.messages_told = 0  # the number of the last autopilot message journaled
 
 
 class _Crew:
@@ -208,6 +209,7 @@ class Runner:
     def _end(self, outcome: Outcome) -> Outcome:
         for flight in self.flights:  # the state each vehicle is left in
             flight.state = flight.vehicle.state()
+            self._tell_messages(flight, self.clock())
             self.journal.write(self.clock(), "telemetry", flight.vehicle.vehicle_id,
                                **telemetry_fields(flight.state))
         self.journal.write(self.clock(), "run", message="run ended",
@@ -230,6 +232,7 @@ class Runner:
             waiting: dict[int, tuple[str, ...]] = {}
             for flight in self.flights:
                 state = flight.state = flight.vehicle.state()
+                self._tell_messages(flight, now)
                 vid = flight.vehicle.vehicle_id
                 missing = waiting[vid] = awaiting(state)
                 if missing != said.get(vid, ()) or vid not in said:
@@ -261,6 +264,15 @@ class Runner:
                 self.on_update(self)
             self._wait(1.0 / self.options.rate)
 
+    def _tell_messages(self, flight: _Flight, now: float) -> None:
+        """Journal the autopilot's messages not journaled yet."""
+        assert flight.state is not None
+        for message in flight.state.messages:
+            if message.number > flight.messages_told:
+                flight.messages_told = message.number
+                self.journal.write(now, "autopilot", flight.vehicle.vehicle_id,
+                                   **autopilot_fields(message))
+
     def _wait_for_wake(self, timeout: float) -> None:
         self.wake.wait(timeout)
         self.wake.clear()
@@ -271,6 +283,7 @@ class Runner:
         for flight in crew.flights:
             vehicle = flight.vehicle
             state = flight.state = vehicle.state()
+            self._tell_messages(flight, now)
             found = results[vehicle.vehicle_id] = vehicle.poll()
             for result in found:
                 self.journal.write(now, "result", vehicle.vehicle_id,

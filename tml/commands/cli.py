@@ -137,6 +137,13 @@ def cmd_import(args: argparse.Namespace) -> int:
     return import_(args)
 
 
+def cmd_report(args: argparse.Namespace) -> int:
+    """Draw a flight log (see :mod:`tml.commands.report`)."""
+    from tml.commands.report import run
+
+    return run(args)
+
+
 def cmd_sim(argv: Sequence[str]) -> int:
     """Run the embedded simulator (same options as ``python -m sitl``)."""
     from sitl.cli import main as sim_main
@@ -219,6 +226,19 @@ def build_parser() -> argparse.ArgumentParser:
                     "plan, 2 usage or I/O error.")
     add_import_arguments(imports)
     imports.set_defaults(handler=cmd_import)
+
+    report = commands.add_parser(
+        "report", help="draw a flight log: planned path and track, altitude, battery, tasks",
+        description="Make a flight log (tml run --log) into a report: a PNG of the planned "
+                    "path against the flown track, altitude and battery over time and the "
+                    "tasks on a timeline with the events; an HTML page with that picture and "
+                    "tables of the tasks, events and autopilot messages; or the flown tracks "
+                    "as GPX or KML. Exit 0 written, 1 not a flight log, 2 usage or I/O "
+                    "error.")
+    from tml.commands.report import add_arguments as add_report_arguments
+
+    add_report_arguments(report)
+    report.set_defaults(handler=cmd_report)
 
     sim = commands.add_parser(
         "sim", help="run the embedded MAVLink vehicle simulator", add_help=False,

@@ -40,7 +40,9 @@ def _ring(home: Home, corners: Sequence[tuple[float, float]],
     return ring + ring[:1]
 
 
-def _outline(obstacle: Obstacle) -> tuple[tuple[float, float], ...]:
+def outline(obstacle: Obstacle) -> tuple[tuple[float, float], ...]:
+    """The corners (north, east) of an obstacle's ground outline: a prism's polygon, a
+    cylinder's circle as :data:`CIRCLE_CORNERS` corners."""
     if isinstance(obstacle, Cylinder):
         return tuple((obstacle.north + obstacle.radius * math.cos(a),
                       obstacle.east + obstacle.radius * math.sin(a))
@@ -64,7 +66,7 @@ def _features(plans: Sequence[Plan], world: World) -> list[tuple[str, str, Any, 
                        "min_altitude": fence.min_altitude}))
     for obstacle in world.obstacles:
         found.append(("Polygon", obstacle.name or "obstacle",
-                      _ring(home, _outline(obstacle), _top(obstacle)),
+                      _ring(home, outline(obstacle), _top(obstacle)),
                       {"kind": "obstacle", "bottom": obstacle.bottom,
                        "top": obstacle.top if math.isfinite(obstacle.top) else None}))
     found.append(("Point", "home", (home.longitude, home.latitude, home.altitude),

@@ -225,3 +225,20 @@ def test_an_unknown_simulator_frame_is_a_usage_error(tmp_path: Path,
                                                      capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["run", write(tmp_path, SHORT), "--sim", "--sim-frame", "blimp"]) == 2
     assert "unknown frame 'blimp'" in capsys.readouterr().err
+
+
+def test_off_a_terminal_lines_are_not_wrapped(tmp_path: Path) -> None:
+    """A pipe or a CI log gets whole lines: the quoted source line and its caret are not
+    cut at 80 columns, so the caret stays under its column."""
+    long = ('<mission name="Wide">\n  <task name="A task whose name is long enough to push '
+            'the action past column eighty"><action name="GO_TO_PIONT"/></task>\n</mission>\n')
+    path = write(tmp_path, long)
+    done = subprocess.run([sys.executable, "-m", "tml", "run", path, "--sim"],
+                          capture_output=True, text=True, timeout=60,
+                          env={**os.environ, "COLUMNS": "", "TERM": "dumb"})
+    assert done.returncode == 1
+    lines = done.stderr.splitlines()
+    quoted = next(i for i, line in enumerate(lines) if 'name="GO_TO_PIONT"' in line)
+    caret = lines[quoted + 1]
+    source_column = lines[quoted].index("<action")
+    assert caret.rstrip().endswith("^") and caret.index("^") == source_column, done.stderr

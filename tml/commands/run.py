@@ -133,12 +133,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> ExitCode:
     """Run ``tml run``; return the exit code."""
-    from rich.console import Console
-
     from tml.errors import TmlError
+    from tml.run.display import output_console
 
-    console = Console(stderr=False, highlight=False)
-    errors = Console(stderr=True, highlight=False)
+    console = output_console()
+    errors = output_console(stderr=True)
     try:
         loaded = _load(args, errors)
     except (OSError, TmlError) as error:

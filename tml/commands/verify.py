@@ -87,14 +87,10 @@ def run(args: argparse.Namespace) -> ExitCode:
 
         print(report_json(report))
     else:
-        from rich.console import Console
-
+        from tml.run.display import output_console
         from tml.verify.report import print_report
 
-        console = Console(soft_wrap=True)
-        if not console.is_terminal:  # a pipe or a file: wide enough for every column
-            console = Console(soft_wrap=True, width=140)
-        print_report(report, console)
+        print_report(report, output_console())
     return ExitCode.OK if report.feasible else ExitCode.INVALID
 
 

@@ -25,6 +25,19 @@ from tml.vehicle import VehicleState, awaiting
 
 Views = Sequence[tuple[View, VehicleState | None]]
 
+OFF_TERMINAL_WIDTH = 160
+"""Columns a table may take when the output is not a terminal (a pipe, a file, a CI log)."""
+
+
+def output_console(stderr: bool = False) -> Console:
+    """The console a command prints to: on a terminal, as wide as it is; off a terminal,
+    lines are never wrapped (a pipe or a CI log gets whole lines, and a caret stays under
+    its column) and tables may take :data:`OFF_TERMINAL_WIDTH` columns."""
+    if Console(stderr=stderr).is_terminal:
+        return Console(stderr=stderr, highlight=False)
+    return Console(stderr=stderr, highlight=False, soft_wrap=True, width=OFF_TERMINAL_WIDTH)
+
+
 MARKS = {
     TaskState.PENDING: ("·", "dim"), TaskState.RUNNING: ("▶", "bold yellow"),
     TaskState.DONE: ("✓", "green"), TaskState.SKIPPED: ("↷", "cyan"),

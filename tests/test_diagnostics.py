@@ -37,3 +37,10 @@ def test_json_format() -> None:
     assert data == [{"file": "m.xml", "valid": False, "diagnostics": [
         {"file": "m.xml", "line": 2, "column": 3, "code": "E1", "message": "msg", "hint": "",
          "severity": "error"}]}]
+
+
+def test_github_annotation_properties_are_escaped() -> None:
+    # Properties (file=, title=) also escape ':' and ',', which would end them early.
+    line = format_github(error(Location("dir,a/50%:m.xml", 2, 18), "E103", "a: b, c\r\n"))
+    assert line == ("::error file=dir%2Ca/50%25%3Am.xml,line=2,col=18,title=E103"
+                    "::a: b, c%0D%0A")

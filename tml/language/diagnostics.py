@@ -80,15 +80,24 @@ def format_human(diagnostic: Diagnostic, sources: Mapping[str, str]) -> str:
     return "\n".join(lines)
 
 
+def _github_data(text: str) -> str:
+    """A workflow command's message, escaped as GitHub reads it back."""
+    return text.replace("%", "%25").replace("\r", "%0D").replace("\n", "%0A")
+
+
+def _github_property(text: str) -> str:
+    """A workflow command's property value: ':' and ',' would end it early."""
+    return _github_data(text).replace(":", "%3A").replace(",", "%2C")
+
+
 def format_github(diagnostic: Diagnostic) -> str:
     """A GitHub Actions workflow command that annotates the file at the line."""
     loc = diagnostic.location
     level = "error" if diagnostic.is_error else "warning"
     text = diagnostic.message + (f" ({diagnostic.hint})" if diagnostic.hint else "")
-    text = text.replace("%", "%25").replace("\r", "%0D").replace("\n", "%0A")
     column = f",col={loc.column}" if loc.column else ""
-    return (f"::{level} file={loc.file},line={loc.line}{column},"
-            f"title={diagnostic.code}::{text}")
+    return (f"::{level} file={_github_property(loc.file)},line={loc.line}{column},"
+            f"title={_github_property(diagnostic.code)}::{_github_data(text)}")
 
 
 def format_json(results: Iterable[tuple[str, bool, list[Diagnostic]]]) -> str:

@@ -144,6 +144,13 @@ def cmd_report(args: argparse.Namespace) -> int:
     return run(args)
 
 
+def cmd_schema(args: argparse.Namespace) -> int:
+    """Show the installed schema (see :mod:`tml.commands.schema`)."""
+    from tml.commands.schema import run
+
+    return run(args)
+
+
 def cmd_sim(argv: Sequence[str]) -> int:
     """Run the embedded simulator (same options as ``python -m sitl``)."""
     from sitl.cli import main as sim_main
@@ -239,6 +246,16 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_report_arguments(report)
     report.set_defaults(handler=cmd_report)
+
+    schema = commands.add_parser(
+        "schema", help="where the installed XML Schema is, its text, or an editor catalog",
+        description="Print the path of the installed mission schema (tml.xsd), its text, "
+                    "or an XML catalog mapping the stable schema location "
+                    "urn:tml:schemas:tml.xsd to it, for XML editors. Exit 0.")
+    from tml.commands.schema import add_arguments as add_schema_arguments
+
+    add_schema_arguments(schema)
+    schema.set_defaults(handler=cmd_schema)
 
     sim = commands.add_parser(
         "sim", help="run the embedded MAVLink vehicle simulator", add_help=False,

@@ -44,3 +44,22 @@ def test_validate_accepts_either_schema_location(tmp_path: Path) -> None:
         path = tmp_path / "m.xml"
         path.write_text(MISSION.format(location))
         assert main(["validate", "-q", str(path)]) == 0
+
+
+def test_the_pre_commit_hook_looks_at_tml_files_only(tmp_path: Path, capsys) -> None:
+    hooks = (Path(__file__).resolve().parent.parent / ".pre-commit-hooks.yaml").read_text()
+    entry = next(line.split(":", 1)[1].split() for line in hooks.splitlines()
+                 if line.strip().startswith("entry:"))
+    assert entry[:2] == ["tml", "validate"]
+    pom = tmp_path / "pom.xml"
+    pom.write_text('<?xml version="1.0"?>\n<!-- a build file -->\n<project><modelVersion>4.0.0'
+                   '</modelVersion></project>\n')
+    mission = tmp_path / "m.xml"
+    mission.write_text(MISSION.format(SCHEMA_LOCATION))
+    bad = tmp_path / "bad.xml"
+    bad.write_text(MISSION.format(SCHEMA_LOCATION).replace("LAND", "LANDD"))
+    # pre-commit passes every staged file its files pattern matches.
+    assert main([*entry[1:], str(pom), str(mission)]) == 0
+    assert capsys.readouterr().out == ""
+    assert main([*entry[1:], str(pom), str(bad)]) == 1
+    assert "E201" in capsys.readouterr().out

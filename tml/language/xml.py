@@ -34,6 +34,25 @@ _ATTRIBUTE = re.compile(r"""\s+([^\s=/>]+)\s*=\s*(?:"[^"]*"|'[^']*')""")
 _ENCODING_DECL = re.compile(rb"^\s*<\?xml[^>]*encoding\s*=\s*[\"']([^\"']+)[\"']")
 
 
+ROOT_SCAN_BYTES = 64 * 1024
+"""How much of a file :func:`root_name` reads to find its root element."""
+
+
+def root_name(path: str | Path) -> str | None:
+    """The name of a file's root element, read from its start (comments, processing
+    instructions and a DOCTYPE skipped); None when the file cannot be read or none is
+    found there. Tells mission files from other XML (a ``pom.xml``) without parsing."""
+    try:
+        with open(path, "rb") as stream:
+            head = stream.read(ROOT_SCAN_BYTES).decode("utf-8", "replace")
+    except OSError:
+        return None
+    for match in _MARKUP.finditer(head):
+        if match.group("tag"):
+            return match.group("tag")
+    return None
+
+
 @dataclass
 class XmlDocument:
     """A parsed, safe XML document with exact positions of elements and attributes."""

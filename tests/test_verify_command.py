@@ -169,3 +169,48 @@ def test_profile_vehicle_with_no_vehicle_there_is_an_error(
     assert code == 2
     err = capsys.readouterr().err
     assert "no heartbeat" in err and "Traceback" not in err
+
+
+HOVERS = ('<mission name="Hover"><task name="Up"><action name="TAKE_OFF">'
+          '<argument name="altitude" value="12"/></action></task></mission>')
+
+
+def test_several_files_are_verified_and_the_worst_exit_code_wins(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["verify", str(FEASIBLE), str(FEASIBLE)]) == 0
+    out = capsys.readouterr().out
+    assert out.count(f"{FEASIBLE}: feasible") == 2
+    assert main(["verify", str(FEASIBLE), str(tmp_path / "missing.xml")]) == 2
+    assert "missing.xml: No such file or directory" in capsys.readouterr().err
+    assert main(["verify", "--format", "json", str(FEASIBLE), str(FEASIBLE)]) == 0
+    documents = json.loads(capsys.readouterr().out)
+    assert [d["feasible"] for d in documents] == [True, True]
+
+
+def test_a_mission_that_ends_in_the_air_gets_a_warning(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "hover.xml"
+    path.write_text(HOVERS)
+    assert main(["verify", str(path)]) == 0  # a warning: the mission may still be flown
+    assert "warning: the mission ends with the vehicle in the air (up to 12 m) on 1 of 1 " \
+           "way(s) through it" in capsys.readouterr().out
+    assert main(["verify", "--format", "json", str(path)]) == 0
+    assert json.loads(capsys.readouterr().out)["warnings"][0].startswith("the mission ends")
+    assert main(["verify", "--format", "json", str(FEASIBLE)]) == 0
+    assert json.loads(capsys.readouterr().out)["warnings"] == []
+
+
+def test_the_shipped_world_file_adds_obstacles_the_legs_go_around(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    root = Path(__file__).resolve().parent.parent
+    mission = root / "missions/verify_obstacles.xml"
+    world = root / "missions/worlds/field_works.xml"
+    assert main(["validate", str(world)]) == 0
+    assert "1 file(s) checked: 1 valid" in capsys.readouterr().out
+    assert main(["verify", "--format", "json", str(mission)]) == 0
+    alone = json.loads(capsys.readouterr().out)
+    assert main(["verify", "--format", "json", str(mission), "--world", str(world)]) == 0
+    laid = json.loads(capsys.readouterr().out)
+    # The tent stands on the way home: the planned legs there are longer.
+    assert sum(a["distance"] for a in laid["actions"]) > sum(
+        a["distance"] for a in alone["actions"])

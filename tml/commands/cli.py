@@ -42,11 +42,13 @@ def _mission_files(paths: Sequence[str]) -> tuple[list[Path], list[str]]:
 
 
 def _validate_for_report(path: Path) -> ValidationResult | str:
-    """Validate one file for printing: its diagnostics, or the text of an I/O error."""
+    """Validate one mission or world file (told apart by the root element) for printing: its
+    diagnostics, or the text of an I/O error."""
     from tml.language.validation import ValidationResult, validate_file
+    from tml.language.xml import root_name
 
     try:
-        result = validate_file(path)
+        result = validate_file(path, root="world" if root_name(path) == "world" else "mission")
     except OSError as exc:
         return f"{path}: {exc.strerror or exc}"
     # The model stays in the worker; quoting source lines needs the text only on problems.
@@ -70,10 +72,10 @@ def cmd_validate(args: argparse.Namespace) -> ExitCode:
     from tml.language.diagnostics import format_github, format_human, format_json
 
     files, problems = _mission_files(args.paths)
-    if args.missions_only:  # a hook handed every XML file: the others are not ours
+    if args.tml_only:  # a hook handed every XML file: the others are not ours
         from tml.language.xml import root_name
 
-        files = [f for f in files if root_name(f) in ("mission", None)]
+        files = [f for f in files if root_name(f) in ("mission", "world", None)]
     for problem in problems:
         print(f"tml validate: {problem}", file=sys.stderr)
     results = []
@@ -171,9 +173,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     validate = commands.add_parser(
         "validate", help="check mission files against the schema and the language rules",
-        description="Check mission files (or every .xml file under directories) against "
-                    "the XML Schema and the language's semantic rules. Exit 0 when all are "
-                    "valid, 1 when some are invalid, 2 on usage or I/O errors.")
+        description="Check mission and world files (or every .xml file under "
+                    "directories) against the XML Schema and the language's semantic rules. "
+                    "Exit 0 when all are valid, 1 when some are invalid, 2 on usage or I/O "
+                    "errors.")
     validate.add_argument("paths", nargs="+", metavar="FILE|DIR")
     validate.add_argument("--format", choices=("human", "json", "github"), default="human",
                           help="output format (github: workflow annotations)")
@@ -181,9 +184,10 @@ def build_parser() -> argparse.ArgumentParser:
                           help="treat warnings as errors (exit 1)")
     validate.add_argument("-q", "--quiet", action="store_true",
                           help="print problems only, no summary line")
-    validate.add_argument("--missions-only", action="store_true",
-                          help="pass over files whose root element is not <mission> (a "
-                               "pom.xml, an SVG), for hooks that hand every .xml file over")
+    validate.add_argument("--tml-only", action="store_true",
+                          help="pass over files whose root element is neither <mission> nor "
+                               "<world> (a pom.xml, an SVG), for hooks that hand every .xml "
+                               "file over")
     validate.set_defaults(handler=cmd_validate)
 
     verify = commands.add_parser(

@@ -15,13 +15,15 @@ from tml.errors import ExitCode
 
 if TYPE_CHECKING:
     from tml.verify.profile import VehicleProfile
+    from tml.world import World
 
 VEHICLE_PROFILE = "vehicle"  # --profile vehicle --connect ADDRESS: from its parameters
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the options of ``tml verify``."""
-    parser.add_argument("mission", metavar="FILE")
+    parser.add_argument("missions", nargs="+", metavar="FILE",
+                        help="mission files (each verified with the same profile and world)")
     parser.add_argument("--profile", default="quadcopter", metavar="P",
                         help="vehicle profile: 'quadcopter', 'fixed-wing', a TOML file, or "
                              "'vehicle' to fill the quadcopter profile from the parameters "
@@ -44,12 +46,7 @@ def run(args: argparse.Namespace) -> ExitCode:
     """Run ``tml verify``; return the exit code."""
     from tml.errors import TmlError
     from tml.language.build import load_world
-    from tml.language.diagnostics import format_human, format_json
-    from tml.language.validation import validate_file
-    from tml.verify.motion import PredictedState
     from tml.verify.profile import load_profile
-    from tml.verify.static import verify_mission
-    from tml.world import World
 
     if not 0 <= args.battery <= 100:
         print(f"tml verify: --battery {args.battery:g}: must be between 0 and 100",
@@ -63,35 +60,63 @@ def run(args: argparse.Namespace) -> ExitCode:
         profile = (_vehicle_profile(args.connect, args.timeout)
                    if args.profile == VEHICLE_PROFILE else load_profile(args.profile))
         world = load_world(args.world) if args.world else None
-        result = validate_file(args.mission)
     except OSError as exc:
         print(f"tml verify: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
         return ExitCode.USAGE
     except TmlError as exc:
         print(f"tml verify: {exc}", file=sys.stderr)
         return ExitCode.USAGE
+    codes: list[ExitCode] = []
+    documents: list[str] = []
+    for index, path in enumerate(args.missions):
+        if index and args.format != "json":
+            print()
+        code, document = _verify_one(path, args, profile, world)
+        codes.append(code)
+        if document is not None:
+            documents.append(document)
+    if args.format == "json" and documents:
+        print(documents[0] if len(args.missions) == 1 else
+              "[\n" + ",\n".join(documents) + "\n]")
+    return max(codes)  # a usage error over an infeasible mission over a feasible one
+
+
+def _verify_one(path: str, args: argparse.Namespace, profile: VehicleProfile,
+                world: World | None) -> tuple[ExitCode, str | None]:
+    """Verify one mission file and print its report (a JSON document is returned instead);
+    the exit code it alone would give."""
+    from tml.language.diagnostics import format_human, format_json
+    from tml.language.validation import validate_file
+    from tml.verify.motion import PredictedState
+    from tml.verify.static import verify_mission
+    from tml.world import World
+
+    try:
+        result = validate_file(path)
+    except OSError as exc:
+        print(f"tml verify: {exc.filename or path}: {exc.strerror or exc}", file=sys.stderr)
+        return ExitCode.USAGE, None
     if result.errors or result.mission is None:
         if args.format == "json":
-            print(format_json([(result.file, False, result.diagnostics)]))
-        else:
-            for diagnostic in result.diagnostics:
-                print(format_human(diagnostic, {result.file: result.source}))
-            print(f"{result.file}: invalid mission, not verified")
-        return ExitCode.INVALID
+            return ExitCode.INVALID, format_json([(result.file, False, result.diagnostics)])
+        for diagnostic in result.diagnostics:
+            print(format_human(diagnostic, {result.file: result.source}))
+        print(f"{result.file}: invalid mission, not verified")
+        return ExitCode.INVALID, None
     mission = result.mission
     home = (mission.world or World()).merged(world).home_or_default
     start = PredictedState(battery=args.battery, heading=home.heading)
     report = verify_mission(mission, profile, world, start)
+    code = ExitCode.OK if report.feasible else ExitCode.INVALID
     if args.format == "json":
         from tml.verify.report import report_json
 
-        print(report_json(report))
-    else:
-        from tml.run.display import output_console
-        from tml.verify.report import print_report
+        return code, report_json(report)
+    from tml.run.display import output_console
+    from tml.verify.report import print_report
 
-        print_report(report, output_console())
-    return ExitCode.OK if report.feasible else ExitCode.INVALID
+    print_report(report, output_console())
+    return code, None
 
 
 def _vehicle_profile(address: str, timeout: float) -> VehicleProfile:

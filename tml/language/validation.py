@@ -34,8 +34,10 @@ class ValidationResult:
         return not (self.diagnostics if strict else self.errors)
 
 
-def validate_file(path: str | Path, data: bytes | None = None) -> ValidationResult:
-    """Validate one mission file; I/O errors (missing file) raise OSError."""
+def validate_file(path: str | Path, data: bytes | None = None,
+                  root: str = "mission") -> ValidationResult:
+    """Validate one mission file (``root="world"``: one world file, whose result holds no
+    mission); I/O errors (missing file) raise OSError."""
     file = str(path)
     try:
         doc = xml.read_xml(file, data)
@@ -43,9 +45,12 @@ def validate_file(path: str | Path, data: bytes | None = None) -> ValidationResu
         location = exc.location or Location(file, 1, 1)
         source = _text_of(path, data)
         return ValidationResult(file, None, [error(location, exc.code, exc.message)], source)
-    problems = schema.validate(doc, "mission")
+    problems = schema.validate(doc, root)
     if problems:
         return ValidationResult(file, None, sorted(problems, key=sort_key), doc.text)
+    if root == "world":
+        _, structural = build.build_world(doc)
+        return ValidationResult(file, None, sorted(structural, key=sort_key), doc.text)
     mission, structural = build.build_mission(doc)
     found = structural + check.check(mission)
     return ValidationResult(file, mission, sorted(found, key=sort_key), doc.text)

@@ -49,6 +49,8 @@ def print_report(report: Report, console: Console) -> None:
     if report.approximate:
         console.print("note: too many alternative ways through the mission; the ones with "
                       "the least battery were kept", highlight=False)
+    for warning in report.warnings:
+        console.print(f"warning: {warning}", markup=False, highlight=False)
     for violation in report.violations:
         console.print(_finding(violation), markup=False, highlight=False)
     verdict = "feasible" if report.feasible else \
@@ -85,6 +87,7 @@ def report_json(report: Report) -> str:
         "actions": [row.to_dict() for row in report.rows],
         "violations": [_violation(v) for v in report.violations],
         "notes": report.notes,
+        "warnings": report.warnings,
         "end": _end(report.end),
     }
     if report.roles:

@@ -98,6 +98,7 @@ class Report:
     approximate: bool = False
     roles: tuple[str, ...] = ()  # the roles verified, each as its own vehicle
     ends: dict[str, PredictedState] = field(default_factory=dict)  # role -> worst end
+    warnings: list[str] = field(default_factory=list)  # not violations: the mission may fly
 
     @property
     def feasible(self) -> bool:
@@ -344,6 +345,16 @@ def _reads_battery(parameter: str) -> bool:
     return spec is not None and spec.name == "BATTERY_CHARGE_PERCENTAGE"
 
 
+def _lands_by_event(mission: Mission, walker: _Walker) -> bool:
+    """Whether an event handler of the walker's vehicle lands it (an endless LOITER that
+    an event ends with RETURN_HOME_AND_LAND does not end the mission in the air)."""
+    role = walker.role.name if walker.role is not None else None
+    return any(spec is not None and spec.category is actions.Category.TAKE_OFF_LANDING
+               and spec.name != "TAKE_OFF"
+               for event in mission.events if role is None or event.role in (None, role)
+               for action in event.actions for spec in [actions.lookup(action.name)])
+
+
 def verify_mission(mission: Mission, profile: VehicleProfile, world: World | None = None,
                    start: PredictedState | None = None) -> Report:
     """Predict and check every action of ``mission`` (and of its event handlers).
@@ -382,8 +393,18 @@ def verify_mission(mission: Mission, profile: VehicleProfile, world: World | Non
                   for task in mission.walk() if task.action is not None and task.role not in names}
     violations: list[Violation] = []
     ends: dict[str, PredictedState] = {}
+    warnings: list[str] = []
     for walker in walkers:
         finals = walker.tasks(mission.tasks, [_alternative(start, {})])
+        aloft = [a.state for a in finals if a.state.flying]
+        if aloft and (walker.role is None or walker.rows) and not _lands_by_event(mission,
+                                                                                   walker):
+            whose = f"role {walker.role_name}: " if walker.role is not None else ""
+            up = max(state.position[2] for state in aloft)
+            warnings.append(f"{whose}the mission ends with the vehicle in the air (up to "
+                            f"{up:.0f} m) on {len(aloft)} of {len(finals)} way(s) through it: "
+                            "it hovers there until its battery fails; end with LAND or "
+                            "RETURN_HOME_AND_LAND")
         for event in mission.events:
             if walker.role is None or event.role in (None, walker.role.name):
                 walker.event(event)
@@ -399,4 +420,4 @@ def verify_mission(mission: Mission, profile: VehicleProfile, world: World | Non
     roles = tuple(role.name for role in mission.roles)
     return Report(mission.file, profile, rows, violations, list(notes), end,
                   any(w.approximate for w in walkers), roles,
-                  ends if mission.roles else {})
+                  ends if mission.roles else {}, warnings)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 import subprocess
 import sys
@@ -158,3 +159,23 @@ def test_the_documented_exit_codes_are_the_enums() -> None:
         ExitCode.OK, ExitCode.INVALID, ExitCode.ABORTED, ExitCode.FAILURE]
     assert "completed" in rows[0][1] and "invalid" in rows[1][1]
     assert "aborted" in rows[2][1] and "failure" in rows[3][1]
+
+
+def _completions(line: str, tmp_path: Path) -> list[str]:
+    out = tmp_path / "completions"
+    env = {**os.environ, "_ARGCOMPLETE": "1", "COMP_LINE": line,
+           "COMP_POINT": str(len(line)), "_ARGCOMPLETE_STDOUT_FILENAME": str(out)}
+    subprocess.run([sys.executable, "-m", "tml"], env=env, timeout=60, check=False,
+                   capture_output=True)
+    return sorted(out.read_text().split("\x0b"))
+
+
+def test_the_shell_completes_commands_options_and_choices(tmp_path: Path, capsys) -> None:
+    assert _completions("tml ex", tmp_path) == ["export "]
+    assert _completions("tml export m.xml --format ", tmp_path) == [
+        "geojson", "kml", "plan", "wpl"]
+    assert "--safe-state" in _completions("tml run m.xml --sa", tmp_path)[0]
+    assert main(["completion", "bash"]) == 0
+    assert "complete " in capsys.readouterr().out  # bash's builtin registers it
+    assert main(["completion", "zsh"]) == 0
+    assert capsys.readouterr().out.startswith("#compdef tml")

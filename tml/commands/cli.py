@@ -157,6 +157,14 @@ def cmd_schema(args: argparse.Namespace) -> int:
     return run(args)
 
 
+def cmd_completion(args: argparse.Namespace) -> int:
+    """Print the shell's completion script for tml (argcomplete's)."""
+    import argcomplete
+
+    sys.stdout.write(argcomplete.shellcode(["tml"], shell=args.shell))
+    return ExitCode.OK
+
+
 def cmd_sim(argv: Sequence[str]) -> int:
     """Run the embedded simulator (same options as ``python -m sitl``)."""
     from sitl.cli import main as sim_main
@@ -268,6 +276,15 @@ def build_parser() -> argparse.ArgumentParser:
     add_schema_arguments(schema)
     schema.set_defaults(handler=cmd_schema)
 
+    completion = commands.add_parser(
+        "completion", help="print the shell completion script (bash, zsh)",
+        description="Print the completion script of tml for a shell: commands, options "
+                    "and their choices complete on TAB. For bash, add "
+                    "'eval \"$(tml completion bash)\"' to ~/.bashrc; for zsh, "
+                    "'eval \"$(tml completion zsh)\"' to ~/.zshrc. Exit 0.")
+    completion.add_argument("shell", choices=("bash", "zsh"))
+    completion.set_defaults(handler=cmd_completion)
+
     sim = commands.add_parser(
         "sim", help="run the embedded MAVLink vehicle simulator", add_help=False,
         description="Run the embedded simulator; see `python -m sitl --help`.")
@@ -281,6 +298,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if argv[:1] == ["sim"]:  # the simulator parses its own options, --help included
         return cmd_sim(argv[1:])
     parser = build_parser()
+    import argcomplete
+
+    argcomplete.autocomplete(parser)  # answers the shell and exits when it asks; else nothing
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse exits 2 on usage errors, 0 on --help

@@ -129,39 +129,39 @@ def cmd_companion(args: argparse.Namespace) -> ExitCode:
     return run(args)
 
 
-def cmd_export(args: argparse.Namespace) -> int:
+def cmd_export(args: argparse.Namespace) -> ExitCode:
     """Write a mission as a plan or a map (see :mod:`tml.commands.plans`)."""
     from tml.commands.plans import export
 
     return export(args)
 
 
-def cmd_import(args: argparse.Namespace) -> int:
+def cmd_import(args: argparse.Namespace) -> ExitCode:
     """Make a plan file into a mission (see :mod:`tml.commands.plans`)."""
     from tml.commands.plans import import_
 
     return import_(args)
 
 
-def cmd_report(args: argparse.Namespace) -> int:
+def cmd_report(args: argparse.Namespace) -> ExitCode:
     """Draw a flight log (see :mod:`tml.commands.report`)."""
     from tml.commands.report import run
 
     return run(args)
 
 
-def cmd_schema(args: argparse.Namespace) -> int:
+def cmd_schema(args: argparse.Namespace) -> ExitCode:
     """Show the installed schema (see :mod:`tml.commands.schema`)."""
     from tml.commands.schema import run
 
     return run(args)
 
 
-def cmd_completion(args: argparse.Namespace) -> int:
+def cmd_completion(args: argparse.Namespace) -> ExitCode:
     """Print the shell's completion script for tml (argcomplete's)."""
-    import argcomplete
+    from argcomplete.shell_integration import shellcode
 
-    sys.stdout.write(argcomplete.shellcode(["tml"], shell=args.shell))
+    sys.stdout.write(shellcode(["tml"], shell=args.shell))
     return ExitCode.OK
 
 

@@ -11,12 +11,12 @@ import argparse
 import sys
 from pathlib import Path
 
+from tml.errors import ExitCode
 from tml.language.kinds import Kind
 
 FORMATS = {"plan": ".plan", "wpl": ".waypoints", "kml": ".kml", "geojson": ".geojson"}
 SUFFIXES = {".plan": "plan", ".waypoints": "wpl", ".txt": "wpl", ".kml": "kml",
             ".geojson": "geojson", ".json": "geojson"}
-EXIT_OK, EXIT_INVALID, EXIT_USAGE = 0, 1, 2
 
 
 def add_export_arguments(parser: argparse.ArgumentParser) -> None:
@@ -63,7 +63,7 @@ def _write(command: str, output: str | None, text: str) -> bool:
     return True
 
 
-def export(args: argparse.Namespace) -> int:
+def export(args: argparse.Namespace) -> ExitCode:
     """Run ``tml export``; return the exit code."""
     from tml.errors import TmlError
     from tml.language.build import load_world
@@ -78,21 +78,21 @@ def export(args: argparse.Namespace) -> int:
     if form is None:
         _say("export", "--format plan|wpl|kml|geojson is needed"
              + (f" (-o {args.output}: the suffix does not say)" if args.output else ""))
-        return EXIT_USAGE
+        return ExitCode.USAGE
     try:
         result = validate_file(args.mission)
         extra = load_world(args.world) if args.world else None
     except OSError as error:
         _say("export", f"{error.filename}: {error.strerror or error}")
-        return EXIT_USAGE
+        return ExitCode.USAGE
     except TmlError as error:
         _say("export", f"--world {args.world}: {error}")
-        return EXIT_USAGE
+        return ExitCode.USAGE
     if result.errors or result.mission is None:
         for diagnostic in result.diagnostics:
             print(format_human(diagnostic, {result.file: result.source}), file=sys.stderr)
         _say("export", f"{result.file}: invalid mission, not exported")
-        return EXIT_INVALID
+        return ExitCode.INVALID
     mission = result.mission
     kind = Kind(args.kind) if args.kind else None
     try:
@@ -102,7 +102,7 @@ def export(args: argparse.Namespace) -> int:
             plans = [plan_mission(mission, args.role, kind, extra)]
     except PlanError as error:
         _say("export", str(error))
-        return EXIT_USAGE
+        return ExitCode.USAGE
     said: dict[str, None] = {}  # each once, in order, when several roles say the same
     for plan in plans:
         said.update({f"{mission.file}: {skipped}": None for skipped in plan.skipped})
@@ -119,15 +119,15 @@ def export(args: argparse.Namespace) -> int:
     else:
         text = write_geojson(plans, world)
     if not _write("export", args.output, text):
-        return EXIT_USAGE
+        return ExitCode.USAGE
     items = sum(len(p.items) for p in plans)
     skipped = sum(len(p.skipped) for p in plans)
     _say("export", f"{items} mission item(s) written to {args.output or 'standard output'}"
          + (f"; {skipped} action(s) not exported" if skipped else ""))
-    return EXIT_OK
+    return ExitCode.OK
 
 
-def import_(args: argparse.Namespace) -> int:
+def import_(args: argparse.Namespace) -> ExitCode:
     """Run ``tml import``; return the exit code."""
     from tml.language.diagnostics import format_human
     from tml.language.validation import validate_file
@@ -141,13 +141,13 @@ def import_(args: argparse.Namespace) -> int:
     except (OSError, UnicodeDecodeError) as error:
         reason = error.strerror if isinstance(error, OSError) else "not UTF-8 text"
         _say("import", f"{args.plan}: {reason or error}")
-        return EXIT_USAGE
+        return ExitCode.USAGE
     try:
         plan = read_plan(text, args.plan) if text.lstrip().startswith("{") \
             else read_wpl(text, args.plan)
     except PlanFileError as error:
         _say("import", str(error))
-        return EXIT_INVALID
+        return ExitCode.INVALID
     imported = import_plan(plan, args.name or path.stem)
     for warning in imported.warnings:
         _say("import", f"{args.plan}: {warning}")
@@ -157,9 +157,9 @@ def import_(args: argparse.Namespace) -> int:
         for diagnostic in result.diagnostics:
             print(format_human(diagnostic, {result.file: result.source}), file=sys.stderr)
         _say("import", f"{args.plan}: the mission made of it is invalid, not written")
-        return EXIT_INVALID
+        return ExitCode.INVALID
     if not _write("import", args.output, imported.text):
-        return EXIT_USAGE
+        return ExitCode.USAGE
     _say("import", f"{len(plan.items)} mission item(s) as {imported.actions} task(s) written "
          f"to {args.output or 'standard output'}")
-    return EXIT_OK
+    return ExitCode.OK

@@ -10,8 +10,9 @@ import argparse
 import sys
 from pathlib import Path
 
+from tml.errors import ExitCode
+
 FORMATS = ("html", "png", "gpx", "kml")
-EXIT_OK, EXIT_INVALID, EXIT_USAGE = 0, 1, 2
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -25,7 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "suffix of -o, else html")
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> ExitCode:
     """Run ``tml report``; return the exit code."""
     from tml.report.flight import LogError, read_flight
 
@@ -35,27 +36,27 @@ def run(args: argparse.Namespace) -> int:
         if args.output:
             print(f"tml report: -o {args.output}: say --format html|png|gpx|kml (the suffix "
                   "does not)", file=sys.stderr)
-            return EXIT_USAGE
+            return ExitCode.USAGE
         form = "html"
     output = args.output or str(Path(args.log).with_suffix(f".{form}"))
     try:
         flight = read_flight(args.log)
     except OSError as error:
         print(f"tml report: {args.log}: {error.strerror or error}", file=sys.stderr)
-        return EXIT_USAGE
+        return ExitCode.USAGE
     except LogError as error:
         print(f"tml report: {error}", file=sys.stderr)
-        return EXIT_INVALID
+        return ExitCode.INVALID
     data = _render(flight, form)
     try:
         Path(output).write_bytes(data)
     except OSError as error:
         print(f"tml report: -o {output}: cannot write: {error.strerror or error}",
               file=sys.stderr)
-        return EXIT_USAGE
+        return ExitCode.USAGE
     print(f"tml report: {output} ({form}, {len(flight.vehicles)} vehicle(s), "
           f"{len(flight.tasks)} task span(s), {len(flight.marks)} event(s) and message(s))")
-    return EXIT_OK
+    return ExitCode.OK
 
 
 def _render(flight: object, form: str) -> bytes:

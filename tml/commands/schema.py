@@ -12,7 +12,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-EXIT_OK = 0
+from tml.errors import ExitCode
+
 CATALOG_NAMESPACE = "urn:oasis:names:tc:entity:xmlns:xml:catalog"
 
 
@@ -44,7 +45,7 @@ def catalog() -> str:
             + "\n".join(entries) + "\n</catalog>\n")
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> ExitCode:
     """Run ``tml schema``; return the exit code."""
     from tml.language.schema import schema_path
 
@@ -55,4 +56,4 @@ def run(args: argparse.Namespace) -> int:
         sys.stdout.write(path.read_text(encoding="utf-8"))
     else:
         print(path)
-    return EXIT_OK
+    return ExitCode.OK

@@ -8,6 +8,7 @@ exit status 2; a port already in use gives exit status 1.
 from __future__ import annotations
 
 import argparse
+import math
 import signal
 import sys
 import threading
@@ -33,30 +34,38 @@ def _home(text: str) -> Home:
 
 
 def _probability(text: str) -> float:
-    value = _non_negative(text)
+    value = non_negative(text)
     if value > 1:
         raise argparse.ArgumentTypeError(f"expected a probability between 0 and 1, got {text}")
     return value
 
 
-def _non_negative(text: str) -> float:
+def _number(text: str) -> float:
     try:
-        value = float(text)
+        return float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative number, got {text}")
+
+
+def non_negative(text: str) -> float:
+    """A finite number of at least 0 (an argparse type, shared with ``tml run``): nan and
+    inf are refused, as no clock or limit can run with them."""
+    value = _number(text)
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"expected a finite number of at least 0, got {text}")
     return value
 
 
-def _positive(text: str) -> float:
-    value = _non_negative(text)
-    if value == 0:
-        raise argparse.ArgumentTypeError("expected a positive number, got 0")
+def positive(text: str) -> float:
+    """A finite number greater than 0 (an argparse type, shared with ``tml run``)."""
+    value = _number(text)
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a finite number greater than 0, got {text}")
     return value
 
 
-def _count(text: str) -> int:
+def count(text: str) -> int:
+    """A whole number of at least 1 (an argparse type, shared with ``tml run``)."""
     if not text.isdigit() or int(text) < 1:
         raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {text!r}")
     return int(text)
@@ -108,29 +117,37 @@ def _frames(text: str) -> list[str]:
 
 
 def _udp(text: str) -> str:
+    """An output address the simulator can send to: well formed, and its host known."""
+    import socket
+
     from sitl.server import parse_udp_address
 
     try:
-        parse_udp_address(text)
+        host, port = parse_udp_address(text)
+        socket.getaddrinfo(host, port, type=socket.SOCK_DGRAM)
     except ValueError as error:
         raise argparse.ArgumentTypeError(str(error)) from None
+    except OSError as error:
+        raise argparse.ArgumentTypeError(f"{text}: cannot send there: {error}") from None
     return text
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of ``python -m sitl`` (also used by ``tml sim``)."""
+def build_parser(prog: str = "python -m sitl") -> argparse.ArgumentParser:
+    """The argument parser of ``python -m sitl`` (``tml sim`` gives its own name)."""
     parser = argparse.ArgumentParser(
-        prog="python -m sitl",
+        prog=prog, formatter_class=argparse.ArgumentDefaultsHelpFormatter,
         description="Simulated ArduPilot vehicles (Copter, Plane, Rover) speaking MAVLink 2 "
                     "over TCP and UDP.",
     )
-    parser.add_argument("--vehicles", type=_count, default=1, help="number of vehicles (ids 1..N)")
+    parser.add_argument("--vehicles", type=count, default=1, help="number of vehicles (ids 1..N)")
     parser.add_argument("--frame", type=_frames, default=["copter"], metavar="FRAME[,FRAME...]",
                         help="copter (default), plane or rover; a list gives vehicle 1, 2 ... "
                              "theirs, the last repeating (e.g. copter,rover)")
     parser.add_argument("--home", type=_home, help="lat,lon,alt[,heading] of vehicle 1")
-    parser.add_argument("--speedup", type=_positive, default=1.0, help="times faster than real")
-    parser.add_argument("--world", help="world file (obstacles, geofence, objects, home)")
+    parser.add_argument("--speedup", type=positive, default=1.0, help="times faster than real")
+    parser.add_argument("--world", metavar="FILE",
+                        help="world file (obstacles, geofence, objects, home), or a mission "
+                             "file, whose <environment> is taken")
     parser.add_argument("--seed", type=int, default=0, help="seed of every random choice")
     parser.add_argument("--tcp-base-port", type=int, default=5760,
                         help="TCP port of vehicle 1; vehicle i listens on base + 10*(i-1); "
@@ -147,8 +164,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="probability a message to the vehicle is lost")
     faults.add_argument("--loss-out", type=_probability, default=0.0,
                         help="probability a message from the vehicle is lost")
-    faults.add_argument("--latency", type=_non_negative, default=0.0, help="seconds of delay")
-    faults.add_argument("--jitter", type=_non_negative, default=0.0, help="extra random delay")
+    faults.add_argument("--latency", type=non_negative, default=0.0, help="seconds of delay")
+    faults.add_argument("--jitter", type=non_negative, default=0.0, help="extra random delay")
     faults.add_argument("--duplicate", type=_probability, default=0.0,
                         help="probability a message is delivered twice")
     faults.add_argument("--reorder", type=_probability, default=0.0,
@@ -157,29 +174,37 @@ def build_parser() -> argparse.ArgumentParser:
                         metavar="START:END", help="no link between these vehicle times (s)")
     faults.add_argument("--reject", type=_rejection, action="append", default=[],
                         metavar="CMD[:RESULT]", help="answer command CMD with RESULT (4 FAILED)")
-    faults.add_argument("--gps-loss-at", type=_non_negative, help="vehicle time the GPS fails")
-    faults.add_argument("--battery-failure-at", type=_non_negative,
+    faults.add_argument("--gps-loss-at", type=non_negative, help="vehicle time the GPS fails")
+    faults.add_argument("--battery-failure-at", type=non_negative,
                         help="vehicle time the battery fails")
     return parser
 
 
 def _load_world(path: str) -> World:
+    """A world file's world, or a mission file's ``<environment>``."""
     from tml.language.build import load_world
+    from tml.language.validation import load_mission
+    from tml.language.xml import root_name
 
+    if root_name(path) == "mission":
+        return load_mission(path).world or World()
     return load_world(path)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def main(argv: Sequence[str] | None = None, prog: str = "python -m sitl") -> int:
     """Run the simulator; returns the exit status."""
-    parser = build_parser()
+    parser = build_parser(prog)
     try:
         args = parser.parse_args(argv)
     except SystemExit as exit_:
         return int(exit_.code or 0)
     try:
         world = _load_world(args.world) if args.world else None
-    except (TmlError, OSError) as error:
-        print(f"error: {error}", file=sys.stderr)
+    except TmlError as error:
+        print(f"{prog}: --world {args.world}: {error}", file=sys.stderr)
+        return 2
+    except OSError as error:
+        print(f"{prog}: --world {args.world}: {error.strerror or error}", file=sys.stderr)
         return 2
     faults = Faults(
         seed=args.seed, loss_in=args.loss_in, loss_out=args.loss_out, latency=args.latency,
@@ -198,7 +223,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         simulator.start()
     except OSError as error:
-        print(f"error: cannot open the vehicle ports: {error}", file=sys.stderr)
+        print(f"{prog}: cannot open the vehicle ports: {error}", file=sys.stderr)
         return 1
     stop = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop.set())

@@ -156,9 +156,10 @@ def test_the_documented_exit_codes_are_the_enums() -> None:
     section = doc.split("## Exit codes", 1)[1].split("\n## ", 1)[0]
     rows = re.findall(r"^\| (\d) \| (.+?) \|$", section, re.M)
     assert [int(code) for code, _ in rows] == [
-        ExitCode.OK, ExitCode.INVALID, ExitCode.ABORTED, ExitCode.FAILURE]
+        ExitCode.OK, ExitCode.INVALID, ExitCode.USAGE, ExitCode.ABORTED, ExitCode.FAILURE]
     assert "completed" in rows[0][1] and "invalid" in rows[1][1]
-    assert "aborted" in rows[2][1] and "failure" in rows[3][1]
+    assert "usage" in rows[2][1]
+    assert "aborted" in rows[3][1] and "failure" in rows[4][1]
 
 
 def _completions(line: str, tmp_path: Path) -> list[str]:

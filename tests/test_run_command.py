@@ -13,6 +13,7 @@ import pytest
 from tml.commands.cli import main
 from tml.run.journal import read
 
+ROOT_MISSIONS = Path(__file__).resolve().parent.parent / "missions"
 FAST = ["--sim-param", "SIM_GPS_LOCKTIME=0.5", "--sim-param", "SIM_EKF_GPS_TIME=1",
         "--speedup", "40"]
 SHORT = ('<mission name="Hop">\n'
@@ -242,3 +243,57 @@ def test_off_a_terminal_lines_are_not_wrapped(tmp_path: Path) -> None:
     caret = lines[quoted + 1]
     source_column = lines[quoted].index("<action")
     assert caret.rstrip().endswith("^") and caret.index("^") == source_column, done.stderr
+
+
+@pytest.mark.parametrize("option, value, message", [
+    ("--speedup", "nan", "argument --speedup: expected a finite number greater than 0, got nan"),
+    ("--speedup", "inf", "argument --speedup: expected a finite number greater than 0, got inf"),
+    ("--link-lost-limit", "nan", "argument --link-lost-limit: expected a finite number"),
+    ("--timeout", "inf", "argument --timeout: expected a finite number"),
+    ("--vehicles", "1000", "argument --vehicles: at most 250 simulated vehicles"),
+])
+def test_numbers_that_cannot_be_flown_are_usage_errors(
+        option: str, value: str, message: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", str(ROOT_MISSIONS / "paper_example1.xml"), "--sim", option,
+                 value]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["nowhere.xml", "--sim"], "tml run: nowhere.xml: No such file or directory"),
+    (["missions", "--sim"], "tml run: missions: is a directory, not a mission file"),
+    (["missions/paper_example1.xml", "--connect", "tcp:127.0.0.1:99999"],
+     "tml run: --connect tcp:127.0.0.1:99999: expected tcp:HOST:PORT with a port from 0 to "
+     "65535"),
+    (["missions/paper_example1.xml", "--sim", "--log", "/nonexistent/dir/f.jsonl"],
+     "tml run: --log /nonexistent/dir/f.jsonl: cannot write: No such file or directory"),
+    (["missions/paper_example1.xml", "--sim", "--out", "udpout:127.0.0.1:99999"],
+     "tml run: --out udpout:127.0.0.1:99999: expected udpout:HOST:PORT"),
+    (["missions/paper_example1.xml", "--sim", "--out", "nonsense"],
+     "tml run: --out nonsense: not an address a copy can be sent to"),
+])
+def test_usage_errors_exit_2_naming_the_option_and_value(
+        argv: list[str], message: str, capsys: pytest.CaptureFixture[str],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(ROOT_MISSIONS.parent)
+    assert main(["run", *argv]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1, err  # one line, before anything started
+
+
+def test_pymavlink_s_own_prints_do_not_reach_the_user(tmp_path: Path) -> None:
+    import socket
+
+    with socket.socket() as probe:  # a port nobody listens on
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    done = subprocess.run([sys.executable, "-m", "tml", "run", str(ROOT_MISSIONS /
+                           "paper_example1.xml"), "--connect", f"tcp:127.0.0.1:{port}",
+                           "--timeout", "2"], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 4
+    said = done.stdout + done.stderr
+    assert "sleeping" not in said and "Errno 111" not in said
+    assert said.strip() == (f"tml run: cannot open MAVLink connection 'tcp:127.0.0.1:{port}': "
+                            "Connection refused")

@@ -5,17 +5,20 @@ from __future__ import annotations
 import signal
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 from sitl.cli import main
+
+ROOT = Path(__file__).resolve().parent.parent
 
 
 @pytest.mark.parametrize("argv, message", [
     (["--vehicles", "0"], "at least 1"),
     (["--home", "1,2"], "lat,lon,alt"),
     (["--home", "95,0,0"], "out of range"),
-    (["--speedup", "0"], "positive"),
+    (["--speedup", "0"], "greater than 0"),
     (["--loss-in", "1.5"], "probability"),
     (["--out", "udp:nowhere"], "UDP address"),
     (["--outage", "5:1"], "ends before"),
@@ -50,3 +53,49 @@ def test_runs_prints_where_it_listens_and_stops_on_signal(sig):
     finally:
         process.kill()
         process.communicate()
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--speedup", "nan"], "argument --speedup: expected a finite number greater than 0"),
+    (["--speedup", "inf"], "argument --speedup: expected a finite number greater than 0"),
+    (["--latency", "nan"], "argument --latency: expected a finite number"),
+    (["--out", "udp:127.0.0.1:0"], "UDP address"),
+])
+def test_tml_sim_refuses_numbers_it_cannot_run_with_and_speaks_as_itself(argv, message):
+    done = subprocess.run([sys.executable, "-m", "tml", "sim", "--tcp-base-port", "0", *argv],
+                          capture_output=True, text=True, timeout=30)
+    assert done.returncode == 2
+    assert message in done.stderr and "Traceback" not in done.stderr
+    assert done.stderr.startswith("usage: tml sim ") and "tml sim: error: " in done.stderr
+
+
+def test_tml_sim_help_shows_defaults_and_its_name():
+    done = subprocess.run([sys.executable, "-m", "tml", "sim", "--help"], capture_output=True,
+                          text=True, timeout=30)
+    assert done.returncode == 0 and done.stdout.startswith("usage: tml sim ")
+    assert "python -m sitl" not in done.stdout
+    assert "(default: 1.0)" in done.stdout and "(default: 5760)" in done.stdout
+
+
+def test_tml_sim_takes_the_world_of_a_mission(tmp_path):
+    process = subprocess.Popen(
+        [sys.executable, "-m", "tml", "sim", "--tcp-base-port", "0", "--world",
+         "missions/mission_dispatch.xml"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True, cwd=str(ROOT))
+    try:
+        line = process.stdout.readline()
+        # The mission's <environment> gives home at -35.363261, 149.165230, 584 m.
+        assert "home -35.3632610,149.1652300,584.0" in line, process.stderr.read()
+        process.send_signal(signal.SIGINT)
+        assert process.wait(timeout=10) == 0
+    finally:
+        process.kill()
+        process.communicate()
+
+
+def test_tml_sim_errors_are_prefixed_like_the_rest(tmp_path):
+    done = subprocess.run([sys.executable, "-m", "tml", "sim", "--tcp-base-port", "0",
+                           "--world", str(tmp_path / "absent.xml")], capture_output=True,
+                          text=True, timeout=30)
+    assert done.returncode == 2
+    assert done.stderr.startswith("tml sim: ") and "absent.xml" in done.stderr

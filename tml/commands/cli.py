@@ -169,7 +169,7 @@ def cmd_sim(argv: Sequence[str]) -> int:
     """Run the embedded simulator (same options as ``python -m sitl``)."""
     from sitl.cli import main as sim_main
 
-    return sim_main(list(argv))
+    return sim_main(list(argv), prog="tml sim")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -211,8 +211,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     run = commands.add_parser(
         "run", help="fly a mission on the embedded simulator or a MAVLink vehicle",
-        description="Validate, verify and fly a mission. Exit 0 completed, 1 invalid "
-                    "mission, 3 mission aborted, 4 vehicle or link failure.")
+        description="Validate, verify and fly a mission. Exit 0 completed, 1 invalid or "
+                    "infeasible mission, 2 usage error (a bad option or value, a missing "
+                    "file, a malformed address, a log that cannot be written), 3 mission "
+                    "aborted, 4 vehicle or link failure.")
     from tml.commands.run import add_arguments as add_run_arguments
 
     add_run_arguments(run)
@@ -287,7 +289,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     sim = commands.add_parser(
         "sim", help="run the embedded MAVLink vehicle simulator", add_help=False,
-        description="Run the embedded simulator; see `python -m sitl --help`.")
+        description="Run the embedded simulator; see `tml sim --help`.")
     sim.add_argument("sim_args", nargs=argparse.REMAINDER)
     return parser
 

@@ -1,9 +1,11 @@
 """``tml run``: validate, verify and fly a mission on the simulator or MAVLink vehicles.
 
 Exit codes: 0 the mission completed on every vehicle, 1 invalid (or infeasible, without
-``--force``) mission or bad arguments, 3 the mission was aborted (ABORT_MISSION, an
-infeasible action, Ctrl-C), 4 a vehicle or link failure (an action failed and nothing
-handled it, no vehicle answered, the link was lost, the interpreter broke).
+``--force``) mission, 2 usage error (a bad option or value, a missing file, a malformed
+address, a log that cannot be written: said in one line before anything starts), 3 the
+mission was aborted (ABORT_MISSION, an infeasible action, Ctrl-C), 4 a vehicle or link
+failure (an action failed and nothing handled it, no vehicle answered, the link was lost,
+the interpreter broke).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from tml.errors import ExitCode
 
 if TYPE_CHECKING:
     from tml.language.model import Mission
+    from tml.run.journal import Journal
     from tml.world import World
 
 VEHICLE_PROFILE = "vehicle"  # --profile vehicle: read from the connected vehicle
@@ -39,30 +42,33 @@ def _sim_frames(text: str) -> list[str]:
         raise argparse.ArgumentTypeError(str(error)) from None
 
 
+MAX_SIM_VEHICLES = 250
+"""Simulated vehicles one ``tml run --sim`` flies at most: each takes three sockets in this
+process, and pymavlink watches its sockets with select(), which cannot see a descriptor
+past 1023."""
+
+
 def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text}")
-    return value
+    from sitl.cli import positive
+
+    return positive(text)
 
 
 def _non_negative(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not value >= 0 or value == float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a number of at least 0, got {text}")
-    return value
+    from sitl.cli import non_negative
+
+    return non_negative(text)
 
 
-def _count(text: str) -> int:
-    if not text.isdigit() or int(text) < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {text!r}")
-    return int(text)
+def _sim_vehicles(text: str) -> int:
+    from sitl.cli import count
+
+    number = count(text)
+    if number > MAX_SIM_VEHICLES:
+        raise argparse.ArgumentTypeError(
+            f"at most {MAX_SIM_VEHICLES} simulated vehicles (each takes three sockets, and "
+            f"pymavlink's select() sees none past descriptor 1023), got {text}")
+    return number
 
 
 def _payload(text: str) -> tuple[int, tuple[str, ...]]:
@@ -83,7 +89,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     where.add_argument("--connect", action="append", metavar="URL",
                        help="fly the vehicle at this MAVLink address (tcp:HOST:PORT, "
                             "udpin:0.0.0.0:14550, /dev/ttyACM0 ...); repeatable")
-    parser.add_argument("--vehicles", type=_count, default=1, metavar="N",
+    parser.add_argument("--vehicles", type=_sim_vehicles, default=1, metavar="N",
                         help="--sim: number of simulated vehicles (default 1)")
     parser.add_argument("--speedup", type=_positive, default=1.0, metavar="K",
                         help="--sim: run simulated time K times faster (default 1)")
@@ -138,14 +144,63 @@ def run(args: argparse.Namespace) -> ExitCode:
 
     console = output_console()
     errors = output_console(stderr=True)
+    problem = _usage_problem(args)
+    if problem is not None:
+        errors.print(f"tml run: {problem}", markup=False)
+        return ExitCode.USAGE
     try:
         loaded = _load(args, errors)
-    except (OSError, TmlError) as error:
-        errors.print(f"tml run: {error}")
-        return ExitCode.INVALID
+    except OSError as error:
+        errors.print(f"tml run: {error.filename}: {error.strerror or error}", markup=False)
+        return ExitCode.USAGE
+    except TmlError as error:
+        errors.print(f"tml run: {error}", markup=False)
+        return ExitCode.USAGE
     if isinstance(loaded, ExitCode):
         return loaded
     mission, world, extra, profile = loaded
+    from tml.run.journal import Journal
+
+    try:  # before anything starts: a log that cannot be written is a usage error
+        journal = Journal.open(args.log)
+    except OSError as error:
+        errors.print(f"tml run: --log {args.log}: cannot write: {error.strerror or error}",
+                     markup=False)
+        return ExitCode.USAGE
+    try:
+        return _run(args, mission, world, extra, profile, journal, console, errors)
+    finally:
+        journal.close()
+
+
+def _usage_problem(args: argparse.Namespace) -> str | None:
+    """What is wrong with the mission file or an address given, said with the option and
+    the value; None when nothing is."""
+    import os
+
+    from tml.mavlink.link import address_problem
+
+    path = args.mission
+    if not os.path.exists(path):
+        return f"{path}: No such file or directory"
+    if os.path.isdir(path):
+        return f"{path}: is a directory, not a mission file"
+    if not os.access(path, os.R_OK):
+        return f"{path}: Permission denied"
+    for option, addresses, output in (("--connect", args.connect or [], False),
+                                      ("--out", args.out, True)):
+        for address in addresses:
+            problem = address_problem(address, output=output)
+            if problem is not None:
+                return f"{option} {address}: {problem}"
+    return None
+
+
+def _run(args: argparse.Namespace, mission: Mission, world: World, extra: World | None,
+         profile: Any, journal: Journal, console: Any, errors: Any) -> ExitCode:
+    """Open the vehicles and fly; the exit code."""
+    from tml.errors import TmlError
+
     try:
         with _vehicles(args, world) as (vehicles, wake, clock):
             refused = _preflight(args, mission, vehicles, errors)
@@ -156,7 +211,8 @@ def run(args: argparse.Namespace) -> ExitCode:
                 refused = _verify(args, mission, extra, profile, errors)
                 if refused is not None:
                     return refused
-            return _fly(args, mission, world, profile, vehicles, wake, clock, console)
+            return _fly(args, mission, world, profile, vehicles, wake, clock, console,
+                        journal)
     except TmlError as error:
         errors.print(f"tml run: {error}")
         return ExitCode.FAILURE
@@ -303,10 +359,10 @@ def _discover(link: Any, timeout: float) -> list[int]:
 
 
 def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
-         vehicles: list[Any], wake: threading.Event, clock: Any, console: Any) -> ExitCode:
+         vehicles: list[Any], wake: threading.Event, clock: Any, console: Any,
+         journal: Journal) -> ExitCode:
     from tml.engine import Options
     from tml.run.display import LineDisplay, LiveDisplay
-    from tml.run.journal import Journal
     from tml.run.runner import Runner, RunOptions
     from tml.verify.inflight import pre_check, router
 
@@ -316,7 +372,6 @@ def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
                      route=router(profile, world))
     options = RunOptions(safe_state=args.safe_state, link_lost_limit=args.link_lost_limit,
                          ready_timeout=args.ready_timeout, engine=engine)
-    journal = Journal.open(args.log)
     display: Any = None
     if not args.quiet:
         display = LiveDisplay(mission, console) if console.is_terminal else LineDisplay(console)
@@ -347,7 +402,7 @@ def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
         if threading.current_thread() is threading.main_thread():
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
-        journal.close()
+        journal.close()  # flushed and closed before the outcome is said
     for vehicle in outcome.vehicles:
         console.print(f"vehicle {vehicle.vehicle_id}: mission {vehicle.status.value}: "
                       f"{vehicle.reason}", markup=False)

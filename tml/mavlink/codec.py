@@ -13,6 +13,8 @@ import os
 # mavutil picks the protocol version when first imported: MAVLink 2, explicitly.
 os.environ.setdefault("MAVLINK20", "1")
 
+import logging
+
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
@@ -32,6 +34,19 @@ __all__ = ["decode", "encode", "mavlink", "mavutil"]
 GCS_SYSTEM_ID = 255
 """The system id tml uses on the wire, as ground stations customarily do."""
 GCS_COMPONENT_ID = mavlink.MAV_COMP_ID_MISSIONPLANNER
+
+PYMAVLINK_LOG = logging.getLogger("tml.mavlink.pymavlink")
+"""Where pymavlink's own prints go instead of the terminal."""
+
+
+def _pymavlink_print(*values: object, **_: object) -> None:
+    # pymavlink prints what its sockets do ("[Errno 111] Connection refused sleeping", "EOF
+    # on TCP socket", "Attempting reconnect") to standard output. tml says itself, once,
+    # what it waits for and what failed; those lines go to the log for debugging.
+    PYMAVLINK_LOG.debug(" ".join(str(value) for value in values))
+
+
+mavutil.print = _pymavlink_print  # the module's name print, found before the builtin
 
 # Message objects are built with the encode methods of an encoder that never writes:
 # pymavlink stamps sequence numbers and signatures when the link's own encoder sends them.

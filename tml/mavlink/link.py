@@ -69,24 +69,39 @@ class Address:
     baud: int = 0
 
 
-def parse_address(text: str, baud: int = 57600) -> Address:
-    """Take ``udpin:HOST:PORT``, ``tcp:HOST:PORT``, ... or ``DEVICE[,BAUD]`` apart.
-
-    ``baud`` is the serial speed when the address names none. Raises VehicleError saying
-    what is wrong with a malformed address.
-    """
+def address_problem(text: str, output: bool = False) -> str | None:
+    """What is wrong with a connection address, or None. An ``output`` (a copy of the
+    vehicles' messages for a watching ground station) must be a network address."""
+    networks = ", ".join(s + ":HOST:PORT" for s in SCHEMES)
     scheme, colon, rest = text.partition(":")
     if colon and scheme in SCHEMES:
         host, _, port = rest.rpartition(":")
         if not host or not port.isdigit() or int(port) > 65535:
-            raise VehicleError(f"connection address {text!r}: expected {scheme}:HOST:PORT "
-                               f"with a port from 0 to 65535")
-        return Address(scheme, host=host, port=int(port))
+            return f"expected {scheme}:HOST:PORT with a port from 0 to 65535"
+        return None
+    if output:
+        return f"not an address a copy can be sent to ({networks})"
     device, comma, speed = text.partition(",")
     if not device or (comma and not speed.isdigit()):
-        raise VehicleError(f"connection address {text!r}: expected DEVICE or DEVICE,BAUD "
-                           f"(e.g. /dev/ttyUSB0,57600), or a network address "
-                           f"({', '.join(s + ':HOST:PORT' for s in SCHEMES)})")
+        return (f"expected DEVICE or DEVICE,BAUD (e.g. /dev/ttyUSB0,57600), or a network "
+                f"address ({networks})")
+    return None
+
+
+def parse_address(text: str, baud: int = 57600) -> Address:
+    """Take ``udpin:HOST:PORT``, ``tcp:HOST:PORT``, ... or ``DEVICE[,BAUD]`` apart.
+
+    ``baud`` is the serial speed when the address names none. Raises VehicleError saying
+    what is wrong with a malformed address (:func:`address_problem`).
+    """
+    problem = address_problem(text)
+    if problem is not None:
+        raise VehicleError(f"connection address {text!r}: {problem}")
+    scheme, colon, rest = text.partition(":")
+    if colon and scheme in SCHEMES:
+        host, _, port = rest.rpartition(":")
+        return Address(scheme, host=host, port=int(port))
+    device, comma, speed = text.partition(",")
     return Address("serial", device=device, baud=int(speed) if comma else baud)
 
 
@@ -457,4 +472,5 @@ def _connect(address: str, baud: int, source_system: int, source_component: int,
                                           dialect="ardupilotmega", autoreconnect=True,
                                           input=not (output and parsed.scheme == "udp"))
     except (OSError, ValueError) as error:
-        raise LinkLost(f"cannot open MAVLink connection {address!r}: {error}") from error
+        reason = error.strerror if isinstance(error, OSError) and error.strerror else error
+        raise LinkLost(f"cannot open MAVLink connection {address!r}: {reason}") from error

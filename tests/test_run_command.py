@@ -251,6 +251,7 @@ def test_off_a_terminal_lines_are_not_wrapped(tmp_path: Path) -> None:
     ("--link-lost-limit", "nan", "argument --link-lost-limit: expected a finite number"),
     ("--timeout", "inf", "argument --timeout: expected a finite number"),
     ("--vehicles", "1000", "argument --vehicles: at most 250 simulated vehicles"),
+    ("--sim-param", "FOO=1", "argument --sim-param: unknown simulator parameter 'FOO'"),
 ])
 def test_numbers_that_cannot_be_flown_are_usage_errors(
         option: str, value: str, message: str, capsys: pytest.CaptureFixture[str]) -> None:

@@ -205,7 +205,7 @@ def test_the_shipped_world_file_adds_obstacles_the_legs_go_around(
     root = Path(__file__).resolve().parent.parent
     mission = root / "missions/verify_obstacles.xml"
     world = root / "missions/worlds/field_works.xml"
-    assert main(["validate", str(world)]) == 0
+    assert main(["validate", str(world.parent)]) == 0  # found in a directory: as a world
     assert "1 file(s) checked: 1 valid" in capsys.readouterr().out
     assert main(["verify", "--format", "json", str(mission)]) == 0
     alone = json.loads(capsys.readouterr().out)

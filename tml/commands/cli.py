@@ -23,9 +23,10 @@ if TYPE_CHECKING:
 PARALLEL_BATCH = 50
 
 
-def _mission_files(paths: Sequence[str]) -> tuple[list[Path], list[str]]:
-    """Files named, and the .xml files under directories named; plus problems found."""
-    files: list[Path] = []
+def _mission_files(paths: Sequence[str]) -> tuple[list[tuple[Path, bool]], list[str]]:
+    """Files named, and the .xml files under directories named (those marked True: found,
+    not named); plus problems found."""
+    files: list[tuple[Path, bool]] = []
     problems: list[str] = []
     for name in paths:
         path = Path(name)
@@ -33,22 +34,24 @@ def _mission_files(paths: Sequence[str]) -> tuple[list[Path], list[str]]:
             found = sorted(p for p in path.rglob("*.xml") if p.is_file())
             if not found:
                 problems.append(f"{name}: no .xml files in this directory")
-            files.extend(found)
+            files.extend((p, True) for p in found)
         elif path.is_file():
-            files.append(path)
+            files.append((path, False))
         else:
             problems.append(f"{name}: no such file or directory")
     return files, problems
 
 
-def _validate_for_report(path: Path) -> ValidationResult | str:
-    """Validate one mission or world file (told apart by the root element) for printing: its
-    diagnostics, or the text of an I/O error."""
+def _validate_for_report(path: Path, found: bool = False) -> ValidationResult | str:
+    """Validate one file for printing: its diagnostics, or the text of an I/O error. A
+    file named is a mission; a file ``found`` under a directory is a mission or a world
+    file, as its root element says (a world kept beside the missions is checked as one)."""
     from tml.language.validation import ValidationResult, validate_file
     from tml.language.xml import root_name
 
+    world = found and root_name(path) == "world"
     try:
-        result = validate_file(path, root="world" if root_name(path) == "world" else "mission")
+        result = validate_file(path, root="world" if world else "mission")
     except OSError as exc:
         return f"{path}: {exc.strerror or exc}"
     # The model stays in the worker; quoting source lines needs the text only on problems.
@@ -56,15 +59,16 @@ def _validate_for_report(path: Path) -> ValidationResult | str:
                             result.source if result.diagnostics else "")
 
 
-def _validate_all(files: list[Path]) -> list[ValidationResult | str]:
+def _validate_all(files: list[tuple[Path, bool]]) -> list[ValidationResult | str]:
     """Validate files in order, on every core when there are many."""
     workers = min(os.cpu_count() or 1, len(files) // PARALLEL_BATCH)
     if workers < 2:
-        return [_validate_for_report(path) for path in files]
+        return [_validate_for_report(path, found) for path, found in files]
     from concurrent.futures import ProcessPoolExecutor
 
     with ProcessPoolExecutor(workers) as pool:
-        return list(pool.map(_validate_for_report, files, chunksize=PARALLEL_BATCH))
+        return list(pool.map(_validate_for_report, [p for p, _ in files],
+                             [f for _, f in files], chunksize=PARALLEL_BATCH))
 
 
 def cmd_validate(args: argparse.Namespace) -> ExitCode:
@@ -75,7 +79,7 @@ def cmd_validate(args: argparse.Namespace) -> ExitCode:
     if args.tml_only:  # a hook handed every XML file: the others are not ours
         from tml.language.xml import root_name
 
-        files = [f for f in files if root_name(f) in ("mission", "world", None)]
+        files = [(f, True) for f, _ in files if root_name(f) in ("mission", "world", None)]
     for problem in problems:
         print(f"tml validate: {problem}", file=sys.stderr)
     results = []
@@ -181,8 +185,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     validate = commands.add_parser(
         "validate", help="check mission files against the schema and the language rules",
-        description="Check mission and world files (or every .xml file under "
-                    "directories) against the XML Schema and the language's semantic rules. "
+        description="Check mission files (and every .xml file under directories: missions, "
+                    "and world files by their root element) against the XML Schema and the "
+                    "language's semantic rules. "
                     "Exit 0 when all are valid, 1 when some are invalid, 2 on usage or I/O "
                     "errors.")
     validate.add_argument("paths", nargs="+", metavar="FILE|DIR")
@@ -194,8 +199,8 @@ def build_parser() -> argparse.ArgumentParser:
                           help="print problems only, no summary line")
     validate.add_argument("--tml-only", action="store_true",
                           help="pass over files whose root element is neither <mission> nor "
-                               "<world> (a pom.xml, an SVG), for hooks that hand every .xml "
-                               "file over")
+                               "<world> (a pom.xml, an SVG) and check worlds as world files, "
+                               "for hooks that hand every .xml file over")
     validate.set_defaults(handler=cmd_validate)
 
     verify = commands.add_parser(

@@ -298,3 +298,17 @@ def test_pymavlink_s_own_prints_do_not_reach_the_user(tmp_path: Path) -> None:
     assert "sleeping" not in said and "Errno 111" not in said
     assert said.strip() == (f"tml run: cannot open MAVLink connection 'tcp:127.0.0.1:{port}': "
                             "Connection refused")
+
+
+def test_tml_says_once_what_it_waits_for_and_how_long(tmp_path: Path) -> None:
+    import socket
+
+    with socket.create_server(("127.0.0.1", 0)) as silent:  # accepts, never speaks
+        port = silent.getsockname()[1]
+        done = subprocess.run([sys.executable, "-m", "tml", "run", str(ROOT_MISSIONS /
+                               "paper_example1.xml"), "--connect", f"tcp:127.0.0.1:{port}",
+                               "--timeout", "1"], capture_output=True, text=True, timeout=60)
+    said = done.stdout + done.stderr
+    waiting = f"tml run: waiting up to 1 s for a vehicle at tcp:127.0.0.1:{port}"
+    assert said.count(waiting) == 1, said
+    assert done.returncode == 4 and "sleeping" not in said

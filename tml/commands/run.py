@@ -202,7 +202,7 @@ def _run(args: argparse.Namespace, mission: Mission, world: World, extra: World 
     from tml.errors import TmlError
 
     try:
-        with _vehicles(args, world) as (vehicles, wake, clock):
+        with _vehicles(args, world, errors) as (vehicles, wake, clock):
             refused = _preflight(args, mission, vehicles, errors)
             if refused is not None:
                 return refused
@@ -298,8 +298,8 @@ def _vehicle_profile(vehicle: Any, errors: Any) -> Any:
 
 
 @contextlib.contextmanager
-def _vehicles(args: argparse.Namespace, world: World) -> Iterator[tuple[list[Any],
-                                                                        threading.Event, Any]]:
+def _vehicles(args: argparse.Namespace, world: World, errors: Any = None
+              ) -> Iterator[tuple[list[Any], threading.Event, Any]]:
     """Start the simulator or open the links; yield (vehicles, wake event, clock)."""
     import time
 
@@ -329,6 +329,10 @@ def _vehicles(args: argparse.Namespace, world: World) -> Iterator[tuple[list[Any
         for address, system_id in addresses:
             link = stack.enter_context(Link(address, outputs=args.out))
             link.listen(lambda *_: wake.set())
+            if not system_id and errors is not None and not args.quiet:
+                # Said once: pymavlink's own retry messages are kept from the terminal.
+                errors.print(f"tml run: waiting up to {args.timeout:g} s for a vehicle at "
+                             f"{address}", markup=False)
             ids = [system_id] if system_id else _discover(link, args.timeout)
             if not args.sim and args.clock == "vehicle" and not vehicles:
                 # The first vehicle's clock times the mission and every vehicle's link.

@@ -25,17 +25,29 @@ PARALLEL_BATCH = 50
 
 def _mission_files(paths: Sequence[str]) -> tuple[list[tuple[Path, bool]], list[str]]:
     """Files named, and the .xml files under directories named (those marked True: found,
-    not named); plus problems found."""
+    not named); plus problems found.
+
+    A symbolic link under a directory that leads out of it is refused unread: validating a
+    tree must not print a line of a file elsewhere (a link to /etc/passwd). A named path
+    that is not a regular file is handed on, for the reader to refuse with its reason.
+    """
     files: list[tuple[Path, bool]] = []
     problems: list[str] = []
     for name in paths:
         path = Path(name)
         if path.is_dir():
-            found = sorted(p for p in path.rglob("*.xml") if p.is_file())
+            tree = path.resolve()
+            found = []
+            for candidate in sorted(path.rglob("*.xml")):
+                if not candidate.resolve().is_relative_to(tree):
+                    problems.append(f"{candidate}: a symbolic link leading out of {name}; "
+                                    "not read")
+                elif candidate.is_file():
+                    found.append(candidate)
             if not found:
                 problems.append(f"{name}: no .xml files in this directory")
             files.extend((p, True) for p in found)
-        elif path.is_file():
+        elif path.exists():
             files.append((path, False))
         else:
             problems.append(f"{name}: no such file or directory")
@@ -73,7 +85,7 @@ def _validate_all(files: list[tuple[Path, bool]]) -> list[ValidationResult | str
 
 def cmd_validate(args: argparse.Namespace) -> ExitCode:
     """Validate mission files and print every problem."""
-    from tml.language.diagnostics import format_github, format_human, format_json
+    from tml.language.diagnostics import format_github, format_human_all, format_json
 
     files, problems = _mission_files(args.paths)
     if args.tml_only:  # a hook handed every XML file: the others are not ours
@@ -100,8 +112,8 @@ def cmd_validate(args: argparse.Namespace) -> ExitCode:
     else:
         sources = {r.file: r.source for r in results}
         for result in results:
-            for diagnostic in result.diagnostics:
-                print(format_human(diagnostic, sources))
+            for text in format_human_all(result.diagnostics, sources):
+                print(text)
         if not args.quiet:
             errors = sum(len(r.errors) for r in results)
             warnings = sum(len(r.diagnostics) - len(r.errors) for r in results)

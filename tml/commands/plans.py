@@ -67,7 +67,7 @@ def export(args: argparse.Namespace) -> ExitCode:
     """Run ``tml export``; return the exit code."""
     from tml.errors import TmlError
     from tml.language.build import load_world
-    from tml.language.diagnostics import format_human
+    from tml.language.diagnostics import format_human_all
     from tml.language.validation import validate_file
     from tml.plans.maps import write_geojson, write_kml
     from tml.plans.planned import PlanError, plan_mission
@@ -89,8 +89,8 @@ def export(args: argparse.Namespace) -> ExitCode:
         _say("export", f"--world {args.world}: {error}")
         return ExitCode.USAGE
     if result.errors or result.mission is None:
-        for diagnostic in result.diagnostics:
-            print(format_human(diagnostic, {result.file: result.source}), file=sys.stderr)
+        for text in format_human_all(result.diagnostics, {result.file: result.source}):
+            print(text, file=sys.stderr)
         _say("export", f"{result.file}: invalid mission, not exported")
         return ExitCode.INVALID
     mission = result.mission
@@ -129,7 +129,7 @@ def export(args: argparse.Namespace) -> ExitCode:
 
 def import_(args: argparse.Namespace) -> ExitCode:
     """Run ``tml import``; return the exit code."""
-    from tml.language.diagnostics import format_human
+    from tml.language.diagnostics import format_human_all
     from tml.language.validation import validate_file
     from tml.plans.imported import import_plan
     from tml.plans.qgc import PlanFileError, read_plan
@@ -154,8 +154,8 @@ def import_(args: argparse.Namespace) -> ExitCode:
     # What is written must validate: check it as the file it becomes.
     result = validate_file(args.output or f"{path.stem}.xml", imported.text.encode("utf-8"))
     if result.errors:
-        for diagnostic in result.diagnostics:
-            print(format_human(diagnostic, {result.file: result.source}), file=sys.stderr)
+        for text in format_human_all(result.diagnostics, {result.file: result.source}):
+            print(text, file=sys.stderr)
         _say("import", f"{args.plan}: the mission made of it is invalid, not written")
         return ExitCode.INVALID
     if not _write("import", args.output, imported.text):

@@ -151,7 +151,8 @@ def run(args: argparse.Namespace) -> ExitCode:
     try:
         loaded = _load(args, errors)
     except OSError as error:
-        errors.print(f"tml run: {error.filename}: {error.strerror or error}", markup=False)
+        errors.print(f"tml run: {error.filename or ''}: {error.strerror or error}",
+                     markup=False, soft_wrap=True)
         return ExitCode.USAGE
     except TmlError as error:
         errors.print(f"tml run: {error}", markup=False)
@@ -226,14 +227,14 @@ def _load(args: argparse.Namespace,
     """The validated (and verified) mission, its world, the --world file's world and the
     verifier's profile; or an exit code."""
     from tml.language.build import load_world
-    from tml.language.diagnostics import format_human
+    from tml.language.diagnostics import format_human_all
     from tml.language.validation import validate_file
     from tml.world import World
 
     result = validate_file(args.mission)
     if result.errors or result.mission is None:
-        for diagnostic in result.diagnostics:
-            errors.print(format_human(diagnostic, {result.file: result.source}), markup=False)
+        for text in format_human_all(result.diagnostics, {result.file: result.source}):
+            errors.print(text, markup=False)
         errors.print(f"tml run: {result.file}: invalid mission, not flown")
         return ExitCode.INVALID
     mission = result.mission

@@ -85,7 +85,7 @@ def _verify_one(path: str, args: argparse.Namespace, profile: VehicleProfile,
                 world: World | None) -> tuple[ExitCode, str | None]:
     """Verify one mission file and print its report (a JSON document is returned instead);
     the exit code it alone would give."""
-    from tml.language.diagnostics import format_human, format_json
+    from tml.language.diagnostics import format_human_all, format_json
     from tml.language.validation import validate_file
     from tml.verify.motion import PredictedState
     from tml.verify.static import verify_mission
@@ -99,8 +99,8 @@ def _verify_one(path: str, args: argparse.Namespace, profile: VehicleProfile,
     if result.errors or result.mission is None:
         if args.format == "json":
             return ExitCode.INVALID, format_json([(result.file, False, result.diagnostics)])
-        for diagnostic in result.diagnostics:
-            print(format_human(diagnostic, {result.file: result.source}))
+        for text in format_human_all(result.diagnostics, {result.file: result.source}):
+            print(text)
         print(f"{result.file}: invalid mission, not verified")
         return ExitCode.INVALID, None
     mission = result.mission

@@ -4,12 +4,22 @@ A diagnostic has a place (file:line:column), a stable code, a severity, a messag
 hint. Three formats: ``human`` (the offending line with a caret under the column),
 ``json`` (one object per file with the list of diagnostics) and ``github`` (workflow
 command annotations, so problems show on the pull request's diff).
+
+Everything printed from a file passes through :func:`printable`: control characters and
+bidirectional overrides in a quoted line, a name or a file name are shown escaped, so a
+file cannot move the cursor, retitle the terminal or reorder what the reader sees. A
+file's text is split into lines once however many diagnostics quote it, and a code
+repeated in one file is shown :data:`REPEATS_SHOWN` times and then counted, so printing
+stays linear in the number of diagnostics.
 """
 
 from __future__ import annotations
 
+import functools
 import json
-from collections.abc import Iterable, Mapping
+import re
+from collections import Counter
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import asdict, dataclass
 from enum import StrEnum
 
@@ -63,20 +73,49 @@ def sort_key(diagnostic: Diagnostic) -> tuple[str, int, int, str]:
     return (loc.file, loc.line, loc.column, diagnostic.code)
 
 
+# C0 and C1 control characters but tab and newline, DEL, and the bidirectional embeddings,
+# overrides and isolates (U+202A-U+202E, U+2066-U+2069).
+_UNPRINTABLE = re.compile("[\x00-\x08\x0b-\x1f\x7f-\x9f\u202a-\u202e\u2066-\u2069]")
+_UNPRINTABLE_OR_NEWLINE = re.compile(f"{_UNPRINTABLE.pattern}|\n")
+_NAMED = {"\n": "\\n", "\r": "\\r"}
+
+
+def _escape(match: re.Match[str]) -> str:
+    char = match.group(0)
+    code = ord(char)
+    return _NAMED.get(char) or (f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}")
+
+
+def printable(text: str, newlines: bool = True) -> str:
+    """``text`` safe to print to a terminal: control characters (but tab, and newline
+    unless ``newlines`` is False) and bidi overrides written as ``\\x1b``, ``\\u202e``."""
+    return (_UNPRINTABLE if newlines else _UNPRINTABLE_OR_NEWLINE).sub(_escape, text)
+
+
+@functools.lru_cache(maxsize=4)
+def _source_lines(text: str) -> list[str]:
+    # Diagnostics of one file come together: split its text once, not once per diagnostic.
+    return text.splitlines()
+
+
 def format_human(diagnostic: Diagnostic, sources: Mapping[str, str]) -> str:
     """``file:line:col: error E123: message``, the source line, a caret, and the hint."""
     loc = diagnostic.location
-    lines = [f"{loc}: {diagnostic.severity.value} {diagnostic.code}: {diagnostic.message}"]
+    lines = [printable(f"{loc}: {diagnostic.severity.value} {diagnostic.code}: "
+                       f"{diagnostic.message}")]
     text = sources.get(loc.file)
     if text is not None and loc.line >= 1:
-        source_lines = text.splitlines()
+        source_lines = _source_lines(text)
         if loc.line <= len(source_lines):
             line = source_lines[loc.line - 1].expandtabs(1)
-            lines.append(f"  {loc.line:>4} | {line}")
+            escaped = printable(line, newlines=False)
+            lines.append(f"  {loc.line:>4} | {escaped}")
             if loc.column >= 1:
-                lines.append(f"       | {' ' * (loc.column - 1)}^")
+                # The caret stands under the column: count what escaping added before it.
+                shift = len(printable(line[:loc.column - 1], newlines=False))
+                lines.append(f"       | {' ' * shift}^")
     if diagnostic.hint:
-        lines.append(f"  hint: {diagnostic.hint}")
+        lines.append(printable(f"  hint: {diagnostic.hint}"))
     return "\n".join(lines)
 
 
@@ -90,14 +129,35 @@ def _github_property(text: str) -> str:
     return _github_data(text).replace(":", "%3A").replace(",", "%2C")
 
 
+REPEATS_SHOWN = 20
+"""Diagnostics of one code in one file shown in human form before the rest are counted."""
+
+
+def format_human_all(diagnostics: Iterable[Diagnostic],
+                     sources: Mapping[str, str]) -> Iterator[str]:
+    """Each diagnostic as :func:`format_human` prints it, the first :data:`REPEATS_SHOWN` of
+    each code in each file; then, for a code with more, one line saying how many more."""
+    counts: Counter[tuple[str, str]] = Counter()
+    for diagnostic in diagnostics:
+        key = (diagnostic.location.file, diagnostic.code)
+        counts[key] += 1
+        if counts[key] <= REPEATS_SHOWN:
+            yield format_human(diagnostic, sources)
+    for (file, code), count in counts.items():
+        if count > REPEATS_SHOWN:
+            yield printable(f"{file}: and {count - REPEATS_SHOWN} more {code} not shown "
+                            f"({count} in all)")
+
+
 def format_github(diagnostic: Diagnostic) -> str:
     """A GitHub Actions workflow command that annotates the file at the line."""
     loc = diagnostic.location
     level = "error" if diagnostic.is_error else "warning"
     text = diagnostic.message + (f" ({diagnostic.hint})" if diagnostic.hint else "")
     column = f",col={loc.column}" if loc.column else ""
-    return (f"::{level} file={_github_property(loc.file)},line={loc.line}{column},"
-            f"title={_github_property(diagnostic.code)}::{_github_data(text)}")
+    return printable(f"::{level} file={_github_property(loc.file)},line={loc.line}{column},"
+                     f"title={_github_property(diagnostic.code)}::{_github_data(text)}",
+                     newlines=False)
 
 
 def format_json(results: Iterable[tuple[str, bool, list[Diagnostic]]]) -> str:

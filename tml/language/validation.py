@@ -43,7 +43,7 @@ def validate_file(path: str | Path, data: bytes | None = None,
         doc = xml.read_xml(file, data)
     except MissionSyntaxError as exc:
         location = exc.location or Location(file, 1, 1)
-        source = _text_of(path, data)
+        source = "" if exc.code == "E005" else _text_of(path, data)
         return ValidationResult(file, None, [error(location, exc.code, exc.message)], source)
     problems = schema.validate(doc, root)
     if problems:
@@ -68,13 +68,16 @@ def load_mission(path: str | Path) -> Mission:
 
 
 def _text_of(path: str | Path, data: bytes | None) -> str:
+    """The text of a file that failed to read as XML, for quoting its lines; "" for a file
+    that is not XML at all (a password file, a binary), whose content is never quoted."""
     try:
-        raw = data if data is not None else Path(path).read_bytes()
-    except OSError:
+        raw = data if data is not None else xml.read_bounded(path)
+    except (OSError, MissionSyntaxError):
         return ""
     if b"\x00" in raw:  # UTF-16 and binary files: no source line is worth quoting
         return ""
-    return raw.decode("utf-8", "replace")
+    text = raw.decode("utf-8", "replace")
+    return text if text.lstrip("\ufeff \t\r\n").startswith("<") else ""
 
 
 __all__ = ["MissionError", "ValidationResult", "load_mission", "validate_file"]

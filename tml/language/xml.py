@@ -4,7 +4,9 @@ Reading is defensive because mission files come from anywhere: the bytes must be
 no DOCTYPE is accepted (so no entity expansion, no external entities, no network or file
 access from the document), and size and nesting depth are bounded. Each of those problems,
 an empty file, or XML that is not well-formed gives one :class:`MissionSyntaxError` that
-says where, never a traceback.
+says where, never a traceback. Only regular files are read (a FIFO would block, a device
+such as /dev/zero never end), and no more than the size bound of them: a larger file is
+refused by its size before its content is read.
 
 lxml reports an element's line only (and the line of the *end* of its start tag), so the
 text is scanned once for start tags in document order; the i-th start tag is the i-th
@@ -14,8 +16,11 @@ element, which gives every element and attribute an exact line and column.
 from __future__ import annotations
 
 import bisect
+import errno
 import functools
+import os
 import re
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -43,10 +48,11 @@ def root_name(path: str | Path) -> str | None:
     instructions and a DOCTYPE skipped); None when the file cannot be read or none is
     found there. Tells mission files from other XML (a ``pom.xml``) without parsing."""
     try:
-        with open(path, "rb") as stream:
-            head = stream.read(ROOT_SCAN_BYTES).decode("utf-8", "replace")
+        descriptor = _open_regular(path)
     except OSError:
-        return None
+        return None  # the reader says why (missing, not a regular file) when it is read
+    with os.fdopen(descriptor, "rb") as stream:
+        head = stream.read(ROOT_SCAN_BYTES).decode("utf-8", "replace")
     for match in _MARKUP.finditer(head):
         if match.group("tag"):
             return match.group("tag")
@@ -156,12 +162,10 @@ def read_xml(source: str | Path, data: bytes | None = None) -> XmlDocument:
     """
     file = str(source)
     if data is None:
-        data = Path(source).read_bytes()
+        data = read_bounded(source)
     start = Location(file, 1, 1)
     if len(data) > MAX_BYTES:
-        raise MissionSyntaxError(
-            f"file is {len(data)} bytes; mission files are limited to {MAX_BYTES} bytes",
-            start, "E005")
+        raise _too_large(file, len(data))
     if not data.strip():
         raise MissionSyntaxError("file is empty; expected a <mission> document", start, "E001")
     text = _decode(file, data)
@@ -206,6 +210,44 @@ def read_xml(source: str | Path, data: bytes | None = None) -> XmlDocument:
                 Location(file, where[1], where[2]) if where
                 else Location(file, element.sourceline or 1, 0), "E006")
     return XmlDocument(file, text, root, starts)
+
+
+def read_bounded(source: str | Path) -> bytes:
+    """The bytes of a regular file of at most :data:`MAX_BYTES`, read with that bound.
+
+    Raises OSError for a file that cannot be opened or is not a regular file (a FIFO, a
+    device, a directory: refused before anything is read, so nothing blocks or runs on), and
+    :class:`MissionSyntaxError` E005 for a file over the bound, by its size alone.
+    """
+    descriptor = _open_regular(source)
+    try:
+        info = os.fstat(descriptor)
+        if info.st_size > MAX_BYTES:
+            raise _too_large(str(source), info.st_size)
+        with os.fdopen(descriptor, "rb", closefd=False) as stream:
+            data = stream.read(MAX_BYTES + 1)  # the file may have grown since fstat
+    finally:
+        os.close(descriptor)
+    if len(data) > MAX_BYTES:
+        raise _too_large(str(source), len(data))
+    return data
+
+
+def _open_regular(source: str | Path) -> int:
+    """A descriptor open for reading on ``source``; OSError if it is not a regular file."""
+    # O_NONBLOCK: opening a FIFO for reading would otherwise wait for a writer.
+    descriptor = os.open(source, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    if not stat.S_ISREG(os.fstat(descriptor).st_mode):
+        os.close(descriptor)
+        raise OSError(errno.EINVAL, "not a regular file (a FIFO, device or directory); "
+                      "missions are read from regular files", str(source))
+    return descriptor
+
+
+def _too_large(file: str, size: int) -> MissionSyntaxError:
+    return MissionSyntaxError(
+        f"file is {size} bytes; mission files are limited to {MAX_BYTES} bytes",
+        Location(file, 1, 1), "E005")
 
 
 def _decode(file: str, data: bytes) -> str:

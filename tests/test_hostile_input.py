@@ -165,3 +165,17 @@ def test_repeated_diagnostics_are_capped_with_a_count(
     assert "more E244" in out
     more = [line for line in out.splitlines() if "more E244" in line]
     assert len(more) == 1 and str(4999 - out.count("error E244")) in more[0]
+
+
+# --- numbers that validate but break verify and run ------------------------------------------
+
+@pytest.mark.parametrize("value", ["1e309", "-1e309", "(1e309, 0, 10)"])
+def test_a_number_too_large_for_a_float_is_refused_as_inf_is(
+        tmp_path: Path, value: str) -> None:
+    name, argument = (("GO_TO_POINT", "coordinates") if value.startswith("(")
+                      else ("WAIT", "duration"))
+    path = tmp_path / "m.xml"
+    path.write_text(VALID.replace(
+        '<action name="LAND"/>',
+        f'<action name="{name}"><argument name="{argument}" value="{value}"/></action>'))
+    assert [d.code for d in validate_file(path).errors] == ["E212"]

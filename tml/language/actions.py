@@ -436,7 +436,9 @@ def parse_value(spec: ArgumentSpec, raw: str) -> ArgumentValue:
         match = _POINT.match(text)
         if not match:
             raise ValueError("expected a point '(north, east, up)' of three numbers in metres")
-        north, east, up = (float(g) for g in match.groups())
+        north, east, up = (parse_number(g) for g in match.groups())
+        if north is None or east is None or up is None:
+            raise ValueError("expected a point of three finite numbers in metres")
         return north, east, up
     if spec.type is ArgType.BOOLEAN:
         flag = parse_boolean(text)

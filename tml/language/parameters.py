@@ -120,9 +120,14 @@ def parse_boolean(text: str) -> bool | None:
 
 
 def parse_number(text: str) -> float | None:
-    """A decimal number as written in mission files (no nan, inf or ``1_0``); else None."""
+    """A decimal number as written in mission files (no nan, inf or ``1_0``); else None.
+
+    A number too large for a float (``1e309``, read as inf) is refused as ``inf`` is."""
     text = text.strip()
-    return float(text) if _NUMBER.fullmatch(text) else None
+    if not _NUMBER.fullmatch(text):
+        return None
+    value = float(text)
+    return value if math.isfinite(value) else None
 
 
 ORDERINGS = frozenset({Comparison.LESS, Comparison.LESS_OR_EQUAL, Comparison.GREATER,

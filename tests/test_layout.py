@@ -18,7 +18,7 @@ ROOT = Path(__file__).resolve().parent.parent
 LAYERS: list[set[str]] = [
     {"tml.__main__"},
     {"tml.commands"},
-    {"tml.report"},
+    {"tml.report", "tml.serve"},
     {"tml.run", "tml.plans"},
     {"tml.engine", "tml.mavlink", "tml.verify"},
     {"tml.vehicle"},

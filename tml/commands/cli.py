@@ -166,6 +166,13 @@ def cmd_report(args: argparse.Namespace) -> ExitCode:
     return run(args)
 
 
+def cmd_serve(args: argparse.Namespace) -> ExitCode:
+    """Serve the HTTP API and the page (see :mod:`tml.commands.serve`)."""
+    from tml.commands.serve import run
+
+    return run(args)
+
+
 def cmd_schema(args: argparse.Namespace) -> ExitCode:
     """Show the installed schema (see :mod:`tml.commands.schema`)."""
     from tml.commands.schema import run
@@ -303,6 +310,18 @@ def build_parser() -> argparse.ArgumentParser:
                     "'eval \"$(tml completion zsh)\"' to ~/.zshrc. Exit 0.")
     completion.add_argument("shell", choices=("bash", "zsh"))
     completion.set_defaults(handler=cmd_completion)
+
+    serve = commands.add_parser(
+        "serve", help="serve missions, runs and vehicles over HTTP, with a live web page",
+        description="Keep the vehicle links open, fly missions on them and serve an HTTP "
+                    "API (OpenAPI at /openapi.json) and a live web page at /, until SIGINT "
+                    "or SIGTERM (every flying vehicle is sent to its safe state first). "
+                    "Exit 0 when stopped, 2 on bad arguments, 4 when the vehicles cannot "
+                    "be reached. See docs/serve.md.")
+    from tml.commands.serve import add_arguments as add_serve_arguments
+
+    add_serve_arguments(serve)
+    serve.set_defaults(handler=cmd_serve)
 
     sim = commands.add_parser(
         "sim", help="run the embedded MAVLink vehicle simulator", add_help=False,

@@ -14,7 +14,7 @@ import argparse
 import contextlib
 import signal
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any
 
 from tml.errors import ExitCode
@@ -80,9 +80,9 @@ def _payload(text: str) -> tuple[int, tuple[str, ...]]:
     return int(number), wanted
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Declare the options of ``tml run``."""
-    parser.add_argument("mission", metavar="FILE")
+def add_vehicle_arguments(parser: argparse.ArgumentParser) -> None:
+    """Declare the options that say which vehicles to open (``tml run``, ``tml serve``):
+    the simulator or MAVLink addresses, and how their links are watched."""
     where = parser.add_mutually_exclusive_group(required=True)
     where.add_argument("--sim", action="store_true",
                        help="fly on the embedded simulator (loopback, free ports)")
@@ -93,8 +93,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="--sim: number of simulated vehicles (default 1)")
     parser.add_argument("--speedup", type=_positive, default=1.0, metavar="K",
                         help="--sim: run simulated time K times faster (default 1)")
-    parser.add_argument("--world", metavar="FILE",
-                        help="world file laid over the mission's <environment>")
     parser.add_argument("--sim-frame", type=_sim_frames, default=["copter"],
                         metavar="FRAME[,FRAME...]",
                         help="--sim: copter (default), plane or rover; a list gives vehicle "
@@ -106,6 +104,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="copy every vehicle message to this address, so QGroundControl "
                              "or MAVProxy can watch (e.g. udpout:127.0.0.1:14551); "
                              "repeatable")
+    parser.add_argument("--link-lost-limit", type=_positive, default=10.0, metavar="S",
+                        help="abort a run after its link is lost this long (default 10 s)")
+    parser.add_argument("--timeout", type=_positive, default=30.0, metavar="S",
+                        help="seconds to wait for each vehicle's first heartbeat (default 30)")
+    parser.add_argument("--ready-timeout", type=_non_negative, default=180.0, metavar="S",
+                        help="seconds to wait, before the first task, for every vehicle to "
+                             "report position, home, GPS and battery and to be armable "
+                             "(default 180; 0 does not wait)")
+    parser.add_argument("--clock", choices=("wall", "vehicle"), default="wall",
+                        help="--connect: the mission's clock: the ground station's (wall, "
+                             "default) or the first vehicle's own (vehicle: time limits in "
+                             "vehicle seconds, e.g. for SITL run with --speedup); --sim "
+                             "always uses the simulator's")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Declare the options of ``tml run``."""
+    parser.add_argument("mission", metavar="FILE")
+    add_vehicle_arguments(parser)
+    parser.add_argument("--world", metavar="FILE",
+                        help="world file laid over the mission's <environment>")
     parser.add_argument("--payload", type=_payload, action="append", default=[],
                         metavar="ID=NAME[,NAME...]",
                         help="what vehicle ID carries, for the payloads a <role> asks for "
@@ -122,19 +141,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="vehicle profile for the verifier: quadcopter (default), "
                              "fixed-wing, a TOML file, or 'vehicle' to fill the quadcopter "
                              "profile from the connected vehicle's parameters")
-    parser.add_argument("--link-lost-limit", type=_positive, default=10.0, metavar="S",
-                        help="abort the run after the link is lost this long (default 10 s)")
-    parser.add_argument("--timeout", type=_positive, default=30.0, metavar="S",
-                        help="seconds to wait for each vehicle's first heartbeat (default 30)")
-    parser.add_argument("--ready-timeout", type=_non_negative, default=180.0, metavar="S",
-                        help="seconds to wait, before the first task, for every vehicle to "
-                             "report position, home, GPS and battery and to be armable "
-                             "(default 180; 0 does not wait)")
-    parser.add_argument("--clock", choices=("wall", "vehicle"), default="wall",
-                        help="--connect: the mission's clock: the ground station's (wall, "
-                             "default) or the first vehicle's own (vehicle: time limits in "
-                             "vehicle seconds, e.g. for SITL run with --speedup); --sim "
-                             "always uses the simulator's")
 
 
 def run(args: argparse.Namespace) -> ExitCode:
@@ -203,7 +209,7 @@ def _run(args: argparse.Namespace, mission: Mission, world: World, extra: World 
     from tml.errors import TmlError
 
     try:
-        with _vehicles(args, world, errors) as (vehicles, wake, clock):
+        with open_vehicles(args, world, errors) as (vehicles, wake, clock):
             refused = _preflight(args, mission, vehicles, errors)
             if refused is not None:
                 return refused
@@ -299,9 +305,15 @@ def _vehicle_profile(vehicle: Any, errors: Any) -> Any:
 
 
 @contextlib.contextmanager
-def _vehicles(args: argparse.Namespace, world: World, errors: Any = None
-              ) -> Iterator[tuple[list[Any], threading.Event, Any]]:
-    """Start the simulator or open the links; yield (vehicles, wake event, clock)."""
+def open_vehicles(args: argparse.Namespace, world: World, errors: Any = None,
+                  notify: Callable[[], None] | None = None,
+                  ) -> Iterator[tuple[list[Any], threading.Event, Any]]:
+    """Start the simulator or open the links; yield (vehicles, wake event, clock).
+
+    The wake event is set on every message and request result, or ``notify`` is called
+    instead when given (a service with several runs wakes each of them); ``errors``, when
+    given, is told which address is waited for.
+    """
     import time
 
     from tml.errors import TmlError
@@ -311,6 +323,7 @@ def _vehicles(args: argparse.Namespace, world: World, errors: Any = None
 
     wake = threading.Event()
     addresses: list[tuple[str, int | None]]
+    news = notify or wake.set
     with contextlib.ExitStack() as stack:
         if args.sim:
             from sitl.server import Simulator
@@ -329,7 +342,7 @@ def _vehicles(args: argparse.Namespace, world: World, errors: Any = None
         vehicle_clock: VehicleClock | None = None
         for address, system_id in addresses:
             link = stack.enter_context(Link(address, outputs=args.out))
-            link.listen(lambda *_: wake.set())
+            link.listen(lambda *_: news())
             if not system_id and errors is not None and not args.quiet:
                 # Said once: pymavlink's own retry messages are kept from the terminal.
                 errors.print(f"tml run: waiting up to {args.timeout:g} s for a vehicle at "
@@ -343,7 +356,7 @@ def _vehicles(args: argparse.Namespace, world: World, errors: Any = None
             for sid in ids:
                 vehicle = MavlinkVehicle(link, sid, clock=clock, world=world,
                                          vehicle_id=len(vehicles) + 1 if not args.sim else sid,
-                                         connect_timeout=args.timeout, on_result=wake.set,
+                                         connect_timeout=args.timeout, on_result=news,
                                          link_clock=link_clock)
                 stack.callback(vehicle.close)
                 vehicle.prepare()
@@ -366,17 +379,13 @@ def _discover(link: Any, timeout: float) -> list[int]:
 def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
          vehicles: list[Any], wake: threading.Event, clock: Any, console: Any,
          journal: Journal) -> ExitCode:
-    from tml.engine import Options
+    from tml.run.checked import checked_options
     from tml.run.display import LineDisplay, LiveDisplay
-    from tml.run.runner import Runner, RunOptions
-    from tml.verify.inflight import pre_check, router
+    from tml.run.runner import Runner
 
-    # In flight, each action is checked again against live telemetry before it starts, and
-    # moves follow the planner's paths around the obstacles the verifier planned around.
-    engine = Options(world=world, pre_check=pre_check(profile, world),
-                     route=router(profile, world))
-    options = RunOptions(safe_state=args.safe_state, link_lost_limit=args.link_lost_limit,
-                         ready_timeout=args.ready_timeout, engine=engine)
+    options = checked_options(profile, world, safe_state=args.safe_state,
+                              link_lost_limit=args.link_lost_limit,
+                              ready_timeout=args.ready_timeout)
     display: Any = None
     if not args.quiet:
         display = LiveDisplay(mission, console) if console.is_terminal else LineDisplay(console)

@@ -18,7 +18,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Mapping
-from typing import IO, Any
+from typing import Any, Protocol
 
 from tml.geo import to_global
 from tml.vehicle import AutopilotMessage, VehicleState
@@ -66,10 +66,20 @@ def autopilot_fields(message: AutopilotMessage) -> dict[str, Any]:
             "text": message.text}
 
 
+class Sink(Protocol):
+    """Where a journal writes: a text file, or anything that takes text the same way."""
+
+    def write(self, text: str, /) -> int: ...
+
+    def flush(self) -> None: ...
+
+    def close(self) -> None: ...
+
+
 class Journal:
     """Writes log lines to ``stream`` (nothing at all when ``stream`` is None)."""
 
-    def __init__(self, stream: IO[str] | None, owned: bool = False) -> None:
+    def __init__(self, stream: Sink | None, owned: bool = False) -> None:
         self.stream = stream
         self.owned = owned  # the journal opened the stream, and closes it
         self.lines = 0

@@ -77,8 +77,8 @@ def _violation(violation: Violation) -> dict[str, object]:
     return found
 
 
-def report_json(report: Report) -> str:
-    """The report as one JSON document (see docs/verify.md for its fields)."""
+def report_document(report: Report) -> dict[str, object]:
+    """The report as plain values (see docs/verify.md for its fields)."""
     document: dict[str, object] = {
         "file": report.file,
         "profile": report.profile.name,
@@ -92,4 +92,9 @@ def report_json(report: Report) -> str:
     }
     if report.roles:
         document["ends"] = {role: _end(end) for role, end in report.ends.items()}
-    return json.dumps(document, indent=2)
+    return document
+
+
+def report_json(report: Report) -> str:
+    """The report as one JSON document (see docs/verify.md for its fields)."""
+    return json.dumps(report_document(report), indent=2)

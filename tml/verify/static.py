@@ -50,6 +50,7 @@ from tml.language.model import Comparison, Composition, ConditionKind, Event, Mi
 from tml.language.parameters import ORDERINGS, compare_numbers, lookup, parse_boolean
 from tml.verify.constraints import Constraint, Violation, check_step
 from tml.verify.motion import FlightModel, Labels, PredictedState, Step
+from tml.verify.planner import Point3
 from tml.verify.profile import SHIPPED_FOR_KIND, VehicleProfile, load_profile
 from tml.world import World
 
@@ -71,6 +72,7 @@ class Row:
     event: str = ""  # the event handler the action belongs to, if any
     role: str = ""  # the role flying it, in a mission that declares roles
     vehicles: tuple[int, ...] = ()  # which of the role's vehicles (1, 2 ... in pick order)
+    path: tuple[Point3, ...] = ()  # the points flown through, ending where the action ends
 
     def to_dict(self) -> dict[str, object]:
         """A JSON-ready dictionary (``role`` and ``vehicles`` only when there are roles)."""
@@ -79,7 +81,8 @@ class Row:
             "line": self.line, "distance": round(self.distance, 3),
             "duration": round(self.duration, 3), "time": round(self.time, 3),
             "battery": round(self.battery, 3),
-            "clearance": None if math.isinf(self.clearance) else round(self.clearance, 3)}
+            "clearance": None if math.isinf(self.clearance) else round(self.clearance, 3),
+            "path": [[round(v, 2) for v in point] for point in self.path]}
         if self.role:
             found |= {"role": self.role, "vehicles": list(self.vehicles)}
         return found
@@ -268,7 +271,8 @@ class _Walker:
         clearance = self.model.planner.clearance_of(points) if points else math.inf
         self.rows.append(Row(task, bound.name, bound.action.location.line, worst.distance,
                              worst.duration, worst.after.time, worst.after.battery,
-                             clearance, event, self.role_name, self.vehicles(pick)))
+                             clearance, event, self.role_name, self.vehicles(pick),
+                             (*points, worst.after.position)))
 
     def merge(self, alternatives: list[_Alternative]) -> list[_Alternative]:
         grouped: dict[tuple[object, ...], _Alternative] = {}

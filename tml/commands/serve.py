@@ -1,0 +1,134 @@
+"""``tml serve``: the mission interpreter as a service, with an HTTP API and a live page.
+
+Exit codes: 0 stopped (SIGINT, SIGTERM: every flying vehicle sent to its safe state
+first), 2 bad arguments (a non-loopback address without a token, a database that cannot
+be opened, the ``serve`` extra not installed), 4 the vehicles cannot be reached.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ipaddress
+import os
+import sys
+from pathlib import Path
+
+from tml.commands.run import add_vehicle_arguments
+
+EXIT_OK, EXIT_USAGE, EXIT_FAILURE = 0, 2, 4
+TOKEN_VARIABLE = "TML_SERVE_TOKEN"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Declare the options of ``tml serve``."""
+    add_vehicle_arguments(parser)
+    parser.add_argument("--host", default="127.0.0.1",
+                        help="the address to serve on (default 127.0.0.1; any other needs "
+                             "a token)")
+    parser.add_argument("--port", type=int, default=8080, help="the port (default 8080)")
+    parser.add_argument("--data", default="tml-data", metavar="DIR",
+                        help="where the SQLite database is kept (default ./tml-data)")
+    parser.add_argument("--database", metavar="URL",
+                        help="a database URL instead of SQLite in --data, e.g. "
+                             "postgresql://user:password@host/tml")
+    parser.add_argument("--token", metavar="TOKEN",
+                        help=f"every request must carry 'Authorization: Bearer TOKEN' (or "
+                             f"--token-file, or ${TOKEN_VARIABLE})")
+    parser.add_argument("--token-file", metavar="FILE",
+                        help="read the token from the first line of FILE")
+    parser.add_argument("--instance", default="local", metavar="NAME",
+                        help="this service's name in a database shared by several "
+                             "(default local; see docs/serve.md)")
+
+
+def is_loopback(host: str) -> bool:
+    """Whether ``host`` is a loopback address (or localhost)."""
+    if host.lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+def _token(args: argparse.Namespace) -> str | None:
+    """The token: --token, else the first line of --token-file, else the environment."""
+    if args.token:
+        return str(args.token)
+    if args.token_file:
+        text = Path(args.token_file).read_text(encoding="utf-8").strip().splitlines()
+        if not text or not text[0].strip():
+            raise ValueError(f"{args.token_file}: the token file is empty")
+        return text[0].strip()
+    return os.environ.get(TOKEN_VARIABLE) or None
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``tml serve`` until SIGINT or SIGTERM; return the exit code."""
+    try:
+        import uvicorn
+
+        from tml.serve.api import create_app
+    except ImportError as error:
+        print(f"tml serve: {error.name or error} is missing: install tml with its serve extra "
+              "(pip install 'tml[serve]')", file=sys.stderr)
+        return EXIT_USAGE
+    from tml.errors import TmlError
+    from tml.serve.hangar import Hangar
+    from tml.serve.service import Service, ServiceOptions
+    from tml.serve.storage import Storage, database_url
+    from tml.world import World
+
+    try:
+        token = _token(args)
+    except (OSError, ValueError) as error:
+        print(f"tml serve: {error}", file=sys.stderr)
+        return EXIT_USAGE
+    if token is None and not is_loopback(args.host):
+        print(f"tml serve: refusing to serve on {args.host} without a token: give --token, "
+              f"--token-file or ${TOKEN_VARIABLE}, or serve on 127.0.0.1", file=sys.stderr)
+        return EXIT_USAGE
+    if not 0 <= args.port <= 65535:
+        print(f"tml serve: --port {args.port}: expected 0 to 65535", file=sys.stderr)
+        return EXIT_USAGE
+    try:
+        if args.database is None:
+            Path(args.data).mkdir(parents=True, exist_ok=True)
+        storage = Storage(database_url(args.database, Path(args.data)))
+    except (OSError, TmlError) as error:
+        print(f"tml serve: {error}", file=sys.stderr)
+        return EXIT_USAGE
+    from tml.commands.run import open_vehicles
+
+    hangars: list[Hangar] = []  # the hangar, once the vehicles it holds are open
+
+    def notify() -> None:
+        for hangar in hangars:
+            hangar.notify()
+
+    try:
+        with open_vehicles(args, World(), notify) as (vehicles, _wake, clock):
+            hangar = Hangar(vehicles, clock)
+            hangars.append(hangar)
+            service = Service(storage, hangar, ServiceOptions(
+                instance=args.instance, link_lost_limit=args.link_lost_limit,
+                ready_timeout=args.ready_timeout))
+            for run_id in service.start():
+                print(f"tml serve: run {run_id} was flying when the service stopped: "
+                      "marked interrupted", file=sys.stderr)
+            where = f"http://{args.host}:{args.port}/"
+            print(f"tml serve: {where} ({len(vehicles)} vehicle(s): "
+                  f"{', '.join(str(v.vehicle_id) for v in vehicles)}; {storage.backend} "
+                  f"storage{'; token required' if token else ''})", flush=True)
+            server = uvicorn.Server(uvicorn.Config(create_app(service, token), host=args.host,
+                                                   port=args.port, log_level="warning"))
+            server.run()  # until SIGINT or SIGTERM; the app's shutdown stops every run
+            return EXIT_OK if server.started else EXIT_USAGE
+    except TmlError as error:
+        print(f"tml serve: {error}", file=sys.stderr)
+        return EXIT_FAILURE
+    except OSError as error:
+        print(f"tml serve: cannot open the vehicle link: {error}", file=sys.stderr)
+        return EXIT_FAILURE
+    finally:
+        storage.close()

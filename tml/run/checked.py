@@ -1,0 +1,24 @@
+"""The options of a flight that is checked as it flies: one place for ``tml run`` and
+``tml serve``.
+
+In flight, each action is checked again against live telemetry before it starts
+(:func:`tml.verify.inflight.pre_check`), and moves follow the planner's paths around the
+obstacles the verifier planned around (:func:`tml.verify.inflight.router`).
+"""
+
+from __future__ import annotations
+
+from tml.engine import Options
+from tml.run.runner import RunOptions
+from tml.verify.inflight import pre_check, router
+from tml.verify.profile import VehicleProfile
+from tml.world import World
+
+
+def checked_options(profile: VehicleProfile, world: World, *, safe_state: str = "rtl",
+                    link_lost_limit: float = 10.0, ready_timeout: float = 180.0) -> RunOptions:
+    """The runner's options for a flight checked against ``profile`` and ``world``."""
+    engine = Options(world=world, pre_check=pre_check(profile, world),
+                     route=router(profile, world))
+    return RunOptions(safe_state=safe_state, link_lost_limit=link_lost_limit,
+                      ready_timeout=ready_timeout, engine=engine)

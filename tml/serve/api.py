@@ -1,0 +1,482 @@
+"""The HTTP API of ``tml serve`` (FastAPI) and the page it serves.
+
+Theory of operation
+-------------------
+Each route is a thin shell over one :class:`~tml.serve.service.Service` call: it reads the
+request, calls the service (in the thread pool when the call may take long or touch the
+database), and answers JSON. The OpenAPI 3 document at ``/openapi.json`` is FastAPI's,
+from the route declarations and the models below. docs/serve.md shows every route with
+curl.
+
+*Errors* are JSON, never a traceback: ``{"error": "what went wrong", ...}`` with the
+status that says whose fault it is (400 a bad request, 401 no or a wrong token, 404 no
+such thing, 409 a conflict with what is going on, 413 too large, 415 a body of another
+type, 422 a valid request the service refuses, with the diagnostics or the report that
+say why, 503 the database is unreachable). An unexpected exception is logged here with
+its traceback and answered 500 with its one-line text.
+
+*Auth.* With a token, every API route needs ``Authorization: Bearer TOKEN`` (compared in
+constant time). The page's files and the OpenAPI document hold no data and are served to
+anyone, so that a browser can load the page, which then asks for the token.
+
+*Live updates* are Server-Sent Events: ``GET /runs/{id}/stream`` sends the run's flight
+log lines, each as one ``record`` event whose data is the line (the JSON of ``tml run
+--log``) and whose id is its number, from the first (or after ``Last-Event-ID``, so a
+reconnecting client misses nothing) until the run ends, then one ``end`` event with the
+run. The stream is fed by the run's thread through an asyncio queue per client.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import hmac
+import json
+import logging
+from collections.abc import AsyncIterator, Awaitable, Callable
+from contextlib import asynccontextmanager
+from importlib import resources
+from typing import Any, Literal, TypeVar
+
+from fastapi import APIRouter, Depends, FastAPI, Header, Path, Query, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import FileResponse, JSONResponse, Response, StreamingResponse
+from fastapi.staticfiles import StaticFiles
+from pydantic import BaseModel, ConfigDict, Field
+from sqlalchemy.exc import OperationalError
+from sse_starlette.sse import EventSourceResponse
+from starlette.concurrency import run_in_threadpool
+from starlette.exceptions import HTTPException
+
+from tml import __version__
+from tml.errors import TmlError
+from tml.serve.service import RequestError, Service
+from tml.serve.storage import StorageError
+
+MAX_UPLOAD = 4 * 1024 * 1024  # bytes of a mission upload
+T = TypeVar("T")
+log = logging.getLogger("tml.serve")
+
+
+# --- the documents -----------------------------------------------------------------------
+
+class Problem(BaseModel):
+    """An error answer."""
+
+    model_config = ConfigDict(extra="allow")
+    error: str = Field(description="what went wrong, in one sentence")
+
+
+class Diagnostic(BaseModel):
+    """One problem found in a mission, as ``tml validate --format json`` gives it."""
+
+    file: str
+    line: int
+    column: int
+    code: str
+    message: str
+    hint: str
+    severity: Literal["error", "warning"]
+
+
+class MissionSummary(BaseModel):
+    """A stored mission."""
+
+    id: str
+    name: str
+    filename: str
+    uploaded: float = Field(description="when it was uploaded (Unix time)")
+    warnings: list[Diagnostic]
+
+
+class MissionDetail(MissionSummary):
+    """A stored mission with what the page draws of it."""
+
+    tasks: list[dict[str, Any]] = Field(description="the task tree: name, path, line, action, "
+                                                    "role, composition, children, on_error")
+    roles: list[dict[str, Any]]
+    events: list[dict[str, Any]]
+    world: dict[str, Any] = Field(description="home, geofence, obstacles and objects, in "
+                                              "metres north and east of home")
+
+
+class VerifyRequest(BaseModel):
+    """What to verify a mission against."""
+
+    model_config = ConfigDict(extra="forbid")
+    profile: Literal["quadcopter", "fixed-wing", "rover"] = "quadcopter"
+    battery: float = Field(default=100.0, ge=0.0, le=100.0, description="charge at the start, %")
+
+
+class RunRequest(BaseModel):
+    """A run to start."""
+
+    model_config = ConfigDict(extra="forbid")
+    mission: str = Field(pattern=r"^[0-9a-f]{1,32}$", description="the mission's id")
+    vehicles: list[int] | None = Field(
+        default=None, max_length=1000,
+        description="the vehicles to fly it (default: the first free one; with roles, "
+                    "every free one)")
+    safe_state: Literal["rtl", "land", "hold"] = "rtl"
+    profile: Literal["quadcopter", "fixed-wing", "rover"] = "quadcopter"
+    force: bool = Field(default=False, description="fly even an infeasible mission")
+
+
+class MissionRef(BaseModel):
+    """The mission a run flies."""
+
+    id: str
+    name: str
+
+
+class RunView(BaseModel):
+    """A run."""
+
+    id: str
+    mission: MissionRef
+    vehicles: list[int]
+    status: Literal["waiting", "running", "paused", "completed", "aborted", "failed",
+                    "interrupted"]
+    reason: str
+    outcomes: list[dict[str, Any]] = Field(description="per vehicle: status, reason, cause")
+    exit_code: int | None = Field(description="the exit code tml run would give (0, 3, 4)")
+    instance: str
+    options: dict[str, Any]
+    created: float
+    ended: float | None
+    tasks: dict[str, dict[str, str]] | None = Field(
+        default=None,
+        description="per vehicle id ('' for tasks no vehicle flies): every task's state, "
+                    "by path")
+    safety: list[str] | None = Field(
+        default=None, description="what was done to leave the vehicles safe")
+
+
+class VehicleView(BaseModel):
+    """A vehicle with its live telemetry."""
+
+    id: int
+    run: str | None = Field(description="the run that holds it")
+    vehicle_type: str
+    time: float
+    link: str
+    mode: str
+    armed: bool
+    landed: bool
+    position: list[float] | None = Field(description="north, east, up in metres from home")
+    heading: float
+    ground_speed: float
+    battery: float | None
+    gps_fix: int | None
+    mission: dict[str, Any] | None
+    detections: dict[str, Any]
+    status_text: str = Field(description="the autopilot's last message")
+    awaiting: list[str] = Field(description="what it still lacks before a mission may start")
+
+
+class ServiceStatus(BaseModel):
+    """What the service is."""
+
+    version: str
+    instance: str
+    storage: str
+    started: float
+    vehicles: list[int]
+    live_runs: list[str]
+
+
+ERRORS: dict[int | str, dict[str, Any]] = {
+    code: {"model": Problem, "description": text} for code, text in (
+        (401, "no token, or a wrong one"), (404, "not found"),
+        (409, "conflicts with what is going on"), (422, "refused"))}
+
+
+# --- the application ---------------------------------------------------------------------
+
+def create_app(service: Service, token: str | None = None) -> FastAPI:
+    """The ASGI application of ``service``; with ``token``, every API route needs it."""
+
+    @asynccontextmanager
+    async def lifespan(_app: FastAPI) -> AsyncIterator[None]:
+        yield
+        await run_in_threadpool(service.stop)
+
+    app = FastAPI(title="tml serve", version=__version__, lifespan=lifespan,
+                  docs_url=None, redoc_url=None,  # their pages load scripts from the internet
+                  description="Fly TML missions on MAVLink vehicles: upload and verify "
+                              "missions, run them, watch them live. See docs/serve.md.")
+    _errors(app)
+
+    def authorized(authorization: str | None = Header(
+            None, description="Bearer TOKEN, when the service was started with a token")
+                   ) -> None:
+        if token is None:
+            return
+        scheme, _, given = (authorization or "").partition(" ")
+        if scheme.lower() != "bearer" or not hmac.compare_digest(given.strip().encode(),
+                                                                 token.encode()):
+            raise HTTPException(401, "this service needs 'Authorization: Bearer TOKEN'",
+                                headers={"WWW-Authenticate": "Bearer"})
+
+    api = APIRouter(dependencies=[Depends(authorized)], responses=ERRORS)
+    _missions(api, service)
+    _runs(api, service)
+    _vehicles(api, service)
+
+    @api.get("/status", response_model=ServiceStatus, tags=["service"])
+    def status() -> dict[str, Any]:
+        """The service: its instance name, storage backend, vehicles and live runs."""
+        return {"version": __version__, **service.status()}
+
+    app.include_router(api)
+    page = resources.files("tml.serve").joinpath("page")
+    app.mount("/page", StaticFiles(directory=str(page)), name="page")
+
+    @app.get("/", include_in_schema=False)
+    def index() -> FileResponse:
+        return FileResponse(str(page.joinpath("index.html")), media_type="text/html")
+
+    return app
+
+
+def _id() -> Any:
+    """A path parameter holding a mission's or a run's id (a new one per route: FastAPI
+    names the parameter on the object)."""
+    return Path(pattern=r"^[0-9a-f]{1,32}$", description="the id given when it was created")
+
+
+async def _call(function: Callable[..., T], *args: Any, **kwargs: Any) -> T:
+    """A service call in the thread pool (it may read the database or wait on a lock)."""
+    return await run_in_threadpool(function, *args, **kwargs)
+
+
+def _missions(api: APIRouter, service: Service) -> None:
+    upload_body = {"requestBody": {"required": True, "content": {
+        "application/xml": {"schema": {"type": "string"}},
+        "multipart/form-data": {"schema": {
+            "type": "object", "required": ["file"],
+            "properties": {"file": {"type": "string", "format": "binary"}}}}}}}
+
+    @api.post("/missions", status_code=201, response_model=MissionSummary, tags=["missions"],
+              openapi_extra=upload_body,
+              responses={413: {"model": Problem, "description": "larger than 4 MiB"},
+                         415: {"model": Problem, "description": "neither XML nor multipart"}})
+    async def upload(request: Request, filename: str | None = Query(
+            None, max_length=200, description="the file name diagnostics name (default: "
+                                              "the uploaded file's, or mission.xml)"),
+                     ) -> dict[str, Any]:
+        """Upload a mission: the XML as the body, or a multipart form with a ``file``.
+        Validated as ``tml validate`` does; an invalid mission is answered 422 with its
+        ``diagnostics`` (file, line, column, code, message, hint, severity)."""
+        kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
+        if kind in ("application/xml", "text/xml"):
+            data = await _body(request)
+            name = filename or "mission.xml"
+        elif kind == "multipart/form-data":
+            data, sent_name = await _file(request)
+            name = filename or sent_name or "mission.xml"
+        else:
+            raise HTTPException(415, "send the mission as application/xml, or as a "
+                                     "multipart/form-data field named 'file'")
+        return await _call(service.upload, _plain_name(name), data)
+
+    @api.get("/missions", response_model=list[MissionSummary], tags=["missions"])
+    def missions() -> list[dict[str, Any]]:
+        """Every stored mission, the oldest first."""
+        return service.missions()
+
+    @api.get("/missions/{mission_id}", response_model=MissionDetail, tags=["missions"])
+    def mission(mission_id: str = _id()) -> dict[str, Any]:
+        """A mission with its task tree, roles, events and world."""
+        return service.mission(mission_id)
+
+    @api.get("/missions/{mission_id}/source", tags=["missions"],
+             response_class=Response,
+             responses={200: {"content": {"application/xml": {"schema": {"type": "string"}}},
+                              "description": "the XML as uploaded"}})
+    def source(mission_id: str = _id()) -> Response:
+        """The mission's XML as it was uploaded."""
+        return Response(service.mission_source(mission_id), media_type="application/xml")
+
+    @api.delete("/missions/{mission_id}", status_code=204, response_class=Response,
+                tags=["missions"])
+    def delete(mission_id: str = _id()) -> Response:
+        """Forget a mission (its runs stay); 409 while a run flies it."""
+        service.delete_mission(mission_id)
+        return Response(status_code=204)
+
+    @api.post("/missions/{mission_id}/verify", tags=["missions"],
+              response_model=dict[str, Any])
+    def verify(mission_id: str = _id(), request: VerifyRequest | None = None) -> dict[str, Any]:
+        """The ``tml verify --format json`` report of the mission: every action predicted
+        (with its planned ``path``), every violated constraint, ``feasible``."""
+        wanted = request or VerifyRequest()
+        return service.verify(mission_id, wanted.profile, wanted.battery)
+
+
+def _runs(api: APIRouter, service: Service) -> None:
+    @api.post("/runs", status_code=201, response_model=RunView, tags=["runs"])
+    def start(request: RunRequest) -> dict[str, Any]:
+        """Start a run: verified and checked against the vehicles as ``tml run`` does
+        (422 with the report when infeasible, unless ``force``); 409 when a vehicle is
+        held by another run."""
+        return service.start_run(request.mission, request.vehicles,
+                                 safe_state=request.safe_state, profile=request.profile,
+                                 force=request.force)
+
+    @api.get("/runs", response_model=list[RunView], tags=["runs"])
+    def runs() -> list[dict[str, Any]]:
+        """Every run, the oldest first (without task states)."""
+        return service.runs()
+
+    @api.get("/runs/{run_id}", response_model=RunView, tags=["runs"])
+    def run(run_id: str = _id()) -> dict[str, Any]:
+        """A run: status, every task's state per vehicle, outcome, exit code."""
+        return service.run(run_id)
+
+    @api.post("/runs/{run_id}/abort", response_model=RunView, tags=["runs"])
+    def abort(run_id: str = _id()) -> dict[str, Any]:
+        """Abort a run: every vehicle to its safe state; 409 when it has ended."""
+        return service.abort(run_id)
+
+    @api.get("/runs/{run_id}/log", tags=["runs"], response_class=StreamingResponse,
+             responses={200: {"content": {"application/x-ndjson": {
+                 "schema": {"type": "string"}}}, "description": "one JSON record a line"}})
+    def flight_log(run_id: str = _id()) -> StreamingResponse:
+        """The run's flight log as JSON lines (``tml run --log``); so far, while it flies."""
+        lines = list(service.log(run_id))
+        return StreamingResponse(iter(lines), media_type="application/x-ndjson")
+
+    @api.get("/runs/{run_id}/stream", tags=["runs"],
+             responses={200: {"content": {"text/event-stream": {"schema": {"type": "string"}}},
+                              "description": "record events, then one end event"}})
+    async def stream(request: Request, run_id: str = _id(),
+                     after: int = Query(0, ge=0, le=2**31,
+                                        description="send the records numbered above this"),
+                     last_event_id: str | None = Header(None, max_length=20),
+                     ) -> EventSourceResponse:
+        """The run's records as Server-Sent Events, live until the run ends."""
+        if last_event_id is not None and last_event_id.isdigit():
+            after = max(after, int(last_event_id))
+        await _call(service.run, run_id)  # 404 before the stream starts
+        return EventSourceResponse(_events(service, run_id, after, request), ping=15)
+
+
+def _vehicles(api: APIRouter, service: Service) -> None:
+    @api.get("/vehicles", response_model=list[VehicleView], tags=["vehicles"])
+    def vehicles() -> list[dict[str, Any]]:
+        """Every vehicle with its live telemetry, link state and the run that holds it."""
+        return service.vehicles()
+
+    @api.get("/vehicles/{vehicle_id}", response_model=VehicleView, tags=["vehicles"])
+    def vehicle(vehicle_id: int = Path(ge=0, le=2**31)) -> dict[str, Any]:
+        """One vehicle."""
+        return service.vehicle(vehicle_id)
+
+
+async def _events(service: Service, run_id: str, after: int,
+                  request: Request) -> AsyncIterator[dict[str, Any]]:
+    live = service.live(run_id)
+    if live is None:
+        lines = await _call(lambda: list(service.storage.lines(run_id, after)))
+        for seq, line in lines:
+            yield {"event": "record", "id": str(seq), "data": line}
+    else:
+        loop = asyncio.get_running_loop()
+        queue: asyncio.Queue[tuple[int, str | None]] = asyncio.Queue()
+
+        def listener(seq: int, line: str | None) -> None:
+            loop.call_soon_threadsafe(queue.put_nowait, (seq, line))
+
+        history, open_ = live.log.listen(after, listener)
+        try:
+            for seq, line in history:
+                yield {"event": "record", "id": str(seq), "data": line}
+            while open_:
+                seq, text = await queue.get()
+                if text is None:
+                    break
+                yield {"event": "record", "id": str(seq), "data": text}
+        finally:
+            live.log.unlisten(listener)
+    if not await request.is_disconnected():
+        yield {"event": "end", "data": json.dumps(await _call(service.run, run_id))}
+
+
+# --- requests and errors -----------------------------------------------------------------
+
+async def _body(request: Request) -> bytes:
+    data = bytearray()
+    async for chunk in request.stream():
+        data += chunk
+        if len(data) > MAX_UPLOAD:
+            raise HTTPException(413, f"a mission is at most {MAX_UPLOAD // 1024} KiB")
+    return bytes(data)
+
+
+async def _file(request: Request) -> tuple[bytes, str]:
+    if int(request.headers.get("content-length") or 0) > MAX_UPLOAD + 64 * 1024:
+        raise HTTPException(413, f"a mission is at most {MAX_UPLOAD // 1024} KiB")
+    try:
+        form = await request.form(max_files=1, max_fields=10)
+    except Exception as error:  # the multipart parser's own errors
+        raise HTTPException(400, f"unreadable multipart form: {error}") from None
+    sent = form.get("file")
+    if sent is None or isinstance(sent, str):
+        raise HTTPException(400, "the form has no file field named 'file'")
+    data = await sent.read(MAX_UPLOAD + 1)
+    if len(data) > MAX_UPLOAD:
+        raise HTTPException(413, f"a mission is at most {MAX_UPLOAD // 1024} KiB")
+    return data, sent.filename or ""
+
+
+def _plain_name(name: str) -> str:
+    """The last part of a file name, printable: it names the file in diagnostics."""
+    last = name.replace("\\", "/").rsplit("/", 1)[-1]
+    return "".join(c for c in last if c.isprintable())[:200] or "mission.xml"
+
+
+def _errors(app: FastAPI) -> None:
+    def answer(status: int, message: str, headers: dict[str, str] | None = None,
+               **more: Any) -> JSONResponse:
+        return JSONResponse({"error": message, **more}, status_code=status, headers=headers)
+
+    async def refused(_request: Request, error: Exception) -> Response:
+        assert isinstance(error, RequestError)
+        return answer(error.status, error.message, **error.detail)
+
+    async def http(_request: Request, error: Exception) -> Response:
+        assert isinstance(error, HTTPException)
+        message = error.detail if isinstance(error.detail, str) else str(error.detail)
+        if error.status_code == 404 and message == "Not Found":
+            message = "no such route"
+        elif error.status_code == 405:
+            message = "this route does not take that method"
+        return answer(error.status_code, message, dict(error.headers or {}))
+
+    async def invalid(_request: Request, error: Exception) -> Response:
+        assert isinstance(error, RequestValidationError)
+        problems = [{"where": ".".join(str(p) for p in e.get("loc", ())),
+                     "message": str(e.get("msg", ""))} for e in error.errors()]
+        first = problems[0] if problems else {"where": "", "message": "invalid"}
+        return answer(422, f"invalid request: {first['where']}: {first['message']}",
+                      problems=problems)
+
+    async def storage(_request: Request, error: Exception) -> Response:
+        if isinstance(error, OperationalError):
+            log.error("the database failed: %s", error)
+            return answer(503, "the database is unreachable")
+        return answer(503, str(error))
+
+    async def tml_error(_request: Request, error: Exception) -> Response:
+        return answer(400, str(error))
+
+    async def unexpected(request: Request, error: Exception) -> Response:
+        log.exception("%s %s failed", request.method, request.url.path)
+        return answer(500, f"internal error: {type(error).__name__}: {error}")
+
+    handlers: dict[type[Exception], Callable[[Request, Exception], Awaitable[Response]]] = {
+        RequestError: refused, HTTPException: http, RequestValidationError: invalid,
+        StorageError: storage, OperationalError: storage, TmlError: tml_error,
+        Exception: unexpected}
+    for kind, handler in handlers.items():
+        app.add_exception_handler(kind, handler)

@@ -1,0 +1,242 @@
+"""A run in flight: the runner's thread, its flight log as it is written, its task states.
+
+Theory of operation
+-------------------
+A :class:`LiveRun` is ``tml run`` inside the service: one :class:`~tml.run.runner.Runner`
+flying a mission on the vehicles the run holds, in a thread of its own, with the clock and
+the vehicle links of the :class:`~tml.serve.hangar.Hangar`. Its journal writes to a
+:class:`RunLog` instead of a file: the same JSON lines, numbered from 1 as they come,
+kept in memory for the live stream, stored in the database in batches (every
+``STORE_PERIOD`` seconds and at the end), and handed at once to every listener (the
+API's event streams). The log is read as it is written: a ``mission`` line means the
+vehicles were ready and the mission started (status ``running``), and every ``task``
+line updates the :class:`TaskBoard`, the state of every task per vehicle.
+
+When the runner returns, the run's outcome is stored (``completed``, ``aborted`` or
+``failed`` from its exit code), then the log is closed (the streams end), and only then
+are its vehicles released: a client that saw the stream end finds the run ended, and a
+vehicle is never given to a second run while the first still commands it.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+import traceback
+from collections.abc import Callable, Iterable, Mapping
+from typing import Any
+
+from tml.engine.interpreter import safe_state_request
+from tml.language.model import Mission
+from tml.run.journal import Journal
+from tml.run.runner import ExitCode, Outcome, Runner, RunOptions
+from tml.serve.hangar import Hangar
+from tml.serve.storage import Storage, StoredRun
+
+STORE_PERIOD = 0.5  # s between two writes of a run's new log lines to the database
+STATUS_OF_EXIT = {ExitCode.COMPLETED: "completed", ExitCode.ABORTED: "aborted",
+                  ExitCode.VEHICLE_FAILURE: "failed", ExitCode.INVALID: "failed"}
+FLEET = ""  # the task board's key for tasks no vehicle flies (orchestration only)
+
+Listener = Callable[[int, str | None], None]  # (seq, line); line None: the log has ended
+
+
+class TaskBoard:
+    """Every task's state per vehicle, folded from a flight log's ``task`` lines."""
+
+    def __init__(self, mission: Mission, vehicles: Iterable[int]) -> None:
+        self.paths = [task.path_name for task in mission.walk()]
+        self.states: dict[str, dict[str, str]] = {str(v): {} for v in vehicles}
+
+    def see(self, record: Mapping[str, Any]) -> None:
+        """Take one log record."""
+        if record.get("kind") == "task" and "task" in record:
+            whose = str(record.get("vehicle", FLEET))
+            self.states.setdefault(whose, {})[str(record["task"])] = str(record.get("state"))
+
+    def snapshot(self) -> dict[str, dict[str, str]]:
+        """Per vehicle (by id, as text; "" for tasks no vehicle flies) every task's state,
+        ``pending`` for a task not reached."""
+        return {whose: {path: seen.get(path, "pending") for path in self.paths}
+                for whose, seen in self.states.items()}
+
+
+class RunLog:
+    """The stream a run's journal writes to; see the module docstring."""
+
+    def __init__(self, run_id: str, storage: Storage, board: TaskBoard,
+                 on_record: Callable[[dict[str, Any]], None] | None = None) -> None:
+        self.run_id = run_id
+        self.storage = storage
+        self.board = board
+        self.on_record = on_record
+        self.lines: list[tuple[int, str]] = []
+        self.closed = False
+        self._partial = ""
+        self._stored = 0  # lines[:_stored] are in the database
+        self._last_store = time.monotonic()
+        self._listeners: list[Listener] = []
+        self._lock = threading.Lock()
+
+    def write(self, text: str) -> int:
+        """Take text from the journal (whole lines, as it writes them)."""
+        self._partial += text
+        *complete, self._partial = self._partial.split("\n")
+        for line in complete:
+            if line:
+                self._add(line)
+        return len(text)
+
+    def flush(self) -> None:
+        """Store the new lines when the last store is ``STORE_PERIOD`` old."""
+        if time.monotonic() - self._last_store >= STORE_PERIOD:
+            self._store()
+
+    def close(self) -> None:
+        """Store what is left and end every listener's stream."""
+        self._store()
+        with self._lock:
+            self.closed = True
+            listeners = list(self._listeners)
+            self._listeners.clear()
+        for listener in listeners:
+            listener(len(self.lines), None)
+
+    def listen(self, after: int, listener: Listener) -> tuple[list[tuple[int, str]], bool]:
+        """The lines numbered above ``after``, and whether the log is still open; while it
+        is, ``listener`` is called with every later line (from the run's thread)."""
+        with self._lock:
+            history = self.lines[after:] if after >= 0 else list(self.lines)
+            if not self.closed:
+                self._listeners.append(listener)
+            return history, not self.closed
+
+    def unlisten(self, listener: Listener) -> None:
+        """Stop calling ``listener``."""
+        with self._lock:
+            if listener in self._listeners:
+                self._listeners.remove(listener)
+
+    def _add(self, line: str) -> None:
+        record = json.loads(line)
+        with self._lock:
+            seq = len(self.lines) + 1
+            self.lines.append((seq, line))
+            self.board.see(record)
+            listeners = list(self._listeners)
+        if self.on_record is not None:
+            self.on_record(record)
+        for listener in listeners:
+            listener(seq, line)
+
+    def _store(self) -> None:
+        with self._lock:
+            new = self.lines[self._stored:]
+            self._stored = len(self.lines)
+        self._last_store = time.monotonic()
+        self.storage.add_lines(self.run_id, new)
+
+
+class LiveRun:
+    """One run flying in its own thread; see the module docstring."""
+
+    def __init__(self, record: StoredRun, mission: Mission, hangar: Hangar, storage: Storage,
+                 options: RunOptions, payloads: Mapping[int, Iterable[str]] | None = None,
+                 on_end: Callable[[LiveRun], None] | None = None) -> None:
+        self.id = record.id
+        self.record = record
+        self.mission = mission
+        self.hangar = hangar
+        self.storage = storage
+        self.status = record.status
+        self.reason = ""
+        self.outcomes: list[dict[str, Any]] = []
+        self.exit_code: int | None = None
+        self.ended_at: float | None = None
+        self.on_end = on_end
+        self.board = TaskBoard(mission, record.vehicles)
+        self.log = RunLog(record.id, storage, self.board, self._seen)
+        self.safety: list[str] = []
+        self.wake = threading.Event()
+        vehicles = [hangar.vehicles[vid] for vid in record.vehicles]
+        self.runner = Runner(mission, vehicles, clock=hangar.clock, options=options,
+                             journal=Journal(self.log), wake=self.wake,
+                             wait=lambda timeout: hangar.wait(self.wake, timeout),
+                             on_safety=self.safety.append, payloads=payloads)
+        self.thread = threading.Thread(target=self._fly, name=f"run {record.id}", daemon=True)
+
+    def start(self) -> None:
+        """Take off: the runner's loop in its thread."""
+        self.hangar.subscribe(self.wake)
+        self.thread.start()
+
+    def abort(self, reason: str) -> None:
+        """End the run now: every vehicle to its safe state (as Ctrl-C does to tml run)."""
+        self.runner.stop(reason)
+
+    def join(self, timeout: float | None = None) -> bool:
+        """Wait for the run's thread to end; whether it has."""
+        self.thread.join(timeout)
+        return not self.thread.is_alive()
+
+    @property
+    def ended(self) -> bool:
+        """True once the runner has returned and the outcome is stored."""
+        return self.exit_code is not None
+
+    def _seen(self, record: dict[str, Any]) -> None:
+        if record.get("kind") == "mission" and self.status == "waiting":
+            self._set_status("running")
+
+    def _set_status(self, status: str, **more: Any) -> None:
+        self.status = status
+        self.storage.update_run(self.id, status=status, **more)
+
+    def _fly(self) -> None:
+        try:
+            outcome = self.runner.run()
+            self.outcomes = _outcomes(outcome)
+            status = STATUS_OF_EXIT[outcome.exit_code]
+            exit_code = int(outcome.exit_code)
+            self.reason = _reason(outcome)
+        except Exception as error:  # a broken vehicle adapter: leave the vehicles safe
+            self.reason = f"service error: {error!r}"
+            self.runner.journal.write(self.hangar.clock(), "error", None, message=self.reason,
+                                      traceback=traceback.format_exc())
+            self._safe_state(self.reason)
+            status, exit_code = "failed", int(ExitCode.VEHICLE_FAILURE)
+        self.ended_at = time.time()
+        try:
+            self._set_status(status, reason=self.reason, outcomes=self.outcomes,
+                             exit_code=exit_code, ended=self.ended_at)
+        finally:  # whatever the database says, the run is over: free its vehicles
+            self.exit_code = exit_code
+            self.log.close()
+            self.hangar.unsubscribe(self.wake)
+            self.hangar.release(self.id)
+            if self.on_end is not None:
+                self.on_end(self)
+
+    def _safe_state(self, reason: str) -> None:
+        """The engine's safe state, sent from here when the runner itself failed."""
+        for vid in self.record.vehicles:
+            vehicle = self.hangar.vehicles[vid]
+            try:
+                safe = safe_state_request(vehicle.state(), self.runner.options.safe_state)
+                if safe is not None:
+                    vehicle.submit(safe[0])
+                    self.safety.append(f"vehicle {vid}: {safe[0].name} ({reason})")
+            except Exception as error:  # one vehicle must not spare the others
+                self.safety.append(f"vehicle {vid}: safe state not sent: {error!r}")
+
+def _outcomes(outcome: Outcome) -> list[dict[str, Any]]:
+    return [{"vehicle": v.vehicle_id, "status": v.status.value, "reason": v.reason,
+             "cause": v.cause} for v in outcome.vehicles]
+
+
+def _reason(outcome: Outcome) -> str:
+    """The run's reason: the first vehicle's that did not complete, else the first's."""
+    ended = [v for v in outcome.vehicles if v.status.value != "completed"] or \
+        list(outcome.vehicles)
+    return ended[0].reason if ended else ""

@@ -1,0 +1,410 @@
+"""The service: missions, runs and vehicles, as the HTTP API and the page see them.
+
+Theory of operation
+-------------------
+:class:`Service` is everything ``tml serve`` does, without HTTP: the API
+(:mod:`tml.serve.api`) turns each request into one call here and each answer into JSON,
+and every refusal into a :class:`RequestError` with its HTTP status. A refusal is never
+a traceback: an invalid mission is answered with the diagnostics of ``tml validate``, an
+infeasible one with the report of ``tml verify``.
+
+*Missions* are validated on upload with :func:`tml.language.validation.validate_file`,
+the pipeline of ``tml validate``; only valid ones are stored (warnings are kept with
+them). A stored mission is parsed again from its text when it is needed (and kept parsed).
+
+*Runs* start as ``tml run`` starts: the mission is verified against the vehicle profile
+(refused when infeasible unless ``force``), the vehicles' kinds are checked against its
+actions (:func:`tml.verify.inflight.preflight`), the vehicles are claimed, and a
+:class:`~tml.serve.live.LiveRun` flies it in its own thread with the in-flight checks of
+:func:`tml.run.checked.checked_options`. Without roles every vehicle of the run flies
+the whole mission, as with ``tml run --vehicles N``; with roles the run's vehicles are
+the ones its roles pick from. A run asked for without vehicles takes the first free one
+(a mission with roles: every free one).
+
+*Stopping.* :meth:`Service.stop` aborts every live run (each vehicle to its safe state,
+as Ctrl-C does to ``tml run``) and waits for the runs to end. A run that was flying when
+the service died is marked ``interrupted`` by :meth:`Service.start`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import secrets
+import threading
+import time
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from tml.errors import TmlError
+from tml.language.model import Mission, Task
+from tml.language.validation import validate_file
+from tml.run.checked import checked_options
+from tml.run.journal import jsonable, telemetry_fields
+from tml.serve.hangar import Hangar, VehicleTaken
+from tml.serve.live import LiveRun, TaskBoard
+from tml.serve.storage import Storage, StoredMission, StoredRun
+from tml.vehicle import awaiting
+from tml.verify.inflight import preflight
+from tml.verify.motion import VehicleState as StartState
+from tml.verify.profile import SHIPPED, load_profile
+from tml.verify.report import report_document
+from tml.verify.static import verify_mission
+from tml.world import Cylinder, World
+
+SAFE_STATES = ("rtl", "land", "hold")
+
+
+class RequestError(TmlError):
+    """A request the service refuses; ``status`` is its HTTP status, ``detail`` more
+    JSON for the answer (diagnostics, a report)."""
+
+    status = 400
+
+    def __init__(self, message: str, **detail: Any) -> None:
+        super().__init__(message)
+        self.message = message
+        self.detail = detail
+
+
+class NotFound(RequestError):
+    """No such mission, run or vehicle."""
+
+    status = 404
+
+
+class Conflict(RequestError):
+    """The request does not fit what is going on (a vehicle held, a run ended)."""
+
+    status = 409
+
+
+class Refused(RequestError):
+    """The request is well formed but cannot be done (invalid or infeasible mission)."""
+
+    status = 422
+
+
+@dataclass
+class ServiceOptions:
+    """How the service flies its runs."""
+
+    instance: str = "local"  # the name its runs are stored under (docs/serve.md)
+    link_lost_limit: float = 10.0  # s of a lost link before a run is aborted
+    ready_timeout: float = 180.0  # s for a run's vehicles to be ready before its first task
+    stop_timeout: float = 60.0  # wall s to wait for each run to end when the service stops
+
+
+class Service:
+    """Missions, runs and vehicles; see the module docstring."""
+
+    def __init__(self, storage: Storage, hangar: Hangar,
+                 options: ServiceOptions | None = None) -> None:
+        self.storage = storage
+        self.hangar = hangar
+        self.options = options or ServiceOptions()
+        self.started = time.time()
+        self._live: dict[str, LiveRun] = {}
+        self._parsed: dict[str, Mission] = {}
+        self._lock = threading.Lock()
+
+    # --- life ----------------------------------------------------------------------------
+
+    def start(self) -> list[str]:
+        """Mark the runs that were flying when this instance last stopped; their ids."""
+        return self.storage.interrupt_unfinished(self.options.instance)
+
+    def stop(self, reason: str = "the service is stopping") -> None:
+        """Abort every live run (safe state first) and wait for each to end."""
+        with self._lock:
+            live = list(self._live.values())
+        for run in live:
+            run.abort(reason)
+        for run in live:
+            run.join(self.options.stop_timeout)
+
+    def status(self) -> dict[str, Any]:
+        """What the service is: instance, storage, vehicles, live runs."""
+        with self._lock:
+            live = sorted(self._live)
+        return {"instance": self.options.instance, "storage": self.storage.backend,
+                "started": self.started, "vehicles": sorted(self.hangar.vehicles),
+                "live_runs": live}
+
+    # --- missions ------------------------------------------------------------------------
+
+    def upload(self, filename: str, data: bytes) -> dict[str, Any]:
+        """Validate and keep a mission; Refused with the diagnostics when it is invalid."""
+        filename = filename or "mission.xml"
+        result = validate_file(filename, data)
+        diagnostics = [d.to_dict() for d in result.diagnostics]
+        if result.errors or result.mission is None:
+            raise Refused(f"{filename}: invalid mission ({len(result.errors)} error(s))",
+                          diagnostics=diagnostics)
+        stored = StoredMission(secrets.token_hex(6), result.mission.name, filename,
+                               result.source, time.time(), diagnostics)
+        self.storage.add_mission(stored)
+        with self._lock:
+            self._parsed[stored.id] = result.mission
+        return self._mission_summary(stored)
+
+    def missions(self) -> list[dict[str, Any]]:
+        """Every stored mission, summed up."""
+        return [self._mission_summary(m) for m in self.storage.missions()]
+
+    def mission(self, mission_id: str) -> dict[str, Any]:
+        """A mission: its summary, task tree, roles and world."""
+        stored = self._stored_mission(mission_id)
+        mission = self._parse(stored.id, stored.filename, stored.source)
+        return {**self._mission_summary(stored), **mission_outline(mission)}
+
+    def mission_source(self, mission_id: str) -> str:
+        """A mission's XML text as it was uploaded."""
+        return self._stored_mission(mission_id).source
+
+    def delete_mission(self, mission_id: str) -> None:
+        """Forget a mission (its past runs stay); Conflict while a run flies it."""
+        with self._lock:
+            flying = [r.id for r in self._live.values() if r.record.mission_id == mission_id]
+        if flying:
+            raise Conflict(f"mission {mission_id} is flying in run {flying[0]}")
+        if not self.storage.delete_mission(mission_id):
+            raise NotFound(f"no mission {mission_id}")
+        with self._lock:
+            self._parsed.pop(mission_id, None)
+
+    def verify(self, mission_id: str, profile: str = "quadcopter",
+               battery: float = 100.0) -> dict[str, Any]:
+        """The ``tml verify`` report of a mission (its JSON form)."""
+        stored = self._stored_mission(mission_id)
+        mission = self._parse(stored.id, stored.filename, stored.source)
+        home = (mission.world or World()).home_or_default
+        report = verify_mission(mission, _profile(profile), None,
+                                StartState(battery=battery, heading=home.heading))
+        return report_document(report)
+
+    # --- runs ----------------------------------------------------------------------------
+
+    def start_run(self, mission_id: str, vehicles: Sequence[int] | None = None, *,
+                  safe_state: str = "rtl", profile: str = "quadcopter",
+                  force: bool = False) -> dict[str, Any]:
+        """Start flying a mission; the run as :meth:`run` shows it."""
+        stored = self._stored_mission(mission_id)
+        mission = self._parse(stored.id, stored.filename, stored.source)
+        if safe_state not in SAFE_STATES:
+            raise Refused(f"safe_state {safe_state!r}: expected one of {', '.join(SAFE_STATES)}")
+        chosen = self._choose(mission, vehicles)
+        checked = _profile(profile)
+        report = verify_mission(mission, checked)
+        if not report.feasible and not force:
+            raise Refused(f"{stored.filename}: infeasible mission, not flown (force flies it "
+                          "anyway)", report=report_document(report))
+        kinds = {vid: self.hangar.vehicles[vid].state().vehicle_type for vid in chosen}
+        cannot = preflight(mission, kinds)
+        if cannot and not force:
+            raise Refused(f"{stored.filename}: the vehicles cannot do every action of the "
+                          "mission, not flown (force flies it anyway)",
+                          violations=[v.to_dict() for v in cannot])
+        record = StoredRun(secrets.token_hex(6), stored.id, stored.name, stored.source,
+                           list(chosen), "waiting", "", [], None, self.options.instance,
+                           {"safe_state": safe_state, "profile": profile, "force": force},
+                           time.time(), None)
+        try:
+            self.hangar.claim(chosen, record.id)
+        except VehicleTaken as taken:
+            raise Conflict(str(taken), vehicle=taken.vehicle_id, run=taken.run_id) from None
+        world = mission.world or World()
+        options = checked_options(checked, world, safe_state=safe_state,
+                                  link_lost_limit=self.options.link_lost_limit,
+                                  ready_timeout=self.options.ready_timeout)
+        try:
+            self.storage.add_run(record)
+            live = LiveRun(record, mission, self.hangar, self.storage, options,
+                           on_end=self._ended)
+        except BaseException:
+            self.hangar.release(record.id)
+            raise
+        with self._lock:
+            self._live[record.id] = live
+        live.start()
+        return self.run(record.id)
+
+    def runs(self) -> list[dict[str, Any]]:
+        """Every run, summed up, the oldest first."""
+        return [self._run_summary(r) for r in self.storage.runs()]
+
+    def run(self, run_id: str) -> dict[str, Any]:
+        """A run: status, outcome, exit code, every task's state per vehicle."""
+        live = self.live(run_id)
+        if live is not None:
+            return {**self._run_summary(live.record, live), "tasks": live.board.snapshot(),
+                    "safety": list(live.safety)}
+        stored = self._stored_run(run_id)
+        mission = self._parse(f"run {stored.id}", "mission.xml", stored.mission_source)
+        board = TaskBoard(mission, stored.vehicles)
+        for _seq, line in self.storage.lines(run_id):
+            if '"kind":"task"' in line:
+                board.see(json.loads(line))
+        return {**self._run_summary(stored), "tasks": board.snapshot(), "safety": []}
+
+    def abort(self, run_id: str) -> dict[str, Any]:
+        """Abort a live run: every vehicle to its safe state."""
+        live = self._live_run(run_id)
+        live.abort("aborted by the operator")
+        return self.run(run_id)
+
+    def live(self, run_id: str) -> LiveRun | None:
+        """The run if it is flying (or about to), else None."""
+        with self._lock:
+            return self._live.get(run_id)
+
+    def log(self, run_id: str) -> Iterator[str]:
+        """A run's flight log, line by line (the lines of ``tml run --log``)."""
+        live = self.live(run_id)
+        if live is not None:
+            lines = list(live.log.lines)
+        else:
+            self._stored_run(run_id)
+            lines = list(self.storage.lines(run_id))
+        for _seq, line in lines:
+            yield line + "\n"
+
+    # --- vehicles ------------------------------------------------------------------------
+
+    def vehicles(self) -> list[dict[str, Any]]:
+        """Every vehicle with its live telemetry, link and the run that holds it."""
+        return [self.vehicle(vid) for vid in sorted(self.hangar.vehicles)]
+
+    def vehicle(self, vehicle_id: int) -> dict[str, Any]:
+        """One vehicle."""
+        found = self.hangar.vehicles.get(vehicle_id)
+        if found is None:
+            raise NotFound(f"no vehicle {vehicle_id}")
+        state = found.state()
+        return {"id": vehicle_id, "run": self.hangar.holder(vehicle_id),
+                "vehicle_type": state.vehicle_type, "time": round(state.time, 3),
+                **telemetry_fields(state), "status_text": state.status_text,
+                "awaiting": list(awaiting(state))}
+
+    # --- helpers -------------------------------------------------------------------------
+
+    def _choose(self, mission: Mission, vehicles: Sequence[int] | None) -> list[int]:
+        if vehicles:
+            chosen = list(dict.fromkeys(vehicles))
+            unknown = [v for v in chosen if v not in self.hangar.vehicles]
+            if unknown:
+                raise Refused(f"no vehicle {unknown[0]} (vehicles: "
+                              f"{', '.join(map(str, sorted(self.hangar.vehicles)))})")
+            return chosen
+        free = self.hangar.free()
+        if not free:
+            raise Conflict("every vehicle is held by a run")
+        return free if mission.roles else free[:1]
+
+    def _ended(self, run: LiveRun) -> None:
+        with self._lock:
+            self._live.pop(run.id, None)
+
+    def _parse(self, key: str, filename: str, source: str) -> Mission:
+        with self._lock:
+            found = self._parsed.get(key)
+        if found is None:
+            result = validate_file(filename, source.encode("utf-8"))
+            if result.mission is None:  # stored valid: only a change of the rules does this
+                raise Conflict(f"{filename} is no longer valid: "
+                               + "; ".join(d.message for d in result.errors[:3]))
+            found = result.mission
+            with self._lock:
+                self._parsed[key] = found
+        return found
+
+    def _stored_mission(self, mission_id: str) -> StoredMission:
+        found = self.storage.mission(mission_id)
+        if found is None:
+            raise NotFound(f"no mission {mission_id}")
+        return found
+
+    def _stored_run(self, run_id: str) -> StoredRun:
+        found = self.storage.run(run_id)
+        if found is None:
+            raise NotFound(f"no run {run_id}")
+        return found
+
+    def _live_run(self, run_id: str) -> LiveRun:
+        live = self.live(run_id)
+        if live is None:
+            stored = self._stored_run(run_id)
+            raise Conflict(f"run {run_id} has ended ({stored.status})", status=stored.status)
+        return live
+
+    @staticmethod
+    def _mission_summary(stored: StoredMission) -> dict[str, Any]:
+        return {"id": stored.id, "name": stored.name, "filename": stored.filename,
+                "uploaded": stored.uploaded, "warnings": stored.warnings}
+
+    @staticmethod
+    def _run_summary(stored: StoredRun, live: LiveRun | None = None) -> dict[str, Any]:
+        return {"id": stored.id, "mission": {"id": stored.mission_id,
+                                             "name": stored.mission_name},
+                "vehicles": stored.vehicles,
+                "status": live.status if live is not None else stored.status,
+                "reason": live.reason if live is not None else stored.reason,
+                "outcomes": live.outcomes if live is not None else stored.outcomes,
+                "exit_code": live.exit_code if live is not None else stored.exit_code,
+                "instance": stored.instance, "options": stored.options,
+                "created": stored.created,
+                "ended": stored.ended if live is None else live.ended_at}
+
+
+def _profile(name: str) -> Any:
+    if name not in SHIPPED:
+        raise Refused(f"profile {name!r}: expected one of {', '.join(SHIPPED)}")
+    return load_profile(name)
+
+
+def mission_outline(mission: Mission) -> dict[str, Any]:
+    """What the page draws of a mission: its task tree, roles, events and world."""
+    return {"tasks": [_task(t) for t in mission.tasks],
+            "roles": [{"name": r.name, "count": r.count, "vehicle_type": r.vehicle_type,
+                       "payloads": list(r.payloads)} for r in mission.roles],
+            "events": [{"name": e.name, "line": e.location.line,
+                        "termination": e.termination.mode.value} for e in mission.events],
+            "world": world_outline(mission.world or World())}
+
+
+def _task(task: Task) -> dict[str, Any]:
+    return {"name": task.name, "path": task.path_name, "line": task.location.line,
+            "action": task.action.name if task.action is not None else None,
+            "role": task.role, "composition": task.composition.value,
+            "children": [_task(t) for t in task.children],
+            "on_error": [_task(t) for t in task.on_error]}
+
+
+def world_outline(world: World) -> dict[str, Any]:
+    """A world in plain values: home, geofence, obstacles and objects in the local frame
+    (north, east metres from home; an unbounded top is null)."""
+    home = world.home_or_default
+    fence = world.geofence
+    obstacles: list[dict[str, Any]] = []
+    for obstacle in world.obstacles:
+        found: dict[str, Any] = {"name": obstacle.name, "bottom": obstacle.bottom,
+                                 "top": None if math.isinf(obstacle.top) else obstacle.top}
+        if isinstance(obstacle, Cylinder):
+            found |= {"shape": "cylinder", "north": obstacle.north, "east": obstacle.east,
+                      "radius": obstacle.radius}
+        else:
+            found |= {"shape": "prism", "polygon": [list(p) for p in obstacle.polygon]}
+        obstacles.append(found)
+    outline: dict[str, Any] = jsonable({
+        "home": {"latitude": home.latitude, "longitude": home.longitude,
+                 "altitude": home.altitude, "heading": home.heading,
+                 "declared": world.home is not None},
+        "geofence": None if fence is None else {
+            "polygon": [list(p) for p in fence.polygon], "min_altitude": fence.min_altitude,
+            "max_altitude": fence.max_altitude},
+        "obstacles": obstacles,
+        "objects": [{"kind": o.kind, "ident": o.ident, "north": o.north, "east": o.east,
+                     "altitude": o.altitude, "color": o.color, "name": o.name}
+                    for o in world.objects]})
+    return outline

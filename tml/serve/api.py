@@ -437,12 +437,13 @@ def _plain_name(name: str) -> str:
 
 def _errors(app: FastAPI) -> None:
     def answer(status: int, message: str, headers: dict[str, str] | None = None,
-               **more: Any) -> JSONResponse:
-        return JSONResponse({"error": message, **more}, status_code=status, headers=headers)
+               more: dict[str, Any] | None = None) -> JSONResponse:
+        return JSONResponse({**(more or {}), "error": message}, status_code=status,
+                            headers=headers)
 
     async def refused(_request: Request, error: Exception) -> Response:
         assert isinstance(error, RequestError)
-        return answer(error.status, error.message, **error.detail)
+        return answer(error.status, error.message, more=error.detail)
 
     async def http(_request: Request, error: Exception) -> Response:
         assert isinstance(error, HTTPException)
@@ -459,7 +460,7 @@ def _errors(app: FastAPI) -> None:
                      "message": str(e.get("msg", ""))} for e in error.errors()]
         first = problems[0] if problems else {"where": "", "message": "invalid"}
         return answer(422, f"invalid request: {first['where']}: {first['message']}",
-                      problems=problems)
+                      more={"problems": problems})
 
     async def storage(_request: Request, error: Exception) -> Response:
         if isinstance(error, OperationalError):

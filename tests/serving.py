@@ -1,0 +1,153 @@
+"""What the tests of ``tml serve`` share: a hangar of fake vehicles on a fake clock, a
+hangar of simulated ones, missions, and a throwaway PostgreSQL server.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import socket
+import subprocess
+import tempfile
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from types import SimpleNamespace
+
+from tml.serve.hangar import Hangar
+from tml.vehicle import FakeVehicle, Request, RequestResult, VehicleState
+from tml.world import World
+
+ROOT = Path(__file__).resolve().parent.parent
+MISSIONS = ROOT / "missions"
+DATA = Path(__file__).parent / "data"
+
+# A mission small enough to fly in seconds: up, a leg, down.
+SHORT = b"""<mission name="Short hop">
+  <task name="Up"><action name="TAKE_OFF"><argument name="altitude" value="10"/></action></task>
+  <task name="Out">
+    <action name="GO_TO_POINT"><argument name="point" value="(40,0,10)"/></action>
+  </task>
+  <task name="Down"><action name="LAND"/></task>
+</mission>
+"""
+# The same with a typo in an action's name.
+TYPO = SHORT.replace(b"GO_TO_POINT", b"GO_TO_PIONT")
+FAST_SIM = {"SIM_GPS_LOCKTIME": 1.0, "SIM_EKF_GPS_TIME": 2.0}
+
+
+class _Locked:
+    """A fake vehicle behind the hangar's lock (the runs' threads read it while another
+    run's wait moves it)."""
+
+    def __init__(self, fake: FakeVehicle, lock: threading.Lock) -> None:
+        self.fake, self._lock = fake, lock
+        self.vehicle_id = fake.vehicle_id
+
+    def state(self) -> VehicleState:
+        with self._lock:
+            return self.fake.state()
+
+    def submit(self, request: Request) -> None:
+        with self._lock:
+            self.fake.submit(request)
+
+    def poll(self) -> list[RequestResult]:
+        with self._lock:
+            return self.fake.poll()
+
+
+class FakeHangar(Hangar):
+    """Fake vehicles whose time moves by each run's wait while ``flowing`` is set, and
+    stands still (the runs wait on their wake events) while it is not."""
+
+    def __init__(self, count: int = 2, flowing: bool = True, **knobs: object) -> None:
+        self.fakes = [FakeVehicle(vehicle_id=i + 1, **knobs) for i in range(count)]  # type: ignore[arg-type]
+        self._move = threading.Lock()
+        self.now = 0.0
+        super().__init__([_Locked(f, self._move) for f in self.fakes], lambda: self.now)
+        self.flowing = threading.Event()
+        if flowing:
+            self.flowing.set()
+
+    def wait(self, wake: threading.Event, timeout: float) -> None:
+        if not self.flowing.is_set():
+            super().wait(wake, timeout)
+            return
+        with self._move:
+            self.now += timeout
+            for fake in self.fakes:
+                fake.advance(timeout)
+        wake.clear()
+
+
+@contextlib.contextmanager
+def simulated(vehicles: int = 2, speedup: float = 20.0) -> Iterator[Hangar]:
+    """A hangar of simulated vehicles, opened as ``tml serve --sim`` opens them."""
+    from tml.commands.run import open_vehicles
+
+    args = SimpleNamespace(sim=True, vehicles=vehicles, speedup=speedup,
+                           sim_param=list(FAST_SIM.items()), sim_frame=["copter"], out=[],
+                           connect=None, timeout=30.0, clock="wall")
+    hangars: list[Hangar] = []
+
+    def notify() -> None:
+        for hangar in hangars:
+            hangar.notify()
+
+    with open_vehicles(args, World(), notify) as (found, _wake, clock):  # type: ignore[arg-type]
+        hangars.append(Hangar(found, clock))
+        yield hangars[0]
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def _postgres_bin() -> Path | None:
+    for version in sorted(Path("/usr/lib/postgresql").glob("*/bin"), reverse=True):
+        if (version / "initdb").exists() and (version / "pg_ctl").exists():
+            return version
+    return None
+
+
+@contextlib.contextmanager
+def postgresql() -> Iterator[str]:
+    """A throwaway PostgreSQL server on 127.0.0.1 (Debian's ``postgresql`` package) for the
+    duration; its SQLAlchemy URL. Raises LookupError, saying why, when none can be had."""
+    binaries = _postgres_bin()
+    if binaries is None:
+        raise LookupError("no PostgreSQL server binaries (Debian package postgresql)")
+    as_user: list[str] = []
+    # Not under pytest's tmp_path: as root the server runs as another user, who must be
+    # able to reach its directory.
+    data = Path(tempfile.mkdtemp(prefix="tml-pg-"))
+    try:
+        if os.geteuid() == 0:  # PostgreSQL refuses to run as root: its own user runs it
+            if shutil.which("runuser") is None:
+                raise LookupError("running as root without runuser to start PostgreSQL")
+            as_user = ["runuser", "-u", "postgres", "--"]
+            data.chmod(0o755)
+            shutil.chown(data, "postgres")
+        port = free_port()
+        subprocess.run([*as_user, str(binaries / "initdb"), "-D", str(data / "db"), "-A",
+                        "trust", "-U", "tml", "--no-sync"], check=True, capture_output=True)
+        started = subprocess.run(
+            [*as_user, str(binaries / "pg_ctl"), "-D", str(data / "db"), "-l",
+             str(data / "server.log"), "-w", "-o",
+             f"-p {port} -k {data} -c listen_addresses=127.0.0.1 -c fsync=off", "start"],
+            capture_output=True, text=True)
+        if started.returncode != 0:
+            raise LookupError(f"PostgreSQL did not start: {started.stderr or started.stdout}")
+        try:
+            subprocess.run([*as_user, str(binaries / "createdb"), "-h", "127.0.0.1", "-p",
+                            str(port), "-U", "tml", "tml"], check=True, capture_output=True)
+            yield f"postgresql+psycopg://tml@127.0.0.1:{port}/tml"
+        finally:
+            subprocess.run([*as_user, str(binaries / "pg_ctl"), "-D", str(data / "db"), "-m",
+                            "fast", "-w", "stop"], capture_output=True)
+    finally:
+        shutil.rmtree(data, ignore_errors=True)

@@ -1,0 +1,289 @@
+"""The HTTP API of ``tml serve`` on fake vehicles: missions, runs, vehicles, the flight log
+and its live stream, auth and errors.
+
+The fake vehicles' time stands still until a test lets it flow (``hangar.flowing``), so
+a run can be caught in flight; with time flowing a short mission flies in a blink.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from fastapi.testclient import TestClient
+from serving import DATA, MISSIONS, SHORT, TYPO, FakeHangar
+
+from tml.serve.api import create_app
+from tml.serve.service import Service, ServiceOptions
+from tml.serve.storage import Storage, database_url
+
+
+class Served:
+    """A service on fake vehicles, and a client for its API."""
+
+    def __init__(self, tmp_path: Path, token: str | None = None, count: int = 2) -> None:
+        self.hangar = FakeHangar(count, flowing=False)
+        self.storage = Storage(database_url(None, tmp_path))
+        self.service = Service(self.storage, self.hangar, ServiceOptions(stop_timeout=10))
+        self.client = TestClient(create_app(self.service, token))
+
+    def upload(self, data: bytes = SHORT, name: str = "short.xml") -> str:
+        answer = self.client.post("/missions", content=data, params={"filename": name},
+                                  headers={"Content-Type": "application/xml"})
+        assert answer.status_code == 201, answer.text
+        return str(answer.json()["id"])
+
+    def start(self, mission: str, **request: object) -> dict:
+        answer = self.client.post("/runs", json={"mission": mission, **request})
+        assert answer.status_code == 201, answer.text
+        return dict(answer.json())
+
+    def finish(self, run_id: str) -> dict:
+        """Let time flow until the run has ended; the run."""
+        self.hangar.flowing.set()
+        live = self.service.live(run_id)
+        assert live is None or live.join(60), "the run did not end"
+        return dict(self.client.get(f"/runs/{run_id}").json())
+
+
+@pytest.fixture
+def served(tmp_path: Path) -> Iterator[Served]:
+    found = Served(tmp_path)
+    with found.client:
+        yield found
+    found.storage.close()
+
+
+# --- missions ------------------------------------------------------------------------------
+
+def test_a_mission_uploaded_as_xml_is_kept_with_its_tree_and_source(served: Served) -> None:
+    mission = served.upload((MISSIONS / "verify_obstacles.xml").read_bytes(), "obst.xml")
+    listed = served.client.get("/missions").json()
+    assert [(m["id"], m["filename"]) for m in listed] == [(mission, "obst.xml")]
+    detail = served.client.get(f"/missions/{mission}").json()
+    assert detail["tasks"][0]["path"] == detail["tasks"][0]["name"]
+    assert detail["world"]["obstacles"], "the world's obstacles are given for the map"
+    source = served.client.get(f"/missions/{mission}/source")
+    assert source.headers["content-type"].startswith("application/xml")
+    assert source.content == (MISSIONS / "verify_obstacles.xml").read_bytes()
+
+
+def test_a_mission_uploaded_as_a_multipart_form_is_named_by_its_file(served: Served) -> None:
+    answer = served.client.post("/missions", files={"file": ("hop.xml", SHORT,
+                                                             "application/xml")})
+    assert answer.status_code == 201, answer.text
+    assert (answer.json()["filename"], answer.json()["name"]) == ("hop.xml", "Short hop")
+
+
+def test_an_invalid_mission_is_refused_with_the_diagnostics_of_tml_validate(
+        served: Served) -> None:
+    answer = served.client.post("/missions?filename=typo.xml", content=TYPO,
+                                headers={"Content-Type": "application/xml"})
+    assert answer.status_code == 422
+    body = answer.json()
+    assert "invalid mission" in body["error"]
+    [found] = [d for d in body["diagnostics"] if d["severity"] == "error"]
+    line = next(n for n, text in enumerate(TYPO.decode().splitlines(), 1) if "PIONT" in text)
+    column = TYPO.decode().splitlines()[line - 1].index("<action") + 1
+    assert (found["file"], found["line"], found["column"], found["code"]) == \
+        ("typo.xml", line, column, "E201")
+    assert "GO_TO_POINT" in found["hint"]
+    assert served.client.get("/missions").json() == [], "an invalid mission is not kept"
+
+
+def test_malformed_and_hostile_xml_is_refused_with_a_place(served: Served) -> None:
+    for data in (b"<mission name='x'><task>", (DATA / "invalid" / "billion_laughs.xml"
+                                                ).read_bytes()):
+        answer = served.client.post("/missions", content=data,
+                                    headers={"Content-Type": "application/xml"})
+        assert answer.status_code == 422
+        assert answer.json()["diagnostics"][0]["line"] >= 1
+
+
+def test_an_upload_of_another_type_or_too_large_is_refused(served: Served) -> None:
+    other = served.client.post("/missions", content=SHORT,
+                               headers={"Content-Type": "text/plain"})
+    assert (other.status_code, "application/xml" in other.json()["error"]) == (415, True)
+    huge = served.client.post("/missions", content=b" " * (5 * 1024 * 1024),
+                              headers={"Content-Type": "application/xml"})
+    assert huge.status_code == 413
+    empty_form = served.client.post("/missions", files={"other": ("a.xml", SHORT)})
+    assert empty_form.status_code == 400
+
+
+def test_a_mission_is_deleted_but_not_while_it_flies(served: Served) -> None:
+    mission = served.upload()
+    run = served.start(mission)
+    refused = served.client.delete(f"/missions/{mission}")
+    assert refused.status_code == 409 and run["id"] in refused.json()["error"]
+    served.finish(run["id"])
+    assert served.client.delete(f"/missions/{mission}").status_code == 204
+    assert served.client.get(f"/missions/{mission}").status_code == 404
+    # The run outlives its mission, with every task's state.
+    kept = served.client.get(f"/runs/{run['id']}").json()
+    assert kept["mission"]["name"] == "Short hop" and kept["tasks"]["1"]["Down"] == "done"
+
+
+def test_verify_gives_the_report_of_tml_verify_with_each_actions_path(served: Served) -> None:
+    mission = served.upload()
+    report = served.client.post(f"/missions/{mission}/verify", json={}).json()
+    assert report["feasible"] is True
+    assert [a["action"] for a in report["actions"]] == ["TAKE_OFF", "GO_TO_POINT", "LAND"]
+    assert report["actions"][1]["path"][-1] == [40.0, 0.0, 10.0]
+    low = served.client.post(f"/missions/{mission}/verify", json={"battery": 1}).json()
+    assert low["feasible"] is False and low["violations"]
+    bad = served.client.post(f"/missions/{mission}/verify", json={"profile": "blimp"})
+    assert bad.status_code == 422 and "profile" in bad.json()["error"]
+
+
+# --- runs ------------------------------------------------------------------------------------
+
+def test_a_run_flies_to_completion_with_every_task_done(served: Served) -> None:
+    mission = served.upload()
+    run = served.start(mission, vehicles=[2])
+    assert run["status"] in ("waiting", "running") and run["vehicles"] == [2]
+    ended = served.finish(run["id"])
+    assert (ended["status"], ended["exit_code"], ended["reason"]) == \
+        ("completed", 0, "all tasks done")
+    assert ended["tasks"] == {"2": {"Up": "done", "Out": "done", "Down": "done"}}
+    assert served.hangar.fakes[1].position[:2] == pytest.approx((40.0, 0.0), abs=0.5)
+
+
+def test_two_runs_fly_at_once_and_a_vehicle_belongs_to_one_run(served: Served) -> None:
+    mission = served.upload()
+    first = served.start(mission, vehicles=[1])
+    taken = served.client.post("/runs", json={"mission": mission, "vehicles": [1]})
+    assert taken.status_code == 409
+    assert taken.json() == {"error": f"vehicle 1 is held by run {first['id']}", "vehicle": 1,
+                            "run": first["id"]}
+    second = served.start(mission)  # the first free vehicle
+    assert second["vehicles"] == [2]
+    holders = {v["id"]: v["run"] for v in served.client.get("/vehicles").json()}
+    assert holders == {1: first["id"], 2: second["id"]}
+    none_free = served.client.post("/runs", json={"mission": mission})
+    assert none_free.status_code == 409
+    assert [served.finish(r["id"])["status"] for r in (first, second)] == ["completed"] * 2
+    assert {v["run"] for v in served.client.get("/vehicles").json()} == {None}
+
+
+def test_abort_sends_the_vehicles_to_their_safe_state(served: Served) -> None:
+    mission = served.upload()
+    run = served.start(mission, safe_state="land")
+    served.hangar.flowing.set()
+    fake = served.hangar.fakes[0]
+    while fake.position[2] < 5:  # the take-off is under way
+        served.hangar.notify()
+    served.hangar.flowing.clear()
+    aborted = served.client.post(f"/runs/{run['id']}/abort")
+    assert aborted.status_code == 200
+    ended = served.finish(run["id"])
+    assert (ended["status"], ended["exit_code"]) == ("aborted", 3)
+    assert "aborted by the operator" in ended["reason"]
+    assert fake.mode == "LAND"
+    lines = [json.loads(line) for line in served.client.get(f"/runs/{run['id']}/log")
+             .text.splitlines()]
+    assert any(line["kind"] == "safety" and "Land" in line["message"] for line in lines)
+    again = served.client.post(f"/runs/{run['id']}/abort")
+    assert again.status_code == 409 and "has ended" in again.json()["error"]
+
+
+def test_an_infeasible_mission_is_not_flown_unless_forced(served: Served) -> None:
+    mission = served.upload((DATA / "infeasible" / "range.xml").read_bytes(), "range.xml")
+    refused = served.client.post("/runs", json={"mission": mission})
+    assert refused.status_code == 422
+    assert refused.json()["report"]["feasible"] is False
+    assert served.client.get("/runs").json() == []
+    assert {v["run"] for v in served.client.get("/vehicles").json()} == {None}
+    forced = served.start(mission, force=True)
+    served.client.post(f"/runs/{forced['id']}/abort")
+
+
+def test_a_run_on_an_unknown_vehicle_is_refused(served: Served) -> None:
+    mission = served.upload()
+    answer = served.client.post("/runs", json={"mission": mission, "vehicles": [7]})
+    assert answer.status_code == 422 and "no vehicle 7" in answer.json()["error"]
+    assert served.client.post("/runs", json={"mission": "abc"}).status_code == 404
+
+
+# --- the flight log and its stream ---------------------------------------------------------
+
+def test_the_stream_sends_the_flight_log_lines_then_the_end(served: Served) -> None:
+    mission = served.upload()
+    run = served.start(mission)
+    served.hangar.flowing.set()
+    records, ids, end = [], [], None
+    with served.client.stream("GET", f"/runs/{run['id']}/stream") as stream:
+        event = ""
+        for line in stream.iter_lines():
+            if line.startswith("event: "):
+                event = line[7:]
+            elif line.startswith("id: "):
+                ids.append(int(line[4:]))
+            elif line.startswith("data: ") and event == "record":
+                records.append(line[6:])
+            elif line.startswith("data: ") and event == "end":
+                end = json.loads(line[6:])
+    log = served.client.get(f"/runs/{run['id']}/log")
+    assert log.headers["content-type"].startswith("application/x-ndjson")
+    assert records == log.text.splitlines(), "the stream sends the lines of the log"
+    assert ids == list(range(1, len(records) + 1))
+    kinds = {json.loads(r)["kind"] for r in records}
+    assert {"run", "mission", "task", "action", "request", "telemetry"} <= kinds
+    assert end is not None and end["status"] == "completed"
+    # A client that reconnects after record 5 gets the rest, from the database now.
+    with served.client.stream("GET", f"/runs/{run['id']}/stream",
+                              headers={"Last-Event-ID": "5"}) as stream:
+        again = [line[6:] for line in stream.iter_lines() if line.startswith("data: {\"t\"")]
+    assert again == records[5:]
+
+
+# --- auth and errors -------------------------------------------------------------------------
+
+def test_with_a_token_every_api_request_needs_it(tmp_path: Path) -> None:
+    served = Served(tmp_path, token="s3cret")
+    with served.client as client:
+        missing = client.get("/vehicles")
+        assert missing.status_code == 401
+        assert missing.headers["www-authenticate"] == "Bearer"
+        assert "Bearer" in missing.json()["error"]
+        wrong = client.get("/vehicles", headers={"Authorization": "Bearer guess"})
+        assert wrong.status_code == 401
+        right = client.get("/vehicles", headers={"Authorization": "Bearer s3cret"})
+        assert right.status_code == 200 and len(right.json()) == 2
+        assert client.post("/missions", content=SHORT).status_code == 401
+        # The page's files hold no data: the browser loads them, then asks for the token.
+        assert client.get("/").status_code == 200
+        assert client.get("/openapi.json").status_code == 200
+    served.storage.close()
+
+
+def test_errors_are_json_with_a_message_never_a_traceback(served: Served) -> None:
+    cases = [("GET", "/nowhere", None, 404), ("GET", "/runs/zz", None, 422),
+             ("GET", "/runs/abc", None, 404), ("DELETE", "/vehicles", None, 405),
+             ("POST", "/runs", b"{not json", 422), ("POST", "/runs", b'{"mission": 5}', 422),
+             ("GET", "/vehicles/9", None, 404)]
+    for method, path, body, status in cases:
+        answer = served.client.request(method, path, content=body,
+                                       headers={"Content-Type": "application/json"})
+        assert answer.status_code == status, (method, path, answer.text)
+        assert isinstance(answer.json()["error"], str) and answer.json()["error"]
+        assert "Traceback" not in answer.text
+
+
+def test_a_restarted_service_lists_past_runs_with_their_task_states(tmp_path: Path) -> None:
+    first = Served(tmp_path)
+    with first.client:
+        mission = first.upload()
+        done = first.finish(first.start(mission)["id"])
+    first.storage.close()
+    again = Served(tmp_path)  # the same data directory
+    assert again.service.start() == []
+    with again.client:
+        assert [r["id"] for r in again.client.get("/runs").json()] == [done["id"]]
+        kept = again.client.get(f"/runs/{done['id']}").json()
+        assert (kept["status"], kept["exit_code"], kept["tasks"]) == \
+            ("completed", 0, done["tasks"])
+        assert again.client.get(f"/runs/{done['id']}/log").text.count("\n") > 10
+    again.storage.close()

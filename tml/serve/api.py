@@ -46,6 +46,7 @@ from sqlalchemy.exc import OperationalError
 from sse_starlette.sse import EventSourceResponse
 from starlette.concurrency import run_in_threadpool
 from starlette.exceptions import HTTPException
+from starlette.routing import Match
 
 from tml import __version__
 from tml.errors import TmlError
@@ -186,8 +187,10 @@ class ServiceStatus(BaseModel):
 
 ERRORS: dict[int | str, dict[str, Any]] = {
     code: {"model": Problem, "description": text} for code, text in (
-        (401, "no token, or a wrong one"), (404, "not found"),
-        (409, "conflicts with what is going on"), (422, "refused"))}
+        (400, "a request that cannot be read"), (401, "no token, or a wrong one"),
+        (404, "not found"), (409, "conflicts with what is going on"),
+        (422, "refused: invalid input, or a mission that is invalid or cannot be flown"),
+        (503, "the database is unreachable"))}
 
 
 # --- the application ---------------------------------------------------------------------
@@ -445,14 +448,20 @@ def _errors(app: FastAPI) -> None:
         assert isinstance(error, RequestError)
         return answer(error.status, error.message, more=error.detail)
 
-    async def http(_request: Request, error: Exception) -> Response:
+    async def http(request: Request, error: Exception) -> Response:
         assert isinstance(error, HTTPException)
         message = error.detail if isinstance(error.detail, str) else str(error.detail)
+        headers = dict(error.headers or {})
         if error.status_code == 404 and message == "Not Found":
             message = "no such route"
         elif error.status_code == 405:
-            message = "this route does not take that method"
-        return answer(error.status_code, message, dict(error.headers or {}))
+            # Each method of a path is its own route: Allow lists them all.
+            allowed = sorted({method for route in app.routes
+                              if route.matches(request.scope)[0] is not Match.NONE
+                              for method in getattr(route, "methods", None) or ()})
+            headers["Allow"] = ", ".join(allowed)
+            message = f"this route takes {' or '.join(allowed)}"
+        return answer(error.status_code, message, headers)
 
     async def invalid(_request: Request, error: Exception) -> Response:
         assert isinstance(error, RequestValidationError)

@@ -27,7 +27,7 @@ import traceback
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
-from tml.engine.interpreter import safe_state_request
+from tml.engine.safety import safe_state_request
 from tml.language.model import Mission
 from tml.run.journal import Journal
 from tml.run.runner import ExitCode, Outcome, Runner, RunOptions

@@ -287,3 +287,34 @@ def test_a_restarted_service_lists_past_runs_with_their_task_states(tmp_path: Pa
             ("completed", 0, done["tasks"])
         assert again.client.get(f"/runs/{done['id']}/log").text.count("\n") > 10
     again.storage.close()
+
+
+PLAN = b"""<mission name="Out and back in AUTO">
+  <task name="Up"><action name="TAKE_OFF"><argument name="altitude" value="10"/></action></task>
+  <task name="Round trip" dispatch="mission">
+    <task name="Out">
+      <action name="GO_TO_POINT"><argument name="point" value="(40,0,10)"/></action>
+    </task>
+    <task name="Back">
+      <action name="GO_TO_POINT"><argument name="point" value="(0,0,10)"/></action>
+    </task>
+  </task>
+  <task name="Down"><action name="LAND"/></task>
+</mission>
+"""
+
+
+def test_a_second_run_on_a_vehicle_flies_its_own_autopilot_plan(served: Served) -> None:
+    # The vehicle still reports the first run's plan as finished when the second run
+    # sends its own: the two plans must not share an id, or the second is taken as flown.
+    mission = served.upload(PLAN, "plan.xml")
+    farthest = []
+    for _ in range(2):
+        run = served.finish(served.start(mission)["id"])
+        assert run["status"] == "completed", run["reason"]
+        lines = [json.loads(line) for line in
+                 served.client.get(f"/runs/{run['id']}/log").text.splitlines()]
+        farthest.append(max(line["position"][0] for line in lines
+                            if line["kind"] == "telemetry" and line["position"]))
+        served.hangar.flowing.clear()
+    assert farthest[1] > 30, farthest  # telemetry is sampled once a second

@@ -14,6 +14,7 @@ in the state.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
@@ -141,17 +142,16 @@ class IdSource:
     One source serves a whole run -- the engine and whoever else sends to its vehicles (the
     runner's own safety requests) -- so that no two requests to a vehicle share an id and
     a vehicle's progress in one plan is never taken for another's. Nothing is numbered
-    process-wide: each run (each test) counts from ``first``.
+    process-wide: each run (each test) counts from ``first``; a service that flies one
+    vehicle in run after run gives them all one source (which several threads may share).
     """
 
     def __init__(self, first: int = 1) -> None:
-        self._next = first
+        self._ids = itertools.count(first)  # next() on a count is atomic: thread-safe
 
     def take(self) -> int:
         """A new id."""
-        taken = self._next
-        self._next += 1
-        return taken
+        return next(self._ids)
 
 
 @dataclass(frozen=True)

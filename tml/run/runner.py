@@ -134,7 +134,8 @@ class Runner:
                  on_update: Callable[[Runner], None] | None = None,
                  on_safety: Callable[[str], None] | None = None,
                  wait: Callable[[float], None] | None = None,
-                 payloads: Mapping[int, Iterable[str]] | None = None) -> None:
+                 payloads: Mapping[int, Iterable[str]] | None = None,
+                 ids: IdSource | None = None) -> None:
         self.mission = mission
         self.options = options or RunOptions()
         self.clock = clock
@@ -146,7 +147,9 @@ class Runner:
         engine = self.options.engine
         engine.safe_state = self.options.safe_state
         self.flights = [_Flight(v) for v in vehicles]
-        self.ids = IdSource()  # one numbering for every request of the run
+        # One numbering for every request of the run (and of the runs before it on the
+        # same vehicles, when the caller gives its source).
+        self.ids = ids or IdSource()
         vids = [f.vehicle.vehicle_id for f in self.flights]
         if mission.roles:  # one interpreter picks its vehicles for the roles
             self.crews = [_Crew(Interpreter(mission, vids, engine, payloads, self.ids),

@@ -33,6 +33,7 @@ from tml.run.journal import Journal
 from tml.run.runner import ExitCode, Outcome, Runner, RunOptions
 from tml.serve.hangar import Hangar
 from tml.serve.storage import Storage, StoredRun
+from tml.vehicle import IdSource
 
 STORE_PERIOD = 0.5  # s between two writes of a run's new log lines to the database
 STATUS_OF_EXIT = {ExitCode.COMPLETED: "completed", ExitCode.ABORTED: "aborted",
@@ -142,7 +143,8 @@ class LiveRun:
     """One run flying in its own thread; see the module docstring."""
 
     def __init__(self, record: StoredRun, mission: Mission, hangar: Hangar, storage: Storage,
-                 options: RunOptions, payloads: Mapping[int, Iterable[str]] | None = None,
+                 options: RunOptions, ids: IdSource,
+                 payloads: Mapping[int, Iterable[str]] | None = None,
                  on_end: Callable[[LiveRun], None] | None = None) -> None:
         self.id = record.id
         self.record = record
@@ -163,7 +165,7 @@ class LiveRun:
         self.runner = Runner(mission, vehicles, clock=hangar.clock, options=options,
                              journal=Journal(self.log), wake=self.wake,
                              wait=lambda timeout: hangar.wait(self.wake, timeout),
-                             on_safety=self.safety.append, payloads=payloads)
+                             on_safety=self.safety.append, payloads=payloads, ids=ids)
         self.thread = threading.Thread(target=self._fly, name=f"run {record.id}", daemon=True)
 
     def start(self) -> None:

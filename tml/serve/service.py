@@ -45,7 +45,7 @@ from tml.run.journal import jsonable, telemetry_fields
 from tml.serve.hangar import Hangar, VehicleTaken
 from tml.serve.live import LiveRun, TaskBoard
 from tml.serve.storage import Storage, StoredMission, StoredRun
-from tml.vehicle import awaiting
+from tml.vehicle import IdSource, awaiting
 from tml.verify.inflight import preflight
 from tml.verify.motion import VehicleState as StartState
 from tml.verify.profile import SHIPPED, load_profile
@@ -105,6 +105,9 @@ class Service:
         self.hangar = hangar
         self.options = options or ServiceOptions()
         self.started = time.time()
+        # One numbering of requests and plans for every run: a vehicle that still reports
+        # the last run's plan never has it taken for the next run's.
+        self.ids = IdSource()
         self._live: dict[str, LiveRun] = {}
         self._parsed: dict[str, Mission] = {}
         self._lock = threading.Lock()
@@ -220,7 +223,7 @@ class Service:
                                   ready_timeout=self.options.ready_timeout)
         try:
             self.storage.add_run(record)
-            live = LiveRun(record, mission, self.hangar, self.storage, options,
+            live = LiveRun(record, mission, self.hangar, self.storage, options, self.ids,
                            on_end=self._ended)
         except BaseException:
             self.hangar.release(record.id)

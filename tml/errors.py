@@ -77,6 +77,11 @@ class EngineError(TmlError):
     stops the run and commands every vehicle to its safe state."""
 
 
+class ControlRefused(TmlError):
+    """An operator's control that a run refuses now, saying why: a pause of a paused run,
+    a resume of a running one, a jump the language does not allow."""
+
+
 class VehicleError(TmlError):
     """A vehicle or its link did not do what was asked."""
 

@@ -178,6 +178,11 @@ class Work(Protocol):
         """What follows, applied when the work is next stepped."""
         ...
 
+    def carry_on(self) -> None:
+        """Go on after a pause of the run, during which its vehicle held: the work's last
+        request again, as CONTINUE does, its time limits going on where they stopped."""
+        ...
+
     def on_result(self, result: RequestResult) -> bool:
         """Take the result of one of its requests; False when it is not its own."""
         ...
@@ -187,18 +192,30 @@ class Work(Protocol):
 
 
 class Log:
-    """The time of the step being taken, and the requests and records it produces."""
+    """The time of the step being taken, and the requests and records it produces.
+
+    Two clocks: ``now``, the runner's time of the step, which stamps the records; and
+    :attr:`clock`, the mission's own, which stands still while the run is paused, so that
+    every time limit, elapsed time and wait the rules measure stops counting then.
+    """
 
     def __init__(self, vehicle_id: int | None) -> None:
         self.vehicle_id = vehicle_id  # whose the mission's own records are (a fleet of one)
         self.now = 0.0
-        self.start = 0.0
+        self.start = 0.0  # the mission clock's reading when the mission started
+        self.paused = 0.0  # s the run was paused, pauses that are over
+        self.paused_at: float | None = None  # when the pause now going on began
         self.out = Output()
 
     @property
+    def clock(self) -> float:
+        """The mission's clock: the time of the step less the time spent paused."""
+        return (self.now if self.paused_at is None else self.paused_at) - self.paused
+
+    @property
     def mission_time(self) -> float:
-        """Seconds since the mission started."""
-        return self.now - self.start
+        """Seconds the mission has run (pauses not counted)."""
+        return self.clock - self.start
 
     def note(self, kind: str, message: str, vehicle_id: int | None, /, **data: object) -> None:
         """Add a record."""
@@ -238,6 +255,11 @@ class Pilot:
     events: list[tuple[float, str]] = field(default_factory=list)  # (mission time, event)
     states: dict[str, TaskState] = field(default_factory=dict)  # tasks it flew
     changes: list[Change] = field(default_factory=list)
+
+    @property
+    def now(self) -> float:
+        """The mission's clock (:attr:`Log.clock`), for the scripts' own timing."""
+        return self.log.clock
 
     def note(self, message: str, **data: object) -> None:
         """Write a decision about this vehicle to the flight log."""
@@ -307,8 +329,14 @@ class Run:
 
     @property
     def now(self) -> float:
-        """The time of the step being taken."""
-        return self.log.now
+        """The mission's clock (:attr:`Log.clock`): every duration the rules measure is
+        measured on it."""
+        return self.log.clock
+
+    @property
+    def paused(self) -> bool:
+        """Whether the run is paused: nothing is stepped, the vehicles hold."""
+        return self.log.paused_at is not None
 
     @property
     def halted(self) -> bool:

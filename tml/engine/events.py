@@ -178,7 +178,7 @@ class Events:
             for owner in _scopes(event, held):
                 owner.abandon(why)
         elif mode is TerminationMode.JUMP_TO_TASK:
-            run.jump_to = _find(run, event.termination.task or "")
+            run.jump_to = find_task(run, event.termination.task or "")
         elif mode is TerminationMode.END_MISSION:
             run.finish = (Status.COMPLETED, f"event {event.name!r} ended the mission")
         else:
@@ -216,7 +216,7 @@ def _scopes(event: Event, held: list[Work]) -> list[TaskOwner]:
     return scopes
 
 
-def _find(run: Run, reference: str) -> tuple[str, ...]:
+def find_task(run: Run, reference: str) -> tuple[str, ...]:
     """The path of the task a JUMP_TO_TASK names (checked to exist: E240, E244)."""
     if "/" in reference:
         return tuple(p.strip() for p in reference.split("/"))

@@ -47,6 +47,14 @@ happens, with the vehicle that flies the task: RUNNING when its body starts, the
 ended, after its sub-tasks' ends. Each vehicle's :class:`~tml.engine.records.View` carries
 these changes in order for the line display, besides the states for the live one.
 
+*The operator's controls.* :meth:`Interpreter.pause` tells every flying vehicle of the
+mission to hold and stops everything: no node or event handler is stepped, and the
+mission's clock (:attr:`~tml.engine.context.Log.clock`, on which every time limit, wait
+and elapsed time is measured) stands still until :meth:`Interpreter.resume`, which sends
+each interrupted action's last request again, as CONTINUE does, with the time it had
+left. :meth:`Interpreter.jump` is JUMP_TO_TASK asked from outside, refused with the
+language's reason where a written one would be. Each is a ``control`` record in the log.
+
 *Safety.* However the mission ends, every vehicle still bound to it is released: its
 mission skills end and it is commanded to the safe state
 (:func:`~tml.engine.safety.safe_state_request`: RTL by default, land or hold by option;
@@ -60,12 +68,14 @@ from collections.abc import Iterable, Mapping, Sequence
 
 from tml.engine.composites import NodeStatus, TasksNode
 from tml.engine.context import Duty, Options, Pilot, Run, Verdict
-from tml.engine.events import Events
+from tml.engine.events import Events, find_task
 from tml.engine.records import Output, Status, View
 from tml.engine.tasks import TaskNode
+from tml.errors import ControlRefused
 from tml.language.actions import CAPABILITIES, lookup
+from tml.language.check import check_jump
 from tml.language.model import Mission
-from tml.vehicle import IdSource, RequestResult, VehicleState
+from tml.vehicle import Hold, IdSource, RequestResult, VehicleState
 
 
 class Interpreter:
@@ -87,6 +97,7 @@ class Interpreter:
         self.root = TasksNode(run, mission.tasks,
                               lambda task, entry: TaskNode(run, task, {}, None, entry))
         self._results: dict[int, list[RequestResult]] = {}
+        self._started = False
 
     @property
     def status(self) -> Status:
@@ -104,7 +115,8 @@ class Interpreter:
         """Begin the mission: without roles its vehicles are bound to it at once."""
         run = self.run
         self._begin(now, states, {})
-        run.log.start = now
+        run.log.start = run.log.clock
+        self._started = True
         mission = self.mission
         run.note("mission", f"mission {mission.name!r} started", run.log.vehicle_id,
                  name=mission.name, vehicles=list(run.pilots),
@@ -126,6 +138,8 @@ class Interpreter:
         """Take the time, the latest states and request results; return what to do."""
         run = self.run
         self._begin(now, states, results or {})
+        if run.paused:  # the results wait for the work that asked for them
+            return run.log.take()
         if run.status is Status.RUNNING:
             for pilot in run.pilots.values():
                 self._hand_over(pilot, self._results.pop(pilot.vehicle_id, []))
@@ -165,6 +179,88 @@ class Interpreter:
             self._end(Status.ABORTED, reason)
         return self.run.log.take()
 
+    # --- the operator's controls --------------------------------------------------------------
+
+    @property
+    def paused(self) -> bool:
+        """Whether the run is paused (:meth:`pause`)."""
+        return self.run.paused
+
+    def pause(self, now: float, states: Mapping[int, VehicleState],
+              reason: str = "paused by the operator") -> Output:
+        """Hold everything: every flying vehicle of the mission is told to hold where it is,
+        and until :meth:`resume` nothing is stepped -- no task, no action, no event handler
+        -- and the mission's clock stands still, so time limits, waits, and the task's and
+        mission's elapsed times stop counting. Request results that arrive meanwhile wait
+        for the work that asked for them. ControlRefused when the run is not running or is
+        paused already."""
+        run = self._controllable("pause")
+        if run.paused:
+            raise ControlRefused("the run is paused already")
+        self._begin(now, states, {})
+        run.log.paused_at = now
+        run.note("control", f"mission paused: {reason}", run.log.vehicle_id, control="pause",
+                 reason=reason)
+        for pilot in run.pilots.values():
+            if pilot.duty is not Duty.LOST and pilot.state.flying and self._flies(pilot):
+                run.send(Hold(pilot.vehicle_id))
+        return run.log.take()
+
+    def resume(self, now: float, states: Mapping[int, VehicleState]) -> Output:
+        """Go on after :meth:`pause`: the interrupted work continues as after CONTINUE (its
+        last request sent again), with the time it had left. ControlRefused when the run is
+        not paused."""
+        run = self._controllable("resume")
+        if not run.paused:
+            raise ControlRefused("the run is not paused")
+        self._begin(now, states, {})
+        log = run.log
+        assert log.paused_at is not None
+        paused, log.paused_at = max(0.0, now - log.paused_at), None
+        log.paused += paused
+        run.note("control", f"mission resumed after {paused:.1f} s paused", log.vehicle_id,
+                 control="resume", paused=round(paused, 3))
+        if run.jump_to is None:  # a jump asked meanwhile stops the work instead
+            for pilot in run.pilots.values():
+                for work in list(pilot.work):
+                    work.carry_on()
+        self._tick()
+        return log.take()
+
+    def jump(self, now: float, states: Mapping[int, VehicleState], target: str) -> Output:
+        """Go on from the task ``target`` (a name or a path), as JUMP_TO_TASK does: what runs
+        is stopped (its vehicle holds) and the walk goes on from the target. Refused
+        (ControlRefused) with the language's reason where a written JUMP_TO_TASK to it
+        would be (:func:`tml.language.check.check_jump`: no such task, an ambiguous name, a
+        mission with roles or orchestration). Asked while paused, it is made on resume."""
+        run = self._controllable("jump")
+        refused = check_jump(self.mission, target)
+        if refused:
+            first = refused[0]
+            raise ControlRefused(f"{first.code}: {first.message}"
+                                 + (f" ({first.hint})" if first.hint else ""))
+        path = find_task(run, target)
+        self._begin(now, states, {})
+        run.note("control", f"jump to {'/'.join(path)}", run.log.vehicle_id, control="jump",
+                 task="/".join(path))
+        run.jump_to = path
+        self._tick()
+        return run.log.take()
+
+    def _controllable(self, what: str) -> Run:
+        """The run, when an operator's control can act on it now."""
+        if not self._started:
+            raise ControlRefused(f"cannot {what}: the mission has not started")
+        if self.run.status is not Status.RUNNING:
+            raise ControlRefused(f"cannot {what}: the mission has ended "
+                                 f"({self.run.status.value})")
+        return self.run
+
+    def _flies(self, pilot: Pilot) -> bool:
+        """Whether the mission flies the vehicle now: bound to it, or at work for it."""
+        return bool(pilot.work) or pilot.vehicle_id in {
+            vid for bound in self.run.bound.values() for vid in bound}
+
     def views(self) -> dict[int, View]:
         """A snapshot per vehicle for the display."""
         return {vid: self.run.view(pilot) for vid, pilot in self.run.pilots.items()}
@@ -193,8 +289,11 @@ class Interpreter:
                               detail=result.detail)
 
     def _tick(self) -> None:
-        """Step the tree from the root, and end the mission when it is over."""
+        """Step the tree from the root, and end the mission when it is over (not while the
+        run is paused: a failure or a jump decided meanwhile is applied on resume)."""
         run = self.run
+        if run.paused:
+            return
         if run.finish is None and run.jump_to is not None:
             path, run.jump_to = run.jump_to, None
             self.root.jump(path)

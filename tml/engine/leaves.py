@@ -112,6 +112,12 @@ class Leaf(Node):
         """What follows, applied at the next step."""
         self.verdict = (verdict, failure)
 
+    def carry_on(self) -> None:
+        """Go on after a pause of the run (the vehicle held): only active work has
+        anything to send again."""
+        if self._mode is WorkMode.ACTIVE and self.verdict is None:
+            self.resume(fresh=False)
+
     # --- the lifecycle ---------------------------------------------------------------------
 
     def start(self) -> None:
@@ -167,7 +173,7 @@ class Leaf(Node):
         (verdict, failure), self.verdict = self.verdict, None
         if verdict is Verdict.RESUME and self._mode is WorkMode.HELD:
             self.become(WorkMode.ACTIVE)
-            self.resume()
+            self.resume(fresh=True)
         elif verdict is Verdict.GO_ON and self._mode is WorkMode.AWAITING:
             self.finish(NodeStatus.SUCCESS)
         elif verdict is Verdict.RESTART and self._mode in (WorkMode.HELD, WorkMode.AWAITING):
@@ -191,8 +197,10 @@ class Leaf(Node):
         """One step of active work."""
         raise NotImplementedError
 
-    def resume(self) -> None:
-        """Go on after an event handler held the work (CONTINUE)."""
+    def resume(self, fresh: bool) -> None:
+        """Go on after the vehicle held: an event handler held the work (CONTINUE, with
+        ``fresh`` time limits) or the run was paused (time limits go on where they
+        stopped)."""
         raise NotImplementedError
 
     def restart(self) -> None:
@@ -227,6 +235,7 @@ class ActionLeaf(Leaf):
         self.request_id = 0
         self.last_request: Request | None = None
         self.resume_at: Until | Sleep | None = None  # the wait to go back to once resent
+        self.resume_since: float | None = None  # and when it began, after a pause
         self._progress: float | None = None
 
     @property
@@ -311,9 +320,11 @@ class ActionLeaf(Leaf):
                       reason=result.reason, detail=result.detail)
         if result.ok:
             # Go on with the script at the next drive; a resumed action first goes back to
-            # the wait it was stopped in (with a fresh time limit).
+            # the wait it was stopped in (with a fresh time limit after CONTINUE, with the
+            # time it had left after a pause).
             self.wait, self.resume_at = self.resume_at or Sleep(0.0), None
-            self.since = self.run.now
+            self.since = self.run.now if self.resume_since is None else self.resume_since
+            self.resume_since = None
         else:
             self._failed(FailureReason.of(result.reason), f"{wait.request.name} refused"
                          + (f": {result.detail}" if result.detail else ""))
@@ -325,9 +336,12 @@ class ActionLeaf(Leaf):
                       **self._data(), reason=reason.value, detail=detail)
         self.fail(Failure(reason, f"{name} failed ({reason.value}): {detail}", self.vehicle_id))
 
-    def resume(self) -> None:
-        """Continue a held action: send its last request again and restart its timer."""
-        self.since = self.run.now
+    def resume(self, fresh: bool) -> None:
+        """Continue a held action: send its last request again; after CONTINUE (``fresh``)
+        its timer starts again, after a pause it goes on."""
+        kept = self.since
+        if fresh:
+            self.since = self.run.now
         request = None
         if isinstance(self.wait, Send):
             # Held while its request was on its way: the answer may have come while the
@@ -335,6 +349,7 @@ class ActionLeaf(Leaf):
             request = self.wait.request
         elif isinstance(self.wait, (Until, Sleep)) and self.last_request is not None:
             request, self.resume_at = self.last_request, self.wait
+            self.resume_since = None if fresh else kept
         if request is not None:
             self.run.note("decision", f"{self.bound.name} resumed", self.vehicle_id,
                           action=self.bound.name)
@@ -492,8 +507,9 @@ class PlanLeaf(Leaf):
             self.run.set_state(self.flying, state, self.vehicle_id)
             self.flying = None
 
-    def resume(self) -> None:
-        """Fly on from the current item: the rest of the plan is sent again."""
+    def resume(self, fresh: bool) -> None:
+        """Fly on from the current item: the rest of the plan is sent again (a new upload,
+        with the time limits of one, after CONTINUE or a pause alike)."""
         first = max(self.index, 0)
         self.tasks, self.actions = self.tasks[first:], self.actions[first:]
         self.index, self.since, self.limit = -1, self.run.now, self.run.options.mission_stall

@@ -138,6 +138,11 @@ class Context(Protocol):
         """The latest vehicle state."""
         ...
 
+    @property
+    def now(self) -> float:
+        """The mission's clock: it stands still while the run is paused."""
+        ...
+
     def note(self, message: str, **data: object) -> None:
         """Write a decision to the flight log."""
         ...
@@ -303,11 +308,11 @@ def _circle(ctx: Context, centre: Point, radius: float, turns: float | None,
         if turns is not None and step > turns * CIRCLE_POINTS_PER_TURN:
             return
         if duration is not None and started is not None and \
-                ctx.state.time - started >= duration:
+                ctx.now - started >= duration:
             return
         yield from fly_to(ctx, circle_point(centre, radius, start, step), "loiter")
         if started is None:
-            started = ctx.state.time  # the time and the turns count once on the circle
+            started = ctx.now  # the time and the turns count once on the circle
         step += 1
 
 

@@ -43,7 +43,6 @@ from tml.language.model import (
     TerminationMode,
 )
 from tml.language.parameters import ParamType
-from tml.language.xml import attribute_location
 
 # Built-in parameters the interpreter keeps itself; every other parameter (telemetry,
 # recognitions, detection parameters) is read from a vehicle (tml.engine.conditions).
@@ -60,6 +59,17 @@ def _did_you_mean(word: str, candidates: Iterable[str]) -> str:
 def check(mission: Mission) -> list[Diagnostic]:
     """All semantic problems of a mission (errors and warnings)."""
     return _Checker(mission).run()
+
+
+def check_jump(mission: Mission, target: str) -> list[Diagnostic]:
+    """What the language says against a JUMP_TO_TASK to ``target`` in ``mission`` (empty:
+    the jump is allowed): the rules of a written ``<termination mode="JUMP_TO_TASK">``,
+    for a jump asked some other way (an operator's, through ``tml serve``). The
+    diagnostics point at the mission element."""
+    checker = _Checker(mission)
+    checker.check_termination(Termination(TerminationMode.JUMP_TO_TASK, mission.location,
+                                          target))
+    return checker.found
 
 
 class _Checker:
@@ -91,6 +101,10 @@ class _Checker:
 
     def at(self, where: Location, attribute: str) -> Location:
         """The location of ``attribute`` in the start tag at ``where``."""
+        # Imported here: the engine checks an operator's jump with these rules, and must not
+        # load the XML parser (lxml) that tml.language.xml holds.
+        from tml.language.xml import attribute_location
+
         return attribute_location(self.mission.source, where, attribute)
 
     # --- declarations and skills -----------------------------------------------------------

@@ -5,9 +5,12 @@ from __future__ import annotations
 import io
 import itertools
 import json
+import threading
+
+import pytest
 
 from tml.engine import Status
-from tml.errors import ExitCode
+from tml.errors import ControlRefused, ExitCode
 from tml.language.validation import validate_file
 from tml.run.journal import Journal
 from tml.run.runner import Runner, RunOptions
@@ -316,3 +319,53 @@ def test_ready_timeout_zero_starts_at_once() -> None:
     assert not [line for line in lines if line["kind"] == "ready"]
     states = {line["task"]: line["state"] for line in lines if line["kind"] == "task"}
     assert states["Only with a fix"] == "skipped"  # read before the GPS said anything
+
+
+def test_controls_asked_from_another_thread_are_applied_between_steps() -> None:
+    vehicle = FakeVehicle()
+    sim = Sim(vehicle)
+    frozen, there, later = threading.Event(), threading.Event(), threading.Event()
+    marks: dict[str, float] = {}
+
+    def wait(timeout: float) -> None:
+        if frozen.is_set():  # time stands still while the test asks for its control
+            runner.wake.wait(0.01)
+            runner.wake.clear()
+            return
+        sim.wait(timeout)
+        if vehicle.position[0] > 5 and not there.is_set():
+            frozen.set()
+            there.set()
+        if "paused" in marks and sim.time > marks["paused"] + 30:
+            later.set()
+
+    log = io.StringIO()
+    runner = Runner(mission(TAKE_OFF + GO + LAND), [vehicle], clock=sim.clock,
+                    journal=Journal(log), wait=wait)
+    with pytest.raises(ControlRefused, match="not started"):
+        runner.control("pause")
+    outcome: list = []
+    thread = threading.Thread(target=lambda: outcome.append(runner.run()))
+    thread.start()
+    assert there.wait(60)
+    with pytest.raises(ControlRefused, match="E240: JUMP_TO_TASK target 'Nowhere'"):
+        runner.control("jump", "Nowhere")
+    runner.control("pause")
+    assert runner.paused and isinstance(vehicle.submitted[-1], Hold)
+    where = vehicle.position
+    marks["paused"] = sim.time
+    frozen.clear()  # 30 s pass, paused
+    assert later.wait(60)
+    frozen.set()
+    assert vehicle.position == pytest.approx(where, abs=0.6)
+    runner.control("resume")
+    assert not runner.paused
+    frozen.clear()
+    thread.join(60)
+    assert outcome[0].exit_code == ExitCode.OK
+    with pytest.raises(ControlRefused, match="has ended"):
+        runner.control("resume")
+    controls = [json.loads(line) for line in log.getvalue().splitlines()
+                if '"kind":"control"' in line]
+    assert [c["control"] for c in controls] == ["pause", "resume"]
+    assert controls[1]["paused"] > 30

@@ -18,6 +18,7 @@ from serving import DATA, MISSIONS, SHORT, TYPO, FakeHangar
 from tml.serve.api import create_app
 from tml.serve.service import Service, ServiceOptions
 from tml.serve.storage import Storage, database_url
+from tml.vehicle import Hold
 
 
 class Served:
@@ -318,3 +319,66 @@ def test_a_second_run_on_a_vehicle_flies_its_own_autopilot_plan(served: Served) 
                             if line["kind"] == "telemetry" and line["position"]))
         served.hangar.flowing.clear()
     assert farthest[1] > 30, farthest  # telemetry is sampled once a second
+
+
+# --- pause, resume, jump -------------------------------------------------------------------
+
+def fly_until(served: Served, done) -> None:
+    """Let time flow until ``done()``, then stop it."""
+    served.hangar.flowing.set()
+    while not done():
+        served.hangar.notify()
+    served.hangar.flowing.clear()
+
+
+def test_pause_holds_the_vehicle_and_resume_flies_on_to_completion(served: Served) -> None:
+    mission = served.upload()
+    run = served.start(mission)
+    fake = served.hangar.fakes[0]
+    fly_until(served, lambda: fake.position[0] > 10)
+    paused = served.client.post(f"/runs/{run['id']}/pause")
+    assert paused.status_code == 200 and paused.json()["status"] == "paused"
+    assert isinstance(fake.submitted[-1], Hold)
+    where, since = fake.position, served.hangar.now
+    fly_until(served, lambda: served.hangar.now > since + 30)  # half a minute paused
+    assert fake.position == pytest.approx(where, abs=0.6)
+    again = served.client.post(f"/runs/{run['id']}/pause")
+    assert again.status_code == 409 and "paused already" in again.json()["error"]
+    resumed = served.client.post(f"/runs/{run['id']}/resume")
+    assert resumed.status_code == 200 and resumed.json()["status"] == "running"
+    ended = served.finish(run["id"])
+    assert (ended["status"], ended["tasks"]["1"]["Out"]) == ("completed", "done")
+    log = served.client.get(f"/runs/{run['id']}/log").text
+    controls = [json.loads(line) for line in log.splitlines() if '"kind":"control"' in line]
+    assert [c["control"] for c in controls] == ["pause", "resume"]
+    late = served.client.post(f"/runs/{run['id']}/resume")
+    assert late.status_code == 409 and "has ended" in late.json()["error"]
+
+
+def test_jump_goes_on_from_the_task_or_is_refused_with_the_languages_reason(
+        served: Served) -> None:
+    mission = served.upload()
+    run = served.start(mission)
+    fake = served.hangar.fakes[0]
+    fly_until(served, lambda: fake.position[0] > 10)
+    refused = served.client.post(f"/runs/{run['id']}/jump", json={"task": "Dwn"})
+    assert refused.status_code == 422
+    assert refused.json()["code"] == "E240" and "did you mean 'Down'" in refused.json()["error"]
+    jumped = served.client.post(f"/runs/{run['id']}/jump", json={"task": "Down"})
+    assert jumped.status_code == 200
+    assert jumped.json()["tasks"]["1"]["Out"] == "aborted"
+    ended = served.finish(run["id"])
+    assert ended["status"] == "completed" and ended["tasks"]["1"]["Down"] == "done"
+    assert fake.position[0] < 30, "it landed where it was, not at the end of the leg"
+
+
+def test_controls_wait_for_the_vehicles_to_be_ready(tmp_path: Path) -> None:
+    served = Served(tmp_path)
+    for fake in served.hangar.fakes:
+        fake.ready = False
+    with served.client:
+        run = served.start(served.upload())
+        answer = served.client.post(f"/runs/{run['id']}/pause")
+        assert answer.status_code == 409 and "not ready" in answer.json()["error"]
+        assert served.client.post(f"/runs/{run['id']}/abort").status_code == 200
+    served.storage.close()

@@ -79,7 +79,12 @@ class EngineError(TmlError):
 
 class ControlRefused(TmlError):
     """An operator's control that a run refuses now, saying why: a pause of a paused run,
-    a resume of a running one, a jump the language does not allow."""
+    a resume of a running one, a jump the language does not allow (``code``: the
+    language's diagnostic code, E240 ...)."""
+
+    def __init__(self, message: str, code: str = "") -> None:
+        super().__init__(message)
+        self.code = code
 
 
 class VehicleError(TmlError):

@@ -238,7 +238,7 @@ class Interpreter:
         if refused:
             first = refused[0]
             raise ControlRefused(f"{first.code}: {first.message}"
-                                 + (f" ({first.hint})" if first.hint else ""))
+                                 + (f" ({first.hint})" if first.hint else ""), first.code)
         path = find_task(run, target)
         self._begin(now, states, {})
         run.note("control", f"jump to {'/'.join(path)}", run.log.vehicle_id, control="jump",

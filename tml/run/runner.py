@@ -24,6 +24,14 @@ whenever that changes; a vehicle still not ready then fails the run (exit 4) wit
 lacked and the autopilot's own reason, before anything is sent to any vehicle. So the
 first conditions never read a value that has not arrived as if it were real.
 
+*The operator's controls.* :meth:`Runner.control` asks, from any thread, for a pause, a
+resume or a jump (:meth:`tml.engine.Interpreter.pause` ...): the request is queued, the
+loop wakes and applies it to every interpreter still running between two steps, and the
+caller gets the answer -- done, or refused with the reason. Before the first task (the
+vehicles not ready yet) and after the run, a control is refused. While paused, the loop goes
+on stepping: the telemetry is logged, a lost link still aborts the run, and the
+interpreters keep every result for when they resume.
+
 *Safety.* The run stops early on an interpreter exception, on a link that stays ``lost``
 longer than ``link_lost_limit`` seconds, or on :meth:`Runner.stop` (Ctrl-C, SIGTERM). Then
 every vehicle still running is handed to its interpreter's :meth:`abort`, which commands
@@ -39,6 +47,7 @@ such step is written to the journal and to ``on_safety`` so that the run says wh
 
 from __future__ import annotations
 
+import queue
 import threading
 import time
 import traceback
@@ -49,7 +58,7 @@ from typing import Any
 
 from tml.engine import Interpreter, Options, Output, Status, View
 from tml.engine.safety import safe_state_request
-from tml.errors import ExitCode
+from tml.errors import ControlRefused, ExitCode
 from tml.language.model import Mission
 from tml.run.journal import Journal, autopilot_fields, telemetry_fields
 from tml.vehicle import IdSource, RequestResult, Vehicle, VehicleState, awaiting
@@ -66,6 +75,19 @@ class RunOptions:
     ready_timeout: float = 180.0  # s for every vehicle to be ready before the first task
     safe_state: str = "rtl"
     engine: Options = field(default_factory=Options)
+
+
+CONTROLS = ("pause", "resume", "jump")  # what Runner.control asks the interpreters for
+
+
+@dataclass
+class _Control:
+    """An operator's control waiting for the loop, and its answer."""
+
+    kind: str
+    target: str = ""
+    done: threading.Event = field(default_factory=threading.Event)
+    refusal: ControlRefused | None = None
 
 
 @dataclass(frozen=True)
@@ -159,6 +181,9 @@ class Runner:
                                             self.ids), [f]) for f in self.flights]
         self._stop_reason = ""
         self.safety_actions: list[str] = []
+        self._controls: queue.SimpleQueue[_Control] = queue.SimpleQueue()
+        self._flying = False  # between the first task and the end: controls are taken
+        self._control_lock = threading.Lock()
 
     # --- control -------------------------------------------------------------------------
 
@@ -166,6 +191,76 @@ class Runner:
         """Ask the loop to abort the run (safe to call from a signal handler or a thread)."""
         self._stop_reason = self._stop_reason or reason
         self.wake.set()
+
+    @property
+    def paused(self) -> bool:
+        """Whether the run is paused (:meth:`control`)."""
+        return any(crew.engine.paused for crew in self.crews if crew.running)
+
+    def control(self, kind: str, target: str = "", timeout: float = 10.0) -> None:
+        """Pause, resume or jump to ``target`` (safe to call from any thread); returns once
+        the loop has done it, or raises :class:`~tml.errors.ControlRefused` with the reason
+        (the run has not started or has ended, the interpreters refused, no answer within
+        ``timeout`` wall seconds)."""
+        if kind not in CONTROLS:
+            raise ControlRefused(f"{kind!r} is not a control (controls: {', '.join(CONTROLS)})")
+        ask = _Control(kind, target)
+        with self._control_lock:
+            if not self._flying:
+                raise ControlRefused(self._not_flying())
+            self._controls.put(ask)
+        self.wake.set()
+        if not ask.done.wait(timeout):
+            raise ControlRefused(f"the run did not answer within {timeout:g} s")
+        if ask.refusal is not None:
+            raise ask.refusal
+
+    def _not_flying(self) -> str:
+        if any(c.running for c in self.crews) and not self._stop_reason:
+            return "the mission has not started: its vehicles are not ready yet"
+        return "the run has ended"
+
+    def _apply_controls(self, now: float) -> None:
+        """Apply the controls asked since the last step, in order."""
+        while True:
+            try:
+                ask = self._controls.get_nowait()
+            except queue.Empty:
+                return
+            running = [crew for crew in self.crews if crew.running]
+            if not running:
+                ask.refusal = ControlRefused("the run has ended")
+            for crew in running:
+                for flight in crew.flights:
+                    flight.state = flight.vehicle.state()
+                self._guarded(crew, now, partial(self._ask, crew, ask, now))
+            ask.done.set()
+
+    @staticmethod
+    def _ask(crew: _Crew, ask: _Control, now: float) -> Output:
+        """One interpreter's part of a control; its refusal is the control's answer."""
+        engine, states = crew.engine, crew.states()
+        try:
+            if ask.kind == "pause":
+                return engine.pause(now, states)
+            if ask.kind == "resume":
+                return engine.resume(now, states)
+            return engine.jump(now, states, ask.target)
+        except ControlRefused as refusal:
+            ask.refusal = ask.refusal or refusal
+            return Output()
+
+    def _close_controls(self) -> None:
+        """No more controls: refuse those still waiting."""
+        with self._control_lock:
+            self._flying = False
+        while True:
+            try:
+                ask = self._controls.get_nowait()
+            except queue.Empty:
+                return
+            ask.refusal = ControlRefused("the run has ended")
+            ask.done.set()
 
     def views(self) -> list[tuple[View, VehicleState | None]]:
         """The display's view of each vehicle: the engine's view and the last state."""
@@ -193,17 +288,21 @@ class Runner:
             flight.state = flight.vehicle.state()
         for crew in self.crews:
             self._guarded(crew, now, partial(crew.engine.start, now, crew.states()))
+        with self._control_lock:
+            self._flying = True
         while any(c.running for c in self.crews):
             self._wait(1.0 / self.options.rate)
             now = self.clock()
             if self._stop_reason:
                 self._abort_all(now, self._stop_reason, "stop")
                 break
+            self._apply_controls(now)
             for crew in self.crews:
                 if crew.running:
                     self._tick(crew, now)
             if self.on_update is not None:
                 self.on_update(self)
+        self._close_controls()
         self._settle()
         return self._end(Outcome(tuple(
             VehicleOutcome(f.vehicle.vehicle_id, c.engine.status, c.engine.reason, f.cause)

@@ -122,6 +122,15 @@ class RunRequest(BaseModel):
     force: bool = Field(default=False, description="fly even an infeasible mission")
 
 
+class JumpRequest(BaseModel):
+    """Where to jump."""
+
+    model_config = ConfigDict(extra="forbid")
+    task: str = Field(min_length=1, max_length=1000,
+                      description="the task to go on from: its name, or its path "
+                                  "(names joined by '/')")
+
+
 class MissionRef(BaseModel):
     """The mission a run flies."""
 
@@ -340,6 +349,26 @@ def _runs(api: APIRouter, service: Service) -> None:
     def abort(run_id: str = _id()) -> dict[str, Any]:
         """Abort a run: every vehicle to its safe state; 409 when it has ended."""
         return service.abort(run_id)
+
+    @api.post("/runs/{run_id}/pause", response_model=RunView, tags=["runs"])
+    def pause(run_id: str = _id()) -> dict[str, Any]:
+        """Pause a run: its flying vehicles hold where they are, nothing of the mission is
+        stepped, and its time limits and elapsed times stop counting; 409 when it has not
+        started, is paused already or has ended."""
+        return service.control(run_id, "pause")
+
+    @api.post("/runs/{run_id}/resume", response_model=RunView, tags=["runs"])
+    def resume(run_id: str = _id()) -> dict[str, Any]:
+        """Resume a paused run: the interrupted actions go on, as after CONTINUE, with the
+        time they had left; 409 when it is not paused."""
+        return service.control(run_id, "resume")
+
+    @api.post("/runs/{run_id}/jump", response_model=RunView, tags=["runs"])
+    def jump(request: JumpRequest, run_id: str = _id()) -> dict[str, Any]:
+        """Go on from a task, as JUMP_TO_TASK does (what runs is stopped, its vehicle
+        holds); 422 with the language's ``code`` when a JUMP_TO_TASK to it would be refused
+        (E240 no such task, E244 an ambiguous name, E283 roles or orchestration)."""
+        return service.control(run_id, "jump", request.task)
 
     @api.get("/runs/{run_id}/log", tags=["runs"], response_class=StreamingResponse,
              responses={200: {"content": {"application/x-ndjson": {

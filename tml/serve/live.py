@@ -173,6 +173,13 @@ class LiveRun:
         self.hangar.subscribe(self.wake)
         self.thread.start()
 
+    def control(self, kind: str, target: str = "") -> None:
+        """Pause, resume or jump (:meth:`~tml.run.runner.Runner.control`); raises
+        ControlRefused with the reason."""
+        self.runner.control(kind, target)
+        if kind in ("pause", "resume") and not self.ended:
+            self._set_status("paused" if self.runner.paused else "running")
+
     def abort(self, reason: str) -> None:
         """End the run now: every vehicle to its safe state (as Ctrl-C does to tml run)."""
         self.runner.stop(reason)

@@ -37,7 +37,7 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from tml.errors import TmlError
+from tml.errors import ControlRefused, TmlError
 from tml.language.model import Mission, Task
 from tml.language.validation import validate_file
 from tml.run.checked import checked_options
@@ -255,6 +255,19 @@ class Service:
         """Abort a live run: every vehicle to its safe state."""
         live = self._live_run(run_id)
         live.abort("aborted by the operator")
+        return self.run(run_id)
+
+    def control(self, run_id: str, kind: str, target: str = "") -> dict[str, Any]:
+        """Pause, resume or jump a live run: 409 when the run refuses now (not started,
+        paused already ...), 422 when the language refuses the jump (with its ``code``)."""
+        live = self._live_run(run_id)
+        try:
+            live.control(kind, target)
+        except ControlRefused as refusal:
+            if refusal.code:
+                raise Refused(f"cannot jump to {target!r}: {refusal}", code=refusal.code
+                              ) from None
+            raise Conflict(f"cannot {kind} run {run_id}: {refusal}") from None
         return self.run(run_id)
 
     def live(self, run_id: str) -> LiveRun | None:

@@ -3,9 +3,10 @@
 embedded simulator.
 
 The test uploads a mission with an error and sees the error's line, uploads a good one,
-starts it, watches the vehicle's marker move and the task states change, and sees the run
-complete; its screenshot is kept in ``test-artifacts/`` (or ``$TML_TEST_ARTIFACTS``).
-Skipped, saying why, only when no browser can be had.
+starts it, watches the vehicle's marker move and the task states change, pauses it (the
+vehicle holds), resumes it, and sees the run complete; its screenshot is kept in
+``test-artifacts/`` (or ``$TML_TEST_ARTIFACTS``). Skipped, saying why, only when no browser
+can be had.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import httpx
 import pytest
 import uvicorn
 from serving import ROOT, SHORT, TYPO, free_port, simulated
@@ -131,12 +133,38 @@ def test_upload_fly_and_watch_a_mission_in_the_browser(browser: Any, page: str,
     assert driver.find_elements(By.CSS_SELECTOR, "#map g.scale"), "the scale is drawn"
     assert driver.find_elements(By.CSS_SELECTOR, "#map g.north"), "the north arrow is drawn"
 
+    # Pause: the vehicle holds (once it has braked, it stays where it is while its clock
+    # runs on); resume: it flies on.
+    driver.find_element(By.ID, "pause").click()
+    wait(driver, "the run paused", lambda d: "paused" in d.find_element(By.ID, "run-status").text)
+    assert task_state(driver, "Out") == "running"
+    def telemetry() -> dict[str, Any]:
+        return dict(httpx.get(f"{page}vehicles/1").json())
+
+    # Told to hold where it was, the vehicle brakes, comes back to that point and stays.
+    told = telemetry()["time"]
+    braked = wait(driver, "the vehicle to settle", lambda d: (
+        lambda v: v if v["time"] > told + 20 else None)(telemetry()))
+    later = wait(driver, "10 s of the vehicle's time",
+                 lambda d: (lambda v: v if v["time"] > braked["time"] + 10 else None)(
+                     telemetry()))
+    assert later["position"] == pytest.approx(braked["position"], abs=0.5), "it holds"
+    assert later["mode"] == braked["mode"]
+    wait(driver, "the marker where the vehicle holds", lambda d: abs(float(d.find_element(
+        By.CSS_SELECTOR, marker).get_attribute("data-north")) - later["position"][0]) < 0.5)
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    driver.save_screenshot(str(ARTIFACTS / "serve-page-paused.png"))
+    driver.find_element(By.ID, "resume").click()
+    wait(driver, "the run resumed", lambda d: "running" in d.find_element(
+        By.ID, "run-status").text)
+    wait(driver, "the marker to move on", lambda d: float(d.find_element(
+        By.CSS_SELECTOR, marker).get_attribute("data-north")) > later["position"][0] + 5)
+
     # The run completes: every task done, the track drawn, the outcome said.
     wait(driver, "the run to complete", lambda d: "completed" in d.find_element(
         By.ID, "run-status").text, timeout=180)
     assert [task_state(driver, t) for t in ("Up", "Out", "Down")] == ["done"] * 3
     assert driver.find_elements(By.CSS_SELECTOR, "#map path.track[data-vehicle='1']")
     assert "exit 0" in driver.find_element(By.ID, "run-status").text
-    ARTIFACTS.mkdir(parents=True, exist_ok=True)
     shot = ARTIFACTS / "serve-page.png"
     assert driver.save_screenshot(str(shot)) and shot.stat().st_size > 10_000

@@ -279,7 +279,7 @@ function record(line) {
     run.status = "running";
     drawRunBar();
   }
-  if (["event", "safety", "mission", "error", "vehicle"].includes(line.kind) ||
+  if (["event", "safety", "mission", "error", "vehicle", "control"].includes(line.kind) ||
       (line.kind === "action" && /fail|infeasible/.test(line.message || "")) ||
       (line.kind === "result" && line.ok === false)) {
     addLine($("#events"), line.t, (whose ? `vehicle ${whose}: ` : "") + (line.message || line.kind),
@@ -357,6 +357,7 @@ async function control(action, body) {
     state.run = await api("POST", `/runs/${state.run.id}/${action}`, body);
     result.replaceChildren();
     drawRun();
+    await refreshRuns();
   } catch (error) {
     result.replaceChildren(element("span", {class: "error", textContent: error.message}));
   }
@@ -373,7 +374,7 @@ function drawTelemetry() {
   const body = $("#telemetry tbody");
   const number = (value, digits) => value === null || value === undefined ? "–" : value.toFixed(digits);
   body.replaceChildren(...state.vehicles.map((v) => element("tr", {"data-vehicle": v.id},
-    element("td", {textContent: `${v.id} ${v.vehicle_type}`}),
+    element("td", {textContent: String(v.id), title: v.vehicle_type}),
     element("td", {textContent: v.link}), element("td", {textContent: v.mode}),
     element("td", {textContent: v.armed ? "yes" : "no"}),
     element("td", {textContent: v.position ? v.position[2].toFixed(1) : "–"}),

@@ -8,7 +8,7 @@ from test_engine_interpreter import LAND, TAKE_OFF, Flight, goto, mission
 
 from tml.engine import Interpreter, Status, TaskState
 from tml.errors import ControlRefused
-from tml.vehicle import FakeVehicle, GoTo, Hold
+from tml.vehicle import FakeVehicle, GoTo, Hold, TakeOff
 
 WAIT_10 = ('<task name="Wait"><action name="WAIT"><argument name="duration" value="10"/>'
            '</action></task>\n')
@@ -191,3 +191,18 @@ def test_abort_while_paused_sends_the_safe_state() -> None:
     flight._take(flight.interp.abort(flight.time, {1: flight.vehicle.state()}, "operator"))
     assert flight.interp.status is Status.ABORTED
     assert flight.vehicle.mode == "RTL"
+
+
+def test_a_vehicle_paused_on_the_ground_is_not_asked_again_on_resume() -> None:
+    # Paused while its take-off was on its way: the vehicle was on the ground, so it was
+    # not told to hold; the answer came during the pause. Sent again, the take-off would be
+    # refused by a vehicle already climbing (ArduCopter: MAV_RESULT_FAILED).
+    flight = Flight(TAKE_OFF + LAND)
+    until(flight, lambda f: bool(f.sent(TakeOff)))
+    pause(flight)
+    assert not any(isinstance(r, Hold) for r in flight.requests)
+    flight.run(3.0)
+    resume(flight)
+    flight.run()
+    assert flight.interp.status is Status.COMPLETED
+    assert len(flight.sent(TakeOff)) == 1

@@ -8,10 +8,15 @@ be opened, the ``serve`` extra not installed), 4 the vehicles cannot be reached.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import ipaddress
 import os
+import signal
 import sys
+import threading
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 from tml.commands.run import add_vehicle_arguments
 
@@ -61,6 +66,25 @@ def _token(args: argparse.Namespace) -> str | None:
             raise ValueError(f"{args.token_file}: the token file is empty")
         return text[0].strip()
     return os.environ.get(TOKEN_VARIABLE) or None
+
+
+@contextlib.contextmanager
+def _stopped_by_signals(server: Any) -> Iterator[None]:
+    """SIGINT and SIGTERM stop the server. uvicorn handles them while it serves, and raises
+    the signal again once it has shut down gracefully; this handler then takes it, so that
+    the service ends with its own exit code rather than killed by the signal."""
+    def stop(_number: int, _frame: Any) -> None:
+        server.should_exit = True
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {sig: signal.signal(sig, stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -122,7 +146,10 @@ def run(args: argparse.Namespace) -> int:
                   f"storage{'; token required' if token else ''})", flush=True)
             server = uvicorn.Server(uvicorn.Config(create_app(service, token), host=args.host,
                                                    port=args.port, log_level="warning"))
-            server.run()  # until SIGINT or SIGTERM; the app's shutdown stops every run
+            with _stopped_by_signals(server):
+                server.run()  # until SIGINT or SIGTERM; the app's shutdown stops every run
+            for message in service.said:
+                print(f"tml serve: {message}", file=sys.stderr)
             return EXIT_OK if server.started else EXIT_USAGE
     except TmlError as error:
         print(f"tml serve: {error}", file=sys.stderr)

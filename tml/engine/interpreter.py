@@ -98,6 +98,7 @@ class Interpreter:
                               lambda task, entry: TaskNode(run, task, {}, None, entry))
         self._results: dict[int, list[RequestResult]] = {}
         self._started = False
+        self._held: set[int] = set()  # the vehicles the last pause told to hold
 
     @property
     def status(self) -> Status:
@@ -201,15 +202,18 @@ class Interpreter:
         run.log.paused_at = now
         run.note("control", f"mission paused: {reason}", run.log.vehicle_id, control="pause",
                  reason=reason)
+        self._held = set()
         for pilot in run.pilots.values():
             if pilot.duty is not Duty.LOST and pilot.state.flying and self._flies(pilot):
                 run.send(Hold(pilot.vehicle_id))
+                self._held.add(pilot.vehicle_id)
         return run.log.take()
 
     def resume(self, now: float, states: Mapping[int, VehicleState]) -> Output:
-        """Go on after :meth:`pause`: the interrupted work continues as after CONTINUE (its
-        last request sent again), with the time it had left. ControlRefused when the run is
-        not paused."""
+        """Go on after :meth:`pause`: the results that came meanwhile are handed over, then
+        the work of every vehicle the pause held continues as after CONTINUE (its last
+        request sent again), with the time it had left. ControlRefused when the run is not
+        paused."""
         run = self._controllable("resume")
         if not run.paused:
             raise ControlRefused("the run is not paused")
@@ -220,9 +224,11 @@ class Interpreter:
         log.paused += paused
         run.note("control", f"mission resumed after {paused:.1f} s paused", log.vehicle_id,
                  control="resume", paused=round(paused, 3))
+        for pilot in run.pilots.values():  # what was answered meanwhile, first
+            self._hand_over(pilot, self._results.pop(pilot.vehicle_id, []))
         if run.jump_to is None:  # a jump asked meanwhile stops the work instead
-            for pilot in run.pilots.values():
-                for work in list(pilot.work):
+            for vid in self._held:  # a vehicle that did not hold has nothing to resend
+                for work in list(run.pilots[vid].work):
                     work.carry_on()
         self._tick()
         return log.take()

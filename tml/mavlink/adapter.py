@@ -574,6 +574,14 @@ class MavlinkVehicle:
             if not self.link.telemetry(self.system_id).armed:
                 self.mav.arm()
             return
+        t = self.link.telemetry(self.system_id)
+        if t.armed and t.mode == "GUIDED" and t.position is not None \
+                and t.landed_state in (mavlink.MAV_LANDED_STATE_IN_AIR,
+                                       mavlink.MAV_LANDED_STATE_TAKEOFF):
+            # ArduCopter refuses NAV_TAKEOFF in the air (FAILED): a take-off asked again
+            # there -- resumed after a hold -- climbs on to its altitude where it is.
+            self._aim(t.position.latitude, t.position.longitude, request.altitude)
+            return
         for attempt in range(TAKEOFF_ATTEMPTS):
             try:
                 self.mav.takeoff(request.altitude)

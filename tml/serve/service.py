@@ -44,7 +44,7 @@ from tml.run.checked import checked_options
 from tml.run.journal import jsonable, telemetry_fields
 from tml.serve.hangar import Hangar, VehicleTaken
 from tml.serve.live import LiveRun, TaskBoard
-from tml.serve.storage import Storage, StoredMission, StoredRun
+from tml.serve.storage import ACTIVE, Storage, StoredMission, StoredRun
 from tml.vehicle import IdSource, awaiting
 from tml.verify.inflight import preflight
 from tml.verify.motion import VehicleState as StartState
@@ -105,6 +105,7 @@ class Service:
         self.hangar = hangar
         self.options = options or ServiceOptions()
         self.started = time.time()
+        self.said: list[str] = []  # what stopping did to leave the vehicles safe
         # One numbering of requests and plans for every run: a vehicle that still reports
         # the last run's plan never has it taken for the next run's.
         self.ids = IdSource()
@@ -119,13 +120,15 @@ class Service:
         return self.storage.interrupt_unfinished(self.options.instance)
 
     def stop(self, reason: str = "the service is stopping") -> None:
-        """Abort every live run (safe state first) and wait for each to end."""
+        """Abort every live run (safe state first) and wait for each to end; what was done
+        to leave the vehicles safe is in :attr:`said`."""
         with self._lock:
             live = list(self._live.values())
         for run in live:
             run.abort(reason)
         for run in live:
             run.join(self.options.stop_timeout)
+            self.said.extend(f"run {run.id}: {message}" for message in run.safety)
 
     def status(self) -> dict[str, Any]:
         """What the service is: instance, storage, vehicles, live runs."""
@@ -351,7 +354,11 @@ class Service:
         live = self.live(run_id)
         if live is None:
             stored = self._stored_run(run_id)
-            raise Conflict(f"run {run_id} has ended ({stored.status})", status=stored.status)
+            if stored.instance != self.options.instance and stored.status in ACTIVE:
+                raise Conflict(f"run {run_id} is flown by the service instance "
+                               f"{stored.instance!r}, not this one ({self.options.instance!r})",
+                               instance=stored.instance)
+            raise Conflict(f"run {run_id} has ended ({stored.status})", run_status=stored.status)
         return live
 
     @staticmethod

@@ -1,0 +1,178 @@
+"""``tml serve`` as a command: the curl examples of docs/serve.md run as written against
+``tml serve --sim --vehicles 2``, a service killed in flight marks the run interrupted
+when it starts again, SIGTERM leaves the vehicles safe, and the refusals to start.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import re
+import shlex
+import signal
+import sqlite3
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import httpx
+import pytest
+from serving import FAST_SIM, ROOT, SHORT, free_port
+
+from tml.commands.cli import main
+
+DOC = (ROOT / "docs" / "serve.md").read_text(encoding="utf-8")
+FAST = ["--speedup", "10", *[f for name, value in FAST_SIM.items()
+                             for f in ("--sim-param", f"{name}={value:g}")]]
+
+
+class Server:
+    """``tml serve`` in its own process on a free port."""
+
+    def __init__(self, args: list[str], data: Path) -> None:
+        self.port = free_port()
+        self.url = f"http://127.0.0.1:{self.port}"
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "tml", "serve", *args, "--port", str(self.port),
+             "--data", str(data)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+            text=True, cwd=ROOT)
+        assert self.process.stdout is not None
+        self.said = ""  # what it says before its banner, said once the vehicles are open
+        while not (line := self.process.stdout.readline()).startswith("tml serve: http://"):
+            assert line, self.said
+            self.said += line
+        with httpx.Client() as client:  # the banner comes just before the server binds
+            while True:
+                try:
+                    client.get(f"{self.url}/status")
+                    break
+                except httpx.TransportError:
+                    assert self.process.poll() is None, self.process.stdout.read()
+
+    def stop(self, sig: int = signal.SIGTERM) -> tuple[int, str]:
+        self.process.send_signal(sig)
+        out, _ = self.process.communicate(timeout=120)
+        return self.process.returncode, out
+
+
+@pytest.fixture
+def data(tmp_path: Path) -> Path:
+    return tmp_path / "data"
+
+
+@pytest.fixture
+def server(data: Path) -> Iterator[Server]:
+    command = re.search(r"```\n(tml serve --sim --vehicles 2)\n```", DOC)
+    assert command, "docs/serve.md shows how to start the service the examples use"
+    found = Server([*shlex.split(command.group(1))[2:], *FAST], data)
+    yield found
+    if found.process.poll() is None:
+        found.stop()
+
+
+def test_the_curl_examples_of_the_docs_work_as_written(server: Server, tmp_path: Path) -> None:
+    api = DOC[DOC.index("## The API"):DOC.index("## The page")]
+    blocks = re.findall(r"```sh\n(.*?)```", api, re.S)
+    assert len(blocks) >= 8
+    state = tmp_path / "state.sh"
+    state.write_text("")
+    outputs = []
+    names = sorted(set(re.findall(r"^([A-Z]+)=", "\n".join(blocks), re.M)))
+    for block in blocks:
+        # The examples as written, on this test's port; the shell variables they set
+        # (MISSION, RUN ...) are carried from one block to the next.
+        script = (f"set -euo pipefail\nsource {state}\n"
+                  + block.replace("127.0.0.1:8080", f"127.0.0.1:{server.port}")
+                  + f"\ndeclare -p {' '.join(names)} > {state} 2>/dev/null || true\n")
+        done = subprocess.run(["bash", "-c", script], capture_output=True, text=True,
+                              cwd=tmp_path if "flight.jsonl" in block else ROOT, timeout=600)
+        assert done.returncode == 0, (block, done.stdout, done.stderr)
+        outputs.append(done.stdout)
+    # What the docs show of the answers is what the service answers.
+    shown = json.loads(re.search(r"```json\n(.*?)```", api, re.S).group(1))
+    invalid = next(out for block, out in zip(blocks, outputs, strict=True)
+                   if "unknown_action.xml" in block)
+    assert json.loads(invalid) == shown
+    refused = next(out for block, out in zip(blocks, outputs, strict=True) if "RUN=$(" in block)
+    assert '"error":"vehicle 1 is held by run ' in refused
+    stream = next(out for block, out in zip(blocks, outputs, strict=True) if "/stream" in block)
+    assert "event: end" in stream, stream
+    assert json.loads(stream.split("data: ")[-1])["status"] == "completed", stream
+    log = [json.loads(line) for line in (tmp_path / "flight.jsonl").read_text().splitlines()]
+    assert [c["control"] for c in log if c["kind"] == "control"] == ["pause", "resume", "jump"]
+    assert log[-1]["kind"] == "run" and log[-1]["exit_code"] == 0
+    with httpx.Client(base_url=server.url) as client:
+        runs = client.get("/runs").json()
+        assert [r["status"] for r in runs] == ["completed", "aborted"]
+        assert client.get("/missions").json() == []
+    code, out = server.stop()
+    assert code == 0, out
+
+
+def test_a_run_flying_when_the_service_was_killed_is_interrupted_after_a_restart(
+        data: Path) -> None:
+    first = Server(["--sim", *FAST], data)
+    with httpx.Client(base_url=first.url, timeout=30) as client:
+        mission = client.post("/missions", content=SHORT,
+                              headers={"Content-Type": "application/xml"}).json()["id"]
+        run = client.post("/runs", json={"mission": mission}).json()["id"]
+        while client.get(f"/runs/{run}").json()["status"] != "running":
+            pass
+    with contextlib.closing(sqlite3.connect(data / "tml.sqlite")) as db:
+        while not db.execute("SELECT count(*) FROM log_lines WHERE run_id = ?",
+                             (run,)).fetchone()[0]:
+            pass  # the log is stored in batches: wait for the first
+    first.stop(signal.SIGKILL)  # no chance to land, nor to say anything
+    again = Server(["--sim", *FAST], data)
+    assert f"run {run} was flying when the service stopped: marked interrupted" in again.said
+    with httpx.Client(base_url=again.url, timeout=30) as client:
+        found = client.get(f"/runs/{run}").json()
+        assert (found["status"], found["exit_code"]) == ("interrupted", None)
+        assert "stopped while the run was flying" in found["reason"]
+        assert client.get(f"/runs/{run}/log").text.count("\n") >= 1, "its log so far is kept"
+        assert client.get("/vehicles/1").json()["run"] is None
+    code, out = again.stop()
+    assert code == 0, out
+
+
+def test_sigterm_sends_a_flying_vehicle_to_its_safe_state_first(data: Path) -> None:
+    server = Server(["--sim", *FAST], data)
+    with httpx.Client(base_url=server.url, timeout=30) as client:
+        mission = client.post("/missions", content=SHORT,
+                              headers={"Content-Type": "application/xml"}).json()["id"]
+        run = client.post("/runs", json={"mission": mission}).json()["id"]
+        while not any(r["kind"] == "task" and r["task"] == "Out" for r in
+                      map(json.loads, client.get(f"/runs/{run}/log").text.splitlines())):
+            pass
+    code, out = server.stop(signal.SIGTERM)
+    assert code == 0, out
+    assert f"run {run}: vehicle 1: vehicle in the air: ReturnToLaunch" in out
+    again = Server(["--sim", *FAST], data)  # what the first one left in the database
+    with httpx.Client(base_url=again.url, timeout=30) as client:
+        found = client.get(f"/runs/{run}").json()
+        assert (found["status"], found["exit_code"]) == ("aborted", 3)
+        assert "the service is stopping" in found["reason"]
+        safety = [json.loads(line) for line in client.get(f"/runs/{run}/log").text.splitlines()
+                  if '"kind":"safety"' in line]
+        assert safety[0]["request"] == "ReturnToLaunch"
+    again.stop()
+
+
+def test_without_a_token_only_loopback_is_served(capsys: pytest.CaptureFixture[str],
+                                                 tmp_path: Path) -> None:
+    assert main(["serve", "--sim", "--host", "0.0.0.0", "--data", str(tmp_path)]) == 2
+    assert "refusing to serve on 0.0.0.0 without a token" in capsys.readouterr().err
+    empty = tmp_path / "token"
+    empty.write_text("\n")
+    assert main(["serve", "--sim", "--token-file", str(empty), "--data", str(tmp_path)]) == 2
+    assert "the token file is empty" in capsys.readouterr().err
+
+
+def test_a_database_that_cannot_be_opened_is_one_clear_error(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    assert main(["serve", "--sim", "--database", "postgresql://nobody@127.0.0.1:1/none",
+                 "--data", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("tml serve: cannot open the database postgresql+psycopg://nobody@")
+    assert "Traceback" not in err

@@ -10,6 +10,7 @@ still, so a run the fuzzer starts stays in flight until the module ends.
 from __future__ import annotations
 
 import os
+import shutil
 import tempfile
 from collections import Counter
 from collections.abc import Iterator
@@ -40,6 +41,7 @@ def _stop_the_service() -> Iterator[None]:
     yield
     _SERVICE.stop()
     _STORAGE.close()
+    shutil.rmtree(_DATA, ignore_errors=True)
 
 
 @schema.parametrize()

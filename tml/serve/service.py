@@ -47,7 +47,7 @@ from tml.serve.live import LiveRun, TaskBoard
 from tml.serve.storage import ACTIVE, Storage, StoredMission, StoredRun
 from tml.vehicle import IdSource, awaiting
 from tml.verify.inflight import preflight
-from tml.verify.motion import VehicleState as StartState
+from tml.verify.motion import PredictedState
 from tml.verify.profile import SHIPPED, load_profile
 from tml.verify.report import report_document
 from tml.verify.static import verify_mission
@@ -187,7 +187,7 @@ class Service:
         mission = self._parse(stored.id, stored.filename, stored.source)
         home = (mission.world or World()).home_or_default
         report = verify_mission(mission, _profile(profile), None,
-                                StartState(battery=battery, heading=home.heading))
+                                PredictedState(battery=battery, heading=home.heading))
         return report_document(report)
 
     # --- runs ----------------------------------------------------------------------------

@@ -67,6 +67,10 @@ class _Context:
     def state(self) -> VehicleState:
         return self.vehicle.state()
 
+    @property
+    def now(self) -> float:
+        return self.vehicle.time  # the mission's clock: the fake's own
+
     def note(self, message: str, **data: object) -> None:
         pass
 

@@ -19,8 +19,8 @@ from pathlib import Path
 from typing import Any
 
 from tml.commands.run import add_vehicle_arguments
+from tml.errors import ExitCode
 
-EXIT_OK, EXIT_USAGE, EXIT_FAILURE = 0, 2, 4
 TOKEN_VARIABLE = "TML_SERVE_TOKEN"
 
 
@@ -87,7 +87,7 @@ def _stopped_by_signals(server: Any) -> Iterator[None]:
             signal.signal(sig, handler)
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> ExitCode:
     """Run ``tml serve`` until SIGINT or SIGTERM; return the exit code."""
     try:
         import uvicorn
@@ -96,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
     except ImportError as error:
         print(f"tml serve: {error.name or error} is missing: install tml with its serve extra "
               "(pip install 'tml[serve]')", file=sys.stderr)
-        return EXIT_USAGE
+        return ExitCode.USAGE
     from tml.errors import TmlError
     from tml.serve.hangar import Hangar
     from tml.serve.service import Service, ServiceOptions
@@ -107,21 +107,21 @@ def run(args: argparse.Namespace) -> int:
         token = _token(args)
     except (OSError, ValueError) as error:
         print(f"tml serve: {error}", file=sys.stderr)
-        return EXIT_USAGE
+        return ExitCode.USAGE
     if token is None and not is_loopback(args.host):
         print(f"tml serve: refusing to serve on {args.host} without a token: give --token, "
               f"--token-file or ${TOKEN_VARIABLE}, or serve on 127.0.0.1", file=sys.stderr)
-        return EXIT_USAGE
+        return ExitCode.USAGE
     if not 0 <= args.port <= 65535:
         print(f"tml serve: --port {args.port}: expected 0 to 65535", file=sys.stderr)
-        return EXIT_USAGE
+        return ExitCode.USAGE
     try:
         if args.database is None:
             Path(args.data).mkdir(parents=True, exist_ok=True)
         storage = Storage(database_url(args.database, Path(args.data)))
     except (OSError, TmlError) as error:
         print(f"tml serve: {error}", file=sys.stderr)
-        return EXIT_USAGE
+        return ExitCode.USAGE
     from tml.commands.run import open_vehicles
 
     hangars: list[Hangar] = []  # the hangar, once the vehicles it holds are open
@@ -150,12 +150,12 @@ def run(args: argparse.Namespace) -> int:
                 server.run()  # until SIGINT or SIGTERM; the app's shutdown stops every run
             for message in service.said:
                 print(f"tml serve: {message}", file=sys.stderr)
-            return EXIT_OK if server.started else EXIT_USAGE
+            return ExitCode.OK if server.started else ExitCode.USAGE
     except TmlError as error:
         print(f"tml serve: {error}", file=sys.stderr)
-        return EXIT_FAILURE
+        return ExitCode.FAILURE
     except OSError as error:
         print(f"tml serve: cannot open the vehicle link: {error}", file=sys.stderr)
-        return EXIT_FAILURE
+        return ExitCode.FAILURE
     finally:
         storage.close()

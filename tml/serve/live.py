@@ -28,16 +28,17 @@ from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 from tml.engine.safety import safe_state_request
+from tml.errors import ExitCode
 from tml.language.model import Mission
 from tml.run.journal import Journal
-from tml.run.runner import ExitCode, Outcome, Runner, RunOptions
+from tml.run.runner import Outcome, Runner, RunOptions
 from tml.serve.hangar import Hangar
 from tml.serve.storage import Storage, StoredRun
 from tml.vehicle import IdSource
 
 STORE_PERIOD = 0.5  # s between two writes of a run's new log lines to the database
-STATUS_OF_EXIT = {ExitCode.COMPLETED: "completed", ExitCode.ABORTED: "aborted",
-                  ExitCode.VEHICLE_FAILURE: "failed", ExitCode.INVALID: "failed"}
+STATUS_OF_EXIT = {ExitCode.OK: "completed", ExitCode.ABORTED: "aborted",
+                  ExitCode.FAILURE: "failed", ExitCode.INVALID: "failed"}
 FLEET = ""  # the task board's key for tasks no vehicle flies (orchestration only)
 
 Listener = Callable[[int, str | None], None]  # (seq, line); line None: the log has ended
@@ -214,7 +215,7 @@ class LiveRun:
             self.runner.journal.write(self.hangar.clock(), "error", None, message=self.reason,
                                       traceback=traceback.format_exc())
             self._safe_state(self.reason)
-            status, exit_code = "failed", int(ExitCode.VEHICLE_FAILURE)
+            status, exit_code = "failed", int(ExitCode.FAILURE)
         self.ended_at = time.time()
         try:
             self._set_status(status, reason=self.reason, outcomes=self.outcomes,

@@ -11,7 +11,7 @@ import socket
 import subprocess
 import tempfile
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -70,6 +70,16 @@ class FakeHangar(Hangar):
         self.flowing = threading.Event()
         if flowing:
             self.flowing.set()
+        self._until: Callable[[], bool] | None = None
+        self._there = threading.Event()
+
+    def fly_until(self, done: Callable[[], bool], timeout: float = 60.0) -> None:
+        """Let time flow until ``done()`` holds, then stop it -- in the step that made it
+        hold, however busy the machine (a test's own check would come steps later)."""
+        self._there.clear()
+        self._until = done
+        self.flowing.set()
+        assert self._there.wait(timeout), "it never got there"
 
     def wait(self, wake: threading.Event, timeout: float) -> None:
         if not self.flowing.is_set():
@@ -79,6 +89,10 @@ class FakeHangar(Hangar):
             self.now += timeout
             for fake in self.fakes:
                 fake.advance(timeout)
+            if self._until is not None and self._until():
+                self.flowing.clear()
+                self._until = None
+                self._there.set()
         wake.clear()
 
 

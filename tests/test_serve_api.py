@@ -172,11 +172,8 @@ def test_two_runs_fly_at_once_and_a_vehicle_belongs_to_one_run(served: Served) -
 def test_abort_sends_the_vehicles_to_their_safe_state(served: Served) -> None:
     mission = served.upload()
     run = served.start(mission, safe_state="land")
-    served.hangar.flowing.set()
     fake = served.hangar.fakes[0]
-    while fake.position[2] < 5:  # the take-off is under way
-        served.hangar.notify()
-    served.hangar.flowing.clear()
+    served.hangar.fly_until(lambda: fake.position[2] > 5)  # the take-off is under way
     aborted = served.client.post(f"/runs/{run['id']}/abort")
     assert aborted.status_code == 200
     ended = served.finish(run["id"])
@@ -323,24 +320,16 @@ def test_a_second_run_on_a_vehicle_flies_its_own_autopilot_plan(served: Served) 
 
 # --- pause, resume, jump -------------------------------------------------------------------
 
-def fly_until(served: Served, done) -> None:
-    """Let time flow until ``done()``, then stop it."""
-    served.hangar.flowing.set()
-    while not done():
-        served.hangar.notify()
-    served.hangar.flowing.clear()
-
-
 def test_pause_holds_the_vehicle_and_resume_flies_on_to_completion(served: Served) -> None:
     mission = served.upload()
     run = served.start(mission)
     fake = served.hangar.fakes[0]
-    fly_until(served, lambda: fake.position[0] > 10)
+    served.hangar.fly_until(lambda: fake.position[0] > 10)
     paused = served.client.post(f"/runs/{run['id']}/pause")
     assert paused.status_code == 200 and paused.json()["status"] == "paused"
     assert isinstance(fake.submitted[-1], Hold)
     where, since = fake.position, served.hangar.now
-    fly_until(served, lambda: served.hangar.now > since + 30)  # half a minute paused
+    served.hangar.fly_until(lambda: served.hangar.now > since + 30)  # half a minute paused
     assert fake.position == pytest.approx(where, abs=0.6)
     again = served.client.post(f"/runs/{run['id']}/pause")
     assert again.status_code == 409 and "paused already" in again.json()["error"]
@@ -360,7 +349,7 @@ def test_jump_goes_on_from_the_task_or_is_refused_with_the_languages_reason(
     mission = served.upload()
     run = served.start(mission)
     fake = served.hangar.fakes[0]
-    fly_until(served, lambda: fake.position[0] > 10)
+    served.hangar.fly_until(lambda: fake.position[0] > 10)
     refused = served.client.post(f"/runs/{run['id']}/jump", json={"task": "Dwn"})
     assert refused.status_code == 422
     assert refused.json()["code"] == "E240" and "did you mean 'Down'" in refused.json()["error"]

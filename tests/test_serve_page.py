@@ -76,10 +76,22 @@ def page(tmp_path: Path) -> Iterator[str]:
 
 
 def wait(driver: Any, what: str, check: Any, timeout: float = 60) -> Any:
+    """``check(driver)`` once it is true. The page redraws its lists and its map every
+    second: an element found just before a redraw is gone after it (stale), and is looked
+    for again."""
+    from selenium.common.exceptions import StaleElementReferenceException
     from selenium.webdriver.support.ui import WebDriverWait
 
-    return WebDriverWait(driver, timeout, poll_frequency=0.1).until(
+    return WebDriverWait(driver, timeout, poll_frequency=0.1,
+                         ignored_exceptions=[StaleElementReferenceException]).until(
         lambda d: check(d), message=f"waiting for {what}")
+
+
+def click(driver: Any, selector: str) -> None:
+    from selenium.webdriver.common.by import By
+
+    wait(driver, f"a click on {selector}",
+         lambda d: d.find_element(By.CSS_SELECTOR, selector).click() or True)
 
 
 def test_upload_fly_and_watch_a_mission_in_the_browser(browser: Any, page: str,
@@ -111,8 +123,10 @@ def test_upload_fly_and_watch_a_mission_in_the_browser(browser: Any, page: str,
     wait(driver, "the upload", lambda d: "valid" in d.find_element(By.ID, "upload-result").text)
     wait(driver, "the mission in the list", lambda d: d.find_elements(
         By.CSS_SELECTOR, "#missions li.chosen"))
-    driver.find_element(By.CSS_SELECTOR, "#vehicle-choice input[value='1']").click()
-    driver.find_element(By.ID, "start").click()
+    click(driver, "#vehicle-choice input[value='1']")
+    wait(driver, "vehicle 1 chosen", lambda d: d.find_element(
+        By.CSS_SELECTOR, "#vehicle-choice input[value='1']").is_selected())
+    click(driver, "#start")
     wait(driver, "the run to start", lambda d: "running" in d.find_element(
         By.ID, "run-status").text, timeout=120)
 
@@ -126,7 +140,7 @@ def test_upload_fly_and_watch_a_mission_in_the_browser(browser: Any, page: str,
     wait(driver, "the leg running", lambda d: task_state(d, "Out") == "running")
     marker = "#map g.vehicle[data-vehicle='1']"
     before = float(wait(driver, "the marker", lambda d: d.find_element(
-        By.CSS_SELECTOR, marker)).get_attribute("data-north"))
+        By.CSS_SELECTOR, marker).get_attribute("data-north")))
     wait(driver, "the marker to move north", lambda d: float(d.find_element(
         By.CSS_SELECTOR, marker).get_attribute("data-north")) > before + 5)
     assert driver.find_elements(By.CSS_SELECTOR, "#map path.plan"), "the planned path is drawn"
@@ -135,9 +149,9 @@ def test_upload_fly_and_watch_a_mission_in_the_browser(browser: Any, page: str,
 
     # Pause: the vehicle holds (once it has braked, it stays where it is while its clock
     # runs on); resume: it flies on.
-    driver.find_element(By.ID, "pause").click()
+    click(driver, "#pause")
     wait(driver, "the run paused", lambda d: "paused" in d.find_element(By.ID, "run-status").text)
-    assert task_state(driver, "Out") == "running"
+    wait(driver, "the leg still running", lambda d: task_state(d, "Out") == "running")
     def telemetry() -> dict[str, Any]:
         return dict(httpx.get(f"{page}vehicles/1").json())
 
@@ -154,7 +168,7 @@ def test_upload_fly_and_watch_a_mission_in_the_browser(browser: Any, page: str,
         By.CSS_SELECTOR, marker).get_attribute("data-north")) - later["position"][0]) < 0.5)
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
     driver.save_screenshot(str(ARTIFACTS / "serve-page-paused.png"))
-    driver.find_element(By.ID, "resume").click()
+    click(driver, "#resume")
     wait(driver, "the run resumed", lambda d: "running" in d.find_element(
         By.ID, "run-status").text)
     wait(driver, "the marker to move on", lambda d: float(d.find_element(
@@ -163,7 +177,8 @@ def test_upload_fly_and_watch_a_mission_in_the_browser(browser: Any, page: str,
     # The run completes: every task done, the track drawn, the outcome said.
     wait(driver, "the run to complete", lambda d: "completed" in d.find_element(
         By.ID, "run-status").text, timeout=180)
-    assert [task_state(driver, t) for t in ("Up", "Out", "Down")] == ["done"] * 3
+    wait(driver, "every task done", lambda d: [task_state(d, t) for t in ("Up", "Out", "Down")]
+         == ["done"] * 3)
     assert driver.find_elements(By.CSS_SELECTOR, "#map path.track[data-vehicle='1']")
     assert "exit 0" in driver.find_element(By.ID, "run-status").text
     shot = ARTIFACTS / "serve-page.png"

@@ -50,6 +50,14 @@ class Server:
                 except httpx.TransportError:
                     assert self.process.poll() is None, self.process.stdout.read()
 
+    def __enter__(self) -> Server:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.process.poll() is None:  # a test that failed half way: stop it all the same
+            self.process.kill()
+            self.process.communicate(timeout=60)
+
     def stop(self, sig: int = signal.SIGTERM) -> tuple[int, str]:
         self.process.send_signal(sig)
         out, _ = self.process.communicate(timeout=120)
@@ -65,10 +73,8 @@ def data(tmp_path: Path) -> Path:
 def server(data: Path) -> Iterator[Server]:
     command = re.search(r"```\n(tml serve --sim --vehicles 2)\n```", DOC)
     assert command, "docs/serve.md shows how to start the service the examples use"
-    found = Server([*shlex.split(command.group(1))[2:], *FAST], data)
-    yield found
-    if found.process.poll() is None:
-        found.stop()
+    with Server([*shlex.split(command.group(1))[2:], *FAST], data) as found:
+        yield found
 
 
 def test_the_curl_examples_of_the_docs_work_as_written(server: Server, tmp_path: Path) -> None:
@@ -110,53 +116,56 @@ def test_the_curl_examples_of_the_docs_work_as_written(server: Server, tmp_path:
     assert code == 0, out
 
 
+def start_a_run(client: httpx.Client) -> str:
+    mission = client.post("/missions", content=SHORT,
+                          headers={"Content-Type": "application/xml"}).json()["id"]
+    return str(client.post("/runs", json={"mission": mission}).json()["id"])
+
+
 def test_a_run_flying_when_the_service_was_killed_is_interrupted_after_a_restart(
         data: Path) -> None:
-    first = Server(["--sim", *FAST], data)
-    with httpx.Client(base_url=first.url, timeout=30) as client:
-        mission = client.post("/missions", content=SHORT,
-                              headers={"Content-Type": "application/xml"}).json()["id"]
-        run = client.post("/runs", json={"mission": mission}).json()["id"]
+    with Server(["--sim", *FAST], data) as first, \
+            httpx.Client(base_url=first.url, timeout=30) as client:
+        run = start_a_run(client)
         while client.get(f"/runs/{run}").json()["status"] != "running":
             pass
-    with contextlib.closing(sqlite3.connect(data / "tml.sqlite")) as db:
-        while not db.execute("SELECT count(*) FROM log_lines WHERE run_id = ?",
-                             (run,)).fetchone()[0]:
-            pass  # the log is stored in batches: wait for the first
-    first.stop(signal.SIGKILL)  # no chance to land, nor to say anything
-    again = Server(["--sim", *FAST], data)
-    assert f"run {run} was flying when the service stopped: marked interrupted" in again.said
-    with httpx.Client(base_url=again.url, timeout=30) as client:
+        with contextlib.closing(sqlite3.connect(data / "tml.sqlite")) as db:
+            while not db.execute("SELECT count(*) FROM log_lines WHERE run_id = ?",
+                                 (run,)).fetchone()[0]:
+                pass  # the log is stored in batches: wait for the first
+        first.stop(signal.SIGKILL)  # no chance to land, nor to say anything
+    with Server(["--sim", *FAST], data) as again, \
+            httpx.Client(base_url=again.url, timeout=30) as client:
+        assert f"run {run} was flying when the service stopped: marked interrupted" \
+            in again.said
         found = client.get(f"/runs/{run}").json()
         assert (found["status"], found["exit_code"]) == ("interrupted", None)
         assert "stopped while the run was flying" in found["reason"]
         assert client.get(f"/runs/{run}/log").text.count("\n") >= 1, "its log so far is kept"
         assert client.get("/vehicles/1").json()["run"] is None
-    code, out = again.stop()
-    assert code == 0, out
+        code, out = again.stop()
+        assert code == 0, out
 
 
 def test_sigterm_sends_a_flying_vehicle_to_its_safe_state_first(data: Path) -> None:
-    server = Server(["--sim", *FAST], data)
-    with httpx.Client(base_url=server.url, timeout=30) as client:
-        mission = client.post("/missions", content=SHORT,
-                              headers={"Content-Type": "application/xml"}).json()["id"]
-        run = client.post("/runs", json={"mission": mission}).json()["id"]
+    with Server(["--sim", *FAST], data) as server, \
+            httpx.Client(base_url=server.url, timeout=30) as client:
+        run = start_a_run(client)
         while not any(r["kind"] == "task" and r["task"] == "Out" for r in
                       map(json.loads, client.get(f"/runs/{run}/log").text.splitlines())):
             pass
-    code, out = server.stop(signal.SIGTERM)
-    assert code == 0, out
-    assert f"run {run}: vehicle 1: vehicle in the air: ReturnToLaunch" in out
-    again = Server(["--sim", *FAST], data)  # what the first one left in the database
-    with httpx.Client(base_url=again.url, timeout=30) as client:
+        code, out = server.stop(signal.SIGTERM)
+        assert code == 0, out
+        assert f"run {run}: vehicle 1: vehicle in the air: ReturnToLaunch" in out
+    with Server(["--sim", *FAST], data) as again, \
+            httpx.Client(base_url=again.url, timeout=30) as client:
+        # What the first one left in the database.
         found = client.get(f"/runs/{run}").json()
         assert (found["status"], found["exit_code"]) == ("aborted", 3)
         assert "the service is stopping" in found["reason"]
         safety = [json.loads(line) for line in client.get(f"/runs/{run}/log").text.splitlines()
                   if '"kind":"safety"' in line]
         assert safety[0]["request"] == "ReturnToLaunch"
-    again.stop()
 
 
 def test_without_a_token_only_loopback_is_served(capsys: pytest.CaptureFixture[str],

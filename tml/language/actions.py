@@ -25,6 +25,7 @@ from tml.errors import MissionSemanticError
 from tml.geo import Point
 from tml.language.model import Action, normalize_name
 from tml.language.parameters import NUMBER_PATTERN, parse_boolean, parse_number
+from tml.language.quantities import Quantity, out_of_range
 
 
 class Category(StrEnum):
@@ -80,6 +81,9 @@ class ArgumentSpec:
     maximum: float | None = None
     positive: bool = False  # strictly greater than zero
     label: LabelUse | None = None  # whether label= is accepted, and how
+    # What a NUMBER or INTEGER measures, whose range bounds it (see tml.language.quantities);
+    # a POINT's components are coordinates and an altitude.
+    quantity: Quantity | None = None
 
 
 @dataclass(frozen=True)
@@ -113,13 +117,19 @@ class ActionSpec:
                 for name in (spec.name, *spec.aliases)}
 
 
-def _number(name: str, description: str, unit: str, *, default: float | None = None,
-            required: bool = False, aliases: tuple[str, ...] = (),
-            minimum: float | None = None, maximum: float | None = None,
-            positive: bool = False) -> ArgumentSpec:
+def _number(name: str, description: str, unit: str, quantity: Quantity, *,
+            default: float | None = None, required: bool = False,
+            aliases: tuple[str, ...] = (), minimum: float | None = None,
+            maximum: float | None = None, positive: bool = False) -> ArgumentSpec:
     return ArgumentSpec(name, ArgType.NUMBER, description, unit, default=default,
                         required=required, aliases=aliases, minimum=minimum, maximum=maximum,
-                        positive=positive)
+                        positive=positive, quantity=quantity)
+
+
+def _integer(name: str, description: str, quantity: Quantity, *, required: bool = False,
+             aliases: tuple[str, ...] = ()) -> ArgumentSpec:
+    return ArgumentSpec(name, ArgType.INTEGER, description, required=required,
+                        aliases=aliases, positive=True, quantity=quantity)
 
 
 def _point(name: str, description: str, *, required: bool = False,
@@ -128,18 +138,20 @@ def _point(name: str, description: str, *, required: bool = False,
                         aliases=aliases, label=label)
 
 
-_LATITUDE = _number("latitude", "WGS84 latitude", "deg", minimum=-90.0, maximum=90.0)
-_LONGITUDE = _number("longitude", "WGS84 longitude", "deg", minimum=-180.0, maximum=180.0)
-_ALTITUDE = _number("altitude", "altitude, by default above home (see altitude_reference)", "m")
+_LATITUDE = _number("latitude", "WGS84 latitude", "deg", Quantity.LATITUDE)
+_LONGITUDE = _number("longitude", "WGS84 longitude", "deg", Quantity.LONGITUDE)
+_ALTITUDE = _number("altitude", "altitude, by default above home (see altitude_reference)", "m",
+                    Quantity.ALTITUDE)
 _ALTITUDE_REFERENCE = ArgumentSpec(
     "altitude_reference", ArgType.CHOICE,
     "what altitude is measured from: home (relative), mean sea level (amsl) or terrain",
     default="relative", choices=("relative", "amsl", "terrain"),
 )
-_RADIUS = _number("radius", "loiter circle radius", "m", default=15.0, positive=True)
+_RADIUS = _number("radius", "loiter circle radius", "m", Quantity.RADIUS, default=15.0,
+                  positive=True)
 _YAW = _number(
     "yaw", "heading to land with, clockwise from north; absent: the vehicle chooses", "deg",
-    minimum=-360.0, maximum=360.0,
+    Quantity.ANGLE, minimum=-360.0, maximum=360.0,
 )
 _PRECISION = ArgumentSpec(
     "precision_mode", ArgType.CHOICE,
@@ -148,8 +160,8 @@ _PRECISION = ArgumentSpec(
     aliases=("land_mode", "landMode"),
 )
 _GLOBAL = (_LATITUDE, _LONGITUDE, _ALTITUDE, _ALTITUDE_REFERENCE)
-_DURATION = _number("duration", "how long", "s", minimum=0.0)
-_INTERVAL = _number("interval", "time between photos", "s", default=2.0, positive=True)
+_INTERVAL = _number("interval", "time between photos", "s", Quantity.DURATION, default=2.0,
+                    positive=True)
 _LOITER_POSITION = (
     _point("coordinates", "centre as a local point; absent: where the vehicle is",
            aliases=("point",), label=LabelUse.READ),
@@ -169,10 +181,11 @@ CATALOGUE: tuple[ActionSpec, ...] = (
         "Arm and climb from the current location to the take-off altitude. "
         "Ignored when the vehicle is already flying.",
         (
-            _number("altitude", "altitude above home to climb to", "m", default=10.0,
+            _number("altitude", "altitude above home to climb to", "m", Quantity.ALTITUDE,
+                    default=10.0,
                     positive=True, aliases=("height",)),
             _number("pitch", "take-off pitch for fixed-wing vehicles (Dolphin takeOff)", "deg",
-                    default=15.0, minimum=0.0, maximum=90.0),
+                    Quantity.ANGLE, default=15.0, minimum=0.0, maximum=90.0),
         ),
     ),
     ActionSpec("LAND", Category.TAKE_OFF_LANDING,
@@ -200,14 +213,16 @@ CATALOGUE: tuple[ActionSpec, ...] = (
             ArgumentSpec("direction", ArgType.CHOICE, "direction relative to the heading",
                          default="forward",
                          choices=("forward", "backward", "left", "right", "up", "down")),
-            _number("distance", "distance to move in the direction", "m", positive=True),
+            _number("distance", "distance to move in the direction", "m", Quantity.DISTANCE,
+                    positive=True),
         ),
         exactly_one_of=(("coordinates", "distance"),),
     ),
     ActionSpec(
         "MOVE_FORWARDS", Category.TRANSLATION,
         "Move straight ahead along the current heading.",
-        (_number("distance", "distance to move", "m", required=True, positive=True),),
+        (_number("distance", "distance to move", "m", Quantity.DISTANCE, required=True,
+                 positive=True),),
         aliases=("MOVE_FORWARD",),
     ),
     ActionSpec(
@@ -220,10 +235,11 @@ CATALOGUE: tuple[ActionSpec, ...] = (
         "Turn in place: by an angle relative to the current heading, or to an absolute "
         "heading (orientation_angle, clockwise from north).",
         (
-            _number("angle", "turn, positive clockwise", "deg", minimum=-360.0, maximum=360.0,
+            _number("angle", "turn, positive clockwise", "deg", Quantity.ANGLE,
+                    minimum=-360.0, maximum=360.0,
                     aliases=("rotation_angle",)),
             _number("orientation_angle", "heading to face, clockwise from north", "deg",
-                    minimum=0.0, maximum=360.0, aliases=("heading", "orientation")),
+                    Quantity.ANGLE, minimum=0.0, maximum=360.0, aliases=("heading", "orientation")),
         ),
         exactly_one_of=(("angle", "orientation_angle"),),
     ),
@@ -232,7 +248,7 @@ CATALOGUE: tuple[ActionSpec, ...] = (
     ActionSpec(
         "WAIT", Category.HOVER,
         "Hover where the vehicle is for a time (Dolphin delay).",
-        (_number("duration", "time to wait", "s", required=True, minimum=0.0,
+        (_number("duration", "time to wait", "s", Quantity.DURATION, required=True,
                  aliases=("time", "seconds")),),
         aliases=("DELAY",),
     ),
@@ -268,9 +284,10 @@ CATALOGUE: tuple[ActionSpec, ...] = (
         (
             ArgumentSpec("build_map", ArgType.BOOLEAN, "record a map while exploring",
                          default=False),
-            _number("radius", "half-width of the square to explore", "m", default=10.0,
+            _number("radius", "half-width of the square to explore", "m", Quantity.RADIUS,
+                    default=10.0,
                     positive=True),
-            _number("spacing", "distance between passes", "m", default=2.0, positive=True),
+            _number("spacing", "distance between passes", "m", Quantity.SPACING, default=2.0),
         ),
     ),
     ActionSpec(
@@ -296,8 +313,9 @@ CATALOGUE: tuple[ActionSpec, ...] = (
         "(Dolphin loiterPos/Turns/Time and moveAndLoiter...). Without a centre, circle "
         "where the vehicle is.",
         (*_LOITER_POSITION,
-         ArgumentSpec("turns", ArgType.INTEGER, "number of circles", positive=True),
-         _number("duration", "time to circle", "s", positive=True, aliases=("time",)),
+         _integer("turns", "number of circles", Quantity.TURNS),
+         _number("duration", "time to circle", "s", Quantity.DURATION, positive=True,
+                 aliases=("time",)),
          _RADIUS),
         at_most_one_of=(*_LOITER_GROUPS, ("turns", "duration")),
         together=_LOITER_TOGETHER,
@@ -331,7 +349,7 @@ CATALOGUE: tuple[ActionSpec, ...] = (
         "SET_SPEED", Category.CONFIGURATION,
         "Change the speed used by the following moves (Dolphin speed).",
         (
-            _number("speed", "new speed", "m/s", required=True, positive=True),
+            _number("speed", "new speed", "m/s", Quantity.SPEED, required=True, positive=True),
             ArgumentSpec("speed_type", ArgType.CHOICE, "which speed to change",
                          default="airspeed",
                          choices=("airspeed", "ground", "climb", "descent"),
@@ -352,10 +370,10 @@ CATALOGUE: tuple[ActionSpec, ...] = (
         "(Dolphin surveyArea).",
         (
             _number("length", "extent along the first axis of direction (north/south)", "m",
-                    required=True, positive=True),
+                    Quantity.DISTANCE, required=True, positive=True),
             _number("width", "extent along the second axis (east/west)", "m",
-                    required=True, positive=True),
-            _number("spacing", "distance between passes", "m", default=50.0, positive=True,
+                    Quantity.DISTANCE, required=True, positive=True),
+            _number("spacing", "distance between passes", "m", Quantity.SPACING, default=50.0,
                     aliases=("direction_change",)),
             ArgumentSpec("direction", ArgType.CHOICE, "quadrant the area extends into",
                          default="NORTH_WEST",
@@ -364,7 +382,7 @@ CATALOGUE: tuple[ActionSpec, ...] = (
                    label=LabelUse.READ),
             _LATITUDE, _LONGITUDE,
             _number("altitude", "survey altitude above home; absent: the current altitude",
-                    "m", positive=True),
+                    "m", Quantity.ALTITUDE, positive=True),
         ),
         at_most_one_of=(("coordinates", "latitude"),),
         together=(("latitude", "longitude"),),
@@ -373,8 +391,8 @@ CATALOGUE: tuple[ActionSpec, ...] = (
     ActionSpec(
         "CAPTURE_PHOTOS", Category.CAMERA,
         "Take a number of photos at an interval (Dolphin captureSeveralPhotos).",
-        (ArgumentSpec("count", ArgType.INTEGER, "number of photos", required=True,
-                      positive=True, aliases=("photo_count",)),
+        (_integer("count", "number of photos", Quantity.COUNT, required=True,
+                  aliases=("photo_count",)),
          _INTERVAL),
     ),
     ActionSpec(
@@ -389,7 +407,7 @@ CATALOGUE: tuple[ActionSpec, ...] = (
         "Set the home position to the vehicle's current position, or to a WGS84 position "
         "(Dolphin home).",
         (_LATITUDE, _LONGITUDE,
-         _number("altitude", "altitude above mean sea level", "m")),
+         _number("altitude", "altitude above mean sea level", "m", Quantity.ALTITUDE)),
         together=(("latitude", "longitude", "altitude"),),
         aliases=("HOME",),
     ),
@@ -439,6 +457,12 @@ def parse_value(spec: ArgumentSpec, raw: str) -> ArgumentValue:
         north, east, up = (parse_number(g) for g in match.groups())
         if north is None or east is None or up is None:
             raise ValueError("expected a point of three finite numbers in metres")
+        for axis, component, quantity in (("north", north, Quantity.COORDINATE),
+                                          ("east", east, Quantity.COORDINATE),
+                                          ("up", up, Quantity.ALTITUDE)):
+            why = out_of_range(quantity, component)
+            if why is not None:
+                raise ValueError(f"{axis} {component:g} m {why}")
         return north, east, up
     if spec.type is ArgType.BOOLEAN:
         flag = parse_boolean(text)
@@ -457,7 +481,8 @@ def parse_value(spec: ArgumentSpec, raw: str) -> ArgumentValue:
     if spec.type is ArgType.INTEGER:
         if not re.fullmatch(r"[-+]?\d+", text):
             raise ValueError("expected a whole number")
-        value: float = int(text)
+        # int() refuses a text of thousands of digits; as a float it is out of range
+        value: float = int(text) if len(text) <= 18 else float(text)
     else:
         number = parse_number(text)
         if number is None:
@@ -475,6 +500,9 @@ def _check_range(spec: ArgumentSpec, value: float) -> None:
         raise ValueError(f"must be at least {spec.minimum:g}{unit}")
     if spec.maximum is not None and value > spec.maximum:
         raise ValueError(f"must be at most {spec.maximum:g}{unit}")
+    why = out_of_range(spec.quantity, value) if spec.quantity is not None else None
+    if why is not None:
+        raise ValueError(why)
 
 
 class _Absent(Enum):

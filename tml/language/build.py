@@ -35,6 +35,7 @@ from tml.language.model import (
     Termination,
     TerminationMode,
 )
+from tml.language.quantities import RANGES, Quantity, out_of_range
 from tml.language.xml import XmlDocument, element_name, read_xml
 from tml.world import Cylinder, Geofence, Home, Prism, World, WorldObject
 
@@ -50,9 +51,29 @@ class _Builder:
     def loc(self, element: etree._Element, attribute: str | None = None) -> Location:
         return self.doc.location(element, attribute)
 
-    def number(self, element: etree._Element, attribute: str) -> float:
-        """A number attribute the schema requires."""
-        return float(self.doc.required(element, attribute))
+    def number(self, element: etree._Element, attribute: str, quantity: Quantity,
+               default: str | None = None) -> float:
+        """A number attribute (the schema requires it unless a default is given), bounded
+        to its quantity's range: a value outside (NaN and INF too, which xs:double reads)
+        is reported and taken as the nearest bound, so building goes on."""
+        text = element.get(attribute, default) if default is not None \
+            else self.doc.required(element, attribute)
+        value = float(text)
+        why = out_of_range(quantity, value)
+        if why is None:
+            return value
+        self.diagnostics.append(error(
+            self.loc(element, attribute), "E255",
+            f"<{element_name(element)}> {attribute}={text.strip()!r} {why}"))
+        bounds = RANGES[quantity]
+        return min(max(value, bounds.low), bounds.high) if value == value else bounds.low
+
+    def optional_number(self, element: etree._Element, attribute: str,
+                        quantity: Quantity) -> float | None:
+        """A number attribute that may be absent, bounded as :meth:`number` bounds it."""
+        if element.get(attribute) is None:
+            return None
+        return self.number(element, attribute, quantity)
 
     def children(self, element: etree._Element, tag: str) -> list[etree._Element]:
         groups = self._children.get(element)
@@ -102,7 +123,7 @@ class _Builder:
             for shape in block:
                 if shape.tag == "circle":
                     region = Region((self.point(shape, home),), self.loc(shape),
-                                    float(shape.get("radius", "0")))
+                                    self.number(shape, "radius", Quantity.RADIUS, "0"))
                 elif shape.tag == "polygon":
                     region = Region(tuple(self.point(p, home)
                                           for p in self.children(shape, "point")),
@@ -111,12 +132,12 @@ class _Builder:
         return Role(
             name=element.get("name", "").strip(),
             location=self.loc(element),
-            count=int(element.get("count", "1")),
+            count=int(self.number(element, "count", Quantity.COUNT, "1")),
             vehicle_type=kind.strip() if kind else None,
             payloads=tuple(p.get("name", "").strip()
                            for p in self.children(element, "payload")),
             region=region,
-            pick_timeout=float(element.get("pick_timeout", "30")),
+            pick_timeout=self.number(element, "pick_timeout", Quantity.DURATION, "30"),
         )
 
     def skill(self, element: etree._Element) -> Skill:
@@ -183,7 +204,6 @@ class _Builder:
                 if found else ()
 
         loops = gates.get("loop")
-        limit = element.get("time_limit")
         release = element.get("release")
         return Task(
             name=name,
@@ -191,7 +211,7 @@ class _Builder:
             location=self.loc(element),
             skills=tuple(skills),
             conditions=tuple(conditions),
-            repeat=int(repeats[0].get("times", "1")) if repeats else 1,
+            repeat=_whole(repeats[0].get("times", "1")) if repeats else 1,
             repeat_location=self.loc(repeats[0], "times") if repeats else None,
             action=action,
             children=tuple(children),
@@ -201,7 +221,7 @@ class _Builder:
             composition=Composition(element.get("composition", "sequence").strip()),
             wait_for=conditions_of("wait_for"),
             until=conditions_of("until"),
-            time_limit=float(limit) if limit is not None else None,
+            time_limit=self.optional_number(element, "time_limit", Quantity.DURATION),
             on_error=tuple(handlers),
             loop=Loop(conditions_of("loop"), self.loc(loops[0])) if loops else None,
             release=tuple(release.split()) if release else (),
@@ -269,8 +289,10 @@ class _Builder:
         home = None
         if homes:
             h = homes[0]
-            home = Home(self.number(h, "latitude"), self.number(h, "longitude"),
-                        self.number(h, "altitude"), float(h.get("heading", "0")), self.loc(h))
+            home = Home(self.number(h, "latitude", Quantity.LATITUDE),
+                        self.number(h, "longitude", Quantity.LONGITUDE),
+                        self.number(h, "altitude", Quantity.ALTITUDE),
+                        self.number(h, "heading", Quantity.ANGLE, "0"), self.loc(h))
         fences = self.children(element, "geofence")
         for extra in fences[1:]:
             self.diagnostics.append(error(self.loc(extra), "E253",
@@ -284,8 +306,8 @@ class _Builder:
                     self.loc(f), "E253",
                     f"a geofence polygon needs at least 3 points; this one has {len(polygon)}",
                     "give 3 or more <point>s, or none for altitude limits only"))
-            low, high = _optional_float(f.get("min_altitude")), _optional_float(
-                f.get("max_altitude"))
+            low = self.optional_number(f, "min_altitude", Quantity.ALTITUDE)
+            high = self.optional_number(f, "max_altitude", Quantity.ALTITUDE)
             if low is not None and high is not None and low >= high:
                 self.diagnostics.append(error(
                     self.loc(f, "min_altitude"), "E253",
@@ -298,25 +320,28 @@ class _Builder:
                 north, east = self.point(child, home)
                 obstacles.append(Cylinder(
                     child.get("name", f"cylinder at line {child.sourceline}"), north, east,
-                    self.number(child, "radius"), float(child.get("bottom", "0")),
+                    self.number(child, "radius", Quantity.RADIUS),
+                    self.number(child, "bottom", Quantity.ALTITUDE, "0"),
                     self.top(child), self.loc(child)))
             elif child.tag == "prism":
                 obstacles.append(Prism(
                     child.get("name", f"prism at line {child.sourceline}"),
                     tuple(self.point(p, home) for p in self.children(child, "point")),
-                    float(child.get("bottom", "0")), self.top(child), self.loc(child)))
+                    self.number(child, "bottom", Quantity.ALTITUDE, "0"), self.top(child),
+                    self.loc(child)))
             elif child.tag == "object":
                 north, east = self.point(child, home)
                 objects.append(WorldObject(
                     self.doc.required(child, "kind"), self.doc.required(child, "id").strip(),
                     north, east,
-                    float(child.get("altitude", "0")), child.get("color", ""),
+                    self.number(child, "altitude", Quantity.ALTITUDE, "0"),
+                    child.get("color", ""),
                     child.get("name", ""), self.loc(child)))
         return World(home, geofence, tuple(obstacles), tuple(objects), self.loc(element))
 
     def top(self, element: etree._Element) -> float:
-        top = _optional_float(element.get("top"))
-        bottom = float(element.get("bottom", "0"))
+        top = self.optional_number(element, "top", Quantity.ALTITUDE)
+        bottom = float(element.get("bottom", "0"))  # bounded where the obstacle reads it
         if top is None:
             return float("inf")
         if top <= bottom:
@@ -341,21 +366,26 @@ class _Builder:
                 self.loc(element), "E253", f"<{element_name(element)}> is missing {missing[0]}="))
             return (0.0, 0.0)
         if local:
-            return self.number(element, "north"), self.number(element, "east")
+            return (self.number(element, "north", Quantity.COORDINATE),
+                    self.number(element, "east", Quantity.COORDINATE))
         if home is None:
             self.diagnostics.append(error(
                 self.loc(element, "latitude"), "E253",
                 "latitude/longitude positions need a <home> in the same block",
                 "add <home latitude=... longitude=... altitude=.../>"))
             return (0.0, 0.0)
-        north, east, _ = geo.to_local(self.number(element, "latitude"),
-                                      self.number(element, "longitude"), home.altitude,
+        north, east, _ = geo.to_local(self.number(element, "latitude", Quantity.LATITUDE),
+                                      self.number(element, "longitude", Quantity.LONGITUDE),
+                                      home.altitude,
                                       home.latitude, home.longitude, home.altitude)
         return north, east
 
 
-def _optional_float(text: str | None) -> float | None:
-    return None if text is None else float(text)
+def _whole(text: str) -> int:
+    """A whole number the schema accepted; one of more digits than any range allows is
+    read as 10**18, which every range refuses (int() of a long enough text raises)."""
+    digits = text.strip().lstrip("+")
+    return int(digits) if len(digits) <= 18 else 10**18
 
 
 def build_mission(doc: XmlDocument) -> tuple[Mission, list[Diagnostic]]:

@@ -43,6 +43,7 @@ from tml.language.model import (
     TerminationMode,
 )
 from tml.language.parameters import ParamType
+from tml.language.quantities import MAX_ROUNDS, Quantity, out_of_range
 
 # Built-in parameters the interpreter keeps itself; every other parameter (telemetry,
 # recognitions, detection parameters) is read from a vehicle (tml.engine.conditions).
@@ -140,7 +141,8 @@ class _Checker:
 
     # --- tasks -----------------------------------------------------------------------------
 
-    def check_tasks(self, siblings: tuple[Task, ...]) -> None:
+    def check_tasks(self, siblings: tuple[Task, ...], rounds: int = 1) -> None:
+        """Check ``siblings``, each run ``rounds`` times by the repeats around them."""
         # An on_error task's path is its parent's path plus its name, like a sub-task's, so
         # the two share one name space.
         seen: dict[str, Task] = {}
@@ -154,17 +156,37 @@ class _Checker:
                     "JUMP_TO_TASK can tell them apart"))
             seen.setdefault(task.name, task)
             self.check_skills(task.skills)
-            if task.repeat < 1:
-                self.found.append(error(
-                    task.repeat_location or task.location, "E250",
-                    f"repeat times={task.repeat} in task {task.name!r}; it must be 1 or more",
-                    "remove the task, or repeat it at least once"))
+            inner = self.check_repeat(task, rounds)
             for condition in task.conditions:
                 self.check_condition(condition)
             if task.action is not None:
                 self.check_action(task.action, task.dispatch)
             self.check_orchestration(task)
-            self.check_tasks(task.children + task.on_error)
+            self.check_tasks(task.children + task.on_error, inner)
+
+    def check_repeat(self, task: Task, rounds: int) -> int:
+        """Check a task's repeat count and the rounds nested repeats make of it; return the
+        rounds its children run (1 once a problem is reported, so it is reported once)."""
+        where = task.repeat_location or task.location
+        why = out_of_range(Quantity.REPEAT, float(min(task.repeat, 10**18)))
+        if task.repeat < 1:
+            self.found.append(error(
+                where, "E250",
+                f"repeat times={task.repeat} in task {task.name!r}; it must be 1 or more",
+                "remove the task, or repeat it at least once"))
+        elif why is not None:
+            self.found.append(error(
+                where, "E250", f"repeat times={task.repeat} in task {task.name!r} {why}",
+                "use a <loop> with an <until> for a flight that goes on"))
+        elif rounds * task.repeat > MAX_ROUNDS:
+            self.found.append(error(
+                where, "E250",
+                f"task {task.name!r} runs {rounds * task.repeat:,} rounds through nested "
+                f"repeats; at most {MAX_ROUNDS:,}",
+                "repeat the inner or the outer task fewer times"))
+        else:
+            return rounds * task.repeat
+        return 1
 
     # --- actions ---------------------------------------------------------------------------
 
@@ -355,10 +377,18 @@ class _Checker:
         if param_type is ParamType.NUMBER or (
                 param_type is ParamType.SET and condition.comparison is Comparison.INCLUDES
                 and self.numeric_set(condition)):
-            if parameters.parse_number(value) is None:
+            number = parameters.parse_number(value)
+            spec = parameters.lookup(condition.subject)
+            why = (out_of_range(spec.quantity, number)
+                   if number is not None and spec is not None and spec.quantity else None)
+            if number is None:
                 self.found.append(error(
                     condition.location, "E224",
                     f"{condition.subject!r} is a number; value {value!r} is not"))
+            elif why is not None and spec is not None:
+                self.found.append(error(
+                    condition.location, "E224",
+                    f"{spec.name} value {value!r} {why}"))
         elif param_type is ParamType.BOOLEAN:
             if parameters.parse_boolean(value) is None:
                 self.found.append(error(

@@ -4,7 +4,9 @@ Built-in parameters come from the vehicle's telemetry and the interpreter's own 
 other name is a *detection* parameter, fed by a skill or a companion computer (the paper's
 "observed color" or "Item A found"); a mission may declare those with ``<parameter>``.
 A name close to a built-in one but not equal to it is almost certainly a typo, and is
-reported with a did-you-mean hint.
+reported with a did-you-mean hint. A built-in number parameter names the quantity it
+measures, whose range (:mod:`tml.language.quantities`) bounds the numbers a condition may
+compare it with.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 from tml.language.model import Comparison, normalize_name
+from tml.language.quantities import Quantity
 
 
 class ParamType(StrEnum):
@@ -48,20 +51,22 @@ class ParameterSpec:
     unit: str = ""
     aliases: tuple[str, ...] = ()
     values: tuple[str, ...] = ()  # the closed set of values of a string parameter, if any
+    quantity: Quantity | None = None  # what a number parameter measures: its values' range
 
 
 BUILT_IN: tuple[ParameterSpec, ...] = (
     ParameterSpec("BATTERY_CHARGE_PERCENTAGE", ParamType.NUMBER,
                   "remaining battery charge (100 is full)", "%",
-                  ("PERCENTAGE_BATTERY_CHARGE", "batteryCharge", "BATTERY", "battery_remaining")),
+                  ("PERCENTAGE_BATTERY_CHARGE", "batteryCharge", "BATTERY", "battery_remaining"),
+                  quantity=Quantity.PERCENTAGE),
     ParameterSpec("ALTITUDE", ParamType.NUMBER, "altitude above home", "m",
-                  ("relative_altitude", "height")),
+                  ("relative_altitude", "height"), quantity=Quantity.ALTITUDE),
     ParameterSpec("GROUND_SPEED", ParamType.NUMBER, "horizontal speed over ground", "m/s",
-                  ("groundspeed", "speed")),
+                  ("groundspeed", "speed"), quantity=Quantity.SPEED),
     ParameterSpec("DISTANCE_TO_HOME", ParamType.NUMBER, "horizontal distance to home", "m",
-                  ("home_distance",)),
+                  ("home_distance",), quantity=Quantity.DISTANCE),
     ParameterSpec("HEADING", ParamType.NUMBER, "heading, clockwise from north", "deg",
-                  ("yaw",)),
+                  ("yaw",), quantity=Quantity.ANGLE),
     ParameterSpec("FLIGHT_MODE", ParamType.STRING,
                   "autopilot flight mode name (GUIDED, AUTO, RTL, LAND, ...)", "", ("mode",)),
     ParameterSpec("ARMED", ParamType.BOOLEAN, "motors armed"),
@@ -69,11 +74,13 @@ BUILT_IN: tuple[ParameterSpec, ...] = (
     ParameterSpec("LINK_STATE", ParamType.STRING,
                   "state of the link to the vehicle", "", ("link",), ("ok", "degraded", "lost")),
     ParameterSpec("GPS_FIX", ParamType.NUMBER,
-                  "GPS fix type (0-1 none, 2 2D, 3 3D, 4+ DGPS/RTK)", ""),
+                  "GPS fix type (0-1 none, 2 2D, 3 3D, 4+ DGPS/RTK)", "",
+                  quantity=Quantity.FIX_TYPE),
     ParameterSpec("MISSION_ELAPSED_TIME", ParamType.NUMBER, "time since the mission started",
-                  "s", ("mission_time", "elapsed_time")),
+                  "s", ("mission_time", "elapsed_time"), quantity=Quantity.DURATION),
     ParameterSpec("TASK_ELAPSED_TIME", ParamType.NUMBER,
-                  "time since the current task started", "s", ("task_time",)),
+                  "time since the current task started", "s", ("task_time",),
+                  quantity=Quantity.DURATION),
     ParameterSpec("ACTION_FAILURE", ParamType.STRING,
                   "why the last action failed; absent while no action has failed", "", (),
                   ("timeout", "rejected", "infeasible", "unsupported", "general")),

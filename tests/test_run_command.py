@@ -79,7 +79,7 @@ def test_invalid_mission_exits_1_before_flying(tmp_path: Path,
 
 def test_infeasible_mission_is_refused_unless_forced(tmp_path: Path,
                                                      capsys: pytest.CaptureFixture[str]) -> None:
-    far = write(tmp_path, SHORT.replace("(8, 0, 4)", "(90000, 0, 4)"))
+    far = write(tmp_path, SHORT.replace("(8, 0, 4)", "(40000, 0, 4)"))
     assert main(["run", far, "--sim", "-q"]) == 1
     assert "infeasible mission, not flown" in capsys.readouterr().err
 

@@ -14,7 +14,8 @@ Where ArduPilot is found, in this order:
 Instance ``N`` serves MAVLink on TCP ``5760 + 10 * N`` (SERIAL0) and ``5762 + 10 * N``
 (SERIAL1, where a companion computer attaches), with system id ``N + 1``. Instances are
 taken from ``TML_INTEROP_FIRST_INSTANCE`` (default 0) upwards, skipping any whose ports are
-busy, so that several runs of the suite on one machine keep out of each other's way.
+busy, so that several runs of the suite on one machine keep out of each other's way; under
+pytest-xdist each worker starts 20 instances further up.
 
 Each vehicle is stopped by its own pid (SIGTERM, then SIGKILL) when the test ends.
 """
@@ -42,7 +43,7 @@ BINARIES = {"copter": "arducopter", "plane": "arduplane", "rover": "ardurover"}
 MODELS = {"copter": "+", "plane": "plane", "rover": "rover"}
 DEFAULT_HOME = "-35.363261,149.165230,584,353"
 BASE_PORT = 5760
-MAX_INSTANCE = 60
+MAX_INSTANCE = 250
 BOOT_TIMEOUT = 60.0
 
 
@@ -123,8 +124,20 @@ _claimed: set[int] = set()
 _claim_lock = threading.Lock()
 
 
-def _claim_instance() -> int:
+def _first_instance() -> int:
+    """``TML_INTEROP_FIRST_INSTANCE``, plus 20 for each pytest-xdist worker before this one
+    (``PYTEST_XDIST_WORKER`` is ``gw0``, ``gw1``...), so that workers never race for one
+    instance's ports: a port that is free when one worker looks may be bound by the other's
+    vehicle a moment later."""
     first = int(os.environ.get("TML_INTEROP_FIRST_INSTANCE", "0"))
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "")
+    if worker.startswith("gw") and worker[2:].isdigit():
+        first += 20 * int(worker[2:])
+    return first
+
+
+def _claim_instance() -> int:
+    first = _first_instance()
     with _claim_lock:
         for instance in range(first, MAX_INSTANCE):
             ports = (BASE_PORT + 10 * instance, BASE_PORT + 10 * instance + 2)

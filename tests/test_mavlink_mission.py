@@ -205,27 +205,24 @@ def test_unanswered_timeouts_offer_the_items_after_the_last_one_asked_for() -> N
     upload.start(0.0)
     assert upload.receive(MissionRequest(0, legacy=True), 0.1) == [items[0]]
     # The vehicle may lack item 0, or hold it and have lost its request for 1 (or hold 1
-    # too, offered, and have lost its request for 2): each timeout tries the next of them.
-    now, sent = 0.1, []
-    for _ in range(7):
-        now = upload.deadline
-        sent += [item.seq for item in upload.tick(now)]
-    assert sent == [0, 1, 2, 0, 1, 2, 0]
+    # too, and have lost its request for 2): each retry offers all three at once.
+    now = upload.deadline
+    assert [item.seq for item in upload.tick(now)] == [0, 1, 2]
+    assert [item.seq for item in upload.tick(upload.deadline)] == [0, 1, 2]
     upload.receive(MissionAck(MissionResult.MAV_MISSION_INVALID_SEQUENCE), now)
     assert not upload.done  # ArduPilot's NACK of an item it did not expect ends nothing
     assert upload.receive(MissionRequest(3, legacy=True), now) == [items[3]]
-    assert [i.seq for i in upload.tick(upload.deadline)] == [3]
-    assert [i.seq for i in upload.tick(upload.deadline)] == [4]
+    assert [i.seq for i in upload.tick(upload.deadline)] == [3, 4]
     upload.receive(MissionAck(ACCEPTED), upload.deadline)
     assert upload.succeeded and upload.progress == Progress(5, 5)
 
 
-def test_without_offers_the_last_item_is_repeated() -> None:
+def test_without_offers_the_last_item_is_repeated_three_times_a_retry() -> None:
     items = mission(3)
     upload = Upload(items, offer_next=False)
     upload.start(0.0)
     upload.receive(MissionRequest(0), 0.1)
-    assert [upload.tick(upload.deadline) for _ in range(3)] == [[items[0]]] * 3
+    assert [upload.tick(upload.deadline) for _ in range(2)] == [[items[0]] * 3] * 2
 
 
 def test_unconfirmed_only_when_the_last_item_went_out() -> None:
@@ -266,21 +263,20 @@ def test_an_error_for_an_item_after_the_last_one_went_out_leaves_the_upload_unco
     assert not early.unconfirmed  # items never sent: a failure, not a doubt
 
 
-def test_a_lost_final_ack_is_given_up_on_sooner_once_the_last_item_was_asked_for() -> None:
-    def silent_at(requests: list[int], n: int) -> float:
-        upload = Upload(mission(n))
-        upload.start(0.0)
-        for seq in requests:
-            upload.receive(MissionRequest(seq), 0.1)
-        now = 0.1
-        while not upload.done:
-            now = upload.deadline
-            upload.tick(now)
-        return now
-
-    assert silent_at([0, 1, 2], 3) == pytest.approx(0.1 + 1.5)  # one default timeout
-    assert silent_at([0, 1], 3) == pytest.approx(0.1 + 6 * 1.5)  # the vehicle may lack 2
-    assert silent_at([0, 1], 2) == pytest.approx(0.1 + 1.5)
+def test_a_lost_final_ack_is_given_up_on_after_five_retries_of_the_last_item() -> None:
+    upload = Upload(mission(3), system_id=4)
+    upload.start(0.0)
+    for seq in (0, 1, 2):
+        upload.receive(MissionRequest(seq), 0.1)
+    now, retries = 0.1, []
+    while not upload.done:
+        now = upload.deadline
+        retries.append([item.seq for item in upload.tick(now)])
+    assert retries == [[2]] * 5 + [[]]
+    assert now == pytest.approx(0.1 + 6 * 0.25)
+    assert upload.unconfirmed and upload.error is not None and upload.error.seq == 2
+    assert str(upload.error) == ("vehicle 4: mission upload failed: no MISSION_ACK after the "
+                                 "last item (2), 5 retries 250 ms apart")
 
 
 @pytest.mark.parametrize("mission_type", [MissionType.MISSION, MissionType.FENCE,
@@ -367,30 +363,89 @@ def test_result_names_are_those_of_the_mavlink_definition() -> None:
     assert {f"MAV_MISSION_TYPE_{t.name}": t.value for t in MissionType} == types
 
 
-def test_silent_vehicle_times_out_after_six_default_timeouts_of_silence() -> None:
+def test_silent_vehicle_fails_after_five_retries_of_mission_count() -> None:
     upload = Upload(mission(3), system_id=2)
     link = LossyLink(random.Random(4), loss_up=1.0, loss_down=1.0)
     took = run(upload, FakeVehicle(), link)
     assert upload.error is not None and upload.error.result == "TIMEOUT"
+    assert upload.error.seq is None
+    assert "no request for item 0 after MISSION_COUNT (3), 5 retries 1500 ms apart" in str(
+        upload.error)
+    # MISSION_COUNT at 0 s, then a burst of three copies every 1.5 s: 5 retries.
     assert took == pytest.approx(6 * 1.5)
-    # The first answer is awaited 1.5 s, then MISSION_COUNT goes out every 250 ms.
-    assert upload.retransmissions == 30 and link.sent == 31
+    assert upload.retransmissions == 5 and link.sent == 1 + 5 * 3
 
 
-def test_items_are_retransmitted_every_item_timeout_while_the_vehicle_is_silent() -> None:
-    upload = Upload(mission(3))
+def test_a_vehicle_silent_mid_upload_fails_it_after_five_item_timeouts_naming_the_item(
+        ) -> None:
+    items = mission(5)
+    upload = Upload(items, system_id=1)
     upload.start(0.0)
-    assert upload.receive(MissionRequest(0, legacy=True), 0.1) == [mission(3)[0]]
-    assert upload.deadline == pytest.approx(0.35)
-    assert upload.tick(0.3) == []
-    assert upload.tick(0.35) == [mission(3)[0]]
-    resent = 0
-    now = 0.35
+    upload.receive(MissionRequest(0), 0.1)
+    upload.receive(MissionRequest(1), 0.2)
+    assert upload.deadline == pytest.approx(0.45)
+    assert upload.tick(0.4) == []
+    now = 0.2
     while not upload.done:
         now = upload.deadline
-        resent += len(upload.tick(now))
-    assert now == pytest.approx(0.1 + 6 * 1.5)  # silence is measured from the last request
-    assert 1 + resent == 35  # every 250 ms from 0.35 s until 9.1 s
+        upload.tick(now)
+    assert now == pytest.approx(0.2 + 6 * 0.25)  # not the whole transfer's 9 s
+    error = upload.error
+    assert error is not None and error.result == "TIMEOUT" and error.seq == 1
+    assert str(error) == ("vehicle 1: mission upload failed: no request after item 1 (of 5), "
+                          "5 retries 250 ms apart")
+    assert not upload.unconfirmed
+
+
+def test_any_answer_from_the_vehicle_starts_the_retries_over() -> None:
+    upload = Upload(mission(5))
+    upload.start(0.0)
+    upload.receive(MissionRequest(0), 0.1)
+    for _ in range(4):
+        upload.tick(upload.deadline)
+    now = upload.deadline
+    upload.receive(MissionAck(MissionResult.MAV_MISSION_INVALID_SEQUENCE), now)
+    ticks = 0
+    while not upload.done:
+        upload.tick(upload.deadline)
+        ticks += 1
+    assert ticks == 6 and upload.error is not None and upload.error.result == "TIMEOUT"
+
+
+def test_download_retries_the_request_of_the_missing_item_and_names_it() -> None:
+    download = Download(system_id=3)
+    download.start(0.0)
+    assert download.receive(MissionCount(4), 0.1) == [MissionRequest(0)]
+    download.receive(mission(4)[0], 0.2)
+    bursts = []
+    while not download.done:
+        bursts.append(download.tick(download.deadline))
+    assert bursts == [[MissionRequest(1)] * 3] * 5 + [[]]
+    error = download.error
+    assert error is not None and error.seq == 1
+    assert str(error) == ("vehicle 3: mission download failed: no item 1 (of 4) after "
+                          "MISSION_REQUEST_INT, 5 retries 250 ms apart")
+
+
+def test_a_duplicate_item_does_not_count_as_the_missing_one() -> None:
+    items = mission(3)
+    download = Download()
+    download.start(0.0)
+    download.receive(MissionCount(3), 0.1)
+    download.receive(items[0], 0.2)
+    assert download.receive(items[0], 0.25) == [MissionRequest(1)]
+    assert download.progress == Progress(1, 3) and not download.done
+
+
+def test_clear_is_retried_on_the_default_timeout() -> None:
+    clear = Clear(MissionType.FENCE, system_id=2)
+    assert clear.start(0.0) == [MissionClearAll(MissionType.FENCE)]
+    assert clear.deadline == pytest.approx(1.5)
+    assert clear.tick(1.5) == [MissionClearAll(MissionType.FENCE)] * 3
+    while not clear.done:
+        clear.tick(clear.deadline)
+    assert str(clear.error) == ("vehicle 2: fence clear failed: no answer to MISSION_CLEAR_ALL "
+                                "after 5 retries 1500 ms apart")
 
 
 def test_out_of_order_and_duplicate_requests_are_answered_with_the_item_asked_for() -> None:

@@ -114,8 +114,14 @@ class LinkLost(VehicleError):
 
 
 class MissionTransferError(VehicleError):
-    """A mission, fence or rally upload/download/clear failed (MISSION_ACK result or timeout)."""
+    """A mission, fence or rally upload/download/clear failed (MISSION_ACK result or timeout).
 
-    def __init__(self, message: str, result: str = "", system_id: int | None = None) -> None:
+    ``result`` is the MAV_MISSION_RESULT name or ``TIMEOUT``; ``seq`` the item the transfer
+    was at when it failed (None before any item moved).
+    """
+
+    def __init__(self, message: str, result: str = "", system_id: int | None = None,
+                 seq: int | None = None) -> None:
         self.result = result
+        self.seq = seq
         super().__init__(message, system_id)

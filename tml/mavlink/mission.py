@@ -18,30 +18,30 @@ Messages are plain frozen dataclasses (:class:`MissionItem`, :class:`MissionCoun
 ``tml.mavlink.codec`` translates them to and from pymavlink, so this module and its callers
 (the interpreter compiles actions to :class:`MissionItem`) never import pymavlink.
 
-Timeouts and retries follow the mission protocol: 1500 ms for the answer to the opening
-message (MISSION_COUNT, MISSION_REQUEST_LIST, MISSION_CLEAR_ALL), 250 ms per item, 5 retries.
-The retries bound the *silence* a transfer tolerates rather than the number of
-retransmissions: it fails once the vehicle has said nothing about it for (5 + 1) x 1500 ms,
-the time an opening exchange with 5 retries at the default timeout takes (ArduPilot itself
-gives up after 8 s). Within that window the last message is retransmitted whenever 250 ms
-pass unanswered; only the first answer to the opening message is given the full 1500 ms,
-for a vehicle that needs time to prepare. Counting retries per message instead cannot work
-over a poor link: with 30 % loss each way one round trip succeeds with probability 0.49,
-six attempts all fail with probability 0.51**6 = 1.8 %, and a 100-item upload would fail
-five times in six. Any message from the vehicle (even a duplicate request) restarts the
-window.
+Timeouts and retries are per message, as the MAVLink mission protocol recommends and
+QGroundControl's PlanManager does: the opening message (MISSION_COUNT,
+MISSION_REQUEST_LIST, MISSION_CLEAR_ALL) waits :data:`DEFAULT_TIMEOUT` (1500 ms) for its
+answer, each item exchange :data:`ITEM_TIMEOUT` (250 ms); a message left unanswered is
+retried on its own timeout up to :data:`RETRIES` (5) times, then the transfer fails with a
+:class:`~tml.errors.MissionTransferError` naming the item (``seq``) and what went
+unanswered. Any answer from the vehicle about the transfer starts the count over (the
+mission protocol's "no response"): a vehicle that answers without moving on ends the
+transfer itself (ArduPilot cancels an upload after 8 s without a new item).
 
-A request lost on its way is the hard case: the vehicle holds the item and waits for the
-next, repeating the item cannot help (ArduPilot answers a repeat with MISSION_ACK
-INVALID_SEQUENCE, which therefore ends nothing), and ArduPilot asks again only once a
-second, giving up after 8 s. So unanswered timeouts offer, in turn, the last item asked for
-and the two after it; vehicles accept the item they expect whether asked for or not. When
-the final ACK is lost, ArduPilot never repeats it: the upload ends ``unconfirmed`` and a
-read-back settles it (``Vehicle.upload`` does). Once the vehicle has asked for the last item
-the wait for that ACK is one default timeout of silence, not the whole window: the item
-went out with every 250 ms offer since, so a vehicle still without it would have had to
-lose six copies in a row and its own request again (0.3**7 at 30 % loss), while a lost ACK
-is as likely as any loss.
+A retry is a burst of :data:`COPIES` (3) messages, since the losses of separate frames are
+independent: one round trip through 30 % loss each way succeeds with probability 0.49, so
+six single attempts all fail with probability 0.51**6 = 1.8 % per item (a 100-item transfer
+would fail five times in six); a burst of three brings the exchange's failure to
+0.51 * 0.51**15 = 2e-5. A clean link never retries and sees no burst.
+docs/reliability.md ("Mission transfer") has the analysis and the measured rates.
+
+A request lost on its way is the hard case for an upload: the vehicle holds the item and
+waits for the next, repeating the item cannot help (ArduPilot answers a repeat with
+MISSION_ACK INVALID_SEQUENCE, which therefore ends nothing), and ArduPilot asks again only
+once a second. So an upload's burst is the last item asked for and the two after it;
+vehicles accept the item they expect whether asked for or not, and answer the others with
+INVALID_SEQUENCE. When the final ACK is lost, ArduPilot never repeats it: the upload ends
+``unconfirmed`` and a read-back settles it (``Vehicle.upload`` does).
 
 Requests may come out of order or twice; each is answered with the item asked for. The
 legacy MISSION_REQUEST (ArduPilot asks with it) is answered with MISSION_ITEM_INT like
@@ -73,7 +73,9 @@ DEFAULT_TIMEOUT = 1.5
 ITEM_TIMEOUT = 0.25
 """Seconds to wait for the next request or item once items flow."""
 RETRIES = 5
-"""Retries of the opening message; (RETRIES + 1) * DEFAULT_TIMEOUT is the silence tolerated."""
+"""Retries of a message left unanswered before the transfer fails."""
+COPIES = 3
+"""Copies of a message in each retry (a burst: losses of separate frames are independent)."""
 
 
 class MissionType(enum.IntEnum):
@@ -197,6 +199,7 @@ class TransferOptions(TypedDict, total=False):
     timeout: float
     item_timeout: float
     retries: int
+    copies: int
 
 
 class Transfer:
@@ -214,8 +217,10 @@ class Transfer:
         timeout: float = DEFAULT_TIMEOUT,
         item_timeout: float = ITEM_TIMEOUT,
         retries: int = RETRIES,
+        copies: int = COPIES,
     ) -> None:
         self.mission_type = int(mission_type)
+        self.copies = copies
         self.system_id = system_id
         self.timeout = timeout
         self.item_timeout = item_timeout
@@ -224,7 +229,7 @@ class Transfer:
         self.error: MissionTransferError | None = None
         self.succeeded = False
         self.retransmissions = 0
-        self._heard_at = 0.0
+        self._retried = 0
         self._last_sent: list[MissionMessage] = []
 
     @property
@@ -239,7 +244,6 @@ class Transfer:
 
     def start(self, now: float) -> list[MissionMessage]:
         """Begin the transfer; returns the messages to send."""
-        self._heard_at = now
         return self._send(now, self._opening())
 
     def _opening(self) -> MissionMessage:
@@ -249,25 +253,30 @@ class Transfer:
         """Feed one message from the vehicle; returns the messages to send."""
         if self.done or getattr(msg, "mission_type", self.mission_type) != self.mission_type:
             return []
-        self._heard_at = now
+        self._retried = 0  # any answer: the link and the vehicle are there
         return self._handle(msg, now)
 
     def tick(self, now: float) -> list[MissionMessage]:
-        """Advance the clock; returns retransmissions once the deadline has passed."""
+        """Advance the clock; returns a retransmission once the deadline has passed, or
+        fails the transfer when the message awaiting its answer was already retried
+        ``retries`` times."""
         if self.done or now < self.deadline:
             return []
-        if now >= self._give_up_at():
-            self._fail(f"no answer for {now - self._heard_at:.1f} s", "TIMEOUT")
+        if self._retried >= self.retries:
+            self._fail(self._unanswered(), "TIMEOUT")
             return []
+        self._retried += 1
         self.retransmissions += 1
-        self.deadline = min(now + self.item_timeout, self._give_up_at())
+        self.deadline = now + self._current_timeout()
         return self._retransmission()
 
     def _retransmission(self) -> list[MissionMessage]:
-        return list(self._last_sent)
+        return list(self._last_sent) * self.copies
 
-    def _give_up_at(self) -> float:
-        return self._heard_at + (self.retries + 1) * self.timeout
+    def _unanswered(self) -> str:
+        """Why the transfer gave up: the message left unanswered, named for the user."""
+        return (f"no answer to {_name(self._last_sent)} after {self.retries} retries "
+                f"{_ms(self._current_timeout())} apart")
 
     def _handle(self, msg: MissionMessage, now: float) -> list[MissionMessage]:
         raise NotImplementedError
@@ -276,18 +285,24 @@ class Transfer:
         return self.timeout
 
     def _send(self, now: float, *msgs: MissionMessage) -> list[MissionMessage]:
+        """Send ``msgs`` in answer to the vehicle: a new exchange, with its own retries."""
         self._last_sent = list(msgs)
-        self.deadline = min(now + self._current_timeout(), self._give_up_at())
+        self._retried = 0
+        self.deadline = now + self._current_timeout()
         return list(msgs)
 
     def _succeed(self) -> None:
         self.succeeded = True
         self.deadline = float("inf")
 
+    def _at(self) -> int | None:
+        """The item the transfer is at (None before any item moved)."""
+        return None
+
     def _fail(self, why: str, result: str) -> None:
         kind = MissionType(self.mission_type).name.lower()
         self.error = MissionTransferError(f"{kind} {self.operation} failed: {why}", result,
-                                          self.system_id)
+                                          self.system_id, self._at())
         self.deadline = float("inf")
 
     def _ack_failure(self, ack: MissionAck) -> None:
@@ -308,7 +323,6 @@ class Upload(Transfer):
                  offer_next: bool = True, **options: Unpack[TransferOptions]) -> None:
         super().__init__(mission_type, **options)
         self.offer_next = offer_next
-        self._round = 0
         for index, item in enumerate(items):
             if item.seq != index:
                 raise ValueError(f"item {index} has seq {item.seq}; items must be numbered 0..N-1")
@@ -341,17 +355,23 @@ class Upload(Transfer):
     def _current_timeout(self) -> float:
         return self.item_timeout if self._requested else self.timeout
 
-    def _give_up_at(self) -> float:
-        if len(self.items) - 1 in self._requested:  # silence now means a lost final ACK
-            return self._heard_at + self.timeout
-        return super()._give_up_at()
+    def _at(self) -> int | None:
+        return max(self._requested) if self._requested else None
+
+    def _unanswered(self) -> str:
+        retried = f"{self.retries} retries {_ms(self._current_timeout())} apart"
+        if not self._requested:
+            return f"no request for item 0 after MISSION_COUNT ({len(self.items)}), {retried}"
+        last = max(self._requested)
+        if last == len(self.items) - 1:
+            return f"no MISSION_ACK after the last item ({last}), {retried}"
+        return f"no request after item {last} (of {len(self.items)}), {retried}"
 
     def _handle(self, msg: MissionMessage, now: float) -> list[MissionMessage]:
         if isinstance(msg, MissionRequest):
             if not 0 <= msg.seq < len(self.items):
                 return []  # a request outside the mission: nothing sensible to send back
             self._requested.add(msg.seq)
-            self._round = 0
             return self._send_item(now, msg.seq)
         if isinstance(msg, MissionAck):
             if msg.result == MissionResult.MAV_MISSION_INVALID_SEQUENCE and self._requested:
@@ -374,22 +394,15 @@ class Upload(Transfer):
         return len(self.items) - 1 in self._sent
 
     def _retransmission(self) -> list[MissionMessage]:
-        # A request lost on its way leaves the vehicle holding every item sent so far and
-        # waiting for the next, which it never asks for again if it does not re-request
-        # (and ArduPilot only does so once a second); repeating the last item cannot help.
-        # The item it waits for is, nearly always, the last one asked for or one of the two
-        # after it (an offer accepted whose request was lost), so each unanswered timeout
-        # sends the next of those in turn:
-        # vehicles accept the item they expect whether or not their request got through,
-        # and answer the others with INVALID_SEQUENCE or not at all.
-        if self.offer_next and self._requested:
-            first = max(self._requested)
-            last = min(first + 2, max(self._sent) + 1, len(self.items) - 1)
-            seq = first + self._round % (last - first + 1)
-            self._round += 1
-            self._sent.add(seq)
-            self._last_sent = [self.items[seq]]
-        return list(self._last_sent)
+        # The vehicle waits for the last item asked for (it was lost) or, its request for
+        # the next lost, for one of those after it: the burst offers them in order, and a
+        # vehicle that takes one takes the next from the same burst.
+        if not (self.offer_next and self._requested):
+            return list(self._last_sent) * self.copies
+        first = max(self._requested)
+        offers: list[MissionMessage] = [*self.items[first:first + self.copies]]
+        self._sent.update(range(first, first + len(offers)))
+        return offers
 
 
 class Download(Transfer):
@@ -423,22 +436,39 @@ class Download(Transfer):
         assert self.count is not None
         return next((seq for seq in range(self.count) if seq not in self._received), None)
 
-    def _request_next_or_finish(self, now: float) -> list[MissionMessage]:
+    def _at(self) -> int | None:
+        return None if self.count is None else self._next_missing()
+
+    def _unanswered(self) -> str:
+        retried = f"{self.retries} retries {_ms(self._current_timeout())} apart"
+        seq = self._at()
+        if seq is None:
+            return f"no MISSION_COUNT after MISSION_REQUEST_LIST, {retried}"
+        return f"no item {seq} (of {self.count}) after MISSION_REQUEST_INT, {retried}"
+
+    def _request_next_or_finish(self, now: float, moved: bool) -> list[MissionMessage]:
         missing = self._next_missing()
         if missing is None:
             self._succeed()
             return [MissionAck(MissionResult.MAV_MISSION_ACCEPTED, self.mission_type)]
-        return self._send(now, MissionRequest(missing, self.mission_type))
+        request = MissionRequest(missing, self.mission_type)
+        if moved:
+            return self._send(now, request)
+        # A duplicate: ask again at once, but it is no answer to what is awaited, so the
+        # retries go on counting (as QGroundControl's PlanManager does).
+        return [request]
 
     def _handle(self, msg: MissionMessage, now: float) -> list[MissionMessage]:
         if isinstance(msg, MissionCount):
-            if self.count is None:
+            moved = self.count is None
+            if moved:
                 self.count = msg.count
-            return self._request_next_or_finish(now)
+            return self._request_next_or_finish(now, moved)
         if isinstance(msg, MissionItem) and self.count is not None:
-            if 0 <= msg.seq < self.count:
-                self._received.setdefault(msg.seq, msg)
-            return self._request_next_or_finish(now)
+            moved = 0 <= msg.seq < self.count and msg.seq not in self._received
+            if moved:
+                self._received[msg.seq] = msg
+            return self._request_next_or_finish(now, moved)
         if isinstance(msg, MissionAck) and msg.result != MissionResult.MAV_MISSION_ACCEPTED:
             self._ack_failure(msg)
         return []
@@ -459,6 +489,18 @@ class Clear(Transfer):
             else:
                 self._ack_failure(msg)
         return []
+
+
+def _name(msgs: list[MissionMessage]) -> str:
+    """The MAVLink name of what was sent last, e.g. ``MISSION_CLEAR_ALL``."""
+    names = {MissionItem: "MISSION_ITEM_INT", MissionCount: "MISSION_COUNT",
+             MissionRequest: "MISSION_REQUEST_INT", MissionRequestList: "MISSION_REQUEST_LIST",
+             MissionClearAll: "MISSION_CLEAR_ALL", MissionAck: "MISSION_ACK"}
+    return " and ".join(names[type(msg)] for msg in msgs) or "nothing"
+
+
+def _ms(seconds: float) -> str:
+    return f"{seconds * 1000:.0f} ms"
 
 
 def with_home_placeholder(items: list[MissionItem], home: MissionItem | None = None

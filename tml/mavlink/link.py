@@ -414,19 +414,21 @@ class Link:
             if tracker is None or not tracker.apply(msg, now):
                 self._lock.notify_all()
                 return
-            plain = codec.decode(msg)
+            machines = self._machines.get(sysid)
+            plain = codec.decode(msg) if machines else None  # no plain message unless asked
             if plain is not None and self._for_us(msg, tracker):
-                for machine in list(self._machines.get(sysid, [])):
+                for machine in list(machines or ()):
                     if isinstance(plain, machine.inputs):
                         info = self._vehicles[sysid]
                         deadline = machine.deadline
                         self._send_all(machine.receive(plain, now), sysid, info.component_id)
                         if machine.done or machine.deadline < deadline:
                             self._machine_done.notify_all()
-            snapshot = tracker.snapshot
+            snapshot = tracker.snapshot if self._listeners else None
             self._lock.notify_all()
-        for listener in self._listeners:
-            listener(sysid, snapshot, msg)
+        if snapshot is not None:
+            for listener in self._listeners:
+                listener(sysid, snapshot, msg)
 
     def _for_us(self, msg: Any, tracker: TelemetryTracker) -> bool:
         # Another ground station on the same link has its own transfers with the vehicle.

@@ -326,7 +326,8 @@ class Upload(Transfer):
         for index, item in enumerate(items):
             if item.seq != index:
                 raise ValueError(f"item {index} has seq {item.seq}; items must be numbered 0..N-1")
-        self.items = [replace(item, mission_type=self.mission_type) for item in items]
+        self.items = [item if item.mission_type == self.mission_type
+                      else replace(item, mission_type=self.mission_type) for item in items]
         self._requested: set[int] = set()
         self._sent: set[int] = set()
 
@@ -511,8 +512,17 @@ def with_home_placeholder(items: list[MissionItem], home: MissionItem | None = N
     contents and keeps its own home there.
     """
     placeholder = home or MissionItem(seq=0, frame=0, command=16)  # MAV_CMD_NAV_WAYPOINT
-    shifted = [replace(item, seq=index + 1) for index, item in enumerate(items)]
-    return [replace(placeholder, seq=0), *shifted]
+    return [_renumbered(item, index) for index, item in enumerate([placeholder, *items])]
+
+
+def _renumbered(item: MissionItem, seq: int) -> MissionItem:
+    """``item`` as item ``seq`` (dataclasses.replace costs ten times as much, per item of
+    a mission uploaded while the clock runs)."""
+    if item.seq == seq:
+        return item
+    return MissionItem(seq, item.frame, item.command, item.current, item.autocontinue,
+                       item.param1, item.param2, item.param3, item.param4, item.x, item.y,
+                       item.z, item.mission_type)
 
 
 # --- read-back: what a vehicle keeps of an item ------------------------------------------

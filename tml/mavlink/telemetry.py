@@ -203,27 +203,46 @@ class TelemetryTracker:
                  companion_component: int = COMPANION_COMPONENT) -> None:
         self.autopilot_component = autopilot_component
         self.companion_component = companion_component
-        self.snapshot = Telemetry(system_id)
+        self._snapshot = Telemetry(system_id)
+        self._counted: tuple[float, int, int] | None = None  # (time, received, lost) not in it
         self.arrived: dict[str, float] = {}
         """When each kind of message last came from the autopilot (the link's clock)."""
         self._last_seq: dict[int, int] = {}
         self._named: tuple[str, int, int] | None = None  # (name, time_boot_ms, number)
 
+    @property
+    def snapshot(self) -> Telemetry:
+        """What is known now. A message that changes nothing but the link's counts (a
+        mission request, an ACK) is only counted; the snapshot takes the counts when it
+        is next read, so the link builds no snapshot per item of a mission transfer."""
+        if self._counted is not None:
+            now, received, lost = self._counted
+            self._snapshot = replace(self._snapshot, time=now, received=received, lost=lost)
+            self._counted = None
+        return self._snapshot
+
     def apply(self, msg: Any, now: float) -> bool:
-        """Fold ``msg`` in; returns whether it was this vehicle's and changed the snapshot."""
-        if msg.get_srcSystem() != self.snapshot.system_id:
+        """Fold ``msg`` in; returns whether it was this vehicle's (and so changed the
+        snapshot, if only its time and counts)."""
+        if msg.get_srcSystem() != self._snapshot.system_id:
             return False
         component = msg.get_srcComponent()
-        changes = self._count(component, msg.get_seq())
+        received, lost = self._count(component, msg.get_seq())
+        changes: dict[str, Any] = {}
         if component == self.autopilot_component:
             self.arrived[msg.get_type()] = now
-            changes.update(self._vehicle_state(msg, now))
+            changes = self._vehicle_state(msg, now)
             boot_ms = getattr(msg, "time_boot_ms", None)
             if boot_ms is not None:
                 changes.update(boot_time=boot_ms / 1000, boot_time_received=now)
         elif component == self.companion_component:
-            changes.update(self._detection(msg, now))
-        self.snapshot = replace(self.snapshot, time=now, **changes)
+            changes = self._detection(msg, now)
+        if changes:
+            self._snapshot = replace(self._snapshot, time=now, received=received, lost=lost,
+                                     **changes)
+            self._counted = None
+        else:
+            self._counted = (now, received, lost)
         return True
 
     def check_link(self, now: float, lost_after: float) -> bool:
@@ -232,21 +251,25 @@ class TelemetryTracker:
         Returns whether that changed the snapshot (a HEARTBEAT clears the mark in
         :meth:`apply`).
         """
-        lost = self.snapshot.heartbeat_age(now) > lost_after
-        if lost == self.snapshot.link_lost:
+        lost = self._snapshot.heartbeat_age(now) > lost_after
+        if lost == self._snapshot.link_lost:
             return False
-        self.snapshot = replace(self.snapshot, link_lost=lost)
+        self._snapshot = replace(self.snapshot, link_lost=lost)
         return True
 
-    def _count(self, component: int, seq: int) -> dict[str, Any]:
+    def _count(self, component: int, seq: int) -> tuple[int, int]:
+        """(received, lost) with this message counted."""
         last = self._last_seq.get(component)
         self._last_seq[component] = seq
         gap = 0 if last is None else (seq - last - 1) % 256
-        return {"received": self.snapshot.received + 1, "lost": self.snapshot.lost + gap}
+        counted = self._counted
+        received, lost = ((self._snapshot.received, self._snapshot.lost) if counted is None
+                          else counted[1:])
+        return received + 1, lost + gap
 
     def _vehicle_state(self, msg: Any, now: float) -> dict[str, Any]:
         kind = msg.get_type()
-        s = self.snapshot
+        s = self._snapshot
         if kind == "HEARTBEAT":
             mode = mode_name(msg.type, msg.autopilot, msg.base_mode, msg.custom_mode)
             changes = s.mode_changes if mode == s.mode else (
@@ -301,18 +324,18 @@ class TelemetryTracker:
         if kind not in ("NAMED_VALUE_FLOAT", "NAMED_VALUE_INT"):
             return {}
         name = _text(msg.name)
-        detections = dict(self.snapshot.detections)
+        detections = dict(self._snapshot.detections)
         detections[name] = msg.value
         changes: dict[str, Any] = {"detections": MappingProxyType(detections)}
         if kind == "NAMED_VALUE_INT":
             self._named = (name, msg.time_boot_ms, msg.value)
-            known = self.snapshot.sightings.get((name, msg.value))
+            known = self._snapshot.sightings.get((name, msg.value))
             changes.update(self._sighted((name, msg.value),
                                          Sighting(now, known.position if known else None)))
         return changes
 
     def _sighted(self, key: tuple[str, int], sighting: Sighting) -> dict[str, Any]:
-        sightings = dict(self.snapshot.sightings)
+        sightings = dict(self._snapshot.sightings)
         sightings[key] = sighting
         return {"sightings": MappingProxyType(sightings)}
 

@@ -38,7 +38,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from sitl.server import Simulator
 
 MISSION = b"""<mission name="Reaction">
-  <task name="Wait"><action name="WAIT"><argument name="duration" value="1000000"/></action>
+  <task name="Wait"><action name="WAIT"><argument name="duration" value="86400"/></action>
   </task>
   <event_handling>
     <event name="Trigger">

@@ -144,6 +144,24 @@ def test_loss_is_estimated_from_sequence_gaps() -> None:
     assert tracker.snapshot.loss == pytest.approx(74 / 299)
 
 
+def test_messages_that_change_no_state_are_counted_with_their_time() -> None:
+    # A mission transfer's requests and ACKs change nothing but the link's counts: they
+    # must still count, and be seen with the state that comes between them.
+    tracker = TelemetryTracker(1)
+    ap = Source()
+    tracker.apply(heartbeat(ap), 1.0)
+    for n in range(5):
+        tracker.apply(ap("mission_request", 250, 190, n, 0), 1.1 + n / 10)
+        if n == 2:
+            ap.mav.seq += 1  # one lost on the way
+    assert (tracker.snapshot.received, tracker.snapshot.lost) == (6, 1)
+    assert tracker.snapshot.time == pytest.approx(1.5) and tracker.snapshot.mode == "GUIDED"
+    tracker.apply(heartbeat(ap, custom_mode=3), 2.0)
+    snapshot = tracker.snapshot
+    assert (snapshot.received, snapshot.lost, snapshot.time, snapshot.mode) == (
+        7, 1, 2.0, "AUTO")
+
+
 def test_status_texts_are_bounded() -> None:
     tracker = TelemetryTracker(1)
     ap = Source()

@@ -15,9 +15,10 @@ download when it read every item back as stored.
 The analysis (docs/reliability.md, "Mission transfer"): an exchange fails only when its
 first message and RETRIES bursts of COPIES messages all go unanswered, each answered with
 probability a = (1 - loss_up) * (1 - loss_down), so q = (1 - a) ** (1 + RETRIES * COPIES);
-a transfer of N items has N + 1 exchanges (download) or N + 2 (upload, with home) and
-succeeds with probability (1 - q) ** exchanges. The plain per-message rule (single
-retransmissions, as QGroundControl's PlanManager sends them) has q = (1 - a) ** (1 + RETRIES).
+N waypoints behind the home slot make N + 2 exchanges either way (the count, then each of
+the N + 1 items), and a transfer succeeds with probability (1 - q) ** (N + 2). The plain
+per-message rule (single retransmissions, as QGroundControl's PlanManager sends them) has
+q = (1 - a) ** (1 + RETRIES).
 
     .venv/bin/python benchmarks/transfer_loss.py [--sizes 100 500] [--trials 1000] [--loss 0.3]
 """
@@ -124,8 +125,8 @@ def analysis(n: int, loss: float, copies: int = COPIES, retries: int = RETRIES
     """(upload, download) success probability for ``n`` waypoints (see the docstring)."""
     unanswered = 1 - (1 - loss) ** 2
     q = unanswered ** (1 + retries * copies)
-    items = n + 1  # with the home slot
-    return (1 - q) ** (items + 1), (1 - q) ** (items + 1)
+    exchanges = n + 2  # the count, then the home slot and each waypoint
+    return (1 - q) ** exchanges, (1 - q) ** exchanges
 
 
 def main() -> None:

@@ -455,8 +455,7 @@ class Download(Transfer):
         request = MissionRequest(missing, self.mission_type)
         if moved:
             return self._send(now, request)
-        # A duplicate: ask again at once, but it is no answer to what is awaited, so the
-        # retries go on counting (as QGroundControl's PlanManager does).
+        # A duplicate (a burst's extra answer): ask again at once, the timer running on.
         return [request]
 
     def _handle(self, msg: MissionMessage, now: float) -> list[MissionMessage]:

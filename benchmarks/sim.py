@@ -1,44 +1,54 @@
-"""Real-time factor of the simulator for 1, 10 and 50 vehicles.
+"""Real-time factor of the simulator for 1, 10 and 50 vehicles, against its bare models.
 
 Each run starts the simulator with realtime=False on loopback, connects one TCP client
 per vehicle that reads everything it asked for (every stream group at 4 Hz, so every
-message is encoded and sent), arms every
-vehicle and flies it up and around in GUIDED, and steps vehicle time as fast as the
-machine allows. The real-time factor is vehicle seconds per wall-clock second: the
-ceiling for ``--speedup``.
+message is built, encoded and sent), arms every vehicle and takes it off to 20 m in
+GUIDED (it climbs for about 11 s, then holds its position), and steps vehicle time as
+fast as the machine allows. The real-time factor is vehicle seconds per wall-clock
+second: the ceiling for ``--speedup``.
 
-    python benchmarks/sim.py [--seconds 60]
+The peer, measured in the same run on the same machine load: the same vehicle models
+given the same commands and stepped in a bare loop, with no server, no streams asked
+for and nothing encoded or sent (physics, modes, failsafes and the HEARTBEAT only). The
+ratio served/bare is the share of the vehicles' time left after the MAVLink side.
+
+    python benchmarks/sim.py [--seconds 60] [--vehicles 1 10 50]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import socket
 import time
 
 from pymavlink.dialects.v20 import ardupilotmega as M
 
+from sitl.model import TICK, VehicleModel
 from sitl.server import Simulator
+from tml.world import Home
 
 FAST = {"SIM_GPS_LOCKTIME": 1, "SIM_EKF_GPS_TIME": 2}
 
 
+def _take_off(model: VehicleModel, streams: bool) -> None:
+    if streams:  # nothing streams unasked (as on ArduPilot): ask for every group at 4 Hz
+        model.handle(M.MAVLink_request_data_stream_message(
+            model.system_id, 1, M.MAV_DATA_STREAM_ALL, 4, 1))
+    model.set_mode("GUIDED")
+    model.handle(M.MAVLink_command_long_message(model.system_id, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0))
+    model.handle(M.MAVLink_command_long_message(model.system_id, 1, 22, 0, 0, 0, 0, 0, 0, 0, 20))
+
+
 def real_time_factor(vehicles: int, seconds: float) -> float:
-    """Vehicle seconds simulated per wall-clock second with ``vehicles`` flying."""
+    """Vehicle seconds simulated per wall-clock second with ``vehicles`` served."""
     with Simulator(vehicles=vehicles, tcp_base_port=0, realtime=False, params=FAST) as sim:
         clients = [socket.create_connection(("127.0.0.1", port)) for port in sim.tcp_ports]
         for client in clients:
             client.setblocking(False)
         sim.advance(3)
         for model in sim.vehicles:
-            # Nothing streams unasked (as on ArduPilot): ask for every group at 4 Hz.
-            model.handle(M.MAVLink_request_data_stream_message(
-                model.system_id, 1, M.MAV_DATA_STREAM_ALL, 4, 1))
-            model.set_mode("GUIDED")
-            model.handle(M.MAVLink_command_long_message(
-                model.system_id, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0))
-            model.handle(M.MAVLink_command_long_message(
-                model.system_id, 1, 22, 0, 0, 0, 0, 0, 0, 0, 20))
+            _take_off(model, streams=True)
         start = time.perf_counter()
         for _ in range(round(seconds)):
             sim.advance(1.0)
@@ -55,14 +65,34 @@ def real_time_factor(vehicles: int, seconds: float) -> float:
     return seconds / wall
 
 
+def bare_factor(vehicles: int, seconds: float) -> float:
+    """The same vehicles stepped directly: no server, no streams, nothing encoded."""
+    home = Home(-35.363261, 149.165230, 584.0)
+    models = [VehicleModel(index + 1, home, params=FAST) for index in range(vehicles)]
+    for model in models:
+        model.step(3.0)
+        _take_off(model, streams=False)
+    start = time.perf_counter()
+    for _ in range(round(seconds / TICK)):
+        for model in models:
+            model.step(TICK)
+    return seconds / (time.perf_counter() - start)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=60.0, help="vehicle seconds per run")
+    parser.add_argument("--vehicles", type=int, nargs="+", default=[1, 10, 50])
     args = parser.parse_args()
-    print(f"{'vehicles':>8}  {'real-time factor':>16}  {'vehicle-seconds/s':>17}")
-    for vehicles in (1, 10, 50):
+    print(f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} at the start")
+    print(f"{'vehicles':>8}  {'served':>9}  {'vehicle-s/s':>11}  {'bare models':>11}  "
+          f"{'served/bare':>11}")
+    for vehicles in args.vehicles:
         factor = real_time_factor(vehicles, args.seconds)
-        print(f"{vehicles:>8}  {factor:>15.1f}x  {factor * vehicles:>17.1f}")
+        bare = bare_factor(vehicles, args.seconds)
+        print(f"{vehicles:>8}  {factor:>8.1f}x  {factor * vehicles:>11.1f}  {bare:>10.1f}x  "
+              f"{factor / bare:>11.2f}")
+    print(f"load average {os.getloadavg()[0]:.2f} at the end")
 
 
 if __name__ == "__main__":

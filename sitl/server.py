@@ -6,7 +6,8 @@ several ArduPilot SITL instances do, or an OS-assigned port with ``tcp_base_port
 optionally sends to ground-station UDP addresses (``udp_out``) from its own UDP socket,
 reading the replies that come back to it. Everything a vehicle emits goes to every client
 of that vehicle; bytes received are parsed with pymavlink's MAVLink 2 parser (one parser
-per connection) and handed to the vehicle's model.
+per connection) and handed to the vehicle's model; what the model emits is encoded by
+:func:`sitl.wire.encode` (pymavlink's bytes at a quarter of the cost).
 
 Like ArduPilot between its serial ports, a vehicle also routes what one client sends to
 its other clients (so a companion computer connected beside the ground station reaches
@@ -44,6 +45,7 @@ from sitl.frames import FRAMES, frame_of
 from sitl.messages import AUTOPILOT
 from sitl.model import TICK, VehicleModel
 from sitl.params import UnknownParameter
+from sitl.wire import encode
 from tml.geo import to_global
 from tml.world import Home, World
 
@@ -109,7 +111,7 @@ class _Endpoint:
         self.udp: socket.socket | None = None
         self.tcp_peers: list[_Peer] = []
         self.udp_peers: list[_Peer] = []
-        self.encoders: dict[int, Any] = {}
+        self.sequences: dict[int, int] = {}  # component -> next packet sequence number
         wire = faults.affects_wire
         sid = model.system_id
         self.incoming: WireChannel[Any] | None = (
@@ -119,13 +121,9 @@ class _Endpoint:
 
     def encode(self, msg: Any) -> bytes:
         component = msg._header.srcComponent or AUTOPILOT
-        encoder = self.encoders.get(component)
-        if encoder is None:
-            encoder = mavlink.MAVLink(None, self.model.system_id, component)
-            self.encoders[component] = encoder
-        packet: bytes = msg.pack(encoder)
-        encoder.seq = (encoder.seq + 1) % 256  # pack() leaves counting to send()
-        return packet
+        seq = self.sequences.get(component, 0)
+        self.sequences[component] = (seq + 1) % 256  # each component counts its own
+        return encode(msg, seq, self.model.system_id, component)
 
     def peers(self) -> list[_Peer]:
         return self.tcp_peers + self.udp_peers

@@ -268,10 +268,12 @@ class VehicleModel:
             self.time = self.step_count * TICK
             self._tick()
             self._outbox.extend(self.missions.tick(self.time))
-            out.extend(stamp(built, self.system_id, AUTOPILOT)
-                       for built in map(self._build, self.streams.due(self.time))
-                       if built is not None)
-            out.extend(self._flush())
+            for msg_id in self.streams.due(self.time):  # most steps: nothing is due
+                built = self._build(msg_id)
+                if built is not None:
+                    out.append(stamp(built, self.system_id, AUTOPILOT))
+            if self._outbox:
+                out.extend(self._flush())
             if self.has_companion:
                 out.extend(self.companion.step(self.time, self.position, self.heading))
         return out

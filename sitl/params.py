@@ -20,7 +20,7 @@ and ArduPilot answers with the value rounded to the parameter's type.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
@@ -174,38 +174,34 @@ class UnknownParameter(KeyError):
     """A parameter name the table does not hold."""
 
 
-class Params:
-    """An ordered table of named float values with their MAVLink types."""
+class Params(dict[str, float]):
+    """An ordered table of named float values with their MAVLink types.
+
+    A dict, so that reading a value (the model reads a score of them every control
+    step) is a plain dict lookup; writing goes through :meth:`set`, which rounds to the
+    parameter's type and refuses names the table does not hold.
+    """
 
     def __init__(
         self,
         defaults: tuple[tuple[str, float, int], ...],
         overrides: Mapping[str, float] | None = None,
     ) -> None:
-        self._values: dict[str, float] = {name: float(value) for name, value, _ in defaults}
+        super().__init__((name, float(value)) for name, value, _ in defaults)
         self._types: dict[str, int] = {name: kind for name, _, kind in defaults}
         for name, value in (overrides or {}).items():
             self.set(name, value)
 
-    def __getitem__(self, name: str) -> float:
-        return self._values[name]
-
-    def __contains__(self, name: object) -> bool:
-        return name in self._values
-
-    def __len__(self) -> int:
-        return len(self._values)
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self._values)
+    def __setitem__(self, name: str, value: float) -> None:
+        self.set(name, value)
 
     def index(self, name: str) -> int:
         """Position of ``name`` in the table (PARAM_VALUE.param_index)."""
-        return list(self._values).index(name)
+        return list(self).index(name)
 
     def name_at(self, index: int) -> str | None:
         """The name at ``index``, or None when out of range."""
-        names = list(self._values)
+        names = list(self)
         return names[index] if 0 <= index < len(names) else None
 
     def type_of(self, name: str) -> int:
@@ -214,10 +210,10 @@ class Params:
 
     def set(self, name: str, value: float) -> float:
         """Store ``value`` rounded to the parameter's type; returns what was stored."""
-        if name not in self._values:
+        if name not in self:
             raise UnknownParameter(name)
         stored = float(value) if self._types[name] == REAL32 else float(round(value))
-        self._values[name] = stored
+        super().__setitem__(name, stored)
         return stored
 
 

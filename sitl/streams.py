@@ -18,6 +18,8 @@ that step, so a late step never causes a burst of copies.
 
 from __future__ import annotations
 
+import math
+
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 M = mavlink
@@ -67,6 +69,9 @@ class Streams:
     def __init__(self) -> None:
         self._intervals = {msg_id: _interval(rate) for msg_id, rate in DEFAULT_RATES.items()}
         self._next_due = dict.fromkeys(self._intervals, 0.0)
+        # The earliest time anything streaming falls due: most control steps send nothing,
+        # and they learn it from this one comparison.
+        self._earliest = 0.0
 
     def set_interval(self, msg_id: int, interval_us: float, now: float) -> bool:
         """SET_MESSAGE_INTERVAL; False for a message that cannot stream."""
@@ -79,6 +84,7 @@ class Streams:
         else:
             self._intervals[msg_id] = interval_us / 1e6
         self._next_due[msg_id] = now
+        self._earliest = now
         return True
 
     def request_data_stream(self, stream_id: int, rate: float, start: bool, now: float) -> None:
@@ -88,15 +94,22 @@ class Streams:
             for msg_id in DATA_STREAMS.get(group, ()):
                 self._intervals[msg_id] = 1.0 / rate if start and rate > 0 else None
                 self._next_due[msg_id] = now
+                self._earliest = now
 
     def due(self, now: float) -> list[int]:
         """The ids of the messages due at ``now``, each scheduled for its next time."""
+        if now + 1e-9 < self._earliest:
+            return []
         out = []
+        earliest = math.inf
         for msg_id, interval in self._intervals.items():
-            if interval is None or now + 1e-9 < self._next_due[msg_id]:
+            if interval is None:
                 continue
-            following = self._next_due[msg_id] + interval
-            # Late by a whole interval (a long step): restart from now rather than burst.
-            self._next_due[msg_id] = following if following > now + 1e-9 else now + interval
-            out.append(msg_id)
+            if now + 1e-9 >= self._next_due[msg_id]:
+                following = self._next_due[msg_id] + interval
+                # Late by a whole interval (a long step): restart from now, never burst.
+                self._next_due[msg_id] = following if following > now + 1e-9 else now + interval
+                out.append(msg_id)
+            earliest = min(earliest, self._next_due[msg_id])
+        self._earliest = earliest
         return out

@@ -184,6 +184,9 @@ class VehicleModel:
         self.camera = Camera(self.params)
         self.obstacles = Obstacles(self.world)
         self._fence_polygon = fence.world_polygon(self.world)
+        # The last conversions (position, origin, result) and (home, origin, result).
+        self._last_global: tuple[Vector | None, Home | None, Vector] = (None, None, (0, 0, 0))
+        self._last_home_local: tuple[Home | None, Home | None, Vector] = (None, None, (0, 0, 0))
         self._home_changed()
 
     # ----------------------------------------------------------------- public state
@@ -1182,12 +1185,24 @@ class VehicleModel:
         return to_local(latitude, longitude, altitude, o.latitude, o.longitude, o.altitude)
 
     def _global(self, position: Vector) -> Vector:
+        # GPS_RAW_INT and GLOBAL_POSITION_INT both convert the same position, and a
+        # vehicle at rest keeps it: the last conversion is kept (it is a pure function).
         o = self.origin
-        return to_global(*position, o.latitude, o.longitude, o.altitude)
+        last_position, last_origin, last = self._last_global
+        if position == last_position and o is last_origin:
+            return last
+        converted = to_global(*position, o.latitude, o.longitude, o.altitude)
+        self._last_global = (position, o, converted)
+        return converted
 
     def _home_local(self) -> Vector:
-        h = self.home
-        return self._local(h.latitude, h.longitude, h.altitude)
+        h, o = self.home, self.origin
+        last_home, last_origin, last = self._last_home_local
+        if h is last_home and o is last_origin:
+            return last
+        local = self._local(h.latitude, h.longitude, h.altitude)
+        self._last_home_local = (h, o, local)
+        return local
 
     def _set_home_here(self) -> None:
         lat, lon, alt = self._global(self.position)

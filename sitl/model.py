@@ -265,6 +265,7 @@ class VehicleModel:
         """Advance ``dt`` seconds of vehicle time; returns the messages that became due."""
         self._pending += dt
         out: list[Any] = []
+        system_id = self.system_id
         while self._pending >= TICK - 1e-9:
             self._pending -= TICK
             self.step_count += 1
@@ -274,7 +275,7 @@ class VehicleModel:
             for msg_id in self.streams.due(self.time):  # most steps: nothing is due
                 built = self._build(msg_id)
                 if built is not None:
-                    out.append(stamp(built, self.system_id, AUTOPILOT))
+                    out.append(stamp(built, system_id, AUTOPILOT))
             if self._outbox:
                 out.extend(self._flush())
             if self.has_companion:

@@ -377,16 +377,21 @@ class Simulator:
                         peer.send(packet)
 
     def _emit(self, endpoint: _Endpoint, messages: list[Any]) -> None:
-        peers = endpoint.peers()
-        if not peers:
-            return  # nobody listens: skip the encoding work
-        for msg in messages:
-            packet = endpoint.encode(msg)
-            if endpoint.outgoing is not None:
+        if not messages or not (endpoint.tcp_peers or endpoint.udp_peers):
+            return  # nothing to say, or nobody listens: skip the encoding work
+        packets = [endpoint.encode(msg) for msg in messages]
+        if endpoint.outgoing is not None:
+            for packet in packets:
                 endpoint.outgoing.send(self.time, packet)
-            else:
-                for peer in peers:
-                    peer.send(packet)
+            return
+        # A TCP client takes the step's packets as one piece of its stream; a UDP address
+        # one datagram per packet.
+        joined = b"".join(packets)
+        for peer in endpoint.tcp_peers:
+            peer.send(joined)
+        for peer in endpoint.udp_peers:
+            for packet in packets:
+                peer.send(packet)
 
     # ------------------------------------------------------------------ clock
     def _tick(self) -> None:

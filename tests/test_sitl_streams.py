@@ -64,3 +64,17 @@ def test_a_late_step_never_sends_a_message_twice():
     assert s.due(5.0).count(M.MAVLINK_MSG_ID_HEARTBEAT) == 1
     assert count(s, 5.05, 0.9)[M.MAVLINK_MSG_ID_HEARTBEAT] == 0  # next one a second later
     assert M.MAVLINK_MSG_ID_HEARTBEAT in s.due(6.0)
+
+
+def test_a_stream_asked_for_between_due_times_starts_at_once():
+    # The schedule answers "nothing due" from its earliest due time: a stream switched on
+    # while the others wait (HEARTBEAT next due at 2 s) must still start in that step.
+    s = Streams()
+    assert s.due(1.0) == [M.MAVLINK_MSG_ID_HEARTBEAT]
+    assert s.due(1.05) == []
+    s.set_interval(M.MAVLINK_MSG_ID_ATTITUDE, 250_000, 1.1)
+    assert s.due(1.1) == [M.MAVLINK_MSG_ID_ATTITUDE]
+    s.request_data_stream(M.MAV_DATA_STREAM_EXTRA2, 4, True, 1.15)
+    assert s.due(1.15) == [M.MAVLINK_MSG_ID_VFR_HUD]
+    assert s.due(1.35) == [M.MAVLINK_MSG_ID_ATTITUDE]
+    assert s.due(1.4) == [M.MAVLINK_MSG_ID_VFR_HUD]

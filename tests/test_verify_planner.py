@@ -121,3 +121,24 @@ def test_degenerate_legs_give_no_numeric_warnings() -> None:
         assert tiny is not None and planner.clearance_of(tiny.points) == pytest.approx(1.0)
         around = planner.trajectory((-3.0, 0.0, 0.0), (8.0, 0.0, 0.0))  # shared vertices
         assert around is not None and planner.clearance_of(around.points) >= -1e-6
+
+
+crowded = st.lists(
+    st.builds(lambda n, e, r: Cylinder("c", n, e, r), st.floats(-40, 40), st.floats(-40, 40),
+              st.floats(0.5, 10)), max_size=12)
+
+
+@settings(max_examples=150, deadline=None)
+@given(crowded, prisms, st.floats(0, 6), point, point)
+def test_tangent_edges_find_the_shortest_path_of_all_visible_edges(
+        round_ones: list[Cylinder], boxes: list[Prism], clearance: float,
+        start: tuple[float, float, float], end: tuple[float, float, float]) -> None:
+    # The planner keeps only edges tangent at both ends; among overlapping obstacles too,
+    # its path is as short as the one over every visible edge (within 1e-6 of it) and it
+    # finds a path whenever that graph has one.
+    obstacles = [*round_ones, *boxes]
+    reduced, full = Planner(obstacles, clearance), Planner(obstacles, clearance, reduced=False)
+    fast, reference = reduced.trajectory(start, end), full.trajectory(start, end)
+    assert (fast is None) == (reference is None)
+    if fast is not None and reference is not None:
+        assert fast.length <= reference.length * (1 + 1e-6) + 1e-9

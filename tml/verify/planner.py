@@ -20,6 +20,16 @@ crosses, then, while the shortest path found crosses further obstacles, those ar
 and the path planned again. Free space only shrinks as obstacles are added, so when the
 graph has no path no path exists; when the path found crosses nothing else it is the
 shortest one.
+
+Only edges tangent at both ends are kept (the reduced visibility graph): a shortest path bends
+around the polygon of each vertex it turns at, so an edge that cuts into the polygon at one
+of its ends is never on it. This leaves a few edges per obstacle instead of one to every
+node. The nodes next to a crossing of two overlapping polygons, and shared vertices, keep all
+their edges; so do the start and the goal. Over random crowded and overlapping worlds the
+path found is as long as over every visible edge (a test holds it to within 1e-6).
+
+Distances to obstacles (:meth:`Planner.clearance_of`, :meth:`Planner.nearest`) measure only
+the obstacles an STRtree of their footprints finds near the path, not all of them.
 """
 
 from __future__ import annotations
@@ -68,9 +78,13 @@ def straight(a: Point3, b: Point3) -> Trajectory:
 class Planner:
     """Plans legs among fixed obstacles with a fixed clearance; caches the legs it plans."""
 
-    def __init__(self, obstacles: Sequence[Obstacle], clearance: float) -> None:
+    def __init__(self, obstacles: Sequence[Obstacle], clearance: float,
+                 reduced: bool = True) -> None:
         self.obstacles = tuple(obstacles)
         self.clearance = clearance
+        # Only edges tangent at both ends (the reduced visibility graph); False: every
+        # visible edge, the graph the reduced one is measured against.
+        self.reduced = reduced
         cores: list[Point | Polygon] = []
         radii: list[float] = []
         for obstacle in self.obstacles:
@@ -89,6 +103,8 @@ class Planner:
             [core.buffer((radius + clearance) * _COVER, quad_segs=QUAD_SEGS)
              for core, radius in zip(cores, radii, strict=True)], dtype=object)
         self.tree = shapely.STRtree(self.inflated)
+        self._core_tree = shapely.STRtree(self.cores)
+        self._widest = float(np.max(self.radii)) if len(self.radii) else 0.0
         self._nodes: dict[int, np.ndarray] = {}
         self._cache: dict[tuple[Point3, Point3], Trajectory | None] = {}
 
@@ -154,21 +170,38 @@ class Planner:
         from the nodes it expands (the straight-line distance to the goal is the heuristic:
         it never overestimates, so the first time the goal is taken the path is shortest)."""
         tree = shapely.STRtree(self.inflated[active])
-        candidates = np.concatenate([self._node_points(i) for i in active])
+        rings = [self._node_points(i) for i in active]
+        candidates = np.concatenate(rings)
+        # Each node's neighbours on its own polygon, to tell the edges tangent at it.
+        before = np.concatenate([np.roll(r, 1, axis=0) for r in rings])
+        after = np.concatenate([np.roll(r, -1, axis=0) for r in rings])
         inside = tree.query(shapely.points(candidates), predicate="intersects")[0]
         keep = np.ones(len(candidates), dtype=bool)
         keep[inside] = False
+        # Where polygons overlap, a path bends where their outlines cross, which is no
+        # node: the nodes next to such a crossing (a neighbour inside another polygon)
+        # stand in for it, so no edge at them is left out as not tangent.
+        bounds = np.cumsum([0] + [len(r) for r in rings])
+        beside = np.concatenate([
+            ~(np.roll(keep[low:high], 1) & np.roll(keep[low:high], -1))
+            for low, high in pairwise(bounds)])
         # Coincident nodes (shared vertices, a vertex on an end) would make zero-length
-        # edges, degenerate geometry for the distance and intersection tests.
-        candidates = np.unique(candidates[keep], axis=0)
-        candidates = candidates[~(np.all(candidates == a2, axis=1)
-                                  | np.all(candidates == b2, axis=1))]
-        nodes = np.vstack([np.array([a2, b2]), candidates])
+        # edges, degenerate geometry for the distance and intersection tests; a shared
+        # vertex belongs to two polygons, so no edge at it is left out either.
+        unique, first, counts = np.unique(candidates[keep], axis=0, return_index=True,
+                                          return_counts=True)
+        ends = np.all(unique == a2, axis=1) | np.all(unique == b2, axis=1)
+        shared = np.concatenate([[True, True], ((counts > 1) | beside[keep][first])[~ends]])
+        nodes = np.vstack([np.array([a2, b2]), unique[~ends]])
+        before = np.vstack([np.array([a2, b2]), before[keep][first][~ends]])
+        after = np.vstack([np.array([a2, b2]), after[keep][first][~ends]])
         to_goal = np.hypot(*(nodes - nodes[1]).T)
         cost = np.full(len(nodes), math.inf)
         cost[0] = 0.0
         previous: dict[int, int] = {}
         open_ = np.ones(len(nodes), dtype=bool)
+        reach = _tangents(nodes, before, after, shared) if self.reduced else \
+            np.ones((len(nodes), len(nodes)), dtype=bool)
         queue = [(float(to_goal[0]), 0)]
         while queue:
             _, node = heapq.heappop(queue)
@@ -180,7 +213,7 @@ class Planner:
                     order.append(previous[order[-1]])
                 return [(float(nodes[i][0]), float(nodes[i][1])) for i in reversed(order)]
             open_[node] = False
-            others = np.flatnonzero(open_)
+            others = np.flatnonzero(open_ & reach[node])
             segments = shapely.linestrings(np.stack(
                 [np.broadcast_to(nodes[node], (len(others), 2)), nodes[others]], axis=1))
             hit, polygon = tree.query(segments, predicate="intersects")
@@ -227,22 +260,73 @@ class Planner:
         for a, b in pieces:
             geometry = Point(a[0], a[1]) if math.dist(a[:2], b[:2]) < 1e-9 \
                 else LineString([a[:2], b[:2]])
-            flat = np.maximum(shapely.distance(self.cores, geometry) - self.radii, 0.0)
-            low, high = min(a[2], b[2]), max(a[2], b[2])
-            gap = np.maximum(np.maximum(self.bottoms - high, low - self.tops), 0.0)
-            best = min(best, float(np.min(np.hypot(flat, gap))))
+            distances = self._surface(geometry, min(a[2], b[2]), max(a[2], b[2]))[1]
+            best = min(best, float(np.min(distances)))
         return best
 
     def nearest(self, point: Point3) -> tuple[float, str]:
         """Distance from a point to the nearest obstacle's surface, and that obstacle's name."""
         if not self.obstacles:
             return math.inf, ""
-        geometry = Point(point[0], point[1])
-        flat = np.maximum(shapely.distance(self.cores, geometry) - self.radii, 0.0)
-        gap = np.maximum(np.maximum(self.bottoms - point[2], point[2] - self.tops), 0.0)
-        distances = np.hypot(flat, gap)
+        indices, distances = self._surface(Point(point[0], point[1]), point[2], point[2])
         index = int(np.argmin(distances))
-        return float(distances[index]), self.obstacles[index].name
+        return float(distances[index]), self.obstacles[int(indices[index])].name
+
+    def _surface(self, geometry: Point | LineString, low: float, high: float
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """Some obstacles and their surface distances to ``geometry`` flown between
+        altitudes ``low`` and ``high``, the nearest among them. The obstacle nearest over
+        the ground gives a bound; only obstacles whose footprint core lies within the bound
+        plus the largest radius can be nearer, and only those are measured."""
+        found = self._core_tree.query_nearest(geometry)
+        bound = float(np.min(self._distances(found, geometry, low, high)))
+        if math.isfinite(bound):
+            found = np.union1d(found, self._core_tree.query(
+                geometry, predicate="dwithin", distance=bound + self._widest + 1e-6))
+        else:
+            found = np.arange(len(self.obstacles))
+        return found, self._distances(found, geometry, low, high)
+
+    def _distances(self, indices: np.ndarray, geometry: Point | LineString, low: float,
+                   high: float) -> np.ndarray:
+        flat = np.maximum(shapely.distance(self.cores[indices], geometry)
+                          - self.radii[indices], 0.0)
+        gap = np.maximum(np.maximum(self.bottoms[indices] - high, low - self.tops[indices]),
+                         0.0)
+        distances: np.ndarray = np.hypot(flat, gap)
+        return distances
+
+
+def _tangents(nodes: np.ndarray, before: np.ndarray, after: np.ndarray,
+              shared: np.ndarray) -> np.ndarray:
+    """Which edges (row: from, column: to) a shortest path may take: a shortest path bends
+    only around the polygon of the vertex it bends at, so its edges touch the polygons at
+    both ends without cutting in (both neighbours of a vertex on one side of the edge).
+    Edges from the start, to the goal and at vertices shared by two polygons are always
+    kept (an end may lie inside a polygon it keeps the clearance of: see ``soft``)."""
+    direction = nodes[None, :, :] - nodes[:, None, :]  # [i, j]: from node i to node j
+    # A neighbour within a few margins of the edge's line counts as on it: nodes stand a
+    # margin off the polygons, so an edge may cut that band, and the path over every
+    # visible edge does.
+    scale = 4 * MARGIN * np.hypot(direction[..., 0], direction[..., 1]) + 1e-9
+
+    def side(offset: np.ndarray) -> np.ndarray:
+        product: np.ndarray = direction[..., 0] * offset[..., 1] \
+            - direction[..., 1] * offset[..., 0]
+        return product
+
+    def one_side(first: np.ndarray, second: np.ndarray) -> np.ndarray:
+        mixed: np.ndarray = ((first > scale) & (second < -scale)) \
+            | ((first < -scale) & (second > scale))
+        return ~mixed
+
+    # At the far end j, its neighbours seen along i -> j; at the near end i, along i -> j.
+    far = one_side(side((before - nodes)[None, :, :]), side((after - nodes)[None, :, :]))
+    near = one_side(side((before - nodes)[:, None, :]), side((after - nodes)[:, None, :]))
+    reach: np.ndarray = (far | shared[None, :]) & (near | shared[:, None])
+    reach[0, :] = True
+    reach[:, 1] = True
+    return reach
 
 
 def _with_altitudes(path: Sequence[tuple[float, float]], start: Point3,

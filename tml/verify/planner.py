@@ -160,6 +160,17 @@ class Planner:
             self._nodes[index] = np.asarray(grown.exterior.coords)[:-1]
         return self._nodes[index]
 
+    def _rings(self, active: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The nodes of the active obstacles, and the indices of each one's neighbours
+        before and after it on its own polygon."""
+        rings = [self._node_points(i) for i in active]
+        lengths = np.array([len(r) for r in rings])
+        starts = np.repeat(np.cumsum(lengths) - lengths, lengths)
+        sizes = np.repeat(lengths, lengths)
+        position = np.arange(len(starts)) - starts
+        return (np.concatenate(rings), starts + (position - 1) % sizes,
+                starts + (position + 1) % sizes)
+
     def _flat_distance(self, index: int, point: tuple[float, float]) -> float:
         return max(float(shapely.distance(self.cores[index], Point(point)))
                    - float(self.radii[index]), 0.0)
@@ -170,21 +181,16 @@ class Planner:
         from the nodes it expands (the straight-line distance to the goal is the heuristic:
         it never overestimates, so the first time the goal is taken the path is shortest)."""
         tree = shapely.STRtree(self.inflated[active])
-        rings = [self._node_points(i) for i in active]
-        candidates = np.concatenate(rings)
         # Each node's neighbours on its own polygon, to tell the edges tangent at it.
-        before = np.concatenate([np.roll(r, 1, axis=0) for r in rings])
-        after = np.concatenate([np.roll(r, -1, axis=0) for r in rings])
+        candidates, previous_index, next_index = self._rings(active)
+        before, after = candidates[previous_index], candidates[next_index]
         inside = tree.query(shapely.points(candidates), predicate="intersects")[0]
         keep = np.ones(len(candidates), dtype=bool)
         keep[inside] = False
         # Where polygons overlap, a path bends where their outlines cross, which is no
         # node: the nodes next to such a crossing (a neighbour inside another polygon)
         # stand in for it, so no edge at them is left out as not tangent.
-        bounds = np.cumsum([0] + [len(r) for r in rings])
-        beside = np.concatenate([
-            ~(np.roll(keep[low:high], 1) & np.roll(keep[low:high], -1))
-            for low, high in pairwise(bounds)])
+        beside = ~(keep[previous_index] & keep[next_index])
         # Coincident nodes (shared vertices, a vertex on an end) would make zero-length
         # edges, degenerate geometry for the distance and intersection tests; a shared
         # vertex belongs to two polygons, so no edge at it is left out either.

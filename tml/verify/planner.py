@@ -34,7 +34,6 @@ the obstacles an STRtree of their footprints finds near the path, not all of the
 
 from __future__ import annotations
 
-import heapq
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -204,22 +203,26 @@ class Planner:
         to_goal = np.hypot(*(nodes - nodes[1]).T)
         cost = np.full(len(nodes), math.inf)
         cost[0] = 0.0
-        previous: dict[int, int] = {}
+        previous = np.zeros(len(nodes), dtype=np.intp)
         open_ = np.ones(len(nodes), dtype=bool)
         reach = _tangents(nodes, before, after, shared) if self.reduced else \
             np.ones((len(nodes), len(nodes)), dtype=bool)
-        queue = [(float(to_goal[0]), 0)]
-        while queue:
-            _, node = heapq.heappop(queue)
-            if not open_[node]:
-                continue
+        while True:
+            # The open node of least cost plus distance to the goal (the lowest index of
+            # equals), as a heap of (estimate, node) would give it.
+            node = int(np.argmin(np.where(open_, cost + to_goal, math.inf)))
+            if not open_[node] or math.isinf(cost[node]):
+                return None
             if node == 1:
                 order = [1]
                 while order[-1] != 0:
-                    order.append(previous[order[-1]])
+                    order.append(int(previous[order[-1]]))
                 return [(float(nodes[i][0]), float(nodes[i][1])) for i in reversed(order)]
             open_[node] = False
             others = np.flatnonzero(open_ & reach[node])
+            through = cost[node] + np.hypot(*(nodes[others] - nodes[node]).T)
+            # Only an edge that would make a node cheaper is worth testing for obstacles.
+            others, through = others[through < cost[others]], through[through < cost[others]]
             segments = shapely.linestrings(np.stack(
                 [np.broadcast_to(nodes[node], (len(others), 2)), nodes[others]], axis=1))
             hit, polygon = tree.query(segments, predicate="intersects")
@@ -229,14 +232,8 @@ class Planner:
                                      segments, active, soft)]  # type: ignore[arg-type]
             visible = np.ones(len(others), dtype=bool)
             visible[hit] = False
-            reached = others[visible]
-            through = cost[node] + np.hypot(*(nodes[reached] - nodes[node]).T)
-            better = through < cost[reached]
-            for other, total in zip(reached[better], through[better], strict=True):
-                cost[other] = total
-                previous[int(other)] = node
-                heapq.heappush(queue, (float(total + to_goal[other]), int(other)))
-        return None
+            cost[others[visible]] = through[visible]
+            previous[others[visible]] = node
 
     def _blocking(self, hit: np.ndarray, polygon: np.ndarray, node: int, others: np.ndarray,
                   segments: np.ndarray, active: list[int], soft: set[int]) -> np.ndarray:

@@ -59,11 +59,9 @@ def _validate_for_report(path: Path, found: bool = False) -> ValidationResult | 
     file named is a mission; a file ``found`` under a directory is a mission or a world
     file, as its root element says (a world kept beside the missions is checked as one)."""
     from tml.language.validation import ValidationResult, validate_file
-    from tml.language.xml import root_name
 
-    world = found and root_name(path) == "world"
-    try:
-        result = validate_file(path, root="world" if world else "mission")
+    try:  # a file found is read once: its root element, parsed, says which it is
+        result = validate_file(path, root=None if found else "mission")
     except OSError as exc:
         return f"{path}: {exc.strerror or exc}"
     # The model stays in the worker; quoting source lines needs the text only on problems.
@@ -78,9 +76,13 @@ def _validate_all(files: list[tuple[Path, bool]]) -> list[ValidationResult | str
         return [_validate_for_report(path, found) for path, found in files]
     from concurrent.futures import ProcessPoolExecutor
 
+    # The first file here, before the workers start: forked, they inherit the modules it
+    # imported and the schema it compiled instead of each loading them again.
+    first = _validate_for_report(*files[0])
+    rest = files[1:]
     with ProcessPoolExecutor(workers) as pool:
-        return list(pool.map(_validate_for_report, [p for p, _ in files],
-                             [f for _, f in files], chunksize=PARALLEL_BATCH))
+        return [first, *pool.map(_validate_for_report, [p for p, _ in rest],
+                                 [f for _, f in rest], chunksize=PARALLEL_BATCH)]
 
 
 def cmd_validate(args: argparse.Namespace) -> ExitCode:
@@ -195,8 +197,14 @@ def cmd_sim(argv: Sequence[str]) -> int:
     return sim_main(list(argv), prog="tml sim")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of the ``tml`` command."""
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The argument parser of the ``tml`` command; with ``command`` (``"validate"``), the
+    other commands are listed without their options, whose modules are then not imported:
+    a hook that validates a file or two pays for what validation needs only."""
+
+    def wanted(name: str) -> bool:
+        return command is None or command == name
+
     parser = argparse.ArgumentParser(
         prog="tml", description="Validate, verify and fly TML mission files on MAVLink drones.")
     parser.add_argument("--version", action="version", version=f"tml {__version__}")
@@ -228,9 +236,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "and check them against a vehicle profile and a world. Exit 0 when "
                     "feasible, 1 when a constraint fails or the mission is invalid, 2 on "
                     "usage or I/O errors.")
-    from tml.commands.verify import add_arguments
+    if wanted("verify"):
+        from tml.commands.verify import add_arguments
 
-    add_arguments(verify)
+        add_arguments(verify)
     verify.set_defaults(handler=cmd_verify)
 
     run = commands.add_parser(
@@ -239,9 +248,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "infeasible mission, 2 usage error (a bad option or value, a missing "
                     "file, a malformed address, a log that cannot be written), 3 mission "
                     "aborted, 4 vehicle or link failure.")
-    from tml.commands.run import add_arguments as add_run_arguments
+    if wanted("run"):
+        from tml.commands.run import add_arguments as add_run_arguments
 
-    add_run_arguments(run)
+        add_run_arguments(run)
     run.set_defaults(handler=cmd_run)
 
     companion = commands.add_parser(
@@ -252,12 +262,11 @@ def build_parser() -> argparse.ArgumentParser:
                     "ADDRESS, e.g. ArduPilot's SERIAL1, until SIGINT or SIGTERM. Exit 0 "
                     "when stopped, 2 on bad arguments or world file, 4 when no autopilot "
                     "is heard.")
-    from tml.commands.companion import add_arguments as add_companion_arguments
+    if wanted("companion"):
+        from tml.commands.companion import add_arguments as add_companion_arguments
 
-    add_companion_arguments(companion)
+        add_companion_arguments(companion)
     companion.set_defaults(handler=cmd_companion)
-
-    from tml.commands.plans import add_export_arguments, add_import_arguments
 
     export = commands.add_parser(
         "export", help="write a mission as a QGroundControl plan, a waypoint file or a map",
@@ -266,7 +275,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "(MAVProxy's wp load), or KML / GeoJSON of the path, obstacles and "
                     "geofence. Actions with no mission item are named on standard error. "
                     "Exit 0 written, 1 invalid mission, 2 usage or I/O error.")
-    add_export_arguments(export)
+    if wanted("export"):
+        from tml.commands.plans import add_export_arguments
+
+        add_export_arguments(export)
     export.set_defaults(handler=cmd_export)
 
     imports = commands.add_parser(
@@ -276,7 +288,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "as an autopilot mission (dispatch=\"mission\"), home and geofence in "
                     "its <environment>. Exit 0 written, 1 a file that cannot be read as a "
                     "plan, 2 usage or I/O error.")
-    add_import_arguments(imports)
+    if wanted("import"):
+        from tml.commands.plans import add_import_arguments
+
+        add_import_arguments(imports)
     imports.set_defaults(handler=cmd_import)
 
     report = commands.add_parser(
@@ -287,9 +302,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "tables of the tasks, events and autopilot messages; or the flown tracks "
                     "as GPX or KML. Exit 0 written, 1 not a flight log, 2 usage or I/O "
                     "error.")
-    from tml.commands.report import add_arguments as add_report_arguments
+    if wanted("report"):
+        from tml.commands.report import add_arguments as add_report_arguments
 
-    add_report_arguments(report)
+        add_report_arguments(report)
     report.set_defaults(handler=cmd_report)
 
     schema = commands.add_parser(
@@ -297,9 +313,10 @@ def build_parser() -> argparse.ArgumentParser:
         description="Print the path of the installed mission schema (tml.xsd), its text, "
                     "or an XML catalog mapping the stable schema location "
                     "urn:tml:schemas:tml.xsd to it, for XML editors. Exit 0.")
-    from tml.commands.schema import add_arguments as add_schema_arguments
+    if wanted("schema"):
+        from tml.commands.schema import add_arguments as add_schema_arguments
 
-    add_schema_arguments(schema)
+        add_schema_arguments(schema)
     schema.set_defaults(handler=cmd_schema)
 
     completion = commands.add_parser(
@@ -318,9 +335,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "or SIGTERM (every flying vehicle is sent to its safe state first). "
                     "Exit 0 when stopped, 2 on bad arguments, 4 when the vehicles cannot "
                     "be reached. See docs/serve.md.")
-    from tml.commands.serve import add_arguments as add_serve_arguments
+    if wanted("serve"):
+        from tml.commands.serve import add_arguments as add_serve_arguments
 
-    add_serve_arguments(serve)
+        add_serve_arguments(serve)
     serve.set_defaults(handler=cmd_serve)
 
     sim = commands.add_parser(
@@ -335,10 +353,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["sim"]:  # the simulator parses its own options, --help included
         return cmd_sim(argv[1:])
-    parser = build_parser()
-    import argcomplete
+    if "_ARGCOMPLETE" in os.environ:  # the shell asks for completions: answer and exit
+        import argcomplete
 
-    argcomplete.autocomplete(parser)  # answers the shell and exits when it asks; else nothing
+        argcomplete.autocomplete(build_parser())
+    # A command named first needs its own options only (``tml --help`` lists them all).
+    parser = build_parser(argv[0] if argv and not argv[0].startswith("-") else None)
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse exits 2 on usage errors, 0 on --help

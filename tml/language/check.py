@@ -19,7 +19,6 @@ never be chosen are warnings.
 
 from __future__ import annotations
 
-import difflib
 import re
 from collections import defaultdict
 from collections.abc import Iterable
@@ -53,6 +52,8 @@ _INTERPRETER_PARAMETERS = frozenset({
 
 
 def _did_you_mean(word: str, candidates: Iterable[str]) -> str:
+    import difflib  # here: a valid mission never needs it, so start-up does without
+
     guess = difflib.get_close_matches(word, list(candidates), n=1, cutoff=0.6)
     return f"did you mean {guess[0]!r}?" if guess else ""
 
@@ -89,10 +90,10 @@ class _Checker:
         self.check_skills(self.mission.skills)
         self.check_tasks(self.mission.tasks)
         for event in self.mission.events:
-            self.check_role_name(event.role, self.at(event.location, "role"))
+            self.check_written_role(event.role, event.location)
             for condition in event.conditions:
                 self.check_condition(condition)
-                self.check_role_name(condition.role, self.at(condition.location, "role"))
+                self.check_written_role(condition.role, condition.location)
             for action in event.actions:
                 self.check_action(action, Dispatch.COMMAND)
             self.check_termination(event.termination)
@@ -564,6 +565,12 @@ class _Checker:
             or ("declared roles: " + ", ".join(declared) if declared
                 else "declare it: <roles><role name=\"" + name + "\"/></roles>")))
 
+    def check_written_role(self, name: str | None, element: Location) -> None:
+        """E270 when ``name``, written as role= on the element at ``element``, is no
+        declared role."""
+        if name is not None:  # the attribute is found in the text only when it is written
+            self.check_role_name(name, self.at(element, "role"))
+
     # --- fleets: orchestration -------------------------------------------------------------
 
     def check_orchestration(self, task: Task) -> None:
@@ -596,7 +603,7 @@ class _Checker:
             else:
                 self.check_condition(condition)
         for condition in _all_conditions(task):
-            self.check_role_name(condition.role, self.at(condition.location, "role"))
+            self.check_written_role(condition.role, condition.location)
             if (self.mission.roles and task.role is None and condition.role is None
                     and condition.kind is ConditionKind.PARAMETER and condition.subject
                     and self.reads_vehicle(condition.subject)):

@@ -11,7 +11,6 @@ compare it with.
 
 from __future__ import annotations
 
-import difflib
 import math
 import re
 from dataclasses import dataclass
@@ -110,6 +109,8 @@ def lookup(name: str) -> ParameterSpec | None:
 
 def suggest(name: str) -> str | None:
     """The built-in name a misspelt ``name`` most likely meant, or None if nothing is close."""
+    import difflib  # here: a valid mission never needs it, so start-up does without
+
     key = normalize_name(name)
     close = difflib.get_close_matches(key, list(_BY_KEY), n=1, cutoff=0.8)
     return _BY_KEY[close[0]].name if close else None

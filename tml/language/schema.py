@@ -11,9 +11,7 @@ that is not installed they are read from the repository's ``schemas/`` directory
 
 from __future__ import annotations
 
-import difflib
 import functools
-import importlib.resources
 import re
 from pathlib import Path
 
@@ -38,13 +36,15 @@ def stable_location(name: str) -> str:
 
 def schema_path(name: str = "tml.xsd") -> Path:
     """The path of a shipped XSD file (``tml.xsd``, ``world.xsd``, ``environment.xsd``)."""
-    try:
-        resource = importlib.resources.files("tml.schemas") / name
-        if resource.is_file():
-            return Path(str(resource))
-    except ModuleNotFoundError:
-        pass
-    return Path(__file__).resolve().parents[2] / "schemas" / name  # a source checkout
+    package = Path(__file__).resolve().parents[1]
+    # Files first, as a wheel installs the package tml.schemas or a source checkout holds
+    # them: importlib.resources, for any other way of installing, costs start-up time.
+    for candidate in (package / "schemas" / name, package.parent / "schemas" / name):
+        if candidate.is_file():
+            return candidate
+    import importlib.resources
+
+    return Path(str(importlib.resources.files("tml.schemas") / name))
 
 
 @functools.cache
@@ -125,6 +125,8 @@ def _translate(doc: XmlDocument, entry: etree._LogEntry, schema_name: str) -> Di
 
 def _attribute_problem(doc: XmlDocument, element: etree._Element, attribute: str,
                        detail: str, schema_name: str) -> Diagnostic:
+    import difflib  # here: a valid mission never needs it, so start-up does without
+
     name = element_name(element)
     allowed = sorted(_vocabulary(schema_name).get(name, (set(), set()))[0])
     if "is not allowed" in detail:
@@ -179,6 +181,8 @@ def _expected_type(detail: str) -> str:
 
 def _element_problem(doc: XmlDocument, element: etree._Element, detail: str,
                      schema_name: str) -> Diagnostic:
+    import difflib  # here: a valid mission never needs it, so start-up does without
+
     name = element_name(element)
     parent = element.getparent()
     if "This element is not expected" in detail:

@@ -9,6 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from lxml import etree
+
 from tml.errors import Location, MissionError, MissionSemanticError, MissionSyntaxError
 from tml.language import build, check, schema, xml
 from tml.language.diagnostics import Diagnostic, error, sort_key
@@ -35,8 +37,9 @@ class ValidationResult:
 
 
 def validate_file(path: str | Path, data: bytes | None = None,
-                  root: str = "mission") -> ValidationResult:
+                  root: str | None = "mission") -> ValidationResult:
     """Validate one mission file (``root="world"``: one world file, whose result holds no
+    mission; ``root=None``: a world file when its root element is ``<world>``, else a
     mission); I/O errors (missing file) raise OSError."""
     file = str(path)
     try:
@@ -45,6 +48,11 @@ def validate_file(path: str | Path, data: bytes | None = None,
         location = exc.location or Location(file, 1, 1)
         source = "" if exc.code == "E005" else _text_of(path, data)
         return ValidationResult(file, None, [error(location, exc.code, exc.message)], source)
+    if root is None:  # the name as written, as xml.root_name reads it from the text
+        written = etree.QName(doc.root).localname
+        if doc.root.prefix:
+            written = f"{doc.root.prefix}:{written}"
+        root = "world" if written == "world" else "mission"
     problems = schema.validate(doc, root)
     if problems:
         return ValidationResult(file, None, sorted(problems, key=sort_key), doc.text)

@@ -180,3 +180,33 @@ def test_the_shell_completes_commands_options_and_choices(tmp_path: Path, capsys
     assert "complete " in capsys.readouterr().out  # bash's builtin registers it
     assert main(["completion", "zsh"]) == 0
     assert capsys.readouterr().out.startswith("#compdef tml")
+
+
+def test_validate_loads_what_validation_needs_only(files: Path) -> None:
+    # A hook validates a file or two per call, so start-up is most of its time: the other
+    # commands' modules, the shell completion and the did-you-mean helper stay unloaded.
+    code = ("import sys\nfrom tml.commands.cli import main\n"
+            f"code = main(['validate', '-q', {str(files / 'valid.xml')!r}])\n"
+            "print(code, ' '.join(sorted(sys.modules)))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60, check=True)
+    code, modules = done.stdout.split(" ", 1)
+    assert code == "0" and "tml.language.check" in modules.split()
+    loaded = set(modules.split())
+    assert not loaded & {"tml.commands.run", "tml.commands.verify", "tml.commands.plans",
+                         "tml.commands.serve", "tml.commands.report", "argcomplete",
+                         "difflib", "shapely", "pymavlink"}
+
+
+def test_every_command_keeps_its_options_and_help_lists_them_all(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--help"]) == 0
+    listed = capsys.readouterr().out
+    for command in ("validate", "verify", "run", "companion", "export", "import", "report",
+                    "schema", "completion", "serve", "sim"):
+        assert command in listed
+    assert main(["run", "--help"]) == 0
+    assert "--sim" in capsys.readouterr().out
+    assert main(["validate", "--help"]) == 0
+    assert "--tml-only" in capsys.readouterr().out
+    assert main(["verify", "--no-such-option", "m.xml"]) == 2

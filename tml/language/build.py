@@ -147,7 +147,8 @@ class _Builder:
              inherited: Dispatch, inherited_role: str | None = None) -> Task:
         name = element.get("name", "").strip()
         path = (*parent, name)
-        dispatch = Dispatch(element.get("dispatch", inherited.value))
+        written_dispatch = element.get("dispatch")
+        dispatch = inherited if written_dispatch is None else Dispatch(written_dispatch)
         written_role = element.get("role")
         role = written_role.strip() if written_role is not None else inherited_role
         skills: list[Skill] = []
@@ -205,6 +206,7 @@ class _Builder:
 
         loops = gates.get("loop")
         release = element.get("release")
+        composition = element.get("composition")
         return Task(
             name=name,
             path=path,
@@ -218,7 +220,8 @@ class _Builder:
             dispatch=dispatch,
             role=role,
             role_location=self.loc(element, "role") if written_role is not None else None,
-            composition=Composition(element.get("composition", "sequence").strip()),
+            composition=Composition.SEQUENCE if composition is None
+            else Composition(composition.strip()),
             wait_for=conditions_of("wait_for"),
             until=conditions_of("until"),
             time_limit=self.optional_number(element, "time_limit", Quantity.DURATION),

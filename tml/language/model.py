@@ -216,11 +216,14 @@ class Task:
 
     def walk(self) -> Iterator[Task]:
         """This task and all its descendants, depth-first, in document order."""
-        yield self
-        for child in self.children:
-            yield from child.walk()
-        for handler in self.on_error:
-            yield from handler.walk()
+        # A stack rather than nested generators: each task is handed over once, not once
+        # per level above it.
+        stack = [self]
+        while stack:
+            task = stack.pop()
+            yield task
+            stack.extend(reversed(task.on_error))
+            stack.extend(reversed(task.children))
 
 
 @dataclass(frozen=True)

@@ -184,7 +184,8 @@ def test_the_shell_completes_commands_options_and_choices(tmp_path: Path, capsys
 
 def test_validate_loads_what_validation_needs_only(files: Path) -> None:
     # A hook validates a file or two per call, so start-up is most of its time: the other
-    # commands' modules, the shell completion and the did-you-mean helper stay unloaded.
+    # commands' modules, the shell completion, the did-you-mean helper and (for a mission
+    # without an <environment>) the world's classes stay unloaded.
     code = ("import sys\nfrom tml.commands.cli import main\n"
             f"code = main(['validate', '-q', {str(files / 'valid.xml')!r}])\n"
             "print(code, ' '.join(sorted(sys.modules)))")
@@ -195,7 +196,7 @@ def test_validate_loads_what_validation_needs_only(files: Path) -> None:
     loaded = set(modules.split())
     assert not loaded & {"tml.commands.run", "tml.commands.verify", "tml.commands.plans",
                          "tml.commands.serve", "tml.commands.report", "argcomplete",
-                         "difflib", "shapely", "pymavlink"}
+                         "difflib", "shapely", "pymavlink", "tml.world"}
 
 
 def test_every_command_keeps_its_options_and_help_lists_them_all(

@@ -8,6 +8,7 @@ building) and by :mod:`tml.language.check` (everything else).
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from lxml import etree
 
@@ -37,7 +38,9 @@ from tml.language.model import (
 )
 from tml.language.quantities import RANGES, Quantity, out_of_range
 from tml.language.xml import XmlDocument, element_name, read_xml
-from tml.world import Cylinder, Geofence, Home, Prism, World, WorldObject
+
+if TYPE_CHECKING:
+    from tml.world import Home, World
 
 
 class _Builder:
@@ -285,6 +288,10 @@ class _Builder:
     # --- environment -----------------------------------------------------------------------
 
     def world(self, element: etree._Element) -> World:
+        # Imported here: a mission without an <environment> does without these classes,
+        # whose creation is a tenth of the start-up of a one-file validation.
+        from tml.world import Cylinder, Geofence, Home, Prism, World, WorldObject
+
         homes = self.children(element, "home")
         for extra in homes[1:]:
             self.diagnostics.append(error(self.loc(extra), "E253",

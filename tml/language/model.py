@@ -16,9 +16,12 @@ import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 from enum import StrEnum
+from typing import TYPE_CHECKING
 
 from tml.errors import Location
-from tml.world import World
+
+if TYPE_CHECKING:  # loaded only by missions that have an <environment>
+    from tml.world import World
 
 
 class Comparison(StrEnum):

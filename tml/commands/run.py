@@ -130,6 +130,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="what vehicle ID carries, for the payloads a <role> asks for "
                              "(beyond the camera and gripper the vehicle reports); repeatable")
     parser.add_argument("--log", metavar="FILE", help="write the JSON-lines flight log here")
+    parser.add_argument("--resume", metavar="LOG",
+                        help="go on with the interrupted run whose --log is LOG, on the same "
+                             "vehicles (--connect): tasks done stay done, the running one "
+                             "goes on; the log is added to (refused, exit 2, for a run that "
+                             "ended or flew another file or other vehicles)")
     parser.add_argument("-q", "--quiet", action="store_true",
                         help="no live view; print only the outcome")
     parser.add_argument("--safe-state", choices=("rtl", "land", "hold"), default="rtl",
@@ -167,9 +172,21 @@ def run(args: argparse.Namespace) -> ExitCode:
         return loaded
     mission, world, extra, profile = loaded
     from tml.run.journal import Journal
+    from tml.run.resume import ResumeRefused, file_digest, resume_point
 
+    try:
+        args.digest = file_digest(args.mission)
+        args.resume_point = None if args.resume is None else resume_point(
+            args.resume, mission, args.digest, args.connect or [])
+    except OSError as error:
+        errors.print(f"tml run: --resume {args.resume}: cannot read: "
+                     f"{error.strerror or error}", markup=False)
+        return ExitCode.USAGE
+    except ResumeRefused as error:
+        errors.print(f"tml run: cannot resume: {error}", markup=False)
+        return ExitCode.USAGE
     try:  # before anything starts: a log that cannot be written is a usage error
-        journal = Journal.open(args.log)
+        journal = Journal.open(args.log, append=args.resume is not None)
     except OSError as error:
         errors.print(f"tml run: --log {args.log}: cannot write: {error.strerror or error}",
                      markup=False)
@@ -187,6 +204,13 @@ def _usage_problem(args: argparse.Namespace) -> str | None:
 
     from tml.mavlink.link import address_problem
 
+    if args.resume is not None:
+        if args.sim:
+            return ("--resume needs the vehicles of the interrupted run (--connect): the "
+                    "simulator of --sim ended with it")
+        if args.log is not None and args.log != args.resume:
+            return f"--log {args.log}: a resumed run adds to its log, --resume {args.resume}"
+        args.log = args.resume
     path = args.mission
     if not os.path.exists(path):
         return f"{path}: No such file or directory"
@@ -382,6 +406,7 @@ def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
     from tml.run.checked import checked_options
     from tml.run.display import LineDisplay, LiveDisplay
     from tml.run.runner import Runner
+    from tml.vehicle import IdSource
 
     options = checked_options(profile, world, safe_state=args.safe_state,
                               link_lost_limit=args.link_lost_limit,
@@ -399,9 +424,14 @@ def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
     payloads: dict[int, list[str]] = {}
     for number, names in args.payload:
         payloads.setdefault(number, []).extend(names)
+    point = getattr(args, "resume_point", None)
     runner = Runner(mission, vehicles, clock=clock, options=options, journal=journal,
                     wake=wake, on_safety=on_safety, payloads=payloads,
-                    on_update=(lambda r: display.update(r.views())) if display else None)
+                    on_update=(lambda r: display.update(r.views())) if display else None,
+                    ids=None if point is None else IdSource(point.next_id),
+                    resume=None if point is None else point.progress,
+                    about={"sha256": getattr(args, "digest", None),
+                           "connect": args.connect or []})
     previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
     if threading.current_thread() is threading.main_thread():
         for sig in previous:

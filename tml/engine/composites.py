@@ -249,9 +249,13 @@ class RepeatNode(Node):
         self.since = since  # when the task began to run
         self.round = 0
         self.current: Node | None = None
+        self.resumed = False  # the round going on is an interrupted run's: said already
 
     def start(self) -> None:
         self.round, self.current = 0, None
+        if self.run.restoring is not None:
+            self.round = max(0, self.run.restoring.take_round(self.task.path_name) - 1)
+            self.resumed = self.round > 0
 
     def step(self) -> NodeStatus:
         task, note = self.task, self.run.note
@@ -265,10 +269,12 @@ class RepeatNode(Node):
                 if task.loop is None and self.round >= task.repeat:
                     return NodeStatus.SUCCESS
                 self.round += 1
-                if self.round > 1 and task.loop is not None:
+                # A resumed round was said by the interrupted run.
+                fresh, self.resumed = not self.resumed, False
+                if fresh and self.round > 1 and task.loop is not None:
                     note("decision", f"{task.path_name}: round {self.round}", self.vehicle_id,
                          task=task.path_name, round=self.round)
-                elif self.round > 1:
+                elif fresh and self.round > 1:
                     note("decision", f"{task.path_name}: repeat {self.round} of {task.repeat}",
                          self.vehicle_id, task=task.path_name, iteration=self.round)
                 self.current = self.body(self.round == 1)

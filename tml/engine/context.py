@@ -20,6 +20,7 @@ from typing import Protocol, TypeVar
 from tml.engine.conditions import Memory, evaluate, evaluate_all
 from tml.engine.failures import Failure, FailureReason
 from tml.engine.records import Change, Output, Record, Status, TaskState, View, request_fields
+from tml.engine.resume import Restoring
 from tml.engine.roles import Candidate, candidates
 from tml.engine.safety import safe_state_request
 from tml.engine.scripts import Limits
@@ -323,6 +324,8 @@ class Run:
         self.ending = False  # the mission is ending: stopped work sends no hold
         self.jump_to: tuple[str, ...] | None = None  # JUMP_TO_TASK, for the next step
         self.finish: tuple[Status, str] | None = None  # END_MISSION or ABORT_MISSION
+        # A resumed run's progress, taken by the nodes of its first step (tml.engine.resume).
+        self.restoring: Restoring | None = None
         # An action failed on a vehicle: True when an event handler fired on it and
         # decides what follows (set by the interpreter to its event handling).
         self.react: Callable[[Pilot], bool] = _no_event
@@ -356,10 +359,14 @@ class Run:
                   **request_fields(sent))
         return sent
 
-    def set_state(self, task: Task, state: TaskState, vehicle_id: int | None) -> None:
-        """Record that ``task`` (flown by ``vehicle_id``, or by none) is now in ``state``."""
+    def set_state(self, task: Task, state: TaskState, vehicle_id: int | None,
+                  resumed: bool = False) -> None:
+        """Record that ``task`` (flown by ``vehicle_id``, or by none) is now in ``state``
+        (``resumed``: re-entered by a resumed run, :mod:`tml.engine.resume`)."""
         path = task.path_name
-        self.note("task", f"{path}: {state.value}", vehicle_id, task=path, state=state.value)
+        more = {"resumed": True} if resumed else {}
+        self.note("task", f"{path}: {state.value}", vehicle_id, task=path, state=state.value,
+                  **more)
         change = Change(self.log.mission_time, path, state, vehicle_id)
         if vehicle_id is None:
             self.shared[path] = state

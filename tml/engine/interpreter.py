@@ -70,8 +70,9 @@ from tml.engine.composites import NodeStatus, TasksNode
 from tml.engine.context import Duty, Options, Pilot, Run, Verdict
 from tml.engine.events import Events, find_task
 from tml.engine.records import Output, Status, View
+from tml.engine.resume import Progress, Restoring
 from tml.engine.tasks import TaskNode
-from tml.errors import ControlRefused
+from tml.errors import ControlRefused, EngineError
 from tml.language.actions import CAPABILITIES, lookup
 from tml.language.check import check_jump
 from tml.language.model import Mission
@@ -112,16 +113,28 @@ class Interpreter:
 
     # --- the public API ----------------------------------------------------------------------
 
-    def start(self, now: float, states: Mapping[int, VehicleState]) -> Output:
-        """Begin the mission: without roles its vehicles are bound to it at once."""
+    def start(self, now: float, states: Mapping[int, VehicleState],
+              progress: Progress | None = None) -> Output:
+        """Begin the mission: without roles its vehicles are bound to it at once.
+
+        With ``progress`` (:func:`tml.engine.resume.progress`, read from the flight log of
+        an interrupted run of this mission on this vehicle) the mission goes on where it
+        stood instead: what had ended is not run again, the running task is re-entered with
+        the time it had run, repeats go on from their round, memorized points are known
+        again, and the mission's elapsed time continues. Only a mission without roles on
+        one vehicle can be resumed (EngineError otherwise).
+        """
         run = self.run
         self._begin(now, states, {})
         run.log.start = run.log.clock
         self._started = True
         mission = self.mission
-        run.note("mission", f"mission {mission.name!r} started", run.log.vehicle_id,
-                 name=mission.name, vehicles=list(run.pilots),
-                 roles=[r.name for r in mission.roles])
+        if progress is not None and progress.started:
+            self._restore(progress)
+        else:
+            run.note("mission", f"mission {mission.name!r} started", run.log.vehicle_id,
+                     name=mission.name, vehicles=list(run.pilots),
+                     roles=[r.name for r in mission.roles])
         if not mission.roles:
             lacking = next((why for pilot in run.pilots.values()
                             for why in [self._lacking(pilot)] if why), "")
@@ -132,7 +145,27 @@ class Interpreter:
             for pilot in run.pilots.values():
                 run.mission_skills(pilot, True)
         self._tick()
+        run.restoring = None  # the first step took what it had to
         return run.log.take()
+
+    def _restore(self, progress: Progress) -> None:
+        """Take up an interrupted run's ``progress`` (see :meth:`start`)."""
+        run = self.run
+        if self.mission.roles or len(run.pilots) != 1:
+            raise EngineError("only a mission without roles, on one vehicle, can be resumed")
+        pilot = next(iter(run.pilots.values()))
+        log = run.log
+        log.start = log.clock - progress.elapsed
+        pilot.labels.update(progress.labels)
+        for path, state in progress.ended.items():
+            pilot.states[path] = state
+        run.restoring = Restoring(progress, log.clock)
+        run.note("mission", f"mission {self.mission.name!r} resumed after "
+                 f"{progress.elapsed:.1f} s: {len(progress.ended)} tasks ended, "
+                 f"{len(progress.running)} running", log.vehicle_id, name=self.mission.name,
+                 vehicles=list(run.pilots), elapsed=round(progress.elapsed, 3),
+                 ended=sorted(progress.ended), running=sorted(progress.running),
+                 rounds=dict(progress.rounds), labels=sorted(progress.labels))
 
     def step(self, now: float, states: Mapping[int, VehicleState],
              results: Mapping[int, Sequence[RequestResult]] | None = None) -> Output:

@@ -100,6 +100,10 @@ class TaskNode(Node):
         self.running, self.abandoned, self._since = False, None, self.run.now
 
     def step(self) -> NodeStatus:
+        restoring = self.run.restoring
+        if self.phase is Phase.PICK and restoring is not None \
+                and restoring.take_ended(self.task.path_name) is not None:
+            return NodeStatus.SUCCESS  # it had ended before the run was interrupted
         if self.abandoned is None:
             status = self._advance()
             if status is not NodeStatus.RUNNING or self.abandoned is None:
@@ -168,6 +172,10 @@ class TaskNode(Node):
 
     def _wait(self) -> NodeStatus | None:
         run, task = self.run, self.task
+        begun = None if run.restoring is None else run.restoring.take_running(task.path_name)
+        if begun is not None:  # running when the run was interrupted: it goes on
+            self._begin_body(begun, resumed=True)
+            return None
         if self.entry is None:
             if not run.holds(task.wait_for, task, self.roles):
                 return NodeStatus.RUNNING
@@ -181,8 +189,14 @@ class TaskNode(Node):
                          line=condition.location.line)
                 run.set_state(task, TaskState.SKIPPED, self.vehicle_id)
                 return NodeStatus.SUCCESS
-        self._since = run.now
-        run.set_state(task, TaskState.RUNNING, self.vehicle_id)
+        self._begin_body(run.now)
+        return None
+
+    def _begin_body(self, since: float, resumed: bool = False) -> None:
+        """The body starts (``since``: when it began, earlier for a resumed task)."""
+        run, task = self.run, self.task
+        self._since = since
+        run.set_state(task, TaskState.RUNNING, self.vehicle_id, resumed)
         self.running = True
         pilot = self._pilot()
         if pilot is not None:
@@ -190,7 +204,6 @@ class TaskNode(Node):
                 run.skill(pilot, skill.name, True)
         self.inner = self._make_body()
         self.phase = Phase.BODY
-        return None
 
     def _body(self) -> NodeStatus | None:
         run, task, body = self.run, self.task, self.inner

@@ -10,13 +10,18 @@ as latitude, longitude and altitude AMSL, so that a log can be drawn on any map)
 ``autopilot`` (each message of a vehicle's autopilot, a STATUSTEXT, with its severity),
 ``ready`` (what a vehicle still lacks before the first task, each time that changes) and
 ``safety`` (what it did to leave the vehicles safe). docs/run.md lists the fields. Lines
-are flushed at once, so that a log survives a crash of the run up to its last event.
+are flushed at once, so that a log survives a crash of the run up to its last event, and
+every decision (:data:`DECISIONS`) is synced to the disk too (fsync), so that a log read
+back after the machine itself went down holds every decision taken: ``tml run --resume``
+goes on from it (:mod:`tml.run.resume`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
+import os
 from collections.abc import Mapping
 from typing import Any, Protocol
 
@@ -66,6 +71,11 @@ def autopilot_fields(message: AutopilotMessage) -> dict[str, Any]:
             "text": message.text}
 
 
+DECISIONS = frozenset({"run", "mission", "task", "action", "decision", "request", "control",
+                       "safety", "event"})
+"""The kinds of line a resumed run goes on from: synced to the disk as they are written."""
+
+
 class Sink(Protocol):
     """Where a journal writes: a text file, or anything that takes text the same way."""
 
@@ -85,9 +95,12 @@ class Journal:
         self.lines = 0
 
     @classmethod
-    def open(cls, path: str | None) -> Journal:
-        """A journal writing to the file ``path`` (created or truncated), or a silent one."""
-        return cls(open(path, "w", encoding="utf-8"), owned=True) if path else cls(None)
+    def open(cls, path: str | None, append: bool = False) -> Journal:
+        """A journal writing to the file ``path`` (created or truncated; ``append``: added
+        to, as a resumed run does), or a silent one."""
+        if not path:
+            return cls(None)
+        return cls(open(path, "a" if append else "w", encoding="utf-8"), owned=True)
 
     def write(self, time: float, kind: str, vehicle: int | None = None,
               fields: Mapping[str, Any] | None = None, **more: Any) -> None:
@@ -106,7 +119,18 @@ class Journal:
             line[key] = jsonable(value)
         self.stream.write(json.dumps(line, separators=(",", ":")) + "\n")
         self.stream.flush()
+        if kind in DECISIONS:
+            self._sync()
         self.lines += 1
+
+    def _sync(self) -> None:
+        """Put what was written on the disk (a stream without a file descriptor: nothing)."""
+        fileno = getattr(self.stream, "fileno", None)
+        if fileno is None:
+            return
+        # Not a file (a pipe, a closed or in-memory stream): flushed is all it can be.
+        with contextlib.suppress(OSError, ValueError):
+            os.fsync(fileno())
 
     def close(self) -> None:
         """Close the file (a journal on a caller's stream leaves it open)."""

@@ -57,6 +57,7 @@ from functools import partial
 from typing import Any
 
 from tml.engine import Interpreter, Options, Output, Status, View
+from tml.engine.resume import Progress
 from tml.engine.safety import safe_state_request
 from tml.errors import ControlRefused, ExitCode
 from tml.language.model import Mission
@@ -157,7 +158,9 @@ class Runner:
                  on_safety: Callable[[str], None] | None = None,
                  wait: Callable[[float], None] | None = None,
                  payloads: Mapping[int, Iterable[str]] | None = None,
-                 ids: IdSource | None = None) -> None:
+                 ids: IdSource | None = None,
+                 resume: Mapping[int, Progress] | None = None,
+                 about: Mapping[str, Any] | None = None) -> None:
         self.mission = mission
         self.options = options or RunOptions()
         self.clock = clock
@@ -179,6 +182,9 @@ class Runner:
         else:  # every vehicle flies the whole mission on its own
             self.crews = [_Crew(Interpreter(mission, [f.vehicle.vehicle_id], engine, payloads,
                                             self.ids), [f]) for f in self.flights]
+        # An interrupted run's progress per vehicle (tml.run.resume): the mission goes on.
+        self.resume = resume
+        self.about = dict(about or {})  # more for the run's first line (the file's digest)
         self._stop_reason = ""
         self.safety_actions: list[str] = []
         self._controls: queue.SimpleQueue[_Control] = queue.SimpleQueue()
@@ -275,11 +281,12 @@ class Runner:
     def run(self) -> Outcome:
         """Fly until every interpreter has ended; return how it went."""
         now = self.clock()
-        self.journal.write(now, "run", message="run started", mission=self.mission.name,
+        self.journal.write(now, "run", message="run resumed" if self.resume is not None
+                           else "run started", mission=self.mission.name,
                            file=self.mission.file, vehicles=[f.vehicle.vehicle_id
                                                              for f in self.flights],
                            roles=[r.name for r in self.mission.roles],
-                           safe_state=self.options.safe_state)
+                           safe_state=self.options.safe_state, **self.about)
         unready = self._wait_ready()
         if unready is not None:
             return self._end(unready)
@@ -287,7 +294,8 @@ class Runner:
         for flight in self.flights:
             flight.state = flight.vehicle.state()
         for crew in self.crews:
-            self._guarded(crew, now, partial(crew.engine.start, now, crew.states()))
+            self._guarded(crew, now, partial(crew.engine.start, now, crew.states(),
+                                             self._progress(crew)))
         with self._control_lock:
             self._flying = True
         while any(c.running for c in self.crews):
@@ -307,6 +315,12 @@ class Runner:
         return self._end(Outcome(tuple(
             VehicleOutcome(f.vehicle.vehicle_id, c.engine.status, c.engine.reason, f.cause)
             for c in self.crews for f in c.flights)))
+
+    def _progress(self, crew: _Crew) -> Progress | None:
+        """Where the interrupted run left the mission of ``crew`` (one vehicle), if resumed."""
+        if self.resume is None or len(crew.flights) != 1:
+            return None
+        return self.resume.get(crew.flights[0].vehicle.vehicle_id)
 
     def _end(self, outcome: Outcome) -> Outcome:
         for flight in self.flights:  # the state each vehicle is left in

@@ -16,19 +16,28 @@ from tml.language.validation import validate_file
 from tml.run.journal import Journal
 from tml.vehicle import FakeVehicle, IdSource, TakeOff
 
-PATROL = """<mission name="Patrol">
-  <task name="Take off"><action name="TAKE_OFF"><argument name="altitude" value="5"/></action></task>
-  <task name="Remember"><action name="MEMORIZE_POINT"><argument name="coordinates" label="start"/></action></task>
-  <task name="Patrol"><repeat times="3"/>
-    <task name="Out"><action name="GO_TO_POINT"><argument name="coordinates" value="(6, 0, 5)"/></action></task>
-    <task name="Pause"><action name="WAIT"><argument name="duration" value="1"/></action></task>
-    <task name="Back"><action name="GO_TO_POINT"><argument name="coordinates" value="(0, 3, 5)"/></action></task>
-  </task>
-  <task name="Limited" time_limit="4"><action name="WAIT"><argument name="duration" value="30"/></action></task>
-  <task name="Home"><action name="GO_TO_POINT"><argument name="coordinates" label="start"/></action></task>
-  <task name="Land"><action name="LAND"/></task>
-</mission>
-"""
+
+def task(name: str, action: str, argument: str = "", extra: str = "") -> str:
+    return (f'<task name="{name}"{extra}><action name="{action}">{argument}</action></task>\n')
+
+
+def go_to(point: str) -> str:
+    return f'<argument name="coordinates" value="{point}"/>'
+
+
+PATROL = ('<mission name="Patrol">\n'
+          + task("Take off", "TAKE_OFF", '<argument name="altitude" value="5"/>')
+          + task("Remember", "MEMORIZE_POINT", '<argument name="coordinates" label="start"/>')
+          + '<task name="Patrol"><repeat times="3"/>\n'
+          + task("Out", "GO_TO_POINT", go_to("(6, 0, 5)"))
+          + task("Pause", "WAIT", '<argument name="duration" value="1"/>')
+          + task("Back", "GO_TO_POINT", go_to("(0, 3, 5)"))
+          + "</task>\n"
+          + task("Limited", "WAIT", '<argument name="duration" value="30"/>',
+                 ' time_limit="4"')
+          + task("Home", "GO_TO_POINT", '<argument name="coordinates" label="start"/>')
+          + task("Land", "LAND")
+          + "</mission>\n")
 
 
 def mission(text: str = PATROL) -> Any:
@@ -105,7 +114,7 @@ def test_a_run_killed_anywhere_and_resumed_ends_as_one_left_alone() -> None:
 
 
 def test_a_vehicle_in_the_air_is_not_told_to_take_off_again() -> None:
-    log, vehicle, second = interrupted(8, downtime=0.2)  # climbing since 0.2 s
+    log, _, second = interrupted(8, downtime=0.2)  # climbing since 0.2 s
     assert not [r for r in second.requests if isinstance(r, TakeOff)]
     assert any(line["message"] == "TAKE_OFF ignored: the vehicle is already flying"
                for line in lines(log) if line["kind"] == "decision")

@@ -1,0 +1,123 @@
+"""``tml run --resume``: refusals, said before any vehicle is reached, and a run killed with
+SIGKILL and resumed on a simulator that outlives it."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tml.commands.cli import main
+from tml.run.journal import read
+
+ROOT = Path(__file__).resolve().parent.parent
+FAST = ["--sim-param", "SIM_GPS_LOCKTIME=0.5", "--sim-param", "SIM_EKF_GPS_TIME=1",
+        "--speedup", "40"]
+HOP = ('<mission name="Hop">\n'
+       '  <task name="Up"><action name="TAKE_OFF"><argument name="altitude" value="4"/>'
+       '</action></task>\n'
+       '  <task name="Over"><action name="GO_TO_POINT"><argument name="coordinates" '
+       'value="(30, 0, 4)"/></action></task>\n'
+       '  <task name="Back"><action name="GO_TO_POINT"><argument name="coordinates" '
+       'value="(0, 0, 4)"/></action></task>\n'
+       '  <task name="Down"><action name="LAND"/></task>\n</mission>\n')
+ADDRESS = "tcp:127.0.0.1:5790"  # nothing listens: a refusal must come before connecting
+
+
+def harness() -> Any:
+    """benchmarks/resume.py, whose kill-and-resume the benchmark and this test share."""
+    spec = importlib.util.spec_from_file_location("resume_benchmark",
+                                                  ROOT / "benchmarks" / "resume.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture
+def interrupted(tmp_path: Path) -> tuple[Path, Path]:
+    """A mission file and the log of its run, cut after the second task began (as a
+    SIGKILL leaves it), the run line naming ADDRESS as its vehicle."""
+    mission = tmp_path / "hop.xml"
+    mission.write_text(HOP)
+    log = tmp_path / "flight.jsonl"
+    assert main(["run", str(mission), "--sim", "-q", "--log", str(log), *FAST]) == 0
+    lines = read(str(log))
+    cut = next(i for i, line in enumerate(lines)
+               if line.get("task") == "Over" and line.get("state") == "running")
+    lines[0]["connect"] = [ADDRESS]
+    log.write_text("".join(json.dumps(line) + "\n" for line in lines[:cut + 3])
+                   + '{"t": 9.5, "kind": "telem')  # the line the kill cut short
+    return mission, log
+
+
+def refusal(capsys: pytest.CaptureFixture[str], *args: str) -> str:
+    assert main(["run", *args]) == 2
+    return capsys.readouterr().err
+
+
+def test_a_run_that_ended_is_not_resumed(tmp_path: Path,
+                                         capsys: pytest.CaptureFixture[str]) -> None:
+    mission = tmp_path / "hop.xml"
+    mission.write_text(HOP)
+    log = tmp_path / "flight.jsonl"
+    assert main(["run", str(mission), "--sim", "-q", "--log", str(log), *FAST]) == 0
+    capsys.readouterr()
+    said = refusal(capsys, str(mission), "--connect", ADDRESS, "--resume", str(log))
+    assert "cannot resume" in said and "the run ended (exit code 0)" in said
+
+
+def test_another_mission_file_or_other_vehicles_are_refused(
+        interrupted: tuple[Path, Path], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    mission, log = interrupted
+    other = tmp_path / "other.xml"
+    other.write_text(HOP.replace('value="4"', 'value="6"'))
+    said = refusal(capsys, str(other), "--connect", ADDRESS, "--resume", str(log))
+    assert "flew another mission file" in said and str(mission) in said
+    said = refusal(capsys, str(mission), "--connect", "tcp:127.0.0.1:5800", "--resume",
+                   str(log))
+    assert f"flew the vehicles at {ADDRESS}, not tcp:127.0.0.1:5800" in said
+
+
+def test_resume_options_that_cannot_work_are_usage_errors(
+        interrupted: tuple[Path, Path], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    mission, log = interrupted
+    said = refusal(capsys, str(mission), "--sim", "--resume", str(log))
+    assert "--resume needs the vehicles of the interrupted run (--connect)" in said
+    said = refusal(capsys, str(mission), "--connect", ADDRESS, "--resume", str(log),
+                   "--log", str(tmp_path / "new.jsonl"))
+    assert "a resumed run adds to its log" in said
+    not_a_log = tmp_path / "notes.jsonl"
+    not_a_log.write_text('{"kind": "note"}\n')
+    said = refusal(capsys, str(mission), "--connect", ADDRESS, "--resume", str(not_a_log))
+    assert "not a flight log of tml run" in said
+    said = refusal(capsys, str(mission), "--connect", ADDRESS, "--resume",
+                   str(tmp_path / "missing.jsonl"))
+    assert "cannot read" in said
+
+
+def test_a_run_killed_in_flight_and_resumed_ends_as_one_left_alone(tmp_path: Path) -> None:
+    from sitl.server import Simulator
+
+    bench = harness()
+    mission = tmp_path / "hop.xml"
+    mission.write_text(HOP)
+    flown = []
+    for kill in (None, (6, 0.3)):  # alone; killed on the way over, the vehicle flying on
+        with Simulator(tcp_base_port=0, speedup=10,
+                       params={"SIM_GPS_LOCKTIME": 0.5, "SIM_EKF_GPS_TIME": 1}) as sim:
+            address = f"tcp:127.0.0.1:{sim.tcp_ports[0]}"
+            flown.append(bench.fly(mission, address, tmp_path / f"{kill}.jsonl", kill))
+    alone, resumed = flown
+    assert alone.exit_code == resumed.exit_code == 0
+    assert resumed.runs == 2  # it was killed, and resumed once
+    assert resumed.ends == alone.ends == (("Up", "done"), ("Over", "done"), ("Back", "done"),
+                                          ("Down", "done"))
+    assert resumed.takeoffs_commanded == resumed.takeoffs_flown == 1

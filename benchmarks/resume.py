@@ -14,6 +14,7 @@ telemetry). Prints a Markdown table; docs/reliability.md keeps it.
 
     python benchmarks/resume.py                  # the simulator, every kill point
     python benchmarks/resume.py --quick          # two missions, a few points
+    TML_INTEROP_FIRST_INSTANCE=80 python benchmarks/resume.py --ardupilot   # ArduCopter SITL
 """
 
 from __future__ import annotations
@@ -213,27 +214,49 @@ PLAN: list[tuple[str, Sequence[tuple[int, float]]]] = [
     # Skills, sub-tasks, an action repeated.
     ("aerostack_example", [(3, 0.5), (8, 0.0), (12, 0.3), (18, 0.2), (24, 0.0)]),
 ]
+ARDUPILOT_PLAN: list[tuple[str, Sequence[tuple[int, float]]]] = [
+    ("paper_example1", [(3, 0.4), (5, 0.3), (9, 0.0), (14, 0.2)]),
+    ("jump_and_repeat", [(9, 0.3), (20, 0.5)]),
+]
 QUICK: list[tuple[str, Sequence[tuple[int, float]]]] = [
     ("paper_example1", [(3, 0.4), (9, 0.0)]),
     ("jump_and_repeat", [(20, 0.5)]),
 ]
 
 
+@contextlib.contextmanager
+def arducopter(speedup: float = 10.0) -> Iterator[str]:
+    """ArduCopter SITL (tests/interop/ardupilot_sitl.py finds it; instances from
+    TML_INTEROP_FIRST_INSTANCE); its address. Stopped by its pid."""
+    sys.path.insert(0, str(ROOT / "tests" / "interop"))
+    from ardupilot_sitl import find_launcher, vehicles
+
+    launcher, reason = find_launcher()
+    if launcher is None:
+        raise SystemExit(f"no ArduPilot SITL: {reason}")
+    with vehicles(launcher, 1, "copter", speedup=speedup) as [sitl]:
+        yield sitl.address
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="two missions, three points")
+    parser.add_argument("--ardupilot", action="store_true",
+                        help="ArduCopter SITL instead of the simulator")
     parser.add_argument("--speedup", type=float, default=10.0)
     args = parser.parse_args()
-    plan = QUICK if args.quick else PLAN
+    plan = QUICK if args.quick else ARDUPILOT_PLAN if args.ardupilot else PLAN
+    vehicle = arducopter if args.ardupilot else simulator
     started = time.monotonic()
     with tempfile.TemporaryDirectory(prefix="tml-resume-") as folder:
-        rows = campaign(plan, lambda: simulator(args.speedup), Path(folder),
+        rows = campaign(plan, lambda: vehicle(args.speedup), Path(folder),
                         lambda row: print(table([row]).splitlines()[-1], flush=True))
+    what = ("ArduCopter SITL" if args.ardupilot
+            else "simulator (python -m sitl, its own process)")
     print()
-    print(f"python benchmarks/resume.py{' --quick' if args.quick else ''} -- simulator "
-          f"(python -m sitl, its own process) at {args.speedup:g}x, "
-          f"{time.monotonic() - started:.0f} s, load average "
-          f"{os.getloadavg()[0]:.1f}")
+    print(f"python benchmarks/resume.py{' --quick' if args.quick else ''}"
+          f"{' --ardupilot' if args.ardupilot else ''} -- {what} at {args.speedup:g}x, "
+          f"{time.monotonic() - started:.0f} s, load average {os.getloadavg()[0]:.1f}")
     print()
     print(table(rows))
     return 0 if all(r.same for r in rows) else 1

@@ -1,0 +1,50 @@
+"""``tml run`` killed with SIGKILL while flying ArduCopter SITL, then resumed (``--resume``): the
+vehicle, which outlives the ground station, is not told to take off again, no task is
+skipped or run twice, and the mission ends as a run left alone does
+(benchmarks/resume.py holds the kill-and-resume both use)."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def harness() -> Any:
+    spec = importlib.util.spec_from_file_location("resume_benchmark",
+                                                  ROOT / "benchmarks" / "resume.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+# Mid-climb (the TakeOff sent, the vehicle climbing when killed), on a leg, and landing.
+POINTS = [(3, 0.4), (9, 0.0), (14, 0.2)]
+
+
+@pytest.mark.timeout(600)
+def test_killed_and_resumed_on_arducopter_ends_as_left_alone(ardupilot: Any,
+                                                             tmp_path: Path) -> None:
+    bench = harness()
+    mission = ROOT / "missions" / "paper_example1.xml"
+    [sitl] = ardupilot()
+    alone = bench.fly(mission, sitl.address, tmp_path / "alone.jsonl")
+    sitl.stop()
+    assert alone.exit_code == 0 and alone.takeoffs_flown == 1
+    for count, delay in POINTS:
+        [sitl] = ardupilot()
+        resumed = bench.fly(mission, sitl.address, tmp_path / f"{count}.jsonl",
+                            (count, delay))
+        sitl.stop()
+        assert resumed.runs == 2, (count, delay)
+        assert resumed.exit_code == alone.exit_code, (count, delay)
+        assert resumed.ends == alone.ends, (count, delay)
+        assert resumed.takeoffs_flown == 1, (count, delay)
+        assert resumed.takeoffs_commanded == 1, (count, delay)

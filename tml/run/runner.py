@@ -24,6 +24,12 @@ whenever that changes; a vehicle still not ready then fails the run (exit 4) wit
 lacked and the autopilot's own reason, before anything is sent to any vehicle. So the
 first conditions never read a value that has not arrived as if it were real.
 
+*Resume.* Given ``resume`` (each vehicle's :class:`~tml.engine.resume.Progress`, read from
+the flight log of an interrupted run by :mod:`tml.run.resume`), the run's first line says
+``run resumed`` and each interpreter starts from its vehicle's progress instead of from the
+first task, once the vehicles are ready as for any run; the caller gives an ``ids`` source
+that numbers on from the interrupted run's requests.
+
 *The operator's controls.* :meth:`Runner.control` asks, from any thread, for a pause, a
 resume or a jump (:meth:`tml.engine.Interpreter.pause` ...): the request is queued, the
 loop wakes and applies it to every interpreter still running between two steps, and the

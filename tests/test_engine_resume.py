@@ -14,7 +14,7 @@ from tml.engine.resume import Progress, progress
 from tml.errors import EngineError
 from tml.language.validation import validate_file
 from tml.run.journal import Journal
-from tml.vehicle import FakeVehicle, IdSource, TakeOff
+from tml.vehicle import FakeVehicle, FlyMission, IdSource, TakeOff
 
 
 def task(name: str, action: str, argument: str = "", extra: str = "") -> str:
@@ -51,10 +51,11 @@ class Station:
     records to a flight log as the runner does. Killed by dropping it."""
 
     def __init__(self, vehicle: FakeVehicle, log: io.StringIO, start: float,
-                 resume: Progress | None = None, first_id: int = 1) -> None:
+                 resume: Progress | None = None, first_id: int = 1,
+                 text: str = PATROL) -> None:
         self.vehicle, self.time = vehicle, start
         self.journal = Journal(log)
-        self.engine = Interpreter(mission(), [1], ids=IdSource(first_id))
+        self.engine = Interpreter(mission(text), [1], ids=IdSource(first_id))
         self.requests: list[Any] = []
         self._take(self.engine.start(start, {1: vehicle.state()}, resume))
 
@@ -168,6 +169,44 @@ def test_a_run_resumed_and_killed_again_folds_to_the_same_place() -> None:
     assert again.last_id > found.last_id  # the second run's requests are numbered on
     third = Station(vehicle, log, second.time, again, again.last_id + 1).fly()
     assert third.engine.status is Status.COMPLETED
+
+
+AUTO = ('<mission name="Auto">\n'
+        + task("Take off", "TAKE_OFF", '<argument name="altitude" value="5"/>')
+        + '<task name="Photo flight" dispatch="mission">\n'
+        + "".join(task(f"Leg {n}", "GO_TO_POINT", go_to(f"({4 * n}, 0, 5)")) for n in range(1, 5))
+        + "</task>\n" + task("Land", "LAND") + "</mission>\n")
+
+
+def test_a_plan_the_vehicle_flies_in_auto_is_followed_not_sent_again() -> None:
+    alone_log = io.StringIO()
+    assert Station(FakeVehicle(), alone_log, 0.0, text=AUTO).fly().engine.status \
+        is Status.COMPLETED
+    vehicle, log = FakeVehicle(), io.StringIO()
+    first = Station(vehicle, log, 0.0, text=AUTO)
+    while ("Photo flight/Leg 2", "done") not in ends(log):
+        first.fly(1)
+    vehicle.advance(0.5)  # the autopilot flies on meanwhile
+    found = progress(lines(log), 1)
+    [plan] = [r for r in first.requests if isinstance(r, FlyMission)]
+    assert found.plans == {"Photo flight": (plan.plan_id, plan.start)}
+    second = Station(vehicle, log, first.time + 0.5, found, found.last_id + 1, AUTO).fly()
+    assert second.engine.status is Status.COMPLETED
+    [followed] = [r for r in second.requests if isinstance(r, FlyMission)]
+    assert followed.track and followed.plan_id == plan.plan_id
+    assert ends(log) == ends(alone_log)  # each leg said done once
+
+
+def test_a_plan_the_vehicle_does_not_fly_is_sent_again() -> None:
+    vehicle, log = FakeVehicle(), io.StringIO()
+    first = Station(vehicle, log, 0.0, text=AUTO)
+    while ("Photo flight/Leg 1", "done") not in ends(log):
+        first.fly(1)
+    vehicle.mode = "GUIDED"  # the pilot took it out of AUTO
+    found = progress(lines(log), 1)
+    second = Station(vehicle, log, first.time, found, found.last_id + 1, AUTO).fly(1)
+    [sent] = [r for r in second.requests if isinstance(r, FlyMission)]
+    assert not sent.track and sent.plan_id > found.plans["Photo flight"][0]
 
 
 def test_the_fold_forgets_what_ended_in_an_earlier_round_and_takes_pauses_out() -> None:

@@ -301,11 +301,15 @@ class FlyMission(Request):
 
     ``start`` is where the vehicle is expected to be when the mission starts (for actions
     relative to the last position). Progress is reported in ``VehicleState.mission``.
+    With ``track``, the plan is on the vehicle already, uploaded as ``plan_id`` by a run
+    that was interrupted, and flown in AUTO: nothing is uploaded or commanded, the vehicle's
+    progress through it is followed (as QGroundControl resumes an uploaded plan).
     """
 
     plan_id: int
     actions: tuple[BoundAction, ...]
     start: Point
+    track: bool = False
 
 
 @dataclass(frozen=True)
@@ -498,6 +502,8 @@ class FakeVehicle:
             if "flip" not in self.capabilities or self.mode != "GUIDED":
                 return "unsupported" if "flip" not in self.capabilities else "rejected"
             self.flips += 1
+        elif isinstance(request, FlyMission) and request.track:
+            pass  # it flies on through the plan it has
         elif isinstance(request, FlyMission):
             self.mode = "AUTO"
             self.mission = MissionProgress(request.plan_id, 0)

@@ -379,6 +379,7 @@ class PlanLeaf(Leaf):
         self.flying: Task | None = None  # the task said to be running
         self.since = 0.0  # when the item began, or the plan was sent
         self.limit = math.inf  # s the current item may take before the plan has stalled
+        self.before: set[str] = set()  # items an interrupted run said had ended
 
     @property
     def action_name(self) -> str:
@@ -420,7 +421,24 @@ class PlanLeaf(Leaf):
         self.run.note("decision", f"{self.root.path_name}: {len(self.actions)} actions flown as "
                       "a mission", self.vehicle_id, task=self.root.path_name,
                       actions=[a.name for a in self.actions])
-        self._send_plan()
+        if not self._follow():
+            self._send_plan()
+
+    def _follow(self) -> bool:
+        """Resumed: follow the plan an interrupted run sent, if the vehicle flies it in
+        AUTO (True), rather than sending it again."""
+        restoring = self.run.restoring
+        sent = None if restoring is None else restoring.take_plan(self.root.path_name)
+        if sent is None or self.pilot.state.mode != "AUTO":
+            return False
+        self.plan_id, start, self.before = sent
+        self.run.note("decision", f"{self.root.path_name}: the vehicle flies its plan in AUTO: "
+                      "followed, not sent again", self.vehicle_id, task=self.root.path_name,
+                      plan_id=self.plan_id)
+        sent_now = self.run.send(FlyMission(self.vehicle_id, self.plan_id,
+                                            tuple(self.actions), start, track=True))
+        self.request_id = sent_now.request_id
+        return True
 
     def _collect(self, task: Task, top: bool = False) -> None:
         """Terminal tasks of the plan, repeats unrolled, conditions evaluated now."""
@@ -479,13 +497,17 @@ class PlanLeaf(Leaf):
         """The tasks before item ``upto`` are done (each said running first)."""
         for task in self.tasks[max(self.index, 0):upto]:
             self._say(task)
-            self.run.set_state(task, TaskState.DONE, self.vehicle_id)
+            if task.path_name in self.before:  # said by the interrupted run
+                self.before.discard(task.path_name)
+            else:
+                self.run.set_state(task, TaskState.DONE, self.vehicle_id)
             self.flying = None
 
     def _say(self, task: Task) -> None:
         if self.flying is not task:
             self.flying = task
-            self.run.set_state(task, TaskState.RUNNING, self.vehicle_id)
+            if task.path_name not in self.before:
+                self.run.set_state(task, TaskState.RUNNING, self.vehicle_id)
 
     def on_result(self, result: RequestResult) -> bool:
         if result.request_id != self.request_id or self.mode is not WorkMode.ACTIVE:

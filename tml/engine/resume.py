@@ -14,7 +14,9 @@ enters its target -- no wait, no conditions read again -- with the time it had a
 run, so that its time limit goes on; a repeat or loop goes on from the round it was in.
 The work of the running task is started again, and its scripts judge from the vehicle's
 state what is left: TAKE_OFF is ignored by a vehicle already flying, LAND by one already
-down, a GO_TO flies to its target from where the vehicle is.
+down, a GO_TO flies to its target from where the vehicle is. A ``dispatch="mission"`` task
+whose plan was sent and that the vehicle still flies in AUTO is followed where the
+autopilot is (its plan is not sent again), the items already flown not said again.
 
 Rounds: a repeat's round record (``repeat N of M``) and a task that starts running again
 (a later round, a jump back) forget what ended below it in the round before. A record the
@@ -51,6 +53,8 @@ class Progress:
     last_id: int = 0  # the highest request or plan id used
     started: bool = False  # the mission had started
     status: str = ""  # how the mission ended ("" while it ran)
+    # A dispatch="mission" task's plan sent to the vehicle: its id and start.
+    plans: Mapping[str, tuple[int, Point]] = field(default_factory=dict)
 
 
 def progress(records: Iterable[Mapping[str, Any]], vehicle_id: int) -> Progress:
@@ -60,6 +64,8 @@ def progress(records: Iterable[Mapping[str, Any]], vehicle_id: int) -> Progress:
     running: dict[str, float] = {}
     rounds: dict[str, int] = {}
     labels: dict[str, Point] = {}
+    plans: dict[str, tuple[int, Point]] = {}
+    planning = ""  # the task whose plan the next FlyMission request sends
     base = offset = elapsed = 0.0
     last_id, started, status = 0, False, ""
     paused_at: float | None = None
@@ -96,6 +102,11 @@ def progress(records: Iterable[Mapping[str, Any]], vehicle_id: int) -> Progress:
             elif state in ENDED:
                 ended[path] = TaskState(state)
                 running.pop(path, None)
+        elif kind == "decision" and isinstance(path, str) and "actions" in record:
+            planning = path  # "flown as a mission": its FlyMission request follows
+        elif kind == "request" and record.get("message") == "FlyMission" and planning:
+            x, y, z = (float(v) for v in record.get("start") or (0.0, 0.0, 0.0))
+            plans[planning] = (int(record["plan_id"]), (x, y, z))
         elif kind == "decision" and isinstance(path, str):
             number = record.get("iteration", record.get("round"))
             if isinstance(number, int) and not record.get("resumed"):
@@ -104,7 +115,7 @@ def progress(records: Iterable[Mapping[str, Any]], vehicle_id: int) -> Progress:
         if isinstance(record.get("label"), str) and isinstance(record.get("point"), list):
             x, y, z = (float(v) for v in record["point"])
             labels[record["label"]] = (x, y, z)
-    return Progress(ended, running, rounds, labels, elapsed, last_id, started, status)
+    return Progress(ended, running, rounds, labels, elapsed, last_id, started, status, plans)
 
 
 def _forget_below(ended: dict[str, TaskState], rounds: dict[str, int], path: str) -> None:
@@ -126,6 +137,7 @@ class Restoring:
         self.running = {path: clock - (progress.elapsed - begun)
                         for path, begun in progress.running.items()}
         self.rounds = dict(progress.rounds)
+        self.plans = dict(progress.plans)
 
     def take_ended(self, path: str) -> TaskState | None:
         """How the task had ended, if it had (then it is passed over)."""
@@ -138,3 +150,15 @@ class Restoring:
     def take_round(self, path: str) -> int:
         """The round the repeat or loop was in (0: it had not begun)."""
         return self.rounds.pop(path, 0)
+
+    def take_plan(self, path: str) -> tuple[int, Point, set[str]] | None:
+        """The plan the task had sent (its id and start) and the tasks of it that had
+        ended, if it had sent one (then it is followed, not sent again)."""
+        plan = self.plans.pop(path, None)
+        if plan is None:
+            return None
+        prefix = path + "/"
+        flown = {p for p in self.ended if p.startswith(prefix)}
+        for done in flown:
+            del self.ended[done]
+        return plan[0], plan[1], flown

@@ -737,8 +737,17 @@ class MavlinkVehicle:
         compiled = compile_mission(request.actions, home, request.start, state.heading,
                                    kind_of(state.vehicle_type))
         self._end_plan()
-        self.mav.upload(list(compiled.items))
         plan = _Plan(request.plan_id, compiled, 1 if self.mav.keeps_home_in_item_zero else 0)
+        if request.track:  # uploaded by an interrupted run and flown: follow it
+            if state.mode != "AUTO":
+                raise CommandRejected("tracking an uploaded mission",
+                                      f"the vehicle is in {state.mode}, not AUTO",
+                                      self.system_id)
+            with self._lock:
+                self._plan = plan
+                plan.started = True
+            return
+        self.mav.upload(list(compiled.items))
         with self._lock:
             self._plan = plan
         if not state.armed:

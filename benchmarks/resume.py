@@ -51,6 +51,7 @@ class Flown:
     ends: tuple[tuple[str, str], ...]  # each task's end, in order
     takeoffs_commanded: int
     takeoffs_flown: int
+    uploads: int  # plans uploaded (FlyMission requests not following a plan flown)
     runs: int  # tml run processes it took
 
 
@@ -68,9 +69,12 @@ def summary(lines: Sequence[dict[str, Any]]) -> Flown:
             if landed and not line["landed"]:
                 flown += 1
             landed = line["landed"]
+    uploads = sum(1 for line in lines if line.get("kind") == "request"
+                  and line.get("message") == "FlyMission" and not line.get("track"))
     runs = sum(1 for line in lines if line.get("kind") == "run"
                and line.get("message") in ("run started", "run resumed"))
-    return Flown(int(ended[-1]["exit_code"]) if ended else None, ends, commanded, flown, runs)
+    return Flown(int(ended[-1]["exit_code"]) if ended else None, ends, commanded, flown,
+                 uploads, runs)
 
 
 def decisions(path: Path) -> int:
@@ -193,13 +197,15 @@ def campaign(plan: Sequence[tuple[str, Sequence[tuple[int, float]]]], vehicle: V
 def table(rows: Sequence[Row]) -> str:
     """The Markdown table of a campaign."""
     out = ["| mission | kill point | outcome alone | outcome resumed | tasks ended alone / "
-           "resumed | take-offs flown alone / resumed (commanded) | runs | same |",
-           "|---|---|---|---|---|---|---|---|"]
+           "resumed | take-offs flown alone / resumed (commanded) | plans uploaded alone / "
+           "resumed | runs | same |",
+           "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         out.append(f"| {r.mission} | {r.point} | exit {r.alone.exit_code} | exit "
                    f"{r.resumed.exit_code} | {len(r.alone.ends)} / {len(r.resumed.ends)} | "
                    f"{r.alone.takeoffs_flown} / {r.resumed.takeoffs_flown} "
-                   f"({r.resumed.takeoffs_commanded}) | {r.resumed.runs} | "
+                   f"({r.resumed.takeoffs_commanded}) | {r.alone.uploads} / "
+                   f"{r.resumed.uploads} | {r.resumed.runs} | "
                    f"{'yes' if r.same else 'NO'} |")
     return "\n".join(out)
 
@@ -213,10 +219,13 @@ PLAN: list[tuple[str, Sequence[tuple[int, float]]]] = [
                          (40, 0.3), (46, 0.0)]),
     # Skills, sub-tasks, an action repeated.
     ("aerostack_example", [(3, 0.5), (8, 0.0), (12, 0.3), (18, 0.2), (24, 0.0)]),
+    # A plan flown in AUTO: killed before it is sent, as it is sent, while it is flown.
+    ("mission_dispatch", [(6, 0.0), (7, 0.3), (8, 1.0), (14, 2.0), (24, 0.5)]),
 ]
 ARDUPILOT_PLAN: list[tuple[str, Sequence[tuple[int, float]]]] = [
     ("paper_example1", [(3, 0.4), (5, 0.3), (9, 0.0), (14, 0.2)]),
     ("jump_and_repeat", [(9, 0.3), (20, 0.5)]),
+    ("mission_dispatch", [(8, 1.0), (14, 2.0)]),
 ]
 QUICK: list[tuple[str, Sequence[tuple[int, float]]]] = [
     ("paper_example1", [(3, 0.4), (9, 0.0)]),

@@ -164,7 +164,8 @@ class Interpreter:
                  f"{progress.elapsed:.1f} s: {len(progress.ended)} tasks ended, "
                  f"{len(progress.running)} running", log.vehicle_id, name=self.mission.name,
                  vehicles=list(run.pilots), elapsed=round(progress.elapsed, 3),
-                 ended=sorted(progress.ended), running=sorted(progress.running),
+                 ended={path: state.value for path, state in sorted(progress.ended.items())},
+                 running=sorted(progress.running),
                  rounds=dict(progress.rounds), labels=sorted(progress.labels))
 
     def step(self, now: float, states: Mapping[int, VehicleState],

@@ -363,6 +363,16 @@ def _runs(api: APIRouter, service: Service) -> None:
         time they had left; 409 when it is not paused."""
         return service.control(run_id, "resume")
 
+    @api.post("/runs/{run_id}/continue", response_model=RunView, status_code=201,
+              tags=["runs"])
+    def continue_run(run_id: str = _id()) -> dict[str, Any]:
+        """Go on with a run the service was flying when it died (status ``interrupted``),
+        as ``tml run --resume`` does: a new run on the same vehicles, from where the run's
+        log stood -- tasks done stay done, the running one goes on, a plan flown in AUTO is
+        followed. 422 when the run was not interrupted, was continued already or has roles;
+        409 when a vehicle is held by another run."""
+        return service.continue_run(run_id)
+
     @api.post("/runs/{run_id}/jump", response_model=RunView, tags=["runs"])
     def jump(request: JumpRequest, run_id: str = _id()) -> dict[str, Any]:
         """Go on from a task, as JUMP_TO_TASK does (what runs is stopped, its vehicle

@@ -27,6 +27,7 @@ import traceback
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
+from tml.engine.resume import Progress
 from tml.engine.safety import safe_state_request
 from tml.errors import ExitCode
 from tml.language.model import Mission
@@ -56,6 +57,11 @@ class TaskBoard:
         if record.get("kind") == "task" and "task" in record:
             whose = str(record.get("vehicle", FLEET))
             self.states.setdefault(whose, {})[str(record["task"])] = str(record.get("state"))
+        elif record.get("kind") == "mission" and isinstance(record.get("ended"), dict):
+            # A continued run: the tasks its interrupted run had ended.
+            whose = str(record.get("vehicle", FLEET))
+            for path, state in record["ended"].items():
+                self.states.setdefault(whose, {})[str(path)] = str(state)
 
     def snapshot(self) -> dict[str, dict[str, str]]:
         """Per vehicle (by id, as text; "" for tasks no vehicle flies) every task's state,
@@ -146,7 +152,8 @@ class LiveRun:
     def __init__(self, record: StoredRun, mission: Mission, hangar: Hangar, storage: Storage,
                  options: RunOptions, ids: IdSource,
                  payloads: Mapping[int, Iterable[str]] | None = None,
-                 on_end: Callable[[LiveRun], None] | None = None) -> None:
+                 on_end: Callable[[LiveRun], None] | None = None,
+                 resume: Mapping[int, Progress] | None = None) -> None:
         self.id = record.id
         self.record = record
         self.mission = mission
@@ -166,7 +173,8 @@ class LiveRun:
         self.runner = Runner(mission, vehicles, clock=hangar.clock, options=options,
                              journal=Journal(self.log), wake=self.wake,
                              wait=lambda timeout: hangar.wait(self.wake, timeout),
-                             on_safety=self.safety.append, payloads=payloads, ids=ids)
+                             on_safety=self.safety.append, payloads=payloads, ids=ids,
+                             resume=resume)
         self.thread = threading.Thread(target=self._fly, name=f"run {record.id}", daemon=True)
 
     def start(self) -> None:

@@ -33,10 +33,11 @@ import math
 import secrets
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from tml.engine.resume import Progress, progress
 from tml.errors import ControlRefused, TmlError
 from tml.language.model import Mission, Task
 from tml.language.validation import validate_file
@@ -216,18 +217,54 @@ class Service:
                            list(chosen), "waiting", "", [], None, self.options.instance,
                            {"safe_state": safe_state, "profile": profile, "force": force},
                            time.time(), None)
+        return self._launch(record, mission, checked)
+
+    def continue_run(self, run_id: str) -> dict[str, Any]:
+        """Go on with a run the service was flying when it died (``interrupted``), as
+        ``tml run --resume`` does from its log: a new run on the same vehicles, whose
+        mission goes on where the stored log stood (:mod:`tml.engine.resume`). Refused
+        (422) for a run that was not interrupted, was continued already, or has roles; 409
+        when a vehicle is held."""
+        stored = self._stored_run(run_id)
+        if stored.status != "interrupted":
+            raise Refused(f"run {run_id} is {stored.status}: only an interrupted run can be "
+                          "continued")
+        later = next((r.id for r in self.storage.runs()
+                      if r.options.get("continues") == run_id), None)
+        if later is not None:
+            raise Refused(f"run {run_id} was continued already, as run {later}")
+        mission = self._parse(f"run {stored.id}", "mission.xml", stored.mission_source)
+        if mission.roles:
+            raise Refused("a mission with roles cannot be continued")
+        lines = [json.loads(line) for _, line in self.storage.lines(run_id)]
+        found = {vid: progress(lines, vid) for vid in stored.vehicles}
+        last = max((p.last_id for p in found.values()), default=0)
+        while self.ids.take() <= last:  # its requests and plans are numbered on
+            pass
+        options = {**stored.options, "continues": run_id}
+        record = StoredRun(secrets.token_hex(6), stored.mission_id, stored.mission_name,
+                           stored.mission_source, list(stored.vehicles), "waiting", "", [],
+                           None, self.options.instance, options, time.time(), None)
+        return self._launch(record, mission, _profile(str(options.get("profile",
+                                                                       "quadcopter"))),
+                            found)
+
+    def _launch(self, record: StoredRun, mission: Mission, checked: Any,
+                resume: Mapping[int, Progress] | None = None) -> dict[str, Any]:
+        """Hold the run's vehicles, store it and start flying it."""
         try:
-            self.hangar.claim(chosen, record.id)
+            self.hangar.claim(record.vehicles, record.id)
         except VehicleTaken as taken:
             raise Conflict(str(taken), vehicle=taken.vehicle_id, run=taken.run_id) from None
         world = mission.world or World()
-        options = checked_options(checked, world, safe_state=safe_state,
+        options = checked_options(checked, world,
+                                  safe_state=str(record.options.get("safe_state", "rtl")),
                                   link_lost_limit=self.options.link_lost_limit,
                                   ready_timeout=self.options.ready_timeout)
         try:
             self.storage.add_run(record)
             live = LiveRun(record, mission, self.hangar, self.storage, options, self.ids,
-                           on_end=self._ended)
+                           on_end=self._ended, resume=resume)
         except BaseException:
             self.hangar.release(record.id)
             raise
@@ -250,7 +287,7 @@ class Service:
         mission = self._parse(f"run {stored.id}", "mission.xml", stored.mission_source)
         board = TaskBoard(mission, stored.vehicles)
         for _seq, line in self.storage.lines(run_id):
-            if '"kind":"task"' in line:
+            if '"kind":"task"' in line or '"kind":"mission"' in line:
                 board.see(json.loads(line))
         return {**self._run_summary(stored), "tasks": board.snapshot(), "safety": []}
 

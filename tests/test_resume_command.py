@@ -103,21 +103,44 @@ def test_resume_options_that_cannot_work_are_usage_errors(
     assert "cannot read" in said
 
 
-def test_a_run_killed_in_flight_and_resumed_ends_as_one_left_alone(tmp_path: Path) -> None:
+def alone_and_killed(tmp_path: Path, text: str, kill: tuple[int, float]) -> list[Any]:
+    """The mission flown alone, and killed at ``kill`` and resumed, each on a simulator of
+    its own that outlives ``tml run``."""
     from sitl.server import Simulator
 
     bench = harness()
-    mission = tmp_path / "hop.xml"
-    mission.write_text(HOP)
+    mission = tmp_path / "mission.xml"
+    mission.write_text(text)
     flown = []
-    for kill in (None, (6, 0.3)):  # alone; killed on the way over, the vehicle flying on
+    for point in (None, kill):
         with Simulator(tcp_base_port=0, speedup=10,
                        params={"SIM_GPS_LOCKTIME": 0.5, "SIM_EKF_GPS_TIME": 1}) as sim:
             address = f"tcp:127.0.0.1:{sim.tcp_ports[0]}"
-            flown.append(bench.fly(mission, address, tmp_path / f"{kill}.jsonl", kill))
-    alone, resumed = flown
+            flown.append(bench.fly(mission, address, tmp_path / f"{point}.jsonl", point))
+    return flown
+
+
+def test_a_run_killed_in_flight_and_resumed_ends_as_one_left_alone(tmp_path: Path) -> None:
+    # Killed on the way over, the vehicle flying on.
+    alone, resumed = alone_and_killed(tmp_path, HOP, (6, 0.3))
     assert alone.exit_code == resumed.exit_code == 0
     assert resumed.runs == 2  # it was killed, and resumed once
     assert resumed.ends == alone.ends == (("Up", "done"), ("Over", "done"), ("Back", "done"),
                                           ("Down", "done"))
     assert resumed.takeoffs_commanded == resumed.takeoffs_flown == 1
+
+
+AUTO = HOP.replace('<task name="Over">',
+                  '<task name="Plan" dispatch="mission"><task name="Over">') \
+    .replace('<task name="Down">', '</task><task name="Down">')
+
+
+def test_a_plan_flown_in_auto_is_followed_after_a_resume_not_uploaded_again(
+        tmp_path: Path) -> None:
+    # Killed while the autopilot flies the plan: it flies on, and the resumed run follows.
+    alone, resumed = alone_and_killed(tmp_path, AUTO, (8, 1.0))
+    assert resumed.runs == 2
+    assert alone.exit_code == resumed.exit_code == 0
+    assert resumed.ends == alone.ends
+    assert alone.uploads == resumed.uploads == 1
+    assert resumed.takeoffs_flown == 1

@@ -5,6 +5,7 @@ hangar of simulated ones, missions, and a throwaway PostgreSQL server.
 from __future__ import annotations
 
 import contextlib
+import io
 import os
 import shutil
 import socket
@@ -14,6 +15,7 @@ import threading
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from types import SimpleNamespace
+from typing import Any
 
 from tml.serve.hangar import Hangar
 from tml.vehicle import FakeVehicle, Request, RequestResult, VehicleState
@@ -165,3 +167,34 @@ def postgresql() -> Iterator[str]:
                             "fast", "-w", "stop"], capture_output=True)
     finally:
         shutil.rmtree(data, ignore_errors=True)
+
+
+def interrupted_run(storage: Any, fake: FakeVehicle, mission_id: str,
+                    run_id: str = "01d01d01d01d") -> str:
+    """A run of SHORT that a service was flying on ``fake`` when it died on the leg out: its
+    log in ``storage`` as the service stored it, marked ``interrupted``, and the vehicle
+    left flying. The run's id."""
+    from tml.engine import Interpreter
+    from tml.language.validation import validate_file
+    from tml.run.journal import Journal
+    from tml.serve.storage import StoredRun
+
+    engine = Interpreter(validate_file("m.xml", SHORT).mission, [fake.vehicle_id])
+    sink = io.StringIO()
+    journal = Journal(sink)
+    now, out = 0.0, engine.start(0.0, {fake.vehicle_id: fake.state()})
+    while fake.position[0] < 10:
+        for record in out.records:
+            journal.write(record.time, record.kind, record.vehicle_id, record.data)
+        for request in out.requests:
+            fake.submit(request)
+        fake.advance(0.1)
+        now += 0.1
+        out = engine.step(now, {fake.vehicle_id: fake.state()},
+                          {fake.vehicle_id: fake.poll()})
+    storage.add_run(StoredRun(run_id, mission_id, "Short hop", SHORT.decode(),
+                              [fake.vehicle_id], "interrupted", "the service stopped", [],
+                              None, "local", {"safe_state": "rtl", "profile": "quadcopter",
+                                              "force": False}, 1.0, 2.0))
+    storage.add_lines(run_id, list(enumerate(sink.getvalue().splitlines(), 1)))
+    return run_id

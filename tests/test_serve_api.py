@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
-from serving import DATA, MISSIONS, SHORT, TYPO, FakeHangar
+from serving import DATA, MISSIONS, SHORT, TYPO, FakeHangar, interrupted_run
 
 from tml.serve.api import create_app
 from tml.serve.service import Service, ServiceOptions
@@ -378,34 +378,10 @@ def test_controls_wait_for_the_vehicles_to_be_ready(tmp_path: Path) -> None:
 def test_an_interrupted_run_is_continued_from_its_log(served: Served) -> None:
     """A service that died mid-flight left a run ``interrupted``, its log in the database and
     its vehicle flying the leg out: POST /runs/{id}/continue goes on from there."""
-    import io
-
-    from tml.engine import Interpreter
-    from tml.language.validation import validate_file
-    from tml.run.journal import Journal
-    from tml.serve.storage import StoredRun
-
     mission_id = served.upload()
-    fake = served.hangar.fakes[0]
-    engine = Interpreter(validate_file("m.xml", SHORT).mission, [1])
-    sink = io.StringIO()
-    journal = Journal(sink)
-    now, out = 0.0, engine.start(0.0, {1: fake.state()})
-    while fake.position[0] < 10:  # the service dies on the leg out
-        for record in out.records:
-            journal.write(record.time, record.kind, record.vehicle_id, record.data)
-        for request in out.requests:
-            fake.submit(request)
-        fake.advance(0.1)
-        now += 0.1
-        out = engine.step(now, {1: fake.state()}, {1: fake.poll()})
-    old = StoredRun("01d01d01d01d", mission_id, "Short hop", SHORT.decode(), [1],
-                    "interrupted", "the service stopped", [], None, "local",
-                    {"safe_state": "rtl", "profile": "quadcopter", "force": False}, 1.0, 2.0)
-    served.storage.add_run(old)
-    served.storage.add_lines(old.id, list(enumerate(sink.getvalue().splitlines(), 1)))
+    old = interrupted_run(served.storage, served.hangar.fakes[0], mission_id)
 
-    answer = served.client.post(f"/runs/{old.id}/continue")
+    answer = served.client.post(f"/runs/{old}/continue")
     assert answer.status_code == 201, answer.text
     run = served.finish(answer.json()["id"])
     assert run["status"] == "completed"
@@ -414,7 +390,7 @@ def test_an_interrupted_run_is_continued_from_its_log(served: Served) -> None:
            served.client.get(f"/runs/{run['id']}/log").text.splitlines()]
     requests = [line["message"] for line in log if line["kind"] == "request"]
     assert "TakeOff" not in requests and requests[0] == "GoTo"  # no second take-off
-    again = served.client.post(f"/runs/{old.id}/continue")
+    again = served.client.post(f"/runs/{old}/continue")
     assert again.status_code == 422 and "continued already" in again.text
     done = served.client.post(f"/runs/{run['id']}/continue")
     assert done.status_code == 422 and "only an interrupted run" in done.text

@@ -11,6 +11,7 @@ can be had.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import threading
@@ -21,7 +22,7 @@ from typing import Any
 import httpx
 import pytest
 import uvicorn
-from serving import ROOT, SHORT, TYPO, free_port, simulated
+from serving import ROOT, SHORT, TYPO, FakeHangar, free_port, interrupted_run, simulated
 
 from tml.serve.api import create_app
 from tml.serve.service import Service, ServiceOptions
@@ -54,24 +55,33 @@ def browser() -> Iterator[Any]:
         driver.quit()
 
 
+@contextlib.contextmanager
+def served_page(service: Service) -> Iterator[str]:
+    """``service`` served on a free port; its address. Stopped on leaving."""
+    port = free_port()
+    server = uvicorn.Server(uvicorn.Config(create_app(service), host="127.0.0.1",
+                                           port=port, log_level="warning"))
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    while not server.started and thread.is_alive():
+        thread.join(0.05)
+    try:
+        yield f"http://127.0.0.1:{port}/"
+    finally:
+        server.should_exit = True
+        thread.join(60)
+
+
 @pytest.fixture
 def page(tmp_path: Path) -> Iterator[str]:
     """A service on two simulated vehicles, served on a free port; its address."""
     with simulated(vehicles=2, speedup=8) as hangar:
         storage = Storage(database_url(None, tmp_path))
         service = Service(storage, hangar, ServiceOptions(stop_timeout=30))
-        port = free_port()
-        server = uvicorn.Server(uvicorn.Config(create_app(service), host="127.0.0.1",
-                                               port=port, log_level="warning"))
-        thread = threading.Thread(target=server.run, daemon=True)
-        thread.start()
-        while not server.started and thread.is_alive():
-            thread.join(0.05)
         try:
-            yield f"http://127.0.0.1:{port}/"
+            with served_page(service) as address:
+                yield address
         finally:
-            server.should_exit = True
-            thread.join(60)
             storage.close()
 
 
@@ -183,3 +193,30 @@ def test_upload_fly_and_watch_a_mission_in_the_browser(browser: Any, page: str,
     assert "exit 0" in driver.find_element(By.ID, "run-status").text
     shot = ARTIFACTS / "serve-page.png"
     assert driver.save_screenshot(str(shot)) and shot.stat().st_size > 10_000
+
+
+def test_an_interrupted_run_is_continued_from_the_page(browser: Any, tmp_path: Path) -> None:
+    """A run the service was flying when it died: its Continue button starts the run that
+    goes on from where it stood, shown at once, which completes without a second take-off."""
+    from selenium.webdriver.common.by import By
+
+    hangar = FakeHangar(count=1)
+    storage = Storage(database_url(None, tmp_path))
+    service = Service(storage, hangar, ServiceOptions(stop_timeout=30))
+    mission_id = service.upload("short.xml", SHORT)["id"]
+    old = interrupted_run(storage, hangar.fakes[0], mission_id)
+    with served_page(service) as address:
+        driver = browser
+        driver.get(address)
+        click(driver, f"#runs li[data-run='{old}']")
+        wait(driver, "the interrupted run", lambda d: "interrupted" in d.find_element(
+            By.ID, "run-status").text and d.find_element(By.ID, "continue").is_enabled())
+        click(driver, "#continue")
+        wait(driver, "the run that continues it to complete", lambda d: (
+            "completed" in (status := d.find_element(By.ID, "run-status").text)
+            and old not in status))
+        states = {li.get_attribute("data-task"): li.find_element(By.CSS_SELECTOR,
+                                                                 ".state").text.split()[-1]
+                  for li in driver.find_elements(By.CSS_SELECTOR, "#tasks li[data-task]")}
+        assert states == {"Up": "done", "Out": "done", "Down": "done"}
+    storage.close()

@@ -309,6 +309,7 @@ function drawRunBar() {
   $("#pause").disabled = !live || run.status === "paused";
   $("#resume").disabled = !live || run.status !== "paused";
   $("#abort").disabled = !live;
+  $("#continue").disabled = !run || run.status !== "interrupted";
   $("#jump").disabled = $("#jump-task").disabled = !live;
 }
 
@@ -366,6 +367,17 @@ async function control(action, body) {
 $("#pause").addEventListener("click", () => control("pause"));
 $("#resume").addEventListener("click", () => control("resume"));
 $("#abort").addEventListener("click", () => control("abort"));
+// An interrupted run goes on as a new run, which is then shown.
+$("#continue").addEventListener("click", async () => {
+  const result = $("#control-result");
+  try {
+    const run = await api("POST", `/runs/${state.run.id}/continue`);
+    result.replaceChildren();
+    await showRun(run.id);
+  } catch (error) {
+    result.replaceChildren(element("span", {class: "error", textContent: error.message}));
+  }
+});
 $("#jump").addEventListener("click", () => control("jump", {task: $("#jump-task").value}));
 
 // --- vehicles --------------------------------------------------------------------------------

@@ -69,12 +69,12 @@ def read_log(path: str) -> list[dict[str, Any]]:
     return lines
 
 
-def resume_point(path: str, mission: Mission, digest: str, vehicles: Sequence[str],
-                 lines: list[dict[str, Any]] | None = None) -> ResumePoint:
+def resume_point(path: str, mission: Mission, digest: str,
+                 vehicles: Sequence[str]) -> ResumePoint:
     """Where the run logged in ``path`` stood, if ``mission`` (whose file has the SHA-256
     ``digest``) on ``vehicles`` (their addresses) may go on from it; ResumeRefused with the
     reason otherwise. The vehicles are numbered 1, 2 ... in the order given."""
-    lines = read_log(path) if lines is None else lines
+    lines = read_log(path)
     runs = [line for line in lines if line.get("kind") == "run"]
     if not runs or runs[0].get("message") != "run started":
         raise ResumeRefused(f"{path}: not a flight log of tml run (no 'run started' line)")

@@ -25,20 +25,22 @@ def harness() -> Any:
     return module
 
 
-# Mid-climb (the TakeOff sent, the vehicle climbing when killed), on a leg, and landing.
-POINTS = [(3, 0.4), (9, 0.0), (14, 0.2)]
+# Mid-climb (the TakeOff sent, the vehicle climbing when killed), on a leg, and landing;
+# and while ArduCopter flies an uploaded plan in AUTO, which is followed, not uploaded again.
+POINTS = {"paper_example1": [(3, 0.4), (9, 0.0), (14, 0.2)], "mission_dispatch": [(8, 1.0)]}
 
 
 @pytest.mark.timeout(600)
-def test_killed_and_resumed_on_arducopter_ends_as_left_alone(ardupilot: Any,
+@pytest.mark.parametrize("name", sorted(POINTS))
+def test_killed_and_resumed_on_arducopter_ends_as_left_alone(name: str, ardupilot: Any,
                                                              tmp_path: Path) -> None:
     bench = harness()
-    mission = ROOT / "missions" / "paper_example1.xml"
+    mission = ROOT / "missions" / f"{name}.xml"
     [sitl] = ardupilot()
     alone = bench.fly(mission, sitl.address, tmp_path / "alone.jsonl")
     sitl.stop()
     assert alone.exit_code == 0 and alone.takeoffs_flown == 1
-    for count, delay in POINTS:
+    for count, delay in POINTS[name]:
         [sitl] = ardupilot()
         resumed = bench.fly(mission, sitl.address, tmp_path / f"{count}.jsonl",
                             (count, delay))
@@ -48,3 +50,4 @@ def test_killed_and_resumed_on_arducopter_ends_as_left_alone(ardupilot: Any,
         assert resumed.ends == alone.ends, (count, delay)
         assert resumed.takeoffs_flown == 1, (count, delay)
         assert resumed.takeoffs_commanded == 1, (count, delay)
+        assert resumed.uploads == alone.uploads, (count, delay)

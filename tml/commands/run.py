@@ -15,16 +15,25 @@ import contextlib
 import signal
 import threading
 from collections.abc import Callable, Iterator
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from tml.errors import ExitCode
 
 if TYPE_CHECKING:
     from tml.language.model import Mission
     from tml.run.journal import Journal
+    from tml.run.resume import ResumePoint
     from tml.world import World
 
 VEHICLE_PROFILE = "vehicle"  # --profile vehicle: read from the connected vehicle
+
+
+class Resumed(NamedTuple):
+    """The mission file's SHA-256 (for the log), and where an interrupted run stood when
+    ``--resume`` goes on with it (None: a new run)."""
+
+    digest: str
+    point: ResumePoint | None
 
 
 def _sim_param(text: str) -> tuple[str, float]:
@@ -175,9 +184,9 @@ def run(args: argparse.Namespace) -> ExitCode:
     from tml.run.resume import ResumeRefused, file_digest, resume_point
 
     try:
-        args.digest = file_digest(args.mission)
-        args.resume_point = None if args.resume is None else resume_point(
-            args.resume, mission, args.digest, args.connect or [])
+        digest = file_digest(args.mission)
+        point = None if args.resume is None else resume_point(args.resume, mission, digest,
+                                                              args.connect or [])
     except OSError as error:
         errors.print(f"tml run: --resume {args.resume}: cannot read: "
                      f"{error.strerror or error}", markup=False)
@@ -192,7 +201,8 @@ def run(args: argparse.Namespace) -> ExitCode:
                      markup=False)
         return ExitCode.USAGE
     try:
-        return _run(args, mission, world, extra, profile, journal, console, errors)
+        return _run(args, mission, world, extra, profile, journal, console, errors,
+                    Resumed(digest, point))
     finally:
         journal.close()
 
@@ -228,7 +238,8 @@ def _usage_problem(args: argparse.Namespace) -> str | None:
 
 
 def _run(args: argparse.Namespace, mission: Mission, world: World, extra: World | None,
-         profile: Any, journal: Journal, console: Any, errors: Any) -> ExitCode:
+         profile: Any, journal: Journal, console: Any, errors: Any,
+         resumed: Resumed) -> ExitCode:
     """Open the vehicles and fly; the exit code."""
     from tml.errors import TmlError
 
@@ -243,7 +254,7 @@ def _run(args: argparse.Namespace, mission: Mission, world: World, extra: World 
                 if refused is not None:
                     return refused
             return _fly(args, mission, world, profile, vehicles, wake, clock, console,
-                        journal)
+                        journal, resumed)
     except TmlError as error:
         errors.print(f"tml run: {error}")
         return ExitCode.FAILURE
@@ -402,7 +413,7 @@ def _discover(link: Any, timeout: float) -> list[int]:
 
 def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
          vehicles: list[Any], wake: threading.Event, clock: Any, console: Any,
-         journal: Journal) -> ExitCode:
+         journal: Journal, resumed: Resumed) -> ExitCode:
     from tml.run.checked import checked_options
     from tml.run.display import LineDisplay, LiveDisplay
     from tml.run.runner import Runner
@@ -424,14 +435,13 @@ def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
     payloads: dict[int, list[str]] = {}
     for number, names in args.payload:
         payloads.setdefault(number, []).extend(names)
-    point = getattr(args, "resume_point", None)
+    point = resumed.point
     runner = Runner(mission, vehicles, clock=clock, options=options, journal=journal,
                     wake=wake, on_safety=on_safety, payloads=payloads,
                     on_update=(lambda r: display.update(r.views())) if display else None,
                     ids=None if point is None else IdSource(point.next_id),
                     resume=None if point is None else point.progress,
-                    about={"sha256": getattr(args, "digest", None),
-                           "connect": args.connect or []})
+                    about={"sha256": resumed.digest, "connect": args.connect or []})
     previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
     if threading.current_thread() is threading.main_thread():
         for sig in previous:

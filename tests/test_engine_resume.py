@@ -209,6 +209,42 @@ def test_a_plan_the_vehicle_does_not_fly_is_sent_again() -> None:
     assert not sent.track and sent.plan_id > found.plans["Photo flight"][0]
 
 
+RECOVERS = ('<mission name="Recovers">\n'
+            + task("Take off", "TAKE_OFF", '<argument name="altitude" value="5"/>')
+            + '<task name="Risky"><action name="GO_TO_POINT">' + go_to("(9, 0, 5)")
+            + '</action><on_error>\n'
+            + task("Breathe", "WAIT", '<argument name="duration" value="2"/>')
+            + task("Elsewhere", "GO_TO_POINT", go_to("(0, 6, 5)"))
+            + "</on_error></task>\n" + task("Land", "LAND") + "</mission>\n")
+
+
+def test_on_error_tasks_that_were_running_go_on_in_place_of_their_task() -> None:
+    def refusing() -> FakeVehicle:
+        vehicle = FakeVehicle()
+        vehicle.reject = {"GoTo": "rejected"}  # the risky leg fails at once
+        return vehicle
+
+    def until_breathing(station: Station, log: io.StringIO) -> Station:
+        while "Risky/Breathe" not in {line.get("task") for line in lines(log)}:
+            station.fly(1)
+        station.vehicle.reject = {}  # the next leg is taken
+        return station
+
+    alone_log = io.StringIO()
+    alone = until_breathing(Station(refusing(), alone_log, 0.0, text=RECOVERS),
+                            alone_log).fly()
+    assert alone.engine.status is Status.COMPLETED
+    assert ("Risky", "failed") in ends(alone_log)
+    vehicle, log = refusing(), io.StringIO()
+    first = until_breathing(Station(vehicle, log, 0.0, text=RECOVERS), log).fly(5)
+    found = progress(lines(log), 1)
+    assert found.recovering == {"Risky"}
+    second = Station(vehicle, log, first.time, found, found.last_id + 1, RECOVERS).fly()
+    assert second.engine.status is Status.COMPLETED
+    alone_ends = ends(alone_log)
+    assert ends(log) == alone_ends  # Breathe ends once, Elsewhere is flown, then Land
+
+
 def test_the_fold_forgets_what_ended_in_an_earlier_round_and_takes_pauses_out() -> None:
     records = [
         {"t": 10.0, "kind": "mission", "vehicle": 1, "message": "mission 'm' started"},

@@ -8,10 +8,11 @@ flight log keeps them in order. :func:`progress` folds one vehicle's records int
 when, the round each repeat or loop was in, the points memorized, the mission time
 reached, and the highest request or plan id used. The interpreter starts from it
 (:meth:`tml.engine.Interpreter.start` with ``progress``) through the same nodes as a fresh
-start, with three differences, each consumed once: a task that had ended is passed over
+start, with these differences, each consumed once: a task that had ended is passed over
 without running or being recorded again; a task that was running is entered as a jump
 enters its target -- no wait, no conditions read again -- with the time it had already
-run, so that its time limit goes on; a repeat or loop goes on from the round it was in.
+run, so that its time limit goes on; a repeat or loop goes on from the round it was in;
+a task that had failed while its ``on_error`` tasks ran goes on with them.
 The work of the running task is started again, and its scripts judge from the vehicle's
 state what is left: TAKE_OFF is ignored by a vehicle already flying, LAND by one already
 down, a GO_TO flies to its target from where the vehicle is. A ``dispatch="mission"`` task
@@ -55,6 +56,7 @@ class Progress:
     status: str = ""  # how the mission ended ("" while it ran)
     # A dispatch="mission" task's plan sent to the vehicle: its id and start.
     plans: Mapping[str, tuple[int, Point]] = field(default_factory=dict)
+    recovering: frozenset[str] = frozenset()  # failed tasks whose on_error tasks ran
 
 
 def progress(records: Iterable[Mapping[str, Any]], vehicle_id: int) -> Progress:
@@ -65,6 +67,7 @@ def progress(records: Iterable[Mapping[str, Any]], vehicle_id: int) -> Progress:
     rounds: dict[str, int] = {}
     labels: dict[str, Point] = {}
     plans: dict[str, tuple[int, Point]] = {}
+    recovering: set[str] = set()
     planning = ""  # the task whose plan the next FlyMission request sends
     base = offset = elapsed = 0.0
     last_id, started, status = 0, False, ""
@@ -97,11 +100,14 @@ def progress(records: Iterable[Mapping[str, Any]], vehicle_id: int) -> Progress:
             if state == TaskState.RUNNING.value:
                 if not record.get("resumed"):
                     _forget_below(ended, rounds, path)
+                    recovering.discard(path)
                     running[path] = now
                 ended.pop(path, None)
             elif state in ENDED:
                 ended[path] = TaskState(state)
                 running.pop(path, None)
+        elif kind == "decision" and isinstance(path, str) and record.get("recover"):
+            recovering.add(path)
         elif kind == "decision" and isinstance(path, str) and "actions" in record:
             planning = path  # "flown as a mission": its FlyMission request follows
         elif kind == "request" and record.get("message") == "FlyMission" and planning:
@@ -115,7 +121,8 @@ def progress(records: Iterable[Mapping[str, Any]], vehicle_id: int) -> Progress:
         if isinstance(record.get("label"), str) and isinstance(record.get("point"), list):
             x, y, z = (float(v) for v in record["point"])
             labels[record["label"]] = (x, y, z)
-    return Progress(ended, running, rounds, labels, elapsed, last_id, started, status, plans)
+    return Progress(ended, running, rounds, labels, elapsed, last_id, started, status, plans,
+                    frozenset(recovering))
 
 
 def _forget_below(ended: dict[str, TaskState], rounds: dict[str, int], path: str) -> None:
@@ -138,6 +145,7 @@ class Restoring:
                         for path, begun in progress.running.items()}
         self.rounds = dict(progress.rounds)
         self.plans = dict(progress.plans)
+        self.recovering = set(progress.recovering)
 
     def take_ended(self, path: str) -> TaskState | None:
         """How the task had ended, if it had (then it is passed over)."""
@@ -150,6 +158,15 @@ class Restoring:
     def take_round(self, path: str) -> int:
         """The round the repeat or loop was in (0: it had not begun)."""
         return self.rounds.pop(path, 0)
+
+    def take_recovering(self, path: str) -> bool:
+        """Whether the task had failed and its on_error tasks were running (then they
+        go on in its place)."""
+        if path not in self.recovering:
+            return False
+        self.recovering.discard(path)
+        self.ended.pop(path, None)
+        return True
 
     def take_plan(self, path: str) -> tuple[int, Point, set[str]] | None:
         """The plan the task had sent (its id and start) and the tasks of it that had

@@ -102,6 +102,7 @@ class TaskNode(Node):
     def step(self) -> NodeStatus:
         restoring = self.run.restoring
         if self.phase is Phase.PICK and restoring is not None \
+                and self.task.path_name not in restoring.recovering \
                 and restoring.take_ended(self.task.path_name) is not None:
             return NodeStatus.SUCCESS  # it had ended before the run was interrupted
         if self.abandoned is None:
@@ -172,6 +173,11 @@ class TaskNode(Node):
 
     def _wait(self) -> NodeStatus | None:
         run, task = self.run, self.task
+        if run.restoring is not None and run.restoring.take_recovering(task.path_name):
+            # It had failed, and its on_error tasks were running: they go on.
+            self.inner = TasksNode(run, task.on_error, self.build)
+            self.phase = Phase.RECOVER
+            return None
         begun = None if run.restoring is None else run.restoring.take_running(task.path_name)
         if begun is not None:  # running when the run was interrupted: it goes on
             self._begin_body(begun, resumed=True)
@@ -236,7 +242,7 @@ class TaskNode(Node):
             return NodeStatus.FAILURE
         run.note("decision", f"{task.path_name}: failed ({failure.message}); its on_error "
                  "tasks run", self.vehicle_id, task=task.path_name,
-                 reason=failure.reason.value, detail=failure.message)
+                 reason=failure.reason.value, detail=failure.message, recover=True)
         vid = failure.vehicle_id
         if vid is not None and run.pilots[vid].state.flying:
             run.send(Hold(vid))  # it stops where it is while the handler takes over

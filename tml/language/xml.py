@@ -175,13 +175,17 @@ def read_xml(source: str | Path, data: bytes | None = None) -> XmlDocument:
         return Location(file, text.count("\n", 0, offset) + 1, offset - line_start + 1)
 
     tags: list[tuple[int, int, int]] = []  # offset, line, column of each start tag
-    line, previous = 1, 0
+    line, previous, line_start = 1, 0, 0
     for match in _MARKUP.finditer(text):
         if match.group("tag"):
             offset = match.start()
-            line += text.count("\n", previous, offset)  # counted in C, tag to tag
+            newlines = text.count("\n", previous, offset)  # counted in C, tag to tag
+            if newlines:
+                line += newlines
+                line_start = text.rfind("\n", previous, offset) + 1
             previous = offset
-            tags.append((offset, line, offset - text.rfind("\n", 0, offset)))
+            # Searched from the previous tag only: a file on one line stays linear.
+            tags.append((offset, line, offset - line_start + 1))
         elif match.group(0) == "<!DOCTYPE":
             raise MissionSyntaxError(
                 "DOCTYPE declarations are not accepted (no DTDs or entities in mission files)",

@@ -194,3 +194,16 @@ def test_a_file_on_one_line_is_read_in_linear_time() -> None:
     [problem] = result.errors
     assert problem.code == "E002" and "depth" in problem.message
     assert (problem.location.line, problem.location.column) == (1, 18 + 256 * len(opening))
+
+
+def test_a_long_line_is_quoted_around_its_column_only() -> None:
+    # Found by benchmarks/hostile.py: the diagnostic of a mission on one line quoted the
+    # whole line, 2 MB of it for 100,000 nested tasks (8 MB at the size bound) each time.
+    line = "<m>" + "x" * 100_000 + "<bad>" + "y" * 100_000
+    column = line.index("<bad>") + 1
+    text = format_human(error(Location("m.xml", 1, column), "E002", "bad"), {"m.xml": line})
+    quoted, caret = text.splitlines()[1:3]
+    assert len(quoted) < 200 and quoted.startswith("     1 | …") and quoted.endswith("…")
+    assert quoted[caret.index("^"):].startswith("<bad>")
+    short = format_human(error(Location("m.xml", 1, 4), "E002", "bad"), {"m.xml": "<m><bad>"})
+    assert short.splitlines()[1:3] == ["     1 | <m><bad>", "       |    ^"]

@@ -107,16 +107,32 @@ def format_human(diagnostic: Diagnostic, sources: Mapping[str, str]) -> str:
     if text is not None and loc.line >= 1:
         source_lines = _source_lines(text)
         if loc.line <= len(source_lines):
-            line = source_lines[loc.line - 1].expandtabs(1)
+            line, column = _quoted(source_lines[loc.line - 1].expandtabs(1), loc.column)
             escaped = printable(line, newlines=False)
             lines.append(f"  {loc.line:>4} | {escaped}")
-            if loc.column >= 1:
+            if column >= 1:
                 # The caret stands under the column: count what escaping added before it.
-                shift = len(printable(line[:loc.column - 1], newlines=False))
+                shift = len(printable(line[:column - 1], newlines=False))
                 lines.append(f"       | {' ' * shift}^")
     if diagnostic.hint:
         lines.append(printable(f"  hint: {diagnostic.hint}"))
     return "\n".join(lines)
+
+
+QUOTE_WIDTH = 120
+"""Characters of a source line quoted at most: a longer line is cut around the column."""
+
+
+def _quoted(line: str, column: int) -> tuple[str, int]:
+    """The part of ``line`` to quote and the column in it: a line of a whole file written
+    on one line would otherwise be printed whole with each of its diagnostics."""
+    if len(line) <= QUOTE_WIDTH:
+        return line, column
+    start = max(0, min(column - 1 - QUOTE_WIDTH // 2, len(line) - QUOTE_WIDTH))
+    end = start + QUOTE_WIDTH
+    head = "…" if start else ""
+    tail = "…" if end < len(line) else ""
+    return head + line[start:end] + tail, column - start + len(head) if column >= 1 else 0
 
 
 def _github_data(text: str) -> str:

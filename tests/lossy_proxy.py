@@ -8,6 +8,13 @@ with (seed, direction); the frames kept, and any bytes that are no frame, go on 
 they came. A frame is what a radio loses, so this is how a poor link looks to both ends:
 sequence numbers jump, a COMMAND_ACK or a MISSION_REQUEST never comes.
 
+For a chaos campaign (benchmarks/chaos.py) it also cuts the link: :meth:`LossyProxy.cut`
+drops every frame both ways for some seconds from now, :meth:`LossyProxy.cut_on` from the
+first frame of a kind (mid-upload: the first MISSION_ITEM_INT); :meth:`LossyProxy.retarget`
+hangs up every connection and sends the next ones to another port, as a vehicle that
+rebooted looks to a ground station; ``up.sent`` keeps the last frame of each kind and
+sequence number the ground station sent (an uploaded mission's items).
+
 The proxy runs one thread of its own, from ``start`` (or ``with``) until ``stop``, and
 stops by itself after ``lifetime`` seconds. ``up`` is ground station to vehicle, ``down``
 vehicle to ground station.
@@ -21,12 +28,14 @@ import selectors
 import socket
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 BAD_DATA = "BAD_DATA"
+KEPT_KINDS = frozenset({"MISSION_ITEM_INT"})
 
 
 @dataclass
@@ -39,6 +48,12 @@ class Direction:
     forwarded: int = 0
     dropped: int = 0
     dropped_types: dict[str, int] = field(default_factory=dict)
+    cut_until: float = 0.0
+    """Monotonic time until which every frame is dropped (an outage)."""
+    on_frame: Callable[[str], None] | None = None
+    """Called with the kind of each frame before it is judged."""
+    sent: dict[tuple[str, int], Any] = field(default_factory=dict)
+    """The last frame of each (kind, seq field) among KEPT_KINDS."""
 
     def __post_init__(self) -> None:
         self.rng = random.Random(f"{self.seed}/{self.name}")
@@ -54,7 +69,12 @@ class Direction:
         for msg in parser.parse_buffer(data) or []:
             raw = bytes(msg.get_msgbuf())
             kind = msg.get_type()
-            if kind != BAD_DATA and self.rng.random() < self.loss:
+            if self.on_frame is not None and kind != BAD_DATA:
+                self.on_frame(kind)
+            if kind in KEPT_KINDS:
+                self.sent[(kind, msg.seq)] = msg
+            if kind != BAD_DATA and (time.monotonic() < self.cut_until
+                                     or self.rng.random() < self.loss):
                 self.dropped += 1
                 self.dropped_types[kind] = self.dropped_types.get(kind, 0) + 1
                 continue
@@ -100,6 +120,9 @@ class LossyProxy:
         self._selector = selectors.DefaultSelector()
         self._pairs: dict[socket.socket, _Pair] = {}
         self._running = threading.Event()
+        self._hang_up = threading.Event()
+        self.outages: list[tuple[float, float]] = []
+        """(monotonic start, seconds) of each cut."""
         self._thread = threading.Thread(target=self._loop, daemon=True,
                                         name=f"lossy proxy {self.port}")
 
@@ -121,6 +144,26 @@ class LossyProxy:
             self._thread.join(timeout=5.0)
         self._close()
 
+    def cut(self, seconds: float) -> float:
+        """Drop every frame both ways for ``seconds`` from now; returns when it started."""
+        start = time.monotonic()
+        self.outages.append((start, seconds))
+        self.up.cut_until = self.down.cut_until = start + seconds
+        return start
+
+    def cut_on(self, kind: str, seconds: float) -> None:
+        """Cut the link for ``seconds`` when the first frame of ``kind`` comes either way."""
+        def watch(seen: str) -> None:
+            if seen == kind and not self.outages:
+                self.cut(seconds)
+        self.up.on_frame = self.down.on_frame = watch
+
+    def retarget(self, port: int, host: str = "127.0.0.1") -> None:
+        """Hang up every connection; the next ones go to ``host:port`` (a vehicle that
+        rebooted: the ground station sees its link drop and a fresh vehicle after it)."""
+        self.target = (host, port)
+        self._hang_up.set()
+
     def __enter__(self) -> LossyProxy:
         return self.start()
 
@@ -132,6 +175,10 @@ class LossyProxy:
         end = time.monotonic() + self.lifetime
         try:
             while self._running.is_set() and time.monotonic() < end:
+                if self._hang_up.is_set():
+                    self._hang_up.clear()
+                    for pair in set(self._pairs.values()):
+                        self._drop(pair)
                 for key, _ in self._selector.select(timeout=0.1):
                     if key.fileobj is self._listener:
                         self._accept()
@@ -155,7 +202,9 @@ class LossyProxy:
             self._selector.register(sock, selectors.EVENT_READ)
 
     def _pass_on(self, sock: socket.socket) -> None:
-        pair = self._pairs[sock]
+        pair = self._pairs.get(sock)
+        if pair is None:  # dropped with its other end earlier in the same batch of events
+            return
         other, direction, parser = pair.routes[sock]
         try:
             data = sock.recv(65536)

@@ -122,3 +122,31 @@ def test_the_vehicles_answers_come_back_through_it_lost_in_their_own_direction(
         with pytest.raises(TimeoutError):
             gcs.recv(65536)  # every frame down was lost
     assert (proxy.up.dropped, proxy.down.dropped) == (0, 10)
+
+
+def test_a_cut_loses_every_frame_until_it_ends(vehicle: Vehicle) -> None:
+    with LossyProxy(vehicle.port, loss=0.0) as proxy:
+        start = proxy.cut(600.0)
+        assert through(proxy, vehicle, b"".join(frames(20))) == b""
+    assert proxy.up.dropped == 20 and proxy.outages == [(start, 600.0)]
+
+
+def test_a_cut_on_a_kind_starts_with_its_first_frame(vehicle: Vehicle) -> None:
+    sent = frames(10)  # the first HEARTBEAT is the fourth frame
+    with LossyProxy(vehicle.port, loss=0.0) as proxy:
+        proxy.cut_on("HEARTBEAT", 600.0)
+        assert through(proxy, vehicle, b"".join(sent)) == b"".join(sent[:3])
+    assert len(proxy.outages) == 1
+
+
+def test_retarget_hangs_up_and_connects_on_to_the_new_vehicle(vehicle: Vehicle) -> None:
+    rebooted = Vehicle()
+    try:
+        with LossyProxy(vehicle.port, loss=0.0) as proxy, \
+                socket.create_connection(("127.0.0.1", proxy.port), timeout=10.0) as gcs:
+            assert vehicle.connected.wait(10.0)
+            proxy.retarget(rebooted.port)
+            assert gcs.recv(65536) == b""  # the ground station sees its link drop
+            assert through(proxy, rebooted, b"".join(frames(5))) == b"".join(frames(5))
+    finally:
+        rebooted.close()

@@ -71,7 +71,7 @@ class Row:
     loss: float = 0.0
     latency: float = 0.0
     jitter: float = 0.0
-    moment: str = ""  # "climb", "flight", "upload", "start"
+    moment: str = ""  # "climb", "flight", "upload", "start", "airborne"
     outage: float = 0.0
     gps_loss: bool = False
     battery: bool = False
@@ -95,9 +95,12 @@ def _rows(seed: int) -> list[Row]:
     rows += [Row("GPS loss mid flight", moment="flight", gps_loss=True, sim_only=True),
              Row("battery failure mid flight", moment="flight", battery=True, sim_only=True),
              Row("vehicle reboot mid flight", moment="flight", reboot=True, sim_only=True)]
-    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGINT, signal.SIGTERM):
-        delay = round(rng.uniform(0.0, 12.0), 1)
-        rows.append(Row(f"{signal.Signals(sig).name} {delay} s after start", moment="start",
+    for moment, sig in (("start", signal.SIGINT), ("start", signal.SIGTERM),
+                        ("airborne", signal.SIGINT), ("airborne", signal.SIGTERM),
+                        ("airborne", signal.SIGINT), ("airborne", signal.SIGTERM)):
+        delay = round(rng.uniform(0.0, 4.0 if moment == "start" else 6.0), 1)
+        after = "tml started" if moment == "start" else "take-off"
+        rows.append(Row(f"{signal.Signals(sig).name} {delay} s after {after}", moment=moment,
                         signal=sig, delay=delay))
     rows.append(Row("tml killed and resumed", pending="tml run has no --resume yet"))
     return rows
@@ -112,6 +115,7 @@ class Seen:
     mode: str = ""
     altitude: float = 0.0
     takeoffs: int = 0
+    climbed: float | None = None  # when it first passed 9.5 m (seconds after tml started)
 
 
 class SimVehicle:
@@ -151,7 +155,8 @@ class SimVehicle:
 
 
 class ArduCopter:
-    """ArduCopter SITL, watched through its second serial port."""
+    """ArduCopter SITL, watched through its second serial port (in the air above 1 m of
+    relative altitude, landed again below 0.3 m)."""
 
     def __init__(self, row: Row, seed: int) -> None:
         from ardupilot_sitl import find_launcher, start_vehicle
@@ -165,6 +170,11 @@ class ArduCopter:
         self.port = int(self.sitl.address.rsplit(":", 1)[1])
         self.watch = mavutil.mavlink_connection(self.sitl.companion_address,
                                                 source_system=251, source_component=158)
+        heartbeat = self.watch.wait_heartbeat(timeout=30)
+        if heartbeat is None:
+            raise SystemExit(f"no heartbeat on {self.sitl.companion_address}")
+        self.watch.mav.request_data_stream_send(heartbeat.get_srcSystem(), 1,
+                                                mavutil.mavlink.MAV_DATA_STREAM_ALL, 10, 1)
         self.state = (False, True, "", 0.0)
         self._running = True
         self._thread = threading.Thread(target=self._read, daemon=True)
@@ -180,10 +190,9 @@ class ArduCopter:
             if kind == "HEARTBEAT":
                 armed = bool(msg.base_mode & 128)
                 mode = self.watch.flightmode
-            elif kind == "EXTENDED_SYS_STATE":
-                landed = msg.landed_state == 1
-            elif kind == "GLOBAL_POSITION_INT":
+            elif kind == "GLOBAL_POSITION_INT":  # in the air above 1 m, landed below 0.3 m
                 altitude = msg.relative_alt / 1000
+                landed = altitude < 0.3 or (landed and altitude < 1.0)
             self.state = (armed, landed, mode, altitude)
 
     def look(self) -> tuple[bool, bool, str, float]:
@@ -225,7 +234,7 @@ class Result:
             missed.append("left flying unwatched")
         if self.takeoffs > 1:
             missed.append("duplicate take-off")
-        if (self.row.outage >= DETECT_GOAL + 1 or self.row.reboot) and (
+        if self.row.outage >= DETECT_GOAL + 1 and (
                 self.lost is None or self.lost > DETECT_GOAL + 1.0):  # +1: log resolution
             missed.append("link loss not detected within 3 s")
         if self.upload == "DIFFERENT":
@@ -238,7 +247,8 @@ def fly(row: Row, seed: int, ardupilot: bool, folder: Path) -> Result:
     result = Result(row)
     vehicle: SimVehicle | ArduCopter = (ArduCopter(row, seed) if ardupilot
                                         else SimVehicle(row, seed))
-    log = folder / f"{row.name.replace(' ', '_').replace('%', 'pc')}.jsonl"
+    stem = row.name.replace(" ", "_").replace("%", "pc")
+    log, errors = folder / f"{stem}.jsonl", folder / f"{stem}.err"
     seen = Seen()
     try:
         with LossyProxy(vehicle.port, loss=row.loss, seed=seed, lifetime=600.0) as proxy:
@@ -247,7 +257,7 @@ def fly(row: Row, seed: int, ardupilot: bool, folder: Path) -> Result:
             tml = subprocess.Popen(
                 [sys.executable, "-m", "tml", "run", str(ROOT / "missions" / f"{row.mission}.xml"),
                  "--connect", proxy.address, "-q", "--log", str(log)],
-                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                stdout=subprocess.DEVNULL, stderr=errors.open("w"))
             started = time.monotonic()
             fired_at: float | None = None
             signalled = False
@@ -284,6 +294,9 @@ def fly(row: Row, seed: int, ardupilot: bool, folder: Path) -> Result:
     finally:
         vehicle.stop()
     _read_log(log, result)
+    said = errors.read_text(errors="replace").strip().splitlines()
+    if said and said[-1].strip() and "Traceback (most recent call last):" in said:
+        result.reason += f" TRACEBACK: {said[-1].strip()}"
     return result
 
 
@@ -297,10 +310,14 @@ def _observe(vehicle: SimVehicle | ArduCopter, seen: Seen) -> None:
 def _moment(row: Row, seen: Seen, elapsed: float, proxy: LossyProxy) -> bool:
     if row.moment == "start":
         return True
+    if row.moment == "airborne":
+        return not seen.landed and seen.armed
     if row.moment == "climb":
         return not seen.landed and 1.0 < seen.altitude < 6.0
-    if row.moment == "flight":
-        return not seen.landed and seen.altitude > 9.0
+    if row.moment == "flight":  # one second after the take-off (to 10 m) ended
+        if seen.climbed is None and not seen.landed and seen.altitude > 9.5:
+            seen.climbed = elapsed
+        return seen.climbed is not None and elapsed - seen.climbed >= 1.0
     if row.moment == "upload":
         return bool(proxy.outages)
     return False

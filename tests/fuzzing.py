@@ -15,6 +15,7 @@ import contextlib
 import os
 import resource
 import signal
+import time
 from collections.abc import Iterator
 
 from hypothesis import HealthCheck, settings
@@ -53,12 +54,15 @@ def time_bound(seconds: float = CASE_SECONDS) -> Iterator[None]:
     def expire(_signum: int, _frame: object) -> None:
         raise Hang(f"still running after {seconds:g} s")
 
+    # pytest-timeout times the whole test on the same timer: its time left is put back.
     previous = signal.signal(signal.SIGALRM, expire)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
+    start = time.monotonic()
+    outer, _ = signal.setitimer(signal.ITIMER_REAL, seconds)
     try:
         yield
     finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
+        left = outer - (time.monotonic() - start)
+        signal.setitimer(signal.ITIMER_REAL, max(left, 0.001) if outer else 0)
         signal.signal(signal.SIGALRM, previous)
 
 

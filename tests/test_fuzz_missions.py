@@ -44,6 +44,12 @@ STEPS = 50
 """Engine steps of 0.1 s flown on the fake vehicles (the first five seconds)."""
 
 
+ATTRIBUTES = sorted({name for data in SOURCES.values()
+                     for element in etree.fromstring(data).iter() if isinstance(element.tag, str)
+                     for name in element.attrib if not name.startswith("{")})
+"""Every attribute name the missions use: one may be given to an element that lacks it."""
+
+
 def _elements(root: etree._Element) -> list[etree._Element]:
     return [e for e in root.iter() if isinstance(e.tag, str) and e is not root]
 
@@ -60,7 +66,7 @@ def mutated(draw: st.DrawFn) -> tuple[Path, bytes]:
         element = draw(st.sampled_from(elements))
         parent = element.getparent()
         how = draw(st.sampled_from(("delete", "duplicate", "swap", "extreme", "nest",
-                                    "move")))
+                                    "move", "add")))
         if how == "delete" and parent is not None:
             parent.remove(element)
         elif how == "duplicate" and parent is not None:
@@ -76,6 +82,8 @@ def mutated(draw: st.DrawFn) -> tuple[Path, bytes]:
         elif how == "extreme":
             names = list(element.attrib) or ["value"]
             element.set(draw(st.sampled_from(names)), draw(st.sampled_from(EXTREMES)))
+        elif how == "add":
+            element.set(draw(st.sampled_from(ATTRIBUTES)), draw(st.sampled_from(EXTREMES)))
         elif how == "nest" and parent is not None:
             inner = element
             for level in range(draw(st.integers(1, 300))):

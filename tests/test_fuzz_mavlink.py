@@ -147,7 +147,7 @@ def harness() -> Iterator[Harness]:
 
 
 def test_hostile_bytes_never_stop_the_link(harness: Harness) -> None:
-    @fuzz_settings(1200)
+    @fuzz_settings(1000)
     @given(hostile_bytes())
     def case(data: bytes) -> None:
         with time_bound(), memory_bound():
@@ -197,7 +197,7 @@ MISSION = (b'<mission name="m"><task name="Take off"><action name="TAKE_OFF">'
            b'</event_handling></mission>')
 
 
-@fuzz_settings(300)
+@fuzz_settings(200)
 @given(st.data())
 def test_absurd_telemetry_never_crashes_the_engine(data: st.DataObject) -> None:
     result = validate_file("m.xml", MISSION)
@@ -209,7 +209,7 @@ def test_absurd_telemetry_never_crashes_the_engine(data: st.DataObject) -> None:
         try:
             out = engine.start(0.0, {1: vehicle.state()})
             now = 0.0
-            for step in range(200):
+            for step in range(150):
                 for request in out.requests:
                     vehicle.submit(request)
                 if engine.status is not Status.RUNNING:

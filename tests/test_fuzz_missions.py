@@ -147,7 +147,7 @@ def fly(mission) -> None:  # type: ignore[no-untyped-def]
                           {v.vehicle_id: v.poll() for v in vehicles})
 
 
-@fuzz_settings(500)
+@fuzz_settings(1000)
 @given(mutated())
 def test_a_mutated_mission_is_refused_or_verified_and_started(case: tuple[Path, bytes]) -> None:
     check_mission(*case)

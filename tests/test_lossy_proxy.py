@@ -150,3 +150,14 @@ def test_retarget_hangs_up_and_connects_on_to_the_new_vehicle(vehicle: Vehicle) 
             assert through(proxy, rebooted, b"".join(frames(5))) == b"".join(frames(5))
     finally:
         rebooted.close()
+
+
+def test_the_mission_items_sent_are_kept_lost_or_not(vehicle: Vehicle) -> None:
+    gcs = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    items = [mavlink.MAVLink_mission_item_int_message(1, 1, seq, 6, 16, 0, 1, 0, 0, 0, 0,
+                                                      seq, seq, 10.0, 0).pack(gcs)
+             for seq in range(5)]
+    with LossyProxy(vehicle.port, loss=1.0) as proxy:
+        assert through(proxy, vehicle, b"".join(items)) == b""
+    assert sorted(proxy.up.sent) == [("MISSION_ITEM_INT", seq) for seq in range(5)]
+    assert proxy.up.sent[("MISSION_ITEM_INT", 3)].x == 3

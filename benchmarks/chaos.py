@@ -9,7 +9,9 @@ shows (mid take-off, mid flight, mid upload) or at a seeded random time:
 - link outages of 1 to 20 s (the proxy drops every frame), mid-action and mid-upload;
 - GPS loss and battery failure (the simulator's faults, set at the moment);
 - a vehicle reboot (the proxy hangs up and connects on to a fresh vehicle on the ground);
-- SIGINT or SIGTERM to tml at a random moment.
+- SIGINT or SIGTERM to tml at a random moment;
+- tml killed (SIGKILL) mid take-off, mid flight or mid upload, then run again with
+  ``--resume`` on its flight log.
 
 For each row it prints the mission's outcome (exit code and reason), how the vehicle ended
 (watched for 30 s after tml exits: landed, in its safe state RTL/LAND, or still flying in
@@ -78,6 +80,7 @@ class Row:
     reboot: bool = False
     signal: int = 0
     delay: float = 0.0  # wall seconds after the moment
+    resume: bool = False  # tml killed (SIGKILL) at the moment, then run with --resume
     pending: str = ""  # a row that cannot be flown yet, and why
     sim_only: bool = False  # needs a fault only the simulator has
 
@@ -102,7 +105,10 @@ def _rows(seed: int) -> list[Row]:
         after = "tml started" if moment == "start" else "take-off"
         rows.append(Row(f"{signal.Signals(sig).name} {delay} s after {after}", moment=moment,
                         signal=sig, delay=delay))
-    rows.append(Row("tml killed and resumed", pending="tml run has no --resume yet"))
+    rows += [Row("tml killed mid take-off and resumed", moment="climb", resume=True),
+             Row("tml killed mid flight and resumed", moment="flight", resume=True),
+             Row("tml killed mid upload and resumed", mission="mission_dispatch",
+                 moment="upload", outage=0.1, resume=True)]
     return rows
 
 
@@ -254,10 +260,11 @@ def fly(row: Row, seed: int, ardupilot: bool, folder: Path) -> Result:
         with LossyProxy(vehicle.port, loss=row.loss, seed=seed, lifetime=600.0) as proxy:
             if row.moment == "upload":
                 proxy.cut_on("MISSION_ITEM_INT", row.outage)
-            tml = subprocess.Popen(
-                [sys.executable, "-m", "tml", "run", str(ROOT / "missions" / f"{row.mission}.xml"),
-                 "--connect", proxy.address, "-q", "--log", str(log)],
-                stdout=subprocess.DEVNULL, stderr=errors.open("w"))
+            command = [sys.executable, "-m", "tml", "run",
+                       str(ROOT / "missions" / f"{row.mission}.xml"),
+                       "--connect", proxy.address, "-q"]
+            tml = subprocess.Popen([*command, "--log", str(log)],
+                                   stdout=subprocess.DEVNULL, stderr=errors.open("w"))
             started = time.monotonic()
             fired_at: float | None = None
             signalled = False
@@ -270,6 +277,12 @@ def fly(row: Row, seed: int, ardupilot: bool, folder: Path) -> Result:
                     if row.outage and row.moment != "upload":
                         proxy.cut(row.outage)
                     vehicle.inject(row, proxy)
+                    if row.resume:
+                        tml.kill()
+                        tml.wait()
+                        tml = subprocess.Popen([*command, "--resume", str(log)],
+                                               stdout=subprocess.DEVNULL,
+                                               stderr=errors.open("a"))
                 if (row.signal and not signalled and fired_at is not None
                         and now - fired_at >= row.delay):
                     tml.send_signal(row.signal)

@@ -439,3 +439,112 @@ def test_heartbeats_waiting_behind_a_slow_listener_are_not_taken_for_silence() -
         link.wait_telemetry(1, lambda t: t.mission_current == 9, timeout=5)
         assert eventually(lambda: link.telemetry(1).received > received + 5)  # beats after it
         assert stalled.is_set() and link.stats.losses == 0
+
+
+class TcpVehicle:
+    """A vehicle that listens on TCP as ArduPilot SITL does, and can go away and come back.
+
+    ``hang_up`` makes a server that accepts and closes at once, without a word.
+    """
+
+    def __init__(self, hang_up: bool = False) -> None:
+        self.hang_up = hang_up
+        self.port = 0
+        self._server: socket.socket | None = None
+        self._running = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def start(self) -> TcpVehicle:
+        server = socket.socket()
+        server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        server.bind(("127.0.0.1", self.port))
+        server.listen()
+        server.settimeout(0.05)
+        self.port = server.getsockname()[1]
+        self._server = server
+        self._running.set()
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        """Close the listening socket and every connection (the vehicle is killed)."""
+        self._running.clear()
+        if self._thread is not None:
+            self._thread.join(2.0)
+        if self._server is not None:
+            self._server.close()
+
+    def _serve(self) -> None:
+        assert self._server is not None
+        mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+        clients: list[socket.socket] = []
+        while self._running.is_set():
+            try:
+                client, _ = self._server.accept()
+                if self.hang_up:
+                    client.close()
+                else:
+                    clients.append(client)
+            except TimeoutError:
+                pass
+            beat = mavlink.MAVLink_heartbeat_message(
+                mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4, 4, 3).pack(mav)
+            for client in list(clients):
+                try:
+                    client.sendall(beat)
+                except OSError:
+                    clients.remove(client)
+        for client in clients:
+            client.close()
+
+
+@pytest.fixture
+def thread_errors() -> Iterator[list[Any]]:
+    """The exceptions that ended a thread during the test (none expected)."""
+    caught: list[Any] = []
+    previous = threading.excepthook
+    threading.excepthook = caught.append
+    yield caught
+    threading.excepthook = previous
+
+
+def test_a_tcp_vehicle_that_goes_away_is_lost_and_found_again_when_it_comes_back(
+        thread_errors: list[Any]) -> None:
+    vehicle = TcpVehicle().start()
+    try:
+        link = Link(f"tcp:127.0.0.1:{vehicle.port}", lost_after=0.3).start()
+        link.wait_vehicle(1, timeout=5)
+        vehicle.stop()  # killed: the connection ends, nothing listens any more
+        link.wait_telemetry(1, lambda t: t.link_lost, timeout=5, lost_ok=True)
+        assert "refused" in link.down or "closed" in link.down
+        vehicle.start()  # restarted on the same port: the link dials again
+        link.wait_telemetry(1, lambda t: not t.link_lost, timeout=10, lost_ok=True)
+        assert link.down == ""
+        link.close()
+    finally:
+        vehicle.stop()
+    assert thread_errors == []
+
+
+def test_a_server_that_hangs_up_is_a_clear_link_lost(thread_errors: list[Any]) -> None:
+    server = TcpVehicle(hang_up=True).start()
+    try:
+        link = Link(f"tcp:127.0.0.1:{server.port}").start()
+        with pytest.raises(LinkLost, match="no heartbeat"):
+            link.wait_vehicle(None, timeout=1.0)
+        link.close()
+    finally:
+        server.stop()
+    assert thread_errors == []
+
+
+def test_a_link_whose_vehicle_went_away_closes_quietly(thread_errors: list[Any]) -> None:
+    vehicle = TcpVehicle().start()
+    link = Link(f"tcp:127.0.0.1:{vehicle.port}", lost_after=0.3).start()
+    link.wait_vehicle(1, timeout=5)
+    vehicle.stop()
+    link.wait_telemetry(1, lambda t: t.link_lost, timeout=5, lost_ok=True)
+    link.close()
+    assert thread_errors == []

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -312,3 +313,111 @@ def test_tml_says_once_what_it_waits_for_and_how_long(tmp_path: Path) -> None:
     waiting = f"tml run: waiting up to 1 s for a vehicle at tcp:127.0.0.1:{port}"
     assert said.count(waiting) == 1, said
     assert done.returncode == 4 and "sleeping" not in said
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def test_a_server_that_hangs_up_exits_4_in_one_line(tmp_path: Path) -> None:
+    import socket
+    import threading
+
+    server = socket.create_server(("127.0.0.1", 0))
+    server.settimeout(0.05)
+    port = server.getsockname()[1]
+    running = threading.Event()
+    running.set()
+
+    def hang_up() -> None:  # accepts, and closes at once
+        while running.is_set():
+            with contextlib.suppress(TimeoutError):
+                server.accept()[0].close()
+
+    thread = threading.Thread(target=hang_up, daemon=True)
+    thread.start()
+    try:
+        done = subprocess.run([sys.executable, "-m", "tml", "run", write(tmp_path, SHORT),
+                               "--connect", f"tcp:127.0.0.1:{port}", "--timeout", "2", "-q"],
+                              capture_output=True, text=True, timeout=60)
+    finally:
+        running.clear()
+        thread.join(2.0)
+        server.close()
+    said = done.stdout + done.stderr
+    assert done.returncode == 4, said
+    assert "Traceback" not in said and "Error:" not in said
+    assert said.strip() == (f"tml run: no heartbeat from a vehicle on tcp:127.0.0.1:{port} "
+                            "within 2 s")
+
+
+class Watched:
+    """``tml run`` in a child process, its output read line by line as the test waits."""
+
+    def __init__(self, args: list[str]) -> None:
+        from tests.process_lines import follow
+
+        env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+        self.process = subprocess.Popen([sys.executable, "-m", "tml", "run", *args],
+                                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                        text=True, env=env)
+        assert self.process.stdout is not None
+        self.lines = follow(self.process.stdout)
+        self.seen: list[str] = []
+
+    def wait_for(self, pattern: str, within: float) -> None:
+        """Read until a line matches ``pattern``; fail the test after ``within`` s."""
+        import time
+
+        from tests.process_lines import wait_for
+
+        wait_for(self.lines, self.seen, pattern, time.monotonic() + within, "tml run")
+
+    @property
+    def said(self) -> str:
+        return "".join(self.seen)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_while_waiting_for_the_first_heartbeat_exits_3_cleanly(
+        tmp_path: Path, sig: signal.Signals) -> None:
+    import socket
+
+    with socket.create_server(("127.0.0.1", 0)) as silent:  # accepts, never speaks
+        port = silent.getsockname()[1]
+        run = Watched([write(tmp_path, SHORT), "--connect", f"tcp:127.0.0.1:{port}",
+                       "--timeout", "60"])
+        run.wait_for("waiting up to 60 s", 30)
+        run.process.send_signal(sig)
+        run.process.wait(timeout=30)
+        run.wait_for("interrupted|Traceback", 5)
+    assert run.process.returncode == 3, run.said
+    assert "Traceback" not in run.said and "KeyboardInterrupt" not in run.said
+    assert run.said.splitlines()[-1] == (f"tml run: interrupted ({sig.name}) before the "
+                                         "mission started")
+
+
+def test_a_simulator_killed_in_flight_exits_4_in_one_line(tmp_path: Path) -> None:
+    port = _free_port()
+    sim = subprocess.Popen([sys.executable, "-m", "sitl", "--tcp-base-port", str(port),
+                            "--param", "SIM_GPS_LOCKTIME=0.5", "--param", "SIM_EKF_GPS_TIME=1",
+                            "--speedup", "5"], stdout=subprocess.DEVNULL,
+                           stderr=subprocess.DEVNULL)
+    try:
+        slow = SHORT.replace("(8, 0, 4)", "(300, 0, 4)")
+        run = Watched([write(tmp_path, slow), "--connect", f"tcp:127.0.0.1:{port}",
+                       "--timeout", "30", "--link-lost-limit", "1"])
+        run.wait_for("Over: running", 60)
+        sim.kill()
+        run.process.wait(timeout=90)
+        run.wait_for("mission (failed|aborted|completed)", 5)
+    finally:
+        sim.kill()
+        sim.wait()
+    assert run.process.returncode == 4, run.said
+    assert "Traceback" not in run.said and "Error:" not in run.said
+    assert "vehicle 1: mission failed: link: vehicle 1: link lost for more than 1 s" in run.said

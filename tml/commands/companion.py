@@ -13,12 +13,12 @@ within ``--timeout``.
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from tml.commands.signals import on_stop_signals
 from tml.errors import ExitCode
 
 if TYPE_CHECKING:
@@ -93,8 +93,8 @@ def run(args: argparse.Namespace) -> ExitCode:
     stop = threading.Event()
     stopped_by: list[str] = []
 
-    def on_signal(number: int, _frame: object) -> None:
-        stopped_by.append(signal.Signals(number).name)
+    def on_signal(name: str) -> None:
+        stopped_by.append(name)
         stop.set()
 
     def say(text: str) -> None:
@@ -102,29 +102,22 @@ def run(args: argparse.Namespace) -> ExitCode:
             print(f"[{link.time:8.1f} s] {text}", flush=True)
 
     link = CompanionLink(args.connect, world, system_id=args.system_id, on_text=say)
-    main_thread = threading.current_thread() is threading.main_thread()
-    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
-    if main_thread:
-        for sig in previous:
-            signal.signal(sig, on_signal)
-    try:
-        if not link.open(args.timeout, stop):
-            return ExitCode.OK
-        if not args.quiet:
-            print(f"tml companion: component 191 of system {link.system_id} attached to "
-                  f"{args.connect} (autopilot component {link.autopilot_component}); "
-                  f"{Path(args.world).name}: {len(world.objects)} object(s), "
-                  f"{len(world.obstacles)} obstacle(s)", flush=True)
-        link.serve(stop)
-    except VehicleError as error:
-        return fail(str(error), ExitCode.FAILURE)
-    except OSError as error:
-        return fail(f"link to {args.connect} failed: {error}", ExitCode.FAILURE)
-    finally:
-        link.close()
-        if main_thread:
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
+    with on_stop_signals(on_signal):
+        try:
+            if not link.open(args.timeout, stop):
+                return ExitCode.OK
+            if not args.quiet:
+                print(f"tml companion: component 191 of system {link.system_id} attached to "
+                      f"{args.connect} (autopilot component {link.autopilot_component}); "
+                      f"{Path(args.world).name}: {len(world.objects)} object(s), "
+                      f"{len(world.obstacles)} obstacle(s)", flush=True)
+            link.serve(stop)
+        except VehicleError as error:
+            return fail(str(error), ExitCode.FAILURE)
+        except OSError as error:
+            return fail(f"link to {args.connect} failed: {error}", ExitCode.FAILURE)
+        finally:
+            link.close()
     if not args.quiet:
         print(f"tml companion: stopped ({', '.join(stopped_by) or 'asked'})", flush=True)
     return ExitCode.OK

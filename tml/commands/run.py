@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import signal
 import threading
 from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any, NamedTuple
 
+from tml.commands.signals import on_stop_signals
 from tml.errors import ExitCode
 
 if TYPE_CHECKING:
@@ -201,10 +201,19 @@ def run(args: argparse.Namespace) -> ExitCode:
                      markup=False)
         return ExitCode.USAGE
     try:
-        return _run(args, mission, world, extra, profile, journal, console, errors,
-                    Resumed(digest, point))
+        with on_stop_signals(_interrupt):
+            return _run(args, mission, world, extra, profile, journal, console, errors,
+                        Resumed(digest, point))
     finally:
         journal.close()
+
+
+def _interrupt(name: str) -> None:
+    """Before the flight, a stop signal ends ``tml run`` at once: nothing is flying yet,
+    and a wait for a vehicle ends with the interrupted exit code and one line."""
+    from tml.errors import Interrupted
+
+    raise Interrupted(name)
 
 
 def _usage_problem(args: argparse.Namespace) -> str | None:
@@ -241,7 +250,7 @@ def _run(args: argparse.Namespace, mission: Mission, world: World, extra: World 
          profile: Any, journal: Journal, console: Any, errors: Any,
          resumed: Resumed) -> ExitCode:
     """Open the vehicles and fly; the exit code."""
-    from tml.errors import TmlError
+    from tml.errors import Interrupted, TmlError
 
     try:
         with open_vehicles(args, world, errors) as (vehicles, wake, clock):
@@ -255,8 +264,11 @@ def _run(args: argparse.Namespace, mission: Mission, world: World, extra: World 
                     return refused
             return _fly(args, mission, world, profile, vehicles, wake, clock, console,
                         journal, resumed)
+    except Interrupted as error:
+        errors.print(f"tml run: {error} before the mission started", markup=False)
+        return ExitCode.ABORTED
     except TmlError as error:
-        errors.print(f"tml run: {error}")
+        errors.print(f"tml run: {error}", markup=False)
         return ExitCode.FAILURE
     except OSError as error:
         errors.print(f"tml run: cannot open the vehicle link: {error}")
@@ -442,20 +454,13 @@ def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
                     ids=None if point is None else IdSource(point.next_id),
                     resume=None if point is None else point.progress,
                     about={"sha256": resumed.digest, "connect": args.connect or []})
-    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
-    if threading.current_thread() is threading.main_thread():
-        for sig in previous:
-            signal.signal(sig, lambda number, _frame: runner.stop(
-                f"interrupted ({signal.Signals(number).name})"))
     try:
-        with display if display is not None else contextlib.nullcontext():
+        with on_stop_signals(lambda name: runner.stop(f"interrupted ({name})")), \
+                display if display is not None else contextlib.nullcontext():
             outcome = runner.run()
             if display is not None:
                 display.update(runner.views(), force=True)
     finally:
-        if threading.current_thread() is threading.main_thread():
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
         journal.close()  # flushed and closed before the outcome is said
     for vehicle in outcome.vehicles:
         console.print(f"vehicle {vehicle.vehicle_id}: mission {vehicle.status.value}: "

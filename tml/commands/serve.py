@@ -11,14 +11,13 @@ import argparse
 import contextlib
 import ipaddress
 import os
-import signal
 import sys
-import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 from tml.commands.run import add_vehicle_arguments
+from tml.commands.signals import on_stop_signals
 from tml.errors import ExitCode
 
 TOKEN_VARIABLE = "TML_SERVE_TOKEN"
@@ -73,18 +72,11 @@ def _stopped_by_signals(server: Any) -> Iterator[None]:
     """SIGINT and SIGTERM stop the server. uvicorn handles them while it serves, and raises
     the signal again once it has shut down gracefully; this handler then takes it, so that
     the service ends with its own exit code rather than killed by the signal."""
-    def stop(_number: int, _frame: Any) -> None:
+    def stop(_name: str) -> None:
         server.should_exit = True
 
-    if threading.current_thread() is not threading.main_thread():
+    with on_stop_signals(stop):
         yield
-        return
-    previous = {sig: signal.signal(sig, stop) for sig in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
 
 
 def run(args: argparse.Namespace) -> ExitCode:

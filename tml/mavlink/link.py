@@ -19,6 +19,12 @@ so a message is handled as soon as it arrives, and for each message it
 5. calls the listeners (:meth:`listen`), e.g. a runner that wakes the interpreter on fresh
    telemetry, with the new snapshot.
 
+*A TCP vehicle that goes away* (a simulator killed, a server that hangs up) is dialled
+again, once every ``REDIAL_PERIOD`` seconds, each attempt bounded by ``REDIAL_TIMEOUT``
+(pymavlink's own reconnection sleeps and retries inside the receive thread and leaves its
+select on the closed socket); meanwhile :attr:`Link.down` says why there is no connection,
+the thread lives on, and the vehicle is lost as below -- and found again when it answers.
+
 It also sends the ground-station HEARTBEAT at 1 Hz, and marks a vehicle *lost* when no
 HEARTBEAT has come from it for ``lost_after`` seconds (``Telemetry.link_lost``, cleared by
 the next HEARTBEAT): the blocking calls waiting on that vehicle then raise
@@ -35,6 +41,7 @@ and reads snapshots.
 from __future__ import annotations
 
 import contextlib
+import socket
 import threading
 import time
 from collections.abc import Callable, Iterable
@@ -51,6 +58,10 @@ PROGRESS_PERIOD = 0.1
 LOST_AFTER = 5.0
 """Default seconds without a HEARTBEAT before a vehicle counts as lost."""
 LOST_CHECK_PERIOD = 0.05
+REDIAL_PERIOD = 0.5
+"""Seconds between two attempts to dial a TCP vehicle that went away."""
+REDIAL_TIMEOUT = 1.0
+"""Seconds one attempt to dial a TCP vehicle waits for its answer."""
 DRAIN_LIMIT = 1000
 """Messages read at most, before judging a vehicle lost, from what waits in the socket."""
 GCS_TYPES = frozenset({mavlink.MAV_TYPE_GCS})
@@ -144,6 +155,7 @@ class LinkStats:
     bad_signature: int = 0
     bad_data: int = 0
     losses: int = 0
+    disconnects: int = 0
 
 
 Listener = Callable[[int, Telemetry, Any], None]
@@ -169,6 +181,10 @@ class Link:
         self.stats = LinkStats()
         self._expected = None if system_ids is None else frozenset(system_ids)
         self._conn = _connect(address, baud, source_system, source_component)
+        self.down = ""
+        """Why the connection is down (a TCP vehicle went away), or "" while it is up."""
+        if isinstance(self._conn, mavutil.mavtcp):
+            _Redial(self._conn, self._went_down)
         self._outputs = [_connect(out, baud, source_system, source_component, output=True)
                          for out in outputs]
         if signing_key is not None:
@@ -207,7 +223,9 @@ class Link:
         if self._thread is not None:
             self._thread.join(timeout=2.0)
         for conn in (self._conn, *self._outputs):
-            conn.close()
+            if getattr(conn, "port", True) is not None:  # a TCP link down has no socket
+                with contextlib.suppress(OSError):
+                    conn.close()
 
     def __enter__(self) -> Link:
         return self.start()
@@ -361,12 +379,27 @@ class Link:
                     self._check_lost(now)  # may read the socket too
                     next_check = now + LOST_CHECK_PERIOD
                 msg = self._receive(blocking=True)
-            except (OSError, ValueError):
+            except (OSError, ValueError) as error:
                 if not self._running:
                     return
-                raise
+                # The vehicle went away: the next receive dials it again (see _Redial);
+                # its silence is judged by the lost check, as any other silence.
+                self._went_down(error)
+                time.sleep(LOST_CHECK_PERIOD)
+                continue
+            if self.down and self._conn_up():
+                self.down = ""
             if msg is not None:
                 self._handle(msg, time.monotonic())
+
+    def _went_down(self, error: BaseException) -> None:
+        reason = _reason(error)
+        if not self.down:
+            self.stats.disconnects += 1
+        self.down = reason
+
+    def _conn_up(self) -> bool:
+        return getattr(self._conn, "port", True) is not None
 
     def _receive(self, blocking: bool) -> Any:
         return self._conn.recv_match(blocking=blocking, timeout=0.1)
@@ -383,11 +416,13 @@ class Link:
         if losing:
             # Read what already waits in the socket first: after this thread was held up
             # (a slow listener, a busy machine) the HEARTBEATs may be there, not missing.
-            for _ in range(DRAIN_LIMIT):
-                msg = self._receive(blocking=False)
-                if msg is None:
-                    break
-                self._handle(msg, time.monotonic())
+            # A connection gone down has nothing waiting: the receive says why.
+            with contextlib.suppress(OSError, ValueError):
+                for _ in range(DRAIN_LIMIT):
+                    msg = self._receive(blocking=False)
+                    if msg is None:
+                        break
+                    self._handle(msg, time.monotonic())
             now = time.monotonic()
         with self._lock:
             changed = [t for t in self._trackers.values() if t.check_link(now, self.lost_after)]
@@ -474,5 +509,50 @@ def _connect(address: str, baud: int, source_system: int, source_component: int,
                                           dialect="ardupilotmega", autoreconnect=True,
                                           input=not (output and parsed.scheme == "udp"))
     except (OSError, ValueError) as error:
-        reason = error.strerror if isinstance(error, OSError) and error.strerror else error
-        raise LinkLost(f"cannot open MAVLink connection {address!r}: {reason}") from error
+        raise LinkLost(f"cannot open MAVLink connection {address!r}: {_reason(error)}"
+                       ) from error
+
+
+def _reason(error: BaseException) -> str:
+    """An OS error said as the system says it ("Connection refused"), without its number."""
+    return str(error.strerror if isinstance(error, OSError) and error.strerror else error)
+
+
+class _Redial:
+    """Dials a pymavlink TCP connection again when its peer went away, in place of
+    pymavlink's own reconnection (see the module docstring): at most once every
+    REDIAL_PERIOD, each attempt bounded, the socket and the descriptor select() watches
+    both replaced. Between attempts, and when an attempt fails, the caller gets an
+    OSError saying why (a write drops its message; the receive thread waits and reads again).
+    """
+
+    def __init__(self, conn: Any, on_down: Callable[[BaseException], None]) -> None:
+        self.conn = conn
+        self.on_down = on_down
+        self.last = 0.0
+        self.why: OSError = ConnectionResetError("connection closed by the vehicle")
+        self.lock = threading.Lock()
+        conn.reconnect = conn.handle_eof = conn.handle_disconnect = self.redial
+
+    def redial(self) -> None:
+        with self.lock:
+            conn = self.conn
+            if conn.port is not None:
+                with contextlib.suppress(OSError):
+                    conn.port.close()
+                conn.port = None
+                self.on_down(self.why)
+            now = time.monotonic()
+            if now - self.last < REDIAL_PERIOD:
+                raise self.why
+            self.last = now
+            try:
+                sock = socket.create_connection(conn.destination_addr, timeout=REDIAL_TIMEOUT)
+            except OSError as error:
+                self.why = error
+                self.on_down(error)
+                raise
+            sock.setblocking(False)
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            conn.port, conn.fd = sock, sock.fileno()
+            self.why = ConnectionResetError("connection closed by the vehicle")

@@ -191,3 +191,40 @@ def test_why_nothing_moves_while_the_vehicle_boots() -> None:
     text = render_text(mission, [(views[0][0], state)], 80, 24)
     assert "vehicle 1: waiting for battery status, GPS fix, pre-arm checks, autopilot: " \
            "PreArm: Need…" in text or "vehicle 1: waiting for battery status, GPS fix" in text
+
+
+HOSTILE = XML.replace(b'name="Show"', b'name="Show \xe2\x80\xae[bold]x\xc2\x9b"').replace(
+    b'task name="Leg"', b'task name="Leg[/x]\xe2\x80\xaegel"')
+ESCAPE = "\x1b]0;PWNED\x07"
+
+
+def _hostile_views():
+    from tml.vehicle import AutopilotMessage
+
+    mission, views = flown(6.0, HOSTILE)
+    view, state = views[0]
+    state = replace(state, mode=f"GUIDED{ESCAPE}", prearm=f"PreArm: {ESCAPE}",
+                    messages=(AutopilotMessage(1, 2, f"EKF {ESCAPE} failsafe\u202e"),))
+    return mission, [(view, state)]
+
+
+def test_the_view_escapes_control_characters_and_bidi_overrides() -> None:
+    mission, views = _hostile_views()
+    text = render_text(mission, views, 200)
+    for bad in ("\x1b", "\x07", "\u202e", "\x9b"):
+        assert bad not in text
+    assert "\\x1b]0;PWNED\\x07" in text and "\\u202e" in text
+    assert "[/x]" in text and "[bold]" in text  # shown as written, not taken for markup
+
+
+def test_the_line_display_escapes_what_it_prints() -> None:
+    _, views = _hostile_views()
+    out = io.StringIO()
+    display = LineDisplay(Console(file=out, width=200, color_system=None))
+    display.update(views)
+    display.say(f"vehicle 1: switched to LAND{ESCAPE} [/oops]")
+    printed = out.getvalue()
+    for bad in ("\x1b", "\x07", "\u202e"):
+        assert bad not in printed
+    assert "Leg[/x]\\u202egel: running" in printed
+    assert printed.endswith("vehicle 1: switched to LAND\\x1b]0;PWNED\\x07 [/oops]\n")

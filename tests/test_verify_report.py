@@ -90,3 +90,12 @@ def test_json_without_roles_has_no_role_fields() -> None:
     data = json.loads(report_json(_report()))  # type: ignore[arg-type]
     assert "ends" not in data
     assert all("role" not in row for row in data["actions"] + data["violations"])
+
+
+def test_the_report_escapes_control_characters_bidi_overrides_and_markup() -> None:
+    hostile = MISSION.replace(b'task name="close"', b'task name="cl[/x]\xe2\x80\xaeose\xc2\x9b"')
+    text = _printed(_report("m\u202e\x1b.xml", hostile))
+    for bad in ("\u202e", "\x9b", "\x1b"):
+        assert bad not in text
+    assert "cl[/x]\\u202eose\\x9b" in text.replace("\n", "").replace("│", "").replace(" ", "")
+    assert "m\\u202e\\x1b.xml" in text

@@ -462,12 +462,15 @@ def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
                 display.update(runner.views(), force=True)
     finally:
         journal.close()  # flushed and closed before the outcome is said
+    from tml.language.diagnostics import printable
+
     for vehicle in outcome.vehicles:
-        console.print(f"vehicle {vehicle.vehicle_id}: mission {vehicle.status.value}: "
-                      f"{vehicle.reason}", markup=False)
+        console.print(printable(f"vehicle {vehicle.vehicle_id}: mission "
+                                f"{vehicle.status.value}: {vehicle.reason}", False),
+                      markup=False)
     if args.quiet:
         for message in said:
-            console.print(message, markup=False)
+            console.print(printable(message, False), markup=False)
     if args.log:
         console.print(f"flight log: {args.log} ({journal.lines} lines)", markup=False)
     return outcome.exit_code

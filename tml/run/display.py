@@ -19,6 +19,7 @@ from rich.table import Table
 from rich.text import Text
 
 from tml.engine import Change, TaskState, View
+from tml.language.diagnostics import printable
 from tml.language.model import Dispatch, Mission, Task
 from tml.run.fold import fold
 from tml.vehicle import VehicleState, awaiting
@@ -36,6 +37,12 @@ def output_console(stderr: bool = False) -> Console:
     if Console(stderr=stderr).is_terminal:
         return Console(stderr=stderr, highlight=False)
     return Console(stderr=stderr, highlight=False, soft_wrap=True, width=OFF_TERMINAL_WIDTH)
+
+
+def _safe(text: str) -> str:
+    """Text from a mission file or a vehicle as it may be shown: on one line, control
+    characters and bidi overrides escaped (one rule: tml.language.diagnostics.printable)."""
+    return printable(text, newlines=False)
 
 
 MARKS = {
@@ -63,7 +70,7 @@ def _tree(mission: Mission, views: Views, budget: int | None) -> Text:
     width = _mark_width(views)
     marks_width = width * len(views)
     text = Text(no_wrap=True, overflow="ellipsis")
-    text.append(f"mission {mission.name!r}", "bold")
+    text.append(f"mission {_safe(repr(mission.name))}", "bold")
     if len(views) > 1:  # a header over the marks: which vehicle each column is
         text.append("\n" + "".join(_vehicle_name(i, views).rjust(width)
                                     for i in range(len(views))), "bold")
@@ -82,7 +89,7 @@ def _tree(mission: Mission, views: Views, budget: int | None) -> Text:
             mark, style = MARKS[view.task_states.get(task.path_name, TaskState.PENDING)]
             text.append(mark.rjust(width), style)
         text.append(" " + line.guide, "dim")
-        text.append(task.name)
+        text.append(_safe(task.name))
         if task.action is not None:
             text.append(f"  {task.action.name}", "dim")
         if _plan_root(mission, task):
@@ -162,15 +169,16 @@ def _vehicles(mission: Mission, views: Views, width: int) -> Table:
             items = _plan_items(mission, view.current_task)
             if items and state is not None and state.mission is not None:
                 action = f"item {state.mission.action_index + 1}/{items} " + action
+        action = _safe(action)
         if view.status.value != "running":
             action = f"{view.status.value}: {action}" if not wide else action
         position = state.position if state else None
         link = state.link if state else ""
         table.add_row(
-            *([view.role or "-"] if roles else []),
+            *([Text(_safe(view.role or "-"))] if roles else []),
             str(state.vehicle_id) if state else "?",
             *([view.status.value] if wide else []),
-            state.mode if state else "",
+            Text(_safe(state.mode)) if state else "",
             "-" if position is None else
             f"{position[0]:.0f} {position[1]:.0f} {position[2]:.0f}" if not wide else
             f"{position[0]:6.1f} {position[1]:6.1f} {position[2]:5.1f}",
@@ -178,7 +186,7 @@ def _vehicles(mission: Mission, views: Views, width: int) -> Table:
             f"{state.heading:3.0f}°" if state else "",
             "-" if state is None or state.battery is None else f"{state.battery:3.0f}%",
             link if wide or link != "degraded" else "degr",
-            _bar(view.progress, 10 if wide else 4), action)
+            _bar(view.progress, 10 if wide else 4), Text(action))
     return table
 
 
@@ -191,7 +199,7 @@ def _events(views: Views, shown: int) -> Text:
     for t, index, name in fired[-shown:] if shown > 0 else []:
         state = views[index][1]
         who = f" (vehicle {state.vehicle_id})" if len(views) > 1 and state is not None else ""
-        text.append(f"\n  {t:7.1f} s  {name}{who}", "magenta")
+        text.append(f"\n  {t:7.1f} s  {_safe(name)}{who}", "magenta")
     if fired and shown < len(fired):
         text.append(f"  ({len(fired)} in all)", "dim")
     return text
@@ -211,14 +219,14 @@ def _messages(views: Views, shown: int) -> Text | None:
     for vid, message in said[-shown:]:
         style = "red" if message.severity <= 3 else "yellow" if message.severity <= 4 else ""
         who = f"vehicle {vid}: " if len(views) > 1 else ""
-        text.append(f"\n  {who}{message.severity_name}: {message.text}", style)
+        text.append(f"\n  {who}{message.severity_name}: {_safe(message.text)}", style)
     return text
 
 
 def _waiting(views: Views) -> Text | None:
     """What vehicles still lack to be ready (before the first task, or lost since): why
     nothing moves."""
-    lines = [f"vehicle {state.vehicle_id}: waiting for {', '.join(missing)}"
+    lines = [_safe(f"vehicle {state.vehicle_id}: waiting for {', '.join(missing)}")
              for _, state in views if state is not None
              for missing in [awaiting(state)] if missing]
     return Text("\n".join(lines), "yellow", no_wrap=True, overflow="ellipsis") \
@@ -231,9 +239,10 @@ def render(mission: Mission, views: Views, width: int = 160,
     what is awaited, the autopilot's messages, events. With a ``height``, it fits in that
     many lines: the events and messages shown shrink to their last few, and the task tree
     is folded around the running tasks into the lines left."""
-    header = Text(f"{mission.name}  t = {max((v.mission_time for v, _ in views), default=0):.1f} s",
-                  "bold", no_wrap=True, overflow="ellipsis")
-    reasons = [v.reason for v, _ in views if v.reason]
+    elapsed = max((v.mission_time for v, _ in views), default=0)
+    header = Text(f"{_safe(mission.name)}  t = {elapsed:.1f} s", "bold", no_wrap=True,
+                  overflow="ellipsis")
+    reasons = [_safe(v.reason) for v, _ in views if v.reason]
     waiting = _waiting(views)
     events_shown, messages_shown = EVENTS_SHOWN, MESSAGES_SHOWN
     budget = None
@@ -296,7 +305,7 @@ class LiveDisplay:
 
     def say(self, message: str) -> None:
         """Print a line above the live view."""
-        self._live.console.print(message)
+        self._live.console.print(_safe(message), markup=False)
 
 
 class LineDisplay:
@@ -316,6 +325,9 @@ class LineDisplay:
     def __exit__(self, *exc: object) -> None:
         return None
 
+    def _print(self, line: str) -> None:
+        self.console.print(_safe(line), markup=False)
+
     def update(self, views: Views, force: bool = False) -> None:
         """Print what changed since the last update."""
         for index, (view, vehicle) in enumerate(views):
@@ -324,23 +336,23 @@ class LineDisplay:
             missing = awaiting(vehicle) if vehicle is not None else ()
             if missing != self._awaiting.get(index, ()):
                 self._awaiting[index] = missing
-                self.console.print(f"{who}: waiting for {', '.join(missing)}" if missing
+                self._print(f"{who}: waiting for {', '.join(missing)}" if missing
                                    else f"{who}: ready")
             for change in view.changes[self._printed.get(index, 0):]:
                 if change.vehicle_id is None:  # the same in every vehicle's view: once
                     if change not in self._shared:
                         self._shared.add(change)
-                        self.console.print(f"[{change.time:7.1f} s] {change.task}: "
+                        self._print(f"[{change.time:7.1f} s] {change.task}: "
                                            f"{change.state.value}")
                 else:
-                    self.console.print(f"[{change.time:7.1f} s] {who}: {change.task}: "
+                    self._print(f"[{change.time:7.1f} s] {who}: {change.task}: "
                                        f"{change.state.value}")
             self._printed[index] = len(view.changes)
             for t, name in view.events:
                 if (index, t, name) not in self._events:
                     self._events.add((index, t, name))
-                    self.console.print(f"[{t:7.1f} s] {who}: event {name!r}")
+                    self._print(f"[{t:7.1f} s] {who}: event {name!r}")
 
     def say(self, message: str) -> None:
         """Print a line."""
-        self.console.print(message)
+        self._print(message)

@@ -11,7 +11,9 @@ import math
 
 from rich.console import Console
 from rich.table import Table
+from rich.text import Text
 
+from tml.language.diagnostics import printable
 from tml.verify.constraints import Violation
 from tml.verify.motion import PredictedState
 from tml.verify.static import Report, vehicles_text
@@ -28,9 +30,15 @@ def _finding(violation: Violation) -> str:
     return f"{whose}{violation}{where}"
 
 
+def _safe(text: str) -> Text:
+    """Text from a mission file as it may be printed: control characters and bidi
+    overrides escaped (tml.language.diagnostics.printable), brackets not taken for markup."""
+    return Text(printable(text, newlines=False))
+
+
 def print_report(report: Report, console: Console) -> None:
     """The table of predicted actions, the notes, the violations and the verdict."""
-    table = Table(title=f"{report.file} with profile {report.profile.name}")
+    table = Table(title=_safe(f"{report.file} with profile {report.profile.name}"))
     table.add_column("line", justify="right", no_wrap=True)
     table.add_column("task", overflow="fold", min_width=16)
     if report.roles:
@@ -41,18 +49,19 @@ def print_report(report: Report, console: Console) -> None:
     for row in report.rows:
         task = f"event {row.event}" if row.event else row.task
         whose = [f"{row.role} ({', '.join(map(str, row.vehicles))})"] if report.roles else []
-        table.add_row(str(row.line), task, *whose, row.action, _cell(row.distance),
+        table.add_row(str(row.line), _safe(task), *map(_safe, whose), row.action,
+                      _cell(row.distance),
                       _cell(row.duration), _cell(row.battery), _cell(row.clearance))
     console.print(table)
     for note in report.notes:
-        console.print(f"note: {note}", markup=False, highlight=False)
+        console.print(_safe(f"note: {note}"), highlight=False)
     if report.approximate:
         console.print("note: too many alternative ways through the mission; the ones with "
                       "the least battery were kept", highlight=False)
     for warning in report.warnings:
-        console.print(f"warning: {warning}", markup=False, highlight=False)
+        console.print(_safe(f"warning: {warning}"), highlight=False)
     for violation in report.violations:
-        console.print(_finding(violation), markup=False, highlight=False)
+        console.print(_safe(_finding(violation)), highlight=False)
     verdict = "feasible" if report.feasible else \
         f"INFEASIBLE: {len(report.violations)} constraint(s) broken"
     if report.roles:
@@ -61,7 +70,7 @@ def print_report(report: Report, console: Console) -> None:
     else:
         end = report.end
         summary = f", ends after {end.time:.1f} s with {end.battery:.1f}% battery" if end else ""
-    console.print(f"{report.file}: {verdict}{summary}", markup=False, highlight=False)
+    console.print(_safe(f"{report.file}: {verdict}{summary}"), highlight=False)
 
 
 def _end(end: PredictedState | None) -> dict[str, object] | None:

@@ -295,3 +295,34 @@ def test_the_simulated_copter_is_a_quadcopter() -> None:
         tracker.apply(received, model.time)
     t = tracker.snapshot
     assert (t.vehicle_type, t.airframe) == (mavlink.MAV_TYPE_QUADROTOR, "quadcopter")
+
+
+def test_absurd_values_are_ignored_and_counted_with_what_was_wrong() -> None:
+    tracker = TelemetryTracker(1)
+    ap = Source()
+    tracker.apply(heartbeat(ap), 0.0)
+    tracker.apply(ap("sys_status", 0, 0, 0, 500, 12600, -1, 87, 0, 0, 0, 0, 0, 0), 0.1)
+    tracker.apply(ap("attitude", 1000, 0.1, -0.2, 1.5, 0, 0, 0), 0.2)
+    tracker.apply(ap("gps_raw_int", 0, 3, 0, 0, 0, 0, 0, 0, 0, 10), 0.3)
+    tracker.apply(ap("global_position_int", 1000, -353632621, 1491652374, 594000, 10000,
+                     150, -50, 20, 0), 0.4)
+    absurd = [
+        (ap("sys_status", 0, 0, 0, 500, 12600, -1, 127, 0, 0, 0, 0, 0, 0),
+         "SYS_STATUS.battery_remaining = 127"),
+        (ap("attitude", 1000, 0.1, -0.2, float("nan"), 0, 0, 0), "ATTITUDE.yaw = nan"),
+        (ap("gps_raw_int", 0, 255, 0, 0, 0, 0, 0, 0, 0, 10), "GPS_RAW_INT.fix_type = 255"),
+        (ap("global_position_int", 1000, -353632621, 1491652374, 2_000_000_000, 1_990_000_000,
+            150, -50, 20, 0), "GLOBAL_POSITION_INT.alt = 2e+06"),
+        (ap("global_position_int", 1000, 1_900_000_000, 1491652374, 594000, 10000,
+            150, -50, 20, 0), "GLOBAL_POSITION_INT.lat = 190"),
+    ]
+    for number, (msg, said) in enumerate(absurd, start=1):
+        tracker.apply(msg, 1.0 + number)
+        snapshot = tracker.snapshot
+        assert snapshot.rejected == number
+        assert snapshot.rejected_last.startswith(said), snapshot.rejected_last
+    snapshot = tracker.snapshot
+    assert snapshot.battery_remaining == 87 and snapshot.attitude == (
+        pytest.approx(0.1), pytest.approx(-0.2), pytest.approx(1.5))
+    assert snapshot.gps_fix == 3 and snapshot.position is not None
+    assert snapshot.position.altitude == 594 and snapshot.position.latitude < 0

@@ -369,3 +369,20 @@ def test_controls_asked_from_another_thread_are_applied_between_steps() -> None:
                 if '"kind":"control"' in line]
     assert [c["control"] for c in controls] == ["pause", "resume"]
     assert controls[1]["paused"] > 30
+
+
+def test_absurd_telemetry_ignored_is_logged_counted_and_said_once() -> None:
+    def garble(sim: Sim) -> None:
+        vehicle = sim.vehicles[0]
+        if 1.0 <= sim.time <= 3.0:  # 21 absurd messages in 2 s
+            vehicle.rejected += 1
+            vehicle.rejected_last = "SYS_STATUS.battery_remaining = 127 (not -1 to 100)"
+
+    _, _, lines, said, _ = run(TAKE_OFF + GO + LAND, hooks=[garble])
+    told = [line for line in lines if line["kind"] == "rejected"]
+    assert 2 <= len(told) <= 4  # at the telemetry's pace, not once per message
+    assert told[-1]["count"] == 21 and sum(int(line["message"].split()[1]) for line in told) == 21
+    assert all(line["last"].startswith("SYS_STATUS.battery_remaining = 127") for line in told)
+    assert [s for s in said if "absurd" in s] == [
+        "vehicle 1: absurd telemetry ignored (SYS_STATUS.battery_remaining = 127 "
+        "(not -1 to 100))"]

@@ -86,6 +86,8 @@ class VehicleState:
     status_text: str = ""  # the last STATUSTEXT
     messages: tuple[AutopilotMessage, ...] = ()  # the latest STATUSTEXTs, oldest first
     vehicle_type: str = ""  # a word of VEHICLE_TYPES, "" while unknown
+    rejected: int = 0  # telemetry messages ignored for an absurd value (battery 127 %, NaN)
+    rejected_last: str = ""  # what was absurd in the last of them
 
     @property
     def flying(self) -> bool:
@@ -389,6 +391,8 @@ class FakeVehicle:
     flips: int = 0
     submitted: list[Request] = field(default_factory=list)
     mission: MissionProgress | None = None
+    rejected: int = 0  # absurd telemetry messages ignored (set by the test)
+    rejected_last: str = ""
     _target: Point | None = None
     _target_heading: float | None = None
     _circle: tuple[Point, float, float] | None = None  # centre, radius, angle (rad)
@@ -413,7 +417,8 @@ class FakeVehicle:
             detections=MappingProxyType(dict(self.detections)),
             capabilities=self.capabilities, vehicle_type=self.vehicle_type,
             status_text=self._messages[-1].text if self._messages else "",
-            messages=tuple(self._messages[-MESSAGES_KEPT:]))
+            messages=tuple(self._messages[-MESSAGES_KEPT:]), rejected=self.rejected,
+            rejected_last=self.rejected_last)
 
     def submit(self, request: Request) -> None:
         """Record and carry out a request (answered at the next ``poll``)."""

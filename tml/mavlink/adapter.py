@@ -344,7 +344,7 @@ class MavlinkVehicle:
             gps_fix=t.gps_fix, home=home, mission=progress, detections=detections,
             capabilities=self.capabilities, vehicle_type=t.airframe,
             status_text=t.status_texts[-1].text if t.status_texts else "",
-            messages=_messages(t))
+            messages=_messages(t), rejected=t.rejected, rejected_last=t.rejected_last)
 
     def submit(self, request: Request) -> None:
         """Queue a request for the worker thread; never blocks.

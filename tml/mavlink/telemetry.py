@@ -49,6 +49,37 @@ TILTED = 1.0
 there only in a flip (or a crash), never in controlled flight (ArduCopter's ANGLE_MAX is 30 to
 45 degrees)."""
 
+SANE: Mapping[str, Mapping[str, tuple[float, float, float]]] = MappingProxyType({
+    # message: field: (scale to the unit shown, lowest, highest) -- what a vehicle can
+    # report; a message with a field outside (or NaN) is ignored and counted, not taken.
+    "GLOBAL_POSITION_INT": {"lat": (1e-7, -90, 90), "lon": (1e-7, -180, 180),
+                            "alt": (1e-3, -1000, 100_000),
+                            "relative_alt": (1e-3, -20_000, 100_000)},
+    "HOME_POSITION": {"latitude": (1e-7, -90, 90), "longitude": (1e-7, -180, 180),
+                      "altitude": (1e-3, -1000, 100_000)},
+    "LOCAL_POSITION_NED": {"x": (1, -1e6, 1e6), "y": (1, -1e6, 1e6), "z": (1, -1e5, 2e4)},
+    "ATTITUDE": {"roll": (1, -7, 7), "pitch": (1, -7, 7), "yaw": (1, -7, 7)},
+    "SYS_STATUS": {"battery_remaining": (1, -1, 100)},
+    "GPS_RAW_INT": {"fix_type": (1, 0, 8)},
+})
+"""Bounds of the values tml takes from telemetry (units after scaling: degrees, metres,
+radians, percent; -1 battery is "unknown", GPS_FIX_TYPE ends at 8): a battery at 127 %, a
+NaN heading, an altitude of two thousand kilometres or a fix type of 255 is a broken or
+hostile sender, never the vehicle's state."""
+
+
+def absurd(msg: Any) -> str | None:
+    """What is absurd in ``msg`` ("SYS_STATUS.battery_remaining = 127 (not -1 to 100)"),
+    by :data:`SANE`; None when every bounded field is within its bounds."""
+    bounds = SANE.get(msg.get_type())
+    if bounds is None:
+        return None
+    for name, (scale, low, high) in bounds.items():
+        value = getattr(msg, name) * scale
+        if not low <= value <= high:  # NaN is never within
+            return f"{msg.get_type()}.{name} = {value:.6g} (not {low:g} to {high:g})"
+    return None
+
 
 def _airframes() -> Mapping[int, str]:
     words = {"QUADROTOR": "quadcopter", "HEXAROTOR": "hexacopter", "OCTOROTOR": "octocopter",
@@ -153,6 +184,10 @@ class Telemetry:
     """True while no HEARTBEAT has come for longer than the link's limit."""
     received: int = 0
     lost: int = 0
+    rejected: int = 0
+    """Messages ignored for an absurd value (:data:`SANE`)."""
+    rejected_last: str = ""
+    """What was absurd in the last of them."""
 
     @property
     def position_ready(self) -> bool:
@@ -230,6 +265,11 @@ class TelemetryTracker:
         received, lost = self._count(component, msg.get_seq())
         changes: dict[str, Any] = {}
         if component == self.autopilot_component:
+            wrong = absurd(msg)
+            if wrong is not None:
+                self.snapshot = replace(self.snapshot, time=now, rejected=self.snapshot.rejected
+                                        + 1, rejected_last=wrong, **changes)
+                return True
             self.arrived[msg.get_type()] = now
             changes = self._vehicle_state(msg, now)
             boot_ms = getattr(msg, "time_boot_ms", None)

@@ -135,6 +135,7 @@ class _Flight:
         self.next_telemetry = 0.0
         self.cause = ""
         self.messages_told = 0  # the number of the last autopilot message journaled
+        self.rejected_told = 0  # absurd telemetry messages journaled so far
 
 
 class _Crew:
@@ -395,6 +396,22 @@ class Runner:
                 self.journal.write(now, "autopilot", flight.vehicle.vehicle_id,
                                    **autopilot_fields(message))
 
+    def _tell_rejected(self, flight: _Flight, now: float) -> None:
+        """Journal, at the telemetry's pace, the absurd telemetry ignored since the last
+        time (counted: a broken or hostile sender may send thousands)."""
+        assert flight.state is not None
+        count = flight.state.rejected
+        if count > flight.rejected_told:
+            self.journal.write(now, "rejected", flight.vehicle.vehicle_id,
+                               message=f"ignored {count - flight.rejected_told} telemetry "
+                                       f"message(s) with an absurd value, "
+                                       f"last: {flight.state.rejected_last}",
+                               count=count, last=flight.state.rejected_last)
+            if not flight.rejected_told:
+                self._said(f"vehicle {flight.vehicle.vehicle_id}: absurd telemetry ignored "
+                           f"({flight.state.rejected_last})")
+            flight.rejected_told = count
+
     def _wait_for_wake(self, timeout: float) -> None:
         self.wake.wait(timeout)
         self.wake.clear()
@@ -415,6 +432,7 @@ class Runner:
                 flight.next_telemetry = now + self.options.telemetry_period
                 self.journal.write(now, "telemetry", vehicle.vehicle_id,
                                    **telemetry_fields(state))
+                self._tell_rejected(flight, now)
             if state.link == "lost":
                 flight.lost_since = now if flight.lost_since is None else flight.lost_since
                 if now - flight.lost_since > self.options.link_lost_limit and not flight.lost:

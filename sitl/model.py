@@ -1063,7 +1063,9 @@ class VehicleModel:
                 self._text(M.MAV_SEVERITY_CRITICAL, "GCS Failsafe")
                 action = round(self.params["FS_GCS_ENABLE"])
                 if not (action == 2 and self.mode == "AUTO"):
-                    self._failsafe_action(5 if action in (4, 5) else 2)
+                    # ArduCopter's failsafe_gcs_on_event: 4 (SmartRTL or LAND; no SmartRTL
+                    # here) and 5 land, every other value returns (RTL, LAND if it cannot).
+                    self._failsafe_action(1 if action in (4, 5) else 2)
             elif not lost and "gcs" in self._failsafes:
                 self._failsafes.discard("gcs")
                 self._text(M.MAV_SEVERITY_CRITICAL, "GCS Failsafe Cleared")

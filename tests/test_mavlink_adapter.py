@@ -368,3 +368,28 @@ def test_a_turn_is_not_undone_by_the_kept_position_target() -> None:
         heading = (here.heading + 180.0) % 360.0
         assert rig.do(SetYaw(1, heading)).ok
         rig.until(lambda s: abs((s.heading - heading + 180) % 360 - 180) < 2, "turned")
+
+
+def _other_ground_station_sets(port: int, custom_mode: int) -> None:
+    """Another ground station (system 254) on the vehicle's port switches its mode."""
+    from pymavlink import mavutil
+
+    other = mavutil.mavlink_connection(f"tcp:127.0.0.1:{port}", source_system=254)
+    try:
+        other.mav.command_long_send(1, 1, M.MAV_CMD_DO_SET_MODE, 0,
+                                    M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, custom_mode,
+                                    0, 0, 0, 0, 0)
+    finally:
+        time.sleep(0.2)  # the command on its way before the socket closes
+        other.close()
+
+
+def test_a_mode_change_tml_did_not_ask_for_is_seen_as_taken(rig: Rig) -> None:
+    rig.fly(5.0)
+    assert rig.do(SetMode(1, "LOITER")).ok  # asked by tml: not taken
+    assert rig.vehicle.state().taken == ""
+    assert rig.do(GoTo(1, (10.0, 0.0, 5.0))).ok  # back to GUIDED, asked too
+    assert rig.vehicle.state().taken == ""
+    _other_ground_station_sets(rig.sim.tcp_ports[0], 9)  # LAND
+    taken = rig.until(lambda s: s.taken != "", "taken")
+    assert taken.taken == "LAND" and taken.mode == "LAND"

@@ -134,3 +134,31 @@ def test_a_flip_is_confirmed_by_its_ack_alone_as_it_may_end_before_the_next_hear
     refused.start(0.0)
     refused.receive(CommandAck(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_RESULT_FAILED), 0.1)
     assert isinstance(refused.error, CommandRejected)
+
+
+def test_the_mode_watch_tells_a_mode_nobody_here_asked_for() -> None:
+    from tml.mavlink.modes import ModeWatch
+
+    watch = ModeWatch()
+    assert not watch.seen("STABILIZE", armed=False)  # its own mode before the first ask
+    watch.ask("GUIDED")
+    assert not watch.seen("STABILIZE", armed=True)  # the old mode, until GUIDED shows
+    assert not watch.seen("GUIDED", armed=True)
+    watch.ask("AUTO")
+    watch.refused()  # AUTO refused: GUIDED is still expected
+    assert not watch.seen("GUIDED", armed=True)
+    watch.ask("FLIP")
+    assert not watch.seen("ALT_HOLD", armed=True)  # where a flip ends by itself
+    watch.ask("GUIDED")
+    assert not watch.seen("GUIDED", armed=True) and watch.taken == ""
+    assert watch.seen("LAND", armed=True) and watch.taken == "LAND"
+    assert not watch.seen("RTL", armed=True) and watch.taken == "LAND"  # said once
+
+
+def test_a_mode_change_on_the_ground_disarmed_is_not_taken() -> None:
+    from tml.mavlink.modes import ModeWatch
+
+    watch = ModeWatch()
+    watch.ask("LAND")
+    assert not watch.seen("LAND", armed=True)
+    assert not watch.seen("STABILIZE", armed=False) and watch.taken == ""

@@ -410,7 +410,8 @@ def test_a_simulator_killed_in_flight_exits_4_in_one_line(tmp_path: Path) -> Non
     try:
         slow = SHORT.replace("(8, 0, 4)", "(300, 0, 4)")
         run = Watched([write(tmp_path, slow), "--connect", f"tcp:127.0.0.1:{port}",
-                       "--timeout", "30", "--link-lost-limit", "1"])
+                       "--timeout", "30", "--link-lost-limit", "1",
+                       "--safe-state-timeout", "3"])
         run.wait_for("Over: running", 60)
         sim.kill()
         run.process.wait(timeout=90)
@@ -421,3 +422,25 @@ def test_a_simulator_killed_in_flight_exits_4_in_one_line(tmp_path: Path) -> Non
     assert run.process.returncode == 4, run.said
     assert "Traceback" not in run.said and "Error:" not in run.said
     assert "vehicle 1: mission failed: link: vehicle 1: link lost for more than 1 s" in run.said
+
+
+def test_a_vehicle_without_a_gcs_failsafe_is_refused_when_one_is_required(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(["run", write(tmp_path, SHORT), "--sim", *FAST, "-q",
+                 "--require-gcs-failsafe"])
+    err = capsys.readouterr().err
+    assert code == 4, err
+    assert ("vehicle 1: FS_GCS_ENABLE is 0: the vehicle does nothing by itself when it "
+            "loses this ground station") in err
+    assert "not flown (--require-gcs-failsafe)" in err
+
+
+def test_a_vehicle_with_a_gcs_failsafe_flies_when_one_is_required(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(["run", write(tmp_path, SHORT), "--sim", *FAST, "-q",
+                 "--require-gcs-failsafe", "--sim-param", "FS_GCS_ENABLE=1",
+                 # the ground station's 1 Hz HEARTBEAT is 40 vehicle seconds apart at 40x
+                 "--sim-param", "FS_GCS_TIMEOUT=100"])
+    out = capsys.readouterr()
+    assert code == 0, out
+    assert "FS_GCS_ENABLE" not in out.err

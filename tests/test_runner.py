@@ -6,6 +6,7 @@ import io
 import itertools
 import json
 import threading
+from dataclasses import replace
 
 import pytest
 
@@ -14,7 +15,7 @@ from tml.errors import ControlRefused, ExitCode
 from tml.language.validation import validate_file
 from tml.run.journal import Journal
 from tml.run.runner import Runner, RunOptions
-from tml.vehicle import FakeVehicle, Hold, Land, ReturnToLaunch, VehicleState
+from tml.vehicle import FakeVehicle, Hold, Land, RequestResult, ReturnToLaunch, VehicleState
 
 TAKE_OFF = ('<task name="Take off"><action name="TAKE_OFF"><argument name="altitude" '
             'value="5"/></action></task>')
@@ -52,8 +53,8 @@ class Sim:
 
 
 def run(body: str, events: str = "", vehicles: int = 1, options: RunOptions | None = None,
-        hooks=(), broken_engine: bool = False):
-    sim = Sim(*(FakeVehicle(vehicle_id=i + 1) for i in range(vehicles)))
+        hooks=(), broken_engine: bool = False, fake: type[FakeVehicle] = FakeVehicle):
+    sim = Sim(*(fake(vehicle_id=i + 1) for i in range(vehicles)))
     sim.hooks.extend(hooks)
     log = io.StringIO()
     said: list[str] = []
@@ -136,15 +137,14 @@ def test_link_lost_beyond_the_limit_aborts_with_exit_four() -> None:
             return state if self.time < 3.0 else VehicleState(**{**state.__dict__,
                                                                  "link": "lost"})
 
-    sim = Sim(Deaf())
-    runner = Runner(mission(TAKE_OFF + GO + LAND), sim.vehicles, clock=sim.clock,
-                    options=RunOptions(link_lost_limit=2.0), wait=sim.wait)
-    outcome = runner.run()
+    outcome, sim, lines, _, _ = run(TAKE_OFF + GO + LAND, options=RunOptions(
+        link_lost_limit=2.0), fake=Deaf)
     assert outcome.exit_code == ExitCode.FAILURE
     assert outcome.vehicles[0].cause == "link"
     assert "link lost" in outcome.vehicles[0].reason
     assert isinstance(sim.vehicles[0].submitted[-1], ReturnToLaunch)
-    assert 5.0 <= sim.time < 6.0
+    aborted = next(line for line in lines if line["kind"] == "safety")
+    assert 5.0 <= aborted["t"] < 6.0
 
 
 def test_interpreter_exception_commands_the_safe_state_without_it() -> None:
@@ -386,3 +386,65 @@ def test_absurd_telemetry_ignored_is_logged_counted_and_said_once() -> None:
     assert [s for s in said if "absurd" in s] == [
         "vehicle 1: absurd telemetry ignored (SYS_STATUS.battery_remaining = 127 "
         "(not -1 to 100))"]
+
+
+def test_a_vehicle_taken_by_the_autopilot_is_commanded_no_more() -> None:
+    sent: list[int] = []
+
+    def take(sim: Sim) -> None:
+        vehicle = sim.vehicles[0]
+        if sim.time == 3.0:  # in the leg: the autopilot lands it (an EKF failsafe)
+            vehicle.mode, vehicle.taken = "LAND", "LAND"
+            sent.append(len(vehicle.submitted))
+
+    outcome, sim, lines, said, _ = run(TAKE_OFF + GO + LAND, hooks=[take])
+    assert outcome.exit_code == ExitCode.FAILURE
+    assert outcome.vehicles[0].cause == "taken"
+    assert "switched to LAND by the autopilot" in outcome.vehicles[0].reason
+    assert len(sim.vehicles[0].submitted) == sent[0]  # nothing sent after, no safe state
+    assert said[0] == "vehicle 1 switched to LAND by the autopilot: tml commands it no more"
+    taken = [line for line in lines if line["kind"] == "taken"]
+    assert len(taken) == 1 and taken[0]["mode"] == "LAND"
+
+
+class Outage(FakeVehicle):
+    """A vehicle whose link is down from 3 s to 23 s: what is sent meanwhile is lost."""
+
+    def down(self) -> bool:
+        return 3.0 <= self.time < 23.0
+
+    def state(self) -> VehicleState:
+        state = super().state()
+        return replace(state, link="lost") if self.down() else state
+
+    def submit(self, request) -> None:  # type: ignore[no-untyped-def]
+        if not self.down():
+            super().submit(request)
+            return
+        self.submitted.append(request)  # sent into the dead link, never carried out
+        self._results.append(RequestResult(self.vehicle_id, request.request_id, False,
+                                           "timeout", "link lost"))
+
+
+def test_the_safe_state_is_commanded_until_the_vehicle_shows_it() -> None:
+    outcome, sim, lines, _, _ = run(TAKE_OFF + GO + LAND, options=RunOptions(
+        link_lost_limit=10.0), fake=Outage)
+    vehicle = sim.vehicles[0]
+    assert outcome.exit_code == ExitCode.FAILURE
+    rtl = [r for r in vehicle.submitted if isinstance(r, ReturnToLaunch)]
+    assert len(rtl) >= 2 and rtl[0].request_id < rtl[-1].request_id  # again after the outage
+    assert vehicle.mode == "RTL" and sim.time >= 23.0  # shown once the link came back
+    confirmed = [line for line in lines if line["kind"] == "safety"
+                 and line.get("confirmed")]
+    assert len(confirmed) == 1 and confirmed[0]["mode"] == "RTL"
+
+
+def test_a_safe_state_never_shown_is_given_up_after_its_bound() -> None:
+    class Gone(Outage):
+        def down(self) -> bool:
+            return self.time >= 3.0
+
+    _, sim, _, said, _ = run(TAKE_OFF + GO + LAND, options=RunOptions(
+        link_lost_limit=2.0, safe_state_timeout=30.0), fake=Gone)
+    assert 35.0 <= sim.time < 40.0  # 2 s + 30 s after the link went, then it gives up
+    assert said[-1].startswith("vehicle 1: safe state not confirmed within 30 s")

@@ -763,3 +763,21 @@ def test_a_position_target_without_yaw_stops_a_turn_as_on_arducopter():
     assert abs((v.heading - (start + 180) + 180) % 360 - 180) > 90
     hold_here(v, (start + 180) % 360)  # the same target carrying the heading turns it
     run_until(v, v.yaw_settled, 30)
+
+
+@pytest.mark.parametrize(("action", "mode"), [(1, "RTL"), (3, "RTL"), (4, "LAND"), (5, "LAND"),
+                                              (6, "RTL"), (9, "RTL")])
+def test_gcs_failsafe_actions_are_arducopters(action: int, mode: str) -> None:
+    # ArduCopter's failsafe_gcs_on_event: 1 RTL, 3 SmartRTL or RTL, 4 SmartRTL or LAND,
+    # 5 LAND, 6 DO_LAND_START or RTL, any other value RTL; never a disarm in the air.
+    v = flying(10.0, params={"FS_GCS_ENABLE": action})
+    v.handle(M.MAVLink_heartbeat_message(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
+    v.step(5.4)
+    assert v.armed and v.mode == mode
+
+
+def test_gcs_failsafe_continues_an_auto_mission_with_action_2() -> None:
+    v = flying(10.0, params={"FS_GCS_ENABLE": 2})
+    v.handle(M.MAVLink_heartbeat_message(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
+    v.step(5.4)
+    assert v.mode == "RTL"  # not in AUTO: RTL

@@ -88,6 +88,7 @@ class VehicleState:
     vehicle_type: str = ""  # a word of VEHICLE_TYPES, "" while unknown
     rejected: int = 0  # telemetry messages ignored for an absurd value (battery 127 %, NaN)
     rejected_last: str = ""  # what was absurd in the last of them
+    taken: str = ""  # the mode the vehicle was switched to by someone else (the autopilot)
 
     @property
     def flying(self) -> bool:
@@ -393,6 +394,7 @@ class FakeVehicle:
     mission: MissionProgress | None = None
     rejected: int = 0  # absurd telemetry messages ignored (set by the test)
     rejected_last: str = ""
+    taken: str = ""  # the mode someone else switched it to (set by the test)
     _target: Point | None = None
     _target_heading: float | None = None
     _circle: tuple[Point, float, float] | None = None  # centre, radius, angle (rad)
@@ -418,7 +420,7 @@ class FakeVehicle:
             capabilities=self.capabilities, vehicle_type=self.vehicle_type,
             status_text=self._messages[-1].text if self._messages else "",
             messages=tuple(self._messages[-MESSAGES_KEPT:]), rejected=self.rejected,
-            rejected_last=self.rejected_last)
+            rejected_last=self.rejected_last, taken=self.taken)
 
     def submit(self, request: Request) -> None:
         """Record and carry out a request (answered at the next ``poll``)."""

@@ -149,6 +149,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--safe-state", choices=("rtl", "land", "hold"), default="rtl",
                         help="what a flying vehicle is told when the run stops early "
                              "(default rtl; a vehicle on the ground is disarmed)")
+    parser.add_argument("--safe-state-timeout", type=_non_negative, default=120.0,
+                        metavar="S",
+                        help="after the run stopped early, command the safe state again "
+                             "until the vehicle shows it, for at most S seconds (default "
+                             "120; a link that comes back finds it told again)")
+    parser.add_argument("--require-gcs-failsafe", action="store_true",
+                        help="refuse to fly a vehicle whose own failsafe does not act when "
+                             "it loses this ground station (ArduPilot FS_GCS_ENABLE 0 or not "
+                             "reported); without it, --connect only warns")
     parser.add_argument("--force", action="store_true",
                         help="fly even when the verifier finds the mission infeasible")
     parser.add_argument("--profile", default="quadcopter", metavar="P",
@@ -254,7 +263,8 @@ def _run(args: argparse.Namespace, mission: Mission, world: World, extra: World 
 
     try:
         with open_vehicles(args, world, errors) as (vehicles, wake, clock):
-            refused = _preflight(args, mission, vehicles, errors)
+            refused = _preflight(args, mission, vehicles, errors) or _gcs_failsafe(
+                args, vehicles, errors)
             if refused is not None:
                 return refused
             if args.profile == VEHICLE_PROFILE:
@@ -338,6 +348,37 @@ def _preflight(args: argparse.Namespace, mission: Mission, vehicles: list[Any],
         errors.print(f"{violation} (vehicle {violation.vehicles[0]}{whose})", markup=False,
                      highlight=False)
     return _refused(args, mission, "mission with actions its vehicles cannot do", errors)
+
+
+GCS_FAILSAFE = "FS_GCS_ENABLE"
+"""ArduPilot's parameter for what a vehicle does by itself when its ground station falls
+silent (0: nothing; 1 RTL, 5 LAND ...; see docs/run.md)."""
+
+
+def _gcs_failsafe(args: argparse.Namespace, vehicles: list[Any],
+                  errors: Any) -> ExitCode | None:
+    """Read each vehicle's own reaction to a lost ground station before anything is sent:
+    without one, a vehicle whose link dies hovers until its battery runs out. Warns (with
+    ``--connect``), or refuses with ``--require-gcs-failsafe``; the exit code if not flown."""
+    if not args.require_gcs_failsafe and args.sim:
+        return None  # the simulator is in this process: its link does not die alone
+    missing = []
+    for vehicle in vehicles:
+        value = vehicle.read_parameters([GCS_FAILSAFE]).get(GCS_FAILSAFE)
+        if value is None:
+            missing.append(f"vehicle {vehicle.vehicle_id}: {GCS_FAILSAFE} not reported: what "
+                           "the vehicle does when it loses this ground station is unknown")
+        elif value == 0:
+            missing.append(f"vehicle {vehicle.vehicle_id}: {GCS_FAILSAFE} is 0: the vehicle "
+                           "does nothing by itself when it loses this ground station (1 "
+                           "returns home, 5 lands)")
+    for problem in missing:
+        errors.print(f"tml run: {'' if args.require_gcs_failsafe else 'warning: '}{problem}",
+                     markup=False)
+    if missing and args.require_gcs_failsafe:
+        errors.print("tml run: not flown (--require-gcs-failsafe)", markup=False)
+        return ExitCode.FAILURE
+    return None
 
 
 def _vehicle_profile(vehicle: Any, errors: Any) -> Any:
@@ -433,7 +474,8 @@ def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
 
     options = checked_options(profile, world, safe_state=args.safe_state,
                               link_lost_limit=args.link_lost_limit,
-                              ready_timeout=args.ready_timeout)
+                              ready_timeout=args.ready_timeout,
+                              safe_state_timeout=args.safe_state_timeout)
     display: Any = None
     if not args.quiet:
         display = LiveDisplay(mission, console) if console.is_terminal else LineDisplay(console)

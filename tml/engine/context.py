@@ -492,10 +492,12 @@ class Run:
             self.mission_skills(pilot, False)
             self.safe_state(pilot, reason)
 
-    def unbind(self, pilot: Pilot) -> str | None:
-        """Let go of a vehicle that cannot be used any more; the role it had."""
+    def unbind(self, pilot: Pilot, entirely: bool = False) -> str | None:
+        """Let go of a vehicle that cannot be used any more; the role it had. ``entirely``
+        also lets go of a vehicle flying a mission without roles, so that the mission's end
+        does not command it either (someone else took it)."""
         role = pilot.role
-        if role is not None:
+        if role is not None or entirely:
             rest = tuple(v for v in self.bound.get(role, ()) if v != pilot.vehicle_id)
             if rest:
                 self.bound[role] = rest

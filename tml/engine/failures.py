@@ -22,6 +22,7 @@ class FailureReason(StrEnum):
     GENERAL = "general"  # anything else
     PICK = "pick"  # no vehicle qualified for a role in time
     LINK = "link"  # the vehicle's link was lost
+    TAKEN = "taken"  # someone else (the autopilot, a pilot, another ground station) took it
 
     @classmethod
     def of(cls, said: str) -> FailureReason:

@@ -69,6 +69,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from tml.engine.composites import NodeStatus, TasksNode
 from tml.engine.context import Duty, Options, Pilot, Run, Verdict
 from tml.engine.events import Events, find_task
+from tml.engine.failures import Failure, FailureReason
 from tml.engine.records import Output, Status, View
 from tml.engine.resume import Progress, Restoring
 from tml.engine.tasks import TaskNode
@@ -184,9 +185,11 @@ class Interpreter:
         self._results.clear()
         return run.log.take()
 
-    def lost(self, now: float, vehicle_id: int, reason: str) -> Output:
+    def lost(self, now: float, vehicle_id: int, reason: str, taken: bool = False) -> Output:
         """A vehicle cannot be used any more (its link is lost): the work it does fails,
-        and it is never picked again."""
+        and it is never picked again. A vehicle ``taken`` by someone else (the autopilot
+        switched its mode) is not commanded again either, not even to the safe state: its
+        failure reason is ``taken``."""
         run = self.run
         run.log.now = now
         pilot = run.pilots[vehicle_id]
@@ -194,15 +197,16 @@ class Interpreter:
         self.events.drop(pilot, reason)
         if pilot.duty is not Duty.LOST:
             pilot.become(Duty.LOST)
-        role = run.unbind(pilot)  # the role's next task (an on_error) picks another
+        role = run.unbind(pilot, taken)  # the role's next task (an on_error) picks another
         run.note("vehicle", f"vehicle {vehicle_id}: {reason}", vehicle_id, vehicle=vehicle_id,
                  reason=reason)
         if run.status is Status.RUNNING:
-            failure = pilot.link_failure()
+            failure = Failure(FailureReason.TAKEN, f"taken: vehicle {vehicle_id}: {reason}",
+                              vehicle_id) if taken else pilot.link_failure()
             for work in list(pilot.work):
                 work.decide(Verdict.FAIL, failure)
             self._tick()  # its task fails (and is handled) now
-        if role is not None:
+        if role is not None and not taken:
             # Nobody flies it any more; if the link comes back, it goes to the safe state.
             run.safe_state(pilot, reason)
         return run.log.take()

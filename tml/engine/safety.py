@@ -34,3 +34,27 @@ def safe_state_request(state: VehicleState, safe_state: str) -> tuple[Request, s
     if state.armed:
         return Disarm(state.vehicle_id), "vehicle armed on the ground: disarm"
     return None
+
+
+SHOWN: dict[str, frozenset[str]] = {
+    "rtl": frozenset({"RTL", "SMART_RTL", "QRTL", "LAND", "QLAND"}),
+    "land": frozenset({"LAND", "QLAND"}),
+    "hold": frozenset({"GUIDED", "LOITER", "BRAKE", "HOLD", "POSHOLD", "RTL", "SMART_RTL",
+                       "QRTL", "LAND", "QLAND"}),
+}
+"""The modes in which a flying vehicle shows each safe state (an autopilot's own failsafe
+landing shows a safe return as well)."""
+
+
+def safe_state_shown(state: VehicleState, safe_state: str) -> bool:
+    """Whether the telemetry shows the vehicle in its safe state: nothing left to ask of it
+    (:func:`safe_state_request`), or flying in a mode of :data:`SHOWN` (a fixed-wing lands
+    by a landing sequence flown in AUTO). A lost link shows nothing."""
+    if state.link == "lost":
+        return False
+    if safe_state_request(state, safe_state) is None:
+        return True
+    shown = SHOWN.get(safe_state, SHOWN["rtl"])
+    if safe_state == "land" and kind_of(state.vehicle_type) is Kind.FIXED_WING:
+        shown = shown | {"AUTO"}
+    return state.flying and state.mode in shown

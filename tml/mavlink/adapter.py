@@ -81,6 +81,7 @@ import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, replace
+from functools import partial
 from types import MappingProxyType
 from typing import Any
 
@@ -99,7 +100,7 @@ from tml.mavlink.compile import (
 )
 from tml.mavlink.health import LinkHealth
 from tml.mavlink.link import Link
-from tml.mavlink.modes import mode_names
+from tml.mavlink.modes import ModeWatch, mode_names
 from tml.mavlink.telemetry import COMPANION_COMPONENT, Telemetry
 from tml.mavlink.vehicle import DEFAULT_RATES, Vehicle
 from tml.vehicle import (
@@ -288,6 +289,7 @@ class MavlinkVehicle:
         self._target: tuple[float, float, float, float | None] | None = None
         self._target_sent = 0.0
         self._ground_speed: float | None = None  # a rover's speed, sent with each target
+        self._modes = ModeWatch()  # tells a mode change nobody here asked for
         link.listen(self._on_message)
         self._worker = threading.Thread(target=self._work, daemon=True,
                                         name=f"vehicle {system_id}")
@@ -344,7 +346,8 @@ class MavlinkVehicle:
             gps_fix=t.gps_fix, home=home, mission=progress, detections=detections,
             capabilities=self.capabilities, vehicle_type=t.airframe,
             status_text=t.status_texts[-1].text if t.status_texts else "",
-            messages=_messages(t), rejected=t.rejected, rejected_last=t.rejected_last)
+            messages=_messages(t), rejected=t.rejected, rejected_last=t.rejected_last,
+            taken=self._modes.taken)
 
     def submit(self, request: Request) -> None:
         """Queue a request for the worker thread; never blocks.
@@ -413,6 +416,8 @@ class MavlinkVehicle:
             self.health.heard(self.link_clock(), kind == "HEARTBEAT", snapshot.boot_time,
                               snapshot.received, snapshot.lost)
         if kind == "HEARTBEAT" and component == self.mav.component_id:
+            with self._lock:
+                self._modes.seen(snapshot.mode, snapshot.armed)
             self._keep_target(snapshot)
         elif kind == "PARAM_VALUE":
             with self._param_arrived:
@@ -434,7 +439,8 @@ class MavlinkVehicle:
     def _keep_target(self, snapshot: Telemetry) -> None:
         target = self._target
         wall = time.monotonic()
-        if target is None or snapshot.mode != "GUIDED" or wall - self._target_sent < TARGET_PERIOD:
+        if target is None or snapshot.mode != "GUIDED" or self._modes.taken \
+                or wall - self._target_sent < TARGET_PERIOD:
             return
         self._target_sent = wall
         with contextlib.suppress(OSError):
@@ -508,10 +514,31 @@ class MavlinkVehicle:
 
     # --- one method per request ----------------------------------------------------------
 
+    def _switch(self, mode: str, send: Callable[[], None] | None = None) -> None:
+        """Change to ``mode`` (by DO_SET_MODE, or by ``send``ing the command that enters
+        it), told to the mode watch first: a switch asked here is not taken."""
+        with self._lock:
+            self._modes.ask(mode)
+        try:
+            if send is None:
+                self.mav.set_mode(mode)
+            else:
+                send()
+        except BaseException:
+            with self._lock:
+                self._modes.refused()
+            raise
+
+    def _reposition(self, latitude: float, longitude: float, altitude: float,
+                    radius: float = 0.0) -> None:
+        """DO_REPOSITION, which enters GUIDED by itself (ArduPlane, Rover): asked here."""
+        self._switch("GUIDED", partial(self.mav.reposition, latitude, longitude, altitude,
+                                       radius=radius))
+
     def _guided(self) -> None:
         if self.link.telemetry(self.system_id).mode != "GUIDED":
             self._end_plan()
-            self.mav.set_mode("GUIDED")
+            self._switch("GUIDED")
 
     def _end_plan(self) -> None:
         with self._lock:
@@ -522,18 +549,18 @@ class MavlinkVehicle:
     def _set_mode(self, request: SetMode) -> None:
         if request.mode.upper() != "AUTO":
             self._end_plan()
-        self.mav.set_mode(request.mode)  # transient modes (FLIP) are confirmed by their ACK
+        self._switch(request.mode)  # transient modes (FLIP) are confirmed by their ACK
 
     def _flip(self, request: Flip) -> str:
         """A flip as a pilot makes it (see the module docstring); returns the modes seen."""
         began = time.monotonic()
         sticks = _Sticks(self.link, self.system_id, self.mav.component_id)
         try:
-            self.mav.set_mode("ALT_HOLD")
+            self._switch("ALT_HOLD")
             sticks.hold(*FLIP_STICKS.get(request.direction, FLIP_STICKS["right"]))
             asked = time.monotonic()
             try:
-                self.mav.set_mode("FLIP")
+                self._switch("FLIP")
             finally:
                 sticks.hold()
             # Accepted, so flown; if its telemetry was all lost, it is over by the time limit.
@@ -541,11 +568,11 @@ class MavlinkVehicle:
                 self.link.wait_telemetry(self.system_id, lambda t: t.mode != "FLIP" and (
                     t.mode_shown_since("FLIP", asked) or (t.tilted_at or 0.0) > asked),
                     FLIP_WAIT)
-            self.mav.set_mode("GUIDED")
+            self._switch("GUIDED")
         finally:
             try:
                 if self.link.telemetry(self.system_id).mode != "GUIDED":
-                    self.mav.set_mode("GUIDED")
+                    self._switch("GUIDED")
             except VehicleError:
                 pass  # the error that brought us here is the one to report
             finally:
@@ -570,7 +597,7 @@ class MavlinkVehicle:
         if kind is Kind.FIXED_WING:
             self._write_param("TKOFF_ALT", request.altitude, AUTOPILOT)
             self._end_plan()
-            self.mav.set_mode("TAKEOFF")
+            self._switch("TAKEOFF")
             if not self.link.telemetry(self.system_id).armed:
                 self.mav.arm()
             return
@@ -600,8 +627,8 @@ class MavlinkVehicle:
         kind = self._kind()
         if kind is Kind.FIXED_WING:
             self._end_plan()
-            self.mav.reposition(latitude, longitude, request.target[2],
-                                radius=HANDLING[kind].loiter_radius)
+            self._reposition(latitude, longitude, request.target[2],
+                             radius=HANDLING[kind].loiter_radius)
             if request.speed:
                 self.mav.change_speed(request.speed, ground=False)
             return
@@ -619,7 +646,7 @@ class MavlinkVehicle:
                                "ground vehicle is sent round the circle point by point")
         self._end_plan()
         latitude, longitude, _ = _global(request.centre, self._require_home())
-        self.mav.reposition(latitude, longitude, request.centre[2], radius=request.radius)
+        self._reposition(latitude, longitude, request.centre[2], radius=request.radius)
 
     def _set_yaw(self, request: SetYaw) -> None:
         self.mav.yaw(abs(request.heading) if request.relative else request.heading % 360.0,
@@ -639,15 +666,15 @@ class MavlinkVehicle:
         kind = self._kind()
         if kind is Kind.GROUND:
             self._end_plan()
-            self.mav.set_mode("HOLD")
+            self._switch("HOLD")
             return
         if kind is Kind.FIXED_WING:  # circle where it is
             state = self.state()
             if state.position is not None:
                 self._end_plan()
                 latitude, longitude, _ = _global(state.position, self._require_home())
-                self.mav.reposition(latitude, longitude, state.position[2],
-                                    radius=HANDLING[kind].loiter_radius)
+                self._reposition(latitude, longitude, state.position[2],
+                                 radius=HANDLING[kind].loiter_radius)
             return
         if t.mode != "GUIDED":
             self._guided()  # ArduCopter stops at its stopping point on entering GUIDED
@@ -665,7 +692,8 @@ class MavlinkVehicle:
             self._glide(request.touchdown)
             return
         self._end_plan()
-        self.mav.land()  # where it is: the scripts fly a multicopter over its touchdown
+        # Where it is: the scripts fly a multicopter over its touchdown.
+        self._switch("LAND", self.mav.land)
 
     def _glide(self, touchdown: tuple[float, float, float] | None) -> None:
         """A fixed-wing's landing: the approach and NAV_LAND uploaded and flown in AUTO."""
@@ -677,12 +705,12 @@ class MavlinkVehicle:
         self.mav.upload(items)
         # From its first item: made current, then AUTO and MISSION_START without items.
         self.mav.set_current(1 if self.mav.keeps_home_in_item_zero else 0)
-        self.mav.set_mode("AUTO")
+        self._switch("AUTO")
         self.mav.start_mission()
 
     def _return_to_launch(self, request: ReturnToLaunch) -> None:
         self._end_plan()
-        self.mav.return_to_launch()
+        self._switch("RTL", self.mav.return_to_launch)
 
     def _set_speed(self, request: SetSpeed) -> None:
         if self._kind() is Kind.GROUND and request.kind in ("airspeed", "ground"):
@@ -752,12 +780,12 @@ class MavlinkVehicle:
             self._plan = plan
         if not state.armed:
             # A mission that starts on the ground: arm in GUIDED, then AUTO takes off.
-            self.mav.set_mode("GUIDED")
+            self._switch("GUIDED")
             self.mav.arm()
         # The first item is made current before AUTO, which starts (or resumes) the mission
         # there; MISSION_START then names no items: ArduPilot DENIES a first or last item.
         self.mav.set_current(plan.offset)
-        self.mav.set_mode("AUTO")
+        self._switch("AUTO")
         self.mav.start_mission()
         with self._lock:
             plan.started = True

@@ -88,6 +88,53 @@ def commanded_mode(vehicle_type: int, autopilot: int, command: CommandLong) -> s
     return mode_name(vehicle_type, autopilot, base, custom)
 
 
+FOLLOWS: dict[str, frozenset[str]] = {
+    "AUTO": frozenset({"RTL"}),  # ArduPlane at the end of its mission ("changing mode to RTL")
+    "FLIP": frozenset({"ALT_HOLD", "STABILIZE", "ACRO"}),  # ArduCopter, back where it began
+}
+"""Modes an autopilot enters by itself as the end of a mode tml asked for: not taken."""
+
+
+class ModeWatch:
+    """Tells a mode change nobody on this side asked for: the autopilot's own (an EKF, GPS
+    or battery failsafe landing), a pilot's RC switch, another ground station.
+
+    Sans-IO: :meth:`ask` before each mode change is sent (:meth:`refused` if it failed),
+    :meth:`seen` with each autopilot HEARTBEAT's mode. A vehicle is *taken* when, armed,
+    after the mode asked was shown, a HEARTBEAT shows another mode that does not follow it
+    (:data:`FOLLOWS`); ``taken`` then keeps that mode. Before the first ask the vehicle's
+    mode is its own (on the ground, before the mission), and while an asked mode is not
+    shown yet the old one is still expected.
+    """
+
+    def __init__(self) -> None:
+        self.asked: str | None = None
+        self.confirmed = False
+        self.taken = ""
+        self._before: tuple[str | None, bool] = (None, False)
+
+    def ask(self, mode: str) -> None:
+        """The mode about to be asked for."""
+        self._before = (self.asked, self.confirmed)
+        self.asked, self.confirmed = mode.upper(), False
+
+    def refused(self) -> None:
+        """The last ask failed: the mode asked before is still the one expected."""
+        self.asked, self.confirmed = self._before
+
+    def seen(self, mode: str, armed: bool) -> bool:
+        """A HEARTBEAT shows ``mode``; True when that makes the vehicle taken."""
+        if self.taken or self.asked is None:
+            return False
+        if mode == self.asked or mode in FOLLOWS.get(self.asked, ()):
+            self.confirmed = True
+            return False
+        if self.confirmed and armed:
+            self.taken = mode
+            return True
+        return False
+
+
 class ModeChange:
     """DO_SET_MODE to mode ``name``, done once the vehicle's next HEARTBEAT shows the mode.
 

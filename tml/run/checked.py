@@ -16,9 +16,11 @@ from tml.world import World
 
 
 def checked_options(profile: VehicleProfile, world: World, *, safe_state: str = "rtl",
-                    link_lost_limit: float = 10.0, ready_timeout: float = 180.0) -> RunOptions:
+                    link_lost_limit: float = 10.0, ready_timeout: float = 180.0,
+                    safe_state_timeout: float = 120.0) -> RunOptions:
     """The runner's options for a flight checked against ``profile`` and ``world``."""
     engine = Options(world=world, pre_check=pre_check(profile, world),
                      route=router(profile, world))
     return RunOptions(safe_state=safe_state, link_lost_limit=link_lost_limit,
-                      ready_timeout=ready_timeout, engine=engine)
+                      ready_timeout=ready_timeout, safe_state_timeout=safe_state_timeout,
+                      engine=engine)

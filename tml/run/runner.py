@@ -64,7 +64,7 @@ from typing import Any
 
 from tml.engine import Interpreter, Options, Output, Status, View
 from tml.engine.resume import Progress
-from tml.engine.safety import safe_state_request
+from tml.engine.safety import safe_state_request, safe_state_shown
 from tml.errors import ControlRefused, ExitCode
 from tml.language.model import Mission
 from tml.run.journal import Journal, autopilot_fields, telemetry_fields
@@ -80,6 +80,8 @@ class RunOptions:
     link_lost_limit: float = 10.0  # s of a lost link before the run is aborted
     settle_timeout: float = 30.0  # wall s to wait for the last requests after the end
     ready_timeout: float = 180.0  # s for every vehicle to be ready before the first task
+    safe_state_timeout: float = 120.0  # s to command the safe state until telemetry shows it
+    safe_state_period: float = 5.0  # s between two commands of a safe state not shown yet
     safe_state: str = "rtl"
     engine: Options = field(default_factory=Options)
 
@@ -104,7 +106,7 @@ class VehicleOutcome:
     vehicle_id: int
     status: Status
     reason: str
-    cause: str = ""  # "link", "error", "stop", "ready" when the runner ended the run
+    cause: str = ""  # "link", "error", "stop", "ready", "taken" when the runner ended it
 
 
 @dataclass(frozen=True)
@@ -116,7 +118,7 @@ class Outcome:
     @property
     def exit_code(self) -> ExitCode:
         """0 all completed, 4 a vehicle or link failed (or the engine broke), 3 aborted."""
-        if any(v.status is Status.FAILED or v.cause in ("link", "error", "ready")
+        if any(v.status is Status.FAILED or v.cause in ("link", "error", "ready", "taken")
                for v in self.vehicles):
             return ExitCode.FAILURE
         if any(v.status is not Status.COMPLETED for v in self.vehicles):
@@ -136,6 +138,8 @@ class _Flight:
         self.cause = ""
         self.messages_told = 0  # the number of the last autopilot message journaled
         self.rejected_told = 0  # absurd telemetry messages journaled so far
+        self.taken = False  # someone else switched its mode: it is commanded no more
+        self.safe_asked = False  # the safe state was commanded: to be confirmed
 
 
 class _Crew:
@@ -419,6 +423,7 @@ class Runner:
     def _tick(self, crew: _Crew, now: float) -> None:
         results: dict[int, list[RequestResult]] = {}
         lost: list[_Flight] = []
+        taken: list[_Flight] = []
         for flight in crew.flights:
             vehicle = flight.vehicle
             state = flight.state = vehicle.state()
@@ -439,6 +444,10 @@ class Runner:
                     lost.append(flight)
             else:
                 flight.lost_since = None
+            if state.taken and not flight.taken:
+                taken.append(flight)
+        for flight in taken:
+            self._taken(crew, flight, now)
         for flight in lost:
             flight.lost = True
             flight.cause = "link"
@@ -448,6 +457,19 @@ class Runner:
                                              reason))
         if crew.running:
             self._guarded(crew, now, lambda: crew.engine.step(now, crew.states(), results))
+
+    def _taken(self, crew: _Crew, flight: _Flight, now: float) -> None:
+        """Someone else switched the vehicle's mode (see tml.mavlink.modes.ModeWatch): its
+        work fails, and nothing is sent to it any more, not even the safe state -- whoever
+        took it flies it now."""
+        assert flight.state is not None
+        vid, mode = flight.vehicle.vehicle_id, flight.state.taken
+        flight.taken, flight.cause = True, "taken"
+        reason = f"switched to {mode} by the autopilot"
+        self.journal.write(now, "taken", vid, message=f"vehicle {vid} {reason}", mode=mode,
+                           status_text=flight.state.status_text)
+        self._said(f"vehicle {vid} {reason}: tml commands it no more")
+        self._guarded(crew, now, partial(crew.engine.lost, now, vid, reason, True))
 
     def _guarded(self, crew: _Crew, now: float, call: Callable[[], Output]) -> None:
         """Run an engine call; an exception aborts every vehicle."""
@@ -471,6 +493,11 @@ class Runner:
             self.journal.write(record.time, record.kind, record.vehicle_id, record.data)
             if record.kind == "safety":
                 self._said(f"vehicle {record.vehicle_id}: {record.data['message']}")
+        for record in output.records:
+            if record.kind == "safety" and record.vehicle_id is not None:
+                for flight in crew.flights:
+                    if flight.vehicle.vehicle_id == record.vehicle_id:
+                        flight.safe_asked = True
         for request in output.requests:
             vehicles[request.vehicle_id].submit(request)
 
@@ -490,6 +517,8 @@ class Runner:
     def _fallback_safe_state(self, flight: _Flight, now: float, reason: str) -> None:
         """The safe-state request, sent from here when the engine cannot be asked."""
         state = flight.state = flight.vehicle.state()
+        if flight.taken:
+            return  # flown by whoever took it
         safe = safe_state_request(state, self.options.safe_state)
         if safe is not None:
             request = replace(safe[0], request_id=self.ids.take())
@@ -497,6 +526,7 @@ class Runner:
             self.journal.write(now, "safety", vid, message=f"{request.name} ({reason})",
                                request=request.name, request_id=request.request_id)
             self._said(f"vehicle {vid}: {request.name} ({reason})")
+            flight.safe_asked = True
             flight.vehicle.submit(request)
 
     def _settle(self) -> None:
@@ -519,6 +549,42 @@ class Runner:
                                                        "flying an uploaded mission")
         while time.monotonic() < end and not all(_idle(f.vehicle) for f in self.flights):
             self._wait(0.05)
+        self._confirm_safe_states()
+
+    def _confirm_safe_states(self) -> None:
+        """Command the safe state again until the telemetry shows it, or give up after
+        ``safe_state_timeout`` s of the run's clock: one sent into a dead link is lost, and
+        the vehicle would hover on in GUIDED when its link comes back."""
+        waiting = [f for f in self.flights if f.safe_asked and not f.taken]
+        start = self.clock()
+        sent = dict.fromkeys(id(f) for f in waiting)
+        while waiting:
+            now = self.clock()
+            for flight in list(waiting):
+                state = flight.state = flight.vehicle.state()
+                self._tell_messages(flight, now)
+                for result in flight.vehicle.poll():
+                    self.journal.write(now, "result", flight.vehicle.vehicle_id,
+                                       request_id=result.request_id, ok=result.ok,
+                                       reason=result.reason, detail=result.detail)
+                vid = flight.vehicle.vehicle_id
+                if safe_state_shown(state, self.options.safe_state):
+                    waiting.remove(flight)
+                    self.journal.write(now, "safety", vid, confirmed=True, mode=state.mode,
+                                       message=f"safe state shown: {state.mode}"
+                                       + (", landed" if state.landed else ""))
+                elif now - start > self.options.safe_state_timeout:
+                    waiting.remove(flight)
+                    self._said(f"vehicle {vid}: safe state not confirmed within "
+                               f"{self.options.safe_state_timeout:g} s (mode {state.mode}, "
+                               f"link {state.link}): given up")
+                elif _idle(flight.vehicle) and (sent[id(flight)] is None or now - (
+                        sent[id(flight)] or 0.0) >= self.options.safe_state_period):
+                    if sent[id(flight)] is not None:  # the first was the run's own
+                        self._fallback_safe_state(flight, now, "not shown yet")
+                    sent[id(flight)] = now
+            if waiting:
+                self._wait(0.1)
 
     def _said(self, message: str) -> None:
         self.safety_actions.append(message)

@@ -7,6 +7,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 from process_lines import follow, wait_for
@@ -22,19 +23,25 @@ LEG = ('<mission name="Leg">\n'
        '  <task name="Down"><action name="LAND"/></task>\n</mission>\n')
 
 
+def _tml_run(mission: Path, address: str, *options: str
+             ) -> tuple[subprocess.Popen[str], Any, list[str]]:
+    """``tml run`` in a child process, and the queue and list its lines are read into."""
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    run = subprocess.Popen([sys.executable, "-m", "tml", "run", str(mission), "--connect",
+                            address, *options], stdout=subprocess.PIPE,
+                           stderr=subprocess.STDOUT, text=True, env=env)
+    assert run.stdout is not None
+    return run, follow(run.stdout), []
+
+
 @pytest.mark.timeout(600)
 def test_another_ground_station_switching_to_land_takes_the_vehicle(
         ardupilot, tmp_path: Path) -> None:
     (sitl,) = ardupilot()
     mission, log = tmp_path / "leg.xml", tmp_path / "leg.jsonl"
     mission.write_text(LEG)
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    run = subprocess.Popen([sys.executable, "-m", "tml", "run", str(mission), "--connect",
-                            sitl.address, "--clock", "vehicle", "--log", str(log)],
-                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                           env=env)
-    assert run.stdout is not None
-    lines, seen = follow(run.stdout), []
+    run, lines, seen = _tml_run(mission, sitl.address, "--clock", "vehicle", "--log",
+                                str(log))
     try:
         wait_for(lines, seen, "Over: running", time.monotonic() + 300, "tml run")
         # Another ground station, on the vehicle's second port, lands it.
@@ -58,3 +65,32 @@ def test_another_ground_station_switching_to_land_takes_the_vehicle(
     assert journal[taken]["mode"] == "LAND"
     after = [line for line in journal[taken:] if line["kind"] in ("request", "safety")]
     assert after == [], after  # nothing sent to it after it was taken
+
+
+@pytest.mark.timeout(600)
+def test_after_an_outage_the_vehicle_is_told_its_safe_state_again_until_it_shows_it(
+        ardupilot, tmp_path: Path) -> None:
+    from lossy_proxy import LossyProxy
+
+    (sitl,) = ardupilot(params={"FS_GCS_ENABLE": 0})  # nothing of its own: it would hover
+    mission, log = tmp_path / "leg.xml", tmp_path / "leg.jsonl"
+    mission.write_text(LEG)
+    with LossyProxy(sitl.port, loss=0.0, seed=1) as proxy:
+        run, lines, seen = _tml_run(mission, proxy.address, "--link-lost-limit", "10",
+                                    "--log", str(log))
+        try:
+            wait_for(lines, seen, "Over: running", time.monotonic() + 300, "tml run")
+            proxy.up.loss = proxy.down.loss = 1.0  # a 20 s outage, both ways
+            time.sleep(20.0)
+            proxy.up.loss = proxy.down.loss = 0.0
+            run.wait(timeout=180)
+            wait_for(lines, seen, "mission (failed|aborted|completed)", time.monotonic() + 10,
+                     "tml run")
+        finally:
+            if run.poll() is None:
+                run.kill()
+    said = "".join(seen)
+    assert run.returncode == 4, said
+    journal = read(str(log))
+    confirmed = [line for line in journal if line["kind"] == "safety" and line.get("confirmed")]
+    assert len(confirmed) == 1 and confirmed[0]["mode"] == "RTL", said

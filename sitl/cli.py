@@ -159,6 +159,10 @@ def build_parser(prog: str = "python -m sitl") -> argparse.ArgumentParser:
                         metavar="NAME=VALUE",
                         help="set a parameter of every vehicle (e.g. SIM_COMPANION=0: no "
                              "embedded companion computer); repeatable")
+    parser.add_argument("--signing-key-file", metavar="FILE",
+                        help="MAVLink 2 signing: sign what the vehicles send and refuse what "
+                             "is unsigned or wrongly signed; the file holds 64 hex digits or "
+                             "a passphrase (else the key of TML_SIGNING_KEY, if set)")
     faults = parser.add_argument_group("faults")
     faults.add_argument("--loss-in", type=_probability, default=0.0,
                         help="probability a message to the vehicle is lost")
@@ -206,6 +210,17 @@ def main(argv: Sequence[str] | None = None, prog: str = "python -m sitl") -> int
     except OSError as error:
         print(f"{prog}: --world {args.world}: {error.strerror or error}", file=sys.stderr)
         return 2
+    from tml.signing import signing_key
+
+    try:
+        key = signing_key(args.signing_key_file)
+    except OSError as error:
+        print(f"{prog}: --signing-key-file {args.signing_key_file}: "
+              f"{error.strerror or error}", file=sys.stderr)
+        return 2
+    except TmlError as error:
+        print(f"{prog}: signing key: {error}", file=sys.stderr)
+        return 2
     faults = Faults(
         seed=args.seed, loss_in=args.loss_in, loss_out=args.loss_out, latency=args.latency,
         jitter=args.jitter, duplicate=args.duplicate, reorder=args.reorder,
@@ -218,7 +233,7 @@ def main(argv: Sequence[str] | None = None, prog: str = "python -m sitl") -> int
     simulator = Simulator(
         vehicles=args.vehicles, home=args.home, speedup=args.speedup, seed=args.seed,
         world=world, faults=faults, tcp_base_port=args.tcp_base_port, udp_out=args.out,
-        bind=args.bind, params=dict(args.param), frames=args.frame,
+        bind=args.bind, params=dict(args.param), frames=args.frame, signing_key=key,
     )
     try:
         simulator.start()

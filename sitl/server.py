@@ -60,6 +60,10 @@ def _own(kind: type[VehicleModel], params: dict[str, float] | None) -> dict[str,
     return {name: value for name, value in (params or {}).items() if name in names}
 
 
+SIGNING_EPOCH = 1420070400
+"""1 January 2015 (Unix time), from which MAVLink 2 signing time stamps count."""
+
+
 def parse_udp_address(text: str) -> tuple[str, int]:
     """``udp:HOST:PORT`` (or ``HOST:PORT``) -> (host, port); ValueError when malformed."""
     body = text[4:] if text.startswith("udp:") else text
@@ -72,11 +76,15 @@ def parse_udp_address(text: str) -> tuple[str, int]:
 class _Peer:
     """One connection (a TCP client, or a UDP address) and its parser and send queue."""
 
-    def __init__(self, sock: socket.socket, address: tuple[str, int] | None = None) -> None:
+    def __init__(self, sock: socket.socket, address: tuple[str, int] | None = None,
+                 signing_key: bytes | None = None) -> None:
         self.sock = sock
         self.address = address  # UDP destination; None for TCP
         self.parser = mavlink.MAVLink(None)
         self.parser.robust_parsing = True
+        if signing_key is not None:  # as ArduPilot with a key: nothing unsigned is taken
+            self.parser.signing.secret_key = signing_key
+            self.parser.signing.allow_unsigned_callback = lambda _mav, _msgid: False
         self.backlog = bytearray()
         self.routes: set[tuple[int, int]] = set()  # (system, component) heard on it
 
@@ -105,13 +113,16 @@ class _Peer:
 class _Endpoint:
     """A vehicle with its sockets, encoders and fault channels."""
 
-    def __init__(self, model: VehicleModel, faults: Faults) -> None:
+    def __init__(self, model: VehicleModel, faults: Faults,
+                 signing_key: bytes | None = None) -> None:
         self.model = model
+        self.signing_key = signing_key
         self.listener: socket.socket | None = None
         self.udp: socket.socket | None = None
         self.tcp_peers: list[_Peer] = []
         self.udp_peers: list[_Peer] = []
         self.sequences: dict[int, int] = {}  # component -> next packet sequence number
+        self.signers: dict[int, Any] = {}  # component -> pymavlink encoder, when signing
         wire = faults.affects_wire
         sid = model.system_id
         self.incoming: WireChannel[Any] | None = (
@@ -121,9 +132,25 @@ class _Endpoint:
 
     def encode(self, msg: Any) -> bytes:
         component = msg._header.srcComponent or AUTOPILOT
+        if self.signing_key is not None:
+            return self._signed(msg, component)
         seq = self.sequences.get(component, 0)
         self.sequences[component] = (seq + 1) % 256  # each component counts its own
         return encode(msg, seq, self.model.system_id, component)
+
+    def _signed(self, msg: Any, component: int) -> bytes:
+        """``msg`` packed and signed by pymavlink (sitl.wire does not sign)."""
+        signer = self.signers.get(component)
+        if signer is None:
+            signer = mavlink.MAVLink(None, self.model.system_id, component)
+            signer.signing.secret_key = self.signing_key
+            signer.signing.sign_outgoing = True
+            # 10 us units since 2015, as the MAVLink signing specification says
+            signer.signing.timestamp = int((time.time() - SIGNING_EPOCH) * 1e5)
+            self.signers[component] = signer
+        packet: bytes = msg.pack(signer)
+        signer.seq = (signer.seq + 1) % 256  # pack() leaves counting to send()
+        return packet
 
     def peers(self) -> list[_Peer]:
         return self.tcp_peers + self.udp_peers
@@ -142,6 +169,7 @@ class Simulator:
         tcp_base_port: int | None = 5760, udp_out: list[str] | tuple[str, ...] = (),
         bind: str = "127.0.0.1", realtime: bool = True, params: dict[str, float] | None = None,
         frames: list[str] | tuple[str, ...] = (),
+        signing_key: bytes | None = None,
     ) -> None:
         if vehicles < 1:
             raise ValueError("at least one vehicle is needed")
@@ -167,7 +195,11 @@ class Simulator:
             own_home = replace(base, latitude=lat, longitude=lon, altitude=alt)
             kind = FRAMES[frame_of(frames, index)]
             model = kind(index + 1, own_home, world, seed, _own(kind, params), self.faults)
-            self._endpoints.append(_Endpoint(model, self.faults))
+            self._endpoints.append(_Endpoint(model, self.faults, signing_key))
+        if signing_key is not None and len(signing_key) != 32:
+            raise ValueError("a MAVLink 2 signing key is 32 bytes")
+        self.signing_key = signing_key
+        self._refused = [0, 0]  # messages dropped: unsigned, wrongly signed
         self.time = 0.0
         self._ticks = 0
         self._selector = selectors.DefaultSelector()
@@ -256,7 +288,8 @@ class Simulator:
             udp.bind((self.bind, 0))
             udp.setblocking(False)
             endpoint.udp = udp
-            endpoint.udp_peers = [_Peer(udp, address) for address in self.udp_out]
+            endpoint.udp_peers = [_Peer(udp, address, self.signing_key)
+                                  for address in self.udp_out]
             self._selector.register(udp, selectors.EVENT_READ, (endpoint, "udp"))
 
     def _close(self) -> None:
@@ -293,7 +326,7 @@ class Simulator:
             return
         sock.setblocking(False)
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        peer = _Peer(sock)
+        peer = _Peer(sock, signing_key=self.signing_key)
         endpoint.tcp_peers.append(peer)
         self._selector.register(sock, selectors.EVENT_READ, (endpoint, peer))
 
@@ -331,11 +364,22 @@ class Simulator:
                 endpoint.udp_peers.append(peer)
             self._received(endpoint, peer, data)
 
+    @property
+    def signing_rejected(self) -> tuple[int, int]:
+        """Messages refused with signing on: (unsigned, wrongly signed)."""
+        return self._refused[0], self._refused[1]
+
     def _received(self, endpoint: _Endpoint, peer: _Peer, data: bytes) -> None:
+        signing = peer.parser.signing
+        before = (signing.reject_count, signing.badsig_count)
         try:
             messages = peer.parser.parse_buffer(data) or []
         except mavlink.MAVError:
             return
+        finally:
+            bad = signing.badsig_count - before[1]
+            self._refused[0] += signing.reject_count - before[0] - bad
+            self._refused[1] += bad
         routing = len(endpoint.peers()) > 1
         for msg in messages:
             if msg.get_type() == "BAD_DATA":

@@ -444,3 +444,24 @@ def test_a_vehicle_with_a_gcs_failsafe_flies_when_one_is_required(
     out = capsys.readouterr()
     assert code == 0, out
     assert "FS_GCS_ENABLE" not in out.err
+
+
+def test_a_signed_run_on_the_simulator_flies_and_logs_what_signing_dropped(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    key = tmp_path / "key"
+    key.write_text("a passphrase only the ground station and the vehicle know\n")
+    log = tmp_path / "flight.jsonl"
+    code = main(["run", write(tmp_path, SHORT), "--sim", *FAST, "-q",
+                 "--signing-key-file", str(key), "--log", str(log)])
+    assert code == 0, capsys.readouterr()
+    (signing,) = [line for line in read(str(log)) if line["kind"] == "signing"]
+    assert (signing["unsigned"], signing["bad_signature"]) == (0, 0)
+
+
+def test_a_signing_key_file_that_cannot_be_read_is_a_usage_error(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(["run", write(tmp_path, SHORT), "--sim", "--signing-key-file",
+                 str(tmp_path / "missing")])
+    assert code == 2
+    assert capsys.readouterr().err.strip() == (
+        f"tml run: --signing-key-file {tmp_path / 'missing'}: No such file or directory")

@@ -99,3 +99,11 @@ def test_tml_sim_errors_are_prefixed_like_the_rest(tmp_path):
                           text=True, timeout=30)
     assert done.returncode == 2
     assert done.stderr.startswith("tml sim: ") and "absent.xml" in done.stderr
+
+
+def test_a_signing_key_file_that_cannot_be_read_exits_2_saying_so(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    missing = tmp_path / "missing"
+    assert main(["--signing-key-file", str(missing), "--tcp-base-port", "0"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"python -m sitl: --signing-key-file {missing}: No such file or directory")

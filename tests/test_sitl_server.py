@@ -297,3 +297,34 @@ def test_the_embedded_companion_is_on_board_unless_switched_off():
             components = {m.get_srcComponent() for m in settle(sim, gcs, 2)}
             assert (191 in components) == bool(on_board)
             gcs.close()
+
+
+KEY = bytes(range(32))
+
+
+def _signing(link: Link, key: bytes) -> Link:
+    link.mav.signing.secret_key = key
+    link.mav.signing.sign_outgoing = True
+    link.mav.signing.link_id = 1
+    link.mav.signing.timestamp = int((time.time() - 1420070400) * 1e5)
+    return link
+
+
+def test_a_signing_simulator_refuses_unsigned_and_wrongly_signed_commands():
+    with Simulator(tcp_base_port=0, realtime=False, params=FAST, signing_key=KEY) as sim:
+        spoofer, wrong = connect(sim.tcp_ports[0]), _signing(connect(sim.tcp_ports[0]),
+                                                            bytes(32))
+        owner = _signing(connect(sim.tcp_ports[0]), KEY)
+        settle(sim, owner, 3)
+        set_mode = M.MAVLink_command_long_message(1, 1, 176, 0, 1, 4, 0, 0, 0, 0, 0)
+        spoofer.send(set_mode)
+        wrong.send(set_mode)
+        settle(sim, owner, 1)
+        assert sim.vehicle(1).mode != "GUIDED"
+        assert sim.signing_rejected == (1, 1)  # (unsigned, wrongly signed)
+        owner.send(set_mode)
+        acks = [m for m in settle(sim, owner, 1) if m.get_type() == "COMMAND_ACK"]
+        assert acks and sim.vehicle(1).mode == "GUIDED"
+        assert all(m.get_signed() for m in acks)  # what it sends is signed
+        for link in (spoofer, wrong, owner):
+            link.close()

@@ -113,6 +113,10 @@ def add_vehicle_arguments(parser: argparse.ArgumentParser) -> None:
                         help="copy every vehicle message to this address, so QGroundControl "
                              "or MAVProxy can watch (e.g. udpout:127.0.0.1:14551); "
                              "repeatable")
+    parser.add_argument("--signing-key-file", metavar="FILE",
+                        help="MAVLink 2 signing: sign what is sent and drop (and count) what "
+                             "comes unsigned or wrongly signed; the file holds 64 hex digits "
+                             "or a passphrase (else the key of TML_SIGNING_KEY, if set)")
     parser.add_argument("--link-lost-limit", type=_positive, default=10.0, metavar="S",
                         help="abort a run after its link is lost this long (default 10 s)")
     parser.add_argument("--timeout", type=_positive, default=30.0, metavar="S",
@@ -246,6 +250,16 @@ def _usage_problem(args: argparse.Namespace) -> str | None:
         return f"{path}: is a directory, not a mission file"
     if not os.access(path, os.R_OK):
         return f"{path}: Permission denied"
+    if _signing_on(args):
+        from tml.errors import TmlError
+        from tml.signing import signing_key
+
+        try:
+            signing_key(args.signing_key_file)
+        except OSError as error:
+            return f"--signing-key-file {args.signing_key_file}: {error.strerror or error}"
+        except TmlError as error:
+            return f"signing key: {error}"
     for option, addresses, output in (("--connect", args.connect or [], False),
                                       ("--out", args.out, True)):
         for address in addresses:
@@ -408,8 +422,10 @@ def open_vehicles(args: argparse.Namespace, world: World, errors: Any = None,
     from tml.mavlink.adapter import MavlinkVehicle
     from tml.mavlink.clock import VehicleClock
     from tml.mavlink.link import Link
+    from tml.signing import signing_key
 
     wake = threading.Event()
+    key = signing_key(args.signing_key_file)  # OSError, TmlError: said by the caller
     addresses: list[tuple[str, int | None]]
     news = notify or wake.set
     with contextlib.ExitStack() as stack:
@@ -417,7 +433,8 @@ def open_vehicles(args: argparse.Namespace, world: World, errors: Any = None,
             from sitl.server import Simulator
 
             sim = Simulator(vehicles=args.vehicles, speedup=args.speedup, tcp_base_port=0,
-                            world=world, params=dict(args.sim_param), frames=args.sim_frame)
+                            world=world, params=dict(args.sim_param), frames=args.sim_frame,
+                            signing_key=key)
             stack.enter_context(sim)
             clock = lambda: sim.time  # noqa: E731 - the vehicles' own time
             addresses = [(f"tcp:127.0.0.1:{port}", index + 1)
@@ -429,7 +446,7 @@ def open_vehicles(args: argparse.Namespace, world: World, errors: Any = None,
         link_clock = None  # the runner's clock
         vehicle_clock: VehicleClock | None = None
         for address, system_id in addresses:
-            link = stack.enter_context(Link(address, outputs=args.out))
+            link = stack.enter_context(Link(address, outputs=args.out, signing_key=key))
             link.listen(lambda *_: news())
             if not system_id and errors is not None and not args.quiet:
                 # Said once: pymavlink's own retry messages are kept from the terminal.
@@ -453,6 +470,31 @@ def open_vehicles(args: argparse.Namespace, world: World, errors: Any = None,
             raise TmlError(f"vehicle {vehicles[0].vehicle_id} sent no time stamp "
                            f"(time_boot_ms) in {args.timeout:g} s; --clock vehicle needs one")
         yield vehicles, wake, clock
+
+
+def _signing_on(args: argparse.Namespace) -> bool:
+    import os
+
+    from tml.signing import ENVIRONMENT
+
+    return args.signing_key_file is not None or ENVIRONMENT in os.environ
+
+
+def _tell_signing(args: argparse.Namespace, vehicles: list[Any], journal: Journal,
+                  said: list[str], now: float) -> None:
+    """With signing on, log (and say, when there were any) the messages each link dropped
+    unsigned or wrongly signed: a spoofer's, or a ground station with another key."""
+    if not _signing_on(args):
+        return
+    links = {id(v.link): v.link for v in vehicles}
+    for link in links.values():
+        unsigned, bad = link.signing_counts
+        message = (f"{link.address}: signing: {unsigned} unsigned and {bad} wrongly signed "
+                   "message(s) dropped")
+        journal.write(now, "signing", None, message=message, address=link.address,
+                      unsigned=unsigned, bad_signature=bad)
+        if unsigned or bad:
+            said.append(message)
 
 
 def _discover(link: Any, timeout: float) -> list[int]:
@@ -502,6 +544,7 @@ def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
             outcome = runner.run()
             if display is not None:
                 display.update(runner.views(), force=True)
+        _tell_signing(args, vehicles, journal, said, runner.clock())
     finally:
         journal.close()  # flushed and closed before the outcome is said
     from tml.language.diagnostics import printable

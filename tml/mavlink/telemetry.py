@@ -266,9 +266,11 @@ class TelemetryTracker:
         changes: dict[str, Any] = {}
         if component == self.autopilot_component:
             wrong = absurd(msg)
-            if wrong is not None:
-                self.snapshot = replace(self.snapshot, time=now, rejected=self.snapshot.rejected
-                                        + 1, rejected_last=wrong, **changes)
+            if wrong is not None:  # ignored whole: counted, the state kept
+                self._snapshot = replace(self._snapshot, time=now, received=received,
+                                         lost=lost, rejected=self._snapshot.rejected + 1,
+                                         rejected_last=wrong)
+                self._counted = None
                 return True
             self.arrived[msg.get_type()] = now
             changes = self._vehicle_state(msg, now)

@@ -425,7 +425,8 @@ def open_vehicles(args: argparse.Namespace, world: World, errors: Any = None,
     from tml.signing import signing_key
 
     wake = threading.Event()
-    key = signing_key(args.signing_key_file)  # OSError, TmlError: said by the caller
+    # OSError, TmlError: said by the caller
+    key = signing_key(getattr(args, "signing_key_file", None))
     addresses: list[tuple[str, int | None]]
     news = notify or wake.set
     with contextlib.ExitStack() as stack:

@@ -77,7 +77,7 @@ MISSION = """<mission name="Fleet benchmark">
       <action name="TAKE_OFF"><argument name="altitude" value="{altitude:g}"/></action>
     </task>
     <task name="Hover">
-      <action name="WAIT"><argument name="duration" value="1000000"/></action>
+      <action name="WAIT"><argument name="duration" value="86400"/></action>
     </task>
   </task>
   <event_handling>

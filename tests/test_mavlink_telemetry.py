@@ -326,3 +326,24 @@ def test_absurd_values_are_ignored_and_counted_with_what_was_wrong() -> None:
         pytest.approx(0.1), pytest.approx(-0.2), pytest.approx(1.5))
     assert snapshot.gps_fix == 3 and snapshot.position is not None
     assert snapshot.position.altitude == 594 and snapshot.position.latitude < 0
+
+
+def test_the_revision_counts_only_messages_that_change_what_the_vehicle_shows() -> None:
+    tracker = TelemetryTracker(1)
+    ap = Source()
+    tracker.apply(heartbeat(ap), 0.0)
+    first = tracker.snapshot.revision
+    tracker.apply(heartbeat(ap), 1.0)  # the same mode, armed: only its time and count differ
+    assert tracker.snapshot.revision == first
+    assert (tracker.snapshot.received, tracker.snapshot.last_heartbeat) == (2, 1.0)
+    battery = [0, 0, 0, 500, 12600, -1, 87, 0, 0, 0, 0, 0, 0]
+    tracker.apply(ap("sys_status", *battery), 1.5)
+    assert tracker.snapshot.revision == first + 1
+    tracker.apply(ap("sys_status", *battery), 2.0)
+    assert tracker.snapshot.revision == first + 1
+    battery[6] = 20  # percent left
+    tracker.apply(ap("sys_status", *battery), 2.5)
+    assert (tracker.snapshot.revision, tracker.snapshot.battery_remaining) == (first + 2, 20)
+    assert tracker.check_link(9.0, 5.0) and tracker.snapshot.revision == first + 3  # lost
+    tracker.apply(heartbeat(ap), 9.5)  # back
+    assert not tracker.snapshot.link_lost and tracker.snapshot.revision == first + 4

@@ -282,6 +282,7 @@ class MavlinkVehicle:
         self._seen: dict[tuple[str, int], float] = {}
         self._values: dict[str, float] = {}
         self._plan: _Plan | None = None
+        self._changes = 0  # counts what changes the state besides the link's snapshot
         self._progress: MissionProgress | None = None
         self._cache: tuple[Any, Any, tuple[float, float, float] | None] = (None, None, None)
         self._companion_seen = False
@@ -312,6 +313,7 @@ class MavlinkVehicle:
         if "FLIP" in mode_names(info.vehicle_type, info.autopilot):
             capabilities.add("flip")
         self.capabilities = frozenset(capabilities)
+        self._changes += 1
 
     # --- the Vehicle protocol ---------------------------------------------------------------
 
@@ -348,6 +350,12 @@ class MavlinkVehicle:
             status_text=t.status_texts[-1].text if t.status_texts else "",
             messages=_messages(t), rejected=t.rejected, rejected_last=t.rejected_last,
             taken=self._modes.taken)
+
+    def revision(self) -> tuple[int, int]:
+        """Changes when :meth:`state` may show something new, apart from what time alone
+        changes (the link's health, detections held past ``detection_hold``): equal
+        revisions, equal state. A runner reads this to rebuild only the states that changed."""
+        return self.link.telemetry(self.system_id).revision, self._changes
 
     def submit(self, request: Request) -> None:
         """Queue a request for the worker thread; never blocks.
@@ -427,6 +435,7 @@ class MavlinkVehicle:
             with self._lock:
                 if self._plan is not None:
                     self._plan.seen(msg)
+                    self._changes += 1
         elif component == COMPANION_COMPONENT and kind in ("NAMED_VALUE_INT",
                                                             "NAMED_VALUE_FLOAT"):
             name = _text(msg.name)
@@ -435,6 +444,7 @@ class MavlinkVehicle:
                     self._seen[(name, int(msg.value))] = now
                 else:
                     self._values[name] = msg.value
+                self._changes += 1
 
     def _keep_target(self, snapshot: Telemetry) -> None:
         target = self._target
@@ -545,6 +555,7 @@ class MavlinkVehicle:
             if self._plan is not None:
                 self._progress = self._plan.progress()
                 self._plan = None
+                self._changes += 1
 
     def _set_mode(self, request: SetMode) -> None:
         if request.mode.upper() != "AUTO":
@@ -778,6 +789,7 @@ class MavlinkVehicle:
         self.mav.upload(list(compiled.items))
         with self._lock:
             self._plan = plan
+            self._changes += 1
         if not state.armed:
             # A mission that starts on the ground: arm in GUIDED, then AUTO takes off.
             self._switch("GUIDED")
@@ -790,6 +802,7 @@ class MavlinkVehicle:
         with self._lock:
             plan.started = True
             plan.finished = plan.last_nav is None  # DO items only: done on starting
+            self._changes += 1
 
     def _require_home(self) -> Home:
         home = _home(self.link.telemetry(self.system_id))

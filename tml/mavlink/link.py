@@ -16,8 +16,10 @@ so a message is handled as soon as it arrives, and for each message it
    machines running for that vehicle (:meth:`run`; each takes the plain messages of its
    ``inputs``) and sends their answers at once, from the same thread: the time from an
    item request to the item on the wire is one Python call;
-5. calls the listeners (:meth:`listen`), e.g. a runner that wakes the interpreter on fresh
-   telemetry, with the new snapshot.
+5. calls the listeners (:meth:`listen`) with the new snapshot, and, when the message
+   changed what the vehicle shows (:attr:`~tml.mavlink.telemetry.Telemetry.revision`), the
+   change listeners (:meth:`on_change`): a runner woken only then does not step its
+   interpreter for messages that repeat what it already knows.
 
 *A TCP vehicle that goes away* (a simulator killed, a server that hangs up) is dialled
 again, once every ``REDIAL_PERIOD`` seconds, each attempt bounded by ``REDIAL_TIMEOUT``
@@ -203,6 +205,7 @@ class Link:
         self._trackers: dict[int, TelemetryTracker] = {}
         self._machines: dict[int, list[Machine]] = {}
         self._listeners: list[Listener] = []
+        self._changes: list[Callable[[int], None]] = []
         self._running = False
         self._thread: threading.Thread | None = None
 
@@ -306,6 +309,12 @@ class Link:
         Listeners must return quickly: they hold up the link.
         """
         self._listeners.append(listener)
+
+    def on_change(self, listener: Callable[[int], None]) -> None:
+        """Call ``listener(system_id)`` from the receive thread whenever a vehicle's snapshot
+        changes what it shows: a new :attr:`~tml.mavlink.telemetry.Telemetry.revision`, from
+        a message or from the link found lost. Listeners must return quickly."""
+        self._changes.append(listener)
 
     @property
     def signing_counts(self) -> tuple[int, int]:
@@ -430,6 +439,10 @@ class Link:
             if changed:
                 self._lock.notify_all()
                 self._machine_done.notify_all()
+            ids = [t.snapshot.system_id for t in changed]
+        for system_id in ids:
+            for change in self._changes:
+                change(system_id)
 
     def _handle(self, msg: Any, now: float) -> None:
         if msg.get_type() == "BAD_DATA":
@@ -446,6 +459,7 @@ class Link:
         with self._lock:
             self._discover(msg, sysid)
             tracker = self._trackers.get(sysid)
+            revision = -1 if tracker is None else tracker.revision
             if tracker is None or not tracker.apply(msg, now):
                 self._lock.notify_all()
                 return
@@ -460,10 +474,14 @@ class Link:
                         if machine.done or machine.deadline < deadline:
                             self._machine_done.notify_all()
             snapshot = tracker.snapshot if self._listeners else None
+            changed = tracker.revision != revision
             self._lock.notify_all()
         if snapshot is not None:
             for listener in self._listeners:
                 listener(sysid, snapshot, msg)
+        if changed:
+            for change in self._changes:
+                change(sysid)
 
     def _for_us(self, msg: Any, tracker: TelemetryTracker) -> bool:
         # Another ground station on the same link has its own transfers with the vehicle.

@@ -44,6 +44,10 @@ PREARM_PREFIXES = ("PreArm:", "Arm:")
 """How ArduPilot begins the STATUSTEXTs that say why it will not arm."""
 STATUS_TEXTS_KEPT = 50
 MODE_CHANGES_KEPT = 20
+BOOKKEEPING = frozenset({"time", "received", "lost", "boot_time", "boot_time_received",
+                         "last_heartbeat", "armed_at", "disarmed_at"})
+"""Snapshot fields that change with every message (or every HEARTBEAT) while the vehicle
+shows the same: they do not count as a change of its :attr:`Telemetry.revision`."""
 TILTED = 1.0
 """Radians of roll or pitch (57 degrees) beyond which a multicopter counts as tilted: it gets
 there only in a flip (or a crash), never in controlled flight (ArduCopter's ANGLE_MAX is 30 to
@@ -188,6 +192,9 @@ class Telemetry:
     """Messages ignored for an absurd value (:data:`SANE`)."""
     rejected_last: str = ""
     """What was absurd in the last of them."""
+    revision: int = 0
+    """Counts the messages that changed what the vehicle shows (:data:`BOOKKEEPING` aside):
+    equal revisions, equal state, so a reader need not look again (the link's ``on_change``)."""
 
     @property
     def position_ready(self) -> bool:
@@ -256,6 +263,12 @@ class TelemetryTracker:
             self._counted = None
         return self._snapshot
 
+    @property
+    def revision(self) -> int:
+        """The snapshot's :attr:`Telemetry.revision` (the counts not yet taken in change
+        nothing of it): safe to read from any thread without the link's lock."""
+        return self._snapshot.revision
+
     def apply(self, msg: Any, now: float) -> bool:
         """Fold ``msg`` in; returns whether it was this vehicle's (and so changed the
         snapshot, if only its time and counts)."""
@@ -280,8 +293,18 @@ class TelemetryTracker:
         elif component == self.companion_component:
             changes = self._detection(msg, now)
         if changes:
-            self._snapshot = replace(self._snapshot, time=now, received=received, lost=lost,
-                                     **changes)
+            current = self._snapshot
+            fields = current.__dict__
+            if any(fields[name] != value for name, value in changes.items()
+                   if name not in BOOKKEEPING):
+                changes["revision"] = current.revision + 1
+            changes.update(time=now, received=received, lost=lost)
+            # A copy with the changes, as dataclasses.replace makes it but without running
+            # __init__ over every field: this runs for most messages of every vehicle.
+            new = object.__new__(Telemetry)
+            new.__dict__.update(fields)
+            new.__dict__.update(changes)
+            self._snapshot = new
             self._counted = None
         else:
             self._counted = (now, received, lost)
@@ -296,7 +319,8 @@ class TelemetryTracker:
         lost = self._snapshot.heartbeat_age(now) > lost_after
         if lost == self._snapshot.link_lost:
             return False
-        self._snapshot = replace(self.snapshot, link_lost=lost)
+        current = self.snapshot
+        self._snapshot = replace(current, link_lost=lost, revision=current.revision + 1)
         return True
 
     def _count(self, component: int, seq: int) -> tuple[int, int]:

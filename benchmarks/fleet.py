@@ -207,7 +207,7 @@ def fly(vehicles: int, speedup: float, seconds: float) -> Result:
             link = stack.enter_context(Link(f"tcp:127.0.0.1:{port}"))
             # The probe listens first: it sees each message before the runner is woken.
             link.listen(lambda sid, _snapshot, msg: probe.on_message(sid, msg))
-            link.listen(lambda *_: wake.set())
+            link.on_change(lambda _sid: wake.set())  # as tml run wakes its runner
             link.send = _stamped(link.send, system_id, probe.on_send)  # type: ignore[method-assign]
             links.append(link)
         for system_id, link in enumerate(links, start=1):

@@ -448,3 +448,66 @@ def test_a_safe_state_never_shown_is_given_up_after_its_bound() -> None:
         link_lost_limit=2.0, safe_state_timeout=30.0), fake=Gone)
     assert 35.0 <= sim.time < 40.0  # 2 s + 30 s after the link went, then it gives up
     assert said[-1].startswith("vehicle 1: safe state not confirmed within 30 s")
+
+
+class Revised(FakeVehicle):
+    """A fake that tells its revision as MavlinkVehicle does, and counts its states read."""
+
+    def __init__(self, **kwargs) -> None:  # type: ignore[no-untyped-def]
+        super().__init__(**kwargs)
+        self.number = 0
+        self.reads = 0
+
+    def revision(self) -> int:
+        return self.number
+
+    def state(self) -> VehicleState:
+        self.reads += 1
+        return super().state()
+
+
+HOVER = ('<task name="Hover"><action name="WAIT"><argument name="duration" value="30"/>'
+         '</action></task>')
+LOW_BATTERY = ('<event name="Low"><condition parameter="BATTERY_CHARGE_PERCENTAGE" '
+               'comparison="less than" value="25"/><action name="LAND"/>'
+               '<termination mode="END_MISSION"/></event>')
+
+
+def fly_revised(drop_at: float, announce: bool, refresh: float) -> tuple[list, Revised, Sim]:
+    """Take off, hover; at ``drop_at`` the battery drops to 10 %, told in the revision or not."""
+    vehicle = Revised(drain_per_second=0.0)
+    sim = Sim(vehicle)
+    reads_while_hovering: list[int] = []
+
+    def drop(sim: Sim) -> None:
+        if sim.time == drop_at:
+            reads_while_hovering.append(vehicle.reads)
+            vehicle.battery = 10.0
+            vehicle.number += announce
+    sim.hooks.append(drop)
+    log = io.StringIO()
+    runner = Runner(mission(TAKE_OFF + HOVER, LOW_BATTERY), [vehicle], clock=sim.clock,
+                    options=RunOptions(refresh=refresh), journal=Journal(log), wait=sim.wait)
+    runner.run()
+    lines = [json.loads(line) for line in log.getvalue().splitlines()]
+    return lines, vehicle, sim
+
+
+def test_a_change_the_vehicle_announces_reaches_the_interpreter_at_the_next_wake() -> None:
+    lines, _, _ = fly_revised(drop_at=8.0, announce=True, refresh=1000.0)
+    (event,) = [line for line in lines if line["kind"] == "event"][:1]
+    assert event["t"] == pytest.approx(8.0)
+
+
+def test_a_change_the_vehicle_does_not_announce_is_seen_after_refresh_seconds() -> None:
+    lines, _, _ = fly_revised(drop_at=8.0, announce=False, refresh=0.5)
+    (event,) = [line for line in lines if line["kind"] == "event"][:1]
+    assert 8.0 < event["t"] <= 8.5 + 1e-6
+
+
+def test_a_vehicle_that_says_nothing_changed_is_not_read_on_every_wake() -> None:
+    refresh = 0.5
+    _, vehicle, sim = fly_revised(drop_at=20.0, announce=True, refresh=refresh)
+    wakes = sim.time / 0.1
+    # Read on results and the telemetry line, else every ``refresh`` s: not on each wake.
+    assert vehicle.reads < wakes / 2

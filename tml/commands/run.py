@@ -412,7 +412,8 @@ def open_vehicles(args: argparse.Namespace, world: World, errors: Any = None,
                   ) -> Iterator[tuple[list[Any], threading.Event, Any]]:
     """Start the simulator or open the links; yield (vehicles, wake event, clock).
 
-    The wake event is set on every message and request result, or ``notify`` is called
+    The wake event is set on every message that changes what a vehicle shows and on every
+    request result, or ``notify`` is called
     instead when given (a service with several runs wakes each of them); ``errors``, when
     given, is told which address is waited for.
     """
@@ -448,7 +449,7 @@ def open_vehicles(args: argparse.Namespace, world: World, errors: Any = None,
         vehicle_clock: VehicleClock | None = None
         for address, system_id in addresses:
             link = stack.enter_context(Link(address, outputs=args.out, signing_key=key))
-            link.listen(lambda *_: news())
+            link.on_change(lambda _system_id: news())
             if not system_id and errors is not None and not args.quiet:
                 # Said once: pymavlink's own retry messages are kept from the terminal.
                 errors.print(f"tml run: waiting up to {args.timeout:g} s for a vehicle at "

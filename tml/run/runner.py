@@ -5,11 +5,21 @@ Theory of operation
 A mission with roles is flown by one :class:`~tml.engine.Interpreter` that picks its
 vehicles; one without is flown by every vehicle on its own, one interpreter each (each
 relative to its own home). The loop wakes ``rate`` times a second, and at once whenever
-``wake`` is set -- the link sets it on every message it receives, so an event reacts to the
-message that made its condition true without waiting for the next tick. Each wake, for
-every vehicle still running: read its state, collect the results of its requests, step its
-interpreter with the time, submit the requests that come out, and write everything to the
-journal; then refresh the display.
+``wake`` is set -- the link sets it when a message changes what a vehicle shows, and a
+vehicle when a request is done, so an event reacts to the message that made its condition
+true without waiting for the next tick. Each wake, for every vehicle still running: collect
+the results of its requests, read its state, step its interpreter with the time, submit the
+requests that come out, and write everything to the journal; then refresh the display.
+
+*Only what changed.* A vehicle that tells its ``revision()`` (:class:`tml.mavlink.adapter.
+MavlinkVehicle`: it changes with every message that changes what the vehicle shows) has its
+state rebuilt only when that changed, when it has results, when its telemetry line is due,
+or ``refresh`` seconds after the last time (what time alone changes: the link's health,
+detections held for a while). An interpreter is stepped when one of its vehicles' states
+changed (the time aside), results came, a vehicle was lost, or ``1 / rate`` seconds after
+its last step (its own timers: waits, time limits); a vehicle that cannot tell its revision
+has its state read, and its interpreter stepped, on every wake. So a fleet hovering in place
+costs the interpreter ``rate`` steps a second, not one for every message of every vehicle.
 
 *Time.* The interpreter sees the runner's ``clock``. For a real vehicle that is the
 monotonic clock; for the embedded simulator it is the simulator's own vehicle time, so a
@@ -53,12 +63,13 @@ such step is written to the journal and to ``on_safety`` so that the run says wh
 
 from __future__ import annotations
 
+import math
 import queue
 import threading
 import time
 import traceback
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from functools import partial
 from typing import Any
 
@@ -75,7 +86,8 @@ from tml.vehicle import IdSource, RequestResult, Vehicle, VehicleState, awaiting
 class RunOptions:
     """How the loop runs."""
 
-    rate: float = 20.0  # Hz: wakes without a message
+    rate: float = 20.0  # Hz: wakes without a message, and steps at least
+    refresh: float = 0.25  # s between rebuilds of a state whose vehicle says nothing changed
     telemetry_period: float = 1.0  # s between telemetry lines in the journal
     link_lost_limit: float = 10.0  # s of a lost link before the run is aborted
     settle_timeout: float = 30.0  # wall s to wait for the last requests after the end
@@ -140,6 +152,8 @@ class _Flight:
         self.rejected_told = 0  # absurd telemetry messages journaled so far
         self.taken = False  # someone else switched its mode: it is commanded no more
         self.safe_asked = False  # the safe state was commanded: to be confirmed
+        self.revision: object = None  # the vehicle's revision when its state was built
+        self.refresh_at = -math.inf  # when the state is rebuilt however the revision stands
 
 
 class _Crew:
@@ -149,6 +163,7 @@ class _Crew:
         self.engine = engine
         self.flights = flights
         self.broken = False  # the engine raised: it is not asked anything again
+        self.step_at = -math.inf  # when the engine is stepped even if nothing changed
 
     @property
     def running(self) -> bool:
@@ -424,11 +439,24 @@ class Runner:
         results: dict[int, list[RequestResult]] = {}
         lost: list[_Flight] = []
         taken: list[_Flight] = []
+        changed = False
         for flight in crew.flights:
             vehicle = flight.vehicle
-            state = flight.state = vehicle.state()
-            self._tell_messages(flight, now)
-            found = results[vehicle.vehicle_id] = vehicle.poll()
+            found = vehicle.poll()
+            if found:
+                results[vehicle.vehicle_id] = found
+            revision = _revision(vehicle)
+            if (revision is None or revision != flight.revision or found
+                    or now >= flight.refresh_at or now >= flight.next_telemetry
+                    or flight.state is None):
+                before, state = flight.state, vehicle.state()
+                flight.state, flight.revision = state, revision
+                flight.refresh_at = now + self.options.refresh
+                changed = changed or revision is None or before is None \
+                    or not _same_state(before, state)
+                self._tell_messages(flight, now)
+            else:
+                state = flight.state
             for result in found:
                 self.journal.write(now, "result", vehicle.vehicle_id,
                                    request_id=result.request_id, ok=result.ok,
@@ -455,7 +483,8 @@ class Runner:
             self._said(f"vehicle {flight.vehicle.vehicle_id}: {reason}")
             self._guarded(crew, now, partial(crew.engine.lost, now, flight.vehicle.vehicle_id,
                                              reason))
-        if crew.running:
+        if crew.running and (changed or results or lost or taken or now >= crew.step_at):
+            crew.step_at = now + 1.0 / self.options.rate
             self._guarded(crew, now, lambda: crew.engine.step(now, crew.states(), results))
 
     def _taken(self, crew: _Crew, flight: _Flight, now: float) -> None:
@@ -590,6 +619,20 @@ class Runner:
         self.safety_actions.append(message)
         if self.on_safety is not None:
             self.on_safety(message)
+
+
+def _revision(vehicle: Any) -> object:
+    """The vehicle's revision (see the module docstring), None if it cannot tell."""
+    revision = getattr(vehicle, "revision", None)
+    return None if revision is None else revision()
+
+
+_COMPARED = tuple(f.name for f in fields(VehicleState) if f.name != "time")
+
+
+def _same_state(a: VehicleState, b: VehicleState) -> bool:
+    """Whether two states of a vehicle show the same, whatever their time."""
+    return all(getattr(a, name) == getattr(b, name) for name in _COMPARED)
 
 
 def _idle(vehicle: Any) -> bool:

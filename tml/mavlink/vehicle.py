@@ -50,11 +50,14 @@ from tml.mavlink.modes import (
 from tml.mavlink.telemetry import Telemetry
 
 DEFAULT_RATES = {
-    "HEARTBEAT": 1.0, "GLOBAL_POSITION_INT": 10.0, "LOCAL_POSITION_NED": 10.0,
+    "HEARTBEAT": 1.0, "GLOBAL_POSITION_INT": 10.0,
     "ATTITUDE": 10.0, "SYS_STATUS": 2.0, "EXTENDED_SYS_STATE": 2.0, "GPS_RAW_INT": 2.0,
     "EKF_STATUS_REPORT": 2.0, "MISSION_CURRENT": 2.0, "HOME_POSITION": 0.5,
 }
-"""Messages and rates (Hz) :meth:`Vehicle.request_rates` asks for by default."""
+"""Messages and rates (Hz) :meth:`Vehicle.request_rates` asks for by default: what a
+vehicle's state is built from, and nothing else (every message costs each vehicle's link
+its parsing; LOCAL_POSITION_NED is not asked for: the local frame comes from
+GLOBAL_POSITION_INT and HOME_POSITION)."""
 FORCE = 21196.0
 """The magic param2 of COMPONENT_ARM_DISARM that skips the pre-arm checks."""
 SHOWN_DIFFERENCES = 3

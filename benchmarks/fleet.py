@@ -99,6 +99,7 @@ class Probe:
     left: dict[int, float] = field(default_factory=dict)
     altitude: dict[int, float] = field(default_factory=dict)
     vehicle_time: float = 0.0  # s, vehicle 1's time_boot_ms
+    first_vehicle_time: float | None = None  # s, vehicle 1's first time seen
 
     def on_message(self, system_id: int, msg: Any) -> None:
         """Note the low-battery SYS_STATUS, the altitude and vehicle 1's time."""
@@ -111,6 +112,8 @@ class Probe:
             self.altitude[system_id] = msg.relative_alt / 1000.0
             if system_id == 1:
                 self.vehicle_time = msg.time_boot_ms / 1000.0
+                if self.first_vehicle_time is None:
+                    self.first_vehicle_time = self.vehicle_time
 
     def on_send(self, system_id: int, msg: Any) -> None:
         """Note the first NAV_LAND written to a triggered vehicle."""
@@ -160,7 +163,7 @@ def simulator(vehicles: int, speedup: float) -> Iterator[tuple[list[int], list[f
     cpu: list[float] = []
     try:
         assert process.stdout is not None
-        ports = []
+        ports: list[int] = []
         while len(ports) < vehicles:
             line = process.stdout.readline()
             if not line:
@@ -254,6 +257,97 @@ def fly(vehicles: int, speedup: float, seconds: float) -> Result:
                   f"{'/'.join(statuses)} (exit {int(outcome.exit_code)})")
 
 
+def peer(vehicles: int, speedup: float, seconds: float) -> Result:
+    """The same flight, stamps and CPU count without tml: one bare pymavlink loop.
+
+    One thread reads every vehicle's socket through ``select``, parses every message
+    pymavlink hands it and notes the same stamps; the vehicles are asked for the same
+    streams at the same rates as tml asks (``DEFAULT_RATES``), put in GUIDED, armed and
+    taken off to ALTITUDE, and each is sent NAV_LAND on the first SYS_STATUS that shows its
+    battery low. The least a Python ground station reading these streams can spend.
+    """
+    import select
+
+    from tml.mavlink.vehicle import DEFAULT_RATES
+
+    probe = Probe()
+    with ExitStack() as stack:
+        ports, sim_cpu = stack.enter_context(simulator(vehicles, speedup))
+        conns = []
+        for port in ports:
+            conn = mavutil.mavlink_connection(f"tcp:127.0.0.1:{port}", source_system=255,
+                                              source_component=190)
+            stack.callback(conn.close)
+            conns.append(conn)
+        lock = threading.Lock()  # the trigger thread writes to the same sockets
+        for system_id, conn in enumerate(conns, start=1):
+            conn.wait_heartbeat(timeout=30)
+            for name, value in FAST_FIX.items():
+                conn.mav.send(param_set(system_id, name, value))
+            for name, hz in DEFAULT_RATES.items():
+                conn.mav.command_long_send(
+                    system_id, 1, mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                    getattr(mavlink, f"MAVLINK_MSG_ID_{name}"), 1e6 / hz, 0, 0, 0, 0, 0)
+        by_fd = {conn.fd: (system_id, conn) for system_id, conn in enumerate(conns, start=1)}
+        armed: set[int] = set()
+        asked: dict[int, float] = {}  # system id -> when GUIDED and ARM were last asked
+        links = [_Locked(conn, lock) for conn in conns]
+        limit = 120 + 3 * (seconds + 60) / speedup
+        trigger = threading.Thread(target=_trigger, daemon=True,
+                                   args=(links, probe, seconds / speedup, limit))
+        trigger.start()
+        started_cpu, started_wall = time.process_time(), time.perf_counter()
+        end = time.monotonic() + limit
+        while len(probe.left) < vehicles and time.monotonic() < end:
+            ready, _, _ = select.select(list(by_fd), [], [], 0.1)
+            now = time.monotonic()
+            for fd in ready:
+                system_id, conn = by_fd[fd]
+                while (msg := conn.recv_msg()) is not None:
+                    probe.on_message(system_id, msg)
+                    kind = msg.get_type()
+                    if kind == "SYS_STATUS" and system_id in probe.received \
+                            and system_id not in probe.left:
+                        with lock:
+                            conn.mav.command_long_send(system_id, 1, NAV_LAND, 0,
+                                                       0, 0, 0, 0, 0, 0, 0)
+                        probe.left[system_id] = time.time()
+                    elif kind == "HEARTBEAT" and msg.get_srcComponent() == 1 and \
+                            system_id not in armed and msg.system_status != mavlink.MAV_STATE_BOOT:
+                        if msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED:
+                            armed.add(system_id)
+                            with lock:
+                                conn.mav.command_long_send(
+                                    system_id, 1, mavlink.MAV_CMD_NAV_TAKEOFF, 0,
+                                    0, 0, 0, 0, 0, 0, ALTITUDE)
+                        elif now - asked.get(system_id, -1e9) > 0.5:  # until armable
+                            asked[system_id] = now
+                            with lock:
+                                conn.mav.command_long_send(
+                                    system_id, 1, mavlink.MAV_CMD_DO_SET_MODE, 0,
+                                    mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4, 0, 0, 0, 0, 0)
+                                conn.mav.command_long_send(
+                                    system_id, 1, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0,
+                                    1, 0, 0, 0, 0, 0, 0)
+        cpu = time.process_time() - started_cpu
+        wall = time.perf_counter() - started_wall
+        flown = probe.vehicle_time - (probe.first_vehicle_time or 0.0)
+        sim_time = probe.vehicle_time
+    return Result(vehicles, wall, flown, cpu, 0, sim_cpu[0], sim_time, probe.delays(),
+                  f"{len(probe.left)}/{vehicles} landed")
+
+
+class _Locked:
+    """A pymavlink connection's send, behind the lock the reading loop takes to send."""
+
+    def __init__(self, conn: Any, lock: threading.Lock) -> None:
+        self.conn, self.lock = conn, lock
+
+    def send(self, msg: Any) -> None:
+        with self.lock:
+            self.conn.mav.send(msg)
+
+
 def _stamped(send: Callable[..., None], system_id: int,
              note: Callable[[int, Any], None]) -> Callable[..., None]:
     def stamped(msg: Any, target: int = 0, component: int = 0) -> None:
@@ -278,62 +372,6 @@ def _trigger(links: list[Any], probe: Probe, window: float, limit: float) -> Non
         link.send(param_set(system_id, "BATT_CAPACITY", 1.0))
 
 
-def floor(speedup: float, trials: int) -> list[float]:
-    """Event delays (ms) of a bare pymavlink loop answering the same trigger."""
-    delays = []
-    with simulator(1, speedup) as (ports, _cpu):
-        conn = mavutil.mavlink_connection(f"tcp:127.0.0.1:{ports[0]}", source_system=255,
-                                          source_component=190)
-        try:
-            conn.wait_heartbeat(timeout=30)
-            for name, value in FAST_FIX.items():
-                conn.mav.send(param_set(1, name, value))
-            conn.mav.command_long_send(1, 1, mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
-                                       mavlink.MAVLINK_MSG_ID_SYS_STATUS, 50_000, 0, 0, 0, 0, 0)
-            hover(conn)  # as ArduCopter SITL, nothing is drawn on the ground: 1 mAh needs flight
-            for _ in range(trials):
-                conn.mav.send(param_set(1, "BATT_CAPACITY", 1.0))
-                while True:
-                    msg = conn.recv_match(type="SYS_STATUS", blocking=True, timeout=10)
-                    if msg is None:
-                        raise SystemExit("the floor's vehicle sent no SYS_STATUS for 10 s")
-                    if 0 <= msg.battery_remaining < LOW:
-                        conn.mav.command_long_send(1, 1, NAV_LAND, 0, 0, 0, 0, 0, 0, 0, 0)
-                        delays.append((time.time() - msg._timestamp) * 1000)
-                        break
-                conn.mav.send(param_set(1, "BATT_CAPACITY", 3300.0))
-                while (msg := conn.recv_match(type="SYS_STATUS", blocking=True, timeout=10)) \
-                        is not None and msg.battery_remaining < LOW:
-                    pass
-        finally:
-            conn.close()
-    return delays
-
-
-def hover(conn: Any) -> None:
-    """GUIDED, arm (retrying until the vehicle is armable) and take off to ALTITUDE."""
-    conn.mav.command_long_send(1, 1, mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
-                               mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 100_000, 0, 0, 0, 0, 0)
-    while (beat := conn.recv_match(type="HEARTBEAT", blocking=True, timeout=10)) is not None \
-            and (beat.get_srcComponent() != 1 or beat.system_status == mavlink.MAV_STATE_BOOT):
-        pass  # a mode selected while the autopilot boots does not last
-    conn.mav.command_long_send(1, 1, mavlink.MAV_CMD_DO_SET_MODE, 0,
-                               mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4, 0, 0, 0, 0, 0)
-    end = time.monotonic() + 120
-    while time.monotonic() < end:
-        conn.mav.command_long_send(1, 1, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0,
-                                   1, 0, 0, 0, 0, 0, 0)
-        ack = conn.recv_match(type="COMMAND_ACK", blocking=True, timeout=1)
-        if ack is not None and ack.command == mavlink.MAV_CMD_COMPONENT_ARM_DISARM \
-                and ack.result == mavlink.MAV_RESULT_ACCEPTED:
-            break
-        time.sleep(0.2)
-    conn.mav.command_long_send(1, 1, mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 0, ALTITUDE)
-    while (msg := conn.recv_match(type="GLOBAL_POSITION_INT", blocking=True, timeout=10)) \
-            is not None and msg.relative_alt < (ALTITUDE - 0.5) * 1000:
-        pass
-
-
 def percentile(values: list[float], q: float) -> float:
     ordered = sorted(values)
     return ordered[min(len(ordered) - 1, round(q * (len(ordered) - 1)))] if ordered else \
@@ -342,14 +380,12 @@ def percentile(values: list[float], q: float) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--vehicles", default="10,50,100",
-                        help="comma-separated fleet sizes (default 10,50,100)")
+    parser.add_argument("--vehicles", default="10,100,500",
+                        help="comma-separated fleet sizes (default 10,100,500)")
     parser.add_argument("--speedup", type=float, default=1.0,
                         help="simulated time this many times faster than real (default 1)")
     parser.add_argument("--seconds", type=float, default=30.0,
                         help="vehicle seconds over which the triggers are spread (default 30)")
-    parser.add_argument("--floor-trials", type=int, default=50,
-                        help="trials of the bare pymavlink floor (default 50)")
     args = parser.parse_args()
     try:
         sizes = [int(n) for n in args.vehicles.split(",")]
@@ -358,38 +394,41 @@ def main() -> None:
     if not sizes or min(sizes) < 1 or args.speedup <= 0 or args.seconds <= 0:
         parser.error("fleet sizes, --speedup and --seconds must be positive")
 
-    base = floor(args.speedup, args.floor_trials)
-    results = []
+    rows: list[tuple[Result, Result]] = []
     for n in sizes:
-        results.append(fly(n, args.speedup, args.seconds))
-        r = results[-1]
-        print(f"  {n} vehicles: {r.outcome}, {len(r.delays)}/{n} events timed, "
-              f"{r.wall:.1f} s wall for {r.flown:.1f} s of vehicle time", flush=True)
-    print(f"\nfleet: {os.cpu_count()} cores, speedup {args.speedup:g}, triggers over "
-          f"{args.seconds:g} vehicle s; delay = trigger telemetry parsed -> NAV_LAND written")
-    print(f"{'vehicles':>8} {'tml CPU s':>9} {'core %':>6} {'ms/veh/s':>8} {'wakes/s':>7} "
-          f"{'p50 ms':>7} {'p99 ms':>7} {'max ms':>7} {'sim CPU s':>9} {'sim ms/veh/s':>12}")
-    for r in results:
-        print(f"{r.vehicles:>8} {r.cpu:>9.1f} {100 * r.cpu / r.wall:>6.0f} "
-              f"{r.cpu_per_vehicle_second:>8.2f} {r.wakes / r.wall:>7.0f} "
-              f"{percentile(r.delays, 0.5):>7.2f} "
-              f"{percentile(r.delays, 0.99):>7.2f} {max(r.delays, default=float('nan')):>7.2f} "
-              f"{r.sim_cpu:>9.1f} {r.sim_cpu_per_vehicle_second:>12.2f}")
-    print(f"{'floor':>8} {'':>9} {'':>6} {'':>8} {'':>7} {percentile(base, 0.5):>7.2f} "
-          f"{percentile(base, 0.99):>7.2f} {max(base, default=float('nan')):>7.2f}   "
-          f"(bare pymavlink loop, 1 vehicle, {len(base)} trials)")
-    first = results[0]
-    for r in results[1:]:
-        print(f"growth {first.vehicles} -> {r.vehicles} vehicles "
-              f"(x{r.vehicles / first.vehicles:g}): CPU per simulated s "
-              f"x{(r.cpu / r.flown) / (first.cpu / first.flown):.2f}, per vehicle "
-              f"x{r.cpu_per_vehicle_second / first.cpu_per_vehicle_second:.2f}; delay p50 "
-              f"x{percentile(r.delays, 0.5) / percentile(first.delays, 0.5):.2f}, p99 "
-              f"x{percentile(r.delays, 0.99) / percentile(first.delays, 0.99):.2f}")
-    for r in results:
-        print(f"delay / floor at {r.vehicles} vehicles: p50 "
-              f"x{percentile(r.delays, 0.5) / percentile(base, 0.5):.0f}, p99 "
-              f"x{percentile(r.delays, 0.99) / percentile(base, 0.99):.0f}")
+        tml = fly(n, args.speedup, args.seconds)
+        bare = peer(n, args.speedup, args.seconds)
+        rows.append((tml, bare))
+        for who, r in (("tml", tml), ("peer", bare)):
+            print(f"  {n} vehicles, {who}: {r.outcome}, {len(r.delays)}/{n} events timed, "
+                  f"{r.wall:.1f} s wall for {r.flown:.1f} s of vehicle time, simulator "
+                  f"{r.sim_cpu_per_vehicle_second:.2f} ms/veh/s", flush=True)
+    print(f"\nfleet: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}, speedup "
+          f"{args.speedup:g}, triggers over {args.seconds:g} vehicle s; delay = trigger "
+          f"telemetry parsed -> NAV_LAND written; peer = a bare pymavlink loop reading the "
+          f"same streams of the same number of vehicles")
+    print(f"{'vehicles':>8} {'who':>4} {'core %':>6} {'ms/veh/s':>8} {'wakes/s':>7} "
+          f"{'p50 ms':>7} {'p99 ms':>7} {'max ms':>7}")
+    for pair in rows:
+        for who, r in zip(("tml", "peer"), pair, strict=True):
+            print(f"{r.vehicles:>8} {who:>4} {100 * r.cpu / r.wall:>6.0f} "
+                  f"{r.cpu_per_vehicle_second:>8.2f} "
+                  f"{r.wakes / r.wall if who == 'tml' else float('nan'):>7.0f} "
+                  f"{percentile(r.delays, 0.5):>7.2f} {percentile(r.delays, 0.99):>7.2f} "
+                  f"{max(r.delays, default=float('nan')):>7.2f}")
+    for tml, bare in rows:
+        print(f"tml / peer at {tml.vehicles} vehicles: CPU per vehicle-second "
+              f"x{tml.cpu_per_vehicle_second / bare.cpu_per_vehicle_second:.2f}, delay p50 "
+              f"x{percentile(tml.delays, 0.5) / percentile(bare.delays, 0.5):.2f}, p99 "
+              f"x{percentile(tml.delays, 0.99) / percentile(bare.delays, 0.99):.2f}")
+    first = rows[0][0]
+    for tml, _ in rows[1:]:
+        print(f"tml growth {first.vehicles} -> {tml.vehicles} vehicles "
+              f"(x{tml.vehicles / first.vehicles:g}): CPU per simulated s "
+              f"x{(tml.cpu / tml.flown) / (first.cpu / first.flown):.2f}, per vehicle "
+              f"x{tml.cpu_per_vehicle_second / first.cpu_per_vehicle_second:.2f}; delay p50 "
+              f"x{percentile(tml.delays, 0.5) / percentile(first.delays, 0.5):.2f}, p99 "
+              f"x{percentile(tml.delays, 0.99) / percentile(first.delays, 0.99):.2f}")
 
 
 if __name__ == "__main__":

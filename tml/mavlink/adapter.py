@@ -355,7 +355,7 @@ class MavlinkVehicle:
         """Changes when :meth:`state` may show something new, apart from what time alone
         changes (the link's health, detections held past ``detection_hold``): equal
         revisions, equal state. A runner reads this to rebuild only the states that changed."""
-        return self.link.telemetry(self.system_id).revision, self._changes
+        return self.link.revision(self.system_id), self._changes
 
     def submit(self, request: Request) -> None:
         """Queue a request for the worker thread; never blocks.
@@ -371,6 +371,8 @@ class MavlinkVehicle:
 
     def poll(self) -> list[RequestResult]:
         """Results finished since the last poll."""
+        if not self._results:  # most polls: nothing, and no lock taken to say so
+            return []
         with self._lock:
             results, self._results = self._results, []
         return results

@@ -280,6 +280,12 @@ class Link:
             tracker = self._trackers.get(system_id)
             return tracker.snapshot if tracker else Telemetry(system_id)
 
+    def revision(self, system_id: int) -> int:
+        """The latest snapshot's :attr:`~tml.mavlink.telemetry.Telemetry.revision`, read
+        without the lock (a runner asks it of every vehicle on every wake)."""
+        tracker = self._trackers.get(system_id)
+        return 0 if tracker is None else tracker.snapshot.revision
+
     def arrivals(self, system_id: int) -> dict[str, float]:
         """When each kind of message last came from the vehicle's autopilot (monotonic s)."""
         with self._lock:

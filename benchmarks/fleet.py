@@ -1,14 +1,15 @@
-"""Fleet: one interpreter flying 10, 50 and 100 simulated vehicles -- CPU and event delay.
+"""Fleet: one interpreter flying 10, 100 and 500 simulated vehicles -- CPU and event delay.
 
-Run by hand: ``python benchmarks/fleet.py [--vehicles 10,50,100] [--speedup 1] [--seconds 30]``.
+Run by hand: ``python benchmarks/fleet.py [--vehicles 10,100,500] [--speedup 1] [--seconds 30]``.
 
-For each fleet size N the simulator runs in its own process (``python -m sitl --vehicles N
---speedup K --tcp-base-port 0``, ports read from what it prints, all on 127.0.0.1), and
-this process flies it as ``tml run --connect`` would: one Link and one MavlinkVehicle per
-vehicle, and one Runner whose single Interpreter drives them all. The mission, generated
-below, declares one role with ``count=N`` (every vehicle) flying two tasks: take off to
-5 m, then hover until an event. The event, ``BATTERY_CHARGE_PERCENTAGE < 25``, lands the
-vehicle.
+For each fleet size N the simulator runs in its own processes (``python -m sitl --vehicles M
+--speedup K --tcp-base-port 0``, ports read from what it prints, all on 127.0.0.1; at most
+250 vehicles in one, since MAVLink numbers a system with one byte), and this process flies
+them as ``tml run --connect`` would: one Link and one MavlinkVehicle per vehicle (numbered
+1..N whatever its system id), and one Runner whose single Interpreter drives them all. The
+mission, generated below, declares one role with ``count=N`` (every vehicle) flying two
+tasks: take off to 5 m, then hover until an event. The event,
+``BATTERY_CHARGE_PERCENTAGE < 25``, lands the vehicle.
 
 The benchmark makes each vehicle's event true at a moment it chooses: once every vehicle
 hovers, it sends vehicle i (1..N) a PARAM_SET ``BATT_CAPACITY`` = 1 mAh at (i - 0.5)/N of
@@ -22,20 +23,21 @@ this process:
   (``Link.send`` is wrapped to note it).
 
 Their difference is the event delay: the receive thread's hand-off, the runner's wake,
-one engine step over all N vehicles, the vehicle's worker and the command's encoding.
-p50/p99 are over the N vehicles of one run.
+one engine step, the vehicle's worker and the command's encoding. p50/p99 are over the N
+vehicles of one run.
 
 CPU: ``time.process_time`` of this process while ``Runner.run`` flies (take-off, hover,
 landing; the set-up before it is not counted), divided by the vehicle time flown (vehicle
-1's ``time_boot_ms``) and by N. The runner's wakes (loop rounds, each one engine step over
-all N vehicles) are counted too: the link wakes the runner on every message, so their
-rate says how many messages each step takes in at once.
-The simulator's CPU comes from ``getrusage(RUSAGE_CHILDREN)`` after its process has
-exited, over its whole life. Ratios are against the first (smallest) fleet.
+1's ``time_boot_ms``) and by N. The runner's wakes (loop rounds) are counted too: the link
+wakes the runner on each message that changes what a vehicle shows, as ``tml run`` does.
+The simulators' CPU comes from ``getrusage(RUSAGE_CHILDREN)`` after their processes have
+exited, over their whole life.
 
-The floor, measured in the same run: a bare pymavlink loop on one simulated vehicle
-(1 vehicle, same speed-up) that sends NAV_LAND when a SYS_STATUS shows the low battery,
-with the same two stamps -- the least any Python ground station can do.
+The peer, measured in the same run at each N (:func:`peer`): one bare pymavlink loop that
+reads the same streams of as many vehicles through ``select``, flies them up, and sends
+NAV_LAND on the first SYS_STATUS that shows a low battery, with the same stamps -- the least
+a Python ground station reading these streams can spend. The ratios tml / peer are printed,
+and tml's growth from the smallest fleet.
 """
 
 from __future__ import annotations
@@ -53,6 +55,7 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -68,6 +71,7 @@ ALTITUDE = 5.0  # m: the take-off height; the hover starts once every vehicle is
 LOW = 25  # %: the event's threshold
 NAV_LAND = mavlink.MAV_CMD_NAV_LAND
 FAST_FIX = {"SIM_GPS_LOCKTIME": 1.0, "SIM_EKF_GPS_TIME": 2.0}  # armable within seconds
+PER_SIMULATOR = 250  # vehicles in one simulator process: system ids are 1 to 255
 PORT_LINE = re.compile(r"vehicle (\d+): tcp:127\.0\.0\.1:(\d+)")
 
 MISSION = """<mission name="Fleet benchmark">
@@ -184,6 +188,25 @@ def simulator(vehicles: int, speedup: float) -> Iterator[tuple[list[int], list[f
         cpu.append(after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime)
 
 
+@contextmanager
+def simulators(vehicles: int, speedup: float) -> Iterator[tuple[list[tuple[int, int]],
+                                                                  list[list[float]]]]:
+    """As many simulator processes as ``vehicles`` needs (MAVLink numbers a system with one
+    byte: at most PER_SIMULATOR vehicles in one); yield each vehicle's (TCP port, system id)
+    and one list per simulator that holds its CPU seconds once it has exited."""
+    with ExitStack() as stack:
+        vehicles_at: list[tuple[int, int]] = []
+        cpus: list[list[float]] = []
+        left = vehicles
+        while left > 0:
+            count = min(left, PER_SIMULATOR)
+            ports, cpu = stack.enter_context(simulator(count, speedup))
+            cpus.append(cpu)  # filled once the process has exited
+            vehicles_at.extend((port, system_id) for system_id, port in enumerate(ports, 1))
+            left -= count
+        yield vehicles_at, cpus
+
+
 def param_set(system_id: int, name: str, value: float) -> Any:
     """A PARAM_SET to the autopilot of ``system_id``."""
     return mavlink.MAVLink_param_set_message(system_id, 1, name.encode(), value,
@@ -204,22 +227,23 @@ def fly(vehicles: int, speedup: float, seconds: float) -> Result:
     probe = Probe()
     wake = threading.Event()
     with ExitStack() as stack:
-        ports, sim_cpu = stack.enter_context(simulator(vehicles, speedup))
+        at, sim_cpu = stack.enter_context(simulators(vehicles, speedup))
         links = []
-        for system_id, port in enumerate(ports, start=1):
+        for number, (port, _) in enumerate(at, start=1):
             link = stack.enter_context(Link(f"tcp:127.0.0.1:{port}"))
             # The probe listens first: it sees each message before the runner is woken.
-            link.listen(lambda sid, _snapshot, msg: probe.on_message(sid, msg))
+            link.listen(partial(_probe_message, probe, number))
             link.on_change(lambda _sid: wake.set())  # as tml run wakes its runner
-            link.send = _stamped(link.send, system_id, probe.on_send)  # type: ignore[method-assign]
+            link.send = _stamped(link.send, number, probe.on_send)  # type: ignore[method-assign]
             links.append(link)
-        for system_id, link in enumerate(links, start=1):
+        for link, (_, system_id) in zip(links, at, strict=True):
             link.wait_vehicle(system_id, timeout=30)
             for name, value in FAST_FIX.items():
                 link.send(param_set(system_id, name, value))
 
-        def connect(system_id: int) -> MavlinkVehicle:
-            vehicle = MavlinkVehicle(links[system_id - 1], system_id, on_result=wake.set,
+        def connect(number: int) -> MavlinkVehicle:
+            vehicle = MavlinkVehicle(links[number - 1], at[number - 1][1], vehicle_id=number,
+                                     on_result=wake.set,
                                      connect_timeout=30)
             vehicle.prepare()
             return vehicle
@@ -239,7 +263,9 @@ def fly(vehicles: int, speedup: float, seconds: float) -> Result:
                         wait=wait)
         limit = 120 + 3 * (seconds + 60) / speedup  # wall s: a stuck run is stopped
         trigger = threading.Thread(target=_trigger, daemon=True,
-                                   args=(links, probe, seconds / speedup, limit))
+                                   args=([(link, sid) for link, (_, sid) in zip(links, at,
+                                                                                 strict=True)],
+                                         probe, seconds / speedup, limit))
         trigger.start()
         watchdog = threading.Timer(limit, runner.stop, args=("benchmark time limit",))
         watchdog.daemon = True
@@ -253,8 +279,8 @@ def fly(vehicles: int, speedup: float, seconds: float) -> Result:
         watchdog.cancel()
         sim_time = probe.vehicle_time
     statuses = sorted({v.status.value for v in outcome.vehicles})
-    return Result(vehicles, wall, flown, cpu, wakes[0], sim_cpu[0], sim_time, probe.delays(),
-                  f"{'/'.join(statuses)} (exit {int(outcome.exit_code)})")
+    return Result(vehicles, wall, flown, cpu, wakes[0], sum(map(sum, sim_cpu)), sim_time,
+                  probe.delays(), f"{'/'.join(statuses)} (exit {int(outcome.exit_code)})")
 
 
 def peer(vehicles: int, speedup: float, seconds: float) -> Result:
@@ -272,15 +298,15 @@ def peer(vehicles: int, speedup: float, seconds: float) -> Result:
 
     probe = Probe()
     with ExitStack() as stack:
-        ports, sim_cpu = stack.enter_context(simulator(vehicles, speedup))
+        at, sim_cpu = stack.enter_context(simulators(vehicles, speedup))
         conns = []
-        for port in ports:
+        for port, _ in at:
             conn = mavutil.mavlink_connection(f"tcp:127.0.0.1:{port}", source_system=255,
                                               source_component=190)
             stack.callback(conn.close)
             conns.append(conn)
         lock = threading.Lock()  # the trigger thread writes to the same sockets
-        for system_id, conn in enumerate(conns, start=1):
+        for conn, (_, system_id) in zip(conns, at, strict=True):
             conn.wait_heartbeat(timeout=30)
             for name, value in FAST_FIX.items():
                 conn.mav.send(param_set(system_id, name, value))
@@ -288,13 +314,16 @@ def peer(vehicles: int, speedup: float, seconds: float) -> Result:
                 conn.mav.command_long_send(
                     system_id, 1, mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
                     getattr(mavlink, f"MAVLINK_MSG_ID_{name}"), 1e6 / hz, 0, 0, 0, 0, 0)
-        by_fd = {conn.fd: (system_id, conn) for system_id, conn in enumerate(conns, start=1)}
+        by_fd = {conn.fd: (number, system_id, conn)
+                 for number, (conn, (_, system_id)) in enumerate(zip(conns, at, strict=True), 1)}
         armed: set[int] = set()
         asked: dict[int, float] = {}  # system id -> when GUIDED and ARM were last asked
-        links = [_Locked(conn, lock) for conn in conns]
+        links: list[Any] = [_Locked(conn, lock) for conn in conns]
         limit = 120 + 3 * (seconds + 60) / speedup
         trigger = threading.Thread(target=_trigger, daemon=True,
-                                   args=(links, probe, seconds / speedup, limit))
+                                   args=([(link, sid) for link, (_, sid) in zip(links, at,
+                                                                                 strict=True)],
+                                         probe, seconds / speedup, limit))
         trigger.start()
         started_cpu, started_wall = time.process_time(), time.perf_counter()
         end = time.monotonic() + limit
@@ -302,26 +331,26 @@ def peer(vehicles: int, speedup: float, seconds: float) -> Result:
             ready, _, _ = select.select(list(by_fd), [], [], 0.1)
             now = time.monotonic()
             for fd in ready:
-                system_id, conn = by_fd[fd]
+                number, system_id, conn = by_fd[fd]
                 while (msg := conn.recv_msg()) is not None:
-                    probe.on_message(system_id, msg)
+                    probe.on_message(number, msg)
                     kind = msg.get_type()
-                    if kind == "SYS_STATUS" and system_id in probe.received \
-                            and system_id not in probe.left:
+                    if kind == "SYS_STATUS" and number in probe.received \
+                            and number not in probe.left:
                         with lock:
                             conn.mav.command_long_send(system_id, 1, NAV_LAND, 0,
                                                        0, 0, 0, 0, 0, 0, 0)
-                        probe.left[system_id] = time.time()
+                        probe.left[number] = time.time()
                     elif kind == "HEARTBEAT" and msg.get_srcComponent() == 1 and \
-                            system_id not in armed and msg.system_status != mavlink.MAV_STATE_BOOT:
+                            number not in armed and msg.system_status != mavlink.MAV_STATE_BOOT:
                         if msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED:
-                            armed.add(system_id)
+                            armed.add(number)
                             with lock:
                                 conn.mav.command_long_send(
                                     system_id, 1, mavlink.MAV_CMD_NAV_TAKEOFF, 0,
                                     0, 0, 0, 0, 0, 0, ALTITUDE)
-                        elif now - asked.get(system_id, -1e9) > 0.5:  # until armable
-                            asked[system_id] = now
+                        elif now - asked.get(number, -1e9) > 0.5:  # until armable
+                            asked[number] = now
                             with lock:
                                 conn.mav.command_long_send(
                                     system_id, 1, mavlink.MAV_CMD_DO_SET_MODE, 0,
@@ -333,8 +362,8 @@ def peer(vehicles: int, speedup: float, seconds: float) -> Result:
         wall = time.perf_counter() - started_wall
         flown = probe.vehicle_time - (probe.first_vehicle_time or 0.0)
         sim_time = probe.vehicle_time
-    return Result(vehicles, wall, flown, cpu, 0, sim_cpu[0], sim_time, probe.delays(),
-                  f"{len(probe.left)}/{vehicles} landed")
+    return Result(vehicles, wall, flown, cpu, 0, sum(map(sum, sim_cpu)), sim_time,
+                  probe.delays(), f"{len(probe.left)}/{vehicles} landed")
 
 
 class _Locked:
@@ -348,6 +377,11 @@ class _Locked:
             self.conn.mav.send(msg)
 
 
+def _probe_message(probe: Probe, number: int, _system_id: int, _snapshot: Any,
+                   msg: Any) -> None:
+    probe.on_message(number, msg)
+
+
 def _stamped(send: Callable[..., None], system_id: int,
              note: Callable[[int, Any], None]) -> Callable[..., None]:
     def stamped(msg: Any, target: int = 0, component: int = 0) -> None:
@@ -356,8 +390,10 @@ def _stamped(send: Callable[..., None], system_id: int,
     return stamped
 
 
-def _trigger(links: list[Any], probe: Probe, window: float, limit: float) -> None:
-    """Once every vehicle hovers, drop vehicle i's battery at i/N of ``window`` wall s."""
+def _trigger(links: list[tuple[Any, int]], probe: Probe, window: float,
+             limit: float) -> None:
+    """Once every vehicle hovers, drop vehicle i's battery at i/N of ``window`` wall s
+    (``links``: each vehicle's link and system id, vehicle 1 first)."""
     end = time.monotonic() + limit
     while time.monotonic() < end:
         if len(probe.altitude) == len(links) and all(
@@ -365,10 +401,9 @@ def _trigger(links: list[Any], probe: Probe, window: float, limit: float) -> Non
             break
         time.sleep(0.1)
     start = time.monotonic()
-    for index, link in enumerate(links):
+    for index, (link, system_id) in enumerate(links):
         time.sleep(max(0.0, start + (index + 0.5) * window / len(links) - time.monotonic()))
-        system_id = index + 1
-        probe.triggered[system_id] = time.time()
+        probe.triggered[index + 1] = time.time()
         link.send(param_set(system_id, "BATT_CAPACITY", 1.0))
 
 

@@ -548,3 +548,31 @@ def test_a_link_whose_vehicle_went_away_closes_quietly(thread_errors: list[Any])
     link.wait_telemetry(1, lambda t: t.link_lost, timeout=5, lost_ok=True)
     link.close()
     assert thread_errors == []
+
+
+def test_change_listeners_hear_only_messages_that_change_what_the_vehicle_shows() -> None:
+    changes: list[int] = []
+    with FakeAutopilot(system_id=3) as ap, Link(f"udpout:127.0.0.1:{ap.port}") as link:
+        link.wait_vehicle(3, timeout=5)
+        link.on_change(changes.append)
+        assert eventually(lambda: link.telemetry(3).received >= 3)  # HEARTBEATs, alike
+        assert changes == []
+        for seq in (4, 4, 4, 5):
+            ap.send(mavlink.MAVLink_mission_current_message(seq))
+        assert eventually(lambda: link.telemetry(3).mission_current == 5)
+        assert changes == [3, 3]  # to 4, then to 5
+        assert link.revision(3) == link.telemetry(3).revision
+
+
+def test_a_tcp_link_takes_in_every_message_of_a_burst_in_order() -> None:
+    seen: list[int] = []
+    with Link("tcpin:127.0.0.1:0") as link:
+        assert link.local_address is not None
+        link.listen(lambda _sysid, _snap, msg: seen.append(msg.seq)
+                    if msg.get_type() == "MISSION_CURRENT" else None)
+        with FakeAutopilot(system_id=2, connect=link.local_address, tcp=True) as ap:
+            link.wait_vehicle(2, timeout=5)
+            for seq in range(200):
+                ap.send(mavlink.MAVLink_mission_current_message(seq))
+            assert eventually(lambda: len(seen) >= 200)
+    assert seen == list(range(200))

@@ -10,8 +10,9 @@ API answers with 409), and :meth:`Hangar.release` frees them when the run has en
 its vehicles are safe.
 
 Each run's loop sleeps on its own event between steps. The links call :meth:`Hangar.notify`
-on every message they receive and on every request result, which wakes every run at once
-(the runner's ``wake``), so an event still reacts to the message that made it true.
+on every message that changes what a vehicle shows and on every request result, which
+wakes every run at once (the runner's ``wake``), so an event still reacts to the message
+that made it true.
 :meth:`Hangar.wait` is how a run's loop waits; a hangar of fake vehicles for the tests
 moves its vehicles there instead, with its own clock.
 """

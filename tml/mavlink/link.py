@@ -284,7 +284,7 @@ class Link:
         """The latest snapshot's :attr:`~tml.mavlink.telemetry.Telemetry.revision`, read
         without the lock (a runner asks it of every vehicle on every wake)."""
         tracker = self._trackers.get(system_id)
-        return 0 if tracker is None else tracker.snapshot.revision
+        return 0 if tracker is None else tracker.revision
 
     def arrivals(self, system_id: int) -> dict[str, float]:
         """When each kind of message last came from the vehicle's autopilot (monotonic s)."""

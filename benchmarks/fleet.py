@@ -442,7 +442,10 @@ def main() -> None:
         rows.append((tml, bare))
         for who, r in (("tml", tml), ("peer", bare)):
             print(f"  {n} vehicles, {who}: {r.outcome}, {len(r.delays)}/{n} events timed, "
-                  f"{r.wall:.1f} s wall for {r.flown:.1f} s of vehicle time, simulator "
+                  f"{r.wall:.1f} s wall for {r.flown:.1f} s of vehicle time, "
+                  f"{100 * r.cpu / r.wall:.0f} % of a core, {r.cpu_per_vehicle_second:.2f} "
+                  f"ms/veh/s, delay p50 {percentile(r.delays, 0.5):.2f} ms, p99 "
+                  f"{percentile(r.delays, 0.99):.2f} ms; simulator "
                   f"{r.sim_cpu_per_vehicle_second:.2f} ms/veh/s", flush=True)
     print(f"\nfleet: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}, speedup "
           f"{args.speedup:g}, triggers over {args.seconds:g} vehicle s; delay = trigger "

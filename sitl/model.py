@@ -64,6 +64,7 @@ from sitl.physics import (
 from sitl.results import Result
 from sitl.streams import Streams
 from sitl.track import Shape, Track, make_leg
+from sitl.wire import Fields
 from tml.geo import to_global, to_local
 from tml.world import Home, World
 
@@ -263,9 +264,15 @@ class VehicleModel:
 
     def step(self, dt: float) -> list[Any]:
         """Advance ``dt`` seconds of vehicle time; returns the messages that became due."""
+        system_id = self.system_id
+        return [stamp(item.message(), system_id, AUTOPILOT) if type(item) is Fields else item
+                for item in self.step_wire(dt)]
+
+    def step_wire(self, dt: float) -> list[Any]:
+        """As :meth:`step`, with the streamed telemetry not built: :class:`Fields` sent by
+        the autopilot, which the server encodes straight to the same bytes."""
         self._pending += dt
         out: list[Any] = []
-        system_id = self.system_id
         while self._pending >= TICK - 1e-9:
             self._pending -= TICK
             self.step_count += 1
@@ -273,9 +280,9 @@ class VehicleModel:
             self._tick()
             self._outbox.extend(self.missions.tick(self.time))
             for msg_id in self.streams.due(self.time):  # most steps: nothing is due
-                built = self._build(msg_id)
-                if built is not None:
-                    out.append(stamp(built, system_id, AUTOPILOT))
+                unbuilt = messages.fields(msg_id, self)
+                if unbuilt is not None:
+                    out.append(unbuilt)
             if self._outbox:
                 out.extend(self._flush())
             if self.has_companion:
@@ -1306,5 +1313,3 @@ class VehicleModel:
         state = M.MISSION_STATE_NOT_STARTED if total else M.MISSION_STATE_NO_MISSION
         return self._mission_current, total, state
 
-    def _build(self, msg_id: int) -> Any | None:
-        return messages.build(msg_id, self)

@@ -7,7 +7,8 @@ optionally sends to ground-station UDP addresses (``udp_out``) from its own UDP 
 reading the replies that come back to it. Everything a vehicle emits goes to every client
 of that vehicle; bytes received are parsed with pymavlink's MAVLink 2 parser (one parser
 per connection) and handed to the vehicle's model; what the model emits is encoded by
-:func:`sitl.wire.encode` (pymavlink's bytes at a quarter of the cost).
+:func:`sitl.wire.encode` (pymavlink's bytes at a quarter of the cost; the streamed
+telemetry straight from its arguments, never built as pymavlink messages).
 
 Like ArduPilot between its serial ports, a vehicle also routes what one client sends to
 its other clients (so a companion computer connected beside the ground station reaches
@@ -45,7 +46,7 @@ from sitl.frames import FRAMES, frame_of
 from sitl.messages import AUTOPILOT
 from sitl.model import TICK, VehicleModel
 from sitl.params import UnknownParameter
-from sitl.wire import encode
+from sitl.wire import Fields, encode
 from tml.geo import to_global
 from tml.world import Home, World
 
@@ -131,9 +132,14 @@ class _Endpoint:
             WireChannel(faults, faults.loss_out, f"{sid}/out") if wire else None)
 
     def encode(self, msg: Any) -> bytes:
-        component = msg._header.srcComponent or AUTOPILOT
-        if self.signing_key is not None:
-            return self._signed(msg, component)
+        if type(msg) is Fields:
+            component = AUTOPILOT
+            if self.signing_key is not None:  # pymavlink signs: build the message
+                return self._signed(msg.message(), component)
+        else:
+            component = msg._header.srcComponent or AUTOPILOT
+            if self.signing_key is not None:
+                return self._signed(msg, component)
         seq = self.sequences.get(component, 0)
         self.sequences[component] = (seq + 1) % 256  # each component counts its own
         return encode(msg, seq, self.model.system_id, component)
@@ -442,7 +448,7 @@ class Simulator:
         self._ticks += 1
         self.time = self._ticks * TICK
         for endpoint in self._endpoints:
-            self._emit(endpoint, endpoint.model.step(TICK))
+            self._emit(endpoint, endpoint.model.step_wire(TICK))
 
     def _loop(self) -> None:
         wall_start, time_start = time.monotonic(), self.time

@@ -1,4 +1,4 @@
-"""MAVLink 2 packets from pymavlink messages, at a quarter of ``msg.pack``'s cost or less.
+"""MAVLink 2 packets from pymavlink messages, or straight from a message's arguments.
 
 The simulator encodes every telemetry message of every vehicle, several hundred a
 vehicle-second when a client asks for all streams, and pymavlink's ``pack`` spends most
@@ -7,53 +7,106 @@ bytes, a version check, per packet (docs/performance.md). :func:`encode` builds 
 bytes directly: the payload with the message's own ``struct`` in wire order (arrays
 spread, char arrays raw), trailing zeros cut as MAVLink 2 does, the header, and the
 CRC-16/MCRF4XX with the message's CRC extra. Packets are unsigned, as the simulator
-sends them. tests/test_sitl_wire.py checks the bytes against ``pack`` for every message
-the simulator builds.
+sends them.
+
+Streamed telemetry need not become a pymavlink message at all: a :class:`Fields` holds a
+message's class and the arguments its constructor would take, and :func:`encode` packs
+those arguments as the message would pack them (the extension fields left out take the
+constructor's defaults). tests/test_sitl_wire.py checks both against ``pack`` for every
+message of the dialect.
 """
 
 from __future__ import annotations
 
+import inspect
 import struct
 from collections.abc import Callable
-from operator import attrgetter
-from typing import Any
+from operator import attrgetter, itemgetter
+from typing import Any, NamedTuple
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 _HEADER = struct.Struct("<BBBBBBBHB")
 _CRC = struct.Struct("<H")
 _FAST_CRC: Callable[[bytes, int], int] | None = getattr(mavlink, "mcrf4xx", None)
-# Per message class: its field values in wire order, arrays spread.
-_VALUES: dict[Any, Callable[[Any], tuple[Any, ...]]] = {}
+Values = Callable[[Any], tuple[Any, ...]]
+# Per message class: a message's field values in wire order, arrays spread.
+_VALUES: dict[Any, Values] = {}
+# Per message class: the same values from the constructor's arguments.
+_ARGUMENTS: dict[Any, Values] = {}
 
 
-def _values_of(kind: Any) -> Callable[[Any], tuple[Any, ...]]:
+class Fields(NamedTuple):
+    """A message not built: its pymavlink class and its constructor's arguments (the
+    trailing extension fields may be left out)."""
+
+    kind: Any
+    args: tuple[Any, ...]
+
+    def message(self) -> Any:
+        """The pymavlink message these arguments make."""
+        return self.kind(*self.args)
+
+
+def _wire_order(kind: Any) -> tuple[list[str], list[bool]]:
+    """The fields in wire order, each with whether it is an array to spread (a char
+    array is not: it packs as one bytes value)."""
     names, spread = [], []
     for index, name in enumerate(kind.ordered_fieldnames):
         array = kind.array_lengths[index] > 0
         char = kind.fieldtypes[kind.fieldnames.index(name)] == "char"
-        # pymavlink keeps a char array's bytes as _<name>_raw and its text as <name>.
-        names.append(f"_{name}_raw" if char and array else name)
+        names.append(name)
         spread.append(array and not char)
-    get: Callable[[Any], Any] = attrgetter(*names)
-    if len(names) == 1:  # attrgetter of one name gives the value, not a tuple
-        only = get
+    return names, spread
 
-        def get(msg: Any) -> tuple[Any, ...]:
-            return (only(msg),)
-    values: Callable[[Any], tuple[Any, ...]]
-    if any(spread):
-        def values(msg: Any) -> tuple[Any, ...]:
-            out: list[Any] = []
-            for value, wide in zip(get(msg), spread, strict=True):
-                if wide:
-                    out.extend(value)
-                else:
-                    out.append(value)
-            return tuple(out)
-    else:
-        values = get
-    _VALUES[kind] = values
+
+def _spreading(get: Callable[[Any], Any], count: int, spread: list[bool]) -> Values:
+    """``get``'s values as one flat tuple: a tuple even of one value, arrays spread."""
+    if count == 1:  # a getter of one item gives the value, not a tuple
+        def one(source: Any) -> tuple[Any, ...]:
+            value = get(source)
+            return tuple(value) if spread[0] else (value,)
+        return one
+    if not any(spread):
+        return get
+
+    def values(source: Any) -> tuple[Any, ...]:
+        out: list[Any] = []
+        for value, wide in zip(get(source), spread, strict=True):
+            if wide:
+                out.extend(value)
+            else:
+                out.append(value)
+        return tuple(out)
+    return values
+
+
+def _values_of(kind: Any) -> Values:
+    names, spread = _wire_order(kind)
+    char_arrays = {name for name, wide in zip(names, spread, strict=True) if not wide
+                   and kind.array_lengths[kind.ordered_fieldnames.index(name)] > 0}
+    # pymavlink keeps a char array's bytes as _<name>_raw and its text as <name>.
+    attributes = [f"_{name}_raw" if name in char_arrays else name for name in names]
+    values = _VALUES[kind] = _spreading(attrgetter(*attributes), len(names), spread)
+    return values
+
+
+def _arguments_of(kind: Any) -> Values:
+    names, spread = _wire_order(kind)
+    parameters = list(inspect.signature(kind.__init__).parameters.values())[1:]
+    if [p.name for p in parameters] != list(kind.fieldnames):
+        raise TypeError(f"{kind.__name__}: constructor arguments are not its fields")
+    defaults = tuple(p.default for p in parameters if p.default is not p.empty)
+    required = len(parameters) - len(defaults)
+    count = len(parameters)
+    get = _spreading(itemgetter(*(kind.fieldnames.index(name) for name in names)),
+                     len(names), spread)
+
+    def values(args: tuple[Any, ...]) -> tuple[Any, ...]:
+        if len(args) < count:  # the extensions left out: the constructor's defaults
+            args = args + defaults[len(args) - required:]
+        return get(args)
+    _ARGUMENTS[kind] = values
     return values
 
 
@@ -65,12 +118,17 @@ def _crc(data: bytes) -> int:
 
 
 def encode(msg: Any, seq: int, system: int, component: int) -> bytes:
-    """The MAVLink 2 packet of ``msg`` with sequence number ``seq`` from ``system`` and
-    ``component``: the bytes ``msg.pack`` makes with a link in that state."""
-    kind: Any = type(msg)
-    values = (_VALUES.get(kind) or _values_of(kind))(msg)
-    payload = msg.unpacker.pack(*values).rstrip(b"\0") or b"\0"
-    msg_id = msg._header.msgId
+    """The MAVLink 2 packet of ``msg`` (a pymavlink message or :class:`Fields`) with
+    sequence number ``seq`` from ``system`` and ``component``: the bytes ``msg.pack``
+    makes with a link in that state."""
+    if type(msg) is Fields:
+        kind: Any = msg.kind
+        values = (_ARGUMENTS.get(kind) or _arguments_of(kind))(msg.args)
+    else:
+        kind = type(msg)
+        values = (_VALUES.get(kind) or _values_of(kind))(msg)
+    payload = kind.unpacker.pack(*values).rstrip(b"\0") or b"\0"
+    msg_id = kind.id
     header = _HEADER.pack(253, len(payload), 0, 0, seq, system, component, msg_id & 0xFFFF,
                           msg_id >> 16)
     crc = _crc(header[1:] + payload + bytes((kind.crc_extra,)))

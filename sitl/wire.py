@@ -28,7 +28,11 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 _HEADER = struct.Struct("<BBBBBBBHB")
 _CRC = struct.Struct("<H")
+_HEADER_PACK = _HEADER.pack
+_CRC_PACK = _CRC.pack
 _FAST_CRC: Callable[[bytes, int], int] | None = getattr(mavlink, "mcrf4xx", None)
+# Per message class: its payload's pack, its id's low 16 and high 8 bits, its CRC extra.
+_PLANS: dict[Any, tuple[Callable[..., bytes], int, int, bytes]] = {}
 Values = Callable[[Any], tuple[Any, ...]]
 # Per message class: a message's field values in wire order, arrays spread.
 _VALUES: dict[Any, Values] = {}
@@ -69,14 +73,13 @@ def _spreading(get: Callable[[Any], Any], count: int, spread: list[bool]) -> Val
         return one
     if not any(spread):
         return get
+    # Spread from the last array back, so that the earlier ones keep their positions.
+    arrays = [index for index, wide in enumerate(spread) if wide][::-1]
 
     def values(source: Any) -> tuple[Any, ...]:
-        out: list[Any] = []
-        for value, wide in zip(get(source), spread, strict=True):
-            if wide:
-                out.extend(value)
-            else:
-                out.append(value)
+        out = list(get(source))
+        for index in arrays:
+            out[index:index + 1] = out[index]
         return tuple(out)
     return values
 
@@ -110,11 +113,13 @@ def _arguments_of(kind: Any) -> Values:
     return values
 
 
-def _crc(data: bytes) -> int:
-    if _FAST_CRC is not None:
-        return _FAST_CRC(data, 0xFFFF)
+def _slow_crc(data: bytes, initial: int) -> int:  # x25crc starts from 0xFFFF, as here
     crc: int = mavlink.x25crc(data).crc
     return crc
+
+
+# CRC-16/MCRF4XX of data from an initial 0xFFFF: fastcrc's when pymavlink has it.
+_crc: Callable[[bytes, int], int] = _FAST_CRC if _FAST_CRC is not None else _slow_crc
 
 
 def encode(msg: Any, seq: int, system: int, component: int) -> bytes:
@@ -127,9 +132,13 @@ def encode(msg: Any, seq: int, system: int, component: int) -> bytes:
     else:
         kind = type(msg)
         values = (_VALUES.get(kind) or _values_of(kind))(msg)
-    payload = kind.unpacker.pack(*values).rstrip(b"\0") or b"\0"
-    msg_id = kind.id
-    header = _HEADER.pack(253, len(payload), 0, 0, seq, system, component, msg_id & 0xFFFF,
-                          msg_id >> 16)
-    crc = _crc(header[1:] + payload + bytes((kind.crc_extra,)))
-    return header + payload + _CRC.pack(crc)
+    pack, low, high, extra = _PLANS.get(kind) or _plan_of(kind)
+    payload = pack(*values).rstrip(b"\0") or b"\0"
+    header = _HEADER_PACK(253, len(payload), 0, 0, seq, system, component, low, high)
+    return header + payload + _CRC_PACK(_crc(header[1:] + payload + extra, 0xFFFF))
+
+
+def _plan_of(kind: Any) -> tuple[Callable[..., bytes], int, int, bytes]:
+    plan = _PLANS[kind] = (kind.unpacker.pack, kind.id & 0xFFFF, kind.id >> 16,
+                           bytes((kind.crc_extra,)))
+    return plan

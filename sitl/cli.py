@@ -14,6 +14,7 @@ import sys
 import threading
 from collections.abc import Sequence
 
+from sitl import MAX_VEHICLES
 from sitl.faults import Faults
 from tml.errors import TmlError
 from tml.world import Home, World
@@ -69,6 +70,15 @@ def count(text: str) -> int:
     if not text.isdigit() or int(text) < 1:
         raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {text!r}")
     return int(text)
+
+
+def vehicle_count(text: str) -> int:
+    """A number of simulated vehicles: 1 to MAX_VEHICLES (system ids 1..N, one byte each)."""
+    number = count(text)
+    if number > MAX_VEHICLES:
+        raise argparse.ArgumentTypeError(
+            f"at most {MAX_VEHICLES} vehicles (a MAVLink system id is one byte), got {text}")
+    return number
 
 
 def _window(text: str) -> tuple[float, float]:
@@ -139,7 +149,8 @@ def build_parser(prog: str = "python -m sitl") -> argparse.ArgumentParser:
         description="Simulated ArduPilot vehicles (Copter, Plane, Rover) speaking MAVLink 2 "
                     "over TCP and UDP.",
     )
-    parser.add_argument("--vehicles", type=count, default=1, help="number of vehicles (ids 1..N)")
+    parser.add_argument("--vehicles", type=vehicle_count, default=1,
+                        help="number of vehicles (ids 1..N, at most 255)")
     parser.add_argument("--frame", type=_frames, default=["copter"], metavar="FRAME[,FRAME...]",
                         help="copter (default), plane or rover; a list gives vehicle 1, 2 ... "
                              "theirs, the last repeating (e.g. copter,rover)")

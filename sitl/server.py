@@ -41,6 +41,7 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from sitl import MAX_VEHICLES
 from sitl.faults import Faults, WireChannel
 from sitl.frames import FRAMES, frame_of
 from sitl.messages import AUTOPILOT
@@ -177,8 +178,8 @@ class Simulator:
         frames: list[str] | tuple[str, ...] = (),
         signing_key: bytes | None = None,
     ) -> None:
-        if vehicles < 1:
-            raise ValueError("at least one vehicle is needed")
+        if not 1 <= vehicles <= MAX_VEHICLES:
+            raise ValueError(f"1 to {MAX_VEHICLES} vehicles (a MAVLink system id is one byte)")
         if speedup <= 0:
             raise ValueError("speedup must be positive")
         self.speedup = speedup

@@ -16,6 +16,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 @pytest.mark.parametrize("argv, message", [
     (["--vehicles", "0"], "at least 1"),
+    (["--vehicles", "256"], "at most 255 vehicles (a MAVLink system id is one byte)"),
     (["--home", "1,2"], "lat,lon,alt"),
     (["--home", "95,0,0"], "out of range"),
     (["--speedup", "0"], "greater than 0"),

@@ -79,9 +79,11 @@ def battery_before(lines: Log, vehicle: int, t: float) -> float:
     return [line for line in of(lines, "telemetry", vehicle) if line["t"] <= t][-1]["battery"]
 
 
-def stopped_by_until(lines: Log, vehicle: int) -> list[float]:
-    return [line["t"] for line in of(lines, "decision", vehicle)
-            if "stopped, its until conditions hold" in line["message"]]
+def read_when(lines: Log, vehicle: int, decision: str) -> list[float]:
+    """The value each ``decision`` of the vehicle read (its one condition's), in order: what
+    the engine decided on, where the 1 Hz telemetry lines show only samples around it."""
+    return [line["read"][0]["value"] for line in of(lines, "decision", vehicle)
+            if decision in line["message"]]
 
 
 def test_single_vehicle_flies_rounds_each_ending_landed_at_home(tmp_path: Path) -> None:
@@ -99,10 +101,11 @@ def test_single_vehicle_flies_rounds_each_ending_landed_at_home(tmp_path: Path) 
         assert not after[-1]["armed"]
         assert math.hypot(*after[-1]["position"][:2]) < 2.0  # at home, on its charging pad
     # The until ends each circling at 30 %; the second round waits on the pad for 90 %.
-    untils = stopped_by_until(lines, 1)
-    assert len(untils) == 2 and all(29 <= battery_before(lines, 1, t) <= 31 for t in untils)
+    untils = read_when(lines, 1, "stopped, its until conditions hold")
+    assert len(untils) == 2 and all(29 <= battery < 30 for battery in untils)
     assert battery_before(lines, 1, releases[0]) < 30
-    assert battery_before(lines, 1, flights[1][0]) >= 90
+    charged = read_when(lines, 1, "Round: its conditions are met")
+    assert len(charged) == 2 and charged[1] >= 90
     assert flights[1][0] - releases[0] > 30  # it charged before it took off again
     # Each round uploads its own plan, and the second is followed from its first item.
     plans = [line["plan_id"] for line in of(lines, "request", 1)
@@ -133,15 +136,17 @@ def test_survey_flies_both_areas_at_once(tmp_path: Path) -> None:
     assert first[0] > -10 and first[-1] > 25 and statistics.median(first) > 2
     assert second[-1] < 10 and second[0] < -25 and statistics.median(second) < -2
     for vehicle in (1, 2):
-        untils = stopped_by_until(lines, vehicle)
-        assert len(untils) == 2
-        assert all(29 <= battery_before(lines, vehicle, t) <= 31 for t in untils)
+        untils = read_when(lines, vehicle, "stopped, its until conditions hold")
+        assert len(untils) == 2 and all(29 <= battery < 30 for battery in untils)
         # Round 2 picked the same vehicle back at once; it waited on the pad for 90 %.
         waits = [line["t"] for line in of(lines, "decision", vehicle)
                  if "waiting for its conditions" in line["message"]]
         flights = airborne(lines, vehicle)
         assert battery_before(lines, vehicle, waits[1]) < 30
-        assert battery_before(lines, vehicle, flights[1][0]) >= 90
+        charged = [line for line in of(lines, "decision", vehicle)
+                   if line["message"].endswith(": its conditions are met")]
+        assert len(charged) == 2 and charged[1]["read"][0]["value"] >= 90
+        assert waits[1] < charged[1]["t"] <= flights[1][0]
 
 
 def test_relay_sends_the_rested_pair_while_the_other_recharges(tmp_path: Path) -> None:
@@ -160,12 +165,13 @@ def test_relay_sends_the_rested_pair_while_the_other_recharges(tmp_path: Path) -
     for (a, b), (c, d), free in zip(rounds, rounds[1:], released, strict=False):
         assert max(a[1], b[1]) < free < min(c[0], d[0])  # the next pair goes after the release
     for vehicle in (1, 2, 3, 4):
-        untils = stopped_by_until(lines, vehicle)
+        untils = read_when(lines, vehicle, "stopped, its until conditions hold")
         assert len(untils) == len(flights[vehicle])
-        assert all(29 <= battery_before(lines, vehicle, t) <= 31 for t in untils)
+        assert all(29 <= battery < 30 for battery in untils)
     for vehicle in (1, 2):  # landed low, recharged while 3 and 4 flew, up again at 90 %+
         assert battery_before(lines, vehicle, released[0]) < 30
-        assert battery_before(lines, vehicle, flights[vehicle][1][0]) >= 90
+        charged = read_when(lines, vehicle, ": its conditions are met")
+        assert len(charged) == 2 and charged[1] >= 90
     ends = [line for line in of(lines, "decision") if "loop ends" in line["message"]]
     assert [line["rounds"] for line in ends] == [3]
 
@@ -182,8 +188,10 @@ def test_compositions_first_choice_time_limit_on_error_and_roles(tmp_path: Path)
     for vehicle in (2, 3):
         climb = first("action", vehicle, "TAKE_OFF started")
         assert climb >= lead_up + 8 / 2.5  # 8 m at the 2.5 m/s climb rate, at the soonest
-        assert max(line["position"][2] for line in of(lines, "telemetry", 1)
-                   if line["t"] <= climb and line["position"] is not None) > 8 - 2.5
+        (met,) = [line for line in of(lines, "decision", vehicle)
+                  if line["message"].endswith("Pair climbs: its conditions are met")]
+        assert met["t"] <= climb
+        assert [(r["subject"], r["value"] > 8) for r in met["read"]] == [("ALTITUDE", True)]
     # The pair's own event cuts its climb to 12 m above 7 m; the lead's take-off, outside
     # the role, is flown to its end.
     fired = of(lines, "event")

@@ -414,17 +414,22 @@ class Run:
               since: float | None = None) -> tuple[Condition, object] | None:
         """The first of a task's conditions that does not hold and the value it read; None
         when they all hold. ``since``: when the task began to run (None: it has not)."""
+        for condition, holds, value in self.readings(conditions, task, roles, since):
+            if not holds:
+                return condition, value
+        return None
+
+    def readings(self, conditions: Sequence[Condition], task: Task, roles: Roles,
+                 since: float | None = None) -> list[tuple[Condition, bool, object]]:
+        """Each of a task's conditions, whether it holds and the value it read."""
         vid = self.vehicle(task, roles)
         pilot = self.pilots[vid] if vid is not None else None
         memory = Memory(pilot.labels if pilot else {}, self.log.mission_time,
                         self.now - since if since is not None else 0.0, task.path, "",
                         pilot.failure if pilot else None,
                         frozenset(task.path[:i] for i in range(1, len(task.path) + 1)))
-        for condition in conditions:
-            holds, value = self.reading(condition, pilot, memory, roles)
-            if not holds:
-                return condition, value
-        return None
+        return [(condition, *self.reading(condition, pilot, memory, roles))
+                for condition in conditions]
 
     def holds(self, conditions: Sequence[Condition], task: Task, roles: Roles,
               since: float | None = None) -> bool:

@@ -183,8 +183,15 @@ class TaskNode(Node):
             self._begin_body(begun, resumed=True)
             return None
         if self.entry is None:
-            if not run.holds(task.wait_for, task, self.roles):
-                return NodeStatus.RUNNING
+            if task.wait_for:
+                read = run.readings(task.wait_for, task, self.roles)
+                if not all(holds for _, holds, _ in read):
+                    return NodeStatus.RUNNING
+                # What was read is logged: the reason the task starts now (a role's
+                # altitude, a label), which the telemetry samples show only between them.
+                run.note("decision", f"{task.path_name}: its conditions are met",
+                         self.vehicle_id, task=task.path_name,
+                         read=[{"subject": c.subject, "value": value} for c, _, value in read])
             false = run.check(task.conditions, task, self.roles)
             if false is not None:
                 condition, value = false
@@ -215,13 +222,16 @@ class TaskNode(Node):
         run, task, body = self.run, self.task, self.inner
         assert body is not None
         why = ""
-        if task.until and run.holds(task.until, task, self.roles, self.since):
+        read: dict[str, object] = {}
+        until = run.readings(task.until, task, self.roles, self.since) if task.until else []
+        if until and all(holds for _, holds, _ in until):
             why = "its until conditions hold"
+            read = {"read": [{"subject": c.subject, "value": value} for c, _, value in until]}
         elif task.time_limit is not None and run.now - self.since >= task.time_limit:
             why = f"its time limit of {task.time_limit:g} s is reached"
         if why:
             run.note("decision", f"{task.path_name}: stopped, {why}", self.vehicle_id,
-                     task=task.path_name)
+                     task=task.path_name, **read)
             body.stop(f"{task.path_name}: {why}")
             self._ended(TaskState.DONE)
             return NodeStatus.SUCCESS

@@ -17,7 +17,7 @@ def test_first_block_is_the_two_commands_and_ci_runs_the_second() -> None:
     assert first[0].startswith("python3 -m venv .venv && .venv/bin/pip install . && "
                                ".venv/bin/tml run ")
     assert first[1] == ("python3 -m venv .venv && .venv/bin/pip install '.[test]' && "
-                        ".venv/bin/python -m pytest")
+                        ".venv/bin/python -m pytest -n auto")
     ci = (ROOT / ".ci" / "run").read_text()
     assert "sed -n 2p" in ci  # .ci/run takes the second line of that block
 

@@ -511,3 +511,22 @@ def test_a_vehicle_that_says_nothing_changed_is_not_read_on_every_wake() -> None
     wakes = sim.time / 0.1
     # Read on results and the telemetry line, else every ``refresh`` s: not on each wake.
     assert vehicle.reads < wakes / 2
+
+
+def test_each_change_of_the_link_is_journaled_when_a_wake_sees_it() -> None:
+    class Flaky(FakeVehicle):
+        """Silent from 2.2 s: degraded, then lost from 3 s, back at 4 s."""
+
+        def state(self) -> VehicleState:
+            state = super().state()
+            if 2.2 <= self.time < 4.0:
+                return replace(state, link="degraded" if self.time < 3.0 else "lost")
+            return state
+
+    outcome, _, lines, _, _ = run(TAKE_OFF + GO + LAND, fake=Flaky)
+    assert outcome.exit_code == ExitCode.OK
+    changes = [(line["t"], line["was"], line["link"]) for line in lines
+               if line["kind"] == "link"]
+    assert [(was, link) for _, was, link in changes] == [
+        ("ok", "degraded"), ("degraded", "lost"), ("lost", "ok")]
+    assert [t for t, _, _ in changes] == pytest.approx([2.2, 3.0, 4.0], abs=0.11)

@@ -154,6 +154,7 @@ class _Flight:
         self.safe_asked = False  # the safe state was commanded: to be confirmed
         self.revision: object = None  # the vehicle's revision when its state was built
         self.refresh_at = -math.inf  # when the state is rebuilt however the revision stands
+        self.link = "ok"  # the link's health last journaled
 
 
 class _Crew:
@@ -466,6 +467,13 @@ class Runner:
                 self.journal.write(now, "telemetry", vehicle.vehicle_id,
                                    **telemetry_fields(state))
                 self._tell_rejected(flight, now)
+            if state.link != flight.link:
+                # Journaled at the wake that sees it, not only in the next telemetry line
+                # (a second apart): when trouble was noticed is what an operator asks first.
+                self.journal.write(now, "link", vehicle.vehicle_id,
+                                   message=f"link {state.link} (was {flight.link})",
+                                   link=state.link, was=flight.link)
+                flight.link = state.link
             if state.link == "lost":
                 flight.lost_since = now if flight.lost_since is None else flight.lost_since
                 if now - flight.lost_since > self.options.link_lost_limit and not flight.lost:

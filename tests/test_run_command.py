@@ -7,11 +7,13 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
 
 from tml.commands.cli import main
+from tml.errors import ExitCode
 from tml.run.journal import read
 
 ROOT_MISSIONS = Path(__file__).resolve().parent.parent / "missions"
@@ -465,3 +467,23 @@ def test_a_signing_key_file_that_cannot_be_read_is_a_usage_error(
     assert code == 2
     assert capsys.readouterr().err.strip() == (
         f"tml run: --signing-key-file {tmp_path / 'missing'}: No such file or directory")
+
+
+@pytest.mark.parametrize("delay", [0.05, 0.2, 0.4, 0.8])
+def test_ctrl_c_while_tml_starts_ends_it_without_a_traceback(tmp_path: Path,
+                                                             delay: float) -> None:
+    """SIGINT at any moment of the start-up (loading modules, reading the mission, before
+    `tml run` takes the stop signals over) ends it with exit 3, or by the signal itself
+    before Python is up, and never with a traceback."""
+    process = subprocess.Popen([sys.executable, "-m", "tml", "run", write(tmp_path, SHORT),
+                                "--connect", f"tcp:127.0.0.1:{_free_port()}", "--timeout",
+                                "30"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True)
+    try:
+        time.sleep(delay)  # when the signal comes, not a timing assertion
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=60)
+    finally:
+        process.kill()
+    assert process.returncode in (ExitCode.ABORTED, -signal.SIGINT), (out, err)
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err

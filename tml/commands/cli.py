@@ -375,4 +375,9 @@ def entry_point() -> None:
         # The reader (``| head``) went away: stop quietly, as command-line tools do.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         code = ExitCode.INVALID
+    except KeyboardInterrupt:
+        # Ctrl-C before a command took the stop signals over (while it starts: imports,
+        # reading files), or in a command that keeps Python's own: one line, no traceback.
+        print("tml: interrupted (SIGINT)", file=sys.stderr)
+        code = ExitCode.ABORTED
     sys.exit(code)

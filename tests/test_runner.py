@@ -530,3 +530,14 @@ def test_each_change_of_the_link_is_journaled_when_a_wake_sees_it() -> None:
     assert [(was, link) for _, was, link in changes] == [
         ("ok", "degraded"), ("degraded", "lost"), ("lost", "ok")]
     assert [t for t, _, _ in changes] == pytest.approx([2.2, 3.0, 4.0], abs=0.11)
+
+
+def test_the_link_coming_back_while_the_safe_state_is_awaited_is_journaled() -> None:
+    _, _, lines, _, _ = run(TAKE_OFF + GO + LAND, options=RunOptions(
+        link_lost_limit=10.0), fake=Outage)
+    changes = [(line["t"], line["link"]) for line in lines if line["kind"] == "link"]
+    assert [link for _, link in changes] == ["lost", "ok"]
+    ended = next(line["t"] for line in lines if line["kind"] == "mission"
+                 and "status" in line)
+    assert changes[0][0] == pytest.approx(3.0, abs=0.11)
+    assert changes[1][0] == pytest.approx(23.0, abs=0.11) and changes[1][0] > ended

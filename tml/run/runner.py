@@ -467,13 +467,7 @@ class Runner:
                 self.journal.write(now, "telemetry", vehicle.vehicle_id,
                                    **telemetry_fields(state))
                 self._tell_rejected(flight, now)
-            if state.link != flight.link:
-                # Journaled at the wake that sees it, not only in the next telemetry line
-                # (a second apart): when trouble was noticed is what an operator asks first.
-                self.journal.write(now, "link", vehicle.vehicle_id,
-                                   message=f"link {state.link} (was {flight.link})",
-                                   link=state.link, was=flight.link)
-                flight.link = state.link
+            self._tell_link(flight, state, now)
             if state.link == "lost":
                 flight.lost_since = now if flight.lost_since is None else flight.lost_since
                 if now - flight.lost_since > self.options.link_lost_limit and not flight.lost:
@@ -600,6 +594,7 @@ class Runner:
             for flight in list(waiting):
                 state = flight.state = flight.vehicle.state()
                 self._tell_messages(flight, now)
+                self._tell_link(flight, state, now)
                 for result in flight.vehicle.poll():
                     self.journal.write(now, "result", flight.vehicle.vehicle_id,
                                        request_id=result.request_id, ok=result.ok,
@@ -622,6 +617,16 @@ class Runner:
                     sent[id(flight)] = now
             if waiting:
                 self._wait(0.1)
+
+    def _tell_link(self, flight: _Flight, state: VehicleState, now: float) -> None:
+        """Journal a change of the vehicle's link health at the wake that sees it, not only
+        in the next telemetry line (a second apart): when trouble was noticed is what an
+        operator asks first."""
+        if state.link != flight.link:
+            self.journal.write(now, "link", flight.vehicle.vehicle_id,
+                               message=f"link {state.link} (was {flight.link})",
+                               link=state.link, was=flight.link)
+            flight.link = state.link
 
     def _said(self, message: str) -> None:
         self.safety_actions.append(message)

@@ -669,15 +669,3 @@ def test_a_plan_resumed_after_an_event_says_its_item_runs_once() -> None:
     lines = task_lines(flight)
     assert lines.count(("Auto/P1", "running")) == 1 and lines.count(("Auto/P1", "done")) == 1
     assert lines.index(("Auto/P2", "done")) < lines.index(("Auto", "done"))
-
-
-def test_an_edge_that_falls_and_rises_while_its_handler_runs_fires_when_it_ends() -> None:
-    """The event's conditions go false and true again while its first handling (a 3 s WAIT)
-    runs: that rising edge is not lost, it fires once the handling has ended."""
-    def blinking(flight: Flight) -> None:
-        flight.vehicle.detections["seen"] = 8 <= flight.time < 9 or flight.time >= 10
-    flight = Flight(TAKE_OFF + hover() + LAND, event("CONTINUE", '<action name="WAIT">'
-                    '<argument name="duration" value="3"/></action>'), SEEN)
-    flight.run(each=blinking)
-    assert flight.fired() == ["E", "E"]
-    assert flight.interp.status is Status.COMPLETED

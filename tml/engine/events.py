@@ -53,7 +53,6 @@ class Events:
         handlers are checked."""
         handler = self.handlers.get(pilot.vehicle_id)
         if handler is not None:
-            self._note_falls(pilot)
             self._drive(pilot, handler)
         elif pilot.duty is Duty.WATCHING and pilot.flying_a_task():
             self._check(pilot)
@@ -82,20 +81,6 @@ class Events:
         return handler
 
     # --- firing ----------------------------------------------------------------------------
-
-    def _note_falls(self, pilot: Pilot) -> None:
-        """While a handler runs no event fires, but an edge-triggered event whose conditions
-        go false is noted: when they are true again once the handling ends, that is a new
-        edge and it fires (the trigger fell and rose while the vehicle was busy)."""
-        run, vid = self.run, pilot.vehicle_id
-        memory = pilot.memory(run.now, run.log.mission_time)
-        roles = {pilot.role: vid}
-        for event in run.mission.events:
-            if (event.role is not None and event.role != pilot.role) \
-                    or not pilot.holding.get(event.name, False):
-                continue
-            if not all(run.reading(c, pilot, memory, roles)[0] for c in event.conditions):
-                pilot.holding[event.name] = False
 
     def _check(self, pilot: Pilot) -> bool:
         """Evaluate the vehicle's handlers; fire the first that triggers. True if one fired."""

@@ -5,24 +5,13 @@ skipped or run twice, and the mission ends as a run left alone does
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 from typing import Any
 
 import pytest
+from test_resume_command import harness  # tests/ is on the path (conftest.py)
 
 ROOT = Path(__file__).resolve().parents[2]
-
-
-def harness() -> Any:
-    spec = importlib.util.spec_from_file_location("resume_benchmark",
-                                                  ROOT / "benchmarks" / "resume.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
 
 
 # Mid-climb (the TakeOff sent, the vehicle climbing when killed), on a leg, and landing;

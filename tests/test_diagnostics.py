@@ -5,7 +5,14 @@ from __future__ import annotations
 import json
 
 from tml.errors import Location
-from tml.language.diagnostics import error, format_github, format_human, format_json, warning
+from tml.language.diagnostics import (
+    error,
+    format_github,
+    format_human,
+    format_json,
+    indefinite,
+    warning,
+)
 
 SOURCE = '<mission name="m">\n  <task name="t" bogus="1">\n</mission>\n'
 
@@ -44,3 +51,10 @@ def test_github_annotation_properties_are_escaped() -> None:
     line = format_github(error(Location("dir,a/50%:m.xml", 2, 18), "E103", "a: b, c\r\n"))
     assert line == ("::error file=dir%2Ca/50%25%3Am.xml,line=2,col=18,title=E103"
                     "::a: b, c%0D%0A")
+
+
+def test_indefinite_article_follows_the_sound_of_the_word() -> None:
+    assert [indefinite(w) for w in ("altitude", "angle", "airship", "octocopter",
+                                    "latitude", "number", "UAV", "uav", "fixed-wing")] == [
+        "an altitude", "an angle", "an airship", "an octocopter", "a latitude", "a number",
+        "a UAV", "a uav", "a fixed-wing"]

@@ -159,3 +159,22 @@ def test_extreme_numbers_are_refused_or_verified_without_a_traceback(mission: st
          str(ROOT / "missions" / mission)],
         capture_output=True, text=True, preexec_fn=_limited, check=False)
     assert done.returncode == 0, done.stdout + done.stderr[-2000:]
+
+
+@pytest.mark.parametrize(("quantity", "value", "said"), [
+    (Quantity.ALTITUDE, 20_000.0, "(an altitude: "),
+    (Quantity.ANGLE, -400.0, "(an angle: "),
+    (Quantity.LATITUDE, 95.0, "(a latitude: "),
+    (Quantity.DURATION, 1e6, "(a duration: "),
+])
+def test_a_range_names_its_quantity_with_the_right_article(quantity: Quantity, value: float,
+                                                           said: str) -> None:
+    assert said in (out_of_range(quantity, value) or "")
+
+
+def test_an_altitude_out_of_range_says_an_altitude(tmp_path: Path) -> None:
+    path = tmp_path / "high.xml"
+    path.write_text(_mission('<task name="Up"><action name="TAKE_OFF">'
+                             '<argument name="altitude" value="20000"/></action></task>\n'))
+    [diagnostic] = validate_file(path).errors
+    assert diagnostic.code == "E212" and "(an altitude: " in diagnostic.message

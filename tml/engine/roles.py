@@ -7,6 +7,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from tml import geo
+from tml.language.diagnostics import indefinite
 from tml.language.kinds import vehicle_type_matches
 from tml.language.model import Role
 from tml.vehicle import VehicleState
@@ -49,7 +50,8 @@ def refusal(role: Role, vehicle: Candidate, home: Home | None) -> str:
     if vehicle.role is not None:
         return f"busy (role {vehicle.role!r})"
     if role.vehicle_type and not vehicle_type_matches(role.vehicle_type, state.vehicle_type):
-        return f"a {state.vehicle_type or 'vehicle of unknown type'}, not {role.vehicle_type}"
+        return f"{indefinite(state.vehicle_type or 'vehicle of unknown type')}, not " \
+            f"{role.vehicle_type}"
     carried = vehicle.payloads | {c.lower() for c in state.capabilities}
     missing = [p for p in role.payloads if p.lower() not in carried]
     if missing:

@@ -25,7 +25,7 @@ from collections.abc import Iterable
 
 from tml.errors import Location
 from tml.language import actions, kinds, parameters, skills
-from tml.language.diagnostics import Diagnostic, error, warning
+from tml.language.diagnostics import Diagnostic, error, indefinite, warning
 from tml.language.model import (
     Action,
     Argument,
@@ -341,7 +341,7 @@ class _Checker:
             fitting = sorted(c.value for c in parameters.COMPARISONS[param_type])
             self.found.append(error(
                 condition.location, "E223",
-                f"{condition.subject!r} is a {param_type.value}; comparison "
+                f"{condition.subject!r} is {indefinite(param_type.value)}; comparison "
                 f"{condition.comparison.value!r} does not apply",
                 "use one of: " + ", ".join(fitting)))
             return

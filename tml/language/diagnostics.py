@@ -67,6 +67,17 @@ def warning(location: Location, code: str, message: str, hint: str = "") -> Diag
     return Diagnostic(location, code, message, hint, Severity.WARNING)
 
 
+_SAID_WITH_A = ("uav", "ugv", "usv", "uni", "use", "usu", "one")
+"""Beginnings of words written with a vowel but said with a consonant ("a UAV")."""
+
+
+def indefinite(noun: str) -> str:
+    """``noun`` after its indefinite article: "an altitude", "a latitude", "a UAV"."""
+    word = noun.lstrip().lower()
+    vowel = word[:1] in ("a", "e", "i", "o", "u") and not word.startswith(_SAID_WITH_A)
+    return f"{'an' if vowel else 'a'} {noun}"
+
+
 def sort_key(diagnostic: Diagnostic) -> tuple[str, int, int, str]:
     """Order diagnostics by place, then code."""
     loc = diagnostic.location

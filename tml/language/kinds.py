@@ -30,6 +30,7 @@ from enum import StrEnum
 
 from tml.geo import Point
 from tml.language.actions import BoundAction
+from tml.language.diagnostics import indefinite
 
 MULTICOPTERS = frozenset({"quadcopter", "hexacopter", "octocopter", "tricopter", "coaxial"})
 """The vehicle types a role asking for "multicopter" accepts."""
@@ -161,7 +162,7 @@ def refusal(bound: BoundAction, kind: Kind, vehicle_type: str = "") -> str | Non
     if reason is None and kind is Kind.GROUND and bound.name == "MOVE" \
             and bound.choice("direction") in ("up", "down") and "distance" in bound.values:
         reason = "cannot move up or down"
-    return None if reason is None else f"a {vehicle_type or NOUNS[kind]} {reason}"
+    return None if reason is None else f"{indefinite(vehicle_type or NOUNS[kind])} {reason}"
 
 
 def cannot(kind: Kind) -> tuple[str, ...]:

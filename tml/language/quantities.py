@@ -16,6 +16,8 @@ import math
 from dataclasses import dataclass
 from enum import StrEnum
 
+from tml.language.diagnostics import indefinite
+
 
 class Quantity(StrEnum):
     """What a number measures; each has one range in :data:`RANGES`."""
@@ -91,8 +93,9 @@ def out_of_range(quantity: Quantity, value: float) -> str | None:
     if not math.isfinite(value):
         return f"must be a finite number ({bounds.text()})"
     unit = f" {bounds.unit}" if bounds.unit else ""
+    kind = indefinite(quantity.value)
     if value < bounds.low:
-        return f"must be at least {bounds.low:,g}{unit} (a {quantity.value}: {bounds.text()})"
+        return f"must be at least {bounds.low:,g}{unit} ({kind}: {bounds.text()})"
     if value > bounds.high:
-        return f"must be at most {bounds.high:,g}{unit} (a {quantity.value}: {bounds.text()})"
+        return f"must be at most {bounds.high:,g}{unit} ({kind}: {bounds.text()})"
     return None

@@ -4,7 +4,15 @@ from __future__ import annotations
 
 import pytest
 
-from tml.mavlink.codec import command_name, decode, encode, enum_name, gcs_heartbeat, mavlink
+from tml.mavlink.codec import (
+    command_name,
+    command_text,
+    decode,
+    encode,
+    enum_name,
+    gcs_heartbeat,
+    mavlink,
+)
 from tml.mavlink.command import CommandAck, CommandInt, CommandLong, Heartbeat
 from tml.mavlink.mission import (
     MissionAck,
@@ -87,5 +95,7 @@ def test_other_messages_are_not_decoded() -> None:
 def test_names_of_commands_and_enums() -> None:
     assert command_name(22) == "MAV_CMD_NAV_TAKEOFF"
     assert command_name(65000) == "MAV_CMD_65000"
+    assert command_text(114) == "MAV_CMD_CONDITION_DISTANCE (114)"
+    assert command_text(116) == "MAV_CMD 116 (unknown)"
     assert enum_name("MAV_STATE", 4) == "MAV_STATE_ACTIVE"
     assert gcs_heartbeat().type == mavlink.MAV_TYPE_GCS

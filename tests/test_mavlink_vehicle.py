@@ -226,8 +226,8 @@ def test_read_back_mismatch_is_a_transfer_error(fake: FakeAutopilot, vehicle: Ve
         vehicle.upload(items(2))
     assert caught.value.result == "MISMATCH"
     assert str(caught.value).endswith(
-        "mission read back differs from the upload: item 1 NAV_WAYPOINT: z sent 20, read back "
-        "99; item 2 NAV_WAYPOINT: z sent 20, read back 99")
+        "mission read back differs from the upload: item 1 MAV_CMD_NAV_WAYPOINT (16): z sent "
+        "20, read back 99; item 2 MAV_CMD_NAV_WAYPOINT (16): z sent 20, read back 99")
 
 
 def test_ardupilot_read_back_is_compared_by_its_storage_rules(fake: FakeAutopilot,
@@ -237,8 +237,8 @@ def test_ardupilot_read_back_is_compared_by_its_storage_rules(fake: FakeAutopilo
     hold = [replace(item, param1=2.5, param4=90.0) for item in items(5)]
     with pytest.raises(MissionTransferError) as caught:
         vehicle.upload(hold)
-    assert ("item 1 NAV_WAYPOINT: param1 sent 2.5, read back 2.5 (expected 2); item 2 "
-            in str(caught.value))
+    assert ("item 1 MAV_CMD_NAV_WAYPOINT (16): param1 sent 2.5, read back 2.5 (expected 2); "
+            "item 2 " in str(caught.value))
     assert str(caught.value).endswith("(and 2 more)")
     vehicle.upload([replace(item, param1=2.0, param4=90.0) for item in items(5)])
 

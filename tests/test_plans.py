@@ -182,15 +182,20 @@ def test_items_with_no_action_are_left_out_with_a_warning(tmp_path: Path) -> Non
     text = ("QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\t-35.36\t149.16\t584\t1\n"
             "1\t0\t3\t22\t0\t0\t0\t0\t0\t0\t12\t1\n"
             "2\t0\t0\t177\t1\t3\t0\t0\t0\t0\t0\t1\n"  # DO_JUMP
-            "3\t0\t3\t20\t0\t0\t0\t0\t0\t0\t0\t1\n")
+            "3\t0\t0\t114\t5\t0\t0\t0\t0\t0\t0\t1\n"  # CONDITION_DISTANCE
+            "4\t0\t0\t116\t0\t0\t0\t0\t0\t0\t0\t1\n"  # no MAV_CMD has 116
+            "5\t0\t3\t20\t0\t0\t0\t0\t0\t0\t0\t1\n")
     imported = import_plan(read_wpl(text), "jumps")
-    assert imported.warnings == ("item 2: DO_JUMP has no TML action: left out",)
+    assert imported.warnings == (
+        "item 2: MAV_CMD_DO_JUMP (177) has no TML action: left out",
+        "item 3: MAV_CMD_CONDITION_DISTANCE (114) has no TML action: left out",
+        "item 4: MAV_CMD 116 (unknown) has no TML action: left out")
     back = _imported_plan(imported.text, Kind.MULTICOPTER, tmp_path)
     assert [i.command for i in back.items] == [22, 20]
     root = etree.fromstring(imported.text.encode())
     assert root.find("task").get("dispatch") == "mission"
     assert [t.get("name") for t in root.find("task")] == ["item 1: TAKE_OFF",
-                                                          "item 3: RETURN_HOME_AND_LAND"]
+                                                          "item 5: RETURN_HOME_AND_LAND"]
 
 
 def test_geojson_and_kml_hold_the_path_obstacles_and_fence() -> None:

@@ -141,6 +141,14 @@ def command_name(command: int) -> str:
     return enum_name("MAV_CMD", command)
 
 
+def command_text(command: int) -> str:
+    """A command number as a person reads it: its name and number,
+    ``MAV_CMD_CONDITION_DISTANCE (114)``; ``MAV_CMD 116 (unknown)`` for a number no
+    MAV_CMD of ArduPilot's dialect has."""
+    entry = mavlink.enums["MAV_CMD"].get(command)
+    return f"{entry.name} ({command})" if entry is not None else f"MAV_CMD {command} (unknown)"
+
+
 def gcs_heartbeat() -> mavlink.MAVLink_message:
     """The HEARTBEAT a ground station sends (type GCS, no autopilot)."""
     return _BUILD.heartbeat_encode(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,

@@ -382,10 +382,7 @@ class Vehicle:
 
 def _describe(differences: list[ItemDifference]) -> str:
     """The first differences in words, and how many more there are."""
-    def name(command: int) -> str:
-        return codec.command_name(command).removeprefix("MAV_CMD_")
-
-    text = "; ".join(d.describe(name) for d in differences[:SHOWN_DIFFERENCES])
+    text = "; ".join(d.describe(codec.command_text) for d in differences[:SHOWN_DIFFERENCES])
     more = len(differences) - SHOWN_DIFFERENCES
     return f"{text} (and {more} more)" if more > 0 else text
 

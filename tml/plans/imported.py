@@ -26,10 +26,9 @@ from dataclasses import dataclass, field
 from lxml import etree
 
 from tml.language.actions import lookup
-from tml.mavlink.codec import mavlink
+from tml.mavlink.codec import command_text, mavlink
 from tml.mavlink.compile import PRECISION_MODES, SPEED_TYPES
 from tml.mavlink.mission import LOITER_TURNS_MAX, MissionItem
-from tml.plans.maps import command_name
 from tml.plans.planned import AMSL_FRAMES, GLOBAL_FRAMES, TERRAIN_FRAMES
 from tml.plans.qgc import PlanFile
 
@@ -213,7 +212,7 @@ def import_plan(plan: PlanFile, name: str) -> Imported:
         number = item.seq + 1
         make = ACTIONS.get(item.command)
         if make is None:
-            warnings.append(f"item {number}: {command_name(item.command)} has no TML action: "
+            warnings.append(f"item {number}: {command_text(item.command)} has no TML action: "
                             "left out")
             continue
         action = make(item)

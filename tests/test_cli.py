@@ -83,6 +83,36 @@ def test_github_format(files: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert "title=E201::unknown action 'LANDD'" in out
 
 
+PLAN = '{"fileType": "Plan", "mission": {"items": []}, "version": 1}\n'
+WPL = "QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\t-35.36\t149.16\t584\t1\n"
+
+
+@pytest.mark.parametrize(("name", "text", "looks"), [
+    ("survey.plan", PLAN, "this looks like a QGroundControl plan, not a mission"),
+    ("survey.json", PLAN, "this looks like a QGroundControl plan, not a mission"),
+    ("survey.txt", WPL, "this looks like a QGC WPL waypoint file, not a mission"),
+    ("survey.waypoints", "0 1 0 16\n", "this looks like a .waypoints file, not a mission"),
+    ("survey.xml", '{"a": 1}', "this is JSON, not a mission; if it is a QGroundControl plan"),
+])
+def test_a_plan_given_to_validate_is_pointed_to_import(
+        tmp_path: Path, name: str, text: str, looks: str,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / name
+    path.write_text(text)
+    assert main(["validate", "-q", str(path)]) == ExitCode.INVALID
+    out = capsys.readouterr().out
+    assert "error E002: not well-formed XML" in out
+    assert f"  hint: {looks}" in out
+    assert f"`tml import {path} -o survey.xml` makes a mission of it" in out
+
+
+def test_text_that_is_no_plan_gets_no_import_hint(files: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["validate", "-q", str(files / "notes.txt")]) == ExitCode.INVALID
+    out = capsys.readouterr().out
+    assert "error E002" in out and "hint" not in out
+
+
 def test_usage_errors_exit_2(capsys: pytest.CaptureFixture[str]) -> None:
     assert main([]) == 2
     assert main(["validate"]) == 2

@@ -60,7 +60,8 @@ def test_telemetry_fields() -> None:
                          detections=MappingProxyType({"RECOGNIZED_ITEMS": frozenset({"A"})}))
     fields = telemetry_fields(state)
     assert fields["position"] == [1.23, -5.68, 10.0]
-    assert fields["mission"] == {"plan": 3, "action": 2, "finished": False}
+    assert fields["mission"] == {"plan": 3, "action": 2, "finished": False, "item": 0,
+                                 "items": 0}
     assert fields["detections"] == {"RECOGNIZED_ITEMS": ["A"]}
     assert json.dumps(fields)
 
@@ -79,4 +80,16 @@ def test_telemetry_gives_the_position_on_the_globe_too() -> None:
 def test_autopilot_fields_name_the_severity() -> None:
     message = AutopilotMessage(3, 2, "PreArm: Need Position Estimate")
     assert autopilot_fields(message) == {"severity": "critical", "level": 2,
-                                         "text": "PreArm: Need Position Estimate"}
+                                         "text": "PreArm: Need Position Estimate",
+                                         "armed": None}
+    said = AutopilotMessage(4, 2, "PreArm: Mode not armable", armed=False)
+    assert autopilot_fields(said)["armed"] is False
+
+
+def test_telemetry_carries_what_an_operator_reads() -> None:
+    state = VehicleState(1, 5.0, position=(3.0, 4.0, 7.0), battery=65.0, voltage=12.345,
+                         satellites=11, gps_fix=3, climb=-0.456,
+                         mission=MissionProgress(3, 1, item=43, items=145))
+    fields = telemetry_fields(state)
+    assert (fields["voltage"], fields["satellites"], fields["climb"]) == (12.35, 11, -0.46)
+    assert fields["mission"]["item"] == 43 and fields["mission"]["items"] == 145

@@ -213,16 +213,19 @@ def test_fly_mission_from_the_ground_reports_progress_by_action(rig: Rig) -> Non
     actions = (act("TAKE_OFF", altitude="6"), act("GO_TO_POINT", coordinates="(15, 0, 6)"),
                act("CAPTURE_PHOTO"), act("LANDING_POINT", coordinates="(15, 5, 0)"))
     assert rig.do(FlyMission(1, 7, actions, (0.0, 0.0, 0.0))).ok
-    indices = set()
+    indices, items = set(), set()
     end = time.monotonic() + WALL_LIMIT
     while time.monotonic() < end:
         progress = rig.vehicle.state().mission
         assert progress is not None and progress.plan_id == 7
         indices.add(progress.action_index)
+        items.add((progress.item, progress.items))
         if progress.finished:
             break
         time.sleep(0.005)
     assert progress.finished and {0, 1, 3} <= indices
+    # The items as ArduPilot numbers them ("Mission: 2 WP"): 1 to 4, home not counted.
+    assert {(1, 4), (2, 4), (4, 4)} <= items and all(0 < i <= 4 for i, _ in items)
     landed = rig.until(lambda s: s.landed and not s.armed, "landed and disarmed")
     assert math.dist(landed.position[:2], (15, 5)) < 1.0
     # At least once: the simulator's AUTO executor runs a DO item again when it scans

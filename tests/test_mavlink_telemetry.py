@@ -102,6 +102,21 @@ def test_prearm_checks_are_read_from_sys_status_and_statustext() -> None:
     assert tracker.snapshot.prearm_ok is True
 
 
+def test_an_autopilot_message_keeps_whether_the_vehicle_was_armed_when_it_came() -> None:
+    tracker = TelemetryTracker(1)
+    ap = Source()
+    tracker.apply(ap("statustext", 6, b"ArduPilot Ready"), 0.0)  # before any HEARTBEAT
+    tracker.apply(heartbeat(ap, armed=True), 1.0)
+    tracker.apply(ap("statustext", 6, b"Disarming motors"), 2.0)
+    tracker.apply(heartbeat(ap, armed=False), 3.0)
+    tracker.apply(ap("statustext", 2, b"PreArm: Mode not armable"), 4.0)
+    t = tracker.snapshot
+    assert [s.armed for s in t.status_texts] == [None, True, False]
+    said = _messages(t)
+    assert [m.armed for m in said] == [None, True, False]
+    assert said[-1].severity_name == "critical" and said[-1].shown_severity == 6
+
+
 def test_not_ready_before_the_ekf_uses_gps_and_unknown_battery() -> None:
     tracker = TelemetryTracker(1)
     ap = Source()

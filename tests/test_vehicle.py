@@ -7,6 +7,7 @@ import pytest
 from tml.language.kinds import VEHICLE_TYPE_CLASSES, VEHICLE_TYPES, vehicle_type_matches
 from tml.vehicle import (
     Arm,
+    AutopilotMessage,
     FakeVehicle,
     GoTo,
     IdSource,
@@ -16,6 +17,7 @@ from tml.vehicle import (
     TakeOff,
     VehicleState,
     awaiting,
+    shown_severity,
 )
 from tml.world import DEFAULT_HOME
 
@@ -140,3 +142,29 @@ def test_a_vehicle_already_armed_is_taken_as_it_is() -> None:
     flying = VehicleState(**{**READY.__dict__, "armed": True, "landed": False,
                              "ready": False, "armable": False})
     assert awaiting(flying) == ()
+
+
+def test_a_reason_not_to_arm_said_disarmed_on_the_ground_is_shown_as_info() -> None:
+    # ArduCopter says "PreArm: Mode not armable" (critical) after every landing in RTL.
+    assert shown_severity(2, "PreArm: Mode not armable", armed=False) == 6
+    assert shown_severity(2, "Arm: Throttle too high", armed=False) == 6
+    assert shown_severity(2, "PreArm: Mode not armable", armed=True) == 2  # not expected
+    assert shown_severity(2, "PreArm: Mode not armable", armed=None) == 2  # not known
+    assert shown_severity(2, "EKF variance", armed=False) == 2
+    assert shown_severity(7, "PreArm: debug", armed=False) == 7  # never made worse
+    assert AutopilotMessage(1, 2, "PreArm: Mode not armable", False).shown_severity == 6
+
+
+def test_the_fake_vehicle_reports_what_an_operator_reads() -> None:
+    vehicle = FakeVehicle()
+    for request in (Arm(1), TakeOff(1, 10.0)):
+        vehicle.submit(request)
+    vehicle.advance(1.0)
+    state = vehicle.state()
+    assert state.climb == pytest.approx(2.5) and state.satellites == 10
+    assert state.voltage is not None and 10.5 < state.voltage <= 12.6
+    assert state.home_distance == 0.0
+    assert VehicleState(1, 0.0).home_distance is None
+    assert VehicleState(1, 0.0, position=(3.0, -4.0, 9.0)).home_distance == 5.0
+    # What only an operator reads is no change of state for the rules.
+    assert VehicleState(1, 0.0, voltage=12.0) == VehicleState(1, 0.0, voltage=11.0)

@@ -36,12 +36,16 @@ class MissionProgress:
     plan_id: int
     action_index: int  # index into FlyMission.actions of the action being flown
     finished: bool = False
+    item: int = 0  # the mission item being flown, from 1 (ArduPilot's "Mission: N WP"); 0 unknown
+    items: int = 0  # the items of the plan (home not counted); 0 unknown
 
 
 SEVERITIES = ("emergency", "alert", "critical", "error", "warning", "notice", "info", "debug")
 """MAV_SEVERITY by number: 0 is the worst."""
 MESSAGES_KEPT = 10
 """Autopilot messages a state carries (the latest)."""
+ARMING_REASONS = ("PreArm:", "Arm:")
+"""How ArduPilot begins the messages that say why it will not arm."""
 
 
 @dataclass(frozen=True)
@@ -52,12 +56,36 @@ class AutopilotMessage:
     number: int
     severity: int  # MAV_SEVERITY: 0 emergency ... 7 debug
     text: str
+    armed: bool | None = None  # whether the vehicle was armed when it said it (None: unknown)
 
     @property
     def severity_name(self) -> str:
         """``warning``, ``critical`` ...: MAV_SEVERITY's word for the severity."""
         return SEVERITIES[self.severity] if 0 <= self.severity < len(SEVERITIES) \
             else str(self.severity)
+
+    @property
+    def shown_severity(self) -> int:
+        """The severity an operator is shown: :func:`shown_severity` of this message."""
+        return shown_severity(self.severity, self.text, self.armed)
+
+
+INFO = SEVERITIES.index("info")
+
+
+def shown_severity(severity: int, text: str, armed: bool | None) -> int:
+    """The severity to show an operator for an autopilot message said with ``severity``
+    while the vehicle was ``armed`` (None: not known).
+
+    ArduPilot says why it would not arm (``PreArm: ...``) as critical whenever it is
+    disarmed and a check fails -- after every landing ArduCopter says ``PreArm: Mode not
+    armable`` while it sits in RTL or LAND. On the ground and disarmed that is the
+    expected state, not an alarm: such a message is shown as info. The same words while
+    armed, or from a vehicle whose state is unknown, keep their severity.
+    """
+    if armed is False and text.startswith(ARMING_REASONS) and severity < INFO:
+        return INFO
+    return severity
 
 
 @dataclass(frozen=True)
@@ -79,6 +107,12 @@ class VehicleState:
     ground_speed: float = 0.0
     battery: float | None = None  # percent remaining
     gps_fix: int | None = None  # GPS_RAW_INT fix type (3 = 3D); None until reported
+    # What an operator reads and no rule does: left out of the comparison of two states
+    # (tml.run.runner steps the interpreter when a compared field changes, and a voltage
+    # changes with every SYS_STATUS).
+    satellites: int | None = field(default=None, compare=False)  # GPS satellites visible
+    voltage: float | None = field(default=None, compare=False)  # battery volts
+    climb: float = field(default=0.0, compare=False)  # vertical speed, m/s, up positive
     home: Home | None = None
     mission: MissionProgress | None = None
     detections: Mapping[str, object] = field(default_factory=lambda: _EMPTY)
@@ -100,6 +134,12 @@ class VehicleState:
     def altitude(self) -> float:
         """Altitude above home in metres (0 when the position is unknown)."""
         return self.position[2] if self.position else 0.0
+
+    @property
+    def home_distance(self) -> float | None:
+        """Metres from home, horizontally (None when the position is unknown)."""
+        return None if self.position is None else math.hypot(self.position[0],
+                                                             self.position[1])
 
 
 def awaiting(state: VehicleState) -> tuple[str, ...]:
@@ -399,13 +439,15 @@ class FakeVehicle:
     _target_heading: float | None = None
     _circle: tuple[Point, float, float] | None = None  # centre, radius, angle (rad)
     _landing: bool = False
+    _climb: float = 0.0  # m/s up over the last advance
     _results: list[RequestResult] = field(default_factory=list)
     _mission_points: list[Point] = field(default_factory=list)
     _messages: list[AutopilotMessage] = field(default_factory=list)
 
     def say(self, severity: int, text: str) -> None:
         """The autopilot says ``text`` (a STATUSTEXT of MAV_SEVERITY ``severity``)."""
-        self._messages.append(AutopilotMessage(len(self._messages) + 1, severity, text))
+        self._messages.append(AutopilotMessage(len(self._messages) + 1, severity, text,
+                                               self.armed))
 
     def state(self) -> VehicleState:
         """The current state."""
@@ -415,7 +457,9 @@ class FakeVehicle:
             vehicle_id=self.vehicle_id, time=self.time, ready=self.ready, armed=self.armed,
             armable=self.ready, landed=landed, mode=self.mode, position=self.position,
             heading=self.heading, ground_speed=self.speed if self._moving() is not None else 0.0,
-            battery=self.battery, gps_fix=3, home=self.home, mission=self.mission,
+            battery=self.battery, gps_fix=3, satellites=10,
+            voltage=round(10.5 + 2.1 * self.battery / 100, 2), climb=self._climb,
+            home=self.home, mission=self.mission,
             detections=MappingProxyType(dict(self.detections)),
             capabilities=self.capabilities, vehicle_type=self.vehicle_type,
             status_text=self._messages[-1].text if self._messages else "",
@@ -513,7 +557,8 @@ class FakeVehicle:
             pass  # it flies on through the plan it has
         elif isinstance(request, FlyMission):
             self.mode = "AUTO"
-            self.mission = MissionProgress(request.plan_id, 0)
+            self.mission = MissionProgress(request.plan_id, 0, item=1,
+                                           items=len(request.actions))
             self._mission_points = [_mission_point(a, request.start, self.position)
                                     for a in request.actions]
             self._target = self._mission_points[0] if self._mission_points else None
@@ -529,6 +574,11 @@ class FakeVehicle:
     def advance(self, dt: float) -> None:
         """Move the clock and the vehicle on by ``dt`` seconds."""
         self.time += dt
+        up = self.position[2]
+        self._advance(dt)
+        self._climb = (self.position[2] - up) / dt if dt > 0 else 0.0
+
+    def _advance(self, dt: float) -> None:
         if self.armed:
             self.battery = max(0.0, self.battery - self.drain_per_second * dt)
         if self._target_heading is not None:
@@ -552,7 +602,7 @@ class FakeVehicle:
         elif self.mission is not None and not self.mission.finished:
             index = self.mission.action_index + 1
             if index < len(self._mission_points):
-                self.mission = replace(self.mission, action_index=index)
+                self.mission = replace(self.mission, action_index=index, item=index + 1)
                 self._target = self._mission_points[index]
             else:
                 self.mission = replace(self.mission, finished=True)

@@ -47,7 +47,9 @@ def validate_file(path: str | Path, data: bytes | None = None,
     except MissionSyntaxError as exc:
         location = exc.location or Location(file, 1, 1)
         source = "" if exc.code == "E005" else _text_of(path, data)
-        return ValidationResult(file, None, [error(location, exc.code, exc.message)], source)
+        hint = _plan_hint(path, data) if exc.code == "E002" else ""
+        return ValidationResult(file, None, [error(location, exc.code, exc.message, hint)],
+                                source)
     if root is None:  # the name as written, as xml.root_name reads it from the text
         written = etree.QName(doc.root).localname
         if doc.root.prefix:
@@ -73,6 +75,38 @@ def load_mission(path: str | Path) -> Mission:
         kind = MissionSyntaxError if first.code < "E200" else MissionSemanticError
         raise kind(first.message + more, first.location, first.code)
     return result.mission
+
+
+PLAN_SUFFIXES = (".plan", ".waypoints")
+"""Suffixes of the plans ``tml import`` reads (QGroundControl's .plan, QGC WPL waypoint
+files; a WPL file named .txt is known by its header)."""
+
+
+def _plan_hint(path: str | Path, data: bytes | None) -> str:
+    """For a file that is not XML but looks like a plan ``tml import`` reads (JSON, a QGC
+    WPL header, a plan's suffix), the hint to import it; else ""."""
+    import shlex
+
+    try:
+        raw = data if data is not None else xml.read_bounded(path)
+    except (OSError, MissionSyntaxError):
+        raw = b""
+    start = raw.lstrip(b"\xef\xbb\xbf \t\r\n")
+    suffix = Path(path).suffix.lower()
+    command = f"tml import {shlex.quote(str(path))} -o " \
+        f"{shlex.quote(Path(path).with_suffix('.xml').name)}"
+    if start.startswith(b"{") and b'"Plan"' not in raw:
+        return f"this is JSON, not a mission; if it is a QGroundControl plan, `{command}` " \
+            "makes a mission of it"
+    if start.startswith(b"{"):
+        what = "a QGroundControl plan"
+    elif start.startswith(b"QGC WPL"):
+        what = "a QGC WPL waypoint file"
+    elif suffix in PLAN_SUFFIXES:
+        what = f"a {suffix} file"
+    else:
+        return ""
+    return f"this looks like {what}, not a mission: `{command}` makes a mission of it"
 
 
 def _text_of(path: str | Path, data: bytes | None) -> str:

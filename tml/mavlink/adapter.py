@@ -230,7 +230,9 @@ class _Plan:
     def progress(self) -> MissionProgress:
         index = self.compiled.action_at(self.current)
         last = len(self.compiled.items) and self.compiled.action_index[-1]
-        return MissionProgress(self.plan_id, last if index is None else index, self.finished)
+        items = len(self.compiled.items)
+        return MissionProgress(self.plan_id, last if index is None else index, self.finished,
+                               item=items if self.finished else self.current + 1, items=items)
 
     def seen(self, msg: Any) -> None:
         """Fold in a MISSION_CURRENT or MISSION_ITEM_REACHED."""
@@ -345,7 +347,8 @@ class MavlinkVehicle:
             heading_known=t.attitude is not None,
             ground_speed=math.hypot(velocity[0], velocity[1]),
             battery=None if t.battery_remaining is None else float(t.battery_remaining),
-            gps_fix=t.gps_fix, home=home, mission=progress, detections=detections,
+            gps_fix=t.gps_fix, satellites=t.satellites, voltage=t.battery_voltage,
+            climb=-velocity[2], home=home, mission=progress, detections=detections,
             capabilities=self.capabilities, vehicle_type=t.airframe,
             status_text=t.status_texts[-1].text if t.status_texts else "",
             messages=_messages(t), rejected=t.rejected, rejected_last=t.rejected_last,
@@ -917,7 +920,8 @@ def _messages(t: Telemetry) -> tuple[AutopilotMessage, ...]:
     """The latest STATUSTEXTs, numbered from the first the link received."""
     texts = t.status_texts[-MESSAGES_KEPT:]
     first = t.status_text_count - len(texts) + 1
-    return tuple(AutopilotMessage(first + i, s.severity, s.text) for i, s in enumerate(texts))
+    return tuple(AutopilotMessage(first + i, s.severity, s.text, s.armed)
+                 for i, s in enumerate(texts))
 
 
 def _home(t: Telemetry) -> Home | None:

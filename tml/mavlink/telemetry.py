@@ -28,6 +28,7 @@ from typing import Any
 
 from tml.mavlink.codec import mavlink
 from tml.mavlink.modes import mode_name
+from tml.vehicle import ARMING_REASONS
 
 COMPANION_COMPONENT = 191
 """MAV_COMP_ID_ONBOARD_COMPUTER: where detections come from."""
@@ -40,7 +41,7 @@ EKF_CONST_POS_MODE = 128
 PREARM_CHECK = 1 << 28
 """MAV_SYS_STATUS_PREARM_CHECK in SYS_STATUS: present when the autopilot reports its
 pre-arm checks, healthy when they pass (ArduPilot)."""
-PREARM_PREFIXES = ("PreArm:", "Arm:")
+PREARM_PREFIXES = ARMING_REASONS
 """How ArduPilot begins the STATUSTEXTs that say why it will not arm."""
 STATUS_TEXTS_KEPT = 50
 MODE_CHANGES_KEPT = 20
@@ -116,11 +117,13 @@ class GlobalPosition:
 
 @dataclass(frozen=True)
 class StatusText:
-    """A STATUSTEXT: severity (MAV_SEVERITY, 0 worst) and text, with the time it arrived."""
+    """A STATUSTEXT: severity (MAV_SEVERITY, 0 worst) and text, with the time it arrived
+    and whether the vehicle's last HEARTBEAT showed it armed then."""
 
     time: float
     severity: int
     text: str
+    armed: bool | None = None
 
 
 @dataclass(frozen=True)
@@ -374,7 +377,8 @@ class TelemetryTracker:
         if kind == "MISSION_ITEM_REACHED":
             return {"items_reached": (*s.items_reached, msg.seq)}
         if kind == "STATUSTEXT":
-            text = StatusText(now, msg.severity, _text(msg.text))
+            text = StatusText(now, msg.severity, _text(msg.text),
+                              s.armed if s.last_heartbeat is not None else None)
             return {"status_texts": (*s.status_texts, text)[-STATUS_TEXTS_KEPT:],
                     "status_text_count": s.status_text_count + 1}
         return {}

@@ -57,18 +57,23 @@ def telemetry_fields(state: VehicleState) -> dict[str, Any]:
         "position": None if position is None else [round(v, 2) for v in position],
         "global": where,
         "heading": round(state.heading, 1), "ground_speed": round(state.ground_speed, 2),
-        "battery": state.battery, "gps_fix": state.gps_fix,
+        "climb": round(state.climb, 2),
+        "battery": state.battery,
+        "voltage": None if state.voltage is None else round(state.voltage, 2),
+        "gps_fix": state.gps_fix, "satellites": state.satellites,
         "mission": None if state.mission is None else {
             "plan": state.mission.plan_id, "action": state.mission.action_index,
-            "finished": state.mission.finished},
+            "finished": state.mission.finished, "item": state.mission.item,
+            "items": state.mission.items},
         "detections": jsonable(state.detections),
     }
 
 
 def autopilot_fields(message: AutopilotMessage) -> dict[str, Any]:
-    """The fields of an ``autopilot`` line: the severity's word and number, and the text."""
+    """The fields of an ``autopilot`` line: the severity's word and number, the text, and
+    whether the vehicle was armed when it said it (None: not known)."""
     return {"severity": message.severity_name, "level": message.severity,
-            "text": message.text}
+            "text": message.text, "armed": message.armed}
 
 
 DECISIONS = frozenset({"run", "mission", "task", "action", "decision", "request", "control",

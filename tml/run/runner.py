@@ -640,11 +640,12 @@ def _revision(vehicle: Any) -> object:
     return None if revision is None else revision()
 
 
-_COMPARED = tuple(f.name for f in fields(VehicleState) if f.name != "time")
+_COMPARED = tuple(f.name for f in fields(VehicleState) if f.name != "time" and f.compare)
 
 
 def _same_state(a: VehicleState, b: VehicleState) -> bool:
-    """Whether two states of a vehicle show the same, whatever their time."""
+    """Whether two states of a vehicle show the same, whatever their time and what only an
+    operator reads (the fields of VehicleState left out of its comparison)."""
     return all(getattr(a, name) == getattr(b, name) for name in _COMPARED)
 
 

@@ -13,6 +13,7 @@ import signal
 import sys
 import threading
 from collections.abc import Sequence
+from typing import NoReturn
 
 from sitl import MAX_VEHICLES
 from sitl.faults import Faults
@@ -142,9 +143,17 @@ def _udp(text: str) -> str:
     return text
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose usage error is one line: what is wrong, and where the
+    help is (not argparse's synopsis of every option first)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser(prog: str = "python -m sitl") -> argparse.ArgumentParser:
     """The argument parser of ``python -m sitl`` (``tml sim`` gives its own name)."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog=prog, formatter_class=argparse.ArgumentDefaultsHelpFormatter,
         description="Simulated ArduPilot vehicles (Copter, Plane, Rover) speaking MAVLink 2 "
                     "over TCP and UDP.",

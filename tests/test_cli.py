@@ -121,6 +121,30 @@ def test_usage_errors_exit_2(capsys: pytest.CaptureFixture[str]) -> None:
     assert "tml 0.1.0" in capsys.readouterr().out
 
 
+@pytest.mark.parametrize(("argv", "line"), [
+    (["run", "m.xml", "--sim", "--speedup", "-1"],
+     "tml run: error: argument --speedup: expected a finite number greater than 0, got -1 "
+     "(see tml run --help)"),
+    (["run", "m.xml"],
+     "tml run: error: one of the arguments --sim --connect is required (see tml run --help)"),
+    (["validate", "--format", "xml", "m.xml"],
+     "tml validate: error: argument --format: invalid choice: 'xml' (choose from 'human', "
+     "'json', 'github') (see tml validate --help)"),
+    (["verify"], "tml verify: error: the following arguments are required: FILE "
+                 "(see tml verify --help)"),
+    (["frobnicate"], "tml: error: argument COMMAND: invalid choice: 'frobnicate' (choose "
+                     "from 'validate', 'verify', 'run', 'companion', 'export', 'import', "
+                     "'report', 'schema', 'completion', 'serve', 'sim') (see tml --help)"),
+    (["sim", "--vehicles", "0"], "tml sim: error: argument --vehicles: expected a whole "
+                                 "number of at least 1, got '0' (see tml sim --help)"),
+])
+def test_a_usage_error_is_one_line_and_exits_2(argv: list[str], line: str,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(argv) == ExitCode.USAGE
+    out, err = capsys.readouterr()
+    assert (out, err) == ("", line + "\n")
+
+
 def test_python_dash_m_and_console_script(files: Path) -> None:
     done = subprocess.run([sys.executable, "-m", "tml", "validate", str(files / "valid.xml")],
                           capture_output=True, text=True)

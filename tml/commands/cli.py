@@ -1,6 +1,7 @@
 """The ``tml`` command: ``tml validate``, ``tml sim`` ...; ``main(argv)`` returns the exit code.
 
 Exit codes of ``tml validate``: 0 every file valid, 1 some file invalid, 2 usage or I/O error.
+A usage error of any command (an unknown option, a bad value) is said in one line and exits 2.
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NoReturn
 
 from tml import __version__
 from tml.errors import ExitCode
@@ -197,6 +198,14 @@ def cmd_sim(argv: Sequence[str]) -> int:
     return sim_main(list(argv), prog="tml sim")
 
 
+class Parser(argparse.ArgumentParser):
+    """An argument parser whose usage error is one line, the one that says what is wrong
+    and where the help is (argparse's usage synopsis before it ran to a dozen lines)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(ExitCode.USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """The argument parser of the ``tml`` command; with ``command`` (``"validate"``), the
     other commands are listed without their options, whose modules are then not imported:
@@ -205,7 +214,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     def wanted(name: str) -> bool:
         return command is None or command == name
 
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="tml", description="Validate, verify and fly TML mission files on MAVLink drones.")
     parser.add_argument("--version", action="version", version=f"tml {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import json
+import re
 from dataclasses import replace
 
 from rich.console import Console
@@ -99,3 +100,47 @@ def test_the_report_escapes_control_characters_bidi_overrides_and_markup() -> No
         assert bad not in text
     assert "cl[/x]\\u202eose\\x9b" in text.replace("\n", "").replace("│", "").replace(" ", "")
     assert "m\\u202e\\x1b.xml" in text
+
+
+DRAINED = b"""<?xml version="1.0"?>
+<mission name="d">
+  <task name="up"><action name="TAKE_OFF"/></task>
+  <task name="far"><action name="GO_TO_POINT">
+    <argument name="coordinates" value="(1900, 0, 10)"/></action></task>
+  <task name="photo"><action name="CAPTURE_PHOTO"/></task>
+  <task name="back"><action name="GO_TO_POINT">
+    <argument name="coordinates" value="(0, 0, 10)"/></action></task>
+  <task name="photo again"><action name="CAPTURE_PHOTO"/></task>
+  <task name="far again"><action name="GO_TO_POINT">
+    <argument name="coordinates" value="(1900, 0, 10)"/></action></task>
+  <task name="last photo"><action name="CAPTURE_PHOTO"/></task>
+  <task name="down"><action name="LAND"/></task>
+</mission>
+"""
+
+
+def test_a_battery_that_runs_out_is_said_once_where_it_does() -> None:
+    report = _report("d.xml", DRAINED)
+    text = _printed(report)
+    # The table says "empty" from the action where it runs out, never a negative charge.
+    rows = [line for line in text.splitlines() if line.startswith("│")]
+    assert [row.split("│")[6].strip() for row in rows][3:] == ["empty"] * 5
+    assert not re.search(r"-\d+\.\d+ ?%", text)
+    # Going out leaves no way home; c2 at the action where it runs out; none after it.
+    assert [(v.constraint.value, v.location.line) for v in report.violations  # type: ignore
+            if v.constraint.value in ("c2", "return-reserve")] == [("return-reserve", 4),
+                                                                   ("c2", 7)]
+    assert "d.xml:4:20: return-reserve: GO_TO_POINT: the battery runs out on the way home " \
+        "from (1900.0, 0.0, 10.0): 0.0 %, must be >= 20.0 % (in far)" in text
+    assert text.rstrip().endswith("with the battery empty: it runs out at line 7 "
+                                  "(GO_TO_POINT in back)")
+    data = json.loads(report_json(report))  # type: ignore[arg-type]
+    assert min(row["battery"] for row in data["actions"]) == 0.0
+    assert data["end"]["battery"] == 0.0
+
+
+def test_a_note_said_of_several_actions_is_printed_once_with_their_lines() -> None:
+    text = _printed(_report("d.xml", DRAINED))
+    notes = [line for line in text.splitlines() if "CAPTURE_PHOTO takes no time" in line]
+    assert notes == ["note: d.xml:6:22: CAPTURE_PHOTO: CAPTURE_PHOTO takes no time or battery "
+                     "in the model (3 actions, lines 6, 9, 12)"]

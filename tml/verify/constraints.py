@@ -230,8 +230,13 @@ def _battery(step: Step, model: FlightModel, homeward: bool, fail: _Fail) -> Non
         if worst is None or left < worst[0]:
             worst = (left, point)
     if worst is not None and worst[0] < profile.battery_reserve - 1e-9:
-        fail(_C.RETURN_RESERVE, f"battery left after coming home from {_point(worst[1])}",
-             worst[0], ">=", profile.battery_reserve, "%")
+        if worst[0] < 0:  # no negative charge: the battery is empty before home
+            fail(_C.RETURN_RESERVE, f"the battery runs out on the way home from "
+                                    f"{_point(worst[1])}", 0.0, ">=",
+                 profile.battery_reserve, "%")
+        else:
+            fail(_C.RETURN_RESERVE, f"battery left after coming home from {_point(worst[1])}",
+                 worst[0], ">=", profile.battery_reserve, "%")
 
 
 def _airborne(point: Point3, before: PredictedState, after: PredictedState) -> bool:

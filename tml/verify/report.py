@@ -16,11 +16,27 @@ from rich.text import Text
 from tml.language.diagnostics import printable
 from tml.verify.constraints import Violation
 from tml.verify.motion import PredictedState
-from tml.verify.static import Report, vehicles_text
+from tml.verify.static import Report, Row, vehicles_text
 
 
 def _cell(value: float, digits: int = 1) -> str:
     return "-" if math.isinf(value) else f"{value:.{digits}f}"
+
+
+def _charge(battery: float) -> str:
+    """The battery column: "empty" once the battery has run out, never a negative charge."""
+    return "empty" if battery < 0 else _cell(battery)
+
+
+def _left(end: PredictedState, rows: list[Row]) -> str:
+    """``with 40.0% battery``, or where the battery runs out on the way to ``end``."""
+    if end.battery >= 0:
+        return f"with {end.battery:.1f}% battery"
+    out = next((row for row in rows if row.battery < 0), None)
+    if out is None:
+        return "with the battery empty"
+    where = f"event {out.event}" if out.event else out.task
+    return f"with the battery empty: it runs out at line {out.line} ({out.action} in {where})"
 
 
 def _finding(violation: Violation) -> str:
@@ -51,7 +67,7 @@ def print_report(report: Report, console: Console) -> None:
         whose = [f"{row.role} ({', '.join(map(str, row.vehicles))})"] if report.roles else []
         table.add_row(str(row.line), _safe(task), *map(_safe, whose), row.action,
                       _cell(row.distance),
-                      _cell(row.duration), _cell(row.battery), _cell(row.clearance))
+                      _cell(row.duration), _charge(row.battery), _cell(row.clearance))
     console.print(table)
     for note in report.notes:
         console.print(_safe(f"note: {note}"), highlight=False)
@@ -65,17 +81,19 @@ def print_report(report: Report, console: Console) -> None:
     verdict = "feasible" if report.feasible else \
         f"INFEASIBLE: {len(report.violations)} constraint(s) broken"
     if report.roles:
-        summary = "".join(f"; role {role} ends after {end.time:.1f} s with "
-                          f"{end.battery:.1f}% battery" for role, end in report.ends.items())
+        summary = "".join(f"; role {role} ends after {end.time:.1f} s "
+                          + _left(end, [r for r in report.rows if r.role == role])
+                          for role, end in report.ends.items())
     else:
         end = report.end
-        summary = f", ends after {end.time:.1f} s with {end.battery:.1f}% battery" if end else ""
+        summary = f", ends after {end.time:.1f} s {_left(end, report.rows)}" if end else ""
     console.print(_safe(f"{report.file}: {verdict}{summary}"), highlight=False)
 
 
 def _end(end: PredictedState | None) -> dict[str, object] | None:
     return None if end is None else {
-        "position": [round(v, 3) for v in end.position], "battery": round(end.battery, 3),
+        "position": [round(v, 3) for v in end.position],
+        "battery": round(max(end.battery, 0.0), 3),  # 0: empty, never negative
         "time": round(end.time, 3), "flying": end.flying}
 
 

@@ -44,6 +44,7 @@ import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 
+from tml.errors import Location
 from tml.language import actions
 from tml.language.kinds import Kind, role_kinds
 from tml.language.model import Comparison, Composition, ConditionKind, Event, Mission, Role, Task
@@ -80,7 +81,7 @@ class Row:
             "task": self.task, "event": self.event or None, "action": self.action,
             "line": self.line, "distance": round(self.distance, 3),
             "duration": round(self.duration, 3), "time": round(self.time, 3),
-            "battery": round(self.battery, 3),
+            "battery": round(max(self.battery, 0.0), 3),  # 0: empty, never negative
             "clearance": None if math.isinf(self.clearance) else round(self.clearance, 3),
             "path": [[round(v, 2) for v in point] for point in self.path]}
         if self.role:
@@ -145,6 +146,9 @@ class _Walker:
         self.found: dict[tuple[str, str], Violation] = {}
         self.rows: list[Row] = []
         self.notes: dict[str, None] = {}
+        # Notes of the flight model on actions, by (action, note): where each was said. A
+        # note said of several actions (every CAPTURE_PHOTO) is printed once with its lines.
+        self.action_notes: dict[tuple[str, str], dict[Location, None]] = {}
         # Where events may fire: (task, state, labels, pick).
         self.sources: list[tuple[str, PredictedState, Labels, int]] = []
         self.approximate = False
@@ -251,16 +255,30 @@ class _Walker:
     def judge(self, bound: actions.BoundAction, step: Step, where: str,
               excused: frozenset[str] = frozenset(), pick: int = 0) -> None:
         for note in step.notes:
-            self.notes[f"{bound.action.location}: {bound.name}: {note}"] = None
+            self.action_notes.setdefault((bound.name, note), {})[bound.action.location] = None
         for violation in check_step(bound, step, self.model):
             if violation.constraint is Constraint.LABEL and step.unknown_label in excused:
                 continue  # guarded by "known", or an event may have stored it
+            if violation.constraint in _ON_BATTERY and step.before.battery < 0:
+                continue  # it ran out before this action: said once, where it did
+            if violation.constraint is Constraint.RETURN_RESERVE and step.after.battery < 0:
+                continue  # it runs out in this action (c2): no way home to judge
             violation = replace(violation, task=where, role=self.role_name,
                                 vehicles=self.vehicles(pick))
             key = (violation.constraint.value, str(violation.location))
             kept = self.found.get(key)
             if kept is None or violation.excess > kept.excess:
                 self.found[key] = violation
+
+    def said(self) -> dict[str, None]:
+        """The notes, those on actions once per (action, note) with every line it is
+        said of."""
+        notes = dict(self.notes)
+        for (name, note), places in self.action_notes.items():
+            first, *more = places
+            lines = f" ({1 + len(more)} actions, lines {_lines(list(places))})" if more else ""
+            notes[f"{first}: {name}: {note}{lines}"] = None
+        return notes
 
     def row(self, bound: actions.BoundAction, steps: list[tuple[int, Step]], task: str,
             event: str = "") -> None:
@@ -309,6 +327,22 @@ class _Walker:
                 worst = steps
         for bound, picked in zip(bounds, worst or [], strict=False):
             self.row(bound, [picked], "", event.name)
+
+
+_ON_BATTERY = frozenset({Constraint.C2, Constraint.RETURN_RESERVE})
+"""The constraints on the battery left. The action where it runs out breaks c2, which says
+so; past it there is no charge to judge, and each later action would only repeat the
+finding with a negative charge."""
+
+LINES_SHOWN = 10
+"""Lines listed for a note said of many actions before the rest are counted."""
+
+
+def _lines(places: list[Location]) -> str:
+    """``4, 6, 8`` (and ``and 12 more`` past :data:`LINES_SHOWN`)."""
+    shown = ", ".join(str(place.line) for place in places[:LINES_SHOWN])
+    more = len(places) - LINES_SHOWN
+    return f"{shown} and {more} more" if more > 0 else shown
 
 
 def _guarded_labels(task: Task) -> frozenset[str]:
@@ -413,7 +447,7 @@ def verify_mission(mission: Mission, profile: VehicleProfile, world: World | Non
             if walker.role is None or event.role in (None, walker.role.name):
                 walker.event(event)
         violations += walker.found.values()
-        notes |= walker.notes
+        notes |= walker.said()
         end = min((a.state for a in finals), key=lambda s: s.battery, default=None)
         if end is not None and (walker.role is None or walker.rows):
             ends[walker.role_name] = end

@@ -47,12 +47,15 @@ def test_pause_holds_the_vehicle_and_nothing_moves_until_resume() -> None:
     assert flight.interp.paused
     assert isinstance(flight.requests[-1], Hold)
     assert records(flight, "control")[-1]["control"] == "pause"
-    where, seen, mission_time = flight.vehicle.position, len(flight.records), \
-        flight.view().mission_time
+    where, seen, elapsed, shown = flight.vehicle.position, len(flight.records), \
+        flight.interp.run.log.mission_time, flight.view().mission_time
     flight.run(60)  # a minute paused: the vehicle holds, the mission does nothing
     assert flight.vehicle.position == pytest.approx(where, abs=0.6)
     assert len(flight.records) == seen and flight.interp.status is Status.RUNNING
-    assert flight.view().mission_time == mission_time
+    # MISSION_ELAPSED_TIME and every time limit stand still; the time a person reads (the
+    # flight log's mission_time) goes on, as on a stopwatch.
+    assert flight.interp.run.log.mission_time == elapsed
+    assert flight.view().mission_time == pytest.approx(shown + 60.0)
     assert flight.view().task_states["Far"] is TaskState.RUNNING
     resume(flight)
     assert not flight.interp.paused

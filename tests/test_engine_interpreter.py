@@ -318,6 +318,51 @@ def test_abort_mission_in_the_air_commands_the_safe_state() -> None:
     assert len(flight.sent(Land)) == 1 and flight.sent(ReturnToLaunch) == []
 
 
+def _ends(flight: Flight) -> dict[str, tuple[float, object]]:
+    """Each task's last end in the log: its stamp and the mission time it was decided."""
+    return {r.data["task"]: (r.time, r.data.get("decided")) for r in flight.records
+            if r.kind == "task" and r.data["state"] != "running"}
+
+
+def test_a_task_an_event_cuts_is_stamped_when_the_handler_took_over() -> None:
+    # The handler lands (some seconds) and aborts the mission: the hover and the task around
+    # it stopped flying when the event fired, not when the landing ended.
+    body = TAKE_OFF + '<task name="Patrol">' + hover("Hover", 60) + '</task>\n' + LAND
+    flight = Flight(body, event("ABORT_MISSION", '<action name="LAND"/>'), SEEN)
+    flight.run(each=see_at(8.0))
+    (fired,) = [r for r in flight.records if r.kind == "event"]
+    ends = _ends(flight)
+    assert ends["Patrol/Hover"][0] == ends["Patrol"][0] == fired.time
+    decided = ends["Patrol"][1]
+    assert isinstance(decided, float) and decided > fired.time + 1.0  # the landing took time
+    (stopped,) = [r for r in flight.records if r.kind == "action"
+                  and r.data["message"].startswith("WAIT stopped")]
+    assert stopped.time == fired.time
+    changes = {(c.task, c.state): c for c in flight.view().changes}
+    assert changes[("Patrol/Hover", TaskState.ABORTED)].time == pytest.approx(fired.time)
+    assert changes[("Patrol/Hover", TaskState.ABORTED)].number \
+        < changes[("Patrol", TaskState.ABORTED)].number  # a sub-task's end before its task's
+    assert flight.view().events == ((pytest.approx(fired.time), "E"),)
+
+
+def test_next_task_stamps_the_abandoned_task_when_the_event_fired() -> None:
+    flight = Flight(TAKE_OFF + hover() + goto("After", "(3, 0, 5)") + LAND,
+                    event("NEXT_TASK", '<action name="WAIT"><argument name="duration" '
+                          'value="4"/></action>'), SEEN)
+    flight.run(each=see_at(8.0))
+    (fired,) = [r for r in flight.records if r.kind == "event"]
+    stamp, decided = _ends(flight)["Hover"]
+    assert stamp == fired.time and decided == pytest.approx(fired.time + 4.0, abs=0.25)
+    assert _ends(flight)["After"][1] is None  # ended by itself: stamped when it ended
+
+
+def test_a_task_stopped_without_an_event_is_stamped_when_it_stops() -> None:
+    flight = Flight(TAKE_OFF + '<task name="Bounded" time_limit="3">' + hover("Inner", 30)
+                    + '</task>\n' + LAND).run()
+    ends = _ends(flight)
+    assert ends["Bounded/Inner"] == (ends["Bounded"][0], None)
+
+
 def test_memory_labels_feed_go_to_point_and_known_conditions() -> None:
     body = (TAKE_OFF + goto("Out", "(6, 2, 5)")
             + '<task name="Remember"><action name="MEMORIZE_POINT"><argument name="coordinates" '

@@ -5,6 +5,7 @@ from __future__ import annotations
 import io
 import json
 import math
+from datetime import datetime, timedelta, timezone
 from types import MappingProxyType
 
 import pytest
@@ -14,24 +15,65 @@ from tml.vehicle import AutopilotMessage, MissionProgress, VehicleState
 from tml.world import Home
 
 
+NOON = datetime(2026, 5, 1, 12, 0, 0, 125000, tzinfo=timezone(timedelta(hours=2)))
+
+
 def test_lines_are_json_with_time_kind_and_vehicle(tmp_path) -> None:
     path = tmp_path / "flight.jsonl"
     journal = Journal.open(str(path))
+    journal.wall = lambda: NOON
     journal.write(1.23456, "event", 2, event="Low battery", read=[{"value": 24.0}])
     journal.write(2.0, "run", message="run ended", exit_code=3)
     journal.close()
     assert journal.stream.closed and journal.lines == 2
+    wall = "2026-05-01T12:00:00.125+02:00"
     assert read(str(path)) == [
-        {"t": 1.235, "kind": "event", "vehicle": 2, "event": "Low battery",
-         "read": [{"value": 24.0}]},
-        {"t": 2.0, "kind": "run", "message": "run ended", "exit_code": 3}]
+        {"t": 1.235, "kind": "event", "vehicle": 2, "mission_time": None, "wall": wall,
+         "event": "Low battery", "read": [{"value": 24.0}]},
+        {"t": 2.0, "kind": "run", "mission_time": None, "wall": wall, "message": "run ended",
+         "exit_code": 3}]
 
 
 def test_fields_cannot_hide_time_kind_or_vehicle() -> None:
     stream = io.StringIO()
-    Journal(stream).write(3.0, "request", 1, {"message": "SetSpeed", "kind": "ground"})
-    assert json.loads(stream.getvalue()) == {"t": 3.0, "kind": "request", "vehicle": 1,
-                                             "message": "SetSpeed", "request_kind": "ground"}
+    Journal(stream, wall=lambda: NOON).write(
+        3.0, "request", 1, {"message": "SetSpeed", "kind": "ground", "wall": "x",
+                            "mission_time": 1})
+    assert json.loads(stream.getvalue()) == {
+        "t": 3.0, "kind": "request", "vehicle": 1, "mission_time": None,
+        "wall": "2026-05-01T12:00:00.125+02:00", "message": "SetSpeed",
+        "request_kind": "ground", "request_wall": "x", "request_mission_time": 1}
+
+
+def test_mission_time_counts_from_the_line_that_says_the_mission_started() -> None:
+    stream = io.StringIO()
+    journal = Journal(stream)
+    journal.write(41.5, "ready", 1, message="ready")
+    journal.write(41.6, "mission", 1, message="mission 'm' started")
+    journal.write(50.0, "telemetry", 1)
+    journal.write(80.0, "mission", 1, message="mission completed", status="completed")
+    journal.write(81.0, "run", message="run ended")
+    times = [json.loads(line)["mission_time"] for line in stream.getvalue().splitlines()]
+    assert times == [None, 0.0, 8.4, 38.4, 39.4]
+    assert journal.mission_start == 41.6 and journal.mission_time(40.0) == pytest.approx(-1.6)
+    walls = [json.loads(line)["wall"] for line in stream.getvalue().splitlines()]
+    assert all(datetime.fromisoformat(w).utcoffset() is not None for w in walls)
+
+
+def test_a_resumed_mission_counts_on_from_the_interrupted_runs_time() -> None:
+    stream = io.StringIO()
+    journal = Journal(stream)
+    journal.write(5.0, "mission", 1, message="mission 'm' resumed after 120.0 s",
+                  elapsed=120.0)
+    journal.write(6.0, "task", 1, task="A", state="done")
+    assert [json.loads(line)["mission_time"] for line in stream.getvalue().splitlines()] \
+        == [120.0, 121.0]
+
+
+def test_a_silent_journal_still_knows_the_mission_time() -> None:
+    journal = Journal(None)
+    journal.write(3.0, "mission", None, message="mission 'm' started")
+    assert journal.mission_time(10.0) == 7.0
 
 
 def test_values_are_made_json_safe() -> None:

@@ -161,6 +161,12 @@ class Work(Protocol):
         ...
 
     @property
+    def held_at(self) -> float | None:
+        """The runner's time an event handler took the work over (held it, or its failure
+        fired one), while the handler's termination is awaited; None otherwise."""
+        ...
+
+    @property
     def progress(self) -> float | None:
         """How far the action is, 0 to 1, when it can tell."""
         ...
@@ -197,7 +203,9 @@ class Log:
 
     Two clocks: ``now``, the runner's time of the step, which stamps the records; and
     :attr:`clock`, the mission's own, which stands still while the run is paused, so that
-    every time limit, elapsed time and wait the rules measure stops counting then.
+    every time limit, elapsed time and wait the rules measure stops counting then. What a
+    person reads (the display's task changes, events and time) is stamped :attr:`stamp`:
+    the runner's time since the mission started, as the flight log's ``mission_time``.
     """
 
     def __init__(self, vehicle_id: int | None) -> None:
@@ -215,13 +223,29 @@ class Log:
 
     @property
     def mission_time(self) -> float:
-        """Seconds the mission has run (pauses not counted)."""
+        """Seconds the mission has run (pauses not counted): MISSION_ELAPSED_TIME."""
         return self.clock - self.start
+
+    @property
+    def stamp(self) -> float:
+        """The mission time of the step for a person: seconds since the mission started on
+        the runner's time, pauses counted (a resumed run counts on from the interrupted
+        run's time)."""
+        return self.stamp_of(self.now)
+
+    def stamp_of(self, now: float) -> float:
+        """The :attr:`stamp` of the runner's time ``now``."""
+        return now - self.start
 
     def note(self, kind: str, message: str, vehicle_id: int | None, /, **data: object) -> None:
         """Add a record."""
-        self.out.records.append(Record(self.now, kind, {"message": message, **data},
-                                       vehicle_id))
+        self.note_at(self.now, kind, message, vehicle_id, **data)
+
+    def note_at(self, now: float, kind: str, message: str, vehicle_id: int | None, /,
+                **data: object) -> None:
+        """Add a record stamped with the runner's time ``now`` (earlier than the step's for
+        what is said after the moment it happened: a task an event handler cut)."""
+        self.out.records.append(Record(now, kind, {"message": message, **data}, vehicle_id))
 
     def take(self) -> Output:
         """What was produced since the last call."""
@@ -283,6 +307,13 @@ class Pilot:
         """The task work begun last."""
         return next((w for w in reversed(self.work) if w.task_path), None)
 
+    def interrupted_at(self, path: tuple[str, ...]) -> float | None:
+        """When an event handler took over the work it holds in the task ``path`` (or
+        below), if it holds any: the moment the task stopped flying."""
+        held = [w.held_at for w in self.work if w.owner is not None and w.held_at is not None
+                and w.task_path[:len(path)] == path]
+        return min(held) if held else None
+
     def memory(self, now: float, mission_time: float) -> Memory:
         """What its event handlers read besides the vehicle's state."""
         current = self.current()
@@ -319,6 +350,8 @@ class Run:
         self.bound: dict[str | None, tuple[int, ...]] = {}
         self.pending = {t.path_name: TaskState.PENDING for t in mission.walk()}
         self.shared: dict[str, TaskState] = {}  # tasks no vehicle flies
+        self.changes = 0  # task changes recorded: each Change's number
+        self.started = False  # the mission has started (Interpreter.start)
         self.status = Status.RUNNING
         self.reason = ""
         self.ending = False  # the mission is ending: stopped work sends no hold
@@ -360,14 +393,20 @@ class Run:
         return sent
 
     def set_state(self, task: Task, state: TaskState, vehicle_id: int | None,
-                  resumed: bool = False) -> None:
+                  resumed: bool = False, at: float | None = None) -> None:
         """Record that ``task`` (flown by ``vehicle_id``, or by none) is now in ``state``
-        (``resumed``: re-entered by a resumed run, :mod:`tml.engine.resume`)."""
+        (``resumed``: re-entered by a resumed run, :mod:`tml.engine.resume`), stamped ``at``
+        that runner's time when it is said later than it happened (the moment an event
+        handler took over a task it then cut), else now."""
         path = task.path_name
-        more = {"resumed": True} if resumed else {}
-        self.note("task", f"{path}: {state.value}", vehicle_id, task=path, state=state.value,
-                  **more)
-        change = Change(self.log.mission_time, path, state, vehicle_id)
+        more: dict[str, object] = {"resumed": True} if resumed else {}
+        now = self.log.now if at is None else at
+        if at is not None:
+            more["decided"] = round(self.log.stamp, 3)  # the mission time it was decided
+        self.log.note_at(now, "task", f"{path}: {state.value}", vehicle_id, task=path,
+                         state=state.value, **more)
+        self.changes += 1
+        change = Change(self.log.stamp_of(now), path, state, vehicle_id, self.changes)
         if vehicle_id is None:
             self.shared[path] = state
             for pilot in self.pilots.values():
@@ -398,8 +437,9 @@ class Run:
         return View(self.status, {**self.pending, **self.shared, **pilot.states},
                     "/".join(current.task_path) if current else "",
                     last.action_name if last else "", last.progress if last else None,
-                    dict(pilot.labels), tuple(pilot.events), self.log.mission_time,
-                    self.reason or pilot.lost, pilot.role or "", tuple(pilot.changes))
+                    dict(pilot.labels), tuple(pilot.events), self.log.stamp,
+                    self.reason or pilot.lost, pilot.role or "", tuple(pilot.changes),
+                    self.started)
 
     # --- conditions ----------------------------------------------------------------------------
 

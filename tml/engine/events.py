@@ -106,7 +106,7 @@ class Events:
                 pilot.holding[event.name] = holds  # a rising edge left pending fires next
         if fired is None:
             return False
-        pilot.events.append((run.log.mission_time, fired.name))
+        pilot.events.append((run.log.stamp, fired.name))
         self._fire(pilot, fired)
         return True
 

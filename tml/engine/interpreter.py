@@ -128,7 +128,7 @@ class Interpreter:
         run = self.run
         self._begin(now, states, {})
         run.log.start = run.log.clock
-        self._started = True
+        self._started = run.started = True
         mission = self.mission
         if progress is not None and progress.started:
             self._restore(progress)

@@ -56,6 +56,7 @@ class Leaf(Node):
         self.verdict: tuple[Verdict, Failure | None] | None = None
         self.pending: Failure | None = None  # the failure an event handler decides on
         self.outcome = NodeStatus.RUNNING  # SUCCESS or FAILURE once ended by itself
+        self._held_at: float | None = None  # when an event handler took it over
 
     @property
     def owner(self) -> TaskOwner | None:
@@ -68,8 +69,19 @@ class Leaf(Node):
         return self._mode
 
     def become(self, mode: WorkMode) -> None:
-        """Change mode, as :data:`~tml.engine.context.WORK_MOVES` allows."""
+        """Change mode, as :data:`~tml.engine.context.WORK_MOVES` allows; entering HELD or
+        AWAITING notes when (an event handler takes the work over), leaving them forgets."""
         self._mode = moved(WORK_MOVES, self._mode, mode, f"{self.action_name} work")
+        if mode in (WorkMode.HELD, WorkMode.AWAITING):
+            self._held_at = self.run.log.now
+        elif mode is WorkMode.ACTIVE:
+            self._held_at = None
+
+    @property
+    def held_at(self) -> float | None:
+        """When an event handler took the work over, while it is held or awaits the
+        handler's verdict (see :class:`~tml.engine.context.Work`)."""
+        return self._held_at if self._mode in (WorkMode.HELD, WorkMode.AWAITING) else None
 
     @property
     def action_name(self) -> str:
@@ -143,7 +155,9 @@ class Leaf(Node):
                     and self.pilot.state.flying:
                 self.run.send(Hold(self.vehicle_id))
             if self._mode is not WorkMode.READY:
-                self.stopped(why)
+                # Held by an event handler whose termination stops it: it stopped flying
+                # when the handler took over, and is stamped then.
+                self.stopped(why, self.held_at)
             self.become(WorkMode.ENDED)
         if self in self.pilot.work:
             self.pilot.work.remove(self)
@@ -184,7 +198,7 @@ class Leaf(Node):
             failure = failure or self.pending
             assert failure is not None
             if self._mode in (WorkMode.ACTIVE, WorkMode.HELD):
-                self.stopped(failure.message)
+                self.stopped(failure.message, self.held_at)
             self.finish(NodeStatus.FAILURE, failure)
 
     # --- what each leaf does ---------------------------------------------------------------
@@ -210,8 +224,9 @@ class Leaf(Node):
     def close(self) -> None:
         """Let go of what the work holds (its script)."""
 
-    def stopped(self, why: str) -> None:
-        """Log that the work was stopped before its end."""
+    def stopped(self, why: str, at: float | None = None) -> None:
+        """Log that the work was stopped before its end (``at``: the runner's time it
+        stopped flying, when that was earlier than now)."""
         raise NotImplementedError
 
     def on_result(self, result: RequestResult) -> bool:
@@ -360,9 +375,10 @@ class ActionLeaf(Leaf):
             self.script.close()
             self.script = None
 
-    def stopped(self, why: str) -> None:
-        self.run.note("action", f"{self.bound.name} stopped: {why}", self.vehicle_id,
-                      **self._data(), why=why)
+    def stopped(self, why: str, at: float | None = None) -> None:
+        self.run.log.note_at(self.run.log.now if at is None else at, "action",
+                             f"{self.bound.name} stopped: {why}", self.vehicle_id,
+                             **self._data(), why=why)
 
 
 class PlanLeaf(Leaf):
@@ -399,6 +415,10 @@ class PlanLeaf(Leaf):
 
     @property
     def progress(self) -> float | None:
+        # By the vehicle's items when it tells them (a survey is one action of many items).
+        said = self.pilot.state.mission
+        if said is not None and said.plan_id == self.plan_id and said.items > 0:
+            return 1.0 if said.finished else max(said.item - 1, 0) / said.items
         return max(self.index, 0) / len(self.tasks) if self.tasks else None
 
     @property
@@ -524,9 +544,9 @@ class PlanLeaf(Leaf):
         self._end_item(TaskState.FAILED)
         self.fail(Failure(reason, f"{path}: {detail}", self.vehicle_id))
 
-    def _end_item(self, state: TaskState) -> None:
+    def _end_item(self, state: TaskState, at: float | None = None) -> None:
         if self.flying is not None:
-            self.run.set_state(self.flying, state, self.vehicle_id)
+            self.run.set_state(self.flying, state, self.vehicle_id, at=at)
             self.flying = None
 
     def resume(self, fresh: bool) -> None:
@@ -543,10 +563,11 @@ class PlanLeaf(Leaf):
         self._end_item(TaskState.ABORTED)
         self.begin()
 
-    def stopped(self, why: str) -> None:
-        self._end_item(TaskState.ABORTED)
-        self.run.note("action", f"mission flight of {self.root.path_name} stopped: {why}",
-                      self.vehicle_id, task=self.root.path_name, why=why)
+    def stopped(self, why: str, at: float | None = None) -> None:
+        self._end_item(TaskState.ABORTED, at)
+        self.run.log.note_at(self.run.log.now if at is None else at, "action",
+                             f"mission flight of {self.root.path_name} stopped: {why}",
+                             self.vehicle_id, task=self.root.path_name, why=why)
 
 
 def item_limit(bound: BoundAction, pilot: Pilot, stall: float) -> float:

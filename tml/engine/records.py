@@ -54,10 +54,11 @@ class Output:
 class Change:
     """One change of a task's state, in the order the changes happened."""
 
-    time: float  # mission time
+    time: float  # mission time (the flight log's mission_time)
     task: str  # the task's path, as in the log
     state: TaskState
     vehicle_id: int | None  # None: a task no vehicle flies (orchestration only)
+    number: int = 0  # counts the changes of one interpreter from 1: the order they were said
 
 
 @dataclass(frozen=True)
@@ -71,10 +72,11 @@ class View:
     progress: float | None
     labels: dict[str, Point]
     events: tuple[tuple[float, str], ...]  # (mission time, event) fired on this vehicle
-    mission_time: float
+    mission_time: float  # seconds since the mission started (pauses counted)
     reason: str
     role: str = ""  # the role the vehicle flies, in a fleet
     changes: tuple[Change, ...] = ()  # the vehicle's task changes and the fleet's, in order
+    started: bool = False  # the mission has started (before: mission_time means nothing)
 
 
 def request_fields(request: Request) -> dict[str, object]:

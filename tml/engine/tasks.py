@@ -12,7 +12,9 @@ up. However the task ends, the roles of its ``release`` are freed.
 The task's state goes to the log once per change, after its sub-tasks': RUNNING when the
 body starts, then DONE (also when stopped by ``until`` or ``time_limit``), SKIPPED,
 FAILED, or ABORTED when it is stopped from above or abandoned by an event's termination
-(NEXT_TASK, ABORT_TASK: the mission goes on after it).
+(NEXT_TASK, ABORT_TASK: the mission goes on after it). A task cut by the termination of
+an event handler that held its vehicle's work is stamped when the handler took over --
+the moment it stopped flying -- not when the handler's actions ended.
 """
 
 from __future__ import annotations
@@ -110,16 +112,18 @@ class TaskNode(Node):
             if status is not NodeStatus.RUNNING or self.abandoned is None:
                 return status
         why, self.abandoned = self.abandoned, None
+        at = self._interrupted_at()
         if self.inner is not None:
             self.inner.stop(why)
-        self._ended(TaskState.ABORTED)
+        self._ended(TaskState.ABORTED, at)
         return NodeStatus.SUCCESS
 
     def end(self, status: NodeStatus, why: str) -> None:
         if status is NodeStatus.INVALID:  # stopped from above
+            at = self._interrupted_at()
             if self.inner is not None:
                 self.inner.stop(why)
-            self._ended(TaskState.ABORTED)
+            self._ended(TaskState.ABORTED, at)
         if not self.member:
             for name in self.task.release:
                 self.run.release(name, f"released by {self.task.path_name}")
@@ -260,12 +264,19 @@ class TaskNode(Node):
         self.phase = Phase.RECOVER
         return None
 
-    def _ended(self, state: TaskState) -> None:
-        """Say how the task ended, and switch its skills off."""
+    def _interrupted_at(self) -> float | None:
+        """When an event handler took over its vehicle's work in the task, if it holds
+        any: a task the handler's termination cuts stopped flying then."""
+        pilot = self._pilot()
+        return None if pilot is None else pilot.interrupted_at(self.task.path)
+
+    def _ended(self, state: TaskState, at: float | None = None) -> None:
+        """Say how the task ended (stamped ``at`` that runner's time, when earlier than
+        now), and switch its skills off."""
         if not self.running:
             return
         self.running = False
-        self.run.set_state(self.task, state, self.vehicle_id)
+        self.run.set_state(self.task, state, self.vehicle_id, at=at)
         pilot = self._pilot()
         if pilot is not None:
             for skill in self.task.skills:

@@ -1,19 +1,28 @@
 """The flight log: one JSON object per line, written as things happen.
 
-Every line has ``t`` (mission clock, seconds), ``kind`` and, when it is about a vehicle,
-``vehicle``; the other keys depend on the kind. The interpreter's records keep their own
-kinds (``mission``, ``task``, ``action``, ``decision``, ``event``, ``request``,
-``result``, ``safety``); the runner adds ``run`` (start and end of the run, with the
-mission file and options), ``result`` (every request outcome a vehicle reported),
-``telemetry`` (a vehicle's state once a second, its position both in the local frame and
-as latitude, longitude and altitude AMSL, so that a log can be drawn on any map),
-``autopilot`` (each message of a vehicle's autopilot, a STATUSTEXT, with its severity),
-``ready`` (what a vehicle still lacks before the first task, each time that changes) and
-``safety`` (what it did to leave the vehicles safe). docs/run.md lists the fields. Lines
-are flushed at once, so that a log survives a crash of the run up to its last event, and
-every decision (:data:`DECISIONS`) is synced to the disk too (fsync), so that a log read
-back after the machine itself went down holds every decision taken: ``tml run --resume``
-goes on from it (:mod:`tml.run.resume`).
+Every line has ``t`` (the run's clock, seconds), ``kind``, ``vehicle`` when it is about a
+vehicle, ``mission_time`` and ``wall``; the other keys depend on the kind. The times a
+person reads are the two last: ``mission_time`` is seconds since the mission's first task
+started (the ``mission`` line that says it started or resumed is its 0; null on the lines
+before it; a resumed run counts on from the interrupted run's time; pauses are counted, as
+on a stopwatch), the time the live view, the line display and the reports show;
+``wall`` is the wall-clock time the line was written, ISO 8601 to the millisecond with the
+local UTC offset (``2026-05-01T14:03:22.125+02:00``), to set the log beside other records of
+the day. ``t`` stays the run's own clock (the simulator's vehicle time with ``--sim``,
+monotonic otherwise), on which every rule of the run is measured.
+
+The interpreter's records keep their own kinds (``mission``, ``task``, ``action``,
+``decision``, ``event``, ``request``, ``result``, ``safety``); the runner adds ``run``
+(start and end of the run, with the mission file and options), ``result`` (every request
+outcome a vehicle reported), ``telemetry`` (a vehicle's state once a second, its position
+both in the local frame and as latitude, longitude and altitude AMSL, so that a log can be
+drawn on any map), ``autopilot`` (each message of a vehicle's autopilot, a STATUSTEXT, with
+its severity), ``ready`` (what a vehicle still lacks before the first task, each time that
+changes) and ``safety`` (what it did to leave the vehicles safe). docs/run.md lists the
+fields. Lines are flushed at once, so that a log survives a crash of the run up to its last
+event, and every decision (:data:`DECISIONS`) is synced to the disk too (fsync), so that a
+log read back after the machine itself went down holds every decision taken: ``tml run
+--resume`` goes on from it (:mod:`tml.run.resume`).
 """
 
 from __future__ import annotations
@@ -22,7 +31,8 @@ import contextlib
 import json
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from datetime import datetime
 from typing import Any, Protocol
 
 from tml.geo import to_global
@@ -91,13 +101,34 @@ class Sink(Protocol):
     def close(self) -> None: ...
 
 
-class Journal:
-    """Writes log lines to ``stream`` (nothing at all when ``stream`` is None)."""
+def local_now() -> datetime:
+    """The wall-clock time now, with the local UTC offset."""
+    return datetime.now().astimezone()
 
-    def __init__(self, stream: Sink | None, owned: bool = False) -> None:
+
+def wall_time(moment: datetime) -> str:
+    """A ``wall`` field: ISO 8601 to the millisecond, with the UTC offset."""
+    return moment.isoformat(timespec="milliseconds")
+
+
+HEAD = ("t", "kind", "vehicle", "mission_time", "wall")
+"""The fields every line begins with; a field of the same name is written as
+``<kind>_<name>``."""
+
+
+class Journal:
+    """Writes log lines to ``stream`` (nothing at all when ``stream`` is None); ``wall``
+    tells the wall-clock time of each line (the local time by default)."""
+
+    def __init__(self, stream: Sink | None, owned: bool = False,
+                 wall: Callable[[], datetime] = local_now) -> None:
         self.stream = stream
         self.owned = owned  # the journal opened the stream, and closes it
+        self.wall = wall
         self.lines = 0
+        self.mission_start: float | None = None
+        """Where mission time 0 is on the run's clock (``t``); None before the mission
+        started."""
 
     @classmethod
     def open(cls, path: str | None, append: bool = False) -> Journal:
@@ -107,20 +138,35 @@ class Journal:
             return cls(None)
         return cls(open(path, "a" if append else "w", encoding="utf-8"), owned=True)
 
+    def mission_time(self, time: float) -> float | None:
+        """The mission time of the run's ``time`` (None before the mission started)."""
+        return None if self.mission_start is None else time - self.mission_start
+
     def write(self, time: float, kind: str, vehicle: int | None = None,
               fields: Mapping[str, Any] | None = None, **more: Any) -> None:
-        """Append one line: ``fields`` and ``more`` after ``t``, ``kind`` and ``vehicle``.
+        """Append one line: ``fields`` and ``more`` after ``t``, ``kind``, ``vehicle``,
+        ``mission_time`` and ``wall`` (:data:`HEAD`).
 
-        A field named like one of those three (a SetSpeed request's ``kind``) is written
-        as ``<kind>_<name>`` (``request_kind``) so that it cannot hide them.
+        A field named like one of those (a SetSpeed request's ``kind``) is written as
+        ``<kind>_<name>`` (``request_kind``) so that it cannot hide them. The first
+        ``mission`` line (the interpreter's "started", or "resumed" with the ``elapsed``
+        mission time it goes on from) sets mission time 0.
         """
+        data = {**(fields or {}), **more}
+        if kind == "mission" and self.mission_start is None:
+            elapsed = data.get("elapsed", 0.0)
+            self.mission_start = time - (float(elapsed)
+                                         if isinstance(elapsed, (int, float)) else 0.0)
         if self.stream is None:
             return
         line: dict[str, Any] = {"t": round(time, 3), "kind": kind}
         if vehicle is not None:
             line["vehicle"] = vehicle
-        for name, value in {**(fields or {}), **more}.items():
-            key = f"{kind}_{name}" if name in ("t", "kind", "vehicle") else name
+        mission = self.mission_time(time)
+        line["mission_time"] = None if mission is None else round(mission, 3)
+        line["wall"] = wall_time(self.wall())
+        for name, value in data.items():
+            key = f"{kind}_{name}" if name in HEAD else name
             line[key] = jsonable(value)
         self.stream.write(json.dumps(line, separators=(",", ":")) + "\n")
         self.stream.flush()

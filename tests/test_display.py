@@ -9,11 +9,11 @@ from pathlib import Path
 import pytest
 from rich.console import Console
 
-from tml.engine import Interpreter
+from tml.engine import Change, Interpreter, TaskState
 from tml.language.validation import load_mission, validate_file
 from tml.run.display import LineDisplay, render_text
 from tml.run.fold import fold
-from tml.vehicle import FakeVehicle
+from tml.vehicle import AutopilotMessage, FakeVehicle
 
 XML = b"""<mission name="Show">
   <task name="Take off"><action name="TAKE_OFF"><argument name="altitude" value="5"/></action>
@@ -44,21 +44,32 @@ def test_view_shows_tree_states_action_progress_telemetry_and_events() -> None:
     mission, views = flown(6.0)
     text = render_text(mission, views)
     lines = text.splitlines()
-    assert lines[0].startswith("Show  t = 6.0 s")
+    assert lines[0] == "Show  mission time 6.0 s"
     assert any("✓ ├─ Take off" in line and "TAKE_OFF" in line for line in lines)
     assert any("▶ └─ Leg" in line for line in lines)
-    row = next(line for line in lines if line.lstrip().startswith("1 "))
-    assert "running" in row and "GO_TO_POINT (Leg)" in row and "GUIDED" in row
-    assert "%" in row and "ok" in row
+    block = _block(lines, "vehicle 1")
+    assert "GUIDED armed" in block[0] and "%" in block[0] and "link ok" in block[0]
+    assert "GO_TO_POINT (Leg)" in block[2]
     assert any("Far" in line for line in lines[lines.index(
         next(line for line in lines if line.startswith("events:"))):])
+
+
+def _block(lines: list[str], name: str) -> list[str]:
+    """A vehicle's lines in the view: the one that begins with its name, and those under it."""
+    first = next(i for i, line in enumerate(lines) if line.startswith(name + " ")
+                 or line == name)
+    end = next((i for i in range(first + 1, len(lines)) if not lines[i].startswith("   ")),
+               len(lines))
+    return lines[first:end]
 
 
 def test_view_before_anything_happened() -> None:
     mission = validate_file("show.xml", XML).mission
     interp = Interpreter(mission, [1])
-    text = render_text(mission, [(interp.views()[1], None)])
+    text = render_text(mission, [(interp.views()[1], None)], wall="14:03:22")
     assert "· ├─ Take off" in text and "events: none yet" in text
+    assert text.splitlines()[0] == "Show  mission time -  14:03:22"  # not started yet
+    assert "vehicle 1  no telemetry yet" in text
 
 
 def test_line_display_prints_each_change_once() -> None:
@@ -137,7 +148,7 @@ def test_a_long_mission_fits_the_terminal_folded_around_the_running_task(size) -
     running = views[0][0].current_task
     assert running, "a task is running two minutes in"
     lines = _fits(render_text(mission, views, width, height), width, height)
-    assert any(line.startswith("1 ") and "GUIDED" in line for line in lines)  # telemetry
+    assert any(line.startswith("vehicle 1 ") and "GUIDED" in line for line in lines)
     assert any(line.startswith("events:") for line in lines)
     assert any(line.startswith("autopilot:") for line in lines)
     assert any(line.strip() == "warning: EKF variance" for line in lines)
@@ -168,20 +179,148 @@ def test_a_fleet_has_a_header_over_the_marks_of_each_vehicle() -> None:
                 FakeVehicle(vehicle_id=3)]
     mission, views = fly("missions/fleet_compositions.xml", 20.0, vehicles)
     lines = _fits(render_text(mission, views, 80, 24), 80, 24)
-    header = lines[2]
+    header = lines[1]
     assert header.startswith(" 1 2 3") and "vehicle" in header
-    assert lines[1] == f"mission {mission.name!r}"
-    table = next(i for i, line in enumerate(lines) if line.startswith("role"))
-    assert [line.split()[1] for line in lines[table + 1:table + 4]] == ["1", "2", "3"]
+    assert lines[0].startswith(f"{mission.name}  mission time ")
+    named = [line.split()[1] for line in lines if line.startswith("vehicle ")]
+    assert named == ["1", "2", "3"]
 
 
 def test_a_plan_flown_by_the_autopilot_shows_its_item() -> None:
     mission, views = fly("missions/mission_dispatch.xml", 6.0)
     text = render_text(mission, views, 80, 24)
     assert "[autopilot mission]" in text
-    row = next(line for line in text.splitlines() if line.startswith("1 "))
-    index = views[0][1].mission.action_index + 1
-    assert f"item {index}/13 " in row
+    said = views[0][1].mission
+    assert said is not None and said.items == 13
+    assert f"item {said.item}/13 " in _block(text.splitlines(), "vehicle 1")[2]
+
+
+def test_a_survey_shows_the_item_the_autopilot_flies_and_its_progress() -> None:
+    # A survey is one action of many items: "item 2/2" for minutes said nothing.
+    mission, views = fly("missions/mission_dispatch.xml", 6.0)
+    view, state = views[0]
+    state = replace(state, mission=replace(state.mission, item=43, items=145))
+    view = replace(view, current_task="Photo flight/Circle the first field twice",
+                   current_action="LOITER", progress=42 / 145)
+    line = _block(render_text(mission, [(view, state)], 80, 24).splitlines(), "vehicle 1")[2]
+    assert "███░░░░░░░  29%  item 43/145 LOITER (Circle the first field twice)" in line
+
+
+def test_the_work_of_a_vehicle_takes_the_width_there_is() -> None:
+    mission, views = fly("missions/mission_dispatch.xml", 6.0)
+    view, state = views[0]
+    view = replace(view, current_task="Photo flight/" + "A long task name " * 4,
+                   current_action="SURVEY_AREA", progress=None)
+    for width in (80, 120):
+        line = _block(render_text(mission, [(view, state)], width, 24).splitlines(),
+                      "vehicle 1")[2]
+        wanted = "SURVEY_AREA (" + "A long task name " * 4
+        assert wanted[:width - 20] in line and len(line) <= width
+    line = _block(render_text(mission, [(view, state)], 120, 24).splitlines(), "vehicle 1")[2]
+    assert "…" not in line  # 120 columns hold it whole
+
+
+def test_figures_are_labelled_with_units_and_never_negative_zero() -> None:
+    mission, views = fly("missions/paper_example1.xml", 0.0)
+    view, state = views[0]
+    state = replace(state, position=(-0.01, 0.04, 7.0), climb=-0.01, ground_speed=0.0,
+                    armed=True, landed=False, gps_fix=3, satellites=12, voltage=12.36,
+                    battery=64.6, heading=359.7, mode="GUIDED")
+    block = _block(render_text(mission, [(view, state)], 80, 24).splitlines(), "vehicle 1")
+    assert "GUIDED armed  GPS 3D 12 sat  batt 12.4 V 65%  link ok" in block[0]
+    assert block[1] == ("   n 0.0 e 0.0 up 7.0 m  speed 0.0 m/s  climb +0.0 m/s  hdg 0°"
+                        "  home 0.0 m")
+    assert "-0" not in "\n".join(block)
+    lost = replace(state, armed=False, gps_fix=1, satellites=None, voltage=None,
+                   battery=None, link="lost", position=None)
+    block = _block(render_text(mission, [(view, lost)], 80, 24).splitlines(), "vehicle 1")
+    assert "GUIDED disarmed  GPS no fix  batt -  link lost" in block[0]
+    assert block[1].startswith("   n - e - up - m")
+
+
+def test_the_legend_says_what_each_mark_means() -> None:
+    mission, views = fly("missions/paper_example1.xml", 0.0)
+    text = render_text(mission, views, 80, 24)
+    legend = next(line for line in text.splitlines() if "↷ skipped" in line)
+    for words in ("· pending", "▶ running", "✓ done", "↷ skipped", "✗ failed", "■ aborted"):
+        assert words in legend
+    assert len(legend) <= 80
+
+
+def _fleet_views():
+    vehicles = [FakeVehicle(vehicle_id=1), FakeVehicle(vehicle_id=2)]
+    mission, views = fly("missions/dolphin_fleet_survey.xml", 5.0, vehicles)
+    return mission, vehicles, views
+
+
+def test_the_end_says_each_outcome_once_for_the_vehicles_it_is_theirs() -> None:
+    mission, _, views = _fleet_views()
+    done = [(replace(v, reason="all tasks done"), s) for v, s in views]
+    text = render_text(mission, done, 80, 24)
+    assert "ended: vehicles 1, 2: all tasks done" in text
+    assert "all tasks done; all tasks done" not in text
+    apart = [done[0], (replace(done[1][0], reason="link lost for more than 10 s"), done[1][1])]
+    assert "ended: vehicle 1: all tasks done; vehicle 2: link lost for more than 10 s" \
+        in render_text(mission, apart, 120, 24)
+    (alone,) = fly("missions/paper_example1.xml", 0.0)[1]
+    assert "ended: all tasks done" in render_text(
+        mission, [(replace(alone[0], reason="all tasks done"), alone[1])], 80, 24)
+
+
+def test_each_vehicle_keeps_its_own_autopilot_messages() -> None:
+    mission, vehicles, _ = _fleet_views()
+    vehicles[1].say(4, "EKF variance")
+    for n in range(5):  # vehicle 1 says more, later
+        vehicles[0].say(6, f"Mission: {n + 40} WP")
+    views = [(v, s.state()) for (v, _), s in zip(_fleet_views()[2], vehicles, strict=True)]
+    lines = _fits(render_text(mission, views, 80, 24), 80, 24)
+    said = lines[lines.index("autopilot:") + 1:]
+    assert said[:2] == ["  vehicle 1 (v1): info: Mission: 44 WP",
+                        "  vehicle 2 (v2): warning: EKF variance"]
+    tall = render_text(mission, views, 120, 50).splitlines()
+    assert "  vehicle 1 (v1): info: Mission: 42 WP" in tall  # its last three, when room
+
+
+def test_a_reason_not_to_arm_said_disarmed_on_the_ground_is_no_alarm() -> None:
+    mission, views = fly("missions/paper_example1.xml", 0.0)
+    view, state = views[0]
+    said = (AutopilotMessage(1, 2, "PreArm: Mode not armable", armed=False),
+            AutopilotMessage(2, 2, "EKF failsafe", armed=True))
+    text = render_text(mission, [(view, replace(state, messages=said))], 80)
+    assert "info: PreArm: Mode not armable" in text and "critical: EKF failsafe" in text
+
+
+def test_a_large_fleet_gets_a_line_a_vehicle() -> None:
+    vehicles = [FakeVehicle(vehicle_id=i) for i in range(1, 7)]
+    mission, views = fly("missions/fleet_compositions.xml", 20.0, vehicles)
+    lines = _fits(render_text(mission, views, 80, 24), 80, 24)
+    assert [line.split()[1] for line in lines if line.startswith("vehicle ")] \
+        == ["1", "2", "3", "4", "5", "6"]
+    assert not any(line.startswith("   n ") for line in lines)
+
+
+def _change(time: float, task: str, state: TaskState, vid: int | None, number: int) -> Change:
+    return Change(time, task, state, vid, number)
+
+
+def test_a_fleet_prints_a_sub_tasks_end_before_its_tasks() -> None:
+    # Both sorties end in the step that ends their round: each vehicle's view holds its own
+    # sortie's change and the round's (a task no vehicle flies).
+    _, _, views = _fleet_views()
+    round_done = _change(90.0, "Shift/Round", TaskState.DONE, None, 12)
+    north = _change(90.0, "Shift/Round/Sortie north", TaskState.DONE, 1, 10)
+    south = _change(90.0, "Shift/Round/Sortie south", TaskState.DONE, 2, 11)
+    (v1, s1), (v2, s2) = views
+    ended = [(replace(v1, changes=(north, round_done)), s1),
+             (replace(v2, changes=(south, round_done), role=""), s2)]
+    out = io.StringIO()
+    display = LineDisplay(Console(file=out, width=200, color_system=None))
+    display.update([(replace(v1, changes=()), s1), (replace(v2, changes=()), s2)])
+    display.update(ended)
+    printed = [line for line in out.getvalue().splitlines() if line.startswith("[")]
+    assert printed == ["[   90.0 s] vehicle 1 (v1): Shift/Round/Sortie north: done",
+                       "[   90.0 s] vehicle 2 (v2): Shift/Round/Sortie south: done",
+                       "[   90.0 s] Shift/Round: done"]  # its role kept once released
 
 
 def test_why_nothing_moves_while_the_vehicle_boots() -> None:
@@ -199,8 +338,6 @@ ESCAPE = "\x1b]0;PWNED\x07"
 
 
 def _hostile_views():
-    from tml.vehicle import AutopilotMessage
-
     mission, views = flown(6.0, HOSTILE)
     view, state = views[0]
     state = replace(state, mode=f"GUIDED{ESCAPE}", prearm=f"PreArm: {ESCAPE}",

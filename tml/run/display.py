@@ -1,10 +1,21 @@
-"""The terminal view of a run: task tree with states, current action, telemetry, events.
+"""The terminal view of a run: task tree with states, each vehicle's telemetry and work,
+the autopilots' messages, events.
 
 :func:`render` turns the interpreters' views and the vehicles' last states into one rich
 renderable; :class:`LiveDisplay` redraws it in place on a terminal (at most
 ``refresh_per_second`` times a second, however often the runner asks), and
 :class:`LineDisplay` prints one line per change (task state, event, end) for logs and pipes,
 in the order the changes happened.
+
+Every time shown is the mission time -- seconds since the mission's first task started, the
+flight log's ``mission_time`` -- and the live view's header adds the wall clock. Each
+vehicle gets up to :data:`VEHICLE_LINES` lines, its figures labelled with their units and
+wrapped to the terminal's width: how it stands (mode, armed, GPS fix and satellites,
+battery voltage and charge, link), how it moves (north, east and up from home, ground
+speed, climb rate, heading, distance to home), and what it does (progress, the item of an
+autopilot plan as the vehicle reports it, the action and its task). Its autopilot's latest
+messages are kept per vehicle, so that one vehicle's ``Mission: N WP`` never pushes
+another's out.
 """
 
 from __future__ import annotations
@@ -12,17 +23,17 @@ from __future__ import annotations
 import io
 import time
 from collections.abc import Sequence
+from datetime import datetime
 
 from rich.console import Console, Group, RenderableType
 from rich.live import Live
-from rich.table import Table
 from rich.text import Text
 
 from tml.engine import Change, TaskState, View
 from tml.language.diagnostics import printable
 from tml.language.model import Dispatch, Mission, Task
 from tml.run.fold import fold
-from tml.vehicle import VehicleState, awaiting
+from tml.vehicle import SEVERITIES, VehicleState, awaiting
 
 Views = Sequence[tuple[View, VehicleState | None]]
 
@@ -70,16 +81,16 @@ def _tree(mission: Mission, views: Views, budget: int | None) -> Text:
     width = _mark_width(views)
     marks_width = width * len(views)
     text = Text(no_wrap=True, overflow="ellipsis")
-    text.append(f"mission {_safe(repr(mission.name))}", "bold")
     if len(views) > 1:  # a header over the marks: which vehicle each column is
-        text.append("\n" + "".join(_vehicle_name(i, views).rjust(width)
-                                    for i in range(len(views))), "bold")
+        text.append("".join(_vehicle_name(i, views).rjust(width)
+                            for i in range(len(views))), "bold")
         text.append("  vehicle", "dim")
     focus = [view.current_task for view, _ in views if view.current_task]
-    lines = fold(mission.tasks, focus, None if budget is None else max(budget - 1, 1)
-                 - (len(views) > 1))
-    for line in lines:
-        text.append("\n")
+    lines = fold(mission.tasks, focus, None if budget is None
+                 else max(budget - (len(views) > 1), 1))
+    for number, line in enumerate(lines):
+        if number or len(views) > 1:
+            text.append("\n")
         task = line.task
         if task is None:
             text.append(" " * marks_width + " " + line.guide, "dim")
@@ -113,20 +124,16 @@ def _parent(mission: Mission, task: Task) -> Task | None:
     return next((t for t in mission.walk() if t.path == task.path[:-1]), None)
 
 
-def _plan_items(mission: Mission, path: str) -> int:
-    """How many actions the ``dispatch="mission"`` plan holding the task ``path`` flies
-    (repeats unrolled; 0 when the task is not in such a plan)."""
-    names = tuple(path.split("/"))
-    for length in range(1, len(names) + 1):
-        task = next((t for t in mission.walk() if t.path == names[:length]), None)
-        if task is not None and task.dispatch is Dispatch.MISSION:
-            return _terminal_count(task)
-    return 0
+GPS_FIXES = ("no GPS", "no fix", "2D", "3D", "DGPS", "RTK float", "RTK fixed", "static",
+             "PPP")
+"""GPS_FIX_TYPE by number, as the view names it."""
 
 
-def _terminal_count(task: Task) -> int:
-    inside = 1 if task.is_terminal else sum(_terminal_count(c) for c in task.children)
-    return task.repeat * inside
+def _figure(value: float, digits: int = 1, sign: bool = False) -> str:
+    """A number as shown: never a negative zero (``-0.0`` is ``0.0``)."""
+    if round(value, digits) == 0:
+        value = 0.0
+    return f"{value:+.{digits}f}" if sign else f"{value:.{digits}f}"
 
 
 def _bar(progress: float | None, width: int = 10) -> str:
@@ -136,58 +143,120 @@ def _bar(progress: float | None, width: int = 10) -> str:
     return "█" * filled + "░" * (width - filled) + f" {progress:4.0%}"
 
 
-WIDE = 120
-"""Terminal columns from which the table has every column at full width."""
+SEPARATOR = "  "
+"""Between two figures of a vehicle's lines."""
 
 
-def _vehicles(mission: Mission, views: Views, width: int) -> Table:
-    # The tree shows where each task is; the table keeps to one short line per vehicle. At
-    # 80 columns the figures keep fixed narrow widths and only the action is cut short.
-    wide = width >= WIDE
-    table = Table(box=None, pad_edge=False, expand=False, collapse_padding=True)
-    roles = any(view.role for view, _ in views)
-    if roles:  # a fleet: which role each vehicle flies
-        table.add_column("role", no_wrap=True, max_width=12 if wide else 8,
-                         overflow="ellipsis")
-    columns = [("id", 2), *([("status", 9)] if wide else []), ("mode", 9 if wide else 7),
-               ("n, e, up (m)", 19 if wide else 15), ("m/s", 4), ("hdg", 4), ("batt", 4),
-               ("link", 8 if wide else 4)]
-    for column, size in columns:
-        table.add_column(column, no_wrap=True, min_width=size, max_width=size,
-                         overflow="ellipsis")
-    progress = 15 if wide else 9
-    table.add_column("progress", no_wrap=True, min_width=progress, max_width=progress)
-    # The action has what is left of the line (a column wider than that would be dropped).
-    used = sum(size + 1 for _, size in columns) + progress + 1 + ((12 if wide else 8) + 1
-                                                                   if roles else 0)
-    table.add_column("action", no_wrap=True, overflow="ellipsis",
-                     max_width=max(width - used - 1, 8))
-    for view, state in views:
-        action = view.current_action or "-"
-        if view.current_task:
-            action += f" ({view.current_task.rsplit('/', 1)[-1]})"
-            items = _plan_items(mission, view.current_task)
-            if items and state is not None and state.mission is not None:
-                action = f"item {state.mission.action_index + 1}/{items} " + action
-        action = _safe(action)
-        if view.status.value != "running":
-            action = f"{view.status.value}: {action}" if not wide else action
-        position = state.position if state else None
-        link = state.link if state else ""
-        table.add_row(
-            *([Text(_safe(view.role or "-"))] if roles else []),
-            str(state.vehicle_id) if state else "?",
-            *([view.status.value] if wide else []),
-            Text(_safe(state.mode)) if state else "",
-            "-" if position is None else
-            f"{position[0]:.0f} {position[1]:.0f} {position[2]:.0f}" if not wide else
-            f"{position[0]:6.1f} {position[1]:6.1f} {position[2]:5.1f}",
-            f"{state.ground_speed:4.1f}" if state else "",
-            f"{state.heading:3.0f}°" if state else "",
-            "-" if state is None or state.battery is None else f"{state.battery:3.0f}%",
-            link if wide or link != "degraded" else "degr",
-            _bar(view.progress, 10 if wide else 4), Text(action))
-    return table
+def _who(index: int, views: Views) -> str:
+    view, state = views[index]
+    number = state.vehicle_id if state is not None else index + 1
+    return f"vehicle {number}" + (f" ({_safe(view.role)})" if view.role else "")
+
+
+def _status(view: View, state: VehicleState | None) -> list[tuple[str, str]]:
+    """How the vehicle stands: mode and armed, GPS, battery, link."""
+    if state is None:
+        return [("no telemetry yet", "dim")]
+    found: list[tuple[str, str]] = []
+    if view.status.value != "running":
+        found.append((view.status.value, "bold"))
+    found.append((f"{_safe(state.mode) or '-'} " + ("armed" if state.armed else "disarmed"),
+                  "bold" if state.armed else ""))
+    if state.gps_fix is None:
+        gps = "GPS -"
+    else:
+        fix = GPS_FIXES[state.gps_fix] if 0 <= state.gps_fix < len(GPS_FIXES) \
+            else str(state.gps_fix)
+        gps = f"GPS {fix}" + ("" if state.satellites is None else f" {state.satellites} sat")
+    found.append((gps, "yellow" if (state.gps_fix or 0) < 3 else ""))
+    volts = "" if state.voltage is None else f"{_figure(state.voltage)} V "
+    percent = "-" if state.battery is None else f"{state.battery:.0f}%"
+    found.append((f"batt {volts}{percent}", "red" if state.battery is not None
+                  and state.battery < 20 else ""))
+    found.append((f"link {state.link}", "" if state.link == "ok" else
+                  "yellow" if state.link == "degraded" else "bold red"))
+    return found
+
+
+def _motion(state: VehicleState | None) -> list[tuple[str, str]]:
+    """Where the vehicle is and how it moves: metres from home, speeds, heading."""
+    if state is None:
+        return []
+    position = state.position
+    where = "n - e - up - m" if position is None else (
+        f"n {_figure(position[0])} e {_figure(position[1])} up {_figure(position[2])} m")
+    home = state.home_distance
+    return [(where, ""), (f"speed {_figure(state.ground_speed)} m/s", ""),
+            (f"climb {_figure(state.climb, sign=True)} m/s", ""),
+            (f"hdg {round(state.heading) % 360}°" if state.heading_known else "hdg -", ""),
+            (f"home {'-' if home is None else _figure(home)} m", "")]
+
+
+def _work(mission: Mission, view: View, state: VehicleState | None) -> str:
+    """What the vehicle does: the item of an autopilot plan, the action and its task."""
+    action = view.current_action or "-"
+    if view.current_task:
+        action += f" ({view.current_task.rsplit('/', 1)[-1]})"
+        said = state.mission if state is not None else None
+        if _in_plan(mission, view.current_task) and said is not None and said.items:
+            action = f"item {said.item}/{said.items} " + action
+    return _safe(action)
+
+
+def _in_plan(mission: Mission, path: str) -> bool:
+    """Whether the task ``path`` is flown in a ``dispatch="mission"`` plan."""
+    names = tuple(path.split("/"))
+    return any(t.dispatch is Dispatch.MISSION for t in mission.walk()
+               if t.path == names[:len(t.path)])
+
+
+def _packed(first: Text, segments: list[tuple[str, str]], width: int, indent: str,
+            lines: int | None = None) -> list[Text]:
+    """``first`` and then the segments, two spaces apart, wrapped onto lines of ``width``
+    columns, each further line beginning with ``indent``; with ``lines``, at most that
+    many (the last cut short)."""
+    found = [first]
+    for segment, style in segments:
+        line = found[-1]
+        gap = SEPARATOR if line.plain.strip() else ""
+        if line.cell_len + len(gap) + len(segment) > width and line.plain.strip() \
+                and (lines is None or len(found) < lines):
+            found.append(Text(indent))
+            line, gap = found[-1], ""
+        line.append(gap)
+        line.append(segment, style)
+    for line in found:
+        line.no_wrap, line.overflow = True, "ellipsis"
+    return found
+
+
+def _vehicles(mission: Mission, views: Views, width: int, compact: bool) -> Text:
+    """A few lines per vehicle: how it stands, how it moves, what it does (``compact``:
+    one line each, cut short)."""
+    found: list[Text] = []
+    indent = "   "
+    for index, (view, state) in enumerate(views):
+        name = Text(_who(index, views), "bold")
+        working = bool(view.current_action) or view.progress is not None
+        work = [(text, "") for text in (_bar(view.progress, 4 if compact else 10),
+                                        _work(mission, view, state)) if text and working]
+        if compact:  # mode and armed, battery, altitude, link, and the work
+            status = _status(view, state)
+            short = [status[0], *([status[-1]] if state is not None else [])]
+            if state is not None and state.position is not None:
+                short.insert(1, (f"up {_figure(state.position[2])} m", ""))
+            if state is not None and state.battery is not None:
+                short.insert(1, (f"{state.battery:.0f}%", ""))
+            found.extend(_packed(name, short + work, width, indent, lines=1))
+            continue
+        found.extend(_packed(name, _status(view, state), width, indent))
+        motion = _motion(state)
+        if motion:
+            found.extend(_packed(Text(indent), motion, width, indent))
+        if working:
+            found.extend(_packed(Text(indent), [("  ".join(t for t, _ in work), "")], width,
+                                 indent, lines=1))
+    return Text("\n", no_wrap=True, overflow="ellipsis").join(found)
 
 
 def _events(views: Views, shown: int) -> Text:
@@ -197,8 +266,7 @@ def _events(views: Views, shown: int) -> Text:
     if not fired:
         text.append("none yet", "dim")
     for t, index, name in fired[-shown:] if shown > 0 else []:
-        state = views[index][1]
-        who = f" (vehicle {state.vehicle_id})" if len(views) > 1 and state is not None else ""
+        who = f": {_who(index, views)}" if len(views) > 1 else ""
         text.append(f"\n  {t:7.1f} s  {_safe(name)}{who}", "magenta")
     if fired and shown < len(fired):
         text.append(f"  ({len(fired)} in all)", "dim")
@@ -206,21 +274,31 @@ def _events(views: Views, shown: int) -> Text:
 
 
 MESSAGES_SHOWN = 3
-"""Autopilot messages in the view (the latest, of every vehicle)."""
+"""Autopilot messages in the view for each vehicle (its latest)."""
 
 
 def _messages(views: Views, shown: int) -> Text | None:
-    """The autopilot's latest messages (STATUSTEXT), worst first in colour."""
-    said = [(state.vehicle_id, m) for _, state in views if state is not None
-            for m in state.messages]
-    if not said or shown <= 0:
+    """Each vehicle's latest autopilot messages (STATUSTEXT), the worst in colour: one
+    vehicle's messages never push another's out. A reason not to arm said disarmed on the
+    ground is shown as info (tml.vehicle.shown_severity)."""
+    said = [(index, m) for index, (_, state) in enumerate(views) if state is not None
+            for m in state.messages[-shown:]] if shown > 0 else []
+    if not said:
         return None
     text = Text("autopilot:", "bold", no_wrap=True, overflow="ellipsis")
-    for vid, message in said[-shown:]:
-        style = "red" if message.severity <= 3 else "yellow" if message.severity <= 4 else ""
-        who = f"vehicle {vid}: " if len(views) > 1 else ""
-        text.append(f"\n  {who}{message.severity_name}: {_safe(message.text)}", style)
+    for index, message in said:
+        severity = message.shown_severity
+        style = "red" if severity <= 3 else "yellow" if severity <= 4 else ""
+        who = f"{_who(index, views)}: " if len(views) > 1 else ""
+        word = SEVERITIES[severity] if 0 <= severity < len(SEVERITIES) else str(severity)
+        text.append(f"\n  {who}{word}: {_safe(message.text)}", style)
     return text
+
+
+def _said_lines(views: Views, shown: int) -> int:
+    """Lines the autopilot's messages take (its heading included)."""
+    said = sum(min(len(s.messages), shown) for _, s in views if s is not None)
+    return 1 + said if said else 0
 
 
 def _waiting(views: Views) -> Text | None:
@@ -233,46 +311,99 @@ def _waiting(views: Views) -> Text | None:
         if lines else None
 
 
+LEGEND = (("·", "pending"), ("▶", "running"), ("✓", "done"), ("↷", "skipped"),
+          ("✗", "failed"), ("■", "aborted"))
+
+
+def _legend() -> Text:
+    """What the marks of the tree say."""
+    text = Text(no_wrap=True, overflow="ellipsis")
+    for mark, state in LEGEND:
+        text.append(mark, MARKS[TaskState(state)][1])
+        text.append(f" {state}  ", "dim")
+    text.append("(+n) folded", "dim")
+    return text
+
+
+def _ended(views: Views) -> Text | None:
+    """How the mission ended (or why a vehicle stopped), each outcome once: the vehicles
+    that share it named together."""
+    outcomes: dict[str, list[str]] = {}
+    for index, (view, state) in enumerate(views):
+        if view.reason:
+            number = state.vehicle_id if state is not None else index + 1
+            outcomes.setdefault(_safe(view.reason), []).append(str(number))
+    if not outcomes:
+        return None
+    if len(views) == 1:
+        said = next(iter(outcomes))
+    else:
+        said = "; ".join(f"vehicle{'s' if len(ids) > 1 else ''} {', '.join(ids)}: {reason}"
+                         for reason, ids in outcomes.items())
+    return Text("ended: " + said, "bold", no_wrap=True, overflow="ellipsis")
+
+
+def _header(mission: Mission, views: Views, wall: str | None) -> Text:
+    """The mission's name, its mission time (``-`` before it started) and the clock."""
+    started = any(v.started for v, _ in views)
+    elapsed = max((v.mission_time for v, _ in views), default=0.0)
+    text = Text(f"{_safe(mission.name)}  ", "bold", no_wrap=True, overflow="ellipsis")
+    text.append("mission time " + (f"{elapsed:.1f} s" if started else "-"))
+    if wall:
+        text.append(f"  {wall}", "dim")
+    return text
+
+
+VEHICLE_LINES = 3
+"""Lines each vehicle takes at most in the view (fewer when its figures fit fewer)."""
+
+
 def render(mission: Mission, views: Views, width: int = 160,
-           height: int | None = None) -> RenderableType:
-    """The whole view for a terminal ``width`` columns wide: header, task tree, vehicles,
-    what is awaited, the autopilot's messages, events. With a ``height``, it fits in that
-    many lines: the events and messages shown shrink to their last few, and the task tree
+           height: int | None = None, wall: str | None = None) -> RenderableType:
+    """The whole view for a terminal ``width`` columns wide: header (mission time, and the
+    ``wall`` clock when given), task tree and the legend of its marks, each vehicle's
+    status, motion and work, what is awaited, the autopilot's messages, events. With a
+    ``height``, it fits in that many lines: the messages and events shown shrink to the
+    last few, a fleet too large for its lines gets one line a vehicle, and the task tree
     is folded around the running tasks into the lines left."""
-    elapsed = max((v.mission_time for v, _ in views), default=0)
-    header = Text(f"{_safe(mission.name)}  t = {elapsed:.1f} s", "bold", no_wrap=True,
-                  overflow="ellipsis")
-    reasons = [_safe(v.reason) for v, _ in views if v.reason]
     waiting = _waiting(views)
+    ended = _ended(views)
     events_shown, messages_shown = EVENTS_SHOWN, MESSAGES_SHOWN
     budget = None
+    compact = False
+    vehicles = _vehicles(mission, views, width, compact)
     if height is not None:
-        fixed = 1 + (1 + len(views)) + (len(waiting.plain.splitlines()) if waiting else 0) \
-            + (1 if reasons else 0)
-        events_shown = 3 if height < 30 else EVENTS_SHOWN
-        messages_shown = 2 if height < 30 else MESSAGES_SHOWN
+        small = height < 30
+        events_shown = 3 if small else EVENTS_SHOWN
+        messages_shown = 1 if small else MESSAGES_SHOWN
         fired = sum(len(v.events) for v, _ in views)
-        said = sum(len(s.messages) for _, s in views if s is not None)
-        extra = 1 + min(events_shown, fired) + (1 + min(messages_shown, said) if said else 0)
-        budget = max(height - fixed - extra, 3)
+        fixed = 1 + 1 + (len(waiting.plain.splitlines()) if waiting else 0) \
+            + (1 if ended else 0) + _said_lines(views, messages_shown) \
+            + 1 + min(events_shown, fired)  # header, legend, ..., events
+        taken = len(vehicles.plain.splitlines())
+        if taken > height // 2 or fixed + taken + 4 > height:
+            compact = True  # a fleet too large for its lines: one line each
+            vehicles = _vehicles(mission, views, width, compact)
+            if fixed + len(views) + 4 > height:
+                messages_shown = 0
+                fixed -= _said_lines(views, 1)
+        budget = max(height - fixed - len(vehicles.plain.splitlines()), 3)
     messages = _messages(views, messages_shown)
-    parts: list[RenderableType] = [header, _tree(mission, views, budget),
-                                   _vehicles(mission, views, width),
+    parts: list[RenderableType] = [_header(mission, views, wall),
+                                   _tree(mission, views, budget), _legend(), vehicles,
                                    *([waiting] if waiting else []),
                                    *([messages] if messages else []),
-                                   _events(views, events_shown)]
-    if reasons:
-        parts.append(Text("ended: " + "; ".join(reasons), "bold", no_wrap=True,
-                          overflow="ellipsis"))
+                                   _events(views, events_shown),
+                                   *([ended] if ended else [])]
     return Group(*parts)
 
 
 def render_text(mission: Mission, views: Views, width: int = 160,
-                height: int | None = None) -> str:
+                height: int | None = None, wall: str | None = None) -> str:
     """The view as plain text (no colours), e.g. for tests and logs."""
     buffer = io.StringIO()
     console = Console(file=buffer, width=width, color_system=None, force_terminal=False)
-    console.print(render(mission, views, width, height))
+    console.print(render(mission, views, width, height, wall))
     return buffer.getvalue()
 
 
@@ -301,7 +432,9 @@ class LiveDisplay:
             self._last = now
             width, height = self.console.size
             # One line spare: the cursor stays under the view.
-            self._live.update(render(self.mission, views, width, height - 1), refresh=True)
+            wall = datetime.now().strftime("%H:%M:%S")
+            self._live.update(render(self.mission, views, width, height - 1, wall),
+                              refresh=True)
 
     def say(self, message: str) -> None:
         """Print a line above the live view."""
@@ -310,7 +443,8 @@ class LiveDisplay:
 
 class LineDisplay:
     """Prints one line per task state change and per event, for pipes and log files: each
-    change once, in the order it happened (a sub-task's end before its task's)."""
+    change once, in the order it happened (a sub-task's end before its task's, across the
+    vehicles of a fleet too), stamped with its mission time."""
 
     def __init__(self, console: Console | None = None) -> None:
         self.console = console or Console(highlight=False)
@@ -318,6 +452,7 @@ class LineDisplay:
         self._shared: set[Change] = set()  # the changes of tasks no vehicle flies, printed
         self._events: set[tuple[int, float, str]] = set()
         self._awaiting: dict[int, tuple[str, ...]] = {}
+        self._roles: dict[int, str] = {}  # the role each vehicle flew last
 
     def __enter__(self) -> LineDisplay:
         return self
@@ -330,28 +465,36 @@ class LineDisplay:
 
     def update(self, views: Views, force: bool = False) -> None:
         """Print what changed since the last update."""
+        lines: list[tuple[float, int, str]] = []  # (mission time, order, line)
         for index, (view, vehicle) in enumerate(views):
+            if view.role:
+                self._roles[index] = view.role
+            role = self._roles.get(index, "")
             who = f"vehicle {vehicle.vehicle_id if vehicle else index + 1}" \
-                + (f" ({view.role})" if view.role else "")
+                + (f" ({role})" if role else "")
             missing = awaiting(vehicle) if vehicle is not None else ()
             if missing != self._awaiting.get(index, ()):
                 self._awaiting[index] = missing
                 self._print(f"{who}: waiting for {', '.join(missing)}" if missing
-                                   else f"{who}: ready")
+                            else f"{who}: ready")
             for change in view.changes[self._printed.get(index, 0):]:
                 if change.vehicle_id is None:  # the same in every vehicle's view: once
                     if change not in self._shared:
                         self._shared.add(change)
-                        self._print(f"[{change.time:7.1f} s] {change.task}: "
-                                           f"{change.state.value}")
+                        lines.append((change.time, change.number,
+                                      f"{change.task}: {change.state.value}"))
                 else:
-                    self._print(f"[{change.time:7.1f} s] {who}: {change.task}: "
-                                       f"{change.state.value}")
+                    lines.append((change.time, change.number,
+                                  f"{who}: {change.task}: {change.state.value}"))
             self._printed[index] = len(view.changes)
             for t, name in view.events:
                 if (index, t, name) not in self._events:
                     self._events.add((index, t, name))
-                    self._print(f"[{t:7.1f} s] {who}: event {name!r}")
+                    lines.append((t, 0, f"{who}: event {name!r}"))
+        # Each vehicle's view holds its own changes and the fleet's: one order for all,
+        # that of the interpreter (an event before what it did at the same time).
+        for t, _, line in sorted(lines, key=lambda found: found[:2]):
+            self._print(f"[{t:7.1f} s] {line}")
 
     def say(self, message: str) -> None:
         """Print a line."""

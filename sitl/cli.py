@@ -13,7 +13,7 @@ import signal
 import sys
 import threading
 from collections.abc import Sequence
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from sitl import MAX_VEHICLES
 from sitl.faults import Faults
@@ -118,6 +118,31 @@ def param_setting(text: str) -> tuple[str, float]:
     return name, number
 
 
+def battery_start(text: str) -> tuple[str, float]:
+    """``PERCENT`` -> the setting of the battery's charge at boot (an argparse type, shared
+    with ``tml run --sim-battery``): a finite number from 0 to 100."""
+    value = _number(text)
+    if not math.isfinite(value) or not 0 <= value <= 100:
+        raise argparse.ArgumentTypeError(f"expected a percentage from 0 to 100, got {text}")
+    return "SIM_BATT_START", value
+
+
+class FastBoot(argparse.Action):
+    """A flag that adds the settings of a fast start-up (:data:`sitl.params.FAST_BOOT`) to
+    the parameter settings (shared with ``tml run --sim-fast-boot``)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, **kwargs: Any) -> None:
+        super().__init__(option_strings, dest, nargs=0, **kwargs)
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: Any, option_string: str | None = None) -> None:
+        from sitl.params import FAST_BOOT
+
+        # A new list: the default one is shared by every parse.
+        setattr(namespace, self.dest, [*(getattr(namespace, self.dest, None) or []),
+                                       *FAST_BOOT])
+
+
 def _frames(text: str) -> list[str]:
     from sitl.frames import parse_frames
 
@@ -179,6 +204,14 @@ def build_parser(prog: str = "python -m sitl") -> argparse.ArgumentParser:
                         metavar="NAME=VALUE",
                         help="set a parameter of every vehicle (e.g. SIM_COMPANION=0: no "
                              "embedded companion computer); repeatable")
+    parser.add_argument("--battery", type=battery_start, action="append", dest="param",
+                        metavar="PERCENT",
+                        help="the charge of every vehicle's battery at boot, 0 to 100 "
+                             "(default 100; the parameter SIM_BATT_START)")
+    parser.add_argument("--fast-boot", action=FastBoot, dest="param",
+                        help="GPS lock after 1 s and the EKF on GPS after 2 s of vehicle time, "
+                             "instead of ArduCopter's 10 and 41 s (SIM_GPS_LOCKTIME=1 "
+                             "SIM_EKF_GPS_TIME=2): armable at once")
     parser.add_argument("--signing-key-file", metavar="FILE",
                         help="MAVLink 2 signing: sign what the vehicles send and refuse what "
                              "is unsigned or wrongly signed; the file holds 64 hex digits or "

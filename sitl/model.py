@@ -140,6 +140,9 @@ class VehicleModel:
         self.body = Body(heading=home.heading)
         self.battery = Battery(self.params["BATT_CAPACITY"], self.params["SIM_BATT_VOLTAGE"],
                                self.params["SIM_BATT_CAP_AH"] * 1000.0)
+        # SIM_BATT_START: a battery not full at boot has used the rest of its capacity.
+        start = min(max(self.params["SIM_BATT_START"], 0.0), 100.0)
+        self.battery.consumed_mah = self.battery.capacity_mah * (100.0 - start) / 100.0
         self.missions = MissionServer(self._home_item, self._list_changed)
         self.companion = Companion(system_id, self.world, self._nearest_obstacle)
         self.mode = self.initial_mode

@@ -9,7 +9,9 @@ simulation itself: ``SIM_GPS_LOCKTIME``, ``SIM_WIND_SPD``, ``SIM_WIND_DIR``,
 default, keeps the voltage constant as ArduPilot SITL does) are ArduPilot SITL's own
 names; ``SIM_EKF_GPS_TIME`` (seconds from boot until the EKF uses GPS) is ours, with the
 delay ArduCopter SITL shows, and so are ``SIM_BATT_CHARGE`` (amperes a landed, disarmed
-vehicle takes from its charging pad; 0: no pad) and ``SIM_COMPANION`` (1: the vehicle
+vehicle takes from its charging pad; 0: no pad), ``SIM_BATT_START`` (the charge the battery
+holds at boot, in percent of ``BATT_CAPACITY``; 100, the default, is a full battery as on
+ArduPilot SITL) and ``SIM_COMPANION`` (1: the vehicle
 carries the embedded companion computer, component 191; 0: it has none, and a companion
 attached from outside, such as ``tml companion``, takes its place).
 
@@ -101,8 +103,13 @@ AUTOPILOT_DEFAULTS: tuple[tuple[str, float, int], ...] = (
     ("SIM_BATT_VOLTAGE", 12.6, REAL32),
     ("SIM_BATT_CAP_AH", 0, REAL32),
     ("SIM_BATT_CHARGE", 0, REAL32),
+    ("SIM_BATT_START", 100, REAL32),
     ("SIM_COMPANION", 1, INT8),
 )
+
+FAST_BOOT: tuple[tuple[str, float], ...] = (("SIM_GPS_LOCKTIME", 1.0), ("SIM_EKF_GPS_TIME", 2.0))
+"""The settings that cut the start-up: the GPS locks after 1 s and the EKF uses it after 2 s
+instead of ArduCopter SITL's 10 and 41 s of vehicle time (``--fast-boot``)."""
 
 # ArduCopter's own parameters: ArduPlane and Rover have none of them.
 COPTER_ONLY = frozenset({

@@ -92,3 +92,19 @@ def test_battery_event_lands_and_aborts(tmp_path: Path) -> None:
     assert any(line["kind"] == "action" and line["message"] == "LAND done" for line in after)
     states = {line["task"]: line["state"] for line in lines if line["kind"] == "task"}
     assert states.get("Return and land", "pending") == "pending"  # never flown
+
+
+def test_a_battery_started_low_fires_the_low_battery_event(tmp_path: Path) -> None:
+    """The README's low-battery line: --sim-battery starts the battery at 40 %, and
+    --sim-fast-boot makes the vehicle armable at once (2 s, not 41 s)."""
+    log = tmp_path / "low.jsonl"
+    code = main(["run", str(MISSIONS / "battery_event.xml"), "--sim", "-q", "--log", str(log),
+                 "--speedup", "50", "--sim-battery", "40", "--sim-fast-boot"])
+    lines = read(str(log))
+    telemetry = [line for line in lines if line["kind"] == "telemetry"]
+    assert telemetry[0]["battery"] == 40
+    took_off = next(line for line in lines if line["kind"] == "action"
+                    and line["message"] == "TAKE_OFF started")
+    assert took_off["t"] < 10  # no wait for the EKF's 41 s
+    fired = [line for line in lines if line["kind"] == "event"]
+    assert code == 3 and [f["event"] for f in fired] == ["Low battery"]

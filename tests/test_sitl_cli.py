@@ -27,10 +27,24 @@ ROOT = Path(__file__).resolve().parent.parent
     (["--param", "BATT_CAPACITY=big"], "NAME=NUMBER"),
     (["--param", "NO_SUCH_PARAM=1"], "unknown simulator parameter 'NO_SUCH_PARAM'"),
     (["--frame", "copter,blimp"], "unknown frame 'blimp'"),
+    (["--battery", "101"], "argument --battery: expected a percentage from 0 to 100, got 101"),
+    (["--battery", "-5"], "argument --battery: expected a percentage from 0 to 100, got -5"),
+    (["--battery", "nan"], "argument --battery: expected a percentage from 0 to 100, got nan"),
+    (["--battery", "full"], "argument --battery: expected a number, got 'full'"),
 ])
 def test_bad_arguments_exit_2_with_a_reason(argv, message, capsys):
     assert main(argv) == 2
     assert message in capsys.readouterr().err
+
+
+def test_battery_and_fast_boot_are_parameter_settings() -> None:
+    from sitl.cli import build_parser
+
+    args = build_parser().parse_args(["--param", "SIM_EKF_GPS_TIME=5", "--battery", "40",
+                                      "--fast-boot"])
+    assert dict(args.param) == {"SIM_BATT_START": 40.0, "SIM_GPS_LOCKTIME": 1.0,
+                                "SIM_EKF_GPS_TIME": 2.0}
+    assert build_parser().parse_args([]).param == []  # the default list is left alone
 
 
 def test_missing_world_file_exits_2(capsys, tmp_path):

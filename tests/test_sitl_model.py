@@ -781,3 +781,19 @@ def test_gcs_failsafe_continues_an_auto_mission_with_action_2() -> None:
     v.handle(M.MAVLink_heartbeat_message(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
     v.step(5.4)
     assert v.mode == "RTL"  # not in AUTO: RTL
+
+
+@pytest.mark.parametrize(("start", "remaining"), [(100, 100), (40, 40), (0, 0), (12.5, 12)])
+def test_the_battery_starts_at_sim_batt_start(start: float, remaining: int) -> None:
+    v = streaming(vehicle(params={"SIM_BATT_START": start}))
+    assert v.battery_remaining == remaining
+    status = [m for m in v.step(2.0) if m.get_type() == "SYS_STATUS"][-1]
+    assert status.battery_remaining == remaining
+
+
+def test_a_battery_started_low_drains_from_there_and_charges_to_full() -> None:
+    v = flying(3.0, params={"SIM_BATT_START": 40.0, "SIM_BATT_CHARGE": 60.0})
+    run_until(v, lambda: v.battery_remaining < 39, 60)  # from 40 %, not from full
+    assert command(v, M.MAV_CMD_NAV_LAND)[0] == M.MAV_RESULT_ACCEPTED
+    run_until(v, lambda: not v.armed, 30)
+    run_until(v, lambda: v.battery_remaining == 100, 600)  # the pad fills it

@@ -51,6 +51,18 @@ def _sim_frames(text: str) -> list[str]:
         raise argparse.ArgumentTypeError(str(error)) from None
 
 
+def _sim_battery(text: str) -> tuple[str, float]:
+    from sitl.cli import battery_start
+
+    return battery_start(text)
+
+
+def _fast_boot() -> type[argparse.Action]:
+    from sitl.cli import FastBoot
+
+    return FastBoot
+
+
 MAX_SIM_VEHICLES = 250
 """Simulated vehicles one ``tml run --sim`` flies at most: each takes three sockets in this
 process, and pymavlink watches its sockets with select(), which cannot see a descriptor
@@ -109,6 +121,14 @@ def add_vehicle_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sim-param", type=_sim_param, action="append", default=[],
                         metavar="NAME=VALUE",
                         help="--sim: set a simulator parameter (e.g. SIM_EKF_GPS_TIME=2)")
+    parser.add_argument("--sim-battery", type=_sim_battery, action="append", dest="sim_param",
+                        metavar="PERCENT",
+                        help="--sim: the charge of every simulated battery at the start, 0 to "
+                             "100 (default 100), e.g. to see a low-battery event fire")
+    parser.add_argument("--sim-fast-boot", action=_fast_boot(), dest="sim_param",
+                        help="--sim: the GPS locks after 1 s and the EKF uses it after 2 s of "
+                             "vehicle time instead of ArduCopter's 10 and 41 s: the vehicles "
+                             "are armable at once")
     parser.add_argument("--out", action="append", default=[], metavar="ADDRESS",
                         help="copy every vehicle message to this address, so QGroundControl "
                              "or MAVProxy can watch (e.g. udpout:127.0.0.1:14551); "

@@ -12,7 +12,7 @@ from lxml import etree
 
 from tml.commands.cli import main
 from tml.language.validation import load_mission
-from tml.report.figures import png
+from tml.report.figures import figure, png
 from tml.report.flight import read_flight
 from tml.report.pages import page
 from tml.report.tracks import gpx, kml
@@ -87,7 +87,8 @@ def test_the_page_embeds_the_picture_and_tables_of_tasks_and_events(log: Path) -
     tasks = [[c.text for c in row.findall("td")] for row in tables[0].findall("tr")[1:]]
     assert [row[0] for row in tasks][-1] == "Final landing" and tasks[-1][-1] == "done"
     events = [[c.text for c in row.findall("td")] for row in tables[1].findall("tr")[1:]]
-    assert events[0][2:] == ["autopilot (warning)", "Battery 1 is low"]
+    assert events[0][3:] == ["autopilot (warning)", "Battery 1 is low"]
+    assert events[0][1].count(":") == 2  # its wall-clock time, 12:34:56.789
     assert "http" not in text.replace("http://", "")  # nothing fetched: it opens offline
 
 
@@ -139,3 +140,123 @@ def test_report_output_errors_exit_2(log: Path, capsys) -> None:
     assert main(["report", str(log), "-o", "/nonexistent/dir/r.png"]) == 2
     assert "cannot write" in capsys.readouterr().err
 
+
+
+def _log(tmp_path: Path, lines: list[dict]) -> Path:
+    path = tmp_path / "flight.jsonl"
+    path.write_text("".join(json.dumps(line) + "\n" for line in lines))
+    return path
+
+
+def _telemetry(t: float, vehicle: int, up: float, armed: bool, **more) -> dict:
+    return {"t": t, "kind": "telemetry", "vehicle": vehicle, "position": [0.0, 0.0, up],
+            "battery": 90.0, "mode": "GUIDED", "armed": armed, **more}
+
+
+def _task(t: float, task: str, state: str, vehicle: int | None = None) -> dict:
+    line = {"t": t, "kind": "task", "task": task, "state": state}
+    return {**line, "vehicle": vehicle} if vehicle is not None else line
+
+
+def test_times_are_mission_time_from_the_first_task_not_the_run(tmp_path: Path) -> None:
+    # The run waits 40 s for its vehicle to be ready: the report counts from the mission.
+    path = _log(tmp_path, [
+        {"t": 2.0, "kind": "run", "mission": "m", "file": "", "mission_time": None},
+        {"t": 3.0, "kind": "autopilot", "vehicle": 1, "severity": "info", "text": "Ready",
+         "mission_time": None},
+        {"t": 42.0, "kind": "mission", "vehicle": 1, "message": "mission 'm' started",
+         "mission_time": 0.0},
+        {**_task(42.0, "A", "running", 1), "mission_time": 0.0},
+        {**_telemetry(43.0, 1, 5.0, True), "mission_time": 1.0},
+        {**_task(52.0, "A", "done", 1), "mission_time": 10.0},
+        {**_telemetry(53.0, 1, 0.0, False), "mission_time": 11.0},
+    ])
+    flight = read_flight(str(path))
+    assert (flight.start, flight.mission_start, flight.origin) == (2.0, 42.0, 42.0)
+    drawn = figure(flight)
+    timeline = drawn.axes[-1]
+    assert timeline.get_xlabel() == "mission time (s): since the first task started"
+    left, right = timeline.get_xlim()
+    assert -1.0 < left <= 0.0 and 11.0 <= right < 12.0
+    assert drawn.axes[1].get_xlim() == (left, right)  # altitude on the same time base
+    root = etree.fromstring(page(flight).encode(), etree.HTMLParser())
+    tasks, marks = ([[c.text for c in row.findall("td")] for row in table.findall("tr")[1:]]
+                    for table in root.findall(".//table"))
+    assert tasks == [["A", "1", "0.0", "10.0", "10.0", "done"]]
+    assert marks[0][0] == "-39.0"  # said before the mission started: negative
+
+
+def test_a_log_without_mission_time_counts_from_its_mission_line(tmp_path: Path) -> None:
+    path = _log(tmp_path, [{"t": 2.0, "kind": "run", "mission": "m", "file": ""},
+                           {"t": 30.0, "kind": "mission", "vehicle": 1, "elapsed": 100.0},
+                           _task(31.0, "A", "running", 1)])
+    assert read_flight(str(path)).origin == -70.0  # resumed after 100 s of mission
+    path = _log(tmp_path, [{"t": 2.0, "kind": "run", "mission": "m", "file": ""},
+                           _telemetry(3.0, 1, 0.0, False)])
+    flight = read_flight(str(path))  # the mission never started: the run's time
+    assert flight.origin == 2.0 and flight.time_label == "time since the run started (s)"
+
+
+def test_a_fleets_tasks_keep_tree_order_on_the_timeline(tmp_path: Path) -> None:
+    # Both sorties start side by side; vehicle 1's take-off starts after vehicle 2's
+    # sortie: by start it would sit under vehicle 2's.
+    path = _log(tmp_path, [
+        {"t": 0.0, "kind": "run", "mission": "m", "file": ""},
+        _task(0.0, "Round", "running"),
+        _task(0.0, "Round/North", "running", 1),
+        _task(0.0, "Round/South", "running", 2),
+        _task(1.1, "Round/North/Take off", "running", 1),
+        _task(1.3, "Round/South/Take off", "running", 2),
+        _task(9.0, "Round/North/Take off", "done", 1),
+        _task(9.5, "Round/South/Take off", "done", 2),
+        _task(9.0, "Round/North", "done", 1),
+        _task(9.5, "Round/South", "done", 2),
+        _task(9.5, "Round", "done"),
+        _task(10.0, "Round", "running"),  # a second round: its own sorties under it
+        _task(10.0, "Round/North", "running", 1),
+        _task(12.0, "Round/North", "done", 1),
+        _task(12.0, "Round", "done"),
+    ])
+    flight = read_flight(str(path))
+    assert [(s.task, s.vehicle, s.start) for s in flight.tasks] == [
+        ("Round", None, 0.0), ("Round/North", 1, 0.0), ("Round/North/Take off", 1, 1.1),
+        ("Round/South", 2, 0.0), ("Round/South/Take off", 2, 1.3),
+        ("Round", None, 10.0), ("Round/North", 1, 10.0)]
+    labels = [t.get_text() for t in figure(flight).axes[-1].get_yticklabels()]
+    assert labels[1:3] == ["· North [v1]", "· · Take off [v1]"]
+
+
+def test_a_reason_not_to_arm_after_landing_is_no_warning(tmp_path: Path) -> None:
+    prearm = {"kind": "autopilot", "vehicle": 1, "severity": "critical", "level": 2,
+              "text": "PreArm: Mode not armable"}
+    path = _log(tmp_path, [
+        {"t": 0.0, "kind": "run", "mission": "m", "file": ""},
+        _telemetry(1.0, 1, 5.0, True),
+        {**prearm, "t": 2.0, "armed": True},  # said armed: a real alarm
+        {**prearm, "t": 3.0, "armed": False},  # after the landing: expected
+        _telemetry(4.0, 1, 0.0, False),
+        {**prearm, "t": 5.0},  # an older log: disarmed by the last telemetry
+        {"t": 6.0, "kind": "autopilot", "vehicle": 1, "severity": "critical",
+         "text": "EKF failsafe", "armed": False},
+    ])
+    flight = read_flight(str(path))
+    assert [(m.t, m.severity, m.said) for m in flight.marks] == [
+        (2.0, "critical", ""), (3.0, "info", "critical"), (5.0, "info", "critical"),
+        (6.0, "critical", "")]
+    root = etree.fromstring(page(flight).encode(), etree.HTMLParser())
+    marks = [[c.text for c in row.findall("td")]
+             for row in root.findall(".//table")[1].findall("tr")[1:]]
+    assert marks[1][3] == "autopilot (info, said critical)"
+
+
+def test_gpx_times_are_when_it_flew_at_the_vehicles_pace(tmp_path: Path) -> None:
+    where = {"global": [-35.0, 149.0, 600.0]}
+    path = _log(tmp_path, [
+        {"t": 0.0, "kind": "run", "mission": "m", "file": ""},
+        _telemetry(10.0, 1, 5.0, True, wall="2026-05-01T14:00:00.000+02:00", **where),
+        _telemetry(30.0, 1, 5.0, True, wall="2026-05-01T14:00:01.000+02:00", **where),
+    ])
+    (track,) = gpxpy.parse(io.StringIO(gpx(read_flight(str(path))))).tracks
+    first, second = track.segments[0].points
+    assert first.time.isoformat() == "2026-05-01T12:00:00+00:00"
+    assert (second.time - first.time).total_seconds() == 20.0  # the vehicle's 20 s

@@ -1,5 +1,6 @@
 """The report's picture, drawn with matplotlib: where each vehicle flew against the plan,
-altitude and battery over time, and the tasks on a timeline with the events.
+altitude and battery over time, and the tasks on a timeline with the events, every time in
+mission time (:attr:`~tml.report.flight.Flight.origin`), the tasks in tree order.
 
 The figure is made without pyplot (a :class:`~matplotlib.figure.Figure` on the Agg canvas),
 so nothing opens a window or keeps global state, and it draws the same on a machine with
@@ -27,7 +28,6 @@ VEHICLE_COLOURS = ["#1565c0", "#ef6c00", "#6a1b9a", "#00897b", "#ad1457", "#5d40
 PLANNED_COLOURS = ["#bdbdbd", "#ffcc80", "#b39ddb", "#80cbc4"]
 """Pale, to lie under the tracks: one per role."""
 WARNING_LEVELS = {"emergency", "alert", "critical", "error", "warning"}
-TIME_LABEL = "time since the run started (s)"
 TIMELINE_ROWS_SHOWN = 40
 """Task rows drawn at most; a longer mission shows its first ones and says how many more."""
 
@@ -64,19 +64,31 @@ def _map(axes: Axes, flight: Flight) -> None:
     axes.set_ylabel("north (m)")
     axes.set_aspect("equal", adjustable="datalim")
     axes.grid(True, alpha=0.3)
-    axes.legend(loc="best", fontsize=8)
+    if axes.get_legend_handles_labels()[0]:  # a log without tracks has nothing to name
+        axes.legend(loc="best", fontsize=8)
+
+
+def _span(flight: Flight) -> tuple[float, float]:
+    """The times the report's axes show: from the mission's start (or the first thing
+    flown or sampled, if earlier) to the end of the log."""
+    first = min([0.0, *(s.start - flight.origin for s in flight.tasks),
+                 *(track[0].t - flight.origin for track in flight.tracks.values() if track)])
+    last = max(flight.end - flight.origin, first + 1.0)
+    pad = (last - first) * 0.01
+    return first - pad, last + pad
 
 
 def _over_time(axes: Axes, flight: Flight, what: str) -> None:
     for vehicle, track in flight.tracks.items():
-        values = [(s.t - flight.start, s.up if what == "altitude" else s.battery)
+        values = [(s.t - flight.origin, s.up if what == "altitude" else s.battery)
                   for s in track]
         shown = [(t, v) for t, v in values if v is not None]
         axes.plot([t for t, _ in shown], [v for _, v in shown], color=_colour(vehicle),
                   linewidth=1.8, label=f"vehicle {vehicle}")
     axes.set_title("Altitude above home" if what == "altitude" else "Battery")
     axes.set_ylabel("m" if what == "altitude" else "%")
-    axes.set_xlabel(TIME_LABEL)
+    axes.set_xlabel(flight.time_label)
+    axes.set_xlim(*_span(flight))
     axes.grid(True, alpha=0.3)
     if what == "battery":
         axes.set_ylim(bottom=0, top=105)
@@ -90,22 +102,22 @@ def _timeline(axes: Axes, flight: Flight) -> None:
     labels = []
     for row, span in enumerate(spans):
         end = span.end if span.end is not None else flight.end
-        width = max(end - span.start, (flight.end - flight.start) / 400)
-        axes.barh(row, width, left=span.start - flight.start, height=0.7,
+        width = max(end - span.start, (flight.end - flight.origin) / 400)
+        axes.barh(row, width, left=span.start - flight.origin, height=0.7,
                   color=STATE_COLOURS.get(span.state, "#9e9e9e"))
         depth = span.task.count("/")
         name = span.task.rsplit("/", 1)[-1]
         who = f" [v{span.vehicle}]" if several and span.vehicle is not None else ""
         labels.append(f"{'· ' * depth}{name[:38]}{who}")
     axes.set_yticks(range(len(spans)), labels, fontsize=8)
-    axes.set_ylim(len(spans) - 0.5, -0.5)
+    axes.set_ylim(max(len(spans), 1) - 0.5, -0.5)
     for mark in flight.marks:
         if mark.kind == "event":
-            axes.axvline(mark.t - flight.start, color="#ad1457", linewidth=1.2)
-            axes.text(mark.t - flight.start, -0.45, f" {mark.text}", color="#ad1457",
-                      fontsize=8, va="top", rotation=0)
+            axes.axvline(mark.t - flight.origin, color="#ad1457", linewidth=1.2)
+            axes.text(mark.t - flight.origin, -0.45, f" {mark.text}", color="#ad1457",
+                      fontsize=8, va="top", rotation=0, clip_on=True)
         elif mark.kind == "autopilot" and mark.severity in WARNING_LEVELS:
-            axes.axvline(mark.t - flight.start, color="#c62828", linewidth=0.6,
+            axes.axvline(mark.t - flight.origin, color="#c62828", linewidth=0.6,
                          linestyle=":")
     handles: list[Artist] = [Patch(color=colour, label=state)
                              for state, colour in STATE_COLOURS.items()
@@ -115,7 +127,8 @@ def _timeline(axes: Axes, flight: Flight) -> None:
     more = len(flight.tasks) - len(spans)
     axes.set_title("Tasks" + (f" (the first {len(spans)}; {more} more in the HTML report)"
                               if more > 0 else ""), loc="left")
-    axes.set_xlabel(TIME_LABEL)
+    axes.set_xlabel(flight.time_label)
+    axes.set_xlim(*_span(flight))
     axes.grid(True, axis="x", alpha=0.3)
     axes.legend(handles=handles, loc="lower right", bbox_to_anchor=(1.0, 1.0), fontsize=8,
                 ncols=len(handles), frameon=False)

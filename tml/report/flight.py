@@ -5,6 +5,21 @@ into a :class:`Flight`. Lines of kinds it does not know are passed over, so that
 a later version still reads. The planned path comes from the mission file the log names
 (:mod:`tml.plans.planned`: the path its mission items fly), when that file is still there
 and valid; a report is drawn without it otherwise.
+
+*Time.* A report speaks in mission time, as the live view and the log's ``mission_time``
+do: :attr:`Flight.origin` is where the mission started on the log's clock ``t`` (from the
+lines' ``mission_time``, or, in a log written before they had it, from the line that says
+the mission started), and every time shown is ``t`` less it. A log whose mission never
+started counts from the run's start.
+
+*Tasks* are kept in tree order -- a task, then the tasks it ran, each vehicle's under the
+task it flew them in -- whatever order they started in: in a fleet, the sorties of two
+vehicles start side by side, and sorting them by start put one's sub-tasks under the
+other.
+
+*Autopilot messages* keep their severity, except a reason not to arm said while the
+vehicle was disarmed (ArduCopter's ``PreArm: Mode not armable`` after every landing),
+shown as info (:func:`tml.vehicle.shown_severity`) with the severity it was said with.
 """
 
 from __future__ import annotations
@@ -15,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from tml.errors import TmlError
+from tml.vehicle import SEVERITIES, shown_severity
 
 
 class LogError(TmlError):
@@ -35,6 +51,7 @@ class Sample:
     battery: float | None
     mode: str
     armed: bool
+    wall: str = ""  # the wall-clock time of the line (ISO 8601), "" in an older log
 
 
 @dataclass
@@ -58,7 +75,9 @@ class Mark:
     vehicle: int | None
     kind: str  # "event", "autopilot", "safety", "error"
     text: str
-    severity: str = ""
+    severity: str = ""  # as shown: a reason not to arm said disarmed is "info"
+    said: str = ""  # the severity the autopilot said, when it is not the one shown
+    wall: str = ""  # the wall-clock time of the line (ISO 8601), "" in an older log
 
 
 @dataclass
@@ -79,6 +98,22 @@ class Flight:
     """Planned path (north, east, up) by role ("" for a mission without roles)."""
     obstacles: list[list[tuple[float, float]]] = field(default_factory=list)
     geofence: list[tuple[float, float]] = field(default_factory=list)
+    mission_start: float | None = None
+    """Where the mission started on the log's clock ``t``; None if it never did."""
+    walls: tuple[str, str] = ("", "")
+    """The wall-clock times of the first and last lines (ISO 8601), "" in an older log."""
+
+    @property
+    def origin(self) -> float:
+        """Where time 0 of the report is on the log's clock: the mission's start, or the
+        run's when the mission never started."""
+        return self.start if self.mission_start is None else self.mission_start
+
+    @property
+    def time_label(self) -> str:
+        """What the report's times count."""
+        return "time since the run started (s)" if self.mission_start is None \
+            else "mission time (s): since the first task started"
 
     @property
     def vehicles(self) -> list[int]:
@@ -112,14 +147,65 @@ def read_flight(path: str) -> Flight:
             _take(flight, line, open_tasks)
     if not flight.tracks and not flight.tasks and not flight.mission:
         raise LogError(f"{path}: no run in this log (not a tml flight log?)")
+    flight.tasks = tree_order(flight.tasks)
     _plan(flight)
     return flight
+
+
+def tree_order(spans: list[TaskSpan]) -> list[TaskSpan]:
+    """The spans in tree order: each task, then the tasks it ran (in the order they
+    started), a vehicle's under the run of the task it flew them in (its own, else the
+    fleet's), whatever order they started in."""
+    children: dict[int, list[TaskSpan]] = {}
+    roots: list[TaskSpan] = []
+    for index, span in enumerate(spans):
+        parent = _parent(spans[:index], span)
+        if parent is None:
+            roots.append(span)
+        else:
+            children.setdefault(id(parent), []).append(span)
+    ordered: list[TaskSpan] = []
+
+    def walk(found: list[TaskSpan]) -> None:
+        for span in found:
+            ordered.append(span)
+            walk(children.get(id(span), []))
+
+    walk(roots)
+    return ordered
+
+
+def _parent(before: list[TaskSpan], span: TaskSpan) -> TaskSpan | None:
+    """The run of the task around ``span`` it began in: the latest begun before it, of the
+    same vehicle if there is one, else of none (a task no vehicle flies)."""
+    if "/" not in span.task:
+        return None
+    path = span.task.rsplit("/", 1)[0]
+    found: TaskSpan | None = None
+    for candidate in reversed(before):
+        if candidate.task != path or candidate.start > span.start:
+            continue
+        if candidate.vehicle == span.vehicle:
+            return candidate
+        if candidate.vehicle is None and found is None:
+            found = candidate
+    return found
 
 
 def _take(flight: Flight, line: dict[str, Any],
           open_tasks: dict[tuple[str, int | None], TaskSpan]) -> None:
     kind, t, vehicle = line["kind"], float(line["t"]), line.get("vehicle")
     flight.end = max(flight.end, t)
+    wall = str(line.get("wall") or "")
+    if wall:
+        flight.walls = (flight.walls[0] or wall, wall)
+    mission_time = line.get("mission_time")
+    if flight.mission_start is None and isinstance(mission_time, (int, float)):
+        flight.mission_start = t - float(mission_time)
+    elif flight.mission_start is None and kind == "mission":  # a log without mission_time
+        elapsed = line.get("elapsed")
+        flight.mission_start = t - (float(elapsed) if isinstance(elapsed, (int, float))
+                                    else 0.0)
     if kind == "run" and "mission" in line:
         flight.mission, flight.mission_file, flight.start = (
             str(line["mission"]), str(line.get("file") or ""), t)
@@ -133,7 +219,7 @@ def _take(flight: Flight, line: dict[str, Any],
         flight.tracks.setdefault(int(vehicle), []).append(Sample(
             t, north, east, up, where[0], where[1], where[2],
             None if battery is None else float(battery), str(line.get("mode", "")),
-            bool(line.get("armed"))))
+            bool(line.get("armed")), wall))
     elif kind == "task":
         key = (str(line["task"]), vehicle)
         if line["state"] == "running":
@@ -145,12 +231,28 @@ def _take(flight: Flight, line: dict[str, Any],
         else:  # ended without running (skipped)
             flight.tasks.append(TaskSpan(key[0], vehicle, t, t, str(line["state"])))
     elif kind == "event":
-        flight.marks.append(Mark(t, vehicle, "event", str(line.get("event", ""))))
+        flight.marks.append(Mark(t, vehicle, "event", str(line.get("event", "")), wall=wall))
     elif kind == "autopilot":
-        flight.marks.append(Mark(t, vehicle, "autopilot", str(line.get("text", "")),
-                                 str(line.get("severity", ""))))
+        text, said = str(line.get("text", "")), str(line.get("severity", ""))
+        shown = said
+        if said in SEVERITIES:
+            level = shown_severity(SEVERITIES.index(said), text, _armed(flight, line))
+            shown = SEVERITIES[level]
+        flight.marks.append(Mark(t, vehicle, "autopilot", text, shown,
+                                 said if shown != said else "", wall))
     elif kind in ("safety", "error"):
-        flight.marks.append(Mark(t, vehicle, kind, str(line.get("message", ""))))
+        flight.marks.append(Mark(t, vehicle, kind, str(line.get("message", "")), wall=wall))
+
+
+def _armed(flight: Flight, line: dict[str, Any]) -> bool | None:
+    """Whether the vehicle was armed when its autopilot said ``line``: as the line says, or
+    (a log without it) as its last telemetry line said; None when not known."""
+    armed = line.get("armed")
+    if isinstance(armed, bool):
+        return armed
+    vehicle = line.get("vehicle")
+    track = flight.tracks.get(vehicle) if isinstance(vehicle, int) else None
+    return track[-1].armed if track else None
 
 
 def _plan(flight: Flight) -> None:

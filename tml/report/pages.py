@@ -1,6 +1,7 @@
-"""The report as one HTML page: the figure embedded, the outcome, and tables of the tasks and
-of what happened (events, autopilot messages, safety steps), with nothing fetched from
-anywhere: the page opens offline and can be mailed as it is."""
+"""The report as one HTML page: the figure embedded, the outcome, and tables of the tasks (in
+tree order) and of what happened (events, autopilot messages, safety steps: their mission
+time and wall-clock time), with nothing fetched from anywhere: the page opens offline and
+can be mailed as it is."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import base64
 import html
 
 from tml.report.figures import STATE_COLOURS, png
-from tml.report.flight import Flight
+from tml.report.flight import Flight, Mark
 
 STYLE = """
 body { font-family: system-ui, sans-serif; margin: 2em; color: #212121; }
@@ -29,43 +30,76 @@ def _seconds(value: float | None, start: float) -> str:
     return "" if value is None else f"{value - start:.1f}"
 
 
+def _clock(wall: str) -> str:
+    """The time of day of a ``wall`` field (``14:03:22.125``), "" when there is none."""
+    return wall[11:23] if len(wall) >= 23 else ""
+
+
+def _when(flight: Flight) -> str:
+    """When the run was flown, by the wall clock, if the log says."""
+    first, last = flight.walls
+    if not first:
+        return ""
+    return (f"Flown {html.escape(first[:10])} from {html.escape(_clock(first))} to "
+            f"{html.escape(_clock(last))} ({html.escape(first[23:] or 'local time')}).")
+
+
+def _severity(mark: Mark) -> str:
+    if not mark.severity:
+        return ""
+    said = f", said {mark.said}" if mark.said else ""
+    return f" ({mark.severity}{said})"
+
+
+def _counted(flight: Flight) -> str:
+    """What the report's times count."""
+    if flight.mission_start is None:
+        return "The mission never started: times count from the start of the run."
+    before = flight.mission_start - flight.start
+    return (f"Times are mission time: seconds since the first task started, {before:.1f} s "
+            "after the run did (earlier, negative).")
+
+
 def page(flight: Flight) -> str:
     """The HTML text of the report."""
     image = base64.b64encode(png(flight)).decode("ascii")
     title = html.escape(flight.mission or flight.file)
+    origin = flight.origin
     rows = []
     for span in flight.tasks:
         end = span.end
         duration = "" if end is None else f"{end - span.start:.1f}"
         colour = STATE_COLOURS.get(span.state, "#9e9e9e")
         rows.append("<tr>" + _cell(span.task) + _cell(span.vehicle, True)
-                    + _cell(_seconds(span.start, flight.start), True)
-                    + _cell(_seconds(end, flight.start), True) + _cell(duration, True)
+                    + _cell(_seconds(span.start, origin), True)
+                    + _cell(_seconds(end, origin), True) + _cell(duration, True)
                     + f'<td style="color:{colour}">{html.escape(span.state)}</td></tr>')
-    marks = ["<tr>" + _cell(_seconds(m.t, flight.start), True) + _cell(m.vehicle, True)
-             + _cell(m.kind + (f" ({m.severity})" if m.severity else "")) + _cell(m.text)
+    marks = ["<tr>" + _cell(_seconds(m.t, origin), True) + _cell(_clock(m.wall), True)
+             + _cell(m.vehicle, True) + _cell(m.kind + _severity(m)) + _cell(m.text)
              + "</tr>" for m in flight.marks]
     outcomes = "".join(f"<li>vehicle {html.escape(str(o.get('vehicle')))}: "
                        f"<b>{html.escape(str(o.get('status')))}</b> "
                        f"({html.escape(str(o.get('reason')))})</li>"
                        for o in flight.outcomes) or f"<li>{html.escape(flight.outcome)}</li>"
     exit_code = "" if flight.exit_code is None else f"<p>Exit code {flight.exit_code}.</p>"
+    unit = "mission time, s" if flight.mission_start is not None else "s"
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>Flight report: {title}</title>
 <style>{STYLE}</style></head>
 <body>
 <h1>Flight report: {title}</h1>
 <p>Mission file {html.escape(flight.mission_file or "unknown")}, flight log
-{html.escape(flight.file)}; {flight.end - flight.start:.1f} s from the start of the run.</p>
+{html.escape(flight.file)}; {flight.end - flight.start:.1f} s from the start of the run.
+{_when(flight)} {_counted(flight)}</p>
 <h2>Outcome</h2><ul>{outcomes}</ul>{exit_code}
 <img alt="planned path and flown track, altitude, battery and task timeline"
  src="data:image/png;base64,{image}">
 <h2>Tasks</h2>
-<table><tr><th>task</th><th>vehicle</th><th>start (s)</th><th>end (s)</th>
+<table><tr><th>task</th><th>vehicle</th><th>start ({unit})</th><th>end ({unit})</th>
 <th>duration (s)</th><th>state</th></tr>
 {"".join(rows)}</table>
 <h2>Events, autopilot messages and safety steps</h2>
-<table><tr><th>time (s)</th><th>vehicle</th><th>what</th><th>text</th></tr>
+<table><tr><th>{unit}</th><th>wall clock</th><th>vehicle</th><th>what</th><th>text</th></tr>
 {"".join(marks)}</table>
 </body></html>
 """

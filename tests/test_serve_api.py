@@ -205,6 +205,22 @@ def test_a_run_on_an_unknown_vehicle_is_refused(served: Served) -> None:
     assert served.client.post("/runs", json={"mission": "abc"}).status_code == 404
 
 
+# --- vehicles --------------------------------------------------------------------------------
+
+def test_a_vehicle_gives_what_an_operator_reads_and_where_its_home_is(served: Served) -> None:
+    """The page draws a fleet in one frame from each vehicle's home and latitude and
+    longitude, and shows the fields an operator expects."""
+    vehicle = served.client.get("/vehicles/1").json()
+    home = served.hangar.fakes[0].home
+    assert vehicle["home"] == {"latitude": home.latitude, "longitude": home.longitude,
+                               "altitude": home.altitude}
+    assert vehicle["global"] == pytest.approx([home.latitude, home.longitude, home.altitude])
+    assert (vehicle["satellites"], vehicle["voltage"], vehicle["climb"]) == (10, 12.6, 0.0)
+    for address in ("/", "/page/app.js", "/page/style.css"):
+        answer = served.client.get(address)
+        assert answer.headers["cache-control"] == "no-cache", "an upgrade is never half seen"
+
+
 # --- the flight log and its stream ---------------------------------------------------------
 
 def test_the_stream_sends_the_flight_log_lines_then_the_end(served: Served) -> None:

@@ -161,6 +161,14 @@ class RunView(BaseModel):
         default=None, description="what was done to leave the vehicles safe")
 
 
+class HomeView(BaseModel):
+    """A vehicle's home: the origin of its local frame."""
+
+    latitude: float
+    longitude: float
+    altitude: float = Field(description="metres above mean sea level")
+
+
 class VehicleView(BaseModel):
     """A vehicle with its live telemetry."""
 
@@ -173,10 +181,16 @@ class VehicleView(BaseModel):
     armed: bool
     landed: bool
     position: list[float] | None = Field(description="north, east, up in metres from home")
+    global_position: list[float] | None = Field(
+        alias="global", description="latitude, longitude (degrees) and altitude AMSL (m)")
+    home: HomeView | None = Field(description="where the vehicle's local frame starts")
     heading: float
     ground_speed: float
-    battery: float | None
-    gps_fix: int | None
+    climb: float = Field(description="vertical speed, m/s, up positive")
+    battery: float | None = Field(description="charge left, %")
+    voltage: float | None = Field(description="battery voltage, V")
+    gps_fix: int | None = Field(description="GPS_RAW_INT fix type (3: 3D)")
+    satellites: int | None = Field(description="GPS satellites visible")
     mission: dict[str, Any] | None
     detections: dict[str, Any]
     status_text: str = Field(description="the autopilot's last message")
@@ -241,13 +255,24 @@ def create_app(service: Service, token: str | None = None) -> FastAPI:
 
     app.include_router(api)
     page = resources.files("tml.serve").joinpath("page")
-    app.mount("/page", StaticFiles(directory=str(page)), name="page")
+    app.mount("/page", PageFiles(directory=str(page)), name="page")
 
     @app.get("/", include_in_schema=False)
     def index() -> FileResponse:
-        return FileResponse(str(page.joinpath("index.html")), media_type="text/html")
+        return FileResponse(str(page.joinpath("index.html")), media_type="text/html",
+                            headers={"Cache-Control": "no-cache"})
 
     return app
+
+
+class PageFiles(StaticFiles):
+    """The page's files, checked again (by their ETag) at every load: a browser never runs
+    the script of one version of tml with the page of another."""
+
+    def file_response(self, *args: Any, **kwargs: Any) -> Response:
+        response = super().file_response(*args, **kwargs)
+        response.headers["Cache-Control"] = "no-cache"
+        return response
 
 
 def _id() -> Any:

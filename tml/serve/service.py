@@ -338,9 +338,12 @@ class Service:
         if found is None:
             raise NotFound(f"no vehicle {vehicle_id}")
         state = found.state()
+        home = None if state.home is None else {
+            "latitude": state.home.latitude, "longitude": state.home.longitude,
+            "altitude": state.home.altitude}
         return {"id": vehicle_id, "run": self.hangar.holder(vehicle_id),
                 "vehicle_type": state.vehicle_type, "time": round(state.time, 3),
-                **telemetry_fields(state), "status_text": state.status_text,
+                **telemetry_fields(state), "home": home, "status_text": state.status_text,
                 "awaiting": list(awaiting(state))}
 
     # --- helpers -------------------------------------------------------------------------

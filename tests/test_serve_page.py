@@ -2,9 +2,10 @@
 (``chromium``, ``chromium-driver``), driven by Selenium, against a service flying the
 embedded simulator.
 
-The test uploads a mission with an error and sees the error's line, uploads a good one,
+One test uploads a mission with an error and sees the error's line, uploads a good one,
 starts it, watches the vehicle's marker move and the task states change, pauses it (the
-vehicle holds), resumes it, and sees the run complete; its screenshot is kept in
+vehicle holds), resumes it, and sees the run complete. Another watches a fleet of two at
+a phone's size and a laptop's, as an operator would read it. Screenshots are kept in
 ``test-artifacts/`` (or ``$TML_TEST_ARTIFACTS``). Skipped, saying why, only when no browser
 can be had.
 """
@@ -12,6 +13,7 @@ can be had.
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import shutil
 import threading
@@ -104,6 +106,18 @@ def click(driver: Any, selector: str) -> None:
          lambda d: d.find_element(By.CSS_SELECTOR, selector).click() or True)
 
 
+def confirm(driver: Any, word: str) -> None:
+    """Answer the page's confirmation, which names the command, with its OK button."""
+    from selenium.webdriver.common.by import By
+
+    asked = wait(driver, f"the question before {word}", lambda d: d.find_elements(
+        By.CSS_SELECTOR, "dialog#confirm[open]"))
+    assert word in asked[0].text
+    click(driver, "#confirm-ok")
+    wait(driver, "the question closed", lambda d: not d.find_elements(
+        By.CSS_SELECTOR, "dialog#confirm[open]"))
+
+
 def test_upload_fly_and_watch_a_mission_in_the_browser(browser: Any, page: str,
                                                        tmp_path: Path) -> None:
     from selenium.webdriver.common.by import By
@@ -111,7 +125,7 @@ def test_upload_fly_and_watch_a_mission_in_the_browser(browser: Any, page: str,
     driver = browser
     driver.get(page)
     wait(driver, "the vehicles' telemetry", lambda d: len(d.find_elements(
-        By.CSS_SELECTOR, "#telemetry tbody tr")) == 2)
+        By.CSS_SELECTOR, "#telemetry .vehicle-card")) == 2)
 
     # A mission with an error: the error is shown with its line, the line quoted.
     typo = tmp_path / "typo.xml"
@@ -123,6 +137,7 @@ def test_upload_fly_and_watch_a_mission_in_the_browser(browser: Any, page: str,
         By.CSS_SELECTOR, f"#upload-result .diagnostic[data-line='{line}']"))
     assert f"line {line}," in shown[0].text and "E201" in shown[0].text
     assert "GO_TO_PIONT" in shown[0].find_element(By.TAG_NAME, "pre").text
+    assert shown[0].find_element(By.TAG_NAME, "mark").text == "<action", "the column marked"
 
     # A good one, started on vehicle 1.
     good = tmp_path / "long.xml"
@@ -137,6 +152,7 @@ def test_upload_fly_and_watch_a_mission_in_the_browser(browser: Any, page: str,
     wait(driver, "vehicle 1 chosen", lambda d: d.find_element(
         By.CSS_SELECTOR, "#vehicle-choice input[value='1']").is_selected())
     click(driver, "#start")
+    confirm(driver, "Start")
     wait(driver, "the run to start", lambda d: "running" in d.find_element(
         By.ID, "run-status").text, timeout=120)
 
@@ -179,6 +195,7 @@ def test_upload_fly_and_watch_a_mission_in_the_browser(browser: Any, page: str,
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
     driver.save_screenshot(str(ARTIFACTS / "serve-page-paused.png"))
     click(driver, "#resume")
+    confirm(driver, "Resume")
     wait(driver, "the run resumed", lambda d: "running" in d.find_element(
         By.ID, "run-status").text)
     wait(driver, "the marker to move on", lambda d: float(d.find_element(
@@ -212,6 +229,7 @@ def test_an_interrupted_run_is_continued_from_the_page(browser: Any, tmp_path: P
         wait(driver, "the interrupted run", lambda d: "interrupted" in d.find_element(
             By.ID, "run-status").text and d.find_element(By.ID, "continue").is_enabled())
         click(driver, "#continue")
+        confirm(driver, "Continue")
         wait(driver, "the run that continues it to complete", lambda d: (
             "completed" in (status := d.find_element(By.ID, "run-status").text)
             and old not in status))
@@ -220,3 +238,163 @@ def test_an_interrupted_run_is_continued_from_the_page(browser: Any, tmp_path: P
                   for li in driver.find_elements(By.CSS_SELECTOR, "#tasks li[data-task]")}
         assert states == {"Up": "done", "Out": "done", "Down": "done"}
     storage.close()
+
+
+# Two vehicles up, out side by side, holding there long enough to be paused on the way.
+FLEET = b"""<mission name="Fleet hold">
+  <task name="Up"><action name="TAKE_OFF"><argument name="altitude" value="10"/></action></task>
+  <task name="Out">
+    <action name="GO_TO_POINT"><argument name="point" value="(60,30,10)"/></action>
+  </task>
+  <task name="Hold"><action name="WAIT"><argument name="duration" value="300"/></action></task>
+  <task name="Down"><action name="LAND"/></task>
+</mission>
+"""
+SIZES = {"phone": (390, 844), "laptop": (1280, 900)}
+
+
+def show_at(driver: Any, width: int, height: int) -> None:
+    """The page's viewport at ``width`` x ``height`` CSS pixels (a phone's with its meta
+    viewport below 600)."""
+    driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride", {
+        "width": width, "height": height, "deviceScaleFactor": 1, "mobile": width < 600})
+
+
+def layout(driver: Any) -> dict[str, Any]:
+    """What an operator would see wrong in the layout, measured by the browser."""
+    return dict(driver.execute_script("""
+        const over = (e) => e.scrollWidth > e.clientWidth + 1;
+        const map = document.querySelector('#map').getBoundingClientRect();
+        return {
+          scrollWidth: document.documentElement.scrollWidth, innerWidth: innerWidth,
+          map: [map.width, map.height],
+          cut: [...document.querySelectorAll(
+              '.vehicle-card, .vehicle-card dd, ul.log li, #run-bar, #upload-result pre')]
+            .filter(over).map((e) => e.id || e.className || e.tagName),
+          offscreen: [...document.querySelectorAll('.vehicle-card, #run-bar button')]
+            .filter((e) => e.getBoundingClientRect().right > innerWidth + 1)
+            .map((e) => e.id || e.className)};"""))
+
+
+@pytest.mark.timeout(600)
+def test_a_fleet_in_flight_on_a_phone_and_a_laptop(browser: Any, page: str,
+                                                    tmp_path: Path) -> None:
+    """Two vehicles flying one run, seen at a phone's size and a laptop's: nothing wider
+    than the screen, a map of a real size, the legend in the tracks' colours, the task
+    states labelled with their vehicles, the fleet in one frame, the events in mission
+    time from the log's own stamps, and an abort that asks first."""
+    from selenium.webdriver.common.by import By
+
+    driver = browser
+    client = httpx.Client(base_url=page, timeout=30)
+    mission = client.post("/missions?filename=fleet.xml", content=FLEET,
+                          headers={"Content-Type": "application/xml"}).json()["id"]
+    run = client.post("/runs", json={"mission": mission, "vehicles": [1, 2]}).json()["id"]
+
+    def holding(_d: Any) -> bool:
+        tasks = client.get(f"/runs/{run}").json()["tasks"]
+        return all(tasks[v]["Hold"] == "running" for v in ("1", "2"))
+
+    # Paused while both hold out there: the mission's clock stands still, so nothing on the
+    # page changes but the vehicles' telemetry, however long the checks below take.
+    wait(driver, "both vehicles out and holding", holding, timeout=180)
+    assert client.post(f"/runs/{run}/pause").status_code == 200
+    log = [json.loads(line) for line in client.get(f"/runs/{run}/log").text.splitlines()]
+    started = next(r["t"] for r in log if r["kind"] == "mission")
+    take_off = next(r for r in log if r["kind"] == "autopilot" and r.get("vehicle") == 1
+                    and r["text"] == "Takeoff")
+    # Its mission time: the line's own, or (a log without it) its run time less the start's.
+    take_off_at = take_off["mission_time"] if take_off.get("mission_time") is not None \
+        else take_off["t"] - started
+
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    typo = tmp_path / "typo.xml"
+    typo.write_bytes(TYPO.replace(b'value="(40,0,10)"', b'value="(40,0,10)"' + b' ' * 40
+                                  + b'xmlns:a="urn:a-line-longer-than-a-phone-is-wide"'))
+    try:
+        for name, (width, height) in SIZES.items():
+            show_at(driver, width, height)
+            driver.get(page)
+            # The run flying is shown without being chosen.
+            wait(driver, "the run shown by default", lambda d: run in (
+                text := d.find_element(By.ID, "run-status").text) and "paused" in text)
+            for vid in ("1", "2"):
+                wait(driver, f"vehicle {vid}'s track and plan", lambda d, v=vid: all(
+                    d.find_elements(By.CSS_SELECTOR, f"#map path.{kind}[data-vehicle='{v}']")
+                    for kind in ("track", "plan")))
+            wait(driver, "the messages of the log", lambda d: d.find_elements(
+                By.CSS_SELECTOR, "#messages li"))
+
+            # An error upload at this size: its lines wrap, none is cut.
+            driver.find_element(By.ID, "mission-file").clear()
+            driver.find_element(By.ID, "mission-file").send_keys(str(typo))
+            driver.find_element(By.ID, "upload").click()
+            wait(driver, "the validation error", lambda d: d.find_elements(
+                By.CSS_SELECTOR, "#upload-result .diagnostic pre"))
+
+            seen = layout(driver)
+            assert seen["scrollWidth"] <= seen["innerWidth"], f"{name}: sideways scroll: {seen}"
+            assert seen["cut"] == [] and seen["offscreen"] == [], f"{name}: {seen}"
+            assert seen["map"][1] > (300 if name == "phone" else 500), f"{name}: {seen['map']}"
+
+            # The legend tells each vehicle's colour as its track and plan are drawn, and
+            # the flown and planned styles apart.
+            colours = {}
+            for vid in ("1", "2"):
+                keys = driver.find_elements(By.CSS_SELECTOR,
+                                            f"#legend li[data-vehicle='{vid}'] line")
+                track = driver.find_element(By.CSS_SELECTOR,
+                                            f"#map path.track[data-vehicle='{vid}']")
+                plan = driver.find_element(By.CSS_SELECTOR,
+                                           f"#map path.plan[data-vehicle='{vid}']")
+                colour = track.get_attribute("stroke")
+                assert [k.get_attribute("stroke") for k in keys] == [colour, colour]
+                assert plan.get_attribute("stroke") == colour
+                assert plan.get_attribute("stroke-dasharray") and not \
+                    track.get_attribute("stroke-dasharray")
+                assert [bool(k.get_attribute("stroke-dasharray")) for k in keys] == [False, True]
+                colours[vid] = colour
+            assert colours["1"] != colours["2"], "each vehicle its own colour"
+
+            # Task states say whose they are.
+            for vid in ("1", "2"):
+                badges = [b.text for b in driver.find_elements(
+                    By.CSS_SELECTOR, f"#tasks .state[data-vehicle='{vid}']")]
+                assert len(badges) == 4 and all(b.startswith(f"vehicle {vid}: ")
+                                                for b in badges), badges
+
+            # One frame: vehicle 2's home is 5 m east of vehicle 1's (the simulator boots a
+            # fleet in a row), not on top of it.
+            homes = {h.get_attribute("data-vehicle"): (float(h.get_attribute("data-north")),
+                                                       float(h.get_attribute("data-east")))
+                     for h in driver.find_elements(By.CSS_SELECTOR, "#map circle.home")}
+            assert homes["1"] == pytest.approx((0.0, 0.0), abs=0.05)
+            assert homes["2"] == pytest.approx((0.0, 5.0), abs=0.1)
+
+            # Mission time, from the log's own stamp, the same at every load.
+            said = next(li.find_element(By.CSS_SELECTOR, ".t").text
+                        for li in driver.find_elements(By.CSS_SELECTOR, "#messages li")
+                        if "vehicle 1: Takeoff" in li.text)
+            assert float(said.removesuffix(" s")) == pytest.approx(take_off_at, abs=0.051)
+            driver.execute_script("window.scrollTo(0, 0)")
+            shot = ARTIFACTS / f"page-{width}x{height}.png"
+            assert driver.save_screenshot(str(shot)) and shot.stat().st_size > 10_000
+
+        # Abort asks first: cancelled, nothing is sent; confirmed, the run aborts.
+        click(driver, "#abort")
+        asked = wait(driver, "the question", lambda d: d.find_elements(
+            By.CSS_SELECTOR, "dialog#confirm[open]"))
+        assert "Abort" in asked[0].text and "vehicles 1, 2" in asked[0].text
+        click(driver, "#confirm-cancel")
+        wait(driver, "the question closed", lambda d: not d.find_elements(
+            By.CSS_SELECTOR, "dialog#confirm[open]"))
+        assert client.get(f"/runs/{run}").json()["status"] == "paused"
+        assert not [r for r in map(json.loads, client.get(f"/runs/{run}/log").text.splitlines())
+                    if r["kind"] == "safety"], "no safe state was commanded"
+        click(driver, "#abort")
+        confirm(driver, "Abort")
+        wait(driver, "the run aborted", lambda d: "aborted" in d.find_element(
+            By.ID, "run-status").text, timeout=180)
+    finally:
+        driver.execute_cdp_cmd("Emulation.clearDeviceMetricsOverride", {})
+        client.close()

@@ -1,20 +1,52 @@
 // The page of tml serve: missions, runs, vehicles and the live view of a run, all through
 // the service's HTTP API (docs/serve.md). Plain script, no build step, nothing fetched
 // from anywhere but the service.
+//
+// Time: every line of a run's flight log carries its own time stamps: `t` on the run's
+// clock and `mission_time`, seconds since the mission's first task started (null before).
+// The page shows mission time: the line's own, else `t` less the `t` of the mission's
+// start (its first `mission` line), negative before it; while the mission has not
+// started, seconds since the run started. Nothing is stamped with the time the page
+// received it, so a reload shows the same times.
+//
+// Space: every vehicle has its own home (the origin of its telemetry's local frame). The
+// map draws them all in one frame, metres north and east of the first vehicle's home:
+// positions come as latitude and longitude (`global`) and are projected around that home.
 "use strict";
+
+const LIVE = ["waiting", "running", "paused"];
+const MAX_LINES = 200;          // events and messages kept in the lists
+const EVENT_KINDS = ["event", "safety", "mission", "error", "vehicle", "control", "link",
+  "taken", "pick", "release"];
+const SAFE_STATES = {rtl: "return to launch", land: "land where they are",
+  hold: "hold where they are"};
+const GPS_FIXES = ["no GPS", "no fix", "2D fix", "3D fix", "DGPS", "RTK float", "RTK fixed",
+  "static", "PPP"];
+
+function freshLog() {
+  return {
+    runStart: null,             // t of the run's first line
+    missionStart: null,         // t at which its mission's clock read 0
+    events: [],                 // {t, mt, wall, who, text, kind}, oldest first
+    messages: [],               // the autopilots' messages: {t, mt, wall, who, text, severity}
+    tracks: {},                 // per vehicle id: [{global, position}], from telemetry lines
+    picked: {},                 // per role: the vehicles flying it
+  };
+}
 
 const state = {
   token: sessionStorage.getItem("tml-token") || "",
   missions: [], runs: [], vehicles: [],
   chosenMission: null,          // id of the mission chosen in the list
   run: null,                    // the run shown: its JSON from GET /runs/{id}
+  pinned: false,                // the operator chose the run shown (else: the live one)
   outline: null,                // the shown run's mission: tree and world
-  plans: {},                    // planned path per vehicle key
-  tracks: {},                   // flown track per vehicle id, from the run's telemetry
+  report: null,                 // the verifier's report of that mission: the planned paths
+  log: freshLog(),              // what the shown run's flight log said so far
   stream: null,                 // AbortController of the run's event stream
-  messages: {},                 // last autopilot message per vehicle
+  choosing: false,              // a run is being chosen by default
+  ticks: 0,
 };
-const MAX_LINES = 50;           // events and messages kept in the lists
 
 const $ = (selector) => document.querySelector(selector);
 
@@ -27,6 +59,15 @@ function element(name, attributes, ...children) {
   }
   found.append(...children.filter((c) => c !== null && c !== undefined));
   return found;
+}
+
+function coloured(found, vehicleId) {
+  found.style.setProperty("--vehicle", vehicleColour(vehicleId));
+  return found;
+}
+
+function vehicleList(ids) {
+  return ids.length === 1 ? `vehicle ${ids[0]}` : `vehicles ${ids.join(", ")}`;
 }
 
 // --- the API -------------------------------------------------------------------------------
@@ -74,6 +115,22 @@ $("#token-form").addEventListener("submit", (event) => {
   refresh();
 });
 
+// --- asking before a command that moves a vehicle --------------------------------------------
+
+// Whether the operator confirms `question`: an in-page dialog, Cancel focused, so that
+// neither a stray click nor Enter sends a vehicle anywhere.
+function confirmCommand(question, label) {
+  const dialog = $("#confirm");
+  $("#confirm-text").textContent = question;
+  $("#confirm-ok").textContent = label;
+  dialog.returnValue = "";
+  return new Promise((resolve) => {
+    dialog.addEventListener("close", () => resolve(dialog.returnValue === "ok"), {once: true});
+    dialog.showModal();
+    $("#confirm-cancel").focus();
+  });
+}
+
 // --- missions ------------------------------------------------------------------------------
 
 $("#upload-form").addEventListener("submit", async (event) => {
@@ -97,6 +154,8 @@ $("#upload-form").addEventListener("submit", async (event) => {
   }
 });
 
+// Every diagnostic, each with its line quoted in full (wrapped, never cut) and the
+// offending word marked at its column.
 function showUploadErrors(result, error, source) {
   const lines = source.split(/\r?\n/);
   const shown = [element("p", {class: "error", textContent: error.message})];
@@ -106,8 +165,18 @@ function showUploadErrors(result, error, source) {
       element("span", {class: found.severity === "error" ? "error" : "",
         textContent: `${where}: ${found.severity} ${found.code}: ${found.message}`}));
     if (found.line >= 1 && found.line <= lines.length) {
-      const caret = found.column >= 1 ? "\n" + " ".repeat(found.column - 1) + "^" : "";
-      item.append(element("pre", {textContent: lines[found.line - 1] + caret}));
+      const text = lines[found.line - 1];
+      const quoted = element("pre", {});
+      const at = found.column >= 1 ? Math.min(found.column - 1, text.length) : -1;
+      if (at >= 0) {
+        // The name there, with its "<" or "</" when the column is the start of a tag.
+        const word = /^<?\/?[\w.:-]*/.exec(text.slice(at))[0] || text.slice(at, at + 1);
+        quoted.append(text.slice(0, at), element("mark", {textContent: word}),
+          text.slice(at + word.length));
+      } else {
+        quoted.textContent = text;
+      }
+      item.append(quoted);
     }
     if (found.hint) item.append(element("small", {textContent: `hint: ${found.hint}`}));
     shown.push(item);
@@ -159,10 +228,15 @@ $("#start").addEventListener("click", async () => {
     .map((i) => Number(i.value));
   const request = {mission: state.chosenMission, safe_state: $("#safe-state").value};
   if (vehicles.length) request.vehicles = vehicles;
+  const mission = state.missions.find((m) => m.id === state.chosenMission);
+  const question = `Start “${mission ? mission.name : state.chosenMission}” on ` +
+    `${vehicles.length ? vehicleList(vehicles) : "the first free vehicle"}? They take off and ` +
+    `fly the mission; their safe state: ${SAFE_STATES[request.safe_state]}.`;
+  if (!await confirmCommand(question, "Start run")) return;
   try {
     const run = await api("POST", "/runs", request);
     result.replaceChildren(element("p", {class: "ok", textContent: `run ${run.id} started`}));
-    await refreshRuns();
+    state.pinned = true;
     await showRun(run.id);
   } catch (error) {
     const violations = (error.body.report ? error.body.report.violations : error.body.violations)
@@ -175,17 +249,40 @@ $("#start").addEventListener("click", async () => {
 // --- runs ----------------------------------------------------------------------------------
 
 async function refreshRuns() {
-  state.runs = await api("GET", "/runs");
+  state.runs = (await api("GET", "/runs")).sort((a, b) => a.created - b.created);
+  drawRuns();
+  const wanted = defaultRun();
+  if (wanted && !state.choosing) {
+    state.choosing = true;
+    try {
+      await showRun(wanted);
+    } finally {
+      state.choosing = false;
+    }
+  }
+}
+
+function drawRuns() {
   const list = $("#runs");
   list.replaceChildren(...[...state.runs].reverse().map((run) => {
     const item = element("li", {"data-run": run.id,
       class: state.run && state.run.id === run.id ? "chosen" : ""},
       element("span", {textContent: `${run.mission.name} `}),
       element("span", {class: `state state-${stateClass(run.status)}`, textContent: run.status}),
-      element("small", {textContent: `run ${run.id} · vehicles ${run.vehicles.join(", ")}`}));
-    item.addEventListener("click", () => showRun(run.id));
+      element("small", {textContent: `run ${run.id} · ${vehicleList(run.vehicles)}`}));
+    item.addEventListener("click", () => { state.pinned = true; showRun(run.id); });
     return item;
   }));
+}
+
+// The run to show when the operator has not chosen one: the newest that flies, else
+// (nothing shown yet) the newest of all. A live run shown stays shown.
+function defaultRun() {
+  if (state.pinned && state.run) return null;
+  if (state.run && LIVE.includes(state.run.status)) return null;
+  const newest = [...state.runs].reverse();
+  const wanted = newest.find((run) => LIVE.includes(run.status)) || (state.run ? null : newest[0]);
+  return wanted && !(state.run && state.run.id === wanted.id) ? wanted.id : null;
 }
 
 function stateClass(status) {
@@ -194,32 +291,34 @@ function stateClass(status) {
 
 async function showRun(runId) {
   if (state.stream) state.stream.abort();
-  state.run = await api("GET", `/runs/${runId}`);
-  state.tracks = {};
-  state.plans = {};
-  $("#events").replaceChildren();
+  state.stream = null;
+  const run = await api("GET", `/runs/${runId}`);
+  state.run = run;
+  state.log = freshLog();
   state.outline = null;
+  state.report = null;
+  drawRun();
+  drawRuns();
+  const controller = new AbortController();
+  state.stream = controller;
   try {
-    state.outline = await api("GET", `/missions/${state.run.mission.id}`);
-    const report = await api("POST", `/missions/${state.run.mission.id}/verify`,
-      {profile: state.run.options.profile || "quadcopter"});
-    const plan = [[0, 0, 0]];
-    for (const action of report.actions) {
-      if (!action.event) plan.push(...action.path);
+    const outline = await api("GET", `/missions/${run.mission.id}`);
+    const report = await api("POST", `/missions/${run.mission.id}/verify`,
+      {profile: run.options.profile || "quadcopter"});
+    if (state.stream === controller) {
+      state.outline = outline;
+      state.report = report;
     }
-    state.plans.mission = plan;
   } catch (error) {
     // The mission was deleted since: the run's task states are shown without the tree.
   }
+  if (state.stream !== controller) return;  // another run was chosen meanwhile
   drawRun();
-  await refreshRuns();
-  follow(runId);
+  follow(runId, controller);
 }
 
 // The run's records as Server-Sent Events, read with fetch so that the token is sent.
-async function follow(runId) {
-  const controller = new AbortController();
-  state.stream = controller;
+async function follow(runId, controller) {
   let answer;
   try {
     answer = await fetch(`/runs/${runId}/stream`, {headers: headers(), signal: controller.signal});
@@ -239,7 +338,7 @@ async function follow(runId) {
       while ((cut = buffer.search(/\r?\n\r?\n/)) >= 0) {
         const block = buffer.slice(0, cut);
         buffer = buffer.slice(cut).replace(/^\r?\n\r?\n/, "");
-        handleEvent(runId, block);
+        handleEvent(controller, block);
       }
     }
   } catch (error) {
@@ -247,65 +346,130 @@ async function follow(runId) {
   }
 }
 
-function handleEvent(runId, block) {
+function handleEvent(controller, block) {
   let kind = "message";
   const data = [];
   for (const line of block.split(/\r?\n/)) {
     if (line.startsWith("event:")) kind = line.slice(6).trim();
     else if (line.startsWith("data:")) data.push(line.slice(5).replace(/^ /, ""));
   }
-  if (!state.run || state.run.id !== runId || !data.length) return;
+  if (state.stream !== controller || !data.length) return;
   const payload = JSON.parse(data.join("\n"));
   if (kind === "end") {
     state.run = payload;
     drawRun();
-    refreshRuns();
+    refreshRuns().catch(() => {});
   } else if (kind === "record") {
     record(payload);
   }
 }
 
+// One line of the shown run's flight log.
 function record(line) {
   const run = state.run;
-  const whose = line.vehicle === undefined ? "" : String(line.vehicle);
+  const log = state.log;
+  const whose = line.vehicle === undefined || line.vehicle === null ? "" : String(line.vehicle);
+  const t = Number(line.t);
+  const stamp = {t: t, mt: typeof line.mission_time === "number" ? line.mission_time : null,
+    wall: line.wall || ""};
+  if (log.runStart === null) log.runStart = t;
+  if (log.missionStart === null && stamp.mt !== null) {
+    log.missionStart = t - stamp.mt;
+    later("lists");
+  }
   if (line.kind === "task" && run.tasks) {
     if (!run.tasks[whose]) run.tasks[whose] = {};
     run.tasks[whose][line.task] = line.state;
-    drawTasks();
-  } else if (line.kind === "telemetry" && line.position) {
-    if (!state.tracks[whose]) state.tracks[whose] = [];
-    state.tracks[whose].push([line.position[0], line.position[1]]);
-  } else if (line.kind === "mission" && run.status === "waiting") {
-    run.status = "running";
-    drawRunBar();
+    later("tasks");
+  } else if (line.kind === "telemetry") {
+    if (!log.tracks[whose]) log.tracks[whose] = [];
+    log.tracks[whose].push({global: line.global, position: line.position});
+  } else if (line.kind === "mission") {
+    if (log.missionStart === null && !line.status) {
+      log.missionStart = t - Number(line.elapsed || 0);  // a continued run: its clock goes on
+      later("lists");
+    }
+    if (run.status === "waiting") {
+      run.status = "running";
+      later("bar");
+    }
+  } else if (line.kind === "pick" && line.role && line.vehicles) {
+    log.picked[line.role] = line.vehicles.map(String);
+  } else if (line.kind === "release" && line.role && log.picked[line.role]) {
+    log.picked[line.role] = log.picked[line.role].filter((v) => v !== whose);
+  } else if (line.kind === "autopilot") {
+    // A reason not to arm, said while disarmed, is no alarm (the autopilot says it
+    // critical): it is why a vehicle on the ground waits.
+    const calm = line.armed === false && /^PreArm/.test(line.text || "");
+    keep(log.messages, {...stamp, who: whose, text: line.text,
+      severity: calm ? "info" : line.severity});
+    later("lists");
   }
-  if (["event", "safety", "mission", "error", "vehicle", "control"].includes(line.kind) ||
+  if (EVENT_KINDS.includes(line.kind) ||
       (line.kind === "action" && /fail|infeasible/.test(line.message || "")) ||
       (line.kind === "result" && line.ok === false)) {
-    addLine($("#events"), line.t, (whose ? `vehicle ${whose}: ` : "") + (line.message || line.kind),
-      line.kind);
+    keep(log.events, {...stamp, who: whose, text: line.message || line.reason || line.kind,
+      kind: line.kind});
+    later("lists");
   }
 }
 
-function addLine(list, time, text, kind) {
-  list.prepend(element("li", {class: kind ? `kind-${kind}` : ""},
-    element("span", {class: "t", textContent: `${Number(time).toFixed(1)} s`}), text));
-  while (list.children.length > MAX_LINES) list.lastChild.remove();
+function keep(list, item) {
+  list.push(item);
+  if (list.length > MAX_LINES) list.shift();
+}
+
+// Redraws asked for while a stream's records come in, done once they stop coming.
+const pending = new Set();
+let drawing = null;
+function later(what) {
+  pending.add(what);
+  if (drawing === null) {
+    drawing = setTimeout(() => {
+      drawing = null;
+      if (pending.has("bar")) drawRunBar();
+      if (pending.has("tasks")) drawTasks();
+      if (pending.has("lists")) drawLists();
+      pending.clear();
+    }, 30);
+  }
+}
+
+function timeText(item) {
+  const log = state.log;
+  const origin = log.missionStart !== null ? log.missionStart : log.runStart;
+  const seconds = item.mt !== null ? item.mt : item.t - (origin === null ? item.t : origin);
+  return `${seconds < -0.05 ? "−" : ""}${Math.abs(seconds).toFixed(1)} s`;
+}
+
+function drawLists() {
+  const log = state.log;
+  const base = !state.run ? "" : log.missionStart !== null ? "(mission time)"
+    : "(since the run started; the mission has not)";
+  for (const caption of document.querySelectorAll(".time-base")) caption.textContent = base;
+  const line = (item, extra) => element("li", {class: extra, "data-t": item.t},
+    element("span", {class: "t", textContent: timeText(item), title: item.wall}),
+    element("span", {}, (item.who ? `vehicle ${item.who}: ` : "") + item.text));
+  $("#events").replaceChildren(...[...log.events].reverse().map(
+    (item) => line(item, `kind-${item.kind}`)));
+  $("#messages").replaceChildren(...[...log.messages].reverse().map(
+    (item) => line(item, `sev-${item.severity}`)));
 }
 
 function drawRun() {
   drawRunBar();
   drawTasks();
+  drawLists();
   drawTheMap();
 }
 
 function drawRunBar() {
   const run = state.run;
-  const live = run && ["waiting", "running", "paused"].includes(run.status);
+  const live = run && LIVE.includes(run.status);
   $("#run-status").textContent = run
     ? `run ${run.id}: ${run.mission.name}: ${run.status}` +
       (run.reason ? ` (${run.reason})` : "") + (run.exit_code !== null ? `, exit ${run.exit_code}` : "")
-    : "no run chosen";
+    : "no run yet";
   $("#pause").disabled = !live || run.status === "paused";
   $("#resume").disabled = !live || run.status !== "paused";
   $("#abort").disabled = !live;
@@ -321,7 +485,7 @@ function drawTasks() {
   const run = state.run;
   const box = $("#tasks");
   if (!run || !run.tasks) { box.replaceChildren(); return; }
-  const whose = Object.keys(run.tasks).sort();
+  const whose = Object.keys(run.tasks).sort((a, b) => (Number(a) || 0) - (Number(b) || 0));
   const tree = state.outline ? state.outline.tasks : Object.keys(run.tasks[whose[0]] || {}).map(
     (path) => ({name: path, path: path, children: [], on_error: []}));
   const branch = (tasks) => element("ul", {}, ...tasks.map((task) => element("li",
@@ -329,8 +493,9 @@ function drawTasks() {
     element("span", {class: "name", textContent: task.name}),
     ...whose.filter((w) => run.tasks[w][task.path] !== undefined).map((w) => {
       const value = run.tasks[w][task.path];
-      return element("span", {class: `state state-${value}`, "data-vehicle": w,
-        title: w ? `vehicle ${w}` : "no vehicle", textContent: `${w || "·"} ${value}`});
+      const badge = element("span", {class: `state state-${value}`, "data-vehicle": w,
+        textContent: `${w ? `vehicle ${w}` : "fleet"}: ${value}`});
+      return w ? coloured(badge, w) : badge;
     }),
     task.children.length ? branch(task.children) : null,
     task.on_error && task.on_error.length ? branch(task.on_error) : null)));
@@ -342,15 +507,118 @@ function drawTasks() {
   }
 }
 
-function drawTheMap() {
-  const shown = state.run ? state.run.vehicles : state.vehicles.map((v) => v.id);
-  drawMap($("#map"), {
-    world: state.outline ? state.outline.world : {},
-    plans: state.plans,
-    tracks: state.tracks,
-    vehicles: state.vehicles.filter((v) => shown.includes(v.id)),
-  });
+// --- the map: one frame for the fleet ---------------------------------------------------------
+
+const WGS84_A = 6378137.0;
+const WGS84_E2 = 6.69437999014e-3;
+
+// Metres north and east of `origin` (a home) of a latitude and longitude: the local tangent
+// plane, exact to a few centimetres over kilometres.
+function project(origin, latitude, longitude) {
+  const phi = origin.latitude * Math.PI / 180;
+  const w = Math.sqrt(1 - WGS84_E2 * Math.sin(phi) ** 2);
+  const meridian = WGS84_A * (1 - WGS84_E2) / (w * w * w);
+  const normal = WGS84_A / w;
+  return [(latitude - origin.latitude) * Math.PI / 180 * meridian,
+          (longitude - origin.longitude) * Math.PI / 180 * normal * Math.cos(phi)];
 }
+
+function shownVehicleIds() {
+  return state.run ? state.run.vehicles : state.vehicles.map((v) => v.id);
+}
+
+// The shared frame: its origin (the first shown vehicle whose home is known) and where
+// each vehicle's home and positions are in it.
+function sharedFrame() {
+  const homes = {};
+  for (const v of state.vehicles) if (v.home) homes[v.id] = v.home;
+  const originVehicle = shownVehicleIds().find((id) => homes[id]);
+  const origin = originVehicle === undefined ? null : homes[originVehicle];
+  const offset = (id) => origin && homes[id]
+    ? project(origin, homes[id].latitude, homes[id].longitude) : [0, 0];
+  const point = (id, global, position) => {
+    if (origin && global && (position || homes[id])) {
+      const [n, e] = project(origin, global[0], global[1]);
+      return [n, e, position ? position[2] : global[2] - homes[id].altitude];
+    }
+    if (!position) return null;
+    const [dn, de] = offset(id);
+    return [position[0] + dn, position[1] + de, position[2]];
+  };
+  return {origin: origin, originVehicle: originVehicle, homes: homes, offset: offset,
+    point: point};
+}
+
+function shifted(points, [dn, de]) {
+  return points.map(([n, e, ...rest]) => [n + dn, e + de, ...rest]);
+}
+
+// The mission's world (geofence, obstacles: metres from the world's home) in the frame: at
+// its declared home, else at the origin.
+function worldInFrame(frame) {
+  const world = state.outline ? state.outline.world : {};
+  const home = world.home;
+  const [dn, de] = home && home.declared && frame.origin
+    ? project(frame.origin, home.latitude, home.longitude) : [0, 0];
+  const fence = world.geofence && world.geofence.polygon
+    ? {...world.geofence, polygon: shifted(world.geofence.polygon, [dn, de])} : world.geofence;
+  const obstacles = (world.obstacles || []).map((o) => o.shape === "cylinder"
+    ? {...o, north: o.north + dn, east: o.east + de}
+    : {...o, polygon: shifted(o.polygon, [dn, de])});
+  return {geofence: fence, obstacles: obstacles};
+}
+
+// The verifier's predicted path for each vehicle, from its own home: the whole mission for
+// every vehicle of a mission without roles, a role's part for the vehicles picked for it
+// (a role not picked yet is drawn from the origin, in grey).
+function plansInFrame(frame) {
+  if (!state.report || !state.run) return [];
+  const actions = state.report.actions.filter((a) => !a.event);
+  const roles = state.outline ? state.outline.roles.map((r) => r.name) : [];
+  const pathOf = (wanted) => [[0, 0, 0], ...actions.filter(wanted).flatMap((a) => a.path)];
+  const plans = [];
+  if (!roles.length) {
+    const path = pathOf((a) => !a.role);
+    for (const id of state.run.vehicles) {
+      plans.push({key: `vehicle ${id}`, vehicle: id, points: shifted(path, frame.offset(id))});
+    }
+  }
+  for (const role of roles) {
+    const path = pathOf((a) => a.role === role);
+    const picked = state.log.picked[role] || [];
+    for (const id of picked) {
+      plans.push({key: `role ${role} vehicle ${id}`, vehicle: Number(id),
+        points: shifted(path, frame.offset(Number(id)))});
+    }
+    if (!picked.length) plans.push({key: `role ${role}`, vehicle: null, points: path});
+  }
+  return plans;
+}
+
+function drawTheMap() {
+  const frame = sharedFrame();
+  const shown = shownVehicleIds();
+  const tracks = Object.entries(state.log.tracks).map(([id, samples]) => ({vehicle: id,
+    points: samples.map((s) => frame.point(Number(id), s.global, s.position)).filter((p) => p)}));
+  const world = worldInFrame(frame);
+  drawMap($("#map"), {
+    world: world,
+    plans: plansInFrame(frame),
+    tracks: tracks,
+    homes: shown.filter((id) => frame.homes[id]).map((id) => ({vehicle: id,
+      point: frame.offset(id)})),
+    vehicles: state.vehicles.filter((v) => shown.includes(v.id)).map((v) => ({id: v.id,
+      position: frame.point(v.id, v.global, v.position), heading: v.heading})),
+  });
+  drawLegend($("#legend"), shown,
+    Boolean((world.geofence && world.geofence.polygon && world.geofence.polygon.length)
+      || world.obstacles.length));
+  $("#frame").textContent = frame.origin
+    ? `Metres from vehicle ${frame.originVehicle}'s home, north up; every vehicle where it is.`
+    : "Metres from each vehicle's own home (no home known yet), north up.";
+}
+
+// --- controls ------------------------------------------------------------------------------
 
 async function control(action, body) {
   const result = $("#control-result");
@@ -364,43 +632,97 @@ async function control(action, body) {
   }
 }
 
+function runName(run) {
+  return `run ${run.id} (“${run.mission.name}”)`;
+}
+
 $("#pause").addEventListener("click", () => control("pause"));
-$("#resume").addEventListener("click", () => control("resume"));
-$("#abort").addEventListener("click", () => control("abort"));
+$("#resume").addEventListener("click", async () => {
+  const run = state.run;
+  if (await confirmCommand(`Resume ${runName(run)}? ${vehicleList(run.vehicles)} fly on ` +
+      "where the mission sends them.", "Resume")) {
+    await control("resume");
+  }
+});
+$("#abort").addEventListener("click", async () => {
+  const run = state.run;
+  const safe = SAFE_STATES[run.options.safe_state] || run.options.safe_state;
+  if (await confirmCommand(`Abort ${runName(run)}? The mission ends and ` +
+      `${vehicleList(run.vehicles)} go to their safe state: ${safe}.`, "Abort run")) {
+    await control("abort");
+  }
+});
+$("#jump").addEventListener("click", async () => {
+  const run = state.run;
+  const task = $("#jump-task").value;
+  if (await confirmCommand(`Jump to the task “${task}” in ${runName(run)}? What runs now ` +
+      `stops and ${vehicleList(run.vehicles)} fly on from that task.`, "Jump")) {
+    await control("jump", {task: task});
+  }
+});
 // An interrupted run goes on as a new run, which is then shown.
 $("#continue").addEventListener("click", async () => {
+  const run = state.run;
+  if (!await confirmCommand(`Continue ${runName(run)}? A new run flies the rest of its ` +
+      `mission on ${vehicleList(run.vehicles)}.`, "Continue")) return;
   const result = $("#control-result");
   try {
-    const run = await api("POST", `/runs/${state.run.id}/continue`);
+    const next = await api("POST", `/runs/${run.id}/continue`);
     result.replaceChildren();
-    await showRun(run.id);
+    state.pinned = true;
+    await showRun(next.id);
   } catch (error) {
     result.replaceChildren(element("span", {class: "error", textContent: error.message}));
   }
 });
-$("#jump").addEventListener("click", () => control("jump", {task: $("#jump-task").value}));
 
 // --- vehicles --------------------------------------------------------------------------------
 
+// A value with its unit, "–" while unknown, never a negative zero.
+function number(value, digits, unit) {
+  if (value === null || value === undefined) return "–";
+  const shown = Number(value).toFixed(digits);
+  return `${Number(shown) === 0 ? (0).toFixed(digits) : shown}${unit}`;
+}
+
+// What the operator reads of each vehicle: [field, label, value].
+function vehicleFields(v) {
+  return [["mode", "mode", v.mode || "–"],
+    ["armed", "armed", v.armed ? (v.landed ? "armed, on the ground" : "armed, flying")
+      : "disarmed"],
+    ["gps", "GPS", v.gps_fix === null ? "–" : (GPS_FIXES[v.gps_fix] || `fix ${v.gps_fix}`)],
+    ["satellites", "satellites", number(v.satellites, 0, "")],
+    ["battery", "battery", number(v.battery, 0, " %")],
+    ["voltage", "voltage", number(v.voltage, 1, " V")],
+    ["altitude", "altitude", v.position ? number(v.position[2], 1, " m") : "–"],
+    ["climb", "climb", number(v.climb, 1, " m/s")],
+    ["speed", "speed", number(v.ground_speed, 1, " m/s")],
+    ["heading", "heading", number(v.heading, 0, "°")],
+    ["home", "from home",
+      v.position ? number(Math.hypot(v.position[0], v.position[1]), 0, " m") : "–"]];
+}
+
 function drawTelemetry() {
-  const body = $("#telemetry tbody");
-  const number = (value, digits) => value === null || value === undefined ? "–" : value.toFixed(digits);
-  body.replaceChildren(...state.vehicles.map((v) => element("tr", {"data-vehicle": v.id},
-    element("td", {textContent: String(v.id), title: v.vehicle_type}),
-    element("td", {textContent: v.link}), element("td", {textContent: v.mode}),
-    element("td", {textContent: v.armed ? "yes" : "no"}),
-    element("td", {textContent: v.position ? v.position[2].toFixed(1) : "–"}),
-    element("td", {textContent: number(v.ground_speed, 1)}),
-    element("td", {textContent: number(v.heading, 0)}),
-    element("td", {textContent: number(v.battery, 0)}),
-    element("td", {textContent: v.gps_fix === null ? "–" : String(v.gps_fix)}),
-    element("td", {textContent: v.run || ""}))));
-  for (const v of state.vehicles) {
-    if (v.status_text && state.messages[v.id] !== v.status_text) {
-      state.messages[v.id] = v.status_text;
-      addLine($("#messages"), v.time, `vehicle ${v.id}: ${v.status_text}`);
+  const box = $("#telemetry");
+  box.replaceChildren(...state.vehicles.map((v) => {
+    const list = element("dl", {}, ...vehicleFields(v).flatMap(([key, label, value]) => [
+      element("dt", {textContent: label}), element("dd", {"data-field": key, textContent: value})]));
+    list.append(element("dd", {class: "note", "data-field": "run",
+      textContent: v.run ? `in run ${v.run}` : "in no run"}));
+    if (v.awaiting && v.awaiting.length) {
+      list.append(element("dd", {class: "note warn", "data-field": "awaiting",
+        textContent: `not ready: ${v.awaiting.join(", ")}`}));
     }
-  }
+    if (v.status_text) {
+      list.append(element("dd", {class: "note", "data-field": "status-text",
+        title: "the autopilot's last message", textContent: `“${v.status_text}”`}));
+    }
+    return coloured(element("article", {class: "vehicle-card", "data-vehicle": v.id},
+      element("h3", {}, `vehicle ${v.id}`, element("small", {textContent: v.vehicle_type}),
+        element("span", {class: `link link-${v.link}`, "data-field": "link",
+          textContent: `link ${v.link}`})),
+      list), v.id);
+  }));
 }
 
 async function refreshVehicles() {
@@ -428,9 +750,10 @@ async function refresh() {
 async function tick() {
   try {
     await refreshVehicles();
-    if (state.run && ["waiting", "running", "paused"].includes(state.run.status)) {
-      drawRunBar();
-    }
+    // A run started elsewhere (another operator, the API) holds a vehicle: list it.
+    const known = new Set(state.runs.filter((r) => LIVE.includes(r.status)).map((r) => r.id));
+    const held = state.vehicles.some((v) => v.run && !known.has(v.run));
+    if (held || ++state.ticks % 5 === 0) await refreshRuns();
   } catch (error) {
     // The next tick tries again.
   }

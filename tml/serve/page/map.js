@@ -1,11 +1,19 @@
-// The map of the page: an SVG drawing in the local frame (metres north and east of home),
-// north up, with a scale bar and a north arrow. It is drawn from a scene:
-//   {world: {geofence, obstacles}, plans: {key: [[n, e, u], ...]},
-//    tracks: {vehicle: [[n, e], ...]}, vehicles: [{id, position: [n, e, u], heading}]}
+// The map of the page: an SVG drawing in one shared frame (metres north and east of one
+// origin, the first vehicle's home), north up, with a scale bar and a north arrow. It is
+// drawn from a scene, every point already in that frame:
+//   {world: {geofence, obstacles},
+//    plans: [{key, vehicle, points: [[n, e, u], ...]}],   vehicle null: not yet picked
+//    tracks: [{vehicle, points: [[n, e], ...]}],
+//    homes: [{vehicle, point: [n, e]}],
+//    vehicles: [{id, position: [n, e, u], heading, faded}]}
+// Each vehicle has its own colour (vehicleColour), used for its marker, its home, its
+// planned path (dashed) and its track (solid), and in the legend the page draws.
 // SVG x is east and y is minus north, so that north is up.
 "use strict";
 
 const SVG = "http://www.w3.org/2000/svg";
+const INK = "#1d2430";
+const UNPICKED = "#6e7781";  // the plan of a role no vehicle flies yet
 
 function svgElement(name, attributes, text) {
   const element = document.createElementNS(SVG, name);
@@ -15,6 +23,20 @@ function svgElement(name, attributes, text) {
   if (text !== undefined) element.textContent = text;
   return element;
 }
+
+// Colour-blind-safe colours (Okabe and Ito), none of them the red of a failed task.
+const PALETTE = ["#0072b2", "#d55e00", "#009e73", "#cc79a7", "#e69f00", "#56b4e9", "#000000"];
+
+function vehicleColour(id) {
+  return PALETTE[((Number(id) - 1) % PALETTE.length + PALETTE.length) % PALETTE.length];
+}
+
+// The two line styles of the map, shared with the legend: the track flown is a wide pale
+// band, the planned path a thin dashed line drawn over it, so that both show where the
+// vehicle flew as planned.
+const PLANNED = {"stroke-width": 1.5, "stroke-dasharray": "6 4"};
+const FLOWN = {"stroke-width": 5, "stroke-opacity": 0.45, "stroke-linecap": "round",
+  "stroke-linejoin": "round"};
 
 // A length of 1, 2 or 5 times a power of ten near `about`.
 function niceLength(about) {
@@ -37,8 +59,9 @@ function sceneBounds(scene) {
       points.push(...obstacle.polygon);
     }
   }
-  for (const plan of Object.values(scene.plans || {})) points.push(...plan);
-  for (const track of Object.values(scene.tracks || {})) points.push(...track);
+  for (const plan of scene.plans || []) points.push(...plan.points);
+  for (const track of scene.tracks || []) points.push(...track.points);
+  for (const home of scene.homes || []) points.push(home.point);
   for (const vehicle of scene.vehicles || []) {
     if (vehicle.position) points.push(vehicle.position);
   }
@@ -54,12 +77,6 @@ function sceneBounds(scene) {
 
 function pathOf(points) {
   return points.map(([n, e], i) => `${i ? "L" : "M"}${e.toFixed(2)},${(-n).toFixed(2)}`).join(" ");
-}
-
-const PALETTE = ["#cf222e", "#1f6feb", "#1a7f37", "#8250df", "#bc4c00", "#0a7ea4"];
-
-function vehicleColour(id) {
-  return PALETTE[(Number(id) - 1 + PALETTE.length) % PALETTE.length];
 }
 
 function drawMap(svg, scene) {
@@ -84,19 +101,30 @@ function drawMap(svg, scene) {
     shape.append(svgElement("title", {}, obstacle.name));
     svg.append(shape);
   }
-  svg.append(svgElement("circle", {class: "home", cx: 0, cy: 0, r: unit * 1.2,
-    fill: "none", stroke: "#1d2430", "vector-effect": "non-scaling-stroke"}));
+  for (const home of scene.homes || []) {
+    const [n, e] = home.point;
+    const mark = svgElement("circle", {class: "home", "data-vehicle": home.vehicle,
+      "data-north": n.toFixed(2), "data-east": e.toFixed(2), cx: e, cy: -n, r: unit * 1.2,
+      fill: "white", stroke: vehicleColour(home.vehicle), "stroke-width": 2,
+      "vector-effect": "non-scaling-stroke"});
+    mark.append(svgElement("title", {}, `vehicle ${home.vehicle}: home`));
+    svg.append(mark);
+  }
 
-  for (const [key, plan] of Object.entries(scene.plans || {})) {
-    if (plan.length > 1) {
-      svg.append(svgElement("path", {...line, class: "plan", "data-vehicle": key,
-        stroke: "#1f6feb", "stroke-width": 1.5, "stroke-dasharray": "6 4", d: pathOf(plan)}));
+  for (const track of scene.tracks || []) {
+    if (track.points.length > 1) {
+      svg.append(svgElement("path", {...line, ...FLOWN, class: "track",
+        "data-vehicle": track.vehicle, stroke: vehicleColour(track.vehicle),
+        d: pathOf(track.points)}));
     }
   }
-  for (const [id, track] of Object.entries(scene.tracks || {})) {
-    if (track.length > 1) {
-      svg.append(svgElement("path", {...line, class: "track", "data-vehicle": id,
-        stroke: vehicleColour(id), "stroke-width": 2, d: pathOf(track)}));
+  for (const plan of scene.plans || []) {
+    if (plan.points.length > 1) {
+      const colour = plan.vehicle === null ? UNPICKED : vehicleColour(plan.vehicle);
+      const path = svgElement("path", {...line, ...PLANNED, class: "plan", "data-plan": plan.key,
+        stroke: colour, d: pathOf(plan.points)});
+      if (plan.vehicle !== null) path.setAttribute("data-vehicle", plan.vehicle);
+      svg.append(path);
     }
   }
   for (const vehicle of scene.vehicles || []) {
@@ -104,30 +132,73 @@ function drawMap(svg, scene) {
     const [n, e, u] = vehicle.position;
     const marker = svgElement("g", {class: "vehicle", "data-vehicle": vehicle.id,
       "data-north": n.toFixed(2), "data-east": e.toFixed(2), "data-up": u.toFixed(2),
-      transform: `translate(${e} ${-n}) rotate(${vehicle.heading || 0})`});
+      transform: `translate(${e} ${-n}) rotate(${vehicle.heading || 0})`,
+      opacity: vehicle.faded ? 0.45 : 1});
     const size = unit * 2.5;
     marker.append(svgElement("path", {d: `M0,${-size} L${size * 0.7},${size} L0,${size * 0.5} ` +
       `L${-size * 0.7},${size} Z`, fill: vehicleColour(vehicle.id), stroke: "white",
       "vector-effect": "non-scaling-stroke"}));
+    marker.append(svgElement("title", {}, `vehicle ${vehicle.id}: ${u.toFixed(1)} m up`));
     svg.append(marker);
-    svg.append(svgElement("text", {x: e + size * 1.2, y: -n - size * 1.2,
-      "font-size": unit * 3.5, fill: "#1d2430"}, String(vehicle.id)));
+    // Odd ids are labelled left of their marker, even ones right: vehicles side by side
+    // (a fleet boots in a row, 1 west of 2) keep their labels apart.
+    const right = Number(vehicle.id) % 2 === 0;
+    svg.append(svgElement("text", {class: "label", x: e + (right ? 1 : -1) * size * 1.3,
+      y: -n - size * 0.6, "text-anchor": right ? "start" : "end", "font-size": unit * 3.5,
+      "font-weight": 600, fill: vehicleColour(vehicle.id), stroke: "white", "stroke-width": 3,
+      "paint-order": "stroke", "vector-effect": "non-scaling-stroke"}, String(vehicle.id)));
   }
 
   // The scale bar, bottom left, and the north arrow, top left.
   const length = niceLength(box.span / 5);
   const [x0, y0] = [box.x + unit * 5, box.y + box.span - unit * 6];
   const scale = svgElement("g", {class: "scale"});
-  scale.append(svgElement("path", {...line, stroke: "#1d2430", "stroke-width": 2,
+  scale.append(svgElement("path", {...line, stroke: INK, "stroke-width": 2,
     d: `M${x0},${y0 - unit} V${y0} H${x0 + length} V${y0 - unit}`}));
   scale.append(svgElement("text", {x: x0, y: y0 + unit * 4, "font-size": unit * 3.2,
-    fill: "#1d2430"}, `${length} m`));
+    fill: INK}, `${length} m`));
   svg.append(scale);
   const [ax, ay] = [box.x + unit * 7, box.y + unit * 14];
   const north = svgElement("g", {class: "north"});
   north.append(svgElement("path", {d: `M${ax},${ay - unit * 8} L${ax + unit * 2.5},${ay} ` +
-    `L${ax},${ay - unit * 2} L${ax - unit * 2.5},${ay} Z`, fill: "#1d2430"}));
+    `L${ax},${ay - unit * 2} L${ax - unit * 2.5},${ay} Z`, fill: INK}));
   north.append(svgElement("text", {x: ax - unit * 1.5, y: ay + unit * 4.5,
-    "font-size": unit * 4, fill: "#1d2430"}, "N"));
+    "font-size": unit * 4, fill: INK}, "N"));
   svg.append(north);
+}
+
+// A small drawing of a line for the legend: `look` is PLANNED or FLOWN.
+function legendLine(colour, look) {
+  const drawing = svgElement("svg", {class: "key", viewBox: "0 0 24 8", width: 24, height: 8,
+    "aria-hidden": "true"});
+  drawing.append(svgElement("line", {x1: 1, y1: 4, x2: 23, y2: 4, stroke: colour, ...look}));
+  return drawing;
+}
+
+// The legend, true to the map: a solid and a dashed line in each shown vehicle's colour,
+// then the marks every map has.
+function drawLegend(box, vehicleIds, hasWorld) {
+  const item = (attributes, ...children) => {
+    const found = document.createElement("li");
+    for (const [key, value] of Object.entries(attributes)) found.setAttribute(key, value);
+    found.append(...children);
+    return found;
+  };
+  const items = vehicleIds.map((id) => item({"data-vehicle": id, class: "vehicle-key"},
+    legendLine(vehicleColour(id), FLOWN), legendLine(vehicleColour(id), PLANNED),
+    ` vehicle ${id}`));
+  const home = svgElement("svg", {class: "key", viewBox: "0 0 24 8", width: 24, height: 8,
+    "aria-hidden": "true"});
+  home.append(svgElement("circle", {cx: 12, cy: 4, r: 3, fill: "white", stroke: INK}));
+  items.push(item({class: "style-key"}, legendLine(INK, FLOWN), " flown"),
+    item({class: "style-key"}, legendLine(INK, PLANNED), " planned"),
+    item({class: "style-key"}, home, " home"));
+  if (hasWorld) {
+    const obstacle = svgElement("svg", {class: "key", viewBox: "0 0 24 8", width: 24,
+      height: 8, "aria-hidden": "true"});
+    obstacle.append(svgElement("rect", {x: 4, y: 0, width: 16, height: 8, fill: "#8c959f"}));
+    items.push(item({class: "style-key"}, legendLine("#9a6700", {"stroke-width": 2}),
+      " geofence"), item({class: "style-key"}, obstacle, " obstacle"));
+  }
+  box.replaceChildren(...items);
 }

@@ -123,9 +123,9 @@ def test_autopilot_fields_name_the_severity() -> None:
     message = AutopilotMessage(3, 2, "PreArm: Need Position Estimate")
     assert autopilot_fields(message) == {"severity": "critical", "level": 2,
                                          "text": "PreArm: Need Position Estimate",
-                                         "armed": None}
-    said = AutopilotMessage(4, 2, "PreArm: Mode not armable", armed=False)
-    assert autopilot_fields(said)["armed"] is False
+                                         "armed": None, "landed": None}
+    said = AutopilotMessage(4, 2, "PreArm: Mode not armable", armed=False, landed=True)
+    assert (autopilot_fields(said)["armed"], autopilot_fields(said)["landed"]) == (False, True)
 
 
 def test_telemetry_carries_what_an_operator_reads() -> None:

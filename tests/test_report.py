@@ -232,7 +232,8 @@ def test_a_reason_not_to_arm_after_landing_is_no_warning(tmp_path: Path) -> None
     path = _log(tmp_path, [
         {"t": 0.0, "kind": "run", "mission": "m", "file": ""},
         _telemetry(1.0, 1, 5.0, True),
-        {**prearm, "t": 2.0, "armed": True},  # said armed: a real alarm
+        {**prearm, "t": 2.0, "armed": True, "landed": False},  # said in the air: an alarm
+        {**prearm, "t": 2.5, "armed": True, "landed": True},  # landed, not yet disarmed
         {**prearm, "t": 3.0, "armed": False},  # after the landing: expected
         _telemetry(4.0, 1, 0.0, False),
         {**prearm, "t": 5.0},  # an older log: disarmed by the last telemetry
@@ -241,12 +242,12 @@ def test_a_reason_not_to_arm_after_landing_is_no_warning(tmp_path: Path) -> None
     ])
     flight = read_flight(str(path))
     assert [(m.t, m.severity, m.said) for m in flight.marks] == [
-        (2.0, "critical", ""), (3.0, "info", "critical"), (5.0, "info", "critical"),
-        (6.0, "critical", "")]
+        (2.0, "critical", ""), (2.5, "info", "critical"), (3.0, "info", "critical"),
+        (5.0, "info", "critical"), (6.0, "critical", "")]
     root = etree.fromstring(page(flight).encode(), etree.HTMLParser())
     marks = [[c.text for c in row.findall("td")]
              for row in root.findall(".//table")[1].findall("tr")[1:]]
-    assert marks[1][3] == "autopilot (info, said critical)"
+    assert marks[2][3] == "autopilot (info, said critical)"
 
 
 def test_gpx_times_are_when_it_flew_at_the_vehicles_pace(tmp_path: Path) -> None:

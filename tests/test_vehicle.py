@@ -149,6 +149,9 @@ def test_a_reason_not_to_arm_said_disarmed_on_the_ground_is_shown_as_info() -> N
     assert shown_severity(2, "PreArm: Mode not armable", armed=False) == 6
     assert shown_severity(2, "Arm: Throttle too high", armed=False) == 6
     assert shown_severity(2, "PreArm: Mode not armable", armed=True) == 2  # not expected
+    # Said after the landing, before the HEARTBEAT that shows it disarmed.
+    assert shown_severity(2, "PreArm: Mode not armable", armed=True, landed=True) == 6
+    assert shown_severity(2, "PreArm: Mode not armable", armed=True, landed=False) == 2
     assert shown_severity(2, "PreArm: Mode not armable", armed=None) == 2  # not known
     assert shown_severity(2, "EKF variance", armed=False) == 2
     assert shown_severity(7, "PreArm: debug", armed=False) == 7  # never made worse

@@ -57,6 +57,7 @@ class AutopilotMessage:
     severity: int  # MAV_SEVERITY: 0 emergency ... 7 debug
     text: str
     armed: bool | None = None  # whether the vehicle was armed when it said it (None: unknown)
+    landed: bool | None = None  # whether it was on the ground then (None: unknown)
 
     @property
     def severity_name(self) -> str:
@@ -67,23 +68,26 @@ class AutopilotMessage:
     @property
     def shown_severity(self) -> int:
         """The severity an operator is shown: :func:`shown_severity` of this message."""
-        return shown_severity(self.severity, self.text, self.armed)
+        return shown_severity(self.severity, self.text, self.armed, self.landed)
 
 
 INFO = SEVERITIES.index("info")
 
 
-def shown_severity(severity: int, text: str, armed: bool | None) -> int:
+def shown_severity(severity: int, text: str, armed: bool | None,
+                   landed: bool | None = None) -> int:
     """The severity to show an operator for an autopilot message said with ``severity``
-    while the vehicle was ``armed`` (None: not known).
+    while the vehicle was ``armed`` and ``landed`` (None: not known).
 
     ArduPilot says why it would not arm (``PreArm: ...``) as critical whenever it is
     disarmed and a check fails -- after every landing ArduCopter says ``PreArm: Mode not
-    armable`` while it sits in RTL or LAND. On the ground and disarmed that is the
-    expected state, not an alarm: such a message is shown as info. The same words while
-    armed, or from a vehicle whose state is unknown, keep their severity.
+    armable`` while it sits in RTL or LAND, often before the HEARTBEAT that shows it
+    disarmed. Disarmed or on the ground that is the expected state, not an alarm: such a
+    message is shown as info. The same words from a vehicle known to be armed in the air,
+    or whose state is unknown, keep their severity.
     """
-    if armed is False and text.startswith(ARMING_REASONS) and severity < INFO:
+    if (armed is False or landed is True) and text.startswith(ARMING_REASONS) \
+            and severity < INFO:
         return INFO
     return severity
 
@@ -447,7 +451,7 @@ class FakeVehicle:
     def say(self, severity: int, text: str) -> None:
         """The autopilot says ``text`` (a STATUSTEXT of MAV_SEVERITY ``severity``)."""
         self._messages.append(AutopilotMessage(len(self._messages) + 1, severity, text,
-                                               self.armed))
+                                               self.armed, self.state().landed))
 
     def state(self) -> VehicleState:
         """The current state."""

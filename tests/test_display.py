@@ -281,11 +281,11 @@ def test_each_vehicle_keeps_its_own_autopilot_messages() -> None:
     assert "  vehicle 1 (v1): info: Mission: 42 WP" in tall  # its last three, when room
 
 
-def test_a_reason_not_to_arm_said_disarmed_on_the_ground_is_no_alarm() -> None:
+def test_a_reason_not_to_arm_is_no_alarm() -> None:
     mission, views = fly("missions/paper_example1.xml", 0.0)
     view, state = views[0]
-    said = (AutopilotMessage(1, 2, "PreArm: Mode not armable", armed=False),
-            AutopilotMessage(2, 2, "EKF failsafe", armed=True))
+    said = (AutopilotMessage(1, 2, "PreArm: Mode not armable"),
+            AutopilotMessage(2, 2, "EKF failsafe"))
     text = render_text(mission, [(view, replace(state, messages=said))], 80)
     assert "info: PreArm: Mode not armable" in text and "critical: EKF failsafe" in text
 

@@ -14,7 +14,6 @@ from tml.run.journal import Journal, autopilot_fields, jsonable, read, telemetry
 from tml.vehicle import AutopilotMessage, MissionProgress, VehicleState
 from tml.world import Home
 
-
 NOON = datetime(2026, 5, 1, 12, 0, 0, 125000, tzinfo=timezone(timedelta(hours=2)))
 
 
@@ -122,10 +121,7 @@ def test_telemetry_gives_the_position_on_the_globe_too() -> None:
 def test_autopilot_fields_name_the_severity() -> None:
     message = AutopilotMessage(3, 2, "PreArm: Need Position Estimate")
     assert autopilot_fields(message) == {"severity": "critical", "level": 2,
-                                         "text": "PreArm: Need Position Estimate",
-                                         "armed": None, "landed": None}
-    said = AutopilotMessage(4, 2, "PreArm: Mode not armable", armed=False, landed=True)
-    assert (autopilot_fields(said)["armed"], autopilot_fields(said)["landed"]) == (False, True)
+                                         "text": "PreArm: Need Position Estimate"}
 
 
 def test_telemetry_carries_what_an_operator_reads() -> None:

@@ -102,29 +102,6 @@ def test_prearm_checks_are_read_from_sys_status_and_statustext() -> None:
     assert tracker.snapshot.prearm_ok is True
 
 
-def test_an_autopilot_message_keeps_whether_the_vehicle_was_armed_when_it_came() -> None:
-    tracker = TelemetryTracker(1)
-    ap = Source()
-    tracker.apply(ap("statustext", 6, b"ArduPilot Ready"), 0.0)  # before any HEARTBEAT
-    tracker.apply(heartbeat(ap, armed=True), 1.0)
-    tracker.apply(ap("extended_sys_state", 0, mavlink.MAV_LANDED_STATE_IN_AIR), 1.5)
-    tracker.apply(ap("statustext", 4, b"PreArm: in flight"), 1.6)
-    tracker.apply(ap("extended_sys_state", 0, mavlink.MAV_LANDED_STATE_ON_GROUND), 1.8)
-    # ArduCopter lands, says it disarms and why it would not arm before the HEARTBEAT
-    # that shows it disarmed.
-    tracker.apply(ap("statustext", 6, b"Disarming motors"), 2.0)
-    tracker.apply(ap("statustext", 2, b"PreArm: Mode not armable"), 2.1)
-    tracker.apply(heartbeat(ap, armed=False), 3.0)
-    tracker.apply(ap("statustext", 2, b"PreArm: Mode not armable"), 4.0)
-    t = tracker.snapshot
-    assert [s.armed for s in t.status_texts] == [None, True, True, True, False]
-    assert [s.landed for s in t.status_texts] == [None, False, True, True, True]
-    said = _messages(t)
-    assert [(m.armed, m.landed) for m in said][-2:] == [(True, True), (False, True)]
-    assert said[-1].severity_name == "critical"
-    assert [m.shown_severity for m in said] == [6, 4, 6, 6, 6]
-
-
 def test_not_ready_before_the_ekf_uses_gps_and_unknown_battery() -> None:
     tracker = TelemetryTracker(1)
     ap = Source()

@@ -227,27 +227,26 @@ def test_a_fleets_tasks_keep_tree_order_on_the_timeline(tmp_path: Path) -> None:
 
 
 def test_a_reason_not_to_arm_after_landing_is_no_warning(tmp_path: Path) -> None:
-    prearm = {"kind": "autopilot", "vehicle": 1, "severity": "critical", "level": 2,
-              "text": "PreArm: Mode not armable"}
     path = _log(tmp_path, [
         {"t": 0.0, "kind": "run", "mission": "m", "file": ""},
         _telemetry(1.0, 1, 5.0, True),
-        {**prearm, "t": 2.0, "armed": True, "landed": False},  # said in the air: an alarm
-        {**prearm, "t": 2.5, "armed": True, "landed": True},  # landed, not yet disarmed
-        {**prearm, "t": 3.0, "armed": False},  # after the landing: expected
-        _telemetry(4.0, 1, 0.0, False),
-        {**prearm, "t": 5.0},  # an older log: disarmed by the last telemetry
+        {"t": 2.0, "kind": "autopilot", "vehicle": 1, "severity": "info",
+         "text": "Disarming motors"},
+        {"t": 2.05, "kind": "autopilot", "vehicle": 1, "severity": "critical", "level": 2,
+         "text": "PreArm: Mode not armable"},
         {"t": 6.0, "kind": "autopilot", "vehicle": 1, "severity": "critical",
-         "text": "EKF failsafe", "armed": False},
+         "text": "EKF failsafe"},
     ])
     flight = read_flight(str(path))
     assert [(m.t, m.severity, m.said) for m in flight.marks] == [
-        (2.0, "critical", ""), (2.5, "info", "critical"), (3.0, "info", "critical"),
-        (5.0, "info", "critical"), (6.0, "critical", "")]
+        (2.0, "info", ""), (2.05, "info", "critical"), (6.0, "critical", "")]
     root = etree.fromstring(page(flight).encode(), etree.HTMLParser())
     marks = [[c.text for c in row.findall("td")]
              for row in root.findall(".//table")[1].findall("tr")[1:]]
-    assert marks[2][3] == "autopilot (info, said critical)"
+    assert marks[1][3] == "autopilot (info, said critical)"
+    warnings = [line for line in figure(flight).axes[-1].get_lines()
+                if line.get_linestyle() == ":"]
+    assert len(warnings) == 1  # the EKF failsafe only
 
 
 def test_gpx_times_are_when_it_flew_at_the_vehicles_pace(tmp_path: Path) -> None:

@@ -144,18 +144,15 @@ def test_a_vehicle_already_armed_is_taken_as_it_is() -> None:
     assert awaiting(flying) == ()
 
 
-def test_a_reason_not_to_arm_said_disarmed_on_the_ground_is_shown_as_info() -> None:
-    # ArduCopter says "PreArm: Mode not armable" (critical) after every landing in RTL.
-    assert shown_severity(2, "PreArm: Mode not armable", armed=False) == 6
-    assert shown_severity(2, "Arm: Throttle too high", armed=False) == 6
-    assert shown_severity(2, "PreArm: Mode not armable", armed=True) == 2  # not expected
-    # Said after the landing, before the HEARTBEAT that shows it disarmed.
-    assert shown_severity(2, "PreArm: Mode not armable", armed=True, landed=True) == 6
-    assert shown_severity(2, "PreArm: Mode not armable", armed=True, landed=False) == 2
-    assert shown_severity(2, "PreArm: Mode not armable", armed=None) == 2  # not known
-    assert shown_severity(2, "EKF variance", armed=False) == 2
-    assert shown_severity(7, "PreArm: debug", armed=False) == 7  # never made worse
-    assert AutopilotMessage(1, 2, "PreArm: Mode not armable", False).shown_severity == 6
+def test_a_reason_not_to_arm_is_shown_as_info() -> None:
+    # ArduCopter says "PreArm: Mode not armable" (critical) after every landing in RTL,
+    # and says such reasons only while disarmed.
+    assert shown_severity(2, "PreArm: Mode not armable") == 6
+    assert shown_severity(2, "Arm: Throttle too high") == 6
+    assert shown_severity(2, "EKF variance") == 2
+    assert shown_severity(4, "Mode not armable, PreArm: after") == 4  # only as it begins
+    assert shown_severity(7, "PreArm: debug") == 7  # never made worse
+    assert AutopilotMessage(1, 2, "PreArm: Mode not armable").shown_severity == 6
 
 
 def test_the_fake_vehicle_reports_what_an_operator_reads() -> None:

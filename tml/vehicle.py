@@ -56,8 +56,6 @@ class AutopilotMessage:
     number: int
     severity: int  # MAV_SEVERITY: 0 emergency ... 7 debug
     text: str
-    armed: bool | None = None  # whether the vehicle was armed when it said it (None: unknown)
-    landed: bool | None = None  # whether it was on the ground then (None: unknown)
 
     @property
     def severity_name(self) -> str:
@@ -68,26 +66,25 @@ class AutopilotMessage:
     @property
     def shown_severity(self) -> int:
         """The severity an operator is shown: :func:`shown_severity` of this message."""
-        return shown_severity(self.severity, self.text, self.armed, self.landed)
+        return shown_severity(self.severity, self.text)
 
 
 INFO = SEVERITIES.index("info")
 
 
-def shown_severity(severity: int, text: str, armed: bool | None,
-                   landed: bool | None = None) -> int:
-    """The severity to show an operator for an autopilot message said with ``severity``
-    while the vehicle was ``armed`` and ``landed`` (None: not known).
+def shown_severity(severity: int, text: str) -> int:
+    """The severity to show an operator for an autopilot message said with ``severity``.
 
-    ArduPilot says why it would not arm (``PreArm: ...``) as critical whenever it is
-    disarmed and a check fails -- after every landing ArduCopter says ``PreArm: Mode not
-    armable`` while it sits in RTL or LAND, often before the HEARTBEAT that shows it
-    disarmed. Disarmed or on the ground that is the expected state, not an alarm: such a
-    message is shown as info. The same words from a vehicle known to be armed in the air,
-    or whose state is unknown, keep their severity.
+    ArduPilot says why it would not arm (``PreArm: ...``, or ``Arm: ...`` refusing an arm
+    command) as critical, and says it only while disarmed: its pre-arm checks run only
+    then. After every landing ArduCopter says ``PreArm: Mode not armable`` while it sits
+    in RTL or LAND -- the simulator right after ``Disarming motors``, before the HEARTBEAT
+    that shows it disarmed, so the vehicle's last known state cannot tell. On the ground
+    and disarmed that is the expected state, not an alarm: such a message is shown as
+    info. (What it means before a flight is said where it matters: the wait for a vehicle
+    to be ready names it, and a refused arm fails its action.)
     """
-    if (armed is False or landed is True) and text.startswith(ARMING_REASONS) \
-            and severity < INFO:
+    if text.startswith(ARMING_REASONS) and severity < INFO:
         return INFO
     return severity
 
@@ -450,8 +447,7 @@ class FakeVehicle:
 
     def say(self, severity: int, text: str) -> None:
         """The autopilot says ``text`` (a STATUSTEXT of MAV_SEVERITY ``severity``)."""
-        self._messages.append(AutopilotMessage(len(self._messages) + 1, severity, text,
-                                               self.armed, self.state().landed))
+        self._messages.append(AutopilotMessage(len(self._messages) + 1, severity, text))
 
     def state(self) -> VehicleState:
         """The current state."""

@@ -920,8 +920,7 @@ def _messages(t: Telemetry) -> tuple[AutopilotMessage, ...]:
     """The latest STATUSTEXTs, numbered from the first the link received."""
     texts = t.status_texts[-MESSAGES_KEPT:]
     first = t.status_text_count - len(texts) + 1
-    return tuple(AutopilotMessage(first + i, s.severity, s.text, s.armed, s.landed)
-                 for i, s in enumerate(texts))
+    return tuple(AutopilotMessage(first + i, s.severity, s.text) for i, s in enumerate(texts))
 
 
 def _home(t: Telemetry) -> Home | None:

@@ -117,15 +117,11 @@ class GlobalPosition:
 
 @dataclass(frozen=True)
 class StatusText:
-    """A STATUSTEXT: severity (MAV_SEVERITY, 0 worst) and text, with the time it arrived,
-    whether the vehicle's last HEARTBEAT showed it armed then, and whether it was on the
-    ground (EXTENDED_SYS_STATE, else disarmed); None before any HEARTBEAT."""
+    """A STATUSTEXT: severity (MAV_SEVERITY, 0 worst) and text, with the time it arrived."""
 
     time: float
     severity: int
     text: str
-    armed: bool | None = None
-    landed: bool | None = None
 
 
 @dataclass(frozen=True)
@@ -379,11 +375,7 @@ class TelemetryTracker:
         if kind == "MISSION_ITEM_REACHED":
             return {"items_reached": (*s.items_reached, msg.seq)}
         if kind == "STATUSTEXT":
-            known = s.last_heartbeat is not None
-            landed = s.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND if s.landed_state \
-                else not s.armed
-            text = StatusText(now, msg.severity, _text(msg.text), s.armed if known else None,
-                              landed if known or s.landed_state else None)
+            text = StatusText(now, msg.severity, _text(msg.text))
             return {"status_texts": (*s.status_texts, text)[-STATUS_TEXTS_KEPT:],
                     "status_text_count": s.status_text_count + 1}
         return {}

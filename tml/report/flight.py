@@ -17,10 +17,9 @@ task it flew them in -- whatever order they started in: in a fleet, the sorties 
 vehicles start side by side, and sorting them by start put one's sub-tasks under the
 other.
 
-*Autopilot messages* keep their severity, except a reason not to arm said while the
-vehicle was disarmed or on the ground (ArduCopter's ``PreArm: Mode not armable`` after
-every landing), shown as info (:func:`tml.vehicle.shown_severity`) with the severity it
-was said with.
+*Autopilot messages* keep their severity, except a reason not to arm, which ArduPilot says
+only while disarmed (ArduCopter's ``PreArm: Mode not armable`` after every landing):
+shown as info (:func:`tml.vehicle.shown_severity`) with the severity it was said with.
 """
 
 from __future__ import annotations
@@ -53,7 +52,6 @@ class Sample:
     mode: str
     armed: bool
     wall: str = ""  # the wall-clock time of the line (ISO 8601), "" in an older log
-    landed: bool | None = None
 
 
 @dataclass
@@ -221,8 +219,7 @@ def _take(flight: Flight, line: dict[str, Any],
         flight.tracks.setdefault(int(vehicle), []).append(Sample(
             t, north, east, up, where[0], where[1], where[2],
             None if battery is None else float(battery), str(line.get("mode", "")),
-            bool(line.get("armed")), wall,
-            landed if isinstance(landed := line.get("landed"), bool) else None))
+            bool(line.get("armed")), wall))
     elif kind == "task":
         key = (str(line["task"]), vehicle)
         if line["state"] == "running":
@@ -239,25 +236,13 @@ def _take(flight: Flight, line: dict[str, Any],
         text, said = str(line.get("text", "")), str(line.get("severity", ""))
         shown = said
         if said in SEVERITIES:
-            level = shown_severity(SEVERITIES.index(said), text, *_armed(flight, line))
+            level = shown_severity(SEVERITIES.index(said), text)
             shown = SEVERITIES[level]
         flight.marks.append(Mark(t, vehicle, "autopilot", text, shown,
                                  said if shown != said else "", wall))
     elif kind in ("safety", "error"):
         flight.marks.append(Mark(t, vehicle, kind, str(line.get("message", "")), wall=wall))
 
-
-def _armed(flight: Flight, line: dict[str, Any]) -> tuple[bool | None, bool | None]:
-    """Whether the vehicle was armed, and on the ground, when its autopilot said ``line``:
-    as the line says, or (a log without it) as its last telemetry line said; None when not
-    known."""
-    armed, landed = line.get("armed"), line.get("landed")
-    if isinstance(armed, bool) or isinstance(landed, bool):
-        return (armed if isinstance(armed, bool) else None,
-                landed if isinstance(landed, bool) else None)
-    vehicle = line.get("vehicle")
-    track = flight.tracks.get(vehicle) if isinstance(vehicle, int) else None
-    return (track[-1].armed, track[-1].landed) if track else (None, None)
 
 
 def _plan(flight: Flight) -> None:

@@ -80,10 +80,9 @@ def telemetry_fields(state: VehicleState) -> dict[str, Any]:
 
 
 def autopilot_fields(message: AutopilotMessage) -> dict[str, Any]:
-    """The fields of an ``autopilot`` line: the severity's word and number, the text, and
-    whether the vehicle was armed and on the ground when it said it (None: not known)."""
+    """The fields of an ``autopilot`` line: the severity's word and number, and the text."""
     return {"severity": message.severity_name, "level": message.severity,
-            "text": message.text, "armed": message.armed, "landed": message.landed}
+            "text": message.text}
 
 
 DECISIONS = frozenset({"run", "mission", "task", "action", "decision", "request", "control",

@@ -392,3 +392,9 @@ def test_mission_arguments_arducopter_does_not_keep_are_warnings() -> None:
     # Flown with commands, the same actions are flown as written.
     assert codes(run(TAKE_OFF + f'<task name="a">{loiter("duration=30", "radius=8")}</task>\n'
                      )) == []
+
+
+def test_an_unknown_parameter_is_said_even_without_a_comparison() -> None:
+    result = run(TAKE_OFF + '<task name="t"><condition parameter="BATERY_CHARGE_PERCENTAGE" '
+                 'value="30"/><action name="LAND"/></task>\n')
+    assert codes(result) == ["E221", "E225"]

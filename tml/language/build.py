@@ -3,12 +3,21 @@
 Building assumes the document passed the XML Schema (:mod:`tml.language.schema`); what the
 schema cannot express is reported as diagnostics by the builder (structure found while
 building) and by :mod:`tml.language.check` (everything else).
+
+A document the schema refused is built too, leniently, so that the semantic checks can
+report what else is wrong in the same round (:mod:`tml.language.validation` says which of
+their findings are kept): the elements given as ``left_out`` (those out of place) are
+skipped with everything in them, and a value the schema refused is read as absent or as
+its default -- an optional number as absent, a required one as 0 (or the nearest bound of
+its range), a word of a list as the default word -- without a diagnostic of the builder's
+own, the schema's saying it already.
 """
 
 from __future__ import annotations
 
+from enum import StrEnum
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 from lxml import etree
 
@@ -36,6 +45,7 @@ from tml.language.model import (
     Termination,
     TerminationMode,
 )
+from tml.language.parameters import ParamType
 from tml.language.quantities import RANGES, Quantity, out_of_range
 from tml.language.xml import XmlDocument, element_name, read_xml
 
@@ -43,11 +53,19 @@ if TYPE_CHECKING:
     from tml.world import Home, World
 
 
-class _Builder:
-    """Turns a schema-valid document into the model, collecting structural diagnostics."""
+E = TypeVar("E", bound=StrEnum)
+D = TypeVar("D")
 
-    def __init__(self, doc: XmlDocument) -> None:
+
+class _Builder:
+    """Turns a schema-valid document into the model, collecting structural diagnostics
+    (a document the schema refused, leniently: see the module's docstring)."""
+
+    def __init__(self, doc: XmlDocument, lenient: bool = False,
+                 left_out: frozenset[etree._Element] = frozenset()) -> None:
         self.doc = doc
+        self.lenient = lenient
+        self.left_out = left_out
         self.diagnostics: list[Diagnostic] = []
         self._children: dict[etree._Element, dict[str, list[etree._Element]]] = {}
 
@@ -60,22 +78,35 @@ class _Builder:
         to its quantity's range: a value outside (NaN and INF too, which xs:double reads)
         is reported and taken as the nearest bound, so building goes on."""
         text = element.get(attribute, default) if default is not None \
-            else self.doc.required(element, attribute)
-        value = float(text)
+            else element.get(attribute) if self.lenient else self.doc.required(element, attribute)
+        bounds = RANGES[quantity]
+        try:
+            value = float(text) if text is not None else None
+        except ValueError:
+            if not self.lenient:
+                raise
+            value = None
+        if value is None:  # refused by the schema, which says so: read as 0, in range
+            return min(max(0.0, bounds.low), bounds.high)
         why = out_of_range(quantity, value)
         if why is None:
             return value
         self.diagnostics.append(error(
             self.loc(element, attribute), "E255",
-            f"<{element_name(element)}> {attribute}={text.strip()!r} {why}"))
-        bounds = RANGES[quantity]
+            f"<{element_name(element)}> {attribute}={(text or '').strip()!r} {why}"))
         return min(max(value, bounds.low), bounds.high) if value == value else bounds.low
 
     def optional_number(self, element: etree._Element, attribute: str,
                         quantity: Quantity) -> float | None:
         """A number attribute that may be absent, bounded as :meth:`number` bounds it."""
-        if element.get(attribute) is None:
+        text = element.get(attribute)
+        if text is None:
             return None
+        if self.lenient:  # a value the schema refused is read as absent
+            try:
+                float(text)
+            except ValueError:
+                return None
         return self.number(element, attribute, quantity)
 
     def children(self, element: etree._Element, tag: str) -> list[etree._Element]:
@@ -83,8 +114,27 @@ class _Builder:
         if groups is None:  # group once: the builder asks each element for several tags
             groups = self._children[element] = {}
             for child in element:
-                groups.setdefault(element_name(child), []).append(child)
+                if child not in self.left_out:
+                    groups.setdefault(element_name(child), []).append(child)
         return groups.get(tag, [])
+
+    def text(self, element: etree._Element, attribute: str) -> str:
+        """A text attribute the schema requires; leniently, "" when it is missing."""
+        if self.lenient:
+            return element.get(attribute, "")
+        return self.doc.required(element, attribute)
+
+    def word(self, kind: type[E], text: str | None, default: D) -> E | D:
+        """The word ``text`` of the list ``kind`` (``default`` when absent); leniently,
+        ``default`` for one the schema refused too."""
+        if not text:
+            return default
+        try:
+            return kind(" ".join(text.split()))
+        except ValueError:
+            if not self.lenient:
+                raise
+            return default
 
     def mission(self, root: etree._Element) -> Mission:
         world: World | None = None
@@ -111,7 +161,8 @@ class _Builder:
             skills=tuple(self.skill(s) for s in self.children(root, "skill")),
             events=tuple(events),
             parameters=tuple(
-                ParameterDeclaration(p.get("name", "").strip(), p.get("type", "string"),
+                ParameterDeclaration(p.get("name", "").strip(),
+                                     self.word(ParamType, p.get("type"), ParamType.STRING).value,
                                      self.loc(p),
                                      p.get("description", ""))
                 for p in self.children(root, "parameter")),
@@ -124,6 +175,8 @@ class _Builder:
         region: Region | None = None
         for block in self.children(element, "region"):
             for shape in block:
+                if shape in self.left_out:
+                    continue
                 if shape.tag == "circle":
                     region = Region((self.point(shape, home),), self.loc(shape),
                                     self.number(shape, "radius", Quantity.RADIUS, "0"))
@@ -151,7 +204,8 @@ class _Builder:
         name = element.get("name", "").strip()
         path = (*parent, name)
         written_dispatch = element.get("dispatch")
-        dispatch = inherited if written_dispatch is None else Dispatch(written_dispatch)
+        dispatch = inherited if written_dispatch is None \
+            else self.word(Dispatch, written_dispatch, inherited)
         written_role = element.get("role")
         role = written_role.strip() if written_role is not None else inherited_role
         skills: list[Skill] = []
@@ -162,6 +216,8 @@ class _Builder:
         gates: dict[str, list[etree._Element]] = {}
         handlers: list[Task] = []
         for child in element:  # one pass: tasks are the bulk of a mission
+            if child in self.left_out:
+                continue
             tag = child.tag
             if tag == "task":
                 children.append(self.task(child, path, dispatch, role))
@@ -223,8 +279,7 @@ class _Builder:
             dispatch=dispatch,
             role=role,
             role_location=self.loc(element, "role") if written_role is not None else None,
-            composition=Composition.SEQUENCE if composition is None
-            else Composition(composition.strip()),
+            composition=self.word(Composition, composition, Composition.SEQUENCE),
             wait_for=conditions_of("wait_for"),
             until=conditions_of("until"),
             time_limit=self.optional_number(element, "time_limit", Quantity.DURATION),
@@ -237,6 +292,8 @@ class _Builder:
     def action(self, element: etree._Element) -> Action:
         arguments = []
         for arg in element:  # the schema allows only <argument> children here
+            if arg in self.left_out or arg.tag != "argument":
+                continue
             value, label = arg.get("value"), arg.get("label")
             if (value is None) == (label is None):
                 which = "both" if value is not None else "neither"
@@ -266,22 +323,24 @@ class _Builder:
         return Condition(
             kind=kind,
             subject=subject.strip(),
-            comparison=Comparison(" ".join(comparison.split())) if comparison else None,
+            comparison=self.word(Comparison, comparison, None),
             value=element.get("value"),
             location=self.loc(element),
             role=element.get("role", "").strip() or None,
         )
 
     def event(self, element: etree._Element) -> Event:
-        term = self.children(element, "termination")[0]
+        # An event without its <termination> (refused by the schema) goes on as CONTINUE.
+        term = (self.children(element, "termination") or [element])[0]
         return Event(
             name=element.get("name", "").strip(),
             conditions=tuple(self.condition(c) for c in self.children(element, "condition")),
             actions=tuple(self.action(a) for a in self.children(element, "action")),
-            termination=Termination(TerminationMode(term.get("mode", "").strip()),
-                                    self.loc(term), term.get("task")),
+            termination=Termination(
+                self.word(TerminationMode, term.get("mode"), TerminationMode.CONTINUE),
+                self.loc(term), term.get("task") if term is not element else None),
             location=self.loc(element),
-            trigger=EventTrigger(element.get("trigger", "edge").strip()),
+            trigger=self.word(EventTrigger, element.get("trigger", "edge"), EventTrigger.EDGE),
             role=element.get("role", "").strip() or None,
         )
 
@@ -326,6 +385,8 @@ class _Builder:
         obstacles: list[Cylinder | Prism] = []
         objects: list[WorldObject] = []
         for child in element:
+            if child in self.left_out:
+                continue
             if child.tag == "cylinder":
                 north, east = self.point(child, home)
                 obstacles.append(Cylinder(
@@ -342,7 +403,7 @@ class _Builder:
             elif child.tag == "object":
                 north, east = self.point(child, home)
                 objects.append(WorldObject(
-                    self.doc.required(child, "kind"), self.doc.required(child, "id").strip(),
+                    self.text(child, "kind"), self.text(child, "id").strip(),
                     north, east,
                     self.number(child, "altitude", Quantity.ALTITUDE, "0"),
                     child.get("color", ""),
@@ -351,7 +412,10 @@ class _Builder:
 
     def top(self, element: etree._Element) -> float:
         top = self.optional_number(element, "top", Quantity.ALTITUDE)
-        bottom = float(element.get("bottom", "0"))  # bounded where the obstacle reads it
+        try:  # bounded where the obstacle reads it
+            bottom = float(element.get("bottom", "0"))
+        except ValueError:  # refused by the schema
+            bottom = 0.0
         if top is None:
             return float("inf")
         if top <= bottom:
@@ -393,14 +457,24 @@ class _Builder:
 
 def _whole(text: str) -> int:
     """A whole number the schema accepted; one of more digits than any range allows is
-    read as 10**18, which every range refuses (int() of a long enough text raises)."""
+    read as 10**18, which every range refuses (int() of a long enough text raises). One
+    the schema refused (not a whole number) is read as 1."""
     digits = text.strip().lstrip("+")
-    return int(digits) if len(digits) <= 18 else 10**18
+    if len(digits) > 18:
+        return 10**18
+    try:
+        return int(digits)
+    except ValueError:
+        return 1
 
 
-def build_mission(doc: XmlDocument) -> tuple[Mission, list[Diagnostic]]:
-    """The model of a schema-valid mission document, and structural diagnostics."""
-    builder = _Builder(doc)
+def build_mission(doc: XmlDocument, lenient: bool = False,
+                  left_out: frozenset[etree._Element] = frozenset(),
+                  ) -> tuple[Mission, list[Diagnostic]]:
+    """The model of a schema-valid mission document, and structural diagnostics; with
+    ``lenient``, of one the schema refused, skipping the elements ``left_out`` (see the
+    module's docstring)."""
+    builder = _Builder(doc, lenient, left_out)
     mission = builder.mission(doc.root)
     return mission, builder.diagnostics
 

@@ -314,6 +314,9 @@ class _Checker:
         if condition.kind is ConditionKind.CURRENT_TASK:
             self.resolve_task(condition.subject, condition, "current_task")
             return
+        # An unknown parameter is said whatever else is wrong with the condition.
+        param_type = self.parameter_type(condition) \
+            if condition.kind is ConditionKind.PARAMETER else None
         if condition.comparison is None:
             self.found.append(error(
                 condition.location, "E221", "the condition has no comparison=",
@@ -327,7 +330,6 @@ class _Checker:
                     f"{condition.comparison.value!r}"))
             self.check_known_value(condition)
             return
-        param_type = self.parameter_type(condition)
         if condition.comparison is Comparison.KNOWN:
             self.check_known_value(condition)
             return

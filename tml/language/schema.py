@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import functools
 import re
+from dataclasses import dataclass
 from pathlib import Path
 
 from lxml import etree
@@ -82,45 +83,70 @@ def _vocabulary(name: str) -> dict[str, tuple[set[str], set[str]]]:
     return vocabulary
 
 
+@dataclass(frozen=True)
+class SchemaProblem:
+    """A schema violation: its diagnostic, the element it is about (None when libxml2 did
+    not say) and the attribute (None for a problem with the element itself)."""
+
+    diagnostic: Diagnostic
+    element: etree._Element | None = None
+    attribute: str | None = None
+    meant: str | None = None  # an unknown attribute's likely meaning (did you mean ...?)
+
+
 def validate(doc: XmlDocument, expected_root: str = "mission") -> list[Diagnostic]:
     """All schema violations of ``doc``, as diagnostics (empty when valid)."""
+    return [problem.diagnostic for problem in problems(doc, expected_root)]
+
+
+def problems(doc: XmlDocument, expected_root: str = "mission") -> list[SchemaProblem]:
+    """All schema violations of ``doc``, each with where it is (empty when valid)."""
     root = doc.root
     name = element_name(root)
     if name != expected_root:
         other = "a world file" if name == "world" else f"<{name}>"
-        return [error(doc.location(root), "E007",
-                      f"expected a <{expected_root}> document, found {other}",
-                      f"the root element must be <{expected_root}>")]
+        return [SchemaProblem(error(doc.location(root), "E007",
+                                    f"expected a <{expected_root}> document, found {other}",
+                                    f"the root element must be <{expected_root}>"))]
     schema_name = ROOTS[expected_root]
     schema = _lxml_schema(schema_name)
     if schema.validate(root.getroottree()):
         return []
-    diagnostics: list[Diagnostic] = []
+    found: list[SchemaProblem] = []
     seen: set[tuple[int, int, str]] = set()
     for entry in schema.error_log:
-        diagnostic = _translate(doc, entry, schema_name)
-        key = (diagnostic.location.line, diagnostic.location.column, diagnostic.code)
+        problem = _translate(doc, entry, schema_name)
+        location = problem.diagnostic.location
+        key = (location.line, location.column, problem.diagnostic.code)
         if key not in seen:  # libxml2 reports a bad value twice (facet, then type)
             seen.add(key)
-            diagnostics.append(diagnostic)
-    return diagnostics
+            found.append(problem)
+    return found
 
 
 _ATTRIBUTE = re.compile(r"^Element '([^']+)', attribute '([^']+)': (.*)$", re.S)
 _ELEMENT = re.compile(r"^Element '([^']+)': (.*)$", re.S)
 
 
-def _translate(doc: XmlDocument, entry: etree._LogEntry, schema_name: str) -> Diagnostic:
+def _translate(doc: XmlDocument, entry: etree._LogEntry, schema_name: str) -> SchemaProblem:
     element = doc.element_at(entry.path) if entry.path else None
     message = entry.message.strip()
     match = _ATTRIBUTE.match(message)
     if match and element is not None:
-        return _attribute_problem(doc, element, match.group(2), match.group(3), schema_name)
+        diagnostic = _attribute_problem(doc, element, match.group(2), match.group(3),
+                                        schema_name)
+        meant = re.match(r"did you mean '([^']+)'\?", diagnostic.hint) \
+            if diagnostic.code == "E103" else None
+        return SchemaProblem(diagnostic, element, match.group(2),
+                             meant.group(1) if meant else None)
     match = _ELEMENT.match(message)
     if match and element is not None:
-        return _element_problem(doc, element, match.group(2), schema_name)
+        required = re.search(r"The attribute '([^']+)' is required but missing",
+                             match.group(2))
+        return SchemaProblem(_element_problem(doc, element, match.group(2), schema_name),
+                             element, required.group(1) if required else None)
     location = doc.location(element) if element is not None else Location(doc.file, entry.line)
-    return error(location, "E100", message)
+    return SchemaProblem(error(location, "E100", message), element)
 
 
 def _attribute_problem(doc: XmlDocument, element: etree._Element, attribute: str,

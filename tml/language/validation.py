@@ -1,7 +1,22 @@
 """The validation pipeline: safe read, XML Schema, model building, semantic checks.
 
-Schema violations stop a file there (the model cannot be built from a document of the
-wrong shape); otherwise structural and semantic findings are all reported together.
+Every finding is reported in one round, the schema's and the language's together, where
+the schema's leave the language's meaningful. A mission the schema refuses is still built,
+leniently (:mod:`tml.language.build`: the elements out of place left out, the values
+refused read as absent or their defaults), and checked; of the findings on that model,
+those that could be an echo of what the schema refused are dropped:
+
+- a finding on an element the schema refused a value or a child of (E102, E104, E105), or
+  an attribute that looks like a misspelt one (E103), that the refused part could cause
+  (:data:`ECHOES`): a misspelt or refused comparison= is not also "no comparison", but the
+  same condition's unknown parameter is still said;
+- when an element was out of place (E101) and left out, or an attribute that names or
+  declares what other parts read (a task's or a role's name, a label, a role, a parameter
+  declaration) was refused, the findings that read the whole mission: references to tasks
+  and labels, roles, declared parameters and orchestration (:data:`READS_THE_WHOLE`).
+
+What is left is reported with the schema's findings, each at its file:line:column. A
+document whose root is not the one expected (E007), or that is not XML, stops there.
 """
 
 from __future__ import annotations
@@ -55,15 +70,129 @@ def validate_file(path: str | Path, data: bytes | None = None,
         if doc.root.prefix:
             written = f"{doc.root.prefix}:{written}"
         root = "world" if written == "world" else "mission"
-    problems = schema.validate(doc, root)
+    problems = schema.problems(doc, root)
     if problems:
-        return ValidationResult(file, None, sorted(problems, key=sort_key), doc.text)
+        found = [p.diagnostic for p in problems]
+        if root == "mission":
+            found += _beyond_the_schema(doc, problems)
+        return ValidationResult(file, None, sorted(found, key=sort_key), doc.text)
     if root == "world":
         _, structural = build.build_world(doc)
         return ValidationResult(file, None, sorted(structural, key=sort_key), doc.text)
     mission, structural = build.build_mission(doc)
     found = structural + check.check(mission)
     return ValidationResult(file, mission, sorted(found, key=sort_key), doc.text)
+
+
+READS_THE_WHOLE = frozenset({
+    "E225", "W301", "E254",  # parameters, as the declarations say
+    "E230", "E231", "E232",  # labels, as the MEMORIZE_POINTs store them
+    "E240", "E244",  # tasks named, as the tasks are
+    "E253",  # latitude and longitude, from the <home>
+    "E261", "E274", "E275", "E283", "W306",  # orchestration, as the tasks and roles are
+    "E270", "E271", "W305",  # roles, as declared and flown
+})
+"""Codes of the semantic findings that read other parts of the mission than the element
+they are reported on: kept beside schema findings only when those parts were built whole."""
+
+_CONDITION_READ = frozenset({"E220", "E221", "E222", "E223", "E224", "E225", "W301", "E230",
+                             "E232", "E240", "E244", "E275", "E281"})
+ECHOES: dict[str, frozenset[str]] = {
+    "comparison": frozenset({"E221", "E223", "E224"}),
+    "value": frozenset({"E212", "E213", "E214", "E222", "E224"}),
+    "parameter": _CONDITION_READ, "label": _CONDITION_READ | {"E213", "E214", "E231"},
+    "current_task": _CONDITION_READ, "currentTask": _CONDITION_READ,
+    "mode": frozenset({"E240", "E242", "E244", "E283", "W304"}),
+    "task": frozenset({"E240", "E242", "E244", "W304"}),
+    "times": frozenset({"E250"}),
+    "dispatch": frozenset({"E260", "E261", "W307", "W308"}),
+    "composition": frozenset({"E280", "E283", "W306"}),
+    "role": frozenset({"E270", "E274", "E275"}),
+    "release": frozenset({"E270"}),
+    "trigger": frozenset(), "description": frozenset(),
+    "time_limit": frozenset({"E255"}), "count": frozenset({"E255"}),
+    "pick_timeout": frozenset({"E255"}), "radius": frozenset({"E253", "E255"}),
+}
+"""For an attribute the schema refused (or that is missing, or misspelt): the codes of the
+semantic findings on its element that may only echo it. An attribute not listed (a name)
+may cause any."""
+
+NAMING = frozenset({("task", "name"), ("action", "name"), ("argument", "name"),
+                    ("task", "role"), ("task", "release"),
+                    ("task", "dispatch"), ("task", "composition"), ("role", "name"),
+                    ("parameter", "name"), ("parameter", "type"), ("argument", "label"),
+                    ("event", "role"), ("condition", "role")})
+"""(element, attribute) whose value other parts of a mission read: a task's name for
+current_task and JUMP_TO_TASK, a label for its readers, a role for its tasks ..."""
+
+
+def _beyond_the_schema(doc: xml.XmlDocument,
+                       problems: list[schema.SchemaProblem]) -> list[Diagnostic]:
+    """The findings of the language's rules on a mission the schema refused, where they
+    can be trusted (see the module's docstring)."""
+    if any(p.diagnostic.code == "E007" for p in problems):
+        return []  # not a mission at all
+    left_out = frozenset(p.element for p in problems
+                         if p.diagnostic.code == "E101" and p.element is not None)
+    whole = not any(_breaks_the_whole(p) for p in problems)
+    # The places (start tag, attributes) of the elements the schema refused part of, and
+    # the codes that may echo it there (None: any).
+    refused: dict[tuple[int, int], frozenset[str] | None] = {}
+    refusals: list[tuple[etree._Element, frozenset[str] | None]] = []
+    for problem in problems:
+        element = problem.element
+        if element is None:
+            continue
+        if problem.diagnostic.code != "E101":
+            refusals.append((element, _echoes(problem)))
+        parent = element.getparent()
+        if parent is not None and (problem.diagnostic.code in ("E100", "E101")
+                                   or xml.element_name(element) == "argument"):
+            # What holds an element left out, or an argument refused, misses it: "WAIT
+            # needs argument 'duration'" would only echo a misspelt <argumnt>.
+            refusals.append((parent, None))
+    for element, echoes in refusals:
+        for attribute in (None, *(a for a in element.attrib if isinstance(a, str))):
+            where = doc.location(element, attribute)
+            key = (where.line, where.column)
+            before = refused.get(key, frozenset())
+            refused[key] = None if echoes is None or before is None else before | echoes
+    try:
+        mission, structural = build.build_mission(doc, lenient=True, left_out=left_out)
+        found = structural + check.check(mission)
+    except (ValueError, TypeError, LookupError, ArithmeticError, MissionError):
+        # The schema's findings are the answer: a model built from what it refused may
+        # break the builder or a check in a way no valid mission can; those findings
+        # must not be lost to it.
+        return []
+    kept = []
+    for diagnostic in found:
+        place = (diagnostic.location.line, diagnostic.location.column)
+        if place in refused and (refused[place] is None
+                                 or diagnostic.code in (refused[place] or ())):
+            continue
+        if whole or diagnostic.code not in READS_THE_WHOLE:
+            kept.append(diagnostic)
+    return kept
+
+
+def _breaks_the_whole(problem: schema.SchemaProblem) -> bool:
+    """Whether the problem may leave the mission without what other parts read: an element
+    left out or refused whole, or a name (or a misspelt name) refused."""
+    if problem.element is None or problem.diagnostic.code in ("E100", "E101"):
+        return True
+    attribute = problem.meant if problem.diagnostic.code == "E103" else problem.attribute
+    return (xml.element_name(problem.element), attribute) in NAMING
+
+
+def _echoes(problem: schema.SchemaProblem) -> frozenset[str] | None:
+    """The codes of the findings on the problem's element it may cause (None: any)."""
+    code = problem.diagnostic.code
+    if code == "E103":  # read by nobody, unless it is a misspelt attribute
+        return ECHOES.get(problem.meant) if problem.meant else frozenset()
+    if code in ("E104", "E105") and problem.attribute is not None:
+        return ECHOES.get(problem.attribute)
+    return None
 
 
 def load_mission(path: str | Path) -> Mission:

@@ -398,9 +398,10 @@ function record(line) {
   } else if (line.kind === "release" && line.role && log.picked[line.role]) {
     log.picked[line.role] = log.picked[line.role].filter((v) => v !== whose);
   } else if (line.kind === "autopilot") {
-    // A reason not to arm, said while disarmed, is no alarm (the autopilot says it
-    // critical): it is why a vehicle on the ground waits.
-    const calm = line.armed === false && /^PreArm/.test(line.text || "");
+    // A reason not to arm is no alarm, though the autopilot says it critical: it is said
+    // only while disarmed (after every landing too), as tml's own views show it
+    // (tml.vehicle.shown_severity).
+    const calm = /^(PreArm|Arm):/.test(line.text || "") && line.level < 6;
     keep(log.messages, {...stamp, who: whose, text: line.text,
       severity: calm ? "info" : line.severity});
     later("lists");

@@ -23,7 +23,11 @@ All vehicles share one clock that advances in the model's control ticks. With
 time (falling behind instead of skipping when the machine cannot keep up). With
 ``realtime=False`` nothing moves until :meth:`Simulator.advance` is called, which steps
 time deterministically and serves the sockets between ticks: a test sends, advances,
-and reads the replies.
+and reads the replies. Given a ``lockstep`` (:class:`tml.timebase.Lockstep`, the time base
+of the ground station in the same process), the background thread moves time on only
+when that ground station has handled everything the vehicles said and waits for them
+(:meth:`~tml.timebase.Lockstep.settled`), and never faster than ``speedup`` times
+wall-clock time: a flight is then the same on an idle and on a saturated machine.
 
 Link faults (:class:`sitl.faults.Faults`) act here, on decoded messages going in and on
 encoded packets going out, timed in vehicle time so they replay from the seed.
@@ -49,6 +53,7 @@ from sitl.model import TICK, VehicleModel
 from sitl.params import UnknownParameter
 from sitl.wire import Fields, encode
 from tml.geo import to_global
+from tml.timebase import Lockstep
 from tml.world import Home, World
 
 MAX_BACKLOG = 1 << 20  # bytes queued for a client that does not read before we drop
@@ -79,9 +84,13 @@ class _Peer:
     """One connection (a TCP client, or a UDP address) and its parser and send queue."""
 
     def __init__(self, sock: socket.socket, address: tuple[str, int] | None = None,
-                 signing_key: bytes | None = None) -> None:
+                 signing_key: bytes | None = None, lockstep: Lockstep | None = None,
+                 remote: tuple[str, int] | None = None) -> None:
         self.sock = sock
         self.address = address  # UDP destination; None for TCP
+        # A TCP client's address, whose bytes a lock-step ground station counts with us
+        self.lockstep = lockstep
+        self.remote = remote
         self.parser = mavlink.MAVLink(None)
         self.parser.robust_parsing = True
         if signing_key is not None:  # as ArduPilot with a key: nothing unsigned is taken
@@ -109,6 +118,8 @@ class _Peer:
         except OSError:
             return False
         del self.backlog[:sent]
+        if self.lockstep is not None:
+            self.lockstep.carried(self.remote, sent)
         return True
 
 
@@ -176,14 +187,15 @@ class Simulator:
         tcp_base_port: int | None = 5760, udp_out: list[str] | tuple[str, ...] = (),
         bind: str = "127.0.0.1", realtime: bool = True, params: dict[str, float] | None = None,
         frames: list[str] | tuple[str, ...] = (),
-        signing_key: bytes | None = None,
+        signing_key: bytes | None = None, lockstep: Lockstep | None = None,
     ) -> None:
         if not 1 <= vehicles <= MAX_VEHICLES:
             raise ValueError(f"1 to {MAX_VEHICLES} vehicles (a MAVLink system id is one byte)")
         if speedup <= 0:
             raise ValueError("speedup must be positive")
         self.speedup = speedup
-        self.realtime = realtime
+        self.realtime = realtime or lockstep is not None
+        self.lockstep = lockstep
         self.bind = bind
         self.tcp_base_port = tcp_base_port
         self.udp_out = [parse_udp_address(address) for address in udp_out]
@@ -249,7 +261,8 @@ class Simulator:
         self._started = True
         if self.realtime:
             self._running.set()
-            self._thread = threading.Thread(target=self._loop, name="sitl", daemon=True)
+            loop = self._loop if self.lockstep is None else self._lockstep_loop
+            self._thread = threading.Thread(target=loop, name="sitl", daemon=True)
             self._thread.start()
         return self
 
@@ -310,8 +323,10 @@ class Simulator:
             endpoint.tcp_peers, endpoint.udp_peers = [], []
             endpoint.listener = endpoint.udp = None
 
-    def _serve(self, timeout: float) -> None:
-        for key, _ in self._selector.select(timeout):
+    def _serve(self, timeout: float) -> bool:
+        """Read what came in (True when anything did), deliver what is due, flush."""
+        ready = self._selector.select(timeout)
+        for key, _ in ready:
             endpoint, peer = key.data
             if peer is None:
                 self._accept(endpoint)
@@ -324,16 +339,17 @@ class Simulator:
             for peer in list(endpoint.tcp_peers):
                 if not peer.flush():
                     self._drop(endpoint, peer)
+        return bool(ready)
 
     def _accept(self, endpoint: _Endpoint) -> None:
         assert endpoint.listener is not None
         try:
-            sock, _ = endpoint.listener.accept()
+            sock, remote = endpoint.listener.accept()
         except BlockingIOError:
             return
         sock.setblocking(False)
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        peer = _Peer(sock, signing_key=self.signing_key)
+        peer = _Peer(sock, signing_key=self.signing_key, lockstep=self.lockstep, remote=remote)
         endpoint.tcp_peers.append(peer)
         self._selector.register(sock, selectors.EVENT_READ, (endpoint, peer))
 
@@ -354,6 +370,8 @@ class Simulator:
         if not data:
             self._drop(endpoint, peer)
             return
+        if peer.lockstep is not None:
+            peer.lockstep.carried(peer.remote, -len(data))
         self._received(endpoint, peer, data)
 
     def _read_udp(self, endpoint: _Endpoint) -> None:
@@ -462,3 +480,29 @@ class Simulator:
                 self._serve(0.0)
             wait = (self.time + TICK - target) / self.speedup
             self._serve(min(max(wait, 0.0), 0.01))
+
+    def _lockstep_loop(self) -> None:
+        lockstep = self.lockstep
+        assert lockstep is not None
+        wall_start, time_start = time.monotonic(), self.time
+        while self._running.is_set():
+            self._serve(0.0)
+            if any(peer.backlog for e in self._endpoints for peer in e.tcp_peers):
+                self._serve(0.001)  # a client reads slowly: what it was sent comes first
+                continue
+            if not lockstep.settled():
+                lockstep.wait_settled(0.002)
+                continue
+            # Settled: everything sent before the waits began is in the sockets by now.
+            if self._serve(0.0):
+                continue
+            if lockstep.fire():  # the timers of this instant, once its messages are handled
+                continue
+            target = time_start + (time.monotonic() - wall_start) * self.speedup
+            if target - self.time > 1.0:  # held up: run behind instead of bursting
+                wall_start, time_start = time.monotonic(), self.time
+            if self.time + TICK > target:
+                self._serve(min((self.time + TICK - target) / self.speedup, 0.01))
+                continue
+            self._tick()
+            lockstep.advance(self.time)

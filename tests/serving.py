@@ -112,7 +112,8 @@ def simulated(vehicles: int = 2, speedup: float = 20.0) -> Iterator[Hangar]:
         for hangar in hangars:
             hangar.notify()
 
-    with open_vehicles(args, World(), notify) as (found, _wake, clock):  # type: ignore[arg-type]
+    with open_vehicles(args, World(), notify) as (found, _wake, clock,  # type: ignore[arg-type]
+                                                  _timebase):
         hangars.append(Hangar(found, clock))
         yield hangars[0]
 

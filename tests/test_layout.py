@@ -23,7 +23,7 @@ LAYERS: list[set[str]] = [
     {"tml.engine", "tml.mavlink", "tml.verify"},
     {"tml.vehicle"},
     {"tml.language"},
-    {"tml.geo", "tml.world", "tml.patterns", "tml.signing"},
+    {"tml.geo", "tml.world", "tml.patterns", "tml.signing", "tml.timebase"},
     {"tml.errors", "tml.__init__", "tml.__version__"},
 ]
 IMPORT = re.compile(r"^\s*(?:from\s+(tml[\w.]*)\s+import\s+([\w, ()]+)|import\s+(tml[\w.]*))",

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import threading
 from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -23,6 +22,7 @@ if TYPE_CHECKING:
     from tml.language.model import Mission
     from tml.run.journal import Journal
     from tml.run.resume import ResumePoint
+    from tml.timebase import Flag, Timebase
     from tml.world import World
 
 VEHICLE_PROFILE = "vehicle"  # --profile vehicle: read from the connected vehicle
@@ -296,7 +296,8 @@ def _run(args: argparse.Namespace, mission: Mission, world: World, extra: World 
     from tml.errors import Interrupted, TmlError
 
     try:
-        with open_vehicles(args, world, errors) as (vehicles, wake, clock):
+        with open_vehicles(args, world, errors, lockstep=True) as (vehicles, wake, clock,
+                                                                   timebase):
             refused = _preflight(args, mission, vehicles, errors) or _gcs_failsafe(
                 args, vehicles, errors)
             if refused is not None:
@@ -306,7 +307,7 @@ def _run(args: argparse.Namespace, mission: Mission, world: World, extra: World 
                 refused = _verify(args, mission, extra, profile, errors)
                 if refused is not None:
                     return refused
-            return _fly(args, mission, world, profile, vehicles, wake, clock, console,
+            return _fly(args, mission, world, profile, vehicles, wake, clock, timebase, console,
                         journal, resumed)
     except Interrupted as error:
         errors.print(f"tml run: {error} before the mission started", markup=False)
@@ -428,14 +429,16 @@ def _vehicle_profile(vehicle: Any, errors: Any) -> Any:
 
 @contextlib.contextmanager
 def open_vehicles(args: argparse.Namespace, world: World, errors: Any = None,
-                  notify: Callable[[], None] | None = None,
-                  ) -> Iterator[tuple[list[Any], threading.Event, Any]]:
-    """Start the simulator or open the links; yield (vehicles, wake event, clock).
+                  notify: Callable[[], None] | None = None, lockstep: bool = False,
+                  ) -> Iterator[tuple[list[Any], Flag, Any, Timebase]]:
+    """Start the simulator or open the links; yield (vehicles, wake flag, clock, time base).
 
-    The wake event is set on every message that changes what a vehicle shows and on every
+    The wake flag is set on every message that changes what a vehicle shows and on every
     request result, or ``notify`` is called
     instead when given (a service with several runs wakes each of them); ``errors``, when
-    given, is told which address is waited for.
+    given, is told which address is waited for. With ``lockstep``, the embedded simulator
+    moves its time on only when tml waits for it (:class:`tml.timebase.Lockstep`): the
+    time base yielded is then the simulator's, for the runner to wait on and take part in.
     """
     import time
 
@@ -444,19 +447,25 @@ def open_vehicles(args: argparse.Namespace, world: World, errors: Any = None,
     from tml.mavlink.clock import VehicleClock
     from tml.mavlink.link import Link
     from tml.signing import signing_key
+    from tml.timebase import SYSTEM, Flag, Lockstep
 
-    wake = threading.Event()
+    timebase: Timebase = Lockstep() if args.sim and lockstep else SYSTEM
+    wake = Flag(timebase)
     # OSError, TmlError: said by the caller
     key = signing_key(getattr(args, "signing_key_file", None))
     addresses: list[tuple[str, int | None]]
     news = notify or wake.set
-    with contextlib.ExitStack() as stack:
+    # In lock-step the opening, the pre-flight checks and the run take part in the
+    # simulator's time (tml.timebase): it moves on only while this thread waits for it.
+    # Closing (the stack, left after) does not: the workers finish with time moving.
+    with contextlib.ExitStack() as stack, timebase.taking_part():
         if args.sim:
             from sitl.server import Simulator
 
             sim = Simulator(vehicles=args.vehicles, speedup=args.speedup, tcp_base_port=0,
                             world=world, params=dict(args.sim_param), frames=args.sim_frame,
-                            signing_key=key)
+                            signing_key=key,
+                            lockstep=timebase if isinstance(timebase, Lockstep) else None)
             stack.enter_context(sim)
             clock = lambda: sim.time  # noqa: E731 - the vehicles' own time
             addresses = [(f"tcp:127.0.0.1:{port}", index + 1)
@@ -468,12 +477,13 @@ def open_vehicles(args: argparse.Namespace, world: World, errors: Any = None,
         link_clock = None  # the runner's clock
         vehicle_clock: VehicleClock | None = None
         for address, system_id in addresses:
-            link = stack.enter_context(Link(address, outputs=args.out, signing_key=key))
+            link = stack.enter_context(Link(address, outputs=args.out, signing_key=key,
+                                            timebase=timebase))
             link.on_change(lambda _system_id: news())
             if not system_id and errors is not None and not args.quiet:
                 # Said once: pymavlink's own retry messages are kept from the terminal.
-                errors.print(f"tml run: waiting up to {args.timeout:g} s for a vehicle at "
-                             f"{address}", markup=False)
+                errors.print(f"tml run: waiting up to {args.timeout:g} s for a vehicle "
+                             f"at {address}", markup=False)
             ids = [system_id] if system_id else _discover(link, args.timeout)
             if not args.sim and args.clock == "vehicle" and not vehicles:
                 # The first vehicle's clock times the mission and every vehicle's link.
@@ -481,17 +491,18 @@ def open_vehicles(args: argparse.Namespace, world: World, errors: Any = None,
                 # Link health stays on the local clock: see tml.mavlink.adapter.
                 link_clock = time.monotonic
             for sid in ids:
-                vehicle = MavlinkVehicle(link, sid, clock=clock, world=world,
-                                         vehicle_id=len(vehicles) + 1 if not args.sim else sid,
-                                         connect_timeout=args.timeout, on_result=news,
-                                         link_clock=link_clock)
+                vehicle = MavlinkVehicle(
+                    link, sid, clock=clock, world=world,
+                    vehicle_id=len(vehicles) + 1 if not args.sim else sid,
+                    connect_timeout=args.timeout, on_result=news, link_clock=link_clock)
                 stack.callback(vehicle.close)
                 vehicle.prepare()
                 vehicles.append(vehicle)
         if vehicle_clock is not None and not vehicle_clock.wait_started(args.timeout):
             raise TmlError(f"vehicle {vehicles[0].vehicle_id} sent no time stamp "
-                           f"(time_boot_ms) in {args.timeout:g} s; --clock vehicle needs one")
-        yield vehicles, wake, clock
+                           f"(time_boot_ms) in {args.timeout:g} s; --clock vehicle needs "
+                           "one")
+        yield vehicles, wake, clock, timebase
 
 
 def _signing_on(args: argparse.Namespace) -> bool:
@@ -529,7 +540,7 @@ def _discover(link: Any, timeout: float) -> list[int]:
 
 
 def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
-         vehicles: list[Any], wake: threading.Event, clock: Any, console: Any,
+         vehicles: list[Any], wake: Flag, clock: Any, timebase: Timebase, console: Any,
          journal: Journal, resumed: Resumed) -> ExitCode:
     from tml.run.checked import checked_options
     from tml.run.display import LineDisplay, LiveDisplay
@@ -555,7 +566,7 @@ def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
         payloads.setdefault(number, []).extend(names)
     point = resumed.point
     runner = Runner(mission, vehicles, clock=clock, options=options, journal=journal,
-                    wake=wake, on_safety=on_safety, payloads=payloads,
+                    wake=wake, timebase=timebase, on_safety=on_safety, payloads=payloads,
                     on_update=(lambda r: display.update(r.views())) if display else None,
                     ids=None if point is None else IdSource(point.next_id),
                     resume=None if point is None else point.progress,

@@ -123,7 +123,7 @@ def run(args: argparse.Namespace) -> ExitCode:
             hangar.notify()
 
     try:
-        with open_vehicles(args, World(), notify) as (vehicles, _wake, clock):
+        with open_vehicles(args, World(), notify) as (vehicles, _wake, clock, _timebase):
             hangar = Hangar(vehicles, clock)
             hangars.append(hangar)
             service = Service(storage, hangar, ServiceOptions(

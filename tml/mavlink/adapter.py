@@ -76,7 +76,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import queue
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
@@ -103,6 +102,7 @@ from tml.mavlink.link import Link
 from tml.mavlink.modes import ModeWatch, mode_names
 from tml.mavlink.telemetry import COMPANION_COMPONENT, Telemetry
 from tml.mavlink.vehicle import DEFAULT_RATES, Vehicle
+from tml.timebase import Empty, Flag, Mailbox
 from tml.vehicle import (
     MESSAGES_KEPT,
     Arm,
@@ -133,7 +133,7 @@ from tml.world import Home, World
 Clock = Callable[[], float]
 
 STREAM_CHECK_PERIOD = 2.0
-"""Wall seconds between the worker's checks that the streams asked for arrive."""
+"""Seconds between the worker's checks that the streams asked for arrive."""
 PARAM_TIMEOUT = 1.0
 PARAM_RETRIES = 3
 
@@ -157,9 +157,9 @@ seven in a row must be lost for that."""
 TAKEOFF_ATTEMPTS = 3
 """Take-offs tried, arming again in between, when the vehicle disarmed by itself meanwhile."""
 TARGET_PERIOD = 0.5
-"""Wall seconds at least between two copies of the GUIDED position target kept."""
+"""Seconds at least between two copies of the GUIDED position target kept."""
 FLIP_WAIT = 10.0
-"""Wall seconds to wait for a flip to be over (ArduCopter abandons one after 2.5 s)."""
+"""Seconds to wait for a flip to be over (ArduCopter abandons one after 2.5 s)."""
 
 
 @dataclass(frozen=True)
@@ -264,6 +264,7 @@ class MavlinkVehicle:
                  on_result: Callable[[], None] | None = None,
                  link_clock: Clock | None = None) -> None:
         self.link = link
+        self.timebase = link.timebase  # every wait and period of the worker (tml.timebase)
         self.mav = Vehicle(link, link.wait_vehicle(system_id, connect_timeout),
                            command_timeout=command_timeout)
         self.system_id = system_id
@@ -278,7 +279,7 @@ class MavlinkVehicle:
         self._names = detection_names(world)
         self._lock = threading.Lock()
         self._results: list[RequestResult] = []
-        self._queue: queue.Queue[Request | None] = queue.Queue()
+        self._queue: Mailbox[Request | None] = Mailbox(self.timebase)
         self._params: dict[tuple[int, str], float] = {}
         self._param_arrived = threading.Condition()
         self._seen: dict[tuple[str, int], float] = {}
@@ -294,6 +295,7 @@ class MavlinkVehicle:
         self._ground_speed: float | None = None  # a rover's speed, sent with each target
         self._modes = ModeWatch()  # tells a mode change nobody here asked for
         link.listen(self._on_message)
+        self.timebase.announce()
         self._worker = threading.Thread(target=self._work, daemon=True,
                                         name=f"vehicle {system_id}")
         self._worker.start()
@@ -435,7 +437,7 @@ class MavlinkVehicle:
         elif kind == "PARAM_VALUE":
             with self._param_arrived:
                 self._params[(component, _text(msg.param_id))] = msg.param_value
-                self._param_arrived.notify_all()
+                self.timebase.notify_all(self._param_arrived)
         elif kind in ("MISSION_CURRENT", "MISSION_ITEM_REACHED"):
             with self._lock:
                 if self._plan is not None:
@@ -453,31 +455,35 @@ class MavlinkVehicle:
 
     def _keep_target(self, snapshot: Telemetry) -> None:
         target = self._target
-        wall = time.monotonic()
+        now = self.timebase.now()
         if target is None or snapshot.mode != "GUIDED" or self._modes.taken \
-                or wall - self._target_sent < TARGET_PERIOD:
+                or now - self._target_sent < TARGET_PERIOD:
             return
-        self._target_sent = wall
+        self._target_sent = now
         with contextlib.suppress(OSError):
             self.mav.position_target(*target)
 
     def _aim(self, latitude: float, longitude: float, altitude: float) -> None:
         """Send a GUIDED position target, and keep it (see the module docstring)."""
         self._target = (latitude, longitude, altitude, None)
-        self._target_sent = time.monotonic()
+        self._target_sent = self.timebase.now()
         self.mav.position_target(latitude, longitude, altitude)
 
     # --- the worker thread ------------------------------------------------------------
 
     def _work(self) -> None:
-        checked = time.monotonic()
+        with self.timebase.taking_part(announced=True):
+            self._serve()
+
+    def _serve(self) -> None:
+        checked = self.timebase.now()
         while True:
-            if time.monotonic() - checked >= STREAM_CHECK_PERIOD:
-                checked = time.monotonic()
+            if self.timebase.now() - checked >= STREAM_CHECK_PERIOD:
+                checked = self.timebase.now()
                 self._keep_streams()
             try:
                 request = self._queue.get(timeout=STREAM_CHECK_PERIOD)
-            except queue.Empty:
+            except Empty:
                 continue
             if request is None:
                 self._queue.task_done()
@@ -494,7 +500,7 @@ class MavlinkVehicle:
     def _keep_streams(self) -> None:
         """Ask again for each stream that stays away (the request or its answer was lost,
         or the autopilot restarted) and for HOME_POSITION until it has come once."""
-        now = time.monotonic()
+        now = self.timebase.now()
         arrived = self.link.arrivals(self.system_id)
         for name, hz in DEFAULT_RATES.items():
             last = arrived.get(name)
@@ -569,12 +575,12 @@ class MavlinkVehicle:
 
     def _flip(self, request: Flip) -> str:
         """A flip as a pilot makes it (see the module docstring); returns the modes seen."""
-        began = time.monotonic()
+        began = self.timebase.now()
         sticks = _Sticks(self.link, self.system_id, self.mav.component_id)
         try:
             self._switch("ALT_HOLD")
             sticks.hold(*FLIP_STICKS.get(request.direction, FLIP_STICKS["right"]))
-            asked = time.monotonic()
+            asked = self.timebase.now()
             try:
                 self._switch("FLIP")
             finally:
@@ -850,10 +856,10 @@ class MavlinkVehicle:
             with self._param_arrived:
                 self._params.pop(key, None)
             self.link.send(msg)
-            end = time.monotonic() + PARAM_TIMEOUT
+            end = self.timebase.now() + PARAM_TIMEOUT
             with self._param_arrived:
-                while key not in self._params and time.monotonic() < end:
-                    self._param_arrived.wait(end - time.monotonic())
+                while key not in self._params and self.timebase.now() < end:
+                    self.timebase.wait(self._param_arrived, end - self.timebase.now())
                 if key in self._params:
                     return self._params[key]
         raise VehicleTimeout(f"no PARAM_VALUE for {name} from component {component}",
@@ -873,8 +879,9 @@ class _Sticks:
         self.link = link
         self.target = (system_id, component_id)
         self.sticks = (MID_STICK, MID_STICK, MID_STICK, MID_STICK)
-        self._stop = threading.Event()
+        self._stop = Flag(link.timebase)
         self._send()
+        link.timebase.announce()
         self._thread = threading.Thread(target=self._keep, daemon=True,
                                         name=f"sticks {system_id}")
         self._thread.start()
@@ -899,8 +906,9 @@ class _Sticks:
             self.link.send(codec.rc_override(*self.target, self.sticks))
 
     def _keep(self) -> None:
-        while not self._stop.wait(STICK_PERIOD):
-            self._send()
+        with self.link.timebase.taking_part(announced=True):
+            while not self._stop.wait(STICK_PERIOD):
+                self._send()
 
 
 _HANDLERS: dict[type, Callable[[MavlinkVehicle, Any], str | None]] = {

@@ -38,6 +38,12 @@ ticks it.
 Threads rather than a poll(now) API because the link must answer the vehicle (mission item
 requests, heartbeats) while the interpreter is busy; the interpreter itself stays I/O-free
 and reads snapshots.
+
+*Time.* Every wait, deadline and arrival time of the link reads its ``timebase``
+(:mod:`tml.timebase`): the system's for real vehicles; the embedded simulator's lock-step
+time in ``tml run --sim``, where the receive thread takes part (the simulator moves time on
+only once the thread has handled every byte it was sent) and waits on its socket through
+the time base instead of pymavlink's own timed select.
 """
 
 from __future__ import annotations
@@ -54,6 +60,7 @@ from tml.errors import LinkLost, VehicleError, VehicleTimeout
 from tml.mavlink import codec
 from tml.mavlink.codec import mavlink, mavutil
 from tml.mavlink.telemetry import Telemetry, TelemetryTracker
+from tml.timebase import SYSTEM, Timebase
 
 HEARTBEAT_PERIOD = 1.0
 PROGRESS_PERIOD = 0.1
@@ -172,15 +179,17 @@ class Link:
     accepts any). ``outputs`` are extra addresses that receive a copy of every message from
     the vehicles (one way, see docs/connections.md). With ``signing_key`` (32 bytes)
     outgoing messages are signed and incoming ones without a valid signature are dropped.
-    A vehicle silent for ``lost_after`` seconds is lost (see the module docstring).
+    A vehicle silent for ``lost_after`` seconds is lost (see the module docstring). Every
+    time of the link is read from ``timebase``.
     """
 
     def __init__(self, address: str, *, outputs: Iterable[str] = (),
                  system_ids: Iterable[int] | None = None, signing_key: bytes | None = None,
                  source_system: int = codec.GCS_SYSTEM_ID,
                  source_component: int = codec.GCS_COMPONENT_ID, baud: int = 57600,
-                 lost_after: float = LOST_AFTER) -> None:
+                 lost_after: float = LOST_AFTER, timebase: Timebase = SYSTEM) -> None:
         self.address = address
+        self.timebase = timebase
         self.lost_after = lost_after
         self.stats = LinkStats()
         self._expected = None if system_ids is None else frozenset(system_ids)
@@ -191,6 +200,8 @@ class Link:
             _Redial(self._conn, self._went_down)
         if parse_address(address, baud).scheme in ("tcp", "tcpin"):
             _read_ahead(self._conn)
+            if timebase.lockstep:
+                _count_bytes(self._conn, timebase)
         self._outputs = [_connect(out, baud, source_system, source_component, output=True)
                          for out in outputs]
         if signing_key is not None:
@@ -219,6 +230,7 @@ class Link:
         """Start the receive thread (and the heartbeat); returns self."""
         if not self._running:
             self._running = True
+            self.timebase.announce()
             self._thread = threading.Thread(target=self._loop, name=f"mavlink {self.address}",
                                             daemon=True)
             self._thread.start()
@@ -249,19 +261,19 @@ class Link:
 
     def wait_vehicle(self, system_id: int | None = None, timeout: float = 10.0) -> VehicleInfo:
         """Wait for a HEARTBEAT from ``system_id`` (any vehicle if None) and describe it."""
-        end = time.monotonic() + timeout
+        end = self.timebase.now() + timeout
         with self._lock:
             while True:
                 found = [v for v in self._vehicles.values()
                          if system_id is None or v.system_id == system_id]
                 if found:
                     return min(found, key=lambda v: v.system_id)
-                left = end - time.monotonic()
+                left = end - self.timebase.now()
                 if left <= 0:
                     who = "a vehicle" if system_id is None else f"vehicle {system_id}"
                     raise LinkLost(f"no heartbeat from {who} on {self.address} "
                                    f"within {timeout:g} s", system_id)
-                self._lock.wait(left)
+                self.timebase.wait(self._lock, left)
 
     @property
     def local_address(self) -> tuple[str, int] | None:
@@ -287,7 +299,8 @@ class Link:
         return 0 if tracker is None else tracker.revision
 
     def arrivals(self, system_id: int) -> dict[str, float]:
-        """When each kind of message last came from the vehicle's autopilot (monotonic s)."""
+        """When each kind of message last came from the vehicle's autopilot (s of the
+        time base)."""
         with self._lock:
             tracker = self._trackers.get(system_id)
             return dict(tracker.arrived) if tracker else {}
@@ -299,7 +312,7 @@ class Link:
         Raises VehicleTimeout after ``timeout``, and LinkLost as soon as the vehicle is
         lost unless ``lost_ok`` (to wait for a lost vehicle to come back).
         """
-        end = time.monotonic() + timeout
+        end = self.timebase.now() + timeout
         with self._lock:
             while True:
                 snapshot = self.telemetry(system_id)
@@ -307,11 +320,11 @@ class Link:
                     return snapshot
                 if not lost_ok:
                     self._raise_if_lost(snapshot, "while waiting for telemetry")
-                left = end - time.monotonic()
+                left = end - self.timebase.now()
                 if left <= 0:
                     raise VehicleTimeout(f"condition not reached within {timeout:g} s",
                                          system_id)
-                self._lock.wait(left)
+                self.timebase.wait(self._lock, left)
 
     def listen(self, listener: Listener) -> None:
         """Call ``listener(system_id, snapshot, msg)`` from the receive thread on each message.
@@ -354,18 +367,19 @@ class Link:
         """
         with self._lock:
             self._machines.setdefault(system_id, []).append(machine)
-            self._send_all(machine.start(time.monotonic()), system_id, component_id)
+            self._send_all(machine.start(self.timebase.now()), system_id, component_id)
         try:
             with self._lock:
                 while not machine.done:
                     self._raise_if_lost(self.telemetry(system_id),
                                         f"during {type(machine).__name__}")
-                    wait = machine.deadline - time.monotonic()
+                    wait = machine.deadline - self.timebase.now()
                     if on_progress is not None:
                         wait = min(wait, PROGRESS_PERIOD)
                     if wait > 0:
-                        self._machine_done.wait(min(wait, 1.0))
-                    self._send_all(machine.tick(time.monotonic()), system_id, component_id)
+                        self.timebase.wait(self._machine_done, min(wait, 1.0))
+                    self._send_all(machine.tick(self.timebase.now()), system_id,
+                                   component_id)
                     if on_progress is not None:
                         on_progress(machine)
         finally:
@@ -379,7 +393,7 @@ class Link:
 
     def _raise_if_lost(self, snapshot: Telemetry, doing: str) -> None:
         if snapshot.link_lost:
-            age = snapshot.heartbeat_age(time.monotonic())
+            age = snapshot.heartbeat_age(self.timebase.now())
             raise LinkLost(f"link lost {doing}: no HEARTBEAT for {age:.1f} s "
                            f"(limit {self.lost_after:g} s) on {self.address}",
                            snapshot.system_id)
@@ -387,9 +401,13 @@ class Link:
     # -- the receive thread ------------------------------------------------------------
 
     def _loop(self) -> None:
-        next_heartbeat = next_check = 0.0
+        with self.timebase.taking_part(announced=True):
+            self._serve()
+
+    def _serve(self) -> None:
+        next_heartbeat = next_check = self.timebase.now()
         while self._running:
-            now = time.monotonic()
+            now = self.timebase.now()
             if now >= next_heartbeat:
                 self._heartbeat()
                 next_heartbeat = now + HEARTBEAT_PERIOD
@@ -397,19 +415,26 @@ class Link:
                 if now >= next_check:
                     self._check_lost(now)  # may read the socket too
                     next_check = now + LOST_CHECK_PERIOD
-                msg = self._receive(blocking=True)
+                if self.timebase.lockstep:
+                    msg = self._receive(blocking=False)
+                    if msg is None:  # all read: wait for more, or the next duty
+                        self.timebase.wait_readable(
+                            self._conn.fd, min(next_heartbeat, next_check) - now)
+                        continue
+                else:
+                    msg = self._receive(blocking=True)
             except (OSError, ValueError) as error:
                 if not self._running:
                     return
                 # The vehicle went away: the next receive dials it again (see _Redial);
                 # its silence is judged by the lost check, as any other silence.
                 self._went_down(error)
-                time.sleep(LOST_CHECK_PERIOD)
+                self.timebase.sleep(LOST_CHECK_PERIOD)
                 continue
             if self.down and self._conn_up():
                 self.down = ""
             if msg is not None:
-                self._handle(msg, time.monotonic())
+                self._handle(msg, self.timebase.now())
 
     def _went_down(self, error: BaseException) -> None:
         reason = _reason(error)
@@ -441,14 +466,14 @@ class Link:
                     msg = self._receive(blocking=False)
                     if msg is None:
                         break
-                    self._handle(msg, time.monotonic())
-            now = time.monotonic()
+                    self._handle(msg, self.timebase.now())
+            now = self.timebase.now()
         with self._lock:
             changed = [t for t in self._trackers.values() if t.check_link(now, self.lost_after)]
             self.stats.losses += sum(t.snapshot.link_lost for t in changed)
             if changed:
-                self._lock.notify_all()
-                self._machine_done.notify_all()
+                self.timebase.notify_all(self._lock)
+                self.timebase.notify_all(self._machine_done)
             ids = [t.snapshot.system_id for t in changed]
         for system_id in ids:
             for change in self._changes:
@@ -471,7 +496,7 @@ class Link:
             tracker = self._trackers.get(sysid)
             revision = -1 if tracker is None else tracker.revision
             if tracker is None or not tracker.apply(msg, now):
-                self._lock.notify_all()
+                self.timebase.notify_all(self._lock)
                 return
             machines = self._machines.get(sysid)
             plain = codec.decode(msg) if machines else None  # no plain message unless asked
@@ -482,10 +507,10 @@ class Link:
                         deadline = machine.deadline
                         self._send_all(machine.receive(plain, now), sysid, info.component_id)
                         if machine.done or machine.deadline < deadline:
-                            self._machine_done.notify_all()
+                            self.timebase.notify_all(self._machine_done)
             snapshot = tracker.snapshot if self._listeners else None
             changed = tracker.revision != revision
-            self._lock.notify_all()
+            self.timebase.notify_all(self._lock)
         if snapshot is not None:
             for listener in self._listeners:
                 listener(sysid, snapshot, msg)
@@ -535,6 +560,25 @@ def _read_ahead(conn: Any) -> None:
         return read(READ_AHEAD)
 
     conn.recv = recv
+
+
+def _count_bytes(conn: Any, timebase: Timebase) -> None:
+    """Tell ``timebase`` every byte a TCP connection sends and reads (a lock-step simulator
+    moves time on only once every byte sent has been read: see :mod:`tml.timebase`)."""
+    read, write = conn.recv, conn.write
+    connection = conn.port.getsockname()
+    timebase.track(connection)
+
+    def recv(n: int | None = None) -> Any:
+        data = read(n)
+        timebase.carried(connection, -len(data))
+        return data
+
+    def counted(buf: bytes) -> None:
+        write(buf)
+        timebase.carried(connection, len(buf))
+
+    conn.recv, conn.write = recv, counted
 
 
 def _with_component(info: VehicleInfo, component: int) -> VehicleInfo:

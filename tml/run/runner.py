@@ -24,7 +24,11 @@ costs the interpreter ``rate`` steps a second, not one for every message of ever
 *Time.* The interpreter sees the runner's ``clock``. For a real vehicle that is the
 monotonic clock; for the embedded simulator it is the simulator's own vehicle time, so a
 speed-up (or a simulator falling behind on a busy machine) changes nothing for the mission:
-time limits derived from distance and speed stay true to how the vehicle moves.
+time limits derived from distance and speed stay true to how the vehicle moves. The loop
+waits through ``timebase`` (:mod:`tml.timebase`) and takes part in it: with the embedded
+simulator in lock-step, vehicle time moves on only once the loop has stepped on everything
+the vehicles said and waits again, so a busy machine slows the flight down but never
+changes what happens in it.
 
 *Readiness.* Before the first task, every vehicle must be ready (:func:`tml.vehicle.awaiting`):
 its heartbeat, position, home, GPS and battery reported, and, on the ground, armable (a
@@ -55,8 +59,8 @@ the safe state (``rtl``, ``land`` or ``hold`` when flying, disarm when armed on 
 ground); if the interpreter itself is broken, the runner sends the same request itself
 (:func:`~tml.engine.safety.safe_state_request`, the one rule). Requests are numbered from
 one :class:`~tml.vehicle.IdSource` for the whole run, the interpreters' and the runner's. After
-the interpreters have ended, the runner waits (up to ``settle_timeout`` wall seconds) until
-the vehicles have carried out what was asked, and if one is still flying an uploaded
+the interpreters have ended, the runner waits (up to ``settle_timeout`` seconds of the time
+base) until the vehicles have carried out what was asked, and if one is still flying an uploaded
 mission in AUTO that nobody watches any more, commands the safe state to it as well. Every
 such step is written to the journal and to ``on_safety`` so that the run says what it did.
 """
@@ -79,6 +83,7 @@ from tml.engine.safety import safe_state_request, safe_state_shown
 from tml.errors import ControlRefused, ExitCode
 from tml.language.model import Mission
 from tml.run.journal import Journal, autopilot_fields, telemetry_fields
+from tml.timebase import SYSTEM, Flag, Timebase
 from tml.vehicle import IdSource, RequestResult, Vehicle, VehicleState, awaiting
 
 
@@ -90,7 +95,7 @@ class RunOptions:
     refresh: float = 0.25  # s between rebuilds of a state whose vehicle says nothing changed
     telemetry_period: float = 1.0  # s between telemetry lines in the journal
     link_lost_limit: float = 10.0  # s of a lost link before the run is aborted
-    settle_timeout: float = 30.0  # wall s to wait for the last requests after the end
+    settle_timeout: float = 30.0  # s (of the time base) to wait for the last requests
     ready_timeout: float = 180.0  # s for every vehicle to be ready before the first task
     safe_state_timeout: float = 120.0  # s to command the safe state until telemetry shows it
     safe_state_period: float = 5.0  # s between two commands of a safe state not shown yet
@@ -180,7 +185,8 @@ class Runner:
     def __init__(self, mission: Mission, vehicles: Sequence[Vehicle], *,
                  clock: Callable[[], float] = time.monotonic,
                  options: RunOptions | None = None, journal: Journal | None = None,
-                 wake: threading.Event | None = None,
+                 wake: Flag | threading.Event | None = None,
+                 timebase: Timebase = SYSTEM,
                  on_update: Callable[[Runner], None] | None = None,
                  on_safety: Callable[[str], None] | None = None,
                  wait: Callable[[float], None] | None = None,
@@ -191,8 +197,9 @@ class Runner:
         self.mission = mission
         self.options = options or RunOptions()
         self.clock = clock
+        self.timebase = timebase
         self.journal = journal or Journal(None)
-        self.wake = wake or threading.Event()
+        self.wake = wake or Flag(timebase)
         self.on_update = on_update
         self.on_safety = on_safety
         self._wait = wait or self._wait_for_wake
@@ -307,6 +314,10 @@ class Runner:
 
     def run(self) -> Outcome:
         """Fly until every interpreter has ended; return how it went."""
+        with self.timebase.taking_part():
+            return self._run()
+
+    def _run(self) -> Outcome:
         now = self.clock()
         self.journal.write(now, "run", message="run resumed" if self.resume is not None
                            else "run started", mission=self.mission.name,
@@ -562,8 +573,8 @@ class Runner:
 
     def _settle(self) -> None:
         """Wait for the last requests; leave no vehicle flying an unwatched AUTO mission."""
-        end = time.monotonic() + self.options.settle_timeout
-        while time.monotonic() < end and not all(_idle(f.vehicle) for f in self.flights):
+        end = self.timebase.now() + self.options.settle_timeout
+        while self.timebase.now() < end and not all(_idle(f.vehicle) for f in self.flights):
             self._wait(0.05)
         now = self.clock()
         for flight in self.flights:
@@ -578,7 +589,7 @@ class Runner:
             if state.mode == "AUTO" and not state.landed:
                 self._fallback_safe_state(flight, now, "the run ended with the vehicle "
                                                        "flying an uploaded mission")
-        while time.monotonic() < end and not all(_idle(f.vehicle) for f in self.flights):
+        while self.timebase.now() < end and not all(_idle(f.vehicle) for f in self.flights):
             self._wait(0.05)
         self._confirm_safe_states()
 

@@ -49,7 +49,11 @@ def test_view_shows_tree_states_action_progress_telemetry_and_events() -> None:
     assert any("▶ └─ Leg" in line for line in lines)
     block = _block(lines, "vehicle 1")
     assert "GUIDED armed" in block[0] and "%" in block[0] and "link ok" in block[0]
-    assert "GO_TO_POINT (Leg)" in block[2]
+    # 160 columns: how it stands and how it moves on one line, its work on the next.
+    assert "link ok  n " in block[0] and "home " in block[0]
+    assert len(block) == 2 and "GO_TO_POINT (Leg)" in block[1]
+    narrow = _block(render_text(mission, views, 80).splitlines(), "vehicle 1")
+    assert len(narrow) == 3 and narrow[1].startswith("   n ") and "(Leg)" in narrow[2]
     assert any("Far" in line for line in lines[lines.index(
         next(line for line in lines if line.startswith("events:"))):])
 

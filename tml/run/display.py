@@ -249,10 +249,14 @@ def _vehicles(mission: Mission, views: Views, width: int, compact: bool) -> Text
                 short.insert(1, (f"{state.battery:.0f}%", ""))
             found.extend(_packed(name, short + work, width, indent, lines=1))
             continue
-        found.extend(_packed(name, _status(view, state), width, indent))
-        motion = _motion(state)
-        if motion:
-            found.extend(_packed(Text(indent), motion, width, indent))
+        status, motion = _status(view, state), _motion(state)
+        together = _packed(name.copy(), status + motion, width, indent)
+        if len(together) == 1:  # a wide terminal: how it stands and moves on one line
+            found.extend(together)
+        else:
+            found.extend(_packed(name, status, width, indent))
+            if motion:
+                found.extend(_packed(Text(indent), motion, width, indent))
         if working:
             found.extend(_packed(Text(indent), [("  ".join(t for t, _ in work), "")], width,
                                  indent, lines=1))

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from rich.console import Console
 
-from tml.engine import Change, Interpreter, TaskState
+from tml.engine import Change, Interpreter, Status, TaskState
 from tml.language.validation import load_mission, validate_file
 from tml.run.display import LineDisplay, render_text
 from tml.run.fold import fold
@@ -50,7 +50,7 @@ def test_view_shows_tree_states_action_progress_telemetry_and_events() -> None:
     block = _block(lines, "vehicle 1")
     assert "GUIDED armed" in block[0] and "%" in block[0] and "link ok" in block[0]
     # 160 columns: how it stands and how it moves on one line, its work on the next.
-    assert "link ok  n " in block[0] and "home " in block[0]
+    assert "GPS 3D 10 sat  n " in block[0] and "hdg " in block[0]
     assert len(block) == 2 and "GO_TO_POINT (Leg)" in block[1]
     narrow = _block(render_text(mission, views, 80).splitlines(), "vehicle 1")
     assert len(narrow) == 3 and narrow[1].startswith("   n ") and "(Leg)" in narrow[2]
@@ -231,15 +231,32 @@ def test_figures_are_labelled_with_units_and_never_negative_zero() -> None:
                     armed=True, landed=False, gps_fix=3, satellites=12, voltage=12.36,
                     battery=64.6, heading=359.7, mode="GUIDED")
     block = _block(render_text(mission, [(view, state)], 80, 24).splitlines(), "vehicle 1")
-    assert "GUIDED armed  GPS 3D 12 sat  batt 12.4 V 65%  link ok" in block[0]
-    assert block[1] == ("   n 0.0 e 0.0 up 7.0 m  speed 0.0 m/s  climb +0.0 m/s  hdg 0°"
-                        "  home 0.0 m")
+    assert "GUIDED armed  link ok  batt 12.4 V 65%  GPS 3D 12 sat" in block[0]
+    assert block[1] == ("   n 0.0 e 0.0 up 7.0 m  climb +0.0 m/s  home 0.0 m  speed 0.0 m/s"
+                        "  hdg 0°")
     assert "-0" not in "\n".join(block)
     lost = replace(state, armed=False, gps_fix=1, satellites=None, voltage=None,
                    battery=None, link="lost", position=None)
     block = _block(render_text(mission, [(view, lost)], 80, 24).splitlines(), "vehicle 1")
-    assert "GUIDED disarmed  GPS no fix  batt -  link lost" in block[0]
+    assert "GUIDED disarmed  link lost  batt -  GPS no fix" in block[0]
     assert block[1].startswith("   n - e - up - m")
+
+
+def test_a_vehicle_keeps_to_three_lines_on_80_columns() -> None:
+    # Far out and fast, in a fleet with roles: what does not fit its line is left out,
+    # the least needed first (heading, then speed), never wrapped onto a fourth line.
+    mission, _, views = _fleet_views()
+    view, state = views[0]
+    state = replace(state, position=(-130.5, -263.4, 120.0), ground_speed=12.3, climb=-2.5,
+                    heading=359.0)
+    view = replace(view, status=Status.COMPLETED, role="surveyor")
+    block = _block(render_text(mission, [(view, state), views[1]], 80, 24).splitlines(),
+                   "vehicle 1")
+    assert len(block) <= 3 and all(len(line) <= 80 for line in block)
+    assert block[1] == ("   n -130.5 e -263.4 up 120.0 m  climb -2.5 m/s  home 294.0 m"
+                        "  speed 12.3 m/s")
+    assert block[0] == ("vehicle 1 (surveyor)  completed  AUTO disarmed  link ok"
+                        "  batt 12.6 V 100%")
 
 
 def test_the_legend_says_what_each_mark_means() -> None:

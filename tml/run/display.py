@@ -9,13 +9,14 @@ in the order the changes happened.
 
 Every time shown is the mission time -- seconds since the mission's first task started, the
 flight log's ``mission_time`` -- and the live view's header adds the wall clock. Each
-vehicle gets up to :data:`VEHICLE_LINES` lines, its figures labelled with their units and
-wrapped to the terminal's width: how it stands (mode, armed, GPS fix and satellites,
-battery voltage and charge, link), how it moves (north, east and up from home, ground
-speed, climb rate, heading, distance to home), and what it does (progress, the item of an
-autopilot plan as the vehicle reports it, the action and its task). Its autopilot's latest
-messages are kept per vehicle, so that one vehicle's ``Mission: N WP`` never pushes
-another's out.
+vehicle gets up to :data:`VEHICLE_LINES` lines, its figures labelled with their units: how
+it stands (mode, armed, link, battery voltage and charge, GPS fix and satellites), how it
+moves (north, east and up from home, climb rate, distance to home, ground speed, heading),
+and what it does (progress, the item of an autopilot plan as the vehicle reports it, the
+action and its task). A wide terminal puts the first two on one line; on a narrow one the
+figures that do not fit their line are left out, the least needed (written last) first.
+Its autopilot's latest messages are kept per vehicle, so that one vehicle's ``Mission: N
+WP`` never pushes another's out.
 """
 
 from __future__ import annotations
@@ -154,7 +155,7 @@ def _who(index: int, views: Views) -> str:
 
 
 def _status(view: View, state: VehicleState | None) -> list[tuple[str, str]]:
-    """How the vehicle stands: mode and armed, GPS, battery, link."""
+    """How the vehicle stands: mode and armed, link, battery, GPS (the least needed last)."""
     if state is None:
         return [("no telemetry yet", "dim")]
     found: list[tuple[str, str]] = []
@@ -162,6 +163,12 @@ def _status(view: View, state: VehicleState | None) -> list[tuple[str, str]]:
         found.append((view.status.value, "bold"))
     found.append((f"{_safe(state.mode) or '-'} " + ("armed" if state.armed else "disarmed"),
                   "bold" if state.armed else ""))
+    found.append((f"link {state.link}", "" if state.link == "ok" else
+                  "yellow" if state.link == "degraded" else "bold red"))
+    volts = "" if state.voltage is None else f"{_figure(state.voltage)} V "
+    percent = "-" if state.battery is None else f"{state.battery:.0f}%"
+    found.append((f"batt {volts}{percent}", "red" if state.battery is not None
+                  and state.battery < 20 else ""))
     if state.gps_fix is None:
         gps = "GPS -"
     else:
@@ -169,27 +176,22 @@ def _status(view: View, state: VehicleState | None) -> list[tuple[str, str]]:
             else str(state.gps_fix)
         gps = f"GPS {fix}" + ("" if state.satellites is None else f" {state.satellites} sat")
     found.append((gps, "yellow" if (state.gps_fix or 0) < 3 else ""))
-    volts = "" if state.voltage is None else f"{_figure(state.voltage)} V "
-    percent = "-" if state.battery is None else f"{state.battery:.0f}%"
-    found.append((f"batt {volts}{percent}", "red" if state.battery is not None
-                  and state.battery < 20 else ""))
-    found.append((f"link {state.link}", "" if state.link == "ok" else
-                  "yellow" if state.link == "degraded" else "bold red"))
     return found
 
 
 def _motion(state: VehicleState | None) -> list[tuple[str, str]]:
-    """Where the vehicle is and how it moves: metres from home, speeds, heading."""
+    """Where the vehicle is and how it moves: metres from home, climb rate, distance to
+    home, ground speed, heading (the least needed last)."""
     if state is None:
         return []
     position = state.position
     where = "n - e - up - m" if position is None else (
         f"n {_figure(position[0])} e {_figure(position[1])} up {_figure(position[2])} m")
     home = state.home_distance
-    return [(where, ""), (f"speed {_figure(state.ground_speed)} m/s", ""),
-            (f"climb {_figure(state.climb, sign=True)} m/s", ""),
-            (f"hdg {round(state.heading) % 360}°" if state.heading_known else "hdg -", ""),
-            (f"home {'-' if home is None else _figure(home)} m", "")]
+    return [(where, ""), (f"climb {_figure(state.climb, sign=True)} m/s", ""),
+            (f"home {'-' if home is None else _figure(home)} m", ""),
+            (f"speed {_figure(state.ground_speed)} m/s", ""),
+            (f"hdg {round(state.heading) % 360}°" if state.heading_known else "hdg -", "")]
 
 
 def _work(mission: Mission, view: View, state: VehicleState | None) -> str:
@@ -211,18 +213,21 @@ def _in_plan(mission: Mission, path: str) -> bool:
 
 
 def _packed(first: Text, segments: list[tuple[str, str]], width: int, indent: str,
-            lines: int | None = None) -> list[Text]:
+            lines: int | None = None, drop: bool = False) -> list[Text]:
     """``first`` and then the segments, two spaces apart, wrapped onto lines of ``width``
     columns, each further line beginning with ``indent``; with ``lines``, at most that
-    many (the last cut short)."""
+    many, the last cut short -- or, with ``drop``, the segments that do not fit left out
+    (the least needed come last)."""
     found = [first]
     for segment, style in segments:
         line = found[-1]
         gap = SEPARATOR if line.plain.strip() else ""
-        if line.cell_len + len(gap) + len(segment) > width and line.plain.strip() \
-                and (lines is None or len(found) < lines):
-            found.append(Text(indent))
-            line, gap = found[-1], ""
+        if line.cell_len + len(gap) + len(segment) > width and line.plain.strip():
+            if lines is None or len(found) < lines:
+                found.append(Text(indent))
+                line, gap = found[-1], ""
+            elif drop:
+                continue
         line.append(gap)
         line.append(segment, style)
     for line in found:
@@ -240,23 +245,23 @@ def _vehicles(mission: Mission, views: Views, width: int, compact: bool) -> Text
         working = bool(view.current_action) or view.progress is not None
         work = [(text, "") for text in (_bar(view.progress, 4 if compact else 10),
                                         _work(mission, view, state)) if text and working]
-        if compact:  # mode and armed, battery, altitude, link, and the work
-            status = _status(view, state)
-            short = [status[0], *([status[-1]] if state is not None else [])]
-            if state is not None and state.position is not None:
-                short.insert(1, (f"up {_figure(state.position[2])} m", ""))
+        if compact:  # its state, mode and armed, link, charge, altitude, and the work
+            short = [segment for segment in _status(view, state)
+                     if not segment[0].startswith(("batt ", "GPS "))]
             if state is not None and state.battery is not None:
-                short.insert(1, (f"{state.battery:.0f}%", ""))
+                short.append((f"{state.battery:.0f}%", ""))
+            if state is not None and state.position is not None:
+                short.append((f"up {_figure(state.position[2])} m", ""))
             found.extend(_packed(name, short + work, width, indent, lines=1))
             continue
         status, motion = _status(view, state), _motion(state)
         together = _packed(name.copy(), status + motion, width, indent)
         if len(together) == 1:  # a wide terminal: how it stands and moves on one line
             found.extend(together)
-        else:
-            found.extend(_packed(name, status, width, indent))
+        else:  # a line each, what does not fit left out
+            found.extend(_packed(name, status, width, indent, lines=1, drop=True))
             if motion:
-                found.extend(_packed(Text(indent), motion, width, indent))
+                found.extend(_packed(Text(indent), motion, width, indent, lines=1, drop=True))
         if working:
             found.extend(_packed(Text(indent), [("  ".join(t for t, _ in work), "")], width,
                                  indent, lines=1))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from tml.errors import Location, MissionSemanticError
@@ -36,8 +38,9 @@ def test_catalogue_is_consistent() -> None:
             assert set(group) <= set(names), (spec.name, group)
         for argument in spec.arguments:
             assert argument.description, (spec.name, argument.name)
+            # a raw mission item's params are in the units its command gives them
             if argument.type in (ArgType.NUMBER, ArgType.POINT) and argument.name not in (
-                    "pitch",):
+                    "pitch",) and spec.name != "MISSION_ITEM":
                 assert argument.unit, (spec.name, argument.name)
             if argument.type is ArgType.CHOICE:
                 assert argument.default is None or argument.default in argument.choices
@@ -159,3 +162,37 @@ def test_bind_raises_with_location_on_bad_actions() -> None:
     with pytest.raises(MissionSemanticError) as info:
         actions.bind(action("WAIT", duration="x"))
     assert info.value.location == HERE and info.value.code == "E212"
+
+
+def test_the_mavlink_tables_are_pymavlinks() -> None:
+    from pymavlink.dialects.v20 import ardupilotmega
+
+    from tml.language.mavlink_tables import MAV_CMD, MAV_FRAME
+
+    for table, enum in ((MAV_CMD, "MAV_CMD"), (MAV_FRAME, "MAV_FRAME")):
+        wanted = {number: entry.name for number, entry in ardupilotmega.enums[enum].items()
+                  if not entry.name.endswith("ENUM_END")}
+        assert table == wanted, sorted(set(wanted.items()) ^ set(table.items()))
+
+
+@pytest.mark.parametrize(("written", "value"), [
+    ("MAV_CMD_DO_JUMP", "MAV_CMD_DO_JUMP"), ("do_jump", "MAV_CMD_DO_JUMP"),
+    ("177", "MAV_CMD_DO_JUMP"), ("40000", "40000")])
+def test_a_raw_items_command_is_a_name_or_a_number(written: str, value: str) -> None:
+    spec = actions.lookup("MISSION_ITEM")
+    assert actions.parse_value(spec.argument("command"), written) == value
+
+
+@pytest.mark.parametrize("written", ["DO_JUMPS", "70000", "-1", ""])
+def test_a_raw_items_command_that_names_nothing_is_refused(written: str) -> None:
+    spec = actions.lookup("MISSION_ITEM")
+    with pytest.raises(ValueError):
+        actions.parse_value(spec.argument("command"), written)
+
+
+def test_a_raw_items_params_may_be_unset_and_are_not_range_checked() -> None:
+    spec = actions.lookup("MISSION_ITEM")
+    assert math.isnan(actions.parse_value(spec.argument("param4"), "NaN"))
+    assert actions.parse_value(spec.argument("param1"), "640") == 640.0
+    with pytest.raises(ValueError):  # x and y are integers: never NaN
+        actions.parse_value(spec.argument("param5"), "NaN")

@@ -398,3 +398,35 @@ def test_an_unknown_parameter_is_said_even_without_a_comparison() -> None:
     result = run(TAKE_OFF + '<task name="t"><condition parameter="BATERY_CHARGE_PERCENTAGE" '
                  'value="30"/><action name="LAND"/></task>\n')
     assert codes(result) == ["E221", "E225"]
+
+
+def _raw(*arguments: tuple[str, str]) -> str:
+    written = "".join(f'<argument name="{n}" value="{v}"/>' for n, v in arguments)
+    return f'<action name="MISSION_ITEM">{written}</action>'
+
+
+def test_a_raw_mission_item_flies_only_in_a_mission_dispatch() -> None:
+    jump = _raw(("command", "DO_JUMP"), ("frame", "MISSION"), ("param1", "1"))
+    assert codes(run(TAKE_OFF + f'<task name="j">{jump}</task>\n')) == ["E262"]
+    assert codes(run(TAKE_OFF + f'<task name="p" dispatch="mission"><task name="j">{jump}'
+                     '</task></task>\n')) == []
+
+
+def test_a_raw_mission_items_x_and_y_are_what_an_item_carries() -> None:
+    def raw(frame: str, x: str) -> list[str]:
+        item = _raw(("command", "16"), ("frame", frame), ("param5", x))
+        return codes(run(TAKE_OFF + f'<task name="p" dispatch="mission"><task name="w">{item}'
+                         '</task></task>\n'))
+
+    assert raw("GLOBAL_RELATIVE_ALT", "36.5") == []
+    assert raw("GLOBAL_RELATIVE_ALT", "91") == ["E263"]
+    assert raw("MISSION", "2.5") == ["E263"]
+    assert raw("MISSION", "3000000000") == ["E263"]
+    assert raw("MISSION", "-7") == []
+
+
+def test_a_command_number_mavlink_does_not_define_is_a_warning() -> None:
+    item = _raw(("command", "116"), ("frame", "2"))
+    result = run(TAKE_OFF + f'<task name="p" dispatch="mission"><task name="w">{item}'
+                 '</task></task>\n')
+    assert codes(result) == ["W309"] and result.valid()

@@ -299,3 +299,37 @@ def test_a_ground_vehicle_returns_with_rtl() -> None:
     mission = compile_mission([act("RETURN_HOME_AND_LAND")], H, (10.0, 0.0, 0.0), 0.0,
                               Kind.GROUND)
     assert [i.command for i in mission.items] == [M.MAV_CMD_NAV_RETURN_TO_LAUNCH]
+
+
+def test_a_position_far_from_home_is_the_one_written() -> None:
+    # Through the local frame a point 8,000 km from home moved by 3,000 km; the item
+    # carries the 1e-7-degree integers of what was written.
+    go = act("GO_TO_POSITION", latitude="36.3244251", longitude="138.6379423",
+                       altitude="20", altitude_reference="amsl")
+    loiter = act("LOITER", latitude="-35.1234567", longitude="150.7654321",
+                           altitude="30", turns="2")
+    items = compiled(go, loiter).items
+    assert [(i.x, i.y, i.z) for i in items] == [(363244251, 1386379423, 20.0),
+                                                (-351234567, 1507654321, 30.0)]
+
+
+def test_a_raw_mission_item_is_that_item() -> None:
+    raw = act("MISSION_ITEM", command="MAV_CMD_NAV_SPLINE_WAYPOINT",
+                        frame="GLOBAL_TERRAIN_ALT", param1="5", param4="NaN",
+                        param5="-35.3632621", param6="149.1652374", param7="NaN",
+                        autocontinue="no")
+    jump = act("MISSION_ITEM", command="177", frame="2", param1="1", param2="3")
+    first, second = compiled(raw, jump).items
+    assert (first.command, first.frame, first.param1, first.x, first.y, first.autocontinue) \
+        == (82, 10, 5.0, -353632621, 1491652374, 0)
+    assert math.isnan(first.param4) and math.isnan(first.z)
+    assert (second.command, second.frame, second.param1, second.param2, second.x) \
+        == (177, 2, 1.0, 3.0, 0)
+
+
+def test_trailing_raw_items_are_not_closed_with_a_waypoint() -> None:
+    take_off = act("TAKE_OFF")
+    servo = [act("MISSION_ITEM", command="DO_SET_SERVO", frame="MISSION",
+                           param1="9", param2=str(pwm)) for pwm in (1100, 1900)]
+    items = compiled(take_off, *servo, start=(0, 0, 0)).items
+    assert [i.command for i in items] == [22, 183, 183]

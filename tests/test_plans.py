@@ -14,10 +14,10 @@ from tml.language.kinds import Kind
 from tml.language.validation import load_mission, validate_file
 from tml.mavlink.codec import mavlink
 from tml.mavlink.mission import MissionItem
-from tml.plans.imported import import_plan
+from tml.plans.imported import import_plan, same_item
 from tml.plans.maps import KML_NAMESPACE, write_geojson, write_kml
 from tml.plans.planned import Plan, PlanError, plan_mission
-from tml.plans.qgc import PlanFileError, read_plan, write_plan
+from tml.plans.qgc import PlanFile, PlanFileError, read_plan, write_plan
 from tml.plans.wpl import read_wpl, write_wpl
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -154,12 +154,14 @@ def test_a_survey_made_in_qgroundcontrol_is_read_with_its_items() -> None:
     plan = read_plan(json.dumps(document))
     assert [i.command for i in plan.items] == [22, 16, 16, 20]
     assert plan.items[1].x == -353630000 and plan.items[1].seq == 1
-    assert len(plan.skipped) == 1 and "CorridorScan" in plan.skipped[0]
+    assert len(plan.losses) == 1
+    assert plan.losses[0].startswith("item 3: complex item 'CorridorScan'")
 
 
 @pytest.mark.parametrize("text, message", [
     ("{", "not JSON"),
-    ('{"fileType": "Mission"}', "not a QGroundControl plan"),
+    ('{"fileType": "Flight"}', "not a QGroundControl plan"),
+    ('{"fileType": "Plan", "geoFence": {}}', 'the plan has no "mission"'),
     ('{"fileType": "Plan", "mission": {"items": [{"type": "SimpleItem", "command": 16, '
      '"frame": 3, "params": [1, 2]}]}}', "expected 7 params"),
 ])
@@ -178,24 +180,25 @@ def test_bad_waypoint_files_are_refused_saying_where(text: str, message: str) ->
         read_wpl(text, "bad")
 
 
-def test_items_with_no_action_are_left_out_with_a_warning(tmp_path: Path) -> None:
+def test_items_with_no_action_are_carried_as_mission_items(tmp_path: Path) -> None:
     text = ("QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\t-35.36\t149.16\t584\t1\n"
             "1\t0\t3\t22\t0\t0\t0\t0\t0\t0\t12\t1\n"
             "2\t0\t0\t177\t1\t3\t0\t0\t0\t0\t0\t1\n"  # DO_JUMP
             "3\t0\t0\t114\t5\t0\t0\t0\t0\t0\t0\t1\n"  # CONDITION_DISTANCE
             "4\t0\t0\t116\t0\t0\t0\t0\t0\t0\t0\t1\n"  # no MAV_CMD has 116
             "5\t0\t3\t20\t0\t0\t0\t0\t0\t0\t0\t1\n")
-    imported = import_plan(read_wpl(text), "jumps")
-    assert imported.warnings == (
-        "item 2: MAV_CMD_DO_JUMP (177) has no TML action: left out",
-        "item 3: MAV_CMD_CONDITION_DISTANCE (114) has no TML action: left out",
-        "item 4: MAV_CMD 116 (unknown) has no TML action: left out")
+    plan = read_wpl(text)
+    imported = import_plan(plan, "jumps")
+    assert imported.warnings == () and imported.losses == ()
     back = _imported_plan(imported.text, Kind.MULTICOPTER, tmp_path)
-    assert [i.command for i in back.items] == [22, 20]
+    assert [i.command for i in back.items] == [22, 177, 114, 116, 20]
+    assert all(same_item(a, b) for a, b in zip(plan.items, back.items, strict=True))
     root = etree.fromstring(imported.text.encode())
     assert root.find("task").get("dispatch") == "mission"
-    assert [t.get("name") for t in root.find("task")] == ["item 1: TAKE_OFF",
-                                                          "item 5: RETURN_HOME_AND_LAND"]
+    assert [t.get("name") for t in root.find("task")][1:3] == [
+        "item 2 (line 4): DO_JUMP", "item 3 (line 5): CONDITION_DISTANCE"]
+    result = validate_file("jumps.xml", imported.text.encode())
+    assert [d.code for d in result.diagnostics] == ["W309"]  # 116 is no MAV_CMD
 
 
 def test_geojson_and_kml_hold_the_path_obstacles_and_fence() -> None:
@@ -225,3 +228,99 @@ def test_every_role_is_drawn_on_a_map() -> None:
     features = json.loads(write_geojson(plans, plans[0].world))["features"]
     assert sorted(f["properties"]["role"] for f in features
                   if f["properties"]["kind"] == "path") == ["scout", "surface"]
+
+
+WPL_HOME = "QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\t-35.363262\t149.165237\t584.09\t1\n"
+
+
+def _round_trip(plan: PlanFile, tmp_path: Path) -> Plan:
+    imported = import_plan(plan, "again")
+    assert imported.losses == ()
+    back = _imported_plan(imported.text, Kind.MULTICOPTER, tmp_path)
+    assert len(back.items) == len(plan.items)
+    for a, b in zip(plan.items, back.items, strict=True):
+        assert same_item(a, b), (a, b)
+    return back
+
+
+def test_waypoints_far_from_home_are_imported_where_they_are(tmp_path: Path) -> None:
+    # 8,000 km from home: through the local frame item 2 came back at 7.87, 142.98.
+    text = WPL_HOME + ("1\t0\t6\t22\t0\t0\t0\t0\t0\t0\t20\t1\n"
+                       "2\t0\t6\t16\t0\t0\t0\t0\t36.3244251\t138.6379423\t20\t1\n"
+                       "3\t0\t5\t16\t0\t0\t0\t0\t-35.2001234\t149.3998765\t612.5\t1\n"
+                       "4\t0\t6\t21\t0\t0\t0\t0\t0\t0\t0\t1\n")
+    back = _round_trip(read_wpl(text), tmp_path)
+    assert (back.items[1].x, back.items[1].y) == (363244251, 1386379423)
+
+
+def test_a_null_param_stays_unset(tmp_path: Path) -> None:
+    # QGroundControl writes NaN as null: an altitude null is not 0 m above sea level.
+    document = {"fileType": "Plan", "version": 1, "mission": {
+        "plannedHomePosition": [47.3977424, 8.545599, 488.103], "items": [
+            {"type": "SimpleItem", "command": 22, "frame": 3, "autoContinue": True,
+             "params": [0, 0, 0, None, 47.39781011, 8.54553801, 15]},
+            {"type": "SimpleItem", "command": 16, "frame": 0, "autoContinue": True,
+             "AltitudeMode": 3, "params": [0, 0, 0, None, 47.3978, 8.5454, None]}]}}
+    plan = read_plan(json.dumps(document))
+    assert math.isnan(plan.items[1].z) and math.isnan(plan.items[1].param4)
+    back = _round_trip(plan, tmp_path)
+    exported = json.loads(write_plan(back))["mission"]["items"]
+    assert exported[1]["params"][3] is None and exported[1]["params"][6] is None
+
+
+def test_line_0_of_a_waypoint_file_is_home_only_in_home_form() -> None:
+    assert read_wpl(WPL_HOME + "1\t0\t3\t22\t0\t0\t0\t0\t0\t0\t10\t1\n").home is not None
+    # MAVSDK's sample starts with a take-off: it is an item, and there is no home.
+    sample = read_wpl("QGC WPL 110\n0\t1\t5\t22\t0\t0\t0\t0\t47.3978101\t8.5455380\t15\t1\n"
+                      "1\t0\t5\t16\t0\t0\t0\t0\t47.3977992\t8.5454669\t15\t1\n")
+    assert sample.home is None and [i.command for i in sample.items] == [22, 16]
+    assert sample.sources == ("item 0 (line 2)", "item 1 (line 3)")
+
+
+def test_qgroundcontrols_older_layout_is_read() -> None:
+    document = {"fileType": "Plan", "version": 1, "mission": {"version": 1, "items": [
+        {"type": "SimpleItem", "command": 16, "frame": 3, "autoContinue": True,
+         "coordinate": [47.3978, 8.5454, 25], "params": [5, 0, 0, 0]}]}}
+    item, = read_plan(json.dumps(document)).items
+    assert (item.param1, item.x, item.y, item.z) == (5.0, 473978000, 85454000, 25.0)
+
+
+def test_items_are_counted_from_1_in_messages() -> None:
+    document = {"fileType": "Plan", "mission": {"items": [
+        {"type": "SimpleItem", "command": 16, "frame": 3, "params": [1, 2]}]}}
+    with pytest.raises(PlanFileError, match="item 1: expected 7 params, got 2"):
+        read_plan(json.dumps(document), "p.plan")
+
+
+def test_what_has_no_tml_form_is_a_loss_naming_its_item() -> None:
+    document = {"fileType": "Plan", "mission": {"items": [
+        {"type": "SimpleItem", "command": 22, "frame": 3, "params": [0, 0, 0, 0, 0, 0, 10]},
+        {"type": "ComplexItem", "complexItemType": "StructureScan"},
+        {"type": "SimpleItem", "command": 183, "frame": 2, "params": [9, 1500, 0, 0, 0.5, 0, 0]}
+    ]}, "geoFence": {"polygons": [
+        {"inclusion": True, "polygon": [[1, 1], [1, 2], [2, 2]]},
+        {"inclusion": True, "polygon": [[3, 3], [3, 4], [4, 4]]}]},
+        "rallyPoints": {"points": [[1, 1, 30]]}}
+    imported = import_plan(read_plan(json.dumps(document)), "lossy")
+    assert [loss.split(":")[0] for loss in imported.losses] == [
+        "item 2", "item 3", "1 rally point(s) have no TML form", "geofence zone 2"]
+
+
+def test_a_plan_with_no_item_is_refused() -> None:
+    fence = read_wpl("QGC WPL 110\n0\t0\t0\t5003\t100\t0\t0\t0\t47.1\t8.5\t0\t1\n")
+    assert fence.items == () and fence.zones[0].radius == 100.0
+    with pytest.raises(PlanFileError, match=r"no mission items to fly \(it holds a fence"):
+        import_plan(fence, "fence")
+
+
+def test_values_an_action_refuses_are_kept_as_raw_items(tmp_path: Path) -> None:
+    # CONDITION_YAW to 640 deg, photos at interval 0, a rover altitude beyond 10 km, a
+    # waypoint hold, an abort altitude, a LOITER_TURNS exit flag, a gripper release.
+    text = WPL_HOME + ("1\t0\t3\t22\t0\t0\t0\t0\t0\t0\t10\t1\n"
+                       "2\t0\t0\t115\t640\t0\t1\t0\t0\t0\t0\t1\n"
+                       "3\t0\t0\t2000\t0\t0\t1\t0\t0\t0\t0\t1\n"
+                       "4\t0\t3\t16\t5\t0\t0\t0\t-35.36\t149.16\t15000\t1\n"
+                       "5\t0\t3\t18\t2\t0\t0\t1\t-35.36\t149.16\t20\t1\n"
+                       "6\t0\t0\t211\t1\t0\t0\t0\t0\t0\t0\t1\n"
+                       "7\t0\t3\t21\t630\t0\t0\t1\t-35.36\t149.16\t0\t1\n")
+    _round_trip(read_wpl(text), tmp_path)

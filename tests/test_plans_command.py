@@ -80,6 +80,24 @@ def test_import_of_a_file_that_is_not_a_plan_exits_1(tmp_path: Path, capsys) -> 
     assert "bad.waypoints:1: not a waypoint file" in capsys.readouterr().err
 
 
+def test_import_refuses_what_it_cannot_carry_unless_allowed(tmp_path: Path, capsys) -> None:
+    plan = tmp_path / "scan.plan"
+    plan.write_text(json.dumps({"fileType": "Plan", "mission": {"items": [
+        {"type": "SimpleItem", "command": 22, "frame": 3, "params": [0, 0, 0, 0, 0, 0, 10]},
+        {"type": "ComplexItem", "complexItemType": "StructureScan"}]},
+        "rallyPoints": {"points": [[47.1, 8.5, 30]]}}))
+    mission = tmp_path / "scan.xml"
+    assert main(["import", str(plan), "-o", str(mission)]) == 1
+    err = capsys.readouterr().err
+    assert "scan.plan: item 2: complex item 'StructureScan' saved without its mission items" \
+        in err and "1 rally point(s) have no TML form" in err
+    assert "not written: 2 thing(s)" in err and not mission.exists()
+    assert main(["import", str(plan), "-o", str(mission), "--allow-loss"]) == 0
+    err = capsys.readouterr().err
+    assert "1 mission item(s) as 1 task(s), 1 of them as MISSION_ITEM written" in err
+    assert "left out (2, --allow-loss):\n" in err and mission.exists()
+
+
 def test_export_then_import_then_validate(tmp_path: Path, capsys) -> None:
     plan = tmp_path / "m.plan"
     mission = tmp_path / "m.xml"

@@ -1,8 +1,9 @@
 """``tml export`` and ``tml import``: a mission as other tools' plans, and back.
 
 Exit codes: 0 written (actions with no mission item are named on standard error, and the
-plan is written without them), 1 an invalid mission or a plan file that cannot be read, 2
-usage or I/O error (a missing file, an unwritable output, a role to choose).
+plan is written without them), 1 an invalid mission, a plan file that cannot be read, or
+one that holds what a mission cannot carry exactly (unless ``--allow-loss``), 2 usage or
+I/O error (a missing file, an unwritable output, a role to choose).
 """
 
 from __future__ import annotations
@@ -44,6 +45,10 @@ def add_import_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--output", metavar="OUT",
                         help="write the mission here (default: standard output)")
     parser.add_argument("--name", help="the mission's name (default: the file's name)")
+    parser.add_argument("--allow-loss", action="store_true",
+                        help="write the mission even when the file holds what it cannot "
+                             "carry exactly (each such item is named; without this option "
+                             "the file is refused)")
 
 
 def _say(command: str, message: str) -> None:
@@ -145,12 +150,19 @@ def import_(args: argparse.Namespace) -> ExitCode:
     try:
         plan = read_plan(text, args.plan) if text.lstrip().startswith("{") \
             else read_wpl(text, args.plan)
+        imported = import_plan(plan, args.name or path.stem)
     except PlanFileError as error:
-        _say("import", str(error))
+        message = str(error)
+        _say("import", message if message.startswith(args.plan) else f"{args.plan}: {message}")
         return ExitCode.INVALID
-    imported = import_plan(plan, args.name or path.stem)
     for warning in imported.warnings:
-        _say("import", f"{args.plan}: {warning}")
+        _say("import", f"{args.plan}: note: {warning}")
+    if imported.losses and not args.allow_loss:
+        for loss in imported.losses:
+            _say("import", f"{args.plan}: {loss}")
+        _say("import", f"{args.plan}: not written: {len(imported.losses)} thing(s) the "
+             "mission cannot carry exactly (--allow-loss writes it without them)")
+        return ExitCode.INVALID
     # What is written must validate: check it as the file it becomes.
     result = validate_file(args.output or f"{path.stem}.xml", imported.text.encode("utf-8"))
     if result.errors:
@@ -160,6 +172,11 @@ def import_(args: argparse.Namespace) -> ExitCode:
         return ExitCode.INVALID
     if not _write("import", args.output, imported.text):
         return ExitCode.USAGE
-    _say("import", f"{len(plan.items)} mission item(s) as {imported.actions} task(s) written "
-         f"to {args.output or 'standard output'}")
+    raw = f", {imported.raw} of them as MISSION_ITEM" if imported.raw else ""
+    _say("import", f"{len(plan.items)} mission item(s) as {imported.actions} task(s){raw} "
+         f"written to {args.output or 'standard output'}")
+    if imported.losses:
+        _say("import", f"left out ({len(imported.losses)}, --allow-loss):")
+        for loss in imported.losses:
+            _say("import", f"  {loss}")
     return ExitCode.OK

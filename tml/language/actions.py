@@ -15,6 +15,7 @@ metres from home (see :mod:`tml.geo`).
 from __future__ import annotations
 
 import functools
+import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
@@ -23,6 +24,7 @@ from typing import TypeVar, overload
 
 from tml.errors import MissionSemanticError
 from tml.geo import Point
+from tml.language.mavlink_tables import MAV_CMD, MAV_FRAME
 from tml.language.model import Action, normalize_name
 from tml.language.parameters import NUMBER_PATTERN, parse_boolean, parse_number
 from tml.language.quantities import Quantity, out_of_range
@@ -84,6 +86,11 @@ class ArgumentSpec:
     # What a NUMBER or INTEGER measures, whose range bounds it (see tml.language.quantities);
     # a POINT's components are coordinates and an altitude.
     quantity: Quantity | None = None
+    # A NUMBER that may be NaN (a mission item's "not set", e.g. a yaw the vehicle keeps).
+    nan: bool = False
+    # A STRING that names an entry of this table (number -> name, such as MAV_CMD): the
+    # name, the name without the table's prefix, or the number.
+    table: Mapping[int, str] | None = None
 
 
 @dataclass(frozen=True)
@@ -106,6 +113,8 @@ class ActionSpec:
     requires: str = ""
     # Whether the action can be compiled to MAVLink mission items (dispatch="mission").
     mission_item: bool = True
+    # Whether the action is flown only as a mission item (dispatch="mission").
+    mission_only: bool = False
 
     def argument(self, written: str) -> ArgumentSpec | None:
         """The argument spec that ``written`` names, or None."""
@@ -172,6 +181,20 @@ _LOITER_POSITION = (
 )
 _LOITER_GROUPS = (("coordinates", "relative_coordinates", "from_home", "latitude"),)
 _LOITER_TOGETHER = (("latitude", "longitude", "altitude"),)
+
+
+RAW_PARAMS = ("param1", "param2", "param3", "param4", "param5", "param6", "param7")
+"""The seven params of a raw mission item, in order."""
+
+
+def _raw_param(number: int) -> ArgumentSpec:
+    meaning = {5: "x: latitude in degrees in a global frame, else a whole number",
+               6: "y: longitude in degrees in a global frame, else a whole number",
+               7: "z: altitude in metres in a global frame (NaN: not set)"}
+    return ArgumentSpec(f"param{number}", ArgType.NUMBER,
+                        meaning.get(number, f"param {number} as the command defines it "
+                                            "(NaN: not set)"),
+                        default=0.0, nan=number not in (5, 6))
 
 
 CATALOGUE: tuple[ActionSpec, ...] = (
@@ -411,7 +434,63 @@ CATALOGUE: tuple[ActionSpec, ...] = (
         together=(("latitude", "longitude", "altitude"),),
         aliases=("HOME",),
     ),
+    # --- any mission item ----------------------------------------------------------------
+    ActionSpec(
+        "MISSION_ITEM", Category.CONFIGURATION,
+        "One MAVLink mission item exactly as written, for what no other action says (DO_JUMP, "
+        "a servo, a spline waypoint ...): the command by name or number, its frame and seven "
+        "params, as MAVSDK's mission_raw and plan files carry them. Flown only in a "
+        "dispatch=\"mission\" task.",
+        (
+            ArgumentSpec("command", ArgType.STRING, "the MAV_CMD, by name (MAV_CMD_DO_JUMP or "
+                         "DO_JUMP) or number", required=True, table=MAV_CMD),
+            ArgumentSpec("frame", ArgType.STRING, "the MAV_FRAME, by name "
+                         "(MAV_FRAME_GLOBAL_RELATIVE_ALT or GLOBAL_RELATIVE_ALT) or number",
+                         required=True, table=MAV_FRAME),
+            *(_raw_param(n) for n in range(1, 8)),
+            ArgumentSpec("autocontinue", ArgType.BOOLEAN,
+                         "go on to the next item when this one is done", default=True),
+        ),
+        aliases=("RAW_ITEM", "MISSION_ITEM_INT"), mission_only=True,
+    ),
 )
+
+
+def table_entry(table: Mapping[int, str], text: str) -> tuple[int, str] | None:
+    """The number and name of ``text`` in ``table`` (a name, the name without the
+    prefix the names share, or a number from 0 to 65535), or None. A number the table
+    lacks is returned with an empty name."""
+    text = text.strip()
+    if re.fullmatch(r"\d{1,5}", text):
+        number = int(text)
+        return (number, table.get(number, "")) if number <= 65535 else None
+    key = text.upper()
+    for number, name in table.items():
+        if key in (name, name.split("_", 2)[-1] if name.startswith("MAV_") else name):
+            return number, name
+    return None
+
+
+def raw_item_problems(values: Mapping[str, ArgumentValue]) -> list[str]:
+    """Why the params of a raw mission item's bound values cannot be sent (x and y are
+    int32 on the wire: degrees * 1e7 in a global frame, whole numbers otherwise)."""
+    frame = table_entry(MAV_FRAME, str(values.get("frame", "")))
+    problems = []
+    for name, quantity in (("param5", Quantity.LATITUDE), ("param6", Quantity.LONGITUDE)):
+        value = values.get(name, 0.0)
+        assert isinstance(value, float | int)
+        if frame is not None and frame[0] in GLOBAL_FRAME_NUMBERS:
+            why = out_of_range(quantity, value)
+            if why is not None:
+                problems.append(f"{name} {value:g} {why}")
+        elif not (float(value).is_integer() and -2**31 <= value < 2**31):
+            problems.append(f"{name} {value:g}: in frame {frame[1] if frame else '?'} x and y "
+                            "are whole numbers from -2147483648 to 2147483647")
+    return problems
+
+
+GLOBAL_FRAME_NUMBERS = frozenset({0, 3, 5, 6, 10, 11})
+"""The MAV_FRAMEs whose x and y are latitude and longitude."""
 
 
 def _key(name: str) -> str:
@@ -477,12 +556,20 @@ def parse_value(spec: ArgumentSpec, raw: str) -> ArgumentValue:
     if spec.type is ArgType.STRING:
         if not text:
             raise ValueError("expected a non-empty text")
+        if spec.table is not None:
+            entry = table_entry(spec.table, text)
+            if entry is None:
+                some = ", ".join(list(spec.table.values())[:3])
+                raise ValueError(f"expected a name such as {some} ..., or a number")
+            return entry[1] or str(entry[0])
         return text
     if spec.type is ArgType.INTEGER:
         if not re.fullmatch(r"[-+]?\d+", text):
             raise ValueError("expected a whole number")
         # int() refuses a text of thousands of digits; as a float it is out of range
         value: float = int(text) if len(text) <= 18 else float(text)
+    elif spec.nan and text.lower() == "nan":
+        return math.nan
     else:
         number = parse_number(text)
         if number is None:

@@ -23,7 +23,7 @@ import re
 from collections import defaultdict
 from collections.abc import Iterable
 
-from tml.errors import Location
+from tml.errors import Location, MissionSemanticError
 from tml.language import actions, kinds, parameters, skills
 from tml.language.diagnostics import Diagnostic, error, indefinite, warning
 from tml.language.model import (
@@ -275,6 +275,29 @@ class _Checker:
                 'move it to a task with dispatch="command"'))
         elif dispatch is Dispatch.MISSION:
             self.check_kept_by_autopilot(action, spec, given)
+        if spec.mission_only and dispatch is not Dispatch.MISSION:
+            self.found.append(error(
+                action.location, "E262",
+                f"{spec.name} is flown only as a mission item: its task needs "
+                'dispatch="mission"', 'set dispatch="mission" on the task or a task above it'))
+        if spec.name == "MISSION_ITEM":
+            self.check_raw_item(action)
+
+    def check_raw_item(self, action: Action) -> None:
+        """E263 for params a raw mission item cannot carry, W309 for a command number
+        MAVLink does not define."""
+        try:
+            bound = actions.bind(action)
+        except MissionSemanticError:
+            return  # the argument checks above say why
+        for problem in actions.raw_item_problems(bound.values):
+            self.found.append(error(action.location, "E263", f"MISSION_ITEM: {problem}"))
+        command = bound.text("command")
+        if command.isdigit():
+            self.found.append(warning(
+                action.location, "W309",
+                f"MISSION_ITEM: command {command} is no MAV_CMD of ArduPilot's MAVLink "
+                "dialect: an autopilot that does not know it refuses the upload"))
 
     def check_kept_by_autopilot(self, action: Action, spec: actions.ActionSpec,
                                 given: dict[str, str]) -> None:

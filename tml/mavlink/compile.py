@@ -30,10 +30,11 @@ NAV_RETURN_TO_LAUNCH would only circle home.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from tml.geo import Point, to_global, to_local
-from tml.language.actions import BoundAction
+from tml.language.actions import GLOBAL_FRAME_NUMBERS, RAW_PARAMS, BoundAction
 from tml.language.kinds import Kind, landing_approach
 from tml.mavlink.codec import mavlink
 from tml.mavlink.mission import LOITER_TURNS_MAX, MissionItem
@@ -79,6 +80,7 @@ class _Builder:
     cursor: _Cursor
     items: list[MissionItem] = field(default_factory=list)
     owners: list[int] = field(default_factory=list)
+    written: set[int] = field(default_factory=set)  # items given as MISSION_ITEM, kept as is
     action: int = 0
     kind: Kind = Kind.MULTICOPTER
 
@@ -87,13 +89,16 @@ class _Builder:
             altitude: float | None = None, raw: tuple[int, int, float] | None = None,
             frame: int = mavlink.MAV_FRAME_MISSION) -> None:
         """Append an item; ``point`` (local) becomes its position in the reference's frame,
-        ``altitude`` alone means "here, at that altitude", ``raw`` is (x, y, z) as sent."""
+        ``altitude`` alone means "here, at that altitude", ``raw`` is (x, y, z) as sent
+        (with ``point``: the exact position the author wrote, ``point`` only moving the
+        cursor)."""
         x, y, z = raw or (0, 0, 0.0)
         if point is not None:
+            frame = FRAMES[reference]
+        if point is not None and raw is None:
             latitude, longitude, amsl = to_global(*point, self.home.latitude,
                                                   self.home.longitude, self.home.altitude)
             x, y = round(latitude * 1e7), round(longitude * 1e7)
-            frame = FRAMES[reference]
             z = amsl if reference == "amsl" else point[2]
         elif altitude is not None:  # a position "here" (lat = lon = 0) at an altitude
             frame, z = FRAMES["relative"], altitude
@@ -102,9 +107,11 @@ class _Builder:
                                       param4=params[3], x=x, y=y, z=z))
         self.owners.append(self.action)
 
-    def waypoint(self, point: Point, reference: str = "relative") -> None:
-        """Fly to ``point`` and move the cursor there."""
-        self.add(mavlink.MAV_CMD_NAV_WAYPOINT, point=point, reference=reference)
+    def waypoint(self, point: Point, reference: str = "relative",
+                 exact: tuple[int, int, float] | None = None) -> None:
+        """Fly to ``point`` (at ``exact``, its x, y, z as written, when given) and move the
+        cursor there."""
+        self.add(mavlink.MAV_CMD_NAV_WAYPOINT, point=point, reference=reference, raw=exact)
         self.cursor.position = point
 
 
@@ -140,6 +147,8 @@ def _close_trailing_commands(b: _Builder) -> None:
     for item in reversed(b.items):
         if item.command < mavlink.MAV_CMD_NAV_LAST:
             break
+        if item.seq in b.written:  # the author wrote the items: they stay as written
+            return
         trailing += 1
     if trailing > 1 and len(b.items) > trailing:
         b.waypoint(b.cursor.position)
@@ -160,6 +169,14 @@ def _global_point(b: _Builder, action: BoundAction,
     north, east, up = to_local(action.number("latitude"), action.number("longitude"), amsl,
                                b.home.latitude, b.home.longitude, b.home.altitude)
     return (north, east, up if reference == "amsl" else altitude), reference
+
+
+def _written(b: _Builder, action: BoundAction) -> tuple[int, int, float]:
+    """The x, y, z of latitude/longitude/altitude arguments exactly as written: degrees to
+    1e-7-degree integers with no detour through the local frame (which moves a point far
+    from home), the altitude as given."""
+    return (round(action.number("latitude") * 1e7), round(action.number("longitude") * 1e7),
+            action.number("altitude", b.cursor.position[2]))
 
 
 def _take_off(b: _Builder, action: BoundAction) -> None:
@@ -223,57 +240,66 @@ def _move_from_home(b: _Builder, action: BoundAction) -> None:
 
 def _go_to_position(b: _Builder, action: BoundAction) -> None:
     point, reference = _global_point(b, action, action.choice("altitude_reference"))
-    b.waypoint(point, reference)
+    b.waypoint(point, reference, _written(b, action))
 
 
 def _loiter_centre(b: _Builder, action: BoundAction) -> tuple[Point, str]:
     if "latitude" in action.values:
         return _global_point(b, action, action.choice("altitude_reference"))
+    return _local_centre(b, action), "relative"
+
+
+def _local_centre(b: _Builder, action: BoundAction) -> Point:
     point = action.point("coordinates", None)
     if point is not None:
-        return point, "relative"
+        return point
     relative = action.point("relative_coordinates", None)
     if relative is not None:
-        return _plus(b.cursor.position, relative), "relative"
-    return action.point("from_home", b.cursor.position), "relative"
+        return _plus(b.cursor.position, relative)
+    return action.point("from_home", b.cursor.position)
 
 
 def _loiter_at(b: _Builder, centre: Point, reference: str, radius: float,
-               turns: float | None = None, duration: float | None = None) -> None:
+               turns: float | None = None, duration: float | None = None,
+               exact: tuple[int, int, float] | None = None) -> None:
     if turns is not None:
         # ArduPilot keeps at most LOITER_TURNS_MAX turns in an item: more are several items
         # over the same centre, flown one after the other without leaving the circle.
         left = turns
         while left > 0:
             b.add(mavlink.MAV_CMD_NAV_LOITER_TURNS, point=centre, reference=reference,
-                  params=(min(left, LOITER_TURNS_MAX), 0.0, radius, 0.0))
+                  params=(min(left, LOITER_TURNS_MAX), 0.0, radius, 0.0), raw=exact)
             left -= LOITER_TURNS_MAX
     elif duration is not None:
         b.add(mavlink.MAV_CMD_NAV_LOITER_TIME, point=centre, reference=reference,
-              params=(duration, 0.0, radius, 0.0))
+              params=(duration, 0.0, radius, 0.0), raw=exact)
     else:
         b.add(mavlink.MAV_CMD_NAV_LOITER_UNLIM, point=centre, reference=reference,
-              params=(0.0, 0.0, radius, 0.0))
+              params=(0.0, 0.0, radius, 0.0), raw=exact)
     b.cursor.position = centre
 
 
 def _loiter(b: _Builder, action: BoundAction) -> None:
+    exact = _written(b, action) if "latitude" in action.values else None
     _loiter_at(b, *_loiter_centre(b, action), action.number("radius"),
-               action.number("turns", None), action.number("duration", None))
+               action.number("turns", None), action.number("duration", None), exact)
 
 
 def _landing_point(b: _Builder, action: BoundAction) -> None:
+    exact = None
     if "latitude" in action.values:
         point, reference = _global_point(b, action, action.choice("altitude_reference"))
+        exact = _written(b, action)
     else:
         point, reference = action.point("coordinates", b.cursor.position), "relative"
     if b.kind is Kind.FIXED_WING:
         _glide(b, (point[0], point[1], 0.0))
         return
-    _land_at(b, action, point, reference)
+    _land_at(b, action, point, reference, exact)
 
 
-def _land_at(b: _Builder, action: BoundAction, point: Point, reference: str) -> None:
+def _land_at(b: _Builder, action: BoundAction, point: Point, reference: str,
+             exact: tuple[int, int, float] | None = None) -> None:
     precision = PRECISION_MODES[action.choice("precision_mode")]
     yaw = action.number("yaw", None)
     if yaw is not None:
@@ -283,8 +309,10 @@ def _land_at(b: _Builder, action: BoundAction, point: Point, reference: str) -> 
     # item's altitude: the approach altitude is given, so that a simulator or autopilot
     # that does fly to it does not descend on the way.
     point = (point[0], point[1], b.cursor.position[2]) if reference == "relative" else point
+    if exact is not None and reference == "relative":
+        exact = (exact[0], exact[1], point[2])
     b.add(mavlink.MAV_CMD_NAV_LAND, point=point, reference=reference,
-          params=(0.0, float(precision), 0.0, 0.0 if yaw is None else yaw))
+          params=(0.0, float(precision), 0.0, 0.0 if yaw is None else yaw), raw=exact)
     b.cursor.position = (point[0], point[1], 0.0)
 
 
@@ -403,6 +431,30 @@ def _set_home(b: _Builder, action: BoundAction) -> None:
                round(action.number("longitude") * 1e7), action.number("altitude")))
 
 
+def _mission_item(b: _Builder, action: BoundAction) -> None:
+    command, frame = _table_number(action.text("command")), _table_number(action.text("frame"))
+    params = tuple(action.number(name) for name in RAW_PARAMS)
+    placed = frame in GLOBAL_FRAME_NUMBERS
+    x, y = (round(v * 1e7) if placed else round(v) for v in params[4:6])
+    b.items.append(MissionItem(seq=len(b.items), frame=frame, command=command,
+                               param1=params[0], param2=params[1], param3=params[2],
+                               param4=params[3], x=x, y=y, z=params[6],
+                               autocontinue=int(action.flag("autocontinue"))))
+    b.owners.append(b.action)
+    b.written.add(len(b.items) - 1)
+    if placed and (x or y) and math.isfinite(params[6]) and command < mavlink.MAV_CMD_NAV_LAST:
+        amsl = params[6] if frame in (mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_FRAME_GLOBAL_INT) \
+            else b.home.altitude + params[6]
+        north, east, up = to_local(x / 1e7, y / 1e7, amsl, b.home.latitude,
+                                   b.home.longitude, b.home.altitude)
+        b.cursor.position = (north, east, up)
+
+
+def _table_number(text: str) -> int:
+    """The number of a MAV_CMD or MAV_FRAME the language checked (a name or a number)."""
+    return int(text) if text.isdigit() else int(getattr(mavlink, text))
+
+
 _COMPILERS = {
     "TAKE_OFF": _take_off,
     "LAND": _land,
@@ -430,6 +482,7 @@ _COMPILERS = {
     "START_CAPTURING": _start_capturing,
     "STOP_CAPTURING": _stop_capturing,
     "SET_HOME": _set_home,
+    "MISSION_ITEM": _mission_item,
 }
 
 

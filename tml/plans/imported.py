@@ -2,35 +2,46 @@
 
 Theory of operation
 -------------------
-Each mission item becomes one task holding the action that compiles back to it
-(:mod:`tml.mavlink.compile`, read backwards): NAV_TAKEOFF a TAKE_OFF, NAV_WAYPOINT a
-GO_TO_POSITION at its latitude, longitude and altitude (above home, AMSL or above terrain,
-from the item's frame), NAV_LOITER_* a LOITER, NAV_LAND a LAND or LANDING_POINT, NAV_DELAY
-a WAIT, DO_CHANGE_SPEED a SET_SPEED, the camera and gripper commands theirs. The tasks sit
-in one task with ``dispatch="mission"``: the file was a plan for the autopilot to fly in
-AUTO, and so it stays -- uploaded whole, flown on if the link drops. Items the mission
-compiler writes as several (a LANDING_POINT with a heading: CONDITION_YAW then NAV_LAND; a
-loiter of more than 255 turns) are read back as one action. An item with no action (a
-DO_JUMP, a servo, a region of interest) is left out and named in the warnings.
+Import is exact or says what it could not keep. Each mission item becomes one task, all in
+one task with ``dispatch="mission"``: the file was a plan for the autopilot to fly in AUTO,
+and so it stays. An item becomes the action that compiles back to it
+(:mod:`tml.mavlink.compile`, read backwards: NAV_TAKEOFF a TAKE_OFF, NAV_WAYPOINT a
+GO_TO_POSITION, NAV_LAND a LANDING_POINT ...) only when that action compiles back to *the
+same item*, every field of it: the mission is compiled and compared item for item, and
+every item no action says exactly (a DO_JUMP, a spline waypoint, a waypoint with a hold
+time or a yaw left unset, a value an action's range refuses) is a ``MISSION_ITEM``: the
+item as written, command, frame, seven params and autocontinue. Items the mission compiler
+writes as several (a LANDING_POINT with a heading: CONDITION_YAW then NAV_LAND) are read
+back as one action when they compile back the same.
 
-The plan's home, its geofence (the inclusion polygon) and its exclusion zones (as
-obstacles from the ground up: a plan gives them no top) become the mission's
-``<environment>``, every position in latitude and longitude.
+Positions travel as the 1e-7-degree integers mission items carry, never through a local
+frame; a param left unset (null in a ``.plan``, NaN) stays unset. The plan's home, its
+geofence (the inclusion polygon) and its exclusion zones (as obstacles from the ground up:
+a plan gives them no top) become the mission's ``<environment>``. What has no TML form (a
+second inclusion zone, rally points, a complex item saved without its items) is a *loss*:
+:attr:`Imported.losses` names each source item, and ``tml import`` refuses the file
+unless the losses are allowed.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from lxml import etree
 
-from tml.language.actions import lookup
-from tml.mavlink.codec import command_text, mavlink
-from tml.mavlink.compile import PRECISION_MODES, SPEED_TYPES
+from tml.errors import Location, MissionSemanticError
+from tml.language.actions import BoundAction, bind, lookup
+from tml.language.kinds import Kind
+from tml.language.mavlink_tables import MAV_CMD, MAV_FRAME
+from tml.language.model import Action, Argument
+from tml.mavlink.codec import mavlink
+from tml.mavlink.compile import PRECISION_MODES, SPEED_TYPES, CompileError, compile_mission
 from tml.mavlink.mission import LOITER_TURNS_MAX, MissionItem
 from tml.plans.planned import AMSL_FRAMES, GLOBAL_FRAMES, TERRAIN_FRAMES
-from tml.plans.qgc import PlanFile
+from tml.plans.qgc import PlanFile, PlanFileError
+from tml.world import DEFAULT_HOME
 
 SCHEMA_INSTANCE = "http://www.w3.org/2001/XMLSchema-instance"
 
@@ -46,16 +57,20 @@ class _Action:
 
 @dataclass(frozen=True)
 class Imported:
-    """The mission's XML text and what could not be brought over."""
+    """The mission's XML text, notes, and what could not be brought over (losses)."""
 
     text: str
     warnings: tuple[str, ...]
     actions: int
+    losses: tuple[str, ...] = ()
+    raw: int = 0  # items carried as MISSION_ITEM
 
 
 def _value(number: float) -> str:
-    """The shortest text that reads back as ``number`` (``15``, not ``15.0``)."""
+    """The shortest text that reads back as ``number`` (``15``, not ``15.0``; ``NaN``)."""
     number = float(number)
+    if math.isnan(number):
+        return "NaN"
     return str(int(number)) if number.is_integer() else repr(number)
 
 
@@ -204,43 +219,123 @@ def _without_defaults(action: _Action) -> dict[str, str]:
     return kept
 
 
+def _raw(item: MissionItem) -> _Action:
+    """The MISSION_ITEM that is ``item`` exactly."""
+    placed = item.frame in GLOBAL_FRAMES
+    arguments = {
+        "command": MAV_CMD.get(item.command) or str(item.command),
+        "frame": MAV_FRAME.get(item.frame) or str(item.frame),
+        "param1": _value(item.param1), "param2": _value(item.param2),
+        "param3": _value(item.param3), "param4": _value(item.param4),
+        "param5": _value(item.x / 1e7) if placed else str(item.x),
+        "param6": _value(item.y / 1e7) if placed else str(item.y),
+        "param7": _value(item.z)}
+    if not item.autocontinue:
+        arguments["autocontinue"] = "no"
+    return _Action("MISSION_ITEM", arguments)
+
+
+def same_item(a: MissionItem, b: MissionItem) -> bool:
+    """Whether two items are the same item (their seq aside; NaN is NaN)."""
+    def same(x: float, y: float) -> bool:
+        return x == y or (math.isnan(x) and math.isnan(y))
+
+    return (a.command, a.frame, a.x, a.y, bool(a.autocontinue)) \
+        == (b.command, b.frame, b.x, b.y, bool(b.autocontinue)) and all(
+            same(x, y) for x, y in zip((a.param1, a.param2, a.param3, a.param4, a.z),
+                                       (b.param1, b.param2, b.param3, b.param4, b.z),
+                                       strict=True))
+
+
+def _bound(action: _Action, line: int) -> BoundAction | None:
+    """The action typed as the language types it, or None when it does not validate."""
+    location = Location("import", line, 0)
+    model = Action(action.name, tuple(Argument(k, v, None, location)
+                                      for k, v in _without_defaults(action).items()), location)
+    try:
+        return bind(model)
+    except MissionSemanticError:
+        return None
+
+
+def _exact(actions: list[_Action], plan: PlanFile) -> list[_Action]:
+    """The actions with each one that does not compile back to its items exactly made
+    the MISSION_ITEMs of its items."""
+    home = plan.home or DEFAULT_HOME
+    while True:
+        bound = [_bound(a, n) for n, a in enumerate(actions)]
+        wrong = {n for n, b in enumerate(bound) if b is None}
+        if not wrong:
+            try:
+                compiled = compile_mission([b for b in bound if b is not None], home,
+                                           (0.0, 0.0, 0.0), home.heading, Kind.MULTICOPTER)
+            except CompileError:
+                wrong = {n for n, a in enumerate(actions) if a.name != "MISSION_ITEM"}
+            else:
+                made: list[list[MissionItem]] = [[] for _ in actions]
+                for item, owner in zip(compiled.items, compiled.action_index, strict=True):
+                    made[owner].append(item)
+                wrong = {n for n, a in enumerate(actions) if len(made[n]) != len(a.items)
+                         or not all(same_item(x, plan.items[seq])
+                                    for x, seq in zip(made[n], a.items, strict=False))}
+        if not wrong:
+            return actions
+        again: list[_Action] = []
+        for n, action in enumerate(actions):
+            if n not in wrong or (action.name == "MISSION_ITEM" and len(action.items) == 1):
+                again.append(action)
+                continue
+            for seq in action.items:
+                raw = _raw(plan.items[seq])
+                raw.items.append(seq)
+                again.append(raw)
+        if again == actions:  # raw items that do not compile back: said by validation
+            return actions
+        actions = again
+
+
 def import_plan(plan: PlanFile, name: str) -> Imported:
-    """The TML mission of ``plan``, named ``name``."""
+    """The TML mission of ``plan``, named ``name``.
+
+    Raises :class:`PlanFileError` for a plan with no mission item (a TML mission flies at
+    least one task)."""
+    if not plan.items:
+        what = " (it holds a fence or rally points only)" if plan.zones or plan.rally else ""
+        raise PlanFileError(f"no mission items to fly{what}: a TML mission needs one")
     warnings = list(plan.skipped)
+    losses = list(plan.losses)
     actions: list[_Action] = []
     for item in plan.items:
-        number = item.seq + 1
         make = ACTIONS.get(item.command)
-        if make is None:
-            warnings.append(f"item {number}: {command_text(item.command)} has no TML action: "
-                            "left out")
-            continue
-        action = make(item)
-        action.items.append(number)
-        if not (actions and _joined(actions[-1], action)):
+        action = make(item) if make is not None else _raw(item)
+        action.items.append(item.seq)
+        if not (actions and action.name != "MISSION_ITEM" and _joined(actions[-1], action)):
             actions.append(action)
-    if not actions:
-        warnings.append("the plan has no item a TML action flies: the mission only lands")
-        actions.append(_Action("LAND"))
+    actions = _exact(actions, plan)
     root = etree.Element("mission", nsmap={"xsi": SCHEMA_INSTANCE}, name=name)
     from tml.language.schema import SCHEMA_LOCATION
 
     root.set(f"{{{SCHEMA_INSTANCE}}}noNamespaceSchemaLocation", SCHEMA_LOCATION)
     root.append(etree.Comment(f" Imported from a plan of {len(plan.items)} mission items. "))
-    _environment(root, plan, warnings)
+    _environment(root, plan, losses)
     top = etree.SubElement(root, "task", name="Plan", dispatch="mission")
     for action in actions:
-        numbers = ", ".join(str(n) for n in action.items)
-        task = etree.SubElement(top, "task", name=f"item {numbers}: {action.name}")
+        sources = ", ".join(plan.source(seq) for seq in action.items)
+        what = action.name if action.name != "MISSION_ITEM" else \
+            action.arguments["command"].removeprefix("MAV_CMD_")
+        task = etree.SubElement(top, "task", name=f"{sources}: {what}")
         element = etree.SubElement(task, "action", name=action.name)
         for argument, value in _without_defaults(action).items():
             etree.SubElement(element, "argument", name=argument, value=value)
     etree.indent(root, space="  ")
     text = etree.tostring(root, xml_declaration=True, encoding="UTF-8").decode("utf-8")
-    return Imported(text + "\n", tuple(warnings), len(actions))
+    raw = sum(a.name == "MISSION_ITEM" for a in actions)
+    return Imported(text + "\n", tuple(warnings), len(actions), tuple(losses), raw)
 
 
-def _environment(root: etree._Element, plan: PlanFile, warnings: list[str]) -> None:
+def _environment(root: etree._Element, plan: PlanFile, losses: list[str]) -> None:
+    if plan.rally:
+        losses.append(f"{len(plan.rally)} rally point(s) have no TML form: left out")
     if plan.home is None and not plan.zones:
         return
     environment = etree.SubElement(root, "environment")
@@ -254,7 +349,7 @@ def _environment(root: etree._Element, plan: PlanFile, warnings: list[str]) -> N
             fenced = True
             parent = etree.SubElement(environment, "geofence")
         elif zone.inclusion:
-            warnings.append(f"geofence zone {index}: a second inclusion zone or an inclusion "
+            losses.append(f"geofence zone {index}: a second inclusion zone or an inclusion "
                             "circle has no TML form: left out")
             continue
         elif zone.radius is not None:
@@ -267,5 +362,3 @@ def _environment(root: etree._Element, plan: PlanFile, warnings: list[str]) -> N
             parent = etree.SubElement(environment, "prism", name=f"exclusion zone {index}")
         for lat, lon in zone.points:
             etree.SubElement(parent, "point", latitude=_value(lat), longitude=_value(lon))
-    if plan.rally:
-        warnings.append(f"{len(plan.rally)} rally point(s) have no TML form: left out")

@@ -46,6 +46,16 @@ class PlanFile:
     zones: tuple[Zone, ...] = ()
     rally: tuple[tuple[float, float, float], ...] = ()
     skipped: tuple[str, ...] = field(default=())  # what the reader could not take
+    # How each item is named in messages: "item 3" (counted from 1 in the file's order), or
+    # "item 3 (line 5)" in a waypoint file; one per item.
+    sources: tuple[str, ...] = ()
+    # What the file says that the items cannot carry exactly ("item 4: param5 0.5 ..."):
+    # import refuses the file unless the loss is allowed.
+    losses: tuple[str, ...] = ()
+
+    def source(self, seq: int) -> str:
+        """How item ``seq`` (0-based) is named in messages."""
+        return self.sources[seq] if seq < len(self.sources) else f"item {seq + 1}"
 
 
 def item_params(item: MissionItem) -> list[float | None]:
@@ -56,18 +66,42 @@ def item_params(item: MissionItem) -> list[float | None]:
             item.x / scale, item.y / scale, item.z]
 
 
+def _float(value: Any) -> float:
+    """A param as written: a number, or None (QGroundControl's NaN, "not set") as NaN."""
+    if value is None:
+        return math.nan
+    if isinstance(value, bool) or not isinstance(value, int | float | str):
+        raise PlanFileError(f"{value!r} is not a number")
+    return float(value)
+
+
 def item_from_params(seq: int, frame: int, command: int, params: list[Any],
-                     autocontinue: bool = True) -> MissionItem:
-    """A mission item from the seven params of a plan file (None and NaN read as 0)."""
-    values = [0.0 if v is None or (isinstance(v, float) and math.isnan(v)) else float(v)
-              for v in params]
-    if len(values) != 7:
-        raise PlanFileError(f"item {seq}: expected 7 params, got {len(values)}")
+                     autocontinue: bool = True, losses: list[str] | None = None,
+                     source: str = "") -> MissionItem:
+    """A mission item from the seven params of a plan file. None and NaN stay NaN in
+    params 1-4 and 7 (the command's "not set"); params 5 and 6 travel as 1e-7-degree
+    integers in a global frame and as integers otherwise: what they cannot carry that
+    way (NaN, a fraction) is said in ``losses`` (and read as the nearest integer)."""
+    if len(params) != 7:
+        raise PlanFileError(f"{source or f'item {seq + 1}'}: expected 7 params, "
+                            f"got {len(params)}")
+    values = [_float(v) for v in params]
     scale = 1e7 if frame in GLOBAL_FRAMES else 1.0
+    xy = []
+    for number, value in ((5, values[4]), (6, values[5])):
+        if not math.isfinite(value):
+            if losses is not None:
+                losses.append(f"{source}: param{number} {value} cannot travel in a mission "
+                              "item (an integer): read as 0")
+            value = 0.0
+        integer = round(value * scale)
+        if scale == 1.0 and integer != value and losses is not None:
+            losses.append(f"{source}: param{number} {value!r} in frame {frame} is an integer "
+                          f"in a mission item: read as {integer}")
+        xy.append(integer)
     return MissionItem(seq=seq, frame=frame, command=command, param1=values[0],
                        param2=values[1], param3=values[2], param4=values[3],
-                       x=round(values[4] * scale), y=round(values[5] * scale), z=values[6],
-                       autocontinue=int(autocontinue))
+                       x=xy[0], y=xy[1], z=values[6], autocontinue=int(autocontinue))
 
 
 def write_plan(plan: Plan) -> str:
@@ -77,7 +111,9 @@ def write_plan(plan: Plan) -> str:
     for item in plan.items:
         entry: dict[str, Any] = {
             "autoContinue": bool(item.autocontinue), "command": item.command,
-            "doJumpId": item.seq + 1, "frame": item.frame, "params": item_params(item),
+            "doJumpId": item.seq + 1, "frame": item.frame,
+            "params": [None if v is not None and math.isnan(v) else v
+                       for v in item_params(item)],  # QGroundControl's NaN is null
             "type": "SimpleItem"}
         items.append(entry)
     polygons: list[dict[str, Any]] = []
@@ -109,46 +145,92 @@ def write_plan(plan: Plan) -> str:
 
 
 def read_plan(text: str, name: str = "plan") -> PlanFile:
-    """The items, home, fence and rally points of a ``.plan`` file's text."""
+    """The items, home, fence and rally points of a ``.plan`` file's text: QGroundControl's
+    layout (items with seven ``params``), its older one (a ``coordinate`` and four params)
+    and the still older ``.mission`` file (``"fileType": "Mission"``)."""
     try:
         document = json.loads(text)
     except json.JSONDecodeError as error:
         raise PlanFileError(f"{name}:{error.lineno}:{error.colno}: not JSON: {error.msg}"
                             ) from None
-    if not isinstance(document, dict) or document.get("fileType") != "Plan":
+    if not isinstance(document, dict) or document.get("fileType") not in ("Plan", "Mission"):
         raise PlanFileError(f"{name}: not a QGroundControl plan (no \"fileType\": \"Plan\")")
-    mission = document.get("mission") or {}
+    mission = document if document.get("fileType") == "Mission" else document.get("mission")
+    if not isinstance(mission, dict):
+        raise PlanFileError(f"{name}: the plan has no \"mission\": no items to fly")
     skipped: list[str] = []
+    losses: list[str] = []
+    nulls: list[str] = []
     items: list[MissionItem] = []
+    sources: list[str] = []
     try:
-        for entry in mission.get("items", []):
-            for simple in _simple_items(entry, skipped):
-                items.append(item_from_params(len(items), int(simple["frame"]),
-                                              int(simple["command"]), simple["params"],
-                                              bool(simple.get("autoContinue", True))))
-        home = None
-        planned = mission.get("plannedHomePosition")
-        if planned:
-            home = Home(float(planned[0]), float(planned[1]), float(planned[2]))
+        for number, entry in enumerate(mission.get("items", []), start=1):
+            nested = _simple_items(entry, f"item {number}", losses)
+            for index, simple in enumerate(nested, start=1):
+                source = f"item {number}" if len(nested) == 1 and simple is entry \
+                    else f"item {number}.{index}"
+                params = _params(simple, source)
+                frame = int(simple["frame"])
+                if frame not in GLOBAL_FRAMES and None in params[4:6]:
+                    nulls.append(source)
+                    params[4:6] = [0 if v is None else v for v in params[4:6]]
+                items.append(item_from_params(len(items), frame, int(simple["command"]),
+                                              params, bool(simple.get("autoContinue", True)),
+                                              losses, source))
+                sources.append(source)
+        home = _home(mission.get("plannedHomePosition"))
         zones = _zones(document.get("geoFence") or {})
         rally = tuple((float(p[0]), float(p[1]), float(p[2]))
                       for p in (document.get("rallyPoints") or {}).get("points", []))
-    except (KeyError, TypeError, ValueError, IndexError) as error:
-        if isinstance(error, PlanFileError):
-            raise PlanFileError(f"{name}: {error}") from None
+    except PlanFileError as error:
+        raise PlanFileError(f"{name}: {error}") from None
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError) as error:
         raise PlanFileError(f"{name}: malformed plan: {error!r}") from None
-    return PlanFile(tuple(items), home, zones, rally, tuple(skipped))
+    if nulls:
+        skipped.append(f"{', '.join(nulls)}: params 5 and 6 null in a frame where they are "
+                       "integers: read as 0, as MISSION_ITEM_INT sends them")
+    return PlanFile(tuple(items), home, zones, rally, tuple(skipped), tuple(sources),
+                    tuple(losses))
 
 
-def _simple_items(entry: dict[str, Any], skipped: list[str]) -> list[dict[str, Any]]:
+def _params(simple: dict[str, Any], source: str) -> list[Any]:
+    """The seven params of a simple item, in either of QGroundControl's layouts."""
+    params = simple.get("params")
+    if params is None:
+        params = [simple.get(f"param{n}", 0) for n in range(1, 5)]
+    params = list(params)
+    if "coordinate" in simple and len(params) == 4:
+        coordinate = list(simple["coordinate"])
+        if len(coordinate) != 3:
+            raise PlanFileError(f"{source}: expected a coordinate of 3 numbers, got "
+                                f"{len(coordinate)}")
+        params += coordinate
+    return params
+
+
+def _home(planned: Any) -> Home | None:
+    """The planned home: [lat, lon, alt], or an older file's item with a coordinate."""
+    if isinstance(planned, dict):
+        planned = planned.get("coordinate")
+    if not planned:
+        return None
+    latitude, longitude, altitude = (float(v) for v in planned)
+    if latitude == longitude == 0:  # QGroundControl's "no home"
+        return None
+    return Home(latitude, longitude, altitude)
+
+
+def _simple_items(entry: dict[str, Any], source: str,
+                  losses: list[str]) -> list[dict[str, Any]]:
     """The simple items an entry of ``items`` stands for."""
-    if entry.get("type") == "SimpleItem":
+    if entry.get("type") in ("SimpleItem", "missionItem") or "command" in entry:
         return [entry]
-    nested = entry.get("TransectStyleComplexItem", {}).get("Items")
+    nested = (entry.get("TransectStyleComplexItem") or {}).get("Items")
     if nested:  # a survey or corridor scan keeps the items it was flown as
         return [e for e in nested if e.get("type") == "SimpleItem"]
-    skipped.append(f"complex item {entry.get('complexItemType', '?')!r} with no items in "
-                   "the file (open and save it in QGroundControl to have them)")
+    losses.append(f"{source}: complex item {entry.get('complexItemType', '?')!r} saved "
+                  "without its mission items (open and save it in QGroundControl to have "
+                  "them): left out")
     return []
 
 
@@ -156,6 +238,9 @@ def _zones(fence: dict[str, Any]) -> tuple[Zone, ...]:
     zones = [Zone(tuple((float(p[0]), float(p[1])) for p in polygon["polygon"]),
                   bool(polygon.get("inclusion", True)))
              for polygon in fence.get("polygons", [])]
+    old = fence.get("polygon")  # geofence version 1: one inclusion polygon
+    if old:
+        zones.append(Zone(tuple((float(p[0]), float(p[1])) for p in old), True))
     for circle in fence.get("circles", []):
         centre = circle["circle"]["center"]
         zones.append(Zone(((float(centre[0]), float(centre[1])),),

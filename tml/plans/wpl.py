@@ -11,7 +11,7 @@ from __future__ import annotations
 from tml.mavlink.codec import mavlink
 from tml.mavlink.mission import MissionItem
 from tml.plans.planned import Plan
-from tml.plans.qgc import PlanFile, PlanFileError, item_from_params, item_params
+from tml.plans.qgc import PlanFile, PlanFileError, Zone, item_from_params, item_params
 from tml.world import Home
 
 HEADER = "QGC WPL 110"
@@ -35,15 +35,33 @@ def write_wpl(plan: Plan) -> str:
     return "\n".join(lines) + "\n"
 
 
+FENCE_VERTEX_INCLUSION, FENCE_VERTEX_EXCLUSION = 5001, 5002
+FENCE_CIRCLE_INCLUSION, FENCE_CIRCLE_EXCLUSION = 5003, 5004
+FENCE_RETURN_POINT, RALLY_POINT = 5000, 5100
+FENCE_COMMANDS = frozenset({FENCE_VERTEX_INCLUSION, FENCE_VERTEX_EXCLUSION,
+                            FENCE_CIRCLE_INCLUSION, FENCE_CIRCLE_EXCLUSION,
+                            FENCE_RETURN_POINT, RALLY_POINT})
+"""The commands of a fence or rally list (MAVProxy's ``fence save``, ``rally save``)."""
+
+
 def read_wpl(text: str, name: str = "waypoints") -> PlanFile:
-    """The items and home of a waypoint file's text (line 0 is home)."""
-    lines = [line for line in text.splitlines() if line.strip()]
-    if not lines or not lines[0].startswith("QGC WPL"):
+    """The items and home of a waypoint file's text.
+
+    Line 0 is home when it is in ArduPilot's home form (a NAV_WAYPOINT in frame 0, as
+    ``wp save`` writes it); any other line 0 (MAVSDK's sample starts with a NAV_TAKEOFF) is
+    the first item. A fence or rally list (commands 5000-5004, 5100) becomes zones and
+    rally points."""
+    lines = [(number, line) for number, line in enumerate(text.splitlines(), start=1)
+             if line.strip()]
+    if not lines or not lines[0][1].startswith("QGC WPL"):
         raise PlanFileError(f"{name}:1: not a waypoint file (the first line is not "
                             f"'{HEADER}')")
     items: list[MissionItem] = []
+    sources: list[str] = []
+    losses: list[str] = []
+    fence: list[tuple[str, MissionItem]] = []
     home = None
-    for number, line in enumerate(lines[1:], start=2):
+    for number, line in lines[1:]:
         fields = line.split()
         if len(fields) != 12:
             raise PlanFileError(f"{name}:{number}: expected 12 fields, got {len(fields)}")
@@ -53,11 +71,46 @@ def read_wpl(text: str, name: str = "waypoints") -> PlanFile:
             autocontinue = bool(int(float(fields[11])))
         except ValueError as error:
             raise PlanFileError(f"{name}:{number}: {error}") from None
-        if index == 0 and home is None and not items:
+        if index == 0 and home is None and not items and not fence \
+                and command == mavlink.MAV_CMD_NAV_WAYPOINT and frame == 0:
             home = Home(params[4], params[5], params[6])
             continue
+        source = f"item {index} (line {number})"
         try:
-            items.append(item_from_params(len(items), frame, command, params, autocontinue))
+            item = item_from_params(len(items), frame, command, params, autocontinue, losses,
+                                    source)
         except PlanFileError as error:
             raise PlanFileError(f"{name}:{number}: {error}") from None
-    return PlanFile(tuple(items), home)
+        if command in FENCE_COMMANDS:
+            fence.append((source, item))
+            continue
+        items.append(item)
+        sources.append(source)
+    zones, rally = _fence(fence, losses)
+    return PlanFile(tuple(items), home, zones, rally, (), tuple(sources), tuple(losses))
+
+
+def _fence(fence: list[tuple[str, MissionItem]],
+           losses: list[str]) -> tuple[tuple[Zone, ...], tuple[tuple[float, float, float], ...]]:
+    """The zones and rally points of a fence or rally list's items: consecutive vertices
+    make a polygon of as many corners as their param1 says."""
+    zones: list[Zone] = []
+    rally: list[tuple[float, float, float]] = []
+    corners: list[tuple[float, float]] = []
+    for source, item in fence:
+        point = (item.x / 1e7, item.y / 1e7)
+        if item.command in (FENCE_VERTEX_INCLUSION, FENCE_VERTEX_EXCLUSION):
+            corners.append(point)
+            if len(corners) == int(item.param1):
+                zones.append(Zone(tuple(corners), item.command == FENCE_VERTEX_INCLUSION))
+                corners = []
+        elif item.command in (FENCE_CIRCLE_INCLUSION, FENCE_CIRCLE_EXCLUSION):
+            zones.append(Zone((point,), item.command == FENCE_CIRCLE_INCLUSION, item.param1))
+        elif item.command == RALLY_POINT:
+            rally.append((*point, item.z))
+        else:
+            losses.append(f"{source}: the fence's return point has no TML form: left out")
+    if corners:
+        losses.append(f"a polygon of {len(corners)} corner(s) whose count does not match its "
+                      "items' param1: left out")
+    return tuple(zones), tuple(rally)

@@ -50,11 +50,12 @@ def read_wpl(text: str, name: str = "waypoints") -> PlanFile:
     Line 0 is home when it is in ArduPilot's home form (a NAV_WAYPOINT in frame 0, as
     ``wp save`` writes it); any other line 0 (MAVSDK's sample starts with a NAV_TAKEOFF) is
     the first item. A fence or rally list (commands 5000-5004, 5100) becomes zones and
-    rally points."""
+    rally points. A line that starts with ``#`` is a comment, as ``wp load`` reads it."""
     lines = [(number, line) for number, line in enumerate(text.splitlines(), start=1)
-             if line.strip()]
+             if line.strip() and not line.lstrip().startswith("#")]
     if not lines or not lines[0][1].startswith("QGC WPL"):
-        raise PlanFileError(f"{name}:1: not a waypoint file (the first line is not "
+        where = lines[0][0] if lines else 1
+        raise PlanFileError(f"{name}:{where}: not a waypoint file (the first line is not "
                             f"'{HEADER}')")
     items: list[MissionItem] = []
     sources: list[str] = []

@@ -1,0 +1,74 @@
+"""Public mission files written by others (tests/data/plans_corpus, SOURCES.md says whose):
+each imports exactly or is refused for a stated reason, the mission validates, and its
+export in the file's own format holds the same items, compared by the format's rules
+(tests/plans_corpus.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from plans_corpus import differences, read
+
+from tml.language.validation import validate_file
+from tml.plans.imported import import_plan
+from tml.plans.planned import plan_mission
+from tml.plans.qgc import PlanFileError, write_plan
+from tml.plans.wpl import write_wpl
+
+CORPUS = Path(__file__).parent / "data" / "plans_corpus"
+FILES = sorted(p for p in CORPUS.iterdir() if p.suffix in (".plan", ".txt", ".mission"))
+
+REFUSED = {
+    "ardupilot_rover_rally.txt": "not a waypoint file",  # MAVProxy's RALLY list
+    "ardupilot_rover_path_planning_fence.txt": "no mission items to fly (it holds a fence",
+    "qgc_geofence_rd_2.plan": "no mission items to fly (it holds a fence",
+    "mavsdk_qgroundcontrol_sample_with_structured_scan.plan":
+        "complex item 'StructureScan' saved without its mission items",
+    "mavsdk_qgroundcontrol_sample_with_survey_missing_items.plan":
+        "complex item 'survey' saved without its mission items",
+    "mavsdk_qgroundcontrol_sample_without_mission.plan": 'the plan has no "mission"',
+    # QGroundControl wrote the coordinate under the cursor into params 5-6 of a
+    # VTOL_TRANSITION (frame 2), where a MISSION_ITEM_INT carries whole numbers only
+    "px4_vtol_old_1.plan": "item 2: param5 47.398033142089844 in frame 2 is an integer",
+}
+"""The files refused by design, and why (a substring of the message)."""
+
+
+def outcome(path: Path, tmp_path: Path) -> tuple[str, int, int]:
+    """("exact" or the reason refused, items in the file, items carried as MISSION_ITEM)."""
+    try:
+        source = read(path)
+        imported = import_plan(source, path.stem)
+    except PlanFileError as error:
+        return str(error), 0, 0
+    if imported.losses:
+        return "; ".join(imported.losses), len(source.items), imported.raw
+    mission = tmp_path / f"{path.stem}.xml"
+    mission.write_text(imported.text, encoding="utf-8")
+    result = validate_file(mission)
+    assert not result.errors, [str(d) for d in result.errors]
+    assert result.mission is not None
+    plan = plan_mission(result.mission)
+    json = path.read_text(encoding="utf-8").lstrip().startswith("{")
+    back = tmp_path / ("back.plan" if json else "back.waypoints")
+    back.write_text(write_plan(plan) if json else write_wpl(plan), encoding="utf-8")
+    assert differences(source, read(back)) == []
+    return "exact", len(source.items), imported.raw
+
+
+def test_the_corpus_has_40_files_with_their_sources() -> None:
+    sources = (CORPUS / "SOURCES.md").read_text(encoding="utf-8")
+    assert len(FILES) >= 40
+    missing = [p.name for p in FILES if f"`{p.name}`" not in sources]
+    assert not missing, f"SOURCES.md does not name {missing}"
+
+
+@pytest.mark.parametrize("path", FILES, ids=lambda p: p.name)
+def test_each_file_imports_exactly_and_exports_back_item_for_item(
+        path: Path, tmp_path: Path) -> None:
+    result, _, _ = outcome(path, tmp_path)
+    if path.name in REFUSED:
+        assert REFUSED[path.name] in result
+    else:
+        assert result == "exact"

@@ -158,3 +158,13 @@ def test_mavproxy_loads_the_exported_waypoint_file_into_the_simulator(tmp_path: 
                  for item in stored]
     assert read_back_differences(with_home_placeholder(list(plan.items)), read_back,
                                  ardupilot_form, skip_home=True) == []
+
+
+def test_export_names_what_of_the_world_a_format_cannot_hold(tmp_path: Path, capsys) -> None:
+    assert main(["export", DISPATCH, "-o", str(tmp_path / "m.plan")]) == 0
+    err = capsys.readouterr().err
+    assert "note: the geofence's max_altitude 50 m is not in the plan" in err
+    assert "note: obstacle 'radio mast': its top 30 m is not in the plan" in err
+    assert main(["export", DISPATCH, "-o", str(tmp_path / "m.waypoints")]) == 0
+    assert "note: the geofence and obstacles are not in a waypoint file" \
+        in capsys.readouterr().err

@@ -75,7 +75,7 @@ def export(args: argparse.Namespace) -> ExitCode:
     from tml.language.diagnostics import format_human_all
     from tml.language.validation import validate_file
     from tml.plans.maps import write_geojson, write_kml
-    from tml.plans.planned import PlanError, plan_mission
+    from tml.plans.planned import PlanError, plan_mission, world_left_out
     from tml.plans.qgc import write_plan
     from tml.plans.wpl import write_wpl
 
@@ -112,6 +112,7 @@ def export(args: argparse.Namespace) -> ExitCode:
     for plan in plans:
         said.update({f"{mission.file}: {skipped}": None for skipped in plan.skipped})
         said.update({f"note: {note}": None for note in plan.notes})
+        said.update({f"note: {note}": None for note in world_left_out(plan.world, form)})
     for message in said:
         _say("export", message)
     world = plans[0].world

@@ -99,6 +99,35 @@ class Plan:
         return points
 
 
+def world_left_out(world: World, form: str) -> list[str]:
+    """What of ``world`` a plan file of ``form`` ("plan" or "wpl") cannot carry: a
+    ``.plan``'s geofence has no altitudes and its exclusion zones no top or bottom; a
+    waypoint file holds no fence at all."""
+    notes = []
+    fence = world.geofence
+    if form == "wpl":
+        if fence is not None or world.obstacles:
+            notes.append("the geofence and obstacles are not in a waypoint file (it holds "
+                         "mission items only): export a .plan, or upload them with tml run")
+        return notes
+    if fence is not None:
+        for name, value in (("max_altitude", fence.max_altitude),
+                            ("min_altitude", fence.min_altitude)):
+            if value is not None:
+                notes.append(f"the geofence's {name} {value:g} m is not in the plan "
+                             "(QGroundControl's geofence has no altitude; ArduPilot takes it "
+                             f"as FENCE_ALT_{name[:3].upper()})")
+    for obstacle in world.obstacles:
+        kept = [f"{name} {value:g} m" for name, value, plain in (
+            ("bottom", obstacle.bottom, 0.0), ("top", obstacle.top, float("inf")))
+            if value != plain]
+        if kept:
+            notes.append(f"obstacle {obstacle.name!r}: its {' and '.join(kept)} "
+                         f"{'are' if len(kept) > 1 else 'is'} not in the plan (an exclusion "
+                         "zone reaches from the ground up)")
+    return notes
+
+
 def local_to_global(home: Home, north: float, east: float,
                     up: float = 0.0) -> tuple[float, float, float]:
     """Latitude, longitude and altitude AMSL of a point in metres from ``home``."""

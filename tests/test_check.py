@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from tml.language.validation import validate_file
 
 
@@ -430,3 +432,30 @@ def test_a_command_number_mavlink_does_not_define_is_a_warning() -> None:
     result = run(TAKE_OFF + f'<task name="p" dispatch="mission"><task name="w">{item}'
                  '</task></task>\n')
     assert codes(result) == ["W309"] and result.valid()
+
+
+def test_aerostacks_mission_as_shipped_validates_with_a_warning_per_twin() -> None:
+    # Aerostack's config/drone1/mission_specification_file.xml: three sibling tasks named
+    # Stabilize under "Searching".
+    path = Path(__file__).parent / "data" / "aerostack" / "mission_specification_file.xml"
+    result = validate_file(path)
+    assert result.valid() and not result.errors
+    assert [(d.code, d.location.line) for d in result.diagnostics] == [("W310", 45),
+                                                                       ("W310", 55)]
+
+
+def test_a_jump_to_a_name_twins_share_is_refused() -> None:
+    twins = ('<task name="p"><task name="s"><action name="STABILIZE"/></task>'
+             '<task name="s"><action name="STABILIZE"/></task></task>\n')
+    jump = ('<event_handling><event name="e"><condition parameter="BATTERY_CHARGE_PERCENTAGE" '
+            'comparison="less than" value="20"/><termination mode="JUMP_TO_TASK" '
+            'task="{}"/></event></event_handling>\n')
+    assert codes(run(TAKE_OFF + twins)) == ["W310"]
+    for target in ("s", "p/s"):
+        assert sorted(codes(run(TAKE_OFF + twins + jump.format(target)))) == ["E244", "W310"]
+
+
+def test_aerostacks_later_format_is_named_as_such() -> None:
+    result = run('<task_tree><behavior name="TAKE_OFF"/></task_tree>\n')
+    assert codes(result) == ["E008"]
+    assert "Aerostack's later mission format" in result.diagnostics[0].message

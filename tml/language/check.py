@@ -148,13 +148,19 @@ class _Checker:
         # the two share one name space.
         seen: dict[str, Task] = {}
         for task in siblings:
-            if task.name in seen:
+            if task.name in seen and self.handles(task, seen[task.name]):
                 self.found.append(error(
                     task.location, "E244",
+                    f"an <on_error> task and a sibling task are named {task.name!r} (the "
+                    f"first at line {seen[task.name].location.line})",
+                    "an error handler is named by its path: give it a name of its own"))
+            elif task.name in seen:  # as Aerostack's own example missions do
+                self.found.append(warning(
+                    task.location, "W310",
                     f"two sibling tasks are named {task.name!r} (the first at line "
-                    f"{seen[task.name].location.line})",
-                    "sibling tasks need different names so current_task and "
-                    "JUMP_TO_TASK can tell them apart"))
+                    f"{seen[task.name].location.line}): current_task and JUMP_TO_TASK "
+                    "cannot name either (E244)",
+                    "give sibling tasks different names"))
             seen.setdefault(task.name, task)
             self.check_skills(task.skills)
             inner = self.check_repeat(task, rounds)
@@ -164,6 +170,11 @@ class _Checker:
                 self.check_action(task.action, task.dispatch)
             self.check_orchestration(task)
             self.check_tasks(task.children + task.on_error, inner)
+
+    def handles(self, *tasks: Task) -> bool:
+        """Whether one of ``tasks`` is an <on_error> task."""
+        handlers = {id(h) for t in self.tasks for h in t.on_error}
+        return any(id(task) in handlers for task in tasks)
 
     def check_repeat(self, task: Task, rounds: int) -> int:
         """Check a task's repeat count and the rounds nested repeats make of it; return the
@@ -441,7 +452,12 @@ class _Checker:
         location = getattr(where, "location")  # noqa: B009 - conditions and terminations
         if "/" in reference:
             path = tuple(part.strip() for part in reference.split("/"))
-            if any(task.path == path for task in self.tasks):
+            same = [task for task in self.tasks if task.path == path]
+            if len(same) > 1:
+                self.found.append(error(
+                    location, "E244", f"{what} {reference!r} is ambiguous: {len(same)} "
+                    "sibling tasks have this path", "give sibling tasks different names"))
+            if same:
                 return
             self.found.append(error(
                 location, "E240", f"{what} {reference!r}: no task has this path",

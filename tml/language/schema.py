@@ -99,10 +99,25 @@ def validate(doc: XmlDocument, expected_root: str = "mission") -> list[Diagnosti
     return [problem.diagnostic for problem in problems(doc, expected_root)]
 
 
+AEROSTACK_LATER = frozenset({"task_tree", "behavior", "recurrent_behavior"})
+"""The elements of Aerostack's later, behaviour-tree mission format (not TML v1)."""
+
+
 def problems(doc: XmlDocument, expected_root: str = "mission") -> list[SchemaProblem]:
     """All schema violations of ``doc``, each with where it is (empty when valid)."""
     root = doc.root
     name = element_name(root)
+    later = next((e for e in root.iter() if isinstance(e.tag, str)
+                  and element_name(e) in AEROSTACK_LATER), None)
+    if expected_root == "mission" and later is not None:
+        return [SchemaProblem(error(
+            doc.location(later), "E008",
+            f"<{element_name(later)}> is Aerostack's later mission format (a behaviour tree "
+            "of <task_tree> and <behavior>), which tml does not read: its behaviours are "
+            "those of Aerostack's own catalogue, with parameters and a coordinator TML has no "
+            "counterpart for, so no mission could say the same",
+            "tml reads TML v1 as Aerostack shipped it (<mission>, <task>, <action>, "
+            "<event_handling>): write the tasks as <task> with one <action> each"))]
     if name != expected_root:
         other = "a world file" if name == "world" else f"<{name}>"
         return [SchemaProblem(error(doc.location(root), "E007",

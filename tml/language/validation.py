@@ -87,7 +87,7 @@ def validate_file(path: str | Path, data: bytes | None = None,
 READS_THE_WHOLE = frozenset({
     "E225", "W301", "E254",  # parameters, as the declarations say
     "E230", "E231", "E232",  # labels, as the MEMORIZE_POINTs store them
-    "E240", "E244",  # tasks named, as the tasks are
+    "E240", "E244", "W310",  # tasks named, as the tasks are
     "E253",  # latitude and longitude, from the <home>
     "E261", "E274", "E275", "E283", "W306",  # orchestration, as the tasks and roles are
     "E270", "E271", "W305",  # roles, as declared and flown
@@ -130,8 +130,8 @@ def _beyond_the_schema(doc: xml.XmlDocument,
                        problems: list[schema.SchemaProblem]) -> list[Diagnostic]:
     """The findings of the language's rules on a mission the schema refused, where they
     can be trusted (see the module's docstring)."""
-    if any(p.diagnostic.code == "E007" for p in problems):
-        return []  # not a mission at all
+    if any(p.diagnostic.code in ("E007", "E008") for p in problems):
+        return []  # not a mission at all, or not a TML one
     left_out = frozenset(p.element for p in problems
                          if p.diagnostic.code == "E101" and p.element is not None)
     whole = not any(_breaks_the_whole(p) for p in problems)

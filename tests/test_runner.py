@@ -400,9 +400,9 @@ def test_a_vehicle_taken_by_the_autopilot_is_commanded_no_more() -> None:
     outcome, sim, lines, said, _ = run(TAKE_OFF + GO + LAND, hooks=[take])
     assert outcome.exit_code == ExitCode.FAILURE
     assert outcome.vehicles[0].cause == "taken"
-    assert "switched to LAND by the autopilot" in outcome.vehicles[0].reason
+    assert "switched to LAND outside tml" in outcome.vehicles[0].reason
     assert len(sim.vehicles[0].submitted) == sent[0]  # nothing sent after, no safe state
-    assert said[0] == "vehicle 1 switched to LAND by the autopilot: tml commands it no more"
+    assert said[0] == "vehicle 1 switched to LAND outside tml: tml commands it no more"
     taken = [line for line in lines if line["kind"] == "taken"]
     assert len(taken) == 1 and taken[0]["mode"] == "LAND"
 

@@ -507,7 +507,10 @@ class Runner:
         assert flight.state is not None
         vid, mode = flight.vehicle.vehicle_id, flight.state.taken
         flight.taken, flight.cause = True, "taken"
-        reason = f"switched to {mode} by the autopilot"
+        # Nothing in the telemetry says who: the autopilot's failsafe, the pilot's RC
+        # switch and another ground station's command look alike (the journal's line keeps
+        # the autopilot's last message, which may tell a reader).
+        reason = f"switched to {mode} outside tml"
         self.journal.write(now, "taken", vid, message=f"vehicle {vid} {reason}", mode=mode,
                            status_text=flight.state.status_text)
         self._said(f"vehicle {vid} {reason}: tml commands it no more")

@@ -72,3 +72,24 @@ def test_each_file_imports_exactly_and_exports_back_item_for_item(
         assert REFUSED[path.name] in result
     else:
         assert result == "exact"
+
+
+FLOWN = ["ardupilot_copter_auto_land_to_brake.txt", "ardupilot_copter_do_change_speed.txt",
+         "ardupilot_copter_far_origin.txt", "ardupilot_copter_gripper_mission.txt",
+         "ardupilot_copter_loiter_to_alt.txt", "ardupilot_copter_nav_delay.txt",
+         "ardupilot_copter_terrain_mission.txt", "ardupilot_copter_weathervane_mission.txt"]
+"""The copter files the embedded simulator flies. The other copter files hold commands it
+refuses in an upload (NAV_ARC_WAYPOINT, DO_AUX_FUNCTION, CONDITION_DISTANCE with
+DO_SET_SERVO, DO_PARACHUTE, NAV_PAYLOAD_PLACE, command 5005) or a home at 0, 0, where it
+finds no position."""
+
+
+@pytest.mark.parametrize("name", FLOWN)
+def test_copter_files_fly_on_the_simulator(name: str, tmp_path: Path) -> None:
+    from tml.commands.cli import main
+
+    imported = import_plan(read(CORPUS / name), Path(name).stem)
+    mission = tmp_path / "imported.xml"
+    mission.write_text(imported.text, encoding="utf-8")
+    assert main(["run", str(mission), "--sim", "-q", "--speedup", "50",
+                 "--sim-param", "SIM_GPS_LOCKTIME=1", "--sim-param", "SIM_EKF_GPS_TIME=2"]) == 0

@@ -199,3 +199,49 @@ def interrupted_run(storage: Any, fake: FakeVehicle, mission_id: str,
                                               "force": False}, 1.0, 2.0))
     storage.add_lines(run_id, list(enumerate(sink.getvalue().splitlines(), 1)))
     return run_id
+
+
+class Served:
+    """A service on fake vehicles (their time stands still until a test lets it flow), and
+    a client for its API, calling it as http://127.0.0.1; ``storage`` instead of SQLite in
+    ``tmp_path``, ``app`` more options of create_app."""
+
+    def __init__(self, tmp_path: Path, token: str | None = None, count: int = 2,
+                 storage: Any = None, **app: Any) -> None:
+        from fastapi.testclient import TestClient
+
+        from tml.serve.api import create_app
+        from tml.serve.service import Service, ServiceOptions
+        from tml.serve.storage import Storage, database_url
+
+        self.hangar = FakeHangar(count, flowing=False)
+        self.storage = storage or Storage(database_url(None, tmp_path))
+        self.service = Service(self.storage, self.hangar, ServiceOptions(stop_timeout=10))
+        self.client = TestClient(create_app(self.service, token, **app),
+                                 base_url="http://127.0.0.1")
+
+    def __enter__(self) -> Served:
+        self.client.__enter__()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.client.__exit__(*exc)
+        self.storage.close()
+
+    def upload(self, data: bytes = SHORT, name: str = "short.xml") -> str:
+        answer = self.client.post("/missions", content=data, params={"filename": name},
+                                  headers={"Content-Type": "application/xml"})
+        assert answer.status_code == 201, answer.text
+        return str(answer.json()["id"])
+
+    def start(self, mission: str, **request: object) -> dict[str, Any]:
+        answer = self.client.post("/runs", json={"mission": mission, **request})
+        assert answer.status_code == 201, answer.text
+        return dict(answer.json())
+
+    def finish(self, run_id: str) -> dict[str, Any]:
+        """Let time flow until the run has ended; the run."""
+        self.hangar.flowing.set()
+        live = self.service.live(run_id)
+        assert live is None or live.join(60), "the run did not end"
+        return dict(self.client.get(f"/runs/{run_id}").json())

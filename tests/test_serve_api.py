@@ -12,49 +12,15 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from fastapi.testclient import TestClient
-from serving import DATA, MISSIONS, SHORT, TYPO, FakeHangar, interrupted_run
+from serving import DATA, MISSIONS, SHORT, TYPO, Served, interrupted_run
 
-from tml.serve.api import create_app
-from tml.serve.service import Service, ServiceOptions
-from tml.serve.storage import Storage, database_url
 from tml.vehicle import Hold
-
-
-class Served:
-    """A service on fake vehicles, and a client for its API."""
-
-    def __init__(self, tmp_path: Path, token: str | None = None, count: int = 2) -> None:
-        self.hangar = FakeHangar(count, flowing=False)
-        self.storage = Storage(database_url(None, tmp_path))
-        self.service = Service(self.storage, self.hangar, ServiceOptions(stop_timeout=10))
-        self.client = TestClient(create_app(self.service, token))
-
-    def upload(self, data: bytes = SHORT, name: str = "short.xml") -> str:
-        answer = self.client.post("/missions", content=data, params={"filename": name},
-                                  headers={"Content-Type": "application/xml"})
-        assert answer.status_code == 201, answer.text
-        return str(answer.json()["id"])
-
-    def start(self, mission: str, **request: object) -> dict:
-        answer = self.client.post("/runs", json={"mission": mission, **request})
-        assert answer.status_code == 201, answer.text
-        return dict(answer.json())
-
-    def finish(self, run_id: str) -> dict:
-        """Let time flow until the run has ended; the run."""
-        self.hangar.flowing.set()
-        live = self.service.live(run_id)
-        assert live is None or live.join(60), "the run did not end"
-        return dict(self.client.get(f"/runs/{run_id}").json())
 
 
 @pytest.fixture
 def served(tmp_path: Path) -> Iterator[Served]:
-    found = Served(tmp_path)
-    with found.client:
+    with Served(tmp_path) as found:
         yield found
-    found.storage.close()
 
 
 # --- missions ------------------------------------------------------------------------------

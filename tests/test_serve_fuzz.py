@@ -32,7 +32,9 @@ _DATA = Path(tempfile.mkdtemp(prefix="tml-fuzz-"))
 _STORAGE = Storage(database_url(None, _DATA))
 _SERVICE = Service(_STORAGE, FakeHangar(2, flowing=False), ServiceOptions(stop_timeout=10))
 _SERVICE.upload("short.xml", SHORT)  # something to find
-schema = schemathesis.openapi.from_asgi("/openapi.json", create_app(_SERVICE))
+# Schemathesis calls the application as http://testserver.
+schema = schemathesis.openapi.from_asgi("/openapi.json",
+                                        create_app(_SERVICE, hosts=["testserver"]))
 calls: list[str] = []
 
 

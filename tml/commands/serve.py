@@ -1,8 +1,9 @@
 """``tml serve``: the mission interpreter as a service, with an HTTP API and a live page.
 
 Exit codes: 0 stopped (SIGINT, SIGTERM: every flying vehicle sent to its safe state
-first), 2 bad arguments (a non-loopback address without a token, a database that cannot
-be opened, the ``serve`` extra not installed), 4 the vehicles cannot be reached.
+first), 2 bad arguments (a non-loopback address without a token, an address and port that
+cannot be served on -- in use, or not this machine's --, a database that cannot be
+opened, the ``serve`` extra not installed), 4 the vehicles cannot be reached.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import argparse
 import contextlib
 import ipaddress
 import os
+import socket
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -21,6 +23,7 @@ from tml.commands.signals import on_stop_signals
 from tml.errors import ExitCode
 
 TOKEN_VARIABLE = "TML_SERVE_TOKEN"
+MAX_BODY = 4 * 1024 * 1024  # the default of --max-body (tml.serve.guard.MAX_BODY)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -40,6 +43,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"--token-file, or ${TOKEN_VARIABLE})")
     parser.add_argument("--token-file", metavar="FILE",
                         help="read the token from the first line of FILE")
+    parser.add_argument("--allow-host", action="append", default=[], metavar="NAME",
+                        help="a name the service may be called by besides its address and "
+                             "localhost (the Host of a request), repeatable")
+    parser.add_argument("--max-body", type=int, default=MAX_BODY, metavar="BYTES",
+                        help=f"the largest request body taken, a mission upload included "
+                             f"(default {MAX_BODY}, 4 MiB)")
     parser.add_argument("--instance", default="local", metavar="NAME",
                         help="this service's name in a database shared by several "
                              "(default local; see docs/serve.md)")
@@ -82,19 +91,13 @@ def _stopped_by_signals(server: Any) -> Iterator[None]:
 def run(args: argparse.Namespace) -> ExitCode:
     """Run ``tml serve`` until SIGINT or SIGTERM; return the exit code."""
     try:
-        import uvicorn
+        import uvicorn  # noqa: F401  (here: to say what is missing before anything else)
 
-        from tml.serve.api import create_app
+        from tml.serve.api import create_app  # noqa: F401
     except ImportError as error:
         print(f"tml serve: {error.name or error} is missing: install tml with its serve extra "
               "(pip install 'tml[serve]')", file=sys.stderr)
         return ExitCode.USAGE
-    from tml.errors import TmlError
-    from tml.serve.hangar import Hangar
-    from tml.serve.service import Service, ServiceOptions
-    from tml.serve.storage import Storage, database_url
-    from tml.world import World
-
     try:
         token = _token(args)
     except (OSError, ValueError) as error:
@@ -107,6 +110,50 @@ def run(args: argparse.Namespace) -> ExitCode:
     if not 0 <= args.port <= 65535:
         print(f"tml serve: --port {args.port}: expected 0 to 65535", file=sys.stderr)
         return ExitCode.USAGE
+    if args.max_body < 1:
+        print(f"tml serve: --max-body {args.max_body}: expected a number of bytes above 0",
+              file=sys.stderr)
+        return ExitCode.USAGE
+    try:
+        listening = _listen(args.host, args.port)
+    except OSError as error:
+        print(f"tml serve: cannot serve on {args.host} port {args.port}: "
+              f"{error.strerror or error}", file=sys.stderr)
+        return ExitCode.USAGE
+    with listening:
+        return _serve(args, token, listening)
+
+
+def _listen(host: str, port: int) -> socket.socket:
+    """A socket bound to ``host`` and ``port`` and listening, before anything is said: a
+    port in use is found here, not after the banner."""
+    found = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+    family, kind, protocol, _name, address = found[0]
+    listening = socket.socket(family, kind, protocol)
+    try:
+        listening.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        if family == socket.AF_INET6 and host.strip("[]") == "::":
+            listening.setsockopt(socket.IPPROTO_IPV6, socket.IPV6_V6ONLY, 0)
+        listening.bind(address)
+        listening.listen(2048)
+        listening.set_inheritable(True)
+    except OSError:
+        listening.close()
+        raise
+    return listening
+
+
+def _serve(args: argparse.Namespace, token: str | None, listening: socket.socket) -> ExitCode:
+    """Open the storage and the vehicles and serve on ``listening`` until stopped."""
+    import uvicorn
+
+    from tml.errors import TmlError
+    from tml.serve.api import create_app
+    from tml.serve.hangar import Hangar
+    from tml.serve.service import Service, ServiceOptions
+    from tml.serve.storage import Storage, database_url
+    from tml.world import World
+
     try:
         if args.database is None:
             Path(args.data).mkdir(parents=True, exist_ok=True)
@@ -132,14 +179,17 @@ def run(args: argparse.Namespace) -> ExitCode:
             for run_id in service.start():
                 print(f"tml serve: run {run_id} was flying when the service stopped: "
                       "marked interrupted", file=sys.stderr)
-            where = f"http://{args.host}:{args.port}/"
+            port = listening.getsockname()[1]
+            where = f"http://{_url_host(args.host)}:{port}/"
             print(f"tml serve: {where} ({len(vehicles)} vehicle(s): "
                   f"{', '.join(str(v.vehicle_id) for v in vehicles)}; {storage.backend} "
                   f"storage{'; token required' if token else ''})", flush=True)
-            server = uvicorn.Server(uvicorn.Config(create_app(service, token), host=args.host,
-                                                   port=args.port, log_level="warning"))
+            app = create_app(service, token, bound=args.host, hosts=args.allow_host,
+                             max_body=args.max_body)
+            server = uvicorn.Server(uvicorn.Config(app, log_level="warning"))
             with _stopped_by_signals(server):
-                server.run()  # until SIGINT or SIGTERM; the app's shutdown stops every run
+                # until SIGINT or SIGTERM; the app's shutdown stops every run
+                server.run(sockets=[listening])
             for message in service.said:
                 print(f"tml serve: {message}", file=sys.stderr)
             return ExitCode.OK if server.started else ExitCode.USAGE
@@ -151,3 +201,8 @@ def run(args: argparse.Namespace) -> ExitCode:
         return ExitCode.FAILURE
     finally:
         storage.close()
+
+
+def _url_host(host: str) -> str:
+    """``host`` as it is written in a URL (an IPv6 address in brackets)."""
+    return f"[{host}]" if ":" in host and not host.startswith("[") else host

@@ -32,7 +32,7 @@ import asyncio
 import hmac
 import json
 import logging
-from collections.abc import AsyncIterator, Awaitable, Callable
+from collections.abc import AsyncIterator, Awaitable, Callable, Sequence
 from contextlib import asynccontextmanager
 from importlib import resources
 from typing import Any, Literal, TypeVar
@@ -50,10 +50,12 @@ from starlette.routing import Match
 
 from tml import __version__
 from tml.errors import TmlError
+from tml.serve.guard import MAX_BODY, Guard
 from tml.serve.service import RequestError, Service
 from tml.serve.storage import StorageError
 
-MAX_UPLOAD = 4 * 1024 * 1024  # bytes of a mission upload
+LAST_RECORD = 2**31  # the highest record number asked for (after, Last-Event-ID)
+METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
 T = TypeVar("T")
 log = logging.getLogger("tml.serve")
 
@@ -210,16 +212,22 @@ class ServiceStatus(BaseModel):
 
 ERRORS: dict[int | str, dict[str, Any]] = {
     code: {"model": Problem, "description": text} for code, text in (
-        (400, "a request that cannot be read"), (401, "no token, or a wrong one"),
+        (400, "a request that cannot be read, or sent to a host name the service does not "
+              "answer to"), (401, "no token, or a wrong one"),
+        (403, "sent by another site's page (Origin, Sec-Fetch-Site)"),
         (404, "not found"), (409, "conflicts with what is going on"),
+        (413, "a body larger than --max-body"), (415, "a body of a type not taken here"),
         (422, "refused: invalid input, or a mission that is invalid or cannot be flown"),
         (503, "the database is unreachable"))}
 
 
 # --- the application ---------------------------------------------------------------------
 
-def create_app(service: Service, token: str | None = None) -> FastAPI:
-    """The ASGI application of ``service``; with ``token``, every API route needs it."""
+def create_app(service: Service, token: str | None = None, *, bound: str = "127.0.0.1",
+               hosts: Sequence[str] = (), max_body: int = MAX_BODY) -> FastAPI:
+    """The ASGI application of ``service``; with ``token``, every API route needs it.
+    ``bound`` is the address it is served on, ``hosts`` more names it may be called by,
+    ``max_body`` the largest request body it takes (:class:`~tml.serve.guard.Guard`)."""
 
     @asynccontextmanager
     async def lifespan(_app: FastAPI) -> AsyncIterator[None]:
@@ -231,6 +239,7 @@ def create_app(service: Service, token: str | None = None) -> FastAPI:
                   description="Fly TML missions on MAVLink vehicles: upload and verify "
                               "missions, run them, watch them live. See docs/serve.md.")
     _errors(app)
+    app.add_middleware(Guard, bound=bound, hosts=hosts, max_body=max_body)
 
     def authorized(authorization: str | None = Header(
             None, description="Bearer TOKEN, when the service was started with a token")
@@ -244,7 +253,7 @@ def create_app(service: Service, token: str | None = None) -> FastAPI:
                                 headers={"WWW-Authenticate": "Bearer"})
 
     api = APIRouter(dependencies=[Depends(authorized)], responses=ERRORS)
-    _missions(api, service)
+    _missions(api, service, max_body)
     _runs(api, service)
     _vehicles(api, service)
 
@@ -286,7 +295,7 @@ async def _call(function: Callable[..., T], *args: Any, **kwargs: Any) -> T:
     return await run_in_threadpool(function, *args, **kwargs)
 
 
-def _missions(api: APIRouter, service: Service) -> None:
+def _missions(api: APIRouter, service: Service, max_body: int) -> None:
     upload_body = {"requestBody": {"required": True, "content": {
         "application/xml": {"schema": {"type": "string"}},
         "multipart/form-data": {"schema": {
@@ -295,7 +304,8 @@ def _missions(api: APIRouter, service: Service) -> None:
 
     @api.post("/missions", status_code=201, response_model=MissionSummary, tags=["missions"],
               openapi_extra=upload_body,
-              responses={413: {"model": Problem, "description": "larger than 4 MiB"},
+              responses={413: {"model": Problem,
+                               "description": "larger than --max-body (4 MiB by default)"},
                          415: {"model": Problem, "description": "neither XML nor multipart"}})
     async def upload(request: Request, filename: str | None = Query(
             None, max_length=200, description="the file name diagnostics name (default: "
@@ -309,7 +319,7 @@ def _missions(api: APIRouter, service: Service) -> None:
             data = await _body(request)
             name = filename or "mission.xml"
         elif kind == "multipart/form-data":
-            data, sent_name = await _file(request)
+            data, sent_name = await _file(request, max_body)
             name = filename or sent_name or "mission.xml"
         else:
             raise HTTPException(415, "send the mission as application/xml, or as a "
@@ -417,13 +427,14 @@ def _runs(api: APIRouter, service: Service) -> None:
              responses={200: {"content": {"text/event-stream": {"schema": {"type": "string"}}},
                               "description": "record events, then one end event"}})
     async def stream(request: Request, run_id: str = _id(),
-                     after: int = Query(0, ge=0, le=2**31,
+                     after: int = Query(0, ge=0, le=LAST_RECORD,
                                         description="send the records numbered above this"),
                      last_event_id: str | None = Header(None, max_length=20),
                      ) -> EventSourceResponse:
         """The run's records as Server-Sent Events, live until the run ends."""
-        if last_event_id is not None and last_event_id.isdigit():
-            after = max(after, int(last_event_id))
+        if last_event_id is not None and last_event_id.isascii() and last_event_id.isdigit():
+            # No log has more lines than the query's bound: a larger id asks for nothing.
+            after = max(after, min(int(last_event_id), LAST_RECORD))
         await _call(service.run, run_id)  # 404 before the stream starts
         return EventSourceResponse(_events(service, run_id, after, request), ping=15)
 
@@ -473,27 +484,25 @@ async def _events(service: Service, run_id: str, after: int,
 
 async def _body(request: Request) -> bytes:
     data = bytearray()
-    async for chunk in request.stream():
+    async for chunk in request.stream():  # the guard stops a body longer than the limit
         data += chunk
-        if len(data) > MAX_UPLOAD:
-            raise HTTPException(413, f"a mission is at most {MAX_UPLOAD // 1024} KiB")
     return bytes(data)
 
 
-async def _file(request: Request) -> tuple[bytes, str]:
-    if int(request.headers.get("content-length") or 0) > MAX_UPLOAD + 64 * 1024:
-        raise HTTPException(413, f"a mission is at most {MAX_UPLOAD // 1024} KiB")
+async def _file(request: Request, limit: int) -> tuple[bytes, str]:
     try:
-        form = await request.form(max_files=1, max_fields=10)
+        form = await request.form(max_files=1, max_fields=10, max_part_size=limit)
+    except HTTPException:
+        raise
     except Exception as error:  # the multipart parser's own errors
         raise HTTPException(400, f"unreadable multipart form: {error}") from None
-    sent = form.get("file")
-    if sent is None or isinstance(sent, str):
-        raise HTTPException(400, "the form has no file field named 'file'")
-    data = await sent.read(MAX_UPLOAD + 1)
-    if len(data) > MAX_UPLOAD:
-        raise HTTPException(413, f"a mission is at most {MAX_UPLOAD // 1024} KiB")
-    return data, sent.filename or ""
+    try:
+        sent = form.get("file")
+        if sent is None or isinstance(sent, str):
+            raise HTTPException(400, "the form has no file field named 'file'")
+        return await sent.read(limit + 1), sent.filename or ""
+    finally:
+        await form.close()
 
 
 def _plain_name(name: str) -> str:
@@ -519,12 +528,13 @@ def _errors(app: FastAPI) -> None:
         if error.status_code == 404 and message == "Not Found":
             message = "no such route"
         elif error.status_code == 405:
-            # Each method of a path is its own route: Allow lists them all.
-            allowed = sorted({method for route in app.routes
-                              if route.matches(request.scope)[0] is not Match.NONE
-                              for method in getattr(route, "methods", None) or ()})
+            # Each method of a path is its own route (and a router's routes are behind
+            # it): Allow lists the methods some route takes at this path.
+            allowed = [method for method in METHODS if any(
+                route.matches({**request.scope, "method": method})[0] is Match.FULL
+                for route in app.routes)]
             headers["Allow"] = ", ".join(allowed)
-            message = f"this route takes {' or '.join(allowed)}"
+            message = f"this route takes {' or '.join(allowed) or 'no method'}"
         return answer(error.status_code, message, headers)
 
     async def invalid(_request: Request, error: Exception) -> Response:

@@ -66,6 +66,17 @@ class Hangar:
             for vid in wanted:
                 self._holders[vid] = run_id
 
+    def claim_free(self, run_id: str, every: bool = False) -> list[int]:
+        """Give ``run_id`` the first free vehicle (``every``: every free one), chosen and
+        taken at once, so that two runs asking at the same time never pick the same one;
+        the vehicles taken (none when every vehicle is held)."""
+        with self._lock:
+            free = [vid for vid in sorted(self.vehicles) if vid not in self._holders]
+            chosen = free if every else free[:1]
+            for vid in chosen:
+                self._holders[vid] = run_id
+            return chosen
+
     def release(self, run_id: str) -> None:
         """Free the vehicles ``run_id`` holds."""
         with self._lock:

@@ -16,10 +16,17 @@ When the runner returns, the run's outcome is stored (``completed``, ``aborted``
 ``failed`` from its exit code), then the log is closed (the streams end), and only then
 are its vehicles released: a client that saw the stream end finds the run ended, and a
 vehicle is never given to a second run while the first still commands it.
+
+*A database that fails* (full, gone) during the flight ends the run as any exception of
+the runner does: ``failed``, its vehicles sent to their safe state. Its lines not stored
+are kept, and so is its outcome when that cannot be stored either (:attr:`LiveRun.saved`
+is False): the run still ends -- its streams end, its vehicles are released -- and the
+service stores it later (:meth:`LiveRun.save`), once the database takes writes again.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import threading
 import time
@@ -34,7 +41,7 @@ from tml.language.model import Mission
 from tml.run.journal import Journal
 from tml.run.runner import Outcome, Runner, RunOptions
 from tml.serve.hangar import Hangar
-from tml.serve.storage import Storage, StoredRun
+from tml.serve.storage import Storage, StoredRun, failure
 from tml.vehicle import IdSource
 
 STORE_PERIOD = 0.5  # s between two writes of a run's new log lines to the database
@@ -86,6 +93,7 @@ class RunLog:
         self._last_store = time.monotonic()
         self._listeners: list[Listener] = []
         self._lock = threading.Lock()
+        self._store_lock = threading.Lock()
 
     def write(self, text: str) -> int:
         """Take text from the journal (whole lines, as it writes them)."""
@@ -102,14 +110,21 @@ class RunLog:
             self._store()
 
     def close(self) -> None:
-        """Store what is left and end every listener's stream."""
+        """Store what is left and end every listener's stream (ended even when the store
+        fails: its error is raised after)."""
+        try:
+            self._store()
+        finally:
+            with self._lock:
+                self.closed = True
+                listeners = list(self._listeners)
+                self._listeners.clear()
+            for listener in listeners:
+                listener(len(self.lines), None)
+
+    def store(self) -> None:
+        """Store the lines not stored yet (raises what the database raises)."""
         self._store()
-        with self._lock:
-            self.closed = True
-            listeners = list(self._listeners)
-            self._listeners.clear()
-        for listener in listeners:
-            listener(len(self.lines), None)
 
     def listen(self, after: int, listener: Listener) -> tuple[list[tuple[int, str]], bool]:
         """The lines numbered above ``after``, and whether the log is still open; while it
@@ -139,11 +154,13 @@ class RunLog:
             listener(seq, line)
 
     def _store(self) -> None:
-        with self._lock:
-            new = self.lines[self._stored:]
-            self._stored = len(self.lines)
-        self._last_store = time.monotonic()
-        self.storage.add_lines(self.run_id, new)
+        with self._store_lock:  # one store at a time: the run's thread, or a retry
+            with self._lock:
+                new = self.lines[self._stored:]
+            self._last_store = time.monotonic()
+            self.storage.add_lines(self.run_id, new)  # all or nothing: kept until stored
+            with self._lock:
+                self._stored += len(new)
 
 
 class LiveRun:
@@ -164,6 +181,7 @@ class LiveRun:
         self.outcomes: list[dict[str, Any]] = []
         self.exit_code: int | None = None
         self.ended_at: float | None = None
+        self.saved = False  # the outcome and every log line are in the database
         self.on_end = on_end
         self.board = TaskBoard(mission, record.vehicles)
         self.log = RunLog(record.id, storage, self.board, self._seen)
@@ -200,8 +218,22 @@ class LiveRun:
 
     @property
     def ended(self) -> bool:
-        """True once the runner has returned and the outcome is stored."""
+        """True once the runner has returned (its outcome stored, or :attr:`saved` False)."""
         return self.exit_code is not None
+
+    def save(self) -> bool:
+        """Store the ended run's outcome and the log lines not stored yet; whether they
+        are stored now."""
+        if not self.saved:
+            try:
+                self.storage.update_run(self.id, status=self.status, reason=self.reason,
+                                        outcomes=self.outcomes,
+                                        exit_code=self.exit_code, ended=self.ended_at)
+                self.log.store()
+            except Exception:  # still unwritable: tried again later
+                return False
+            self.saved = True
+        return True
 
     def _seen(self, record: dict[str, Any]) -> None:
         if record.get("kind") == "mission" and self.status == "waiting":
@@ -218,23 +250,26 @@ class LiveRun:
             status = STATUS_OF_EXIT[outcome.exit_code]
             exit_code = int(outcome.exit_code)
             self.reason = _reason(outcome)
-        except Exception as error:  # a broken vehicle adapter: leave the vehicles safe
-            self.reason = f"service error: {error!r}"
-            self.runner.journal.write(self.hangar.clock(), "error", None, message=self.reason,
-                                      traceback=traceback.format_exc())
+        except Exception as error:  # a broken vehicle adapter, a failed database write
+            self.reason = f"service error: {failure(error)}"
+            with contextlib.suppress(Exception):  # the log's database may be what failed
+                self.runner.journal.write(self.hangar.clock(), "error", None,
+                                          message=self.reason,
+                                          traceback=traceback.format_exc())
             self._safe_state(self.reason)
             status, exit_code = "failed", int(ExitCode.FAILURE)
         self.ended_at = time.time()
-        try:
-            self._set_status(status, reason=self.reason, outcomes=self.outcomes,
-                             exit_code=exit_code, ended=self.ended_at)
-        finally:  # whatever the database says, the run is over: free its vehicles
-            self.exit_code = exit_code
+        self.status = status
+        # Whatever the database says, the run is over: its streams end, its vehicles are
+        # free (an outcome not stored is stored later: save).
+        self.exit_code = exit_code
+        self.save()
+        with contextlib.suppress(Exception):
             self.log.close()
-            self.hangar.unsubscribe(self.wake)
-            self.hangar.release(self.id)
-            if self.on_end is not None:
-                self.on_end(self)
+        self.hangar.unsubscribe(self.wake)
+        self.hangar.release(self.id)
+        if self.on_end is not None:
+            self.on_end(self)
 
     def _safe_state(self, reason: str) -> None:
         """The engine's safe state, sent from here when the runner itself failed."""

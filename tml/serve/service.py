@@ -21,6 +21,11 @@ the whole mission, as with ``tml run --vehicles N``; with roles the run's vehicl
 the ones its roles pick from. A run asked for without vehicles takes the first free one
 (a mission with roles: every free one).
 
+*A run whose end could not be stored* (the database full or gone) has ended all the same:
+its vehicles are free and its stream has ended. The service keeps it (its outcome, its
+log) and shows it as it ended until the database takes it; each later write request
+(an upload, a start, a delete) tries to store it first.
+
 *Stopping.* :meth:`Service.stop` aborts every live run (each vehicle to its safe state,
 as Ctrl-C does to ``tml run``) and waits for the runs to end. A run that was flying when
 the service died is marked ``interrupted`` by :meth:`Service.start`.
@@ -28,14 +33,18 @@ the service died is marked ``interrupted`` by :meth:`Service.start`.
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import functools
 import json
 import math
 import secrets
 import threading
 import time
-from collections.abc import Iterator, Mapping, Sequence
+from collections import OrderedDict
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar, cast
 
 from tml.engine.resume import Progress, progress
 from tml.errors import ControlRefused, TmlError
@@ -54,7 +63,43 @@ from tml.verify.report import report_document
 from tml.verify.static import verify_mission
 from tml.world import Cylinder, World
 
+F = TypeVar("F", bound=Callable[..., Any])
 SAFE_STATES = ("rtl", "land", "hold")
+KEPT_SOURCE = 64 * 1024  # characters of the largest mission kept parsed between requests
+KEPT_MISSIONS = 64  # how many are kept
+TRIM_ABOVE = 256 * 1024  # bytes of a mission whose parsing is followed by a heap trim
+_parsed_large = threading.local()  # .seen: this thread parsed a large mission (_validate)
+
+
+def _validate(filename: str, data: bytes) -> Any:
+    """:func:`validate_file`, noting a large mission for :func:`_gives_memory_back`."""
+    if len(data) > TRIM_ABOVE:
+        _parsed_large.seen = True
+    return validate_file(filename, data)
+
+
+def _gives_memory_back(method: F) -> F:
+    """A service call after which, when it parsed a large mission, the C heap's free
+    memory is given back to the system: the parser's and the model's memory is freed
+    when the call returns, but glibc keeps it unless asked (without this a service that
+    took six 4 MB missions stays 150 MB larger after they are deleted)."""
+    @functools.wraps(method)
+    def call(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return method(*args, **kwargs)
+        finally:
+            if getattr(_parsed_large, "seen", False):
+                _parsed_large.seen = False
+                _trim()
+
+    return cast(F, call)
+
+
+def _trim() -> None:
+    """glibc's malloc_trim: free memory at the top and inside the heap back to the system
+    (nothing elsewhere)."""
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL(None).malloc_trim(0)
 
 
 class RequestError(TmlError):
@@ -111,7 +156,8 @@ class Service:
         # the last run's plan never has it taken for the next run's.
         self.ids = IdSource()
         self._live: dict[str, LiveRun] = {}
-        self._parsed: dict[str, Mission] = {}
+        self._unsaved: dict[str, LiveRun] = {}  # ended, not stored yet (module docstring)
+        self._parsed: OrderedDict[str, Mission] = OrderedDict()  # small ones: _parse
         self._lock = threading.Lock()
 
     # --- life ----------------------------------------------------------------------------
@@ -141,10 +187,12 @@ class Service:
 
     # --- missions ------------------------------------------------------------------------
 
+    @_gives_memory_back
     def upload(self, filename: str, data: bytes) -> dict[str, Any]:
         """Validate and keep a mission; Refused with the diagnostics when it is invalid."""
+        self.save_ended()
         filename = filename or "mission.xml"
-        result = validate_file(filename, data)
+        result = _validate(filename, data)
         diagnostics = [d.to_dict() for d in result.diagnostics]
         if result.errors or result.mission is None:
             raise Refused(f"{filename}: invalid mission ({len(result.errors)} error(s))",
@@ -152,14 +200,14 @@ class Service:
         stored = StoredMission(secrets.token_hex(6), result.mission.name, filename,
                                result.source, time.time(), diagnostics)
         self.storage.add_mission(stored)
-        with self._lock:
-            self._parsed[stored.id] = result.mission
+        self._keep(stored.id, result.mission, len(stored.source))
         return self._mission_summary(stored)
 
     def missions(self) -> list[dict[str, Any]]:
         """Every stored mission, summed up."""
         return [self._mission_summary(m) for m in self.storage.missions()]
 
+    @_gives_memory_back
     def mission(self, mission_id: str) -> dict[str, Any]:
         """A mission: its summary, task tree, roles and world."""
         stored = self._stored_mission(mission_id)
@@ -170,17 +218,20 @@ class Service:
         """A mission's XML text as it was uploaded."""
         return self._stored_mission(mission_id).source
 
+    @_gives_memory_back
     def delete_mission(self, mission_id: str) -> None:
         """Forget a mission (its past runs stay); Conflict while a run flies it."""
         with self._lock:
             flying = [r.id for r in self._live.values() if r.record.mission_id == mission_id]
         if flying:
             raise Conflict(f"mission {mission_id} is flying in run {flying[0]}")
+        self.save_ended()
         if not self.storage.delete_mission(mission_id):
             raise NotFound(f"no mission {mission_id}")
         with self._lock:
             self._parsed.pop(mission_id, None)
 
+    @_gives_memory_back
     def verify(self, mission_id: str, profile: str = "quadcopter",
                battery: float = 100.0) -> dict[str, Any]:
         """The ``tml verify`` report of a mission (its JSON form)."""
@@ -193,38 +244,48 @@ class Service:
 
     # --- runs ----------------------------------------------------------------------------
 
+    @_gives_memory_back
     def start_run(self, mission_id: str, vehicles: Sequence[int] | None = None, *,
                   safe_state: str = "rtl", profile: str = "quadcopter",
                   force: bool = False) -> dict[str, Any]:
         """Start flying a mission; the run as :meth:`run` shows it."""
+        self.save_ended()
         stored = self._stored_mission(mission_id)
         mission = self._parse(stored.id, stored.filename, stored.source)
         if safe_state not in SAFE_STATES:
             raise Refused(f"safe_state {safe_state!r}: expected one of {', '.join(SAFE_STATES)}")
-        chosen = self._choose(mission, vehicles)
-        checked = _profile(profile)
-        report = verify_mission(mission, checked)
-        if not report.feasible and not force:
-            raise Refused(f"{stored.filename}: infeasible mission, not flown (force flies it "
-                          "anyway)", report=report_document(report))
-        kinds = {vid: self.hangar.vehicles[vid].state().vehicle_type for vid in chosen}
-        cannot = preflight(mission, kinds)
-        if cannot and not force:
-            raise Refused(f"{stored.filename}: the vehicles cannot do every action of the "
-                          "mission, not flown (force flies it anyway)",
-                          violations=[v.to_dict() for v in cannot])
-        record = StoredRun(secrets.token_hex(6), stored.id, stored.name, stored.source,
-                           list(chosen), "waiting", "", [], None, self.options.instance,
-                           {"safe_state": safe_state, "profile": profile, "force": force},
-                           time.time(), None)
-        return self._launch(record, mission, checked)
+        run_id = secrets.token_hex(6)
+        chosen = self._choose(mission, vehicles, run_id)
+        try:
+            checked = _profile(profile)
+            report = verify_mission(mission, checked)
+            if not report.feasible and not force:
+                raise Refused(f"{stored.filename}: infeasible mission, not flown (force "
+                              "flies it anyway)", report=report_document(report))
+            kinds = {vid: self.hangar.vehicles[vid].state().vehicle_type for vid in chosen}
+            cannot = preflight(mission, kinds)
+            if cannot and not force:
+                raise Refused(f"{stored.filename}: the vehicles cannot do every action of "
+                              "the mission, not flown (force flies it anyway)",
+                              violations=[v.to_dict() for v in cannot])
+            record = StoredRun(run_id, stored.id, stored.name, stored.source, list(chosen),
+                               "waiting", "", [], None, self.options.instance,
+                               {"safe_state": safe_state, "profile": profile,
+                                "force": force}, time.time(), None)
+            return self._launch(record, mission, checked, claimed=not vehicles)
+        except BaseException:
+            if not vehicles:  # the vehicles chosen for it were taken for it: free them
+                self.hangar.release(run_id)
+            raise
 
+    @_gives_memory_back
     def continue_run(self, run_id: str) -> dict[str, Any]:
         """Go on with a run the service was flying when it died (``interrupted``), as
         ``tml run --resume`` does from its log: a new run on the same vehicles, whose
         mission goes on where the stored log stood (:mod:`tml.engine.resume`). Refused
         (422) for a run that was not interrupted, was continued already, or has roles; 409
         when a vehicle is held."""
+        self.save_ended()
         stored = self._stored_run(run_id)
         if stored.status != "interrupted":
             raise Refused(f"run {run_id} is {stored.status}: only an interrupted run can be "
@@ -250,12 +311,16 @@ class Service:
                             found)
 
     def _launch(self, record: StoredRun, mission: Mission, checked: Any,
-                resume: Mapping[int, Progress] | None = None) -> dict[str, Any]:
-        """Hold the run's vehicles, store it and start flying it."""
-        try:
-            self.hangar.claim(record.vehicles, record.id)
-        except VehicleTaken as taken:
-            raise Conflict(str(taken), vehicle=taken.vehicle_id, run=taken.run_id) from None
+                resume: Mapping[int, Progress] | None = None,
+                claimed: bool = False) -> dict[str, Any]:
+        """Hold the run's vehicles (unless ``claimed`` already), store it and start flying
+        it."""
+        if not claimed:
+            try:
+                self.hangar.claim(record.vehicles, record.id)
+            except VehicleTaken as taken:
+                raise Conflict(str(taken), vehicle=taken.vehicle_id,
+                               run=taken.run_id) from None
         world = mission.world or World()
         options = checked_options(checked, world,
                                   safe_state=str(record.options.get("safe_state", "rtl")),
@@ -277,6 +342,7 @@ class Service:
         """Every run, summed up, the oldest first."""
         return [self._run_summary(r) for r in self.storage.runs()]
 
+    @_gives_memory_back
     def run(self, run_id: str) -> dict[str, Any]:
         """A run: status, outcome, exit code, every task's state per vehicle."""
         live = self.live(run_id)
@@ -286,10 +352,22 @@ class Service:
         stored = self._stored_run(run_id)
         mission = self._parse(f"run {stored.id}", "mission.xml", stored.mission_source)
         board = TaskBoard(mission, stored.vehicles)
+        safety: list[str] = []
         for _seq, line in self.storage.lines(run_id):
             if '"kind":"task"' in line or '"kind":"mission"' in line:
                 board.see(json.loads(line))
-        return {**self._run_summary(stored), "tasks": board.snapshot(), "safety": []}
+            elif '"kind":"safety"' in line or '"kind":"taken"' in line:
+                safety.append(_safety_said(json.loads(line)))
+        return {**self._run_summary(stored), "tasks": board.snapshot(), "safety": safety}
+
+    def save_ended(self) -> None:
+        """Store the ended runs the database could not take when they ended."""
+        with self._lock:
+            waiting = list(self._unsaved.values())
+        for run in waiting:
+            if run.save():
+                with self._lock:
+                    self._unsaved.pop(run.id, None)
 
     def abort(self, run_id: str) -> dict[str, Any]:
         """Abort a live run: every vehicle to its safe state."""
@@ -311,9 +389,10 @@ class Service:
         return self.run(run_id)
 
     def live(self, run_id: str) -> LiveRun | None:
-        """The run if it is flying (or about to), else None."""
+        """The run if it is flying (or about to), or has ended and is not stored yet; else
+        None."""
         with self._lock:
-            return self._live.get(run_id)
+            return self._live.get(run_id) or self._unsaved.get(run_id)
 
     def log(self, run_id: str) -> Iterator[str]:
         """A run's flight log, line by line (the lines of ``tml run --log``)."""
@@ -348,7 +427,10 @@ class Service:
 
     # --- helpers -------------------------------------------------------------------------
 
-    def _choose(self, mission: Mission, vehicles: Sequence[int] | None) -> list[int]:
+    def _choose(self, mission: Mission, vehicles: Sequence[int] | None,
+                run_id: str) -> list[int]:
+        """The vehicles named, or (none named) the free ones the run takes, held for
+        ``run_id`` at once."""
         if vehicles:
             chosen = list(dict.fromkeys(vehicles))
             unknown = [v for v in chosen if v not in self.hangar.vehicles]
@@ -356,27 +438,42 @@ class Service:
                 raise Refused(f"no vehicle {unknown[0]} (vehicles: "
                               f"{', '.join(map(str, sorted(self.hangar.vehicles)))})")
             return chosen
-        free = self.hangar.free()
+        free = self.hangar.claim_free(run_id, every=bool(mission.roles))
         if not free:
             raise Conflict("every vehicle is held by a run")
-        return free if mission.roles else free[:1]
+        return free
 
     def _ended(self, run: LiveRun) -> None:
         with self._lock:
             self._live.pop(run.id, None)
+            if not run.saved:
+                self._unsaved[run.id] = run
 
     def _parse(self, key: str, filename: str, source: str) -> Mission:
+        """The mission of a stored text: parsed again, unless it is small and was parsed
+        lately (a large one is not kept: a stored mission is its text in the database)."""
         with self._lock:
             found = self._parsed.get(key)
+            if found is not None:
+                self._parsed.move_to_end(key)
         if found is None:
-            result = validate_file(filename, source.encode("utf-8"))
+            result = _validate(filename, source.encode("utf-8"))
             if result.mission is None:  # stored valid: only a change of the rules does this
                 raise Conflict(f"{filename} is no longer valid: "
                                + "; ".join(d.message for d in result.errors[:3]))
             found = result.mission
-            with self._lock:
-                self._parsed[key] = found
+            self._keep(key, found, len(source))
         return found
+
+    def _keep(self, key: str, mission: Mission, size: int) -> None:
+        """Keep a small mission parsed, the last ``KEPT_MISSIONS`` of them."""
+        if size > KEPT_SOURCE:
+            return
+        with self._lock:
+            self._parsed[key] = mission
+            self._parsed.move_to_end(key)
+            while len(self._parsed) > KEPT_MISSIONS:
+                self._parsed.popitem(last=False)
 
     def _stored_mission(self, mission_id: str) -> StoredMission:
         found = self.storage.mission(mission_id)
@@ -392,6 +489,8 @@ class Service:
 
     def _live_run(self, run_id: str) -> LiveRun:
         live = self.live(run_id)
+        if live is not None and live.ended:
+            raise Conflict(f"run {run_id} has ended ({live.status})", run_status=live.status)
         if live is None:
             stored = self._stored_run(run_id)
             if stored.instance != self.options.instance and stored.status in ACTIVE:
@@ -418,6 +517,16 @@ class Service:
                 "instance": stored.instance, "options": stored.options,
                 "created": stored.created,
                 "ended": stored.ended if live is None else live.ended_at}
+
+
+def _safety_said(record: Mapping[str, Any]) -> str:
+    """What a ``safety`` or ``taken`` line of a flight log says was done, as a live run
+    says it: "vehicle 1: RTL (aborted by the operator)"."""
+    message = str(record.get("message", ""))
+    vehicle = record.get("vehicle")
+    if vehicle is None or message.startswith(f"vehicle {vehicle} "):
+        return message
+    return f"vehicle {vehicle}: {message}"
 
 
 def _profile(name: str) -> Any:

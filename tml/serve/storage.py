@@ -241,6 +241,14 @@ class Storage:
             yield from ((row.seq, row.line) for row in rows)
 
 
+def failure(error: BaseException) -> str:
+    """An error in one line: a database's own message without SQLAlchemy's wrapping
+    ("the database failed: database or disk is full"), else its repr."""
+    if isinstance(error, sa.exc.SQLAlchemyError):
+        return f"the database failed: {_first_line(error)}"
+    return repr(error)
+
+
 def _mission(row: Any) -> StoredMission:
     return StoredMission(row.id, row.name, row.filename, row.source, row.uploaded,
                          json.loads(row.warnings))

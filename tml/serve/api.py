@@ -9,11 +9,17 @@ from the route declarations and the models below. docs/serve.md shows every rout
 curl.
 
 *Errors* are JSON, never a traceback: ``{"error": "what went wrong", ...}`` with the
-status that says whose fault it is (400 a bad request, 401 no or a wrong token, 404 no
-such thing, 409 a conflict with what is going on, 413 too large, 415 a body of another
-type, 422 a valid request the service refuses, with the diagnostics or the report that
-say why, 503 the database is unreachable). An unexpected exception is logged here with
-its traceback and answered 500 with its one-line text.
+status that says whose fault it is (400 a bad request or a host name the service does not
+answer to, 401 no or a wrong token, 403 a write from another site's page, 404 no such
+thing, 405 a method the route does not take (with ``Allow``), 409 a conflict with what is
+going on, 413 a body over ``--max-body``, 415 a body of another type, 422 a valid request
+the service refuses, with the diagnostics or the report that say why, 503 the database is
+unreachable). An unexpected exception is logged here with its traceback and answered 500
+with its one-line text.
+
+*Browsers* (:mod:`tml.serve.guard`, in front of every route): a Host allow-list against
+DNS rebinding, an Origin check and JSON-only bodies on writes against other sites' pages,
+the body size limit, and the security headers of every answer.
 
 *Auth.* With a token, every API route needs ``Authorization: Bearer TOKEN`` (compared in
 constant time). The page's files and the OpenAPI document hold no data and are served to

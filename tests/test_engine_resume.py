@@ -273,3 +273,27 @@ def test_only_a_mission_without_roles_can_be_resumed() -> None:
     with pytest.raises(EngineError, match="without roles"):
         engine.start(0.0, {1: FakeVehicle().state(), 2: FakeVehicle(vehicle_id=2).state()},
                      Progress(started=True))
+
+
+LANDING = ('<mission name="Landing">\n'
+           + task("Take off", "TAKE_OFF", '<argument name="altitude" value="5"/>')
+           + task("Land there", "LANDING_POINT", go_to("(6, 0, 5)"))
+           + "</mission>\n")
+
+
+def test_a_vehicle_that_landed_during_landing_point_ends_it_done_when_resumed() -> None:
+    alone_log = io.StringIO()
+    alone = Station(FakeVehicle(), alone_log, 0.0, text=LANDING).fly()
+    assert alone.engine.status is Status.COMPLETED
+    landing = min(line["t"] for line in lines(alone_log)  # over the point, told to land
+                  if line["kind"] == "request" and line["message"] == "Land")
+    for steps in range(int(landing * 10) + 1, int(alone.time * 10), 7):
+        vehicle, log = FakeVehicle(), io.StringIO()
+        first = Station(vehicle, log, 0.0, text=LANDING).fly(steps)
+        vehicle.advance(60.0)  # nobody watches: it lands where it was told, and disarms
+        assert not vehicle.state().flying, steps
+        found = progress(lines(log), 1)
+        second = Station(vehicle, log, first.time + 60.0, found, found.last_id + 1,
+                         text=LANDING).fly()
+        assert second.engine.status is Status.COMPLETED, (steps, second.engine.reason)
+        assert ends(log) == ends(alone_log), steps

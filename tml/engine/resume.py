@@ -15,9 +15,10 @@ run, so that its time limit goes on; a repeat or loop goes on from the round it 
 a task that had failed while its ``on_error`` tasks ran goes on with them.
 The work of the running task is started again, and its scripts judge from the vehicle's
 state what is left: TAKE_OFF is ignored by a vehicle already flying, LAND by one already
-down, a GO_TO flies to its target from where the vehicle is. A ``dispatch="mission"`` task
-whose plan was sent and that the vehicle still flies in AUTO is followed where the
-autopilot is (its plan is not sent again), the items already flown not said again.
+down (LANDING_POINT by one down at its point), a GO_TO flies to its target from where
+the vehicle is. A ``dispatch="mission"`` task whose plan was sent and that the vehicle
+still flies in AUTO is followed where the autopilot is (its plan is not sent again), the
+items already flown not said again.
 
 Rounds: a repeat's round record (``repeat N of M``) and a task that starts running again
 (a later round, a jump back) forget what ended below it in the round before. A record the

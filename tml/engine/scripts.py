@@ -615,11 +615,16 @@ def loiter(ctx: Context, bound: BoundAction) -> Script:
 
 
 def landing_point(ctx: Context, bound: BoundAction) -> Script:
-    """Fly over the landing point, face the yaw if given, and land."""
-    here = _require_flying(ctx, "LANDING_POINT")
+    """Fly over the landing point, face the yaw if given, and land; nothing when the
+    vehicle is down there already (a run resumed after it landed, as LAND)."""
     point = _point(ctx, bound, "coordinates")
     if point is None:
         point = _local(ctx, bound)
+    if not ctx.state.flying and _kind(ctx) is not Kind.GROUND and \
+            math.dist(_position(ctx)[:2], point[:2]) <= 2 * _tolerances(ctx)[0]:
+        ctx.note("LANDING_POINT: the vehicle is already down at the landing point")
+        return
+    here = _require_flying(ctx, "LANDING_POINT")
     yaw = bound.number("yaw", None)
     precision = bound.choice("precision_mode") != "disabled"
     if _kind(ctx) is Kind.FIXED_WING:

@@ -324,3 +324,19 @@ def test_values_an_action_refuses_are_kept_as_raw_items(tmp_path: Path) -> None:
                        "6\t0\t0\t211\t1\t0\t0\t0\t0\t0\t0\t1\n"
                        "7\t0\t3\t21\t630\t0\t0\t1\t-35.36\t149.16\t0\t1\n")
     _round_trip(read_wpl(text), tmp_path)
+
+
+def test_zones_far_from_home_come_back_where_they_were(tmp_path: Path) -> None:
+    # Through the local frame a circle 35 km from home came back 0.7 m off.
+    document = {"fileType": "Plan", "mission": {
+        "plannedHomePosition": [38.7508357856351, -77.496978971791, 30], "items": [
+            {"type": "SimpleItem", "command": 22, "frame": 3, "params": [0, 0, 0, 0, 0, 0, 10]}]},
+        "geoFence": {"polygons": [{"inclusion": True, "polygon": [
+            [38.7507608625056, -77.49735908548331], [38.75094024382851, -77.49709285710168],
+            [38.75073132744176, -77.49686508648041]]}],
+            "circles": [{"inclusion": False, "circle": {"center": [38.9, -77.1],
+                                                        "radius": 50.5}}]}}
+    plan = read_plan(json.dumps(document))
+    back = read_plan(write_plan(_round_trip(plan, tmp_path)))
+    assert [(z.inclusion, z.points, z.radius) for z in back.zones] == [
+        (z.inclusion, z.points, z.radius) for z in plan.zones]

@@ -39,6 +39,9 @@ class Geofence:
     min_altitude: float | None = None
     max_altitude: float | None = None
     location: Location | None = None
+    # The corners (a cylinder: the centre) in latitude and longitude as written, when they
+    # were: a plan file gets them back exactly, not through the local frame.
+    written: tuple[tuple[float, float], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -52,6 +55,9 @@ class Cylinder:
     bottom: float = 0.0
     top: float = float("inf")
     location: Location | None = None
+    # The corners (a cylinder: the centre) in latitude and longitude as written, when they
+    # were: a plan file gets them back exactly, not through the local frame.
+    written: tuple[tuple[float, float], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -63,6 +69,9 @@ class Prism:
     bottom: float = 0.0
     top: float = float("inf")
     location: Location | None = None
+    # The corners (a cylinder: the centre) in latitude and longitude as written, when they
+    # were: a plan file gets them back exactly, not through the local frame.
+    written: tuple[tuple[float, float], ...] = ()
 
 
 Obstacle = Cylinder | Prism

@@ -15,6 +15,7 @@ own, the schema's saying it already.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from enum import StrEnum
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
@@ -381,7 +382,8 @@ class _Builder:
                 self.diagnostics.append(error(
                     self.loc(f, "min_altitude"), "E253",
                     f"min_altitude {low:g} m is not below max_altitude {high:g} m"))
-            geofence = Geofence(polygon, low, high, self.loc(f))
+            geofence = Geofence(polygon, low, high, self.loc(f),
+                                self.written(self.children(f, "point")))
         obstacles: list[Cylinder | Prism] = []
         objects: list[WorldObject] = []
         for child in element:
@@ -393,13 +395,13 @@ class _Builder:
                     child.get("name", f"cylinder at line {child.sourceline}"), north, east,
                     self.number(child, "radius", Quantity.RADIUS),
                     self.number(child, "bottom", Quantity.ALTITUDE, "0"),
-                    self.top(child), self.loc(child)))
+                    self.top(child), self.loc(child), self.written([child])))
             elif child.tag == "prism":
                 obstacles.append(Prism(
                     child.get("name", f"prism at line {child.sourceline}"),
                     tuple(self.point(p, home) for p in self.children(child, "point")),
                     self.number(child, "bottom", Quantity.ALTITUDE, "0"), self.top(child),
-                    self.loc(child)))
+                    self.loc(child), self.written(self.children(child, "point"))))
             elif child.tag == "object":
                 north, east = self.point(child, home)
                 objects.append(WorldObject(
@@ -423,6 +425,18 @@ class _Builder:
                 self.loc(element, "top"), "E253",
                 f"top {top:g} m is not above bottom {bottom:g} m"))
         return top
+
+    def written(self, elements: Iterable[etree._Element]) -> tuple[tuple[float, float], ...]:
+        """The latitudes and longitudes of ``elements`` as written, when every one is given
+        so (else ``()``: the positions are the local ones)."""
+        found = []
+        for element in elements:
+            try:
+                found.append((float(element.get("latitude", "")),
+                              float(element.get("longitude", ""))))
+            except ValueError:
+                return ()
+        return tuple(found)
 
     def point(self, element: etree._Element, home: Home | None) -> tuple[float, float]:
         local = element.get("north") is not None or element.get("east") is not None

@@ -120,16 +120,16 @@ def write_plan(plan: Plan) -> str:
     circles: list[dict[str, Any]] = []
     fence = plan.world.geofence
     if fence is not None and fence.polygon:
-        polygons.append({"inclusion": True, "version": 1, "polygon": [
-            list(local_to_global(home, n, e)[:2]) for n, e in fence.polygon]})
+        polygons.append({"inclusion": True, "version": 1,
+                         "polygon": _corners(home, fence.polygon, fence.written)})
     for obstacle in plan.world.obstacles:
         if isinstance(obstacle, Cylinder):
-            centre = local_to_global(home, obstacle.north, obstacle.east)
+            centre, = _corners(home, ((obstacle.north, obstacle.east),), obstacle.written)
             circles.append({"inclusion": False, "version": 1, "circle": {
-                "center": list(centre[:2]), "radius": obstacle.radius}})
+                "center": centre, "radius": obstacle.radius}})
         elif isinstance(obstacle, Prism):
-            polygons.append({"inclusion": False, "version": 1, "polygon": [
-                list(local_to_global(home, n, e)[:2]) for n, e in obstacle.polygon]})
+            polygons.append({"inclusion": False, "version": 1,
+                             "polygon": _corners(home, obstacle.polygon, obstacle.written)})
     document = {
         "fileType": "Plan", "version": 1, "groundStation": "tml",
         "mission": {
@@ -142,6 +142,15 @@ def write_plan(plan: Plan) -> str:
         "rallyPoints": {"version": 2, "points": []},
     }
     return json.dumps(document, indent=4) + "\n"
+
+
+def _corners(home: Home, local: tuple[tuple[float, float], ...],
+             written: tuple[tuple[float, float], ...]) -> list[list[float]]:
+    """Latitude and longitude of each corner: as written in the mission when it was
+    written so (exact), else from the local corners."""
+    if written and len(written) == len(local):
+        return [list(corner) for corner in written]
+    return [list(local_to_global(home, n, e)[:2]) for n, e in local]
 
 
 def read_plan(text: str, name: str = "plan") -> PlanFile:

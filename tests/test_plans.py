@@ -293,7 +293,7 @@ def test_items_are_counted_from_1_in_messages() -> None:
 
 
 def test_what_has_no_tml_form_is_a_loss_naming_its_item() -> None:
-    document = {"fileType": "Plan", "mission": {"items": [
+    document = {"fileType": "Plan", "mission": {"plannedHomePosition": [1.5, 1.5, 0], "items": [
         {"type": "SimpleItem", "command": 22, "frame": 3, "params": [0, 0, 0, 0, 0, 0, 10]},
         {"type": "ComplexItem", "complexItemType": "StructureScan"},
         {"type": "SimpleItem", "command": 183, "frame": 2, "params": [9, 1500, 0, 0, 0.5, 0, 0]}
@@ -340,3 +340,14 @@ def test_zones_far_from_home_come_back_where_they_were(tmp_path: Path) -> None:
     back = read_plan(write_plan(_round_trip(plan, tmp_path)))
     assert [(z.inclusion, z.points, z.radius) for z in back.zones] == [
         (z.inclusion, z.points, z.radius) for z in plan.zones]
+
+
+def test_a_fence_without_a_home_is_a_loss() -> None:
+    document = {"fileType": "Plan", "mission": {"items": [
+        {"type": "SimpleItem", "command": 22, "frame": 3, "params": [0, 0, 0, 0, 0, 0, 10]}]},
+        "geoFence": {"circles": [{"inclusion": False, "circle": {"center": [38.9, -77.1],
+                                                                 "radius": 50}}]}}
+    imported = import_plan(read_plan(json.dumps(document)), "homeless")
+    assert imported.losses == ("1 fence zone(s): a mission places latitudes and longitudes "
+                               "from its home, and the file gives none: left out",)
+    assert validate_file("homeless.xml", imported.text.encode()).valid()

@@ -336,7 +336,11 @@ def import_plan(plan: PlanFile, name: str) -> Imported:
 def _environment(root: etree._Element, plan: PlanFile, losses: list[str]) -> None:
     if plan.rally:
         losses.append(f"{len(plan.rally)} rally point(s) have no TML form: left out")
-    if plan.home is None and not plan.zones:
+    if plan.home is None and plan.zones:
+        losses.append(f"{len(plan.zones)} fence zone(s): a mission places latitudes and "
+                      "longitudes from its home, and the file gives none: left out")
+        return
+    if plan.home is None:
         return
     environment = etree.SubElement(root, "environment")
     if plan.home is not None:

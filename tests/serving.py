@@ -171,20 +171,23 @@ def postgresql() -> Iterator[str]:
 
 
 def interrupted_run(storage: Any, fake: FakeVehicle, mission_id: str,
-                    run_id: str = "01d01d01d01d") -> str:
-    """A run of SHORT that a service was flying on ``fake`` when it died on the leg out: its
-    log in ``storage`` as the service stored it, marked ``interrupted``, and the vehicle
-    left flying. The run's id."""
+                    run_id: str = "01d01d01d01d", source: bytes = SHORT,
+                    until: Callable[[FakeVehicle], bool] | None = None) -> str:
+    """A run of ``source`` (SHORT) that a service was flying on ``fake`` when it died when
+    ``until(fake)`` held (SHORT: on the leg out): its log in ``storage`` as the service
+    stored it, marked ``interrupted``, and the vehicle left flying. The run's id."""
     from tml.engine import Interpreter
     from tml.language.validation import validate_file
     from tml.run.journal import Journal
     from tml.serve.storage import StoredRun
 
-    engine = Interpreter(validate_file("m.xml", SHORT).mission, [fake.vehicle_id])
+    mission = validate_file("m.xml", source).mission
+    assert mission is not None
+    engine = Interpreter(mission, [fake.vehicle_id])
     sink = io.StringIO()
     journal = Journal(sink)
     now, out = 0.0, engine.start(0.0, {fake.vehicle_id: fake.state()})
-    while fake.position[0] < 10:
+    while not (until or (lambda f: f.position[0] >= 10))(fake):
         for record in out.records:
             journal.write(record.time, record.kind, record.vehicle_id, record.data)
         for request in out.requests:
@@ -193,7 +196,7 @@ def interrupted_run(storage: Any, fake: FakeVehicle, mission_id: str,
         now += 0.1
         out = engine.step(now, {fake.vehicle_id: fake.state()},
                           {fake.vehicle_id: fake.poll()})
-    storage.add_run(StoredRun(run_id, mission_id, "Short hop", SHORT.decode(),
+    storage.add_run(StoredRun(run_id, mission_id, mission.name, source.decode(),
                               [fake.vehicle_id], "interrupted", "the service stopped", [],
                               None, "local", {"safe_state": "rtl", "profile": "quadcopter",
                                               "force": False}, 1.0, 2.0))

@@ -21,7 +21,7 @@ from typing import Any
 import httpx
 import pytest
 import sqlalchemy as sa
-from serving import ROOT, SHORT, Served, free_port
+from serving import ROOT, SHORT, Served, free_port, interrupted_run
 
 from tml.serve import live as live_module
 from tml.serve.guard import POLICY, Guard
@@ -410,3 +410,27 @@ def test_a_busy_port_is_one_line_and_exit_2_before_anything_else(tmp_path: Path)
     assert done.stdout == ""
     assert done.stderr.splitlines() == [
         f"tml serve: cannot serve on 127.0.0.1 port {port}: Address already in use"]
+
+
+LANDING = b"""<mission name="Landing">
+  <task name="Up"><action name="TAKE_OFF"><argument name="altitude" value="10"/></action></task>
+  <task name="There">
+    <action name="LANDING_POINT"><argument name="coordinates" value="(20,0,10)"/></action>
+  </task>
+</mission>
+"""
+
+
+def test_a_run_continued_after_its_vehicle_landed_during_landing_point_is_done(
+        served: Served) -> None:
+    mission = served.upload(LANDING)
+    fake = served.hangar.fakes[0]
+    run_id = interrupted_run(served.storage, fake, mission, source=LANDING,
+                             until=lambda f: f.mode == "LAND")  # over the point, landing
+    while fake.state().flying:  # it lands while no service watches
+        fake.advance(0.1)
+    continued = served.client.post(f"/runs/{run_id}/continue")
+    assert continued.status_code == 201, continued.text
+    ended = served.finish(continued.json()["id"])
+    assert (ended["status"], ended["reason"]) == ("completed", "all tasks done")
+    assert ended["tasks"]["1"] == {"Up": "done", "There": "done"}

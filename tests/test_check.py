@@ -459,3 +459,18 @@ def test_aerostacks_later_format_is_named_as_such() -> None:
     result = run('<task_tree><behavior name="TAKE_OFF"/></task_tree>\n')
     assert codes(result) == ["E008"]
     assert "Aerostack's later mission format" in result.diagnostics[0].message
+
+
+def test_values_an_autopilot_takes_but_look_odd_are_warnings() -> None:
+    def raw(*arguments: tuple[str, str]) -> list[str]:
+        item = _raw(*arguments)
+        return codes(run(TAKE_OFF + f'<task name="p" dispatch="mission"><task name="w">{item}'
+                         '</task></task>\n'))
+
+    yaw = (("command", "CONDITION_YAW"), ("frame", "MISSION"))
+    assert raw(*yaw, ("param1", "640")) == ["W311"]  # ArduCopter's FarOrigin test
+    assert raw(*yaw, ("param1", "350")) == []
+    high = (("command", "NAV_WAYPOINT"), ("frame", "GLOBAL_RELATIVE_ALT"), ("param5", "40.07"),
+            ("param6", "-105.23"))
+    assert raw(*high, ("param7", "11085.9")) == ["W311"]  # a rover's unused altitude
+    assert raw(*high, ("param7", "NaN")) == []

@@ -168,3 +168,13 @@ def test_export_names_what_of_the_world_a_format_cannot_hold(tmp_path: Path, cap
     assert main(["export", DISPATCH, "-o", str(tmp_path / "m.waypoints")]) == 0
     assert "note: the geofence and obstacles are not in a waypoint file" \
         in capsys.readouterr().err
+
+
+def test_import_says_what_looks_odd_of_the_source_item(tmp_path: Path, capsys) -> None:
+    plan = tmp_path / "yaw.waypoints"
+    plan.write_text("QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\t-35.36\t149.16\t584\t1\n"
+                    "1\t0\t3\t22\t0\t0\t0\t0\t0\t0\t20\t1\n"
+                    "2\t0\t0\t115\t640\t20\t1\t1\t0\t0\t0\t1\n")
+    assert main(["import", str(plan), "-o", str(tmp_path / "yaw.xml")]) == 0
+    assert "yaw.waypoints: note: item 2 (line 4): W311 MISSION_ITEM: CONDITION_YAW angle " \
+        "param1 640 deg" in capsys.readouterr().err

@@ -171,6 +171,12 @@ def import_(args: argparse.Namespace) -> ExitCode:
             print(text, file=sys.stderr)
         _say("import", f"{args.plan}: the mission made of it is invalid, not written")
         return ExitCode.INVALID
+    lines = imported.text.splitlines()
+    for diagnostic in result.diagnostics:  # warnings: said of the source item
+        tasks = [line for line in lines[:diagnostic.location.line]
+                 if line.lstrip().startswith('<task name="item ')]
+        where = tasks[-1].split('"')[1].split(":")[0] if tasks else "the mission"
+        _say("import", f"{args.plan}: note: {where}: {diagnostic.code} {diagnostic.message}")
     if not _write("import", args.output, imported.text):
         return ExitCode.USAGE
     raw = f", {imported.raw} of them as MISSION_ITEM" if imported.raw else ""

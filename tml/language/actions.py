@@ -489,6 +489,26 @@ def raw_item_problems(values: Mapping[str, ArgumentValue]) -> list[str]:
     return problems
 
 
+def raw_item_oddities(values: Mapping[str, ArgumentValue]) -> list[str]:
+    """What an autopilot accepts in a raw mission item but looks odd: an altitude beyond
+    the range of altitudes (a rover ignores it; an aircraft would climb to it), a
+    CONDITION_YAW angle beyond a turn (ArduPilot takes it modulo 360)."""
+    odd = []
+    command, z, angle = values.get("command"), values.get("param7"), values.get("param1")
+    frame = table_entry(MAV_FRAME, str(values.get("frame", "")))
+    if str(command).startswith("MAV_CMD_NAV_") and isinstance(z, float | int) \
+            and frame is not None and frame[0] in GLOBAL_FRAME_NUMBERS:
+        why = out_of_range(Quantity.ALTITUDE, z) if math.isfinite(z) else None
+        if why is not None:
+            odd.append(f"altitude param7 {z:g} m: {why}; a ground vehicle ignores it, an "
+                       "aircraft would climb to it")
+    if command == "MAV_CMD_CONDITION_YAW" and isinstance(angle, float | int) \
+            and math.isfinite(angle) and not 0 <= angle <= 360:
+        odd.append(f"CONDITION_YAW angle param1 {angle:g} deg: ArduPilot turns to it modulo "
+                   "360")
+    return odd
+
+
 GLOBAL_FRAME_NUMBERS = frozenset({0, 3, 5, 6, 10, 11})
 """The MAV_FRAMEs whose x and y are latitude and longitude."""
 

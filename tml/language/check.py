@@ -296,7 +296,7 @@ class _Checker:
 
     def check_raw_item(self, action: Action) -> None:
         """E263 for params a raw mission item cannot carry, W309 for a command number
-        MAVLink does not define."""
+        MAVLink does not define, W311 for values an autopilot takes but that look odd."""
         try:
             bound = actions.bind(action)
         except MissionSemanticError:
@@ -309,6 +309,8 @@ class _Checker:
                 action.location, "W309",
                 f"MISSION_ITEM: command {command} is no MAV_CMD of ArduPilot's MAVLink "
                 "dialect: an autopilot that does not know it refuses the upload"))
+        for odd in actions.raw_item_oddities(bound.values):
+            self.found.append(warning(action.location, "W311", f"MISSION_ITEM: {odd}"))
 
     def check_kept_by_autopilot(self, action: Action, spec: actions.ActionSpec,
                                 given: dict[str, str]) -> None:

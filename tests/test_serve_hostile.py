@@ -434,3 +434,49 @@ def test_a_run_continued_after_its_vehicle_landed_during_landing_point_is_done(
     ended = served.finish(continued.json()["id"])
     assert (ended["status"], ended["reason"]) == ("completed", "all tasks done")
     assert ended["tasks"]["1"] == {"Up": "done", "There": "done"}
+
+
+# --- what held, kept ------------------------------------------------------------------------
+
+def test_fifty_starts_on_one_vehicle_at_once_give_it_to_exactly_one(served: Served) -> None:
+    mission = served.upload()
+    gate = threading.Barrier(50)
+    answers: list[int] = []
+
+    def start() -> None:
+        gate.wait()
+        answers.append(served.client.post("/runs", json={"mission": mission,
+                                                         "vehicles": [1]}).status_code)
+
+    threads = [threading.Thread(target=start) for _ in range(50)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(120)
+    assert sorted(answers) == [201] + [409] * 49
+    assert len(served.client.get("/runs").json()) == 1
+
+
+@pytest.mark.parametrize("path", [
+    "/missions/..%2F..%2Fetc%2Fpasswd", "/missions/1%20OR%201=1",
+    "/runs/'%3B%20DROP%20TABLE%20runs", "/page/..%2F..%2Fservice.py", "/page/../api.py",
+    "/missions/%00"])
+def test_traversal_and_sql_looking_ids_find_nothing(served: Served, path: str) -> None:
+    answer = served.client.get(path)
+    assert answer.status_code in (404, 422), (path, answer.status_code)
+    assert "Traceback" not in answer.text and "import" not in answer.text
+
+
+def test_bad_or_missing_credentials_are_all_401(tmp_path: Path) -> None:
+    with Served(tmp_path, token="s3cret") as served:
+        mission = "0" * 12
+        for header in (None, "", "Bearer", "Bearer ", "Bearer s3cre", "Bearer s3cret2",
+                       "Bearer S3CRET", "Basic czNjcmV0", "bearer s3cretx", "Token s3cret"):
+            headers = {} if header is None else {"Authorization": header}
+            for method, path in (("GET", "/status"), ("GET", "/missions"),
+                                 ("POST", "/runs"), ("DELETE", f"/missions/{mission}"),
+                                 ("POST", f"/runs/{mission}/abort")):
+                answer = served.client.request(method, path, headers=headers,
+                                               json={"mission": mission}
+                                               if path == "/runs" else None)
+                assert answer.status_code == 401, (header, method, path)

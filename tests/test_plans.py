@@ -351,3 +351,18 @@ def test_a_fence_without_a_home_is_a_loss() -> None:
     assert imported.losses == ("1 fence zone(s): a mission places latitudes and longitudes "
                                "from its home, and the file gives none: left out",)
     assert validate_file("homeless.xml", imported.text.encode()).valid()
+
+
+def test_a_plans_do_jump_names_its_target_by_doJumpId() -> None:
+    # QGroundControl numbers a DO_JUMP's target by doJumpId and makes it a sequence number
+    # when it uploads; here the ids start at 10.
+    def item(command: int, jump_id: int, p1: float = 0) -> dict:
+        return {"type": "SimpleItem", "command": command, "frame": 2, "doJumpId": jump_id,
+                "params": [p1, 2, 0, 0, 0, 0, 0]}
+
+    document = {"fileType": "Plan", "mission": {"items": [
+        item(22, 10), item(93, 11), item(177, 12, 11), item(177, 13, 99)]}}
+    plan = read_plan(json.dumps(document))
+    assert [i.param1 for i in plan.items] == [0, 0, 2, 99]
+    assert plan.losses == ("item 4: DO_JUMP to doJumpId 99, which no item has: left as "
+                           "written",)

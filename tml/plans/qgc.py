@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from tml.language.kinds import Kind
@@ -171,6 +171,7 @@ def read_plan(text: str, name: str = "plan") -> PlanFile:
     losses: list[str] = []
     nulls: list[str] = []
     items: list[MissionItem] = []
+    jump_ids: dict[int, int] = {}  # doJumpId -> the item's number (from 1)
     sources: list[str] = []
     try:
         for number, entry in enumerate(mission.get("items", []), start=1):
@@ -187,6 +188,9 @@ def read_plan(text: str, name: str = "plan") -> PlanFile:
                                               params, bool(simple.get("autoContinue", True)),
                                               losses, source))
                 sources.append(source)
+                if "doJumpId" in simple:
+                    jump_ids[int(simple["doJumpId"])] = len(items)
+        items = _jumps_by_number(items, jump_ids, sources, losses)
         home = _home(mission.get("plannedHomePosition"))
         zones = _zones(document.get("geoFence") or {})
         rally = tuple((float(p[0]), float(p[1]), float(p[2]))
@@ -200,6 +204,24 @@ def read_plan(text: str, name: str = "plan") -> PlanFile:
                        "integers: read as 0, as MISSION_ITEM_INT sends them")
     return PlanFile(tuple(items), home, zones, rally, tuple(skipped), tuple(sources),
                     tuple(losses))
+
+
+def _jumps_by_number(items: list[MissionItem], jump_ids: dict[int, int], sources: list[str],
+                     losses: list[str]) -> list[MissionItem]:
+    """The items with each DO_JUMP's target, a doJumpId in a ``.plan``, made the number of
+    the item it names (from 1, as the vehicle counts behind its home, and as the export
+    writes the doJumpIds), as QGroundControl does when it uploads."""
+    numbered = []
+    for item in items:
+        if item.command == 177 and jump_ids:  # MAV_CMD_DO_JUMP
+            target = jump_ids.get(int(item.param1)) if item.param1.is_integer() else None
+            if target is None:
+                losses.append(f"{sources[item.seq]}: DO_JUMP to doJumpId {item.param1:g}, "
+                              "which no item has: left as written")
+            else:
+                item = replace(item, param1=float(target))
+        numbered.append(item)
+    return numbered
 
 
 def _params(simple: dict[str, Any], source: str) -> list[Any]:

@@ -51,11 +51,6 @@ class Hangar:
         with self._lock:
             return self._holders.get(vehicle_id)
 
-    def free(self) -> list[int]:
-        """The vehicles no run holds, in order."""
-        with self._lock:
-            return [vid for vid in sorted(self.vehicles) if vid not in self._holders]
-
     def claim(self, vehicle_ids: Iterable[int], run_id: str) -> None:
         """Give every one of ``vehicle_ids`` to ``run_id``, or none (VehicleTaken)."""
         wanted = list(vehicle_ids)

@@ -82,6 +82,7 @@ class _Checker:
         self.by_name: dict[str, list[Task]] = defaultdict(list)
         for task in self.tasks:
             self.by_name[task.name].append(task)
+        self.handlers = {id(h) for t in self.tasks for h in t.on_error}  # <on_error> tasks
         self.declared = {p.name: p for p in mission.parameters}
 
     def run(self) -> list[Diagnostic]:
@@ -173,8 +174,7 @@ class _Checker:
 
     def handles(self, *tasks: Task) -> bool:
         """Whether one of ``tasks`` is an <on_error> task."""
-        handlers = {id(h) for t in self.tasks for h in t.on_error}
-        return any(id(task) in handlers for task in tasks)
+        return any(id(task) in self.handlers for task in tasks)
 
     def check_repeat(self, task: Task, rounds: int) -> int:
         """Check a task's repeat count and the rounds nested repeats make of it; return the

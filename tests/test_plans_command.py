@@ -178,3 +178,14 @@ def test_import_says_what_looks_odd_of_the_source_item(tmp_path: Path, capsys) -
     assert main(["import", str(plan), "-o", str(tmp_path / "yaw.xml")]) == 0
     assert "yaw.waypoints: note: item 2 (line 4): W311 MISSION_ITEM: CONDITION_YAW angle " \
         "param1 640 deg" in capsys.readouterr().err
+
+
+def test_an_item_a_mission_cannot_hold_is_named_by_its_source_item(tmp_path: Path,
+                                                                   capsys) -> None:
+    plan = tmp_path / "north.waypoints"
+    plan.write_text("QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\t-35.36\t149.16\t584\t1\n"
+                    "1\t0\t3\t16\t0\t0\t0\t0\t95.5\t149.16\t20\t1\n")
+    assert main(["import", str(plan), "-o", str(tmp_path / "north.xml")]) == 1
+    err = capsys.readouterr().err
+    assert "north.waypoints: item 1 (line 3): E263 MISSION_ITEM: param5 95.5 must be at " \
+        "most 90 deg" in err and "north.xml:" not in err

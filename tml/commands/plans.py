@@ -135,7 +135,6 @@ def export(args: argparse.Namespace) -> ExitCode:
 
 def import_(args: argparse.Namespace) -> ExitCode:
     """Run ``tml import``; return the exit code."""
-    from tml.language.diagnostics import format_human_all
     from tml.language.validation import validate_file
     from tml.plans.imported import import_plan
     from tml.plans.qgc import PlanFileError, read_plan
@@ -166,17 +165,16 @@ def import_(args: argparse.Namespace) -> ExitCode:
         return ExitCode.INVALID
     # What is written must validate: check it as the file it becomes.
     result = validate_file(args.output or f"{path.stem}.xml", imported.text.encode("utf-8"))
-    if result.errors:
-        for text in format_human_all(result.diagnostics, {result.file: result.source}):
-            print(text, file=sys.stderr)
-        _say("import", f"{args.plan}: the mission made of it is invalid, not written")
-        return ExitCode.INVALID
     lines = imported.text.splitlines()
-    for diagnostic in result.diagnostics:  # warnings: said of the source item
+    for diagnostic in result.diagnostics:  # said of the source item, not of the XML
         tasks = [line for line in lines[:diagnostic.location.line]
                  if line.lstrip().startswith('<task name="item ')]
         where = tasks[-1].split('"')[1].split(":")[0] if tasks else "the mission"
-        _say("import", f"{args.plan}: note: {where}: {diagnostic.code} {diagnostic.message}")
+        what = "" if diagnostic.is_error else "note: "
+        _say("import", f"{args.plan}: {what}{where}: {diagnostic.code} {diagnostic.message}")
+    if result.errors:
+        _say("import", f"{args.plan}: the mission made of it is invalid, not written")
+        return ExitCode.INVALID
     if not _write("import", args.output, imported.text):
         return ExitCode.USAGE
     raw = f", {imported.raw} of them as MISSION_ITEM" if imported.raw else ""

@@ -189,3 +189,19 @@ def test_an_item_a_mission_cannot_hold_is_named_by_its_source_item(tmp_path: Pat
     err = capsys.readouterr().err
     assert "north.waypoints: item 1 (line 3): E263 MISSION_ITEM: param5 95.5 must be at " \
         "most 90 deg" in err and "north.xml:" not in err
+
+
+def test_a_plan_with_a_fence_and_no_item_is_imported_as_a_world_file(tmp_path: Path,
+                                                                      capsys) -> None:
+    plan = tmp_path / "fence.plan"
+    plan.write_text(json.dumps({"fileType": "Plan", "mission": {
+        "items": [], "plannedHomePosition": [38.75, -77.49, 30]}, "geoFence": {
+        "circles": [{"inclusion": False, "circle": {"center": [38.76, -77.48], "radius": 20}}],
+        "polygons": []}}))
+    world = tmp_path / "fence.xml"
+    assert main(["import", str(plan), "-o", str(world)]) == 0
+    assert "the fence (1 zone(s)) written as a world file" in capsys.readouterr().err
+    assert main(["export", DISPATCH, "--world", str(world), "-o", str(tmp_path / "m.plan")]) == 0
+    circles = json.loads((tmp_path / "m.plan").read_text())["geoFence"]["circles"]
+    assert {"inclusion": False, "version": 1,
+            "circle": {"center": [38.76, -77.48], "radius": 20.0}} in circles

@@ -164,7 +164,8 @@ def import_(args: argparse.Namespace) -> ExitCode:
              "mission cannot carry exactly (--allow-loss writes it without them)")
         return ExitCode.INVALID
     # What is written must validate: check it as the file it becomes.
-    result = validate_file(args.output or f"{path.stem}.xml", imported.text.encode("utf-8"))
+    result = validate_file(args.output or f"{path.stem}.xml", imported.text.encode("utf-8"),
+                           root="world" if imported.world else "mission")
     lines = imported.text.splitlines()
     for diagnostic in result.diagnostics:  # said of the source item, not of the XML
         tasks = [line for line in lines[:diagnostic.location.line]
@@ -178,8 +179,13 @@ def import_(args: argparse.Namespace) -> ExitCode:
     if not _write("import", args.output, imported.text):
         return ExitCode.USAGE
     raw = f", {imported.raw} of them as MISSION_ITEM" if imported.raw else ""
-    _say("import", f"{len(plan.items)} mission item(s) as {imported.actions} task(s){raw} "
-         f"written to {args.output or 'standard output'}")
+    if imported.world:
+        _say("import", f"no mission item: the fence ({len(plan.zones)} zone(s)) written as a "
+             f"world file to {args.output or 'standard output'} (give it to tml run, verify "
+             "or export with --world)")
+    else:
+        _say("import", f"{len(plan.items)} mission item(s) as {imported.actions} task(s){raw} "
+             f"written to {args.output or 'standard output'}")
     if imported.losses:
         _say("import", f"left out ({len(imported.losses)}, --allow-loss):")
         for loss in imported.losses:

@@ -64,6 +64,7 @@ class Imported:
     actions: int
     losses: tuple[str, ...] = ()
     raw: int = 0  # items carried as MISSION_ITEM
+    world: bool = False  # a world file (the plan's fence), not a mission
 
 
 def _value(number: float) -> str:
@@ -297,10 +298,15 @@ def _exact(actions: list[_Action], plan: PlanFile) -> list[_Action]:
 def import_plan(plan: PlanFile, name: str) -> Imported:
     """The TML mission of ``plan``, named ``name``.
 
-    Raises :class:`PlanFileError` for a plan with no mission item (a TML mission flies at
-    least one task)."""
+    A plan with a fence and a home but no mission item is a world file
+    (:attr:`Imported.world`): the fence, for ``--world``. Raises :class:`PlanFileError`
+    for a plan with no mission item and nothing a world file holds (a TML mission flies
+    at least one task)."""
+    if not plan.items and plan.zones and plan.home is not None:
+        return _world(plan, name)
     if not plan.items:
-        what = " (it holds a fence or rally points only)" if plan.zones or plan.rally else ""
+        what = " (it holds a fence or rally points only, and no home to place them from)" \
+            if plan.zones or plan.rally else ""
         raise PlanFileError(f"no mission items to fly{what}: a TML mission needs one")
     warnings = list(plan.skipped)
     losses = list(plan.losses)
@@ -333,7 +339,24 @@ def import_plan(plan: PlanFile, name: str) -> Imported:
     return Imported(text + "\n", tuple(warnings), len(actions), tuple(losses), raw)
 
 
-def _environment(root: etree._Element, plan: PlanFile, losses: list[str]) -> None:
+def _world(plan: PlanFile, name: str) -> Imported:
+    """The world file of a plan that holds a fence and no item."""
+    from tml.language.schema import stable_location
+
+    root = etree.Element("world", nsmap={"xsi": SCHEMA_INSTANCE}, name=name)
+    root.set(f"{{{SCHEMA_INSTANCE}}}noNamespaceSchemaLocation", stable_location("world.xsd"))
+    root.append(etree.Comment(" Imported from a plan with a fence and no mission item. "))
+    losses = list(plan.losses)
+    _environment(root, plan, losses, environment=root)
+    etree.indent(root, space="  ")
+    text = etree.tostring(root, xml_declaration=True, encoding="UTF-8").decode("utf-8")
+    return Imported(text + "\n", tuple(plan.skipped), 0, tuple(losses), 0, world=True)
+
+
+def _environment(root: etree._Element, plan: PlanFile, losses: list[str],
+                 environment: etree._Element | None = None) -> None:
+    """The plan's home and zones in a new ``<environment>`` of ``root`` (or in
+    ``environment``: a world file's root)."""
     if plan.rally:
         losses.append(f"{len(plan.rally)} rally point(s) have no TML form: left out")
     if plan.home is None and plan.zones:
@@ -342,7 +365,8 @@ def _environment(root: etree._Element, plan: PlanFile, losses: list[str]) -> Non
         return
     if plan.home is None:
         return
-    environment = etree.SubElement(root, "environment")
+    if environment is None:
+        environment = etree.SubElement(root, "environment")
     if plan.home is not None:
         etree.SubElement(environment, "home", latitude=_value(plan.home.latitude),
                          longitude=_value(plan.home.longitude),

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from tml.language import schema
+from tml.language.validation import validate_file
 from tml.language.xml import read_xml
 
 
@@ -18,7 +19,7 @@ def problems(xml: str, root: str = "mission"):
 
 
 def test_schema_files_are_found() -> None:
-    for name in ("tml.xsd", "world.xsd", "environment.xsd"):
+    for name in ("tml.xsd", "world.xsd", "environment.xsd", "mavlink.xsd"):
         assert schema.schema_path(name).is_file()
 
 
@@ -36,7 +37,7 @@ def test_installed_package_ships_the_schemas(tmp_path) -> None:
     path, editable, shipped = json.loads(out)
     assert path.endswith("tml.xsd") and Path(path).is_file()
     if not editable:  # a real install: the XSDs are inside the package
-        assert shipped == ["environment.xsd", "tml.xsd", "world.xsd"]
+        assert shipped == ["environment.xsd", "mavlink.xsd", "tml.xsd", "world.xsd"]
         assert Path(path).parent.name == "schemas" and Path(path).parent.parent.name == "tml"
 
 
@@ -129,3 +130,31 @@ def test_fleet_schema_errors(xml: str, code: str, line: int, words: str) -> None
     found = problems(f'<mission name="m">\n{xml}</mission>')
     assert [(p.code, p.location.line) for p in found][:1] == [(code, line)], found
     assert words in found[0].message + found[0].hint
+
+
+def test_the_mavlink_schema_names_pymavlinks_commands_and_frames() -> None:
+    from lxml import etree
+    from pymavlink.dialects.v20 import ardupilotmega
+
+    tree = etree.parse(str(Path(__file__).parent.parent / "schemas" / "mavlink.xsd"))
+    xs = "{http://www.w3.org/2001/XMLSchema}"
+    for type_name, enum, prefix in (("MavCmdType", "MAV_CMD", "MAV_CMD_"),
+                                    ("MavFrameType", "MAV_FRAME", "MAV_FRAME_")):
+        simple = tree.find(f"{xs}simpleType[@name='{type_name}']")
+        written = {e.get("value") for e in simple.iter(f"{xs}enumeration")}
+        names = {entry.name for entry in ardupilotmega.enums[enum].values()
+                 if not entry.name.endswith("ENUM_END")}
+        assert written == names | {n.removeprefix(prefix) for n in names}
+
+
+def test_a_mission_item_is_checked_by_the_schema() -> None:
+    def codes(item: str) -> list[str]:
+        text = (f'<mission name="m"><task name="p" dispatch="mission"><task name="i">{item}'
+                '</task></task></mission>')
+        return [d.code for d in validate_file("m.xml", text.encode()).diagnostics]
+
+    assert codes('<mission_item command="DO_JUMP" frame="MISSION" param1="1"/>') == []
+    assert codes('<mission_item command="177" frame="2" param4="NaN"/>') == []
+    assert codes('<mission_item command="DO_JUMPS" frame="2"/>') == ["E105"]
+    assert codes('<mission_item command="DO_JUMP" frame="2" param1="one"/>') == ["E105"]
+    assert codes('<mission_item frame="2"/>') == ["E104"]

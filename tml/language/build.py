@@ -224,6 +224,8 @@ class _Builder:
                 children.append(self.task(child, path, dispatch, role))
             elif tag == "action":
                 action = self.action(child)
+            elif tag == "mission_item":
+                action = self.mission_item(child)
             elif tag == "condition":
                 conditions.append(self.condition(child))
             elif tag == "skill":
@@ -305,6 +307,14 @@ class _Builder:
             arguments.append(Argument(arg.get("name", "").strip(), value,
                                       label.strip() if label else label, self.loc(arg)))
         return Action(element.get("name", "").strip(), tuple(arguments), self.loc(element))
+
+    def mission_item(self, element: etree._Element) -> Action:
+        """``<mission_item command=... frame=... param1=.../>``: the action MISSION_ITEM,
+        each attribute one of its arguments (located at the attribute)."""
+        arguments = tuple(Argument(name, value, None, self.loc(element, name))
+                          for name in MISSION_ITEM_ATTRIBUTES
+                          if (value := element.get(name)) is not None)
+        return Action("MISSION_ITEM", arguments, self.loc(element))
 
     def condition(self, element: etree._Element) -> Condition:
         given = [(a, value) for a in ("parameter", "label", "current_task", "currentTask")
@@ -467,6 +477,11 @@ class _Builder:
                                       home.altitude,
                                       home.latitude, home.longitude, home.altitude)
         return north, east
+
+
+MISSION_ITEM_ATTRIBUTES = ("command", "frame", "param1", "param2", "param3", "param4",
+                           "param5", "param6", "param7", "autocontinue")
+"""The attributes of ``<mission_item>``, the arguments of MISSION_ITEM."""
 
 
 def _whole(text: str) -> int:

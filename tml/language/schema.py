@@ -23,7 +23,7 @@ from tml.language.diagnostics import Diagnostic, error
 from tml.language.xml import XmlDocument, element_name
 
 ROOTS = {"mission": "tml.xsd", "world": "world.xsd"}
-SCHEMA_FILES = ("tml.xsd", "world.xsd", "environment.xsd")
+SCHEMA_FILES = ("tml.xsd", "world.xsd", "environment.xsd", "mavlink.xsd")
 SCHEMA_LOCATION = "urn:tml:schemas:tml.xsd"
 """The stable name a mission may give its schema (``xsi:noNamespaceSchemaLocation``), for
 editors that map it to the installed file through an XML catalog (``tml schema
@@ -36,7 +36,8 @@ def stable_location(name: str) -> str:
 
 
 def schema_path(name: str = "tml.xsd") -> Path:
-    """The path of a shipped XSD file (``tml.xsd``, ``world.xsd``, ``environment.xsd``)."""
+    """The path of a shipped XSD file (``tml.xsd``, ``world.xsd``, ``environment.xsd``,
+    ``mavlink.xsd``)."""
     package = Path(__file__).resolve().parents[1]
     # Files first, as a wheel installs the package tml.schemas or a source checkout holds
     # them: importlib.resources, for any other way of installing, costs start-up time.
@@ -203,11 +204,15 @@ _TYPE_WORDS = {
     "PositiveType": "a number greater than 0",
     "NonNegativeType": "a number, 0 or more",
     "NameType": "a non-empty name",
+    "MavCmdType": "a MAV_CMD of ArduPilot's dialect (MAV_CMD_DO_JUMP or DO_JUMP) or a "
+                  "number from 0 to 65535",
+    "MavFrameType": "a MAV_FRAME of ArduPilot's dialect (MAV_FRAME_GLOBAL_RELATIVE_ALT or "
+                    "GLOBAL_RELATIVE_ALT) or a number",
 }
 
 
 def _expected_type(detail: str) -> str:
-    atomic = re.search(r"atomic type '([^']+)'", detail)
+    atomic = re.search(r"(?:atomic|union) type '([^']+)'", detail)
     if atomic and atomic.group(1) in _TYPE_WORDS:
         return _TYPE_WORDS[atomic.group(1)]
     bound = re.search(r"\[facet '((?:min|max)\w+)'\].*'([^']+)'\)?\.?$", detail.strip())

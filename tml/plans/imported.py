@@ -9,8 +9,9 @@ and so it stays. An item becomes the action that compiles back to it
 GO_TO_POSITION, NAV_LAND a LANDING_POINT ...) only when that action compiles back to *the
 same item*, every field of it: the mission is compiled and compared item for item, and
 every item no action says exactly (a DO_JUMP, a spline waypoint, a waypoint with a hold
-time or a yaw left unset, a value an action's range refuses) is a ``MISSION_ITEM``: the
-item as written, command, frame, seven params and autocontinue. Items the mission compiler
+time or a yaw left unset, a value an action's range refuses) is a ``<mission_item>`` (the
+action ``MISSION_ITEM``): the item as written, command, frame, seven params and
+autocontinue. Items the mission compiler
 writes as several (a LANDING_POINT with a heading: CONDITION_YAW then NAV_LAND) are read
 back as one action when they compile back the same.
 
@@ -330,6 +331,9 @@ def import_plan(plan: PlanFile, name: str) -> Imported:
         what = action.name if action.name != "MISSION_ITEM" else \
             action.arguments["command"].removeprefix("MAV_CMD_")
         task = etree.SubElement(top, "task", name=f"{sources}: {what}")
+        if action.name == "MISSION_ITEM":  # the item on one line: <mission_item .../>
+            etree.SubElement(task, "mission_item", _without_defaults(action))
+            continue
         element = etree.SubElement(task, "action", name=action.name)
         for argument, value in _without_defaults(action).items():
             etree.SubElement(element, "argument", name=argument, value=value)

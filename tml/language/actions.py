@@ -194,7 +194,7 @@ def _raw_param(number: int) -> ArgumentSpec:
     return ArgumentSpec(f"param{number}", ArgType.NUMBER,
                         meaning.get(number, f"param {number} as the command defines it "
                                             "(NaN: not set)"),
-                        default=0.0, nan=number not in (5, 6))
+                        default=0.0, nan=number not in (5, 6), quantity=Quantity.ITEM_PARAM)
 
 
 CATALOGUE: tuple[ActionSpec, ...] = (

@@ -37,6 +37,7 @@ class Quantity(StrEnum):
     REPEAT = "repeat"
     PERCENTAGE = "percentage"
     FIX_TYPE = "fix type"
+    ITEM_PARAM = "mission item param"
 
 
 @dataclass(frozen=True)
@@ -79,6 +80,9 @@ RANGES: dict[Quantity, Range] = {
                            "MAX_ROUNDS rounds"),
     Quantity.PERCENTAGE: Range(0.0, 100.0, "%", "battery charge"),
     Quantity.FIX_TYPE: Range(0.0, 8.0, "", "GPS fix type (MAVLink GPS_FIX_TYPE)"),
+    # What a 32-bit float carries: a raw item's params are the autopilot's to judge.
+    Quantity.ITEM_PARAM: Range(-3.4028234663852886e38, 3.4028234663852886e38, "",
+                               "params of a MISSION_ITEM (a 32-bit float; NaN: not set)"),
 }
 """The sane range of each quantity: what a vehicle can do, with a margin."""
 

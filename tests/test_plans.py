@@ -366,3 +366,17 @@ def test_a_plans_do_jump_names_its_target_by_doJumpId() -> None:
     assert [i.param1 for i in plan.items] == [0, 0, 2, 99]
     assert plan.losses == ("item 4: DO_JUMP to doJumpId 99, which no item has: left as "
                            "written",)
+
+
+def test_values_no_mission_item_carries_are_losses_naming_their_item() -> None:
+    text = WPL_HOME + ("1\t0\t3\t16\t0\t1e39\tinf\t0\t-35.3\t149.1\tnan\t1\n"
+                       "2\t0\t3\t16\t0\t0\t0\t0\t1e300\t149.1\t10\t1\n")
+    plan = read_wpl(text)
+    assert [loss.split(" is ")[0] for loss in plan.losses] == [
+        "item 1 (line 3): param2 1e+39", "item 1 (line 3): param3 inf",
+        "item 2 (line 4): param5 1e+300"]
+    assert math.isnan(plan.items[0].z)  # NaN is "not set", and carried
+    document = {"fileType": "Plan", "mission": {"items": [
+        {"type": "SimpleItem", "command": 16, "frame": 3, "params": [True, 0, 0, 0, 0, 0, 0]}]}}
+    with pytest.raises(PlanFileError, match="item 1: True is not a number"):
+        read_plan(json.dumps(document))

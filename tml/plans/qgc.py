@@ -21,6 +21,7 @@ from tml.plans.planned import GLOBAL_FRAMES, Plan, local_to_global
 from tml.world import Cylinder, Home, Prism
 
 FIRMWARE_ARDUPILOT = 3  # MAV_AUTOPILOT_ARDUPILOTMEGA
+FLOAT32_MAX = 3.4028234663852886e38  # the largest param a mission item carries
 VEHICLE_TYPES = {Kind.MULTICOPTER: 2, Kind.FIXED_WING: 1, Kind.GROUND: 10}  # MAV_TYPE
 
 
@@ -85,19 +86,32 @@ def item_from_params(seq: int, frame: int, command: int, params: list[Any],
     if len(params) != 7:
         raise PlanFileError(f"{source or f'item {seq + 1}'}: expected 7 params, "
                             f"got {len(params)}")
-    values = [_float(v) for v in params]
+    try:
+        values = [_float(v) for v in params]
+    except PlanFileError as error:
+        raise PlanFileError(f"{source or f'item {seq + 1}'}: {error}") from None
+    said = losses if losses is not None else []
+    for index in (0, 1, 2, 3, 6):  # 32-bit floats on the wire; NaN is "not set"
+        value = values[index]
+        if not math.isnan(value) and not abs(value) <= FLOAT32_MAX:
+            said.append(f"{source}: param{index + 1} {value:g} is beyond what a mission "
+                        "item carries (a 32-bit float): read as 0")
+            values[index] = 0.0
     scale = 1e7 if frame in GLOBAL_FRAMES else 1.0
     xy = []
     for number, value in ((5, values[4]), (6, values[5])):
         if not math.isfinite(value):
-            if losses is not None:
-                losses.append(f"{source}: param{number} {value} cannot travel in a mission "
-                              "item (an integer): read as 0")
+            said.append(f"{source}: param{number} {value} cannot travel in a mission item "
+                        "(an integer): read as 0")
             value = 0.0
         integer = round(value * scale)
-        if scale == 1.0 and integer != value and losses is not None:
-            losses.append(f"{source}: param{number} {value!r} in frame {frame} is an integer "
-                          f"in a mission item: read as {integer}")
+        if not -2**31 <= integer < 2**31:
+            said.append(f"{source}: param{number} {value:g} is beyond what a mission item "
+                        "carries (a 32-bit integer): read as 0")
+            integer = 0
+        elif scale == 1.0 and integer != value:
+            said.append(f"{source}: param{number} {value!r} in frame {frame} is an integer "
+                        f"in a mission item: read as {integer}")
         xy.append(integer)
     return MissionItem(seq=seq, frame=frame, command=command, param1=values[0],
                        param2=values[1], param3=values[2], param4=values[3],

@@ -72,15 +72,6 @@ class MissionInfeasibleError(MissionError):
     """The mission cannot be flown within the vehicle's physical limits or the map."""
 
 
-class Interrupted(TmlError):
-    """A signal (Ctrl-C's SIGINT, SIGTERM) stopped a command before it had anything to make
-    safe: e.g. ``tml run`` while it waits for a vehicle's first heartbeat."""
-
-    def __init__(self, signal_name: str) -> None:
-        self.signal_name = signal_name
-        super().__init__(f"interrupted ({signal_name})")
-
-
 class EngineError(TmlError):
     """The engine was asked for a change its rules do not allow (a defect in tml): the runner
     stops the run and commands every vehicle to its safe state."""

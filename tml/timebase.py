@@ -63,6 +63,10 @@ GUARD = 0.1
 it, but a thread told to stop (a link closed) notices within that time."""
 
 
+SIGNAL_SLICE = 0.2
+"""Wall seconds the main thread waits at most at once (see :meth:`Timebase.wait`)."""
+
+
 class Timebase:
     """The system's time: :func:`time.monotonic` and ordinary waits."""
 
@@ -73,7 +77,13 @@ class Timebase:
         return time.monotonic()
 
     def wait(self, cond: threading.Condition, timeout: float | None) -> None:
-        """Wait (holding ``cond``) for a :meth:`notify_all` of it, or ``timeout`` seconds."""
+        """Wait (holding ``cond``) for a :meth:`notify_all` of it, or ``timeout`` seconds;
+        the main thread may come back sooner (its callers wait again)."""
+        if threading.current_thread() is threading.main_thread():
+            # A Ctrl-C that the kernel hands to another thread (a numerical library's own)
+            # does not interrupt the main thread's wait: Python runs the handler only when
+            # the main thread comes back, which a wait for a 300 s time-out would delay.
+            timeout = SIGNAL_SLICE if timeout is None else min(timeout, SIGNAL_SLICE)
         cond.wait(timeout)
 
     def notify_all(self, cond: threading.Condition) -> None:

@@ -377,16 +377,30 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def entry_point() -> None:
     """Console-script entry point."""
+    from tml.commands.signals import Stopped, StopSignals
+
+    # Until a command takes the stop signals over, Ctrl-C raises where tml is, and again
+    # should a library swallow it (tml.commands.signals.StopSignals).
+    stops = StopSignals()
     try:
-        code = main()
+        with stops:
+            code = main()
         sys.stdout.flush()
     except BrokenPipeError:
         # The reader (``| head``) went away: stop quietly, as command-line tools do.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         code = ExitCode.INVALID
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as stop:
         # Ctrl-C before a command took the stop signals over (while it starts: imports,
         # reading files), or in a command that keeps Python's own: one line, no traceback.
-        print("tml: interrupted (SIGINT)", file=sys.stderr)
+        name = stop.signal_name if isinstance(stop, Stopped) else "SIGINT"
+        print(f"tml: interrupted ({name})", file=sys.stderr)
+        code = ExitCode.ABORTED
+    except Exception:
+        # An interrupt that landed inside a library's import or set-up can come out as
+        # another error (an ImportError of a module half loaded): it was the interrupt.
+        if stops.received is None:
+            raise
+        print(f"tml: interrupted ({stops.received})", file=sys.stderr)
         code = ExitCode.ABORTED
     sys.exit(code)

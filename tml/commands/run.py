@@ -15,7 +15,7 @@ import contextlib
 from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any, NamedTuple
 
-from tml.commands.signals import on_stop_signals
+from tml.commands.signals import Stopped, on_stop_signals
 from tml.errors import ExitCode
 
 if TYPE_CHECKING:
@@ -234,19 +234,10 @@ def run(args: argparse.Namespace) -> ExitCode:
                      markup=False)
         return ExitCode.USAGE
     try:
-        with on_stop_signals(_interrupt):
-            return _run(args, mission, world, extra, profile, journal, console, errors,
-                        Resumed(digest, point))
+        return _run(args, mission, world, extra, profile, journal, console, errors,
+                    Resumed(digest, point))
     finally:
         journal.close()
-
-
-def _interrupt(name: str) -> None:
-    """Before the flight, a stop signal ends ``tml run`` at once: nothing is flying yet,
-    and a wait for a vehicle ends with the interrupted exit code and one line."""
-    from tml.errors import Interrupted
-
-    raise Interrupted(name)
 
 
 def _usage_problem(args: argparse.Namespace) -> str | None:
@@ -293,7 +284,7 @@ def _run(args: argparse.Namespace, mission: Mission, world: World, extra: World 
          profile: Any, journal: Journal, console: Any, errors: Any,
          resumed: Resumed) -> ExitCode:
     """Open the vehicles and fly; the exit code."""
-    from tml.errors import Interrupted, TmlError
+    from tml.errors import TmlError
 
     try:
         with open_vehicles(args, world, errors, lockstep=True) as (vehicles, wake, clock,
@@ -309,7 +300,7 @@ def _run(args: argparse.Namespace, mission: Mission, world: World, extra: World 
                     return refused
             return _fly(args, mission, world, profile, vehicles, wake, clock, timebase, console,
                         journal, resumed)
-    except Interrupted as error:
+    except Stopped as error:
         errors.print(f"tml run: {error} before the mission started", markup=False)
         return ExitCode.ABORTED
     except TmlError as error:

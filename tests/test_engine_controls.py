@@ -3,12 +3,14 @@ FakeVehicle and an injected clock."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 from test_engine_interpreter import LAND, TAKE_OFF, Flight, goto, mission
 
 from tml.engine import Interpreter, Status, TaskState
 from tml.errors import ControlRefused
-from tml.vehicle import FakeVehicle, GoTo, Hold, TakeOff
+from tml.vehicle import FLIGHT_REQUESTS, FakeVehicle, GoTo, Hold, Land, TakeOff
 
 WAIT_10 = ('<task name="Wait"><action name="WAIT"><argument name="duration" value="10"/>'
            '</action></task>\n')
@@ -209,3 +211,42 @@ def test_a_vehicle_paused_on_the_ground_is_not_asked_again_on_resume() -> None:
     flight.run()
     assert flight.interp.status is Status.COMPLETED
     assert len(flight.sent(TakeOff)) == 1
+
+
+class LateTelemetry(FakeVehicle):
+    """A vehicle whose telemetry arrives ``lag`` seconds late: each state is the picture of
+    ``lag`` s ago, saying when it was heard and when the latest requests were made."""
+
+    def __init__(self, lag: float) -> None:
+        super().__init__()
+        self.lag = lag
+        self.pictures: list = []
+        self.asked: float | None = None
+        self.flight_asked: float | None = None
+
+    def submit(self, request) -> None:
+        self.asked = self.time
+        if isinstance(request, FLIGHT_REQUESTS):
+            self.flight_asked = self.time
+        super().submit(request)
+
+    def state(self):
+        self.pictures.append(super().state())
+        seen = [p for p in self.pictures if p.time <= self.time - self.lag] or self.pictures[:1]
+        return replace(seen[-1], time=self.time, heard=seen[-1].time, asked=self.asked,
+                       flight_asked=self.flight_asked)
+
+
+def test_a_jump_to_land_during_take_off_is_not_judged_on_the_picture_before_it() -> None:
+    # The operator jumps to the landing task right after the take-off request was answered:
+    # the telemetry still shows the vehicle on the ground, disarmed, from before it.
+    flight = Flight(TAKE_OFF + WAIT_10 + LAND, vehicle=LateTelemetry(lag=1.5))
+    until(flight, lambda f: any(r["message"] == "TakeOff done" for r in records(f, "result")))
+    assert flight.vehicle.state().landed  # the picture of before the take-off
+    jump(flight, "Land")
+    until(flight, lambda f: flight.interp.status is not Status.RUNNING)
+    landed = [r for r in records(flight, "action") if r["message"].startswith("LAND")]
+    assert [r["message"] for r in landed] == ["LAND started", "LAND done"]
+    assert flight.sent(Land), "LAND was judged done without a land command"
+    assert landed[1]["t"] > landed[0]["t"] + 1.5  # on telemetry heard after the command
+    assert flight.vehicle.state().landed and not flight.vehicle.state().armed

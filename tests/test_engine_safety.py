@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 
 from tml.engine.failures import ACTION_FAILURES, FailureReason
-from tml.engine.safety import safe_state_request
+from tml.engine.safety import safe_state_request, safe_state_shown
 from tml.language import parameters
 from tml.vehicle import VehicleState
 
@@ -24,6 +26,35 @@ def test_the_safe_state_of_each_kind_of_vehicle(state: VehicleState, safe_state:
                                                expected: str | None) -> None:
     found = safe_state_request(state, safe_state)
     assert (found[0].name if found else None) == expected
+
+
+ON_THE_GROUND = VehicleState(1, 10.0, armed=False, landed=True)
+
+
+@pytest.mark.parametrize(("heard", "expected"), [(4.0, "ReturnToLaunch"), (5.0, "ReturnToLaunch"),
+                                                 (5.1, None)])
+def test_a_vehicle_asked_to_fly_counts_as_flying_until_telemetry_after_the_request(
+        heard: float, expected: str | None) -> None:
+    # Ctrl-C 0.05 s after the take-off request: the picture still says disarmed on the
+    # ground, from before the request.
+    state = replace(ON_THE_GROUND, heard=heard, asked=5.0, flight_asked=5.0)
+    found = safe_state_request(state, "rtl")
+    assert (found[0].name if found else None) == expected
+
+
+def test_a_ground_vehicle_asked_to_move_is_disarmed_until_telemetry_after_the_request() -> None:
+    rover = replace(ON_THE_GROUND, vehicle_type="rover", flight_asked=5.0, asked=5.0)
+    found = safe_state_request(replace(rover, heard=4.0), "rtl")
+    assert found is not None and found[0].name == "Disarm"
+    assert safe_state_request(replace(rover, heard=6.0), "rtl") is None
+
+
+def test_a_safe_state_is_shown_only_by_telemetry_newer_than_the_latest_request() -> None:
+    rtl = VehicleState(1, 10.0, armed=True, landed=False, mode="RTL", asked=8.0)
+    assert not safe_state_shown(replace(rtl, heard=7.9), "rtl")
+    assert safe_state_shown(replace(rtl, heard=8.2), "rtl")
+    # A source that does not say how old its readings are is read as it always was.
+    assert safe_state_shown(replace(rtl, heard=None), "rtl")
 
 
 def test_action_failures_are_the_values_of_the_action_failure_parameter() -> None:

@@ -124,12 +124,44 @@ class VehicleState:
     rejected: int = 0  # telemetry messages ignored for an absurd value (battery 127 %, NaN)
     rejected_last: str = ""  # what was absurd in the last of them
     taken: str = ""  # the mode the vehicle was switched to by someone else (the autopilot)
+    # How old the picture is, in the runner's time (None: the source does not say, and
+    # its readings are taken as current). Left out of the comparison: they move with
+    # every message and every request, and the rules below read them on every step.
+    heard: float | None = field(default=None, compare=False)
+    """When the oldest of the readings the rules judge by arrived: the last HEARTBEAT
+    (armed, mode), the landed state, the position."""
+    asked: float | None = field(default=None, compare=False)
+    """When the latest request was submitted to the vehicle."""
+    flight_asked: float | None = field(default=None, compare=False)
+    """When the latest request that can put the vehicle in the air was submitted
+    (:data:`FLIGHT_REQUESTS`)."""
 
     @property
     def flying(self) -> bool:
         """Armed and off the ground; for a ground vehicle (which reports no landed state):
         armed, underway."""
         return self.armed and not self.landed
+
+    @property
+    def current(self) -> bool:
+        """Whether every reading the rules judge by arrived after the latest request: no
+        decision about a request is made from an older picture (a LAND is not done on a
+        'landed' heard before the land command)."""
+        return self.heard is None or self.asked is None or self.heard > self.asked
+
+    @property
+    def possibly_flying(self) -> bool:
+        """Flying, saying it is not landed, or asked to fly with no reading since: from the
+        first request that can put it in the air until telemetry that arrived after it
+        shows it on the ground, a vehicle counts as flying (a Ctrl-C right after a take-off
+        request must not find it 'disarmed' on the picture of a moment before)."""
+        return self.flying or not self.landed or self.flight_unseen
+
+    @property
+    def flight_unseen(self) -> bool:
+        """Asked to fly (:data:`FLIGHT_REQUESTS`) with no reading arrived since."""
+        return (self.flight_asked is not None and self.heard is not None
+                and self.heard <= self.flight_asked)
 
     @property
     def altitude(self) -> float:
@@ -354,6 +386,10 @@ class FlyMission(Request):
     actions: tuple[BoundAction, ...]
     start: Point
     track: bool = False
+
+
+FLIGHT_REQUESTS: tuple[type[Request], ...] = (Arm, TakeOff, SetMode, FlyMission, Flip)
+"""The requests that can put a vehicle in the air (:attr:`VehicleState.possibly_flying`)."""
 
 
 @dataclass(frozen=True)

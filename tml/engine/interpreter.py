@@ -242,7 +242,8 @@ class Interpreter:
                  reason=reason)
         self._held = set()
         for pilot in run.pilots.values():
-            if pilot.duty is not Duty.LOST and pilot.state.flying and self._flies(pilot):
+            if pilot.duty is not Duty.LOST and pilot.state.possibly_flying \
+                    and self._flies(pilot):
                 run.send(Hold(pilot.vehicle_id))
                 self._held.add(pilot.vehicle_id)
         return run.log.take()

@@ -152,7 +152,7 @@ class Leaf(Node):
     def end(self, status: NodeStatus, why: str) -> None:
         if self._mode is not WorkMode.ENDED:  # stopped from above
             if self._mode is WorkMode.ACTIVE and not self.run.ending \
-                    and self.pilot.state.flying:
+                    and self.pilot.state.possibly_flying:
                 self.run.send(Hold(self.vehicle_id))
             if self._mode is not WorkMode.READY:
                 # Held by an event handler whose termination stops it: it stopped flying
@@ -299,7 +299,8 @@ class ActionLeaf(Leaf):
             if isinstance(wait, Until):
                 if wait.progress is not None:
                     self._progress = wait.progress(state)
-                if not wait.predicate(state):
+                # Judged only on telemetry that arrived after the latest request.
+                if not (state.current and wait.predicate(state)):
                     if run.now - self.since > wait.limit:
                         self._failed(FailureReason.TIMEOUT,
                                      f"did not {wait.what} within {wait.limit:.0f} s")

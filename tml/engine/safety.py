@@ -20,15 +20,16 @@ def safe_state_request(state: VehicleState, safe_state: str) -> tuple[Request, s
     """What puts a vehicle in the safe state, and why; None when it is safe already.
 
     A ground vehicle is safe stopped: an armed one is disarmed, wherever it is. Any other
-    that is not on the ground -- flying, or saying it is not landed even when disarmed (in
-    doubt it is taken to be in the air) -- is told ``safe_state`` (rtl, land or hold); one
-    armed on the ground is disarmed.
+    that is not on the ground -- flying, saying it is not landed even when disarmed (in
+    doubt it is taken to be in the air), or asked to fly with no telemetry since
+    (:attr:`~tml.vehicle.VehicleState.possibly_flying`) -- is told ``safe_state`` (rtl,
+    land or hold); one armed on the ground is disarmed.
     """
     if kind_of(state.vehicle_type) is Kind.GROUND:
-        if state.armed:
+        if state.armed or state.flight_unseen:
             return Disarm(state.vehicle_id), "ground vehicle armed: disarm (it stops)"
         return None
-    if state.flying or not state.landed:
+    if state.possibly_flying:
         request = SAFE_STATES.get(safe_state, ReturnToLaunch)(state.vehicle_id)
         return request, f"vehicle in the air: {request.name}"
     if state.armed:
@@ -49,8 +50,9 @@ landing shows a safe return as well)."""
 def safe_state_shown(state: VehicleState, safe_state: str) -> bool:
     """Whether the telemetry shows the vehicle in its safe state: nothing left to ask of it
     (:func:`safe_state_request`), or flying in a mode of :data:`SHOWN` (a fixed-wing lands
-    by a landing sequence flown in AUTO). A lost link shows nothing."""
-    if state.link == "lost":
+    by a landing sequence flown in AUTO). A lost link shows nothing, nor does a picture
+    older than the latest request (:attr:`~tml.vehicle.VehicleState.current`)."""
+    if state.link == "lost" or not state.current:
         return False
     if safe_state_request(state, safe_state) is None:
         return True

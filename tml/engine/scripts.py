@@ -413,7 +413,7 @@ def take_off(ctx: Context, bound: BoundAction) -> Script:
 def land(ctx: Context, bound: BoundAction) -> Script:
     """Land where the vehicle is and wait until it is down and disarmed (a fixed-wing:
     along an approach straight ahead)."""
-    if not ctx.state.flying:
+    if not ctx.state.possibly_flying:  # seen on the ground since it was last asked to fly
         ctx.note("LAND: the vehicle is already on the ground")
         return
     if _kind(ctx) is Kind.FIXED_WING:
@@ -523,7 +523,7 @@ def stabilize(ctx: Context, bound: BoundAction) -> Script:
 
 def wait(ctx: Context, bound: BoundAction) -> Script:
     """Hold position (when flying) for a time."""
-    if ctx.state.flying:
+    if ctx.state.possibly_flying:
         yield Send(Hold(ctx.vehicle_id))
     yield Sleep(bound.number("duration"))
 

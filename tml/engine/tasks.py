@@ -258,7 +258,7 @@ class TaskNode(Node):
                  "tasks run", self.vehicle_id, task=task.path_name,
                  reason=failure.reason.value, detail=failure.message, recover=True)
         vid = failure.vehicle_id
-        if vid is not None and run.pilots[vid].state.flying:
+        if vid is not None and run.pilots[vid].state.possibly_flying:
             run.send(Hold(vid))  # it stops where it is while the handler takes over
         self.inner = TasksNode(run, task.on_error, self.build)
         self.phase = Phase.RECOVER

@@ -104,6 +104,7 @@ from tml.mavlink.telemetry import COMPANION_COMPONENT, Telemetry
 from tml.mavlink.vehicle import DEFAULT_RATES, Vehicle
 from tml.timebase import Empty, Flag, Mailbox
 from tml.vehicle import (
+    FLIGHT_REQUESTS,
     MESSAGES_KEPT,
     Arm,
     AutopilotMessage,
@@ -132,6 +133,8 @@ from tml.world import Home, World
 
 Clock = Callable[[], float]
 
+VITAL = ("HEARTBEAT", "EXTENDED_SYS_STATE", "GLOBAL_POSITION_INT")
+"""The messages of the readings the rules judge by: armed and mode, landed, position."""
 STREAM_CHECK_PERIOD = 2.0
 """Seconds between the worker's checks that the streams asked for arrive."""
 PARAM_TIMEOUT = 1.0
@@ -294,6 +297,8 @@ class MavlinkVehicle:
         self._target_sent = 0.0
         self._ground_speed: float | None = None  # a rover's speed, sent with each target
         self._modes = ModeWatch()  # tells a mode change nobody here asked for
+        self._asked: float | None = None  # when the latest request was submitted
+        self._flight_asked: float | None = None  # ... the latest of FLIGHT_REQUESTS
         link.listen(self._on_message)
         self.timebase.announce()
         self._worker = threading.Thread(target=self._work, daemon=True,
@@ -354,7 +359,17 @@ class MavlinkVehicle:
             capabilities=self.capabilities, vehicle_type=t.airframe,
             status_text=t.status_texts[-1].text if t.status_texts else "",
             messages=_messages(t), rejected=t.rejected, rejected_last=t.rejected_last,
-            taken=self._modes.taken)
+            taken=self._modes.taken, heard=self._heard(now), asked=self._asked,
+            flight_asked=self._flight_asked)
+
+    def _heard(self, now: float) -> float:
+        """When (the runner's clock) the oldest of the readings the rules judge by arrived
+        (:data:`VITAL`); minus infinity before any has."""
+        arrived = self.link.arrivals(self.system_id)
+        times = [arrived[name] for name in VITAL if name in arrived]
+        if not times:
+            return -math.inf
+        return now - (self.timebase.now() - min(times))
 
     def revision(self) -> tuple[int, int]:
         """Changes when :meth:`state` may show something new, apart from what time alone
@@ -372,6 +387,10 @@ class MavlinkVehicle:
         if isinstance(request, SetYaw) and request.relative:
             heading = (self.state().heading + request.heading) % 360.0
             request = replace(request, heading=heading, relative=False)
+        self._asked = self.clock()
+        if isinstance(request, FLIGHT_REQUESTS):
+            self._flight_asked = self._asked
+        self._changes += 1
         self._queue.put(request)
 
     def poll(self) -> list[RequestResult]:

@@ -233,9 +233,10 @@ def test_an_interrupted_run_is_continued_from_the_page(browser: Any, tmp_path: P
         wait(driver, "the run that continues it to complete", lambda d: (
             "completed" in (status := d.find_element(By.ID, "run-status").text)
             and old not in status))
-        states = {li.get_attribute("data-task"): li.find_element(By.CSS_SELECTOR,
-                                                                 ".state").text.split()[-1]
-                  for li in driver.find_elements(By.CSS_SELECTOR, "#tasks li[data-task]")}
+        states = wait(driver, "the task states", lambda d: {
+            li.get_attribute("data-task"): li.find_element(By.CSS_SELECTOR,
+                                                           ".state").text.split()[-1]
+            for li in d.find_elements(By.CSS_SELECTOR, "#tasks li[data-task]")})
         assert states == {"Up": "done", "Out": "done", "Down": "done"}
     storage.close()
 
@@ -339,42 +340,47 @@ def test_a_fleet_in_flight_on_a_phone_and_a_laptop(browser: Any, page: str,
 
             # The legend tells each vehicle's colour as its track and plan are drawn, and
             # the flown and planned styles apart.
+            def styles(d: Any, vid: str) -> dict[str, Any]:
+                keys = d.find_elements(By.CSS_SELECTOR, f"#legend li[data-vehicle='{vid}'] line")
+                track = d.find_element(By.CSS_SELECTOR, f"#map path.track[data-vehicle='{vid}']")
+                plan = d.find_element(By.CSS_SELECTOR, f"#map path.plan[data-vehicle='{vid}']")
+                return {"keys": [(k.get_attribute("stroke"),
+                                  bool(k.get_attribute("stroke-dasharray"))) for k in keys],
+                        "track": (track.get_attribute("stroke"),
+                                  bool(track.get_attribute("stroke-dasharray"))),
+                        "plan": (plan.get_attribute("stroke"),
+                                 bool(plan.get_attribute("stroke-dasharray")))}
+
             colours = {}
             for vid in ("1", "2"):
-                keys = driver.find_elements(By.CSS_SELECTOR,
-                                            f"#legend li[data-vehicle='{vid}'] line")
-                track = driver.find_element(By.CSS_SELECTOR,
-                                            f"#map path.track[data-vehicle='{vid}']")
-                plan = driver.find_element(By.CSS_SELECTOR,
-                                           f"#map path.plan[data-vehicle='{vid}']")
-                colour = track.get_attribute("stroke")
-                assert [k.get_attribute("stroke") for k in keys] == [colour, colour]
-                assert plan.get_attribute("stroke") == colour
-                assert plan.get_attribute("stroke-dasharray") and not \
-                    track.get_attribute("stroke-dasharray")
-                assert [bool(k.get_attribute("stroke-dasharray")) for k in keys] == [False, True]
+                drawn = wait(driver, f"vehicle {vid}'s styles", lambda d, v=vid: styles(d, v))
+                colour = drawn["track"][0]
+                assert drawn["keys"] == [(colour, False), (colour, True)], drawn
+                assert drawn["track"] == (colour, False) and drawn["plan"] == (colour, True)
                 colours[vid] = colour
             assert colours["1"] != colours["2"], "each vehicle its own colour"
 
             # Task states say whose they are.
             for vid in ("1", "2"):
-                badges = [b.text for b in driver.find_elements(
-                    By.CSS_SELECTOR, f"#tasks .state[data-vehicle='{vid}']")]
+                badges = wait(driver, "the task badges", lambda d, v=vid: [b.text for b in (
+                    d.find_elements(By.CSS_SELECTOR, f"#tasks .state[data-vehicle='{v}']"))])
                 assert len(badges) == 4 and all(b.startswith(f"vehicle {vid}: ")
                                                 for b in badges), badges
 
             # One frame: vehicle 2's home is 5 m east of vehicle 1's (the simulator boots a
             # fleet in a row), not on top of it.
-            homes = {h.get_attribute("data-vehicle"): (float(h.get_attribute("data-north")),
-                                                       float(h.get_attribute("data-east")))
-                     for h in driver.find_elements(By.CSS_SELECTOR, "#map circle.home")}
+            homes = wait(driver, "the homes", lambda d: {
+                h.get_attribute("data-vehicle"): (float(h.get_attribute("data-north")),
+                                                  float(h.get_attribute("data-east")))
+                for h in d.find_elements(By.CSS_SELECTOR, "#map circle.home")})
             assert homes["1"] == pytest.approx((0.0, 0.0), abs=0.05)
             assert homes["2"] == pytest.approx((0.0, 5.0), abs=0.1)
 
             # Mission time, from the log's own stamp, the same at every load.
-            said = next(li.find_element(By.CSS_SELECTOR, ".t").text
-                        for li in driver.find_elements(By.CSS_SELECTOR, "#messages li")
-                        if "vehicle 1: Takeoff" in li.text)
+            said = wait(driver, "the take-off message", lambda d: next(
+                (li.find_element(By.CSS_SELECTOR, ".t").text
+                 for li in d.find_elements(By.CSS_SELECTOR, "#messages li")
+                 if "vehicle 1: Takeoff" in li.text), None))
             assert float(said.removesuffix(" s")) == pytest.approx(take_off_at, abs=0.051)
             driver.execute_script("window.scrollTo(0, 0)")
             shot = ARTIFACTS / f"page-{width}x{height}.png"

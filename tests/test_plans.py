@@ -380,3 +380,11 @@ def test_values_no_mission_item_carries_are_losses_naming_their_item() -> None:
         {"type": "SimpleItem", "command": 16, "frame": 3, "params": [True, 0, 0, 0, 0, 0, 0]}]}}
     with pytest.raises(PlanFileError, match="item 1: True is not a number"):
         read_plan(json.dumps(document))
+
+
+def test_a_plan_made_for_another_firmware_is_said() -> None:
+    document = {"fileType": "Plan", "mission": {"firmwareType": 12, "items": [
+        {"type": "SimpleItem", "command": 22, "frame": 3, "params": [0, 0, 0, 0, 0, 0, 10]}]}}
+    assert read_plan(json.dumps(document)).skipped == (
+        "the plan was made for firmware type 12 (PX4): its items are kept as written, and "
+        "tml flies and exports them for ArduPilot (firmware type 3)",)

@@ -22,6 +22,7 @@ from tml.world import Cylinder, Home, Prism
 
 FIRMWARE_ARDUPILOT = 3  # MAV_AUTOPILOT_ARDUPILOTMEGA
 FLOAT32_MAX = 3.4028234663852886e38  # the largest param a mission item carries
+FIRMWARES = {0: "generic", 3: "ArduPilot", 12: "PX4"}  # MAV_AUTOPILOT, as QGroundControl
 VEHICLE_TYPES = {Kind.MULTICOPTER: 2, Kind.FIXED_WING: 1, Kind.GROUND: 10}  # MAV_TYPE
 
 
@@ -213,6 +214,12 @@ def read_plan(text: str, name: str = "plan") -> PlanFile:
         raise PlanFileError(f"{name}: {error}") from None
     except (KeyError, TypeError, ValueError, IndexError, AttributeError) as error:
         raise PlanFileError(f"{name}: malformed plan: {error!r}") from None
+    firmware = mission.get("firmwareType")
+    if firmware not in (None, FIRMWARE_ARDUPILOT):
+        skipped.append(f"the plan was made for firmware type {firmware} "
+                       f"({FIRMWARES.get(firmware, 'MAV_AUTOPILOT')}): its items are kept as "
+                       "written, and tml flies and exports them for ArduPilot (firmware "
+                       f"type {FIRMWARE_ARDUPILOT})")
     if nulls:
         skipped.append(f"{', '.join(nulls)}: params 5 and 6 null in a frame where they are "
                        "integers: read as 0, as MISSION_ITEM_INT sends them")

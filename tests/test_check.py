@@ -474,3 +474,11 @@ def test_values_an_autopilot_takes_but_look_odd_are_warnings() -> None:
             ("param6", "-105.23"))
     assert raw(*high, ("param7", "11085.9")) == ["W311"]  # a rover's unused altitude
     assert raw(*high, ("param7", "NaN")) == []
+
+
+def test_a_raw_mission_item_in_an_event_is_refused() -> None:
+    jump = _raw(("command", "DO_JUMP"), ("frame", "MISSION"), ("param1", "1"))
+    event = ('<event_handling><event name="e"><condition parameter="BATTERY_CHARGE_PERCENTAGE" '
+             f'comparison="less than" value="20"/>{jump}<termination mode="ABORT_MISSION"/>'
+             '</event></event_handling>\n')
+    assert codes(run(TAKE_OFF + event)) == ["E262"]

@@ -177,6 +177,37 @@ def test_edge_triggered_event_fires_again_after_going_false() -> None:
     assert flight.fired() == ["E", "E"]
 
 
+WAIT_3 = '<action name="WAIT"><argument name="duration" value="3"/></action>'
+
+
+def test_an_edge_that_falls_and_rises_during_the_handling_fires_again_after_it() -> None:
+    # True at 8-9 s and again from 10 s; the handling of the first firing lasts 3 s: the
+    # fall and the rise came while it ran, and the event fires again once it is over.
+    def toggling(flight: Flight) -> None:
+        flight.vehicle.detections["seen"] = 8 <= flight.time < 9 or flight.time >= 10
+    flight = Flight(TAKE_OFF + hover() + LAND, event("CONTINUE", WAIT_3), SEEN)
+    flight.run(each=toggling)
+    fired = [r.time for r in flight.records if r.kind == "event"]
+    assert len(fired) == 2 and 8 <= fired[0] < 9 and fired[1] >= 11, fired
+
+
+def test_an_edge_that_holds_through_the_handling_does_not_fire_again() -> None:
+    flight = Flight(TAKE_OFF + hover() + LAND, event("CONTINUE", WAIT_3), SEEN)
+    flight.run(each=see_at(8.0))
+    assert flight.fired() == ["E"]
+
+
+def test_the_handlers_own_action_does_not_arm_its_event_again() -> None:
+    # CURRENT_ACTION is the handler's WAIT while it runs: not a fall of "WAIT is running
+    # and seen" (a photo taken by "window seen during a survey" must not re-fire it).
+    conditions = ('<condition parameter="CURRENT_ACTION" comparison="equal" value="WAIT"/>'
+                  '<condition parameter="seen" comparison="equal" value="yes"/>')
+    flight = Flight(TAKE_OFF + hover() + LAND, event("CONTINUE", WAIT_3,
+                                                     conditions=conditions), SEEN)
+    flight.run(each=see_at(8.0))
+    assert flight.fired() == ["E"]
+
+
 def test_level_triggered_event_fires_on_every_step_while_true() -> None:
     flight = Flight(TAKE_OFF + hover() + LAND, event("CONTINUE", '<action name="MEMORIZE_POINT">'
                     '<argument name="coordinates" label="p"/></action>', trigger="level"), SEEN)

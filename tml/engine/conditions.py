@@ -98,6 +98,22 @@ def _text(value: object) -> str:
     return str(value)
 
 
+ENGINE_PARAMETERS = frozenset({"MISSION_ELAPSED_TIME", "TASK_ELAPSED_TIME", "CURRENT_TASK",
+                               "CURRENT_ACTION", "ACTION_FAILURE"})
+"""The parameters read from the interpreter itself rather than from the vehicle."""
+
+
+def reads_vehicle(condition: Condition) -> bool:
+    """Whether a condition reads the vehicle (its telemetry, its detections) rather than the
+    interpreter's own state (elapsed times, the current task or action, the last failure,
+    memorized labels): while an event's handler runs, only the former say anything about
+    the world -- the latter describe the handler itself."""
+    if condition.kind in (ConditionKind.CURRENT_TASK, ConditionKind.LABEL):
+        return False
+    spec = parameters.lookup(condition.subject)
+    return spec is None or spec.name not in ENGINE_PARAMETERS
+
+
 def evaluate(condition: Condition, state: VehicleState, memory: Memory) -> tuple[bool, object]:
     """Whether a condition holds, and the value it read (for the flight log)."""
     if condition.kind is ConditionKind.CURRENT_TASK:

@@ -7,6 +7,16 @@ order, and the first that triggers fires: on the rising edge of its conditions, 
 check while they hold with ``trigger="level"``. An action's failure is checked at once, in
 the step it happens (ACTION_FAILURE has just changed).
 
+*Edges during a handling.* While a handler runs on a vehicle, no event of that vehicle
+fires, but each edge-triggered one is still watched: when one of its conditions that reads
+the vehicle (:func:`~tml.engine.conditions.reads_vehicle`: telemetry, detections) is seen
+false, the event is armed again, and fires at the first check after the handling where all
+its conditions hold. Conditions on the interpreter's own state (CURRENT_ACTION,
+CURRENT_TASK, elapsed times, ACTION_FAILURE, labels) are not read then: during a handling
+they describe the handler, and a photo taken by the handler of "window seen during a
+survey" must not arm that event again. So an event never goes deaf: a condition that falls
+and rises again while the vehicle handles an event is a new edge.
+
 A handler whose actions only memorize points and that continues runs them at once and
 disturbs nothing. Any other holds the vehicle's work (the vehicle is told to hold), runs its
 actions one after the other on the vehicle (a :class:`Handler`), and then its termination
@@ -21,7 +31,7 @@ other handlers react; if none does, the held work fails with it.
 from __future__ import annotations
 
 from tml.engine.composites import NodeStatus, SequenceNode
-from tml.engine.conditions import names_task
+from tml.engine.conditions import names_task, reads_vehicle
 from tml.engine.context import Duty, Pilot, Run, TaskOwner, Verdict, Work, WorkMode
 from tml.engine.leaves import ActionLeaf
 from tml.engine.records import Status
@@ -53,6 +63,7 @@ class Events:
         handlers are checked."""
         handler = self.handlers.get(pilot.vehicle_id)
         if handler is not None:
+            self._rearm(pilot)
             self._drive(pilot, handler)
         elif pilot.duty is Duty.WATCHING and pilot.flying_a_task():
             self._check(pilot)
@@ -109,6 +120,20 @@ class Events:
         pilot.events.append((run.log.stamp, fired.name))
         self._fire(pilot, fired)
         return True
+
+    def _rearm(self, pilot: Pilot) -> None:
+        """During a handling: arm again each edge-triggered event one of whose conditions
+        on the vehicle is false (see the module docstring)."""
+        run = self.run
+        memory = pilot.memory(run.now, run.log.mission_time)
+        roles = {pilot.role: pilot.vehicle_id}
+        for event in run.mission.events:
+            if (event.trigger is EventTrigger.LEVEL or not pilot.holding.get(event.name)
+                    or (event.role is not None and event.role != pilot.role)):
+                continue
+            if any(not run.reading(c, pilot, memory, roles)[0]
+                   for c in event.conditions if reads_vehicle(c)):
+                pilot.holding[event.name] = False
 
     def _fire(self, pilot: Pilot, event: Event) -> None:
         run = self.run

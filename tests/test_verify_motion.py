@@ -251,3 +251,24 @@ def test_a_ground_vehicle_returns_home_and_stops() -> None:
     step = ROVER.step(action("RETURN_HOME_AND_LAND"), state)
     assert step.after.position == (0.0, 0.0, 0.0) and not step.after.flying
     assert step.distance == pytest.approx(50.0)
+
+
+def test_raw_mission_items_are_flown_as_the_autopilot_flies_their_commands() -> None:
+    from tml.language.validation import validate_file
+    from tml.verify.static import verify_mission
+
+    items = "".join(
+        f'<task name="i{n}"><mission_item {attributes}/></task>' for n, attributes in enumerate([
+            'command="NAV_TAKEOFF" frame="GLOBAL_RELATIVE_ALT" param7="20"',
+            'command="NAV_WAYPOINT" frame="GLOBAL_RELATIVE_ALT" param1="5" '
+            'param5="-35.3623621" param6="149.1652300" param7="20"',  # 100 m north, hold 5 s
+            'command="DO_JUMP" frame="MISSION" param1="2" param2="1"',
+            'command="NAV_LAND" frame="GLOBAL_RELATIVE_ALT"']))
+    text = ('<mission name="m"><environment><home latitude="-35.3632621" '
+            'longitude="149.16523" altitude="584"/></environment>'
+            f'<task name="p" dispatch="mission">{items}</task></mission>')
+    mission = validate_file("m.xml", text.encode()).mission
+    report = verify_mission(mission, load_profile("quadcopter"))
+    distances = [round(row.distance) for row in report.rows]
+    assert distances == [20, 100, 0, 20]
+    assert report.rows[1].time > 100 / load_profile("quadcopter").cruise_speed + 5 - 1e-6

@@ -34,8 +34,9 @@ from dataclasses import dataclass, field, replace
 from itertools import pairwise
 
 from tml import geo
-from tml.language.actions import BoundAction
+from tml.language.actions import GLOBAL_FRAME_NUMBERS, BoundAction, table_entry
 from tml.language.kinds import Kind, landing_approach
+from tml.language.mavlink_tables import MAV_FRAME
 from tml.patterns import (
     CIRCLE_POINTS_PER_TURN,
     circle,
@@ -466,6 +467,56 @@ class FlightModel:
             turn = (bound.number("orientation_angle") - state.heading + 180.0) % 360.0 - 180.0
         after = self.hover(state, abs(turn) / self.profile.yaw_rate)
         return Step(state, replace(after, heading=(state.heading + turn) % 360.0), labels=labels)
+
+    def _mission_item(self, bound: BoundAction, state: PredictedState,
+                      labels: Labels) -> Step:
+        """A raw mission item, as the autopilot flies its command: a take-off climbs, a
+        navigation item with a position flies there (and holds or loiters its param1
+        seconds where the command says so), a landing lands, a return to launch comes
+        home; other commands (DO_, CONDITION_) take no time. A DO_JUMP's repeats are not
+        predicted."""
+        command = bound.text("command").removeprefix("MAV_CMD_")
+        frame = table_entry(MAV_FRAME, bound.text("frame"))
+        hold = bound.number("param1")
+        altitude = bound.number("param7")
+        if not math.isfinite(altitude):
+            altitude = state.position[2]
+        elif frame is not None and frame[0] in (0, 5):  # above sea level
+            altitude -= self.home.altitude if self.home is not None else DEFAULT_HOME.altitude
+        latitude, longitude = bound.number("param5"), bound.number("param6")
+        placed = frame is not None and frame[0] in GLOBAL_FRAME_NUMBERS \
+            and (latitude or longitude)
+        if bound.number("param7") == 0:  # ArduCopter: an altitude of 0 is the current one
+            altitude = state.position[2]
+        here = self.local(latitude, longitude, altitude, "relative") if placed \
+            else (*state.position[:2], altitude)
+        if command in ("NAV_TAKEOFF", "NAV_VTOL_TAKEOFF"):
+            if state.flying or self.profile.kind is Kind.GROUND:
+                return Step(state, state, labels=labels)
+            step = self._go(bound, replace(state, flying=True), labels,
+                            [(*state.position[:2], altitude)], cruise=False)
+            return replace(step, before=state)
+        if command in ("NAV_LAND", "NAV_VTOL_LAND"):
+            if self.profile.kind is Kind.GROUND:
+                return Step(state, state, labels=labels)
+            target = (*here[:2], 0.0) if placed else (*state.position[:2], 0.0)
+            if self.profile.kind is Kind.FIXED_WING:
+                return self._landing(bound, state, labels, target)
+            targets = [(*here[:2], state.position[2]), target] if placed else [target]
+            step = self._go(bound, state, labels, targets, landing=True, cruise=False)
+            return replace(step, after=replace(step.after, flying=False))
+        if command == "NAV_RETURN_TO_LAUNCH":
+            return self._return_home_and_land(bound, state, labels)
+        if command == "NAV_DELAY" and hold > 0:
+            return Step(state, self.hover(state, hold), labels=labels)
+        if command.startswith("NAV_") and command not in ("NAV_DELAY",):
+            step = self._go(bound, state, labels, [here])
+            if command in ("NAV_WAYPOINT", "NAV_LOITER_TIME") and hold > 0 \
+                    and math.isfinite(hold):
+                step = replace(step, after=self.hover(step.after, hold))
+            return step
+        notes = ("DO_JUMP: its repeats are not predicted",) if command == "DO_JUMP" else ()
+        return Step(state, state, labels=labels, notes=notes)
 
     def _wait(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
         return Step(state, self.hover(state, bound.number("duration")), labels=labels)

@@ -140,19 +140,32 @@ def test_the_mode_watch_tells_a_mode_nobody_here_asked_for() -> None:
     from tml.mavlink.modes import ModeWatch
 
     watch = ModeWatch()
-    assert not watch.seen("STABILIZE", armed=False)  # its own mode before the first ask
+    assert not watch.seen("STABILIZE", armed=False, now=0.0)  # its own mode before an ask
     watch.ask("GUIDED")
-    assert not watch.seen("STABILIZE", armed=True)  # the old mode, until GUIDED shows
-    assert not watch.seen("GUIDED", armed=True)
+    assert not watch.seen("STABILIZE", armed=True, now=1.0)  # the old one, until GUIDED shows
+    assert not watch.seen("GUIDED", armed=True, now=2.0)
     watch.ask("AUTO")
     watch.refused()  # AUTO refused: GUIDED is still expected
-    assert not watch.seen("GUIDED", armed=True)
+    assert not watch.seen("GUIDED", armed=True, now=3.0)
     watch.ask("FLIP")
-    assert not watch.seen("ALT_HOLD", armed=True)  # where a flip ends by itself
+    assert not watch.seen("ALT_HOLD", armed=True, now=4.0)  # where a flip ends by itself
     watch.ask("GUIDED")
-    assert not watch.seen("GUIDED", armed=True) and watch.taken == ""
-    assert watch.seen("LAND", armed=True) and watch.taken == "LAND"
-    assert not watch.seen("RTL", armed=True) and watch.taken == "LAND"  # said once
+    assert not watch.seen("GUIDED", armed=True, now=5.0) and watch.taken == ""
+    assert not watch.seen("LAND", armed=True, now=6.0)  # one HEARTBEAT says nothing yet
+    assert watch.seen("LAND", armed=True, now=7.0) and watch.taken == "LAND"
+    assert not watch.seen("RTL", armed=True, now=8.0) and watch.taken == "LAND"  # said once
+
+
+def test_one_forged_heartbeat_between_the_real_ones_takes_nothing() -> None:
+    from tml.mavlink.modes import ModeWatch
+
+    watch = ModeWatch()
+    watch.ask("GUIDED")
+    assert not watch.seen("GUIDED", armed=True, now=10.0)
+    for t in (10.5, 11.5, 12.5):  # a spoofer says LAND between the autopilot's GUIDEDs
+        assert not watch.seen("LAND", armed=True, now=t)
+        assert not watch.seen("GUIDED", armed=True, now=t + 0.5)
+    assert watch.taken == ""
 
 
 def test_a_mode_change_on_the_ground_disarmed_is_not_taken() -> None:
@@ -160,5 +173,6 @@ def test_a_mode_change_on_the_ground_disarmed_is_not_taken() -> None:
 
     watch = ModeWatch()
     watch.ask("LAND")
-    assert not watch.seen("LAND", armed=True)
-    assert not watch.seen("STABILIZE", armed=False) and watch.taken == ""
+    assert not watch.seen("LAND", armed=True, now=0.0)
+    assert not watch.seen("STABILIZE", armed=False, now=1.0)
+    assert not watch.seen("STABILIZE", armed=False, now=2.0) and watch.taken == ""

@@ -451,7 +451,7 @@ class MavlinkVehicle:
                               snapshot.received, snapshot.lost)
         if kind == "HEARTBEAT" and component == self.mav.component_id:
             with self._lock:
-                self._modes.seen(snapshot.mode, snapshot.armed)
+                self._modes.seen(snapshot.mode, snapshot.armed, self.link_clock())
             self._keep_target(snapshot)
         elif kind == "PARAM_VALUE":
             with self._param_arrived:

@@ -95,41 +95,55 @@ FOLLOWS: dict[str, frozenset[str]] = {
 """Modes an autopilot enters by itself as the end of a mode tml asked for: not taken."""
 
 
+AGREE = 0.9
+"""Seconds over which the autopilot's HEARTBEATs must all show a mode nobody here asked for
+before the vehicle counts as taken: two of ArduPilot's 1 Hz HEARTBEATs in a row."""
+
+
 class ModeWatch:
     """Tells a mode change nobody on this side asked for: the autopilot's own (an EKF, GPS
     or battery failsafe landing), a pilot's RC switch, another ground station.
 
     Sans-IO: :meth:`ask` before each mode change is sent (:meth:`refused` if it failed),
-    :meth:`seen` with each autopilot HEARTBEAT's mode. A vehicle is *taken* when, armed,
-    after the mode asked was shown, a HEARTBEAT shows another mode that does not follow it
-    (:data:`FOLLOWS`); ``taken`` then keeps that mode. Before the first ask the vehicle's
-    mode is its own (on the ground, before the mission), and while an asked mode is not
-    shown yet the old one is still expected.
+    :meth:`seen` with each autopilot HEARTBEAT's mode and the time it came. A vehicle is
+    *taken* when, armed, after the mode asked was shown, the HEARTBEATs show another mode
+    that does not follow it (:data:`FOLLOWS`), all of them for :data:`AGREE` s: one stray
+    or forged HEARTBEAT (without signing any client on the link can send one as the
+    autopilot) is answered by the real one's next, and believes nothing. ``taken`` then
+    keeps that mode. Before the first ask the vehicle's mode is its own (on the ground,
+    before the mission), and while an asked mode is not shown yet the old one is still
+    expected.
     """
 
     def __init__(self) -> None:
         self.asked: str | None = None
         self.confirmed = False
         self.taken = ""
+        self.since: tuple[str, float] | None = None  # another mode shown, from when
         self._before: tuple[str | None, bool] = (None, False)
 
     def ask(self, mode: str) -> None:
         """The mode about to be asked for."""
         self._before = (self.asked, self.confirmed)
-        self.asked, self.confirmed = mode.upper(), False
+        self.asked, self.confirmed, self.since = mode.upper(), False, None
 
     def refused(self) -> None:
         """The last ask failed: the mode asked before is still the one expected."""
         self.asked, self.confirmed = self._before
 
-    def seen(self, mode: str, armed: bool) -> bool:
-        """A HEARTBEAT shows ``mode``; True when that makes the vehicle taken."""
+    def seen(self, mode: str, armed: bool, now: float) -> bool:
+        """A HEARTBEAT shows ``mode`` at ``now``; True when that makes the vehicle taken."""
         if self.taken or self.asked is None:
             return False
         if mode == self.asked or mode in FOLLOWS.get(self.asked, ()):
-            self.confirmed = True
+            self.confirmed, self.since = True, None
             return False
-        if self.confirmed and armed:
+        if not (self.confirmed and armed):
+            return False
+        if self.since is None or self.since[0] != mode:
+            self.since = (mode, now)
+            return False
+        if now - self.since[1] >= AGREE:
             self.taken = mode
             return True
         return False

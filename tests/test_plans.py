@@ -322,7 +322,9 @@ def test_values_an_action_refuses_are_kept_as_raw_items(tmp_path: Path) -> None:
                        "4\t0\t3\t16\t5\t0\t0\t0\t-35.36\t149.16\t15000\t1\n"
                        "5\t0\t3\t18\t2\t0\t0\t1\t-35.36\t149.16\t20\t1\n"
                        "6\t0\t0\t211\t1\t0\t0\t0\t0\t0\t0\t1\n"
-                       "7\t0\t3\t21\t630\t0\t0\t1\t-35.36\t149.16\t0\t1\n")
+                       "7\t0\t3\t17\t0\t0\t0\t0\t-35.36\t149.16\t20\t1\n"  # radius 0
+                       "8\t0\t0\t203\t1\t0\t0\t0\t1\t0\t0\t1\n"  # DIGICAM session 1
+                       "9\t0\t3\t21\t630\t0\t0\t1\t-35.36\t149.16\t0\t1\n")
     _round_trip(read_wpl(text), tmp_path)
 
 

@@ -260,9 +260,9 @@ def _bound(action: _Action, line: int) -> BoundAction | None:
         return None
 
 
-def _exact(actions: list[_Action], plan: PlanFile) -> list[_Action]:
+def _exact(actions: list[_Action], plan: PlanFile, losses: list[str]) -> list[_Action]:
     """The actions with each one that does not compile back to its items exactly made
-    the MISSION_ITEMs of its items."""
+    the MISSION_ITEMs of its items; a MISSION_ITEM that does not either is a loss."""
     home = plan.home or DEFAULT_HOME
     while True:
         bound = [_bound(a, n) for n, a in enumerate(actions)]
@@ -291,7 +291,10 @@ def _exact(actions: list[_Action], plan: PlanFile) -> list[_Action]:
                 raw = _raw(plan.items[seq])
                 raw.items.append(seq)
                 again.append(raw)
-        if again == actions:  # raw items that do not compile back: said by validation
+        if again == actions:  # items not even a MISSION_ITEM carries exactly
+            losses.extend(f"{plan.source(actions[n].items[0])}: not carried exactly (its "
+                          "MISSION_ITEM compiles to another item)" for n in sorted(wrong)
+                          if bound[n] is not None)  # the others: said by validation
             return actions
         actions = again
 
@@ -318,7 +321,7 @@ def import_plan(plan: PlanFile, name: str) -> Imported:
         action.items.append(item.seq)
         if not (actions and action.name != "MISSION_ITEM" and _joined(actions[-1], action)):
             actions.append(action)
-    actions = _exact(actions, plan)
+    actions = _exact(actions, plan, losses)
     root = etree.Element("mission", nsmap={"xsi": SCHEMA_INSTANCE}, name=name)
     from tml.language.schema import SCHEMA_LOCATION
 

@@ -11,9 +11,9 @@ same item*, every field of it: the mission is compiled and compared item for ite
 every item no action says exactly (a DO_JUMP, a spline waypoint, a waypoint with a hold
 time or a yaw left unset, a value an action's range refuses) is a ``<mission_item>`` (the
 action ``MISSION_ITEM``): the item as written, command, frame, seven params and
-autocontinue. Items the mission compiler
-writes as several (a LANDING_POINT with a heading: CONDITION_YAW then NAV_LAND) are read
-back as one action when they compile back the same.
+autocontinue. Items the mission compiler writes as several (a LANDING_POINT with a
+heading: CONDITION_YAW then NAV_LAND) are read back as one action when they compile back
+the same.
 
 Positions travel as the 1e-7-degree integers mission items carry, never through a local
 frame; a param left unset (null in a ``.plan``, NaN) stays unset. The plan's home, its
@@ -53,12 +53,13 @@ class _Action:
 
     name: str
     arguments: dict[str, str] = field(default_factory=dict)
-    items: list[int] = field(default_factory=list)  # item numbers (1-based, as in the file)
+    items: list[int] = field(default_factory=list)  # the seq (0-based) of each source item
 
 
 @dataclass(frozen=True)
 class Imported:
-    """The mission's XML text, notes, and what could not be brought over (losses)."""
+    """The mission's (or world file's) XML text, notes, the tasks written, and what could
+    not be brought over (losses)."""
 
     text: str
     warnings: tuple[str, ...]

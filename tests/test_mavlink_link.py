@@ -300,6 +300,39 @@ def test_signing_accepts_only_correctly_signed_messages_and_signs_its_own() -> N
         assert link.stats.bad_data == 7
 
 
+def test_a_vehicle_that_signs_is_said_as_soon_as_it_is_heard_by_a_link_without_a_key(
+        ) -> None:
+    from tml.errors import VehicleError
+
+    with Link("udpin:127.0.0.1:0") as link:
+        assert link.local_address is not None
+        with FakeAutopilot(system_id=3, key=KEY, connect=link.local_address), \
+                pytest.raises(VehicleError, match="the vehicle signs its messages") as caught:
+            link.wait_vehicle(None, timeout=60)
+    assert caught.value.system_id == 3
+
+
+@pytest.mark.parametrize(("text", "hint"), [
+    ("127.0.0.1:18001", "e.g. tcp:127.0.0.1:18001 (connect to a vehicle that listens) or "
+                        "udpin:127.0.0.1:18001 (listen for one that sends)"),
+    ("foo:bar", "e.g. tcp:127.0.0.1:5760 or udpin:0.0.0.0:14550"),
+    ("tpc:127.0.0.1:5760", "e.g. tcp:127.0.0.1:5760 or udpin:0.0.0.0:14550"),
+])
+def test_an_address_without_its_scheme_says_the_forms(text: str, hint: str) -> None:
+    from tml.mavlink.link import address_problem
+
+    problem = address_problem(text)
+    assert problem is not None and problem.startswith(
+        "not an address: a network address starts with its scheme")
+    assert hint in problem and "DEVICE,BAUD" in problem
+
+
+def test_a_serial_path_may_hold_colons() -> None:
+    text = "/dev/serial/by-path/pci-0000:00:14.0-usb-0:2:1.0-port0,57600"
+    assert parse_address(text) == Address(
+        "serial", device="/dev/serial/by-path/pci-0000:00:14.0-usb-0:2:1.0-port0", baud=57600)
+
+
 def test_signing_key_must_be_32_bytes() -> None:
     from tml.errors import VehicleError
 

@@ -9,10 +9,12 @@ import socket
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
+from tests.process_lines import simulator
 from tml.commands.cli import main
 from tml.errors import ExitCode
 from tml.run.journal import read
@@ -277,6 +279,15 @@ def test_numbers_that_cannot_be_flown_are_usage_errors(
      "tml run: --out udpout:127.0.0.1:99999: expected udpout:HOST:PORT"),
     (["missions/paper_example1.xml", "--sim", "--out", "nonsense"],
      "tml run: --out nonsense: not an address a copy can be sent to"),
+    # A network address without its scheme (pymavlink would listen on it for UDP and wait
+    # out the timeout), a scheme that is none: the forms, at once.
+    (["missions/paper_example1.xml", "--connect", "127.0.0.1:18001"],
+     "tml run: --connect 127.0.0.1:18001: not an address: a network address starts with its "
+     "scheme (udpin:, udpout:, udp:, tcpin:, tcp:), e.g. tcp:127.0.0.1:18001 (connect to a "
+     "vehicle that listens) or udpin:127.0.0.1:18001 (listen for one that sends); a serial "
+     "port is DEVICE or DEVICE,BAUD (e.g. /dev/ttyUSB0,57600)"),
+    (["missions/paper_example1.xml", "--connect", "foo:bar"],
+     "tml run: --connect foo:bar: not an address: a network address starts with its scheme"),
 ])
 def test_usage_errors_exit_2_naming_the_option_and_value(
         argv: list[str], message: str, capsys: pytest.CaptureFixture[str],
@@ -516,3 +527,87 @@ def test_ctrl_c_while_tml_starts_ends_it_without_a_traceback(tmp_path: Path,
         return  # the interpreter's start-up, before tml's own code (see the docstring)
     assert process.returncode in (ExitCode.ABORTED, -signal.SIGINT), (out, err)
     assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+
+
+def test_a_serial_device_that_does_not_exist_exits_4_in_one_line(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    device = tmp_path / "ttyUSB9"
+    assert main(["run", write(tmp_path, SHORT), "--connect", f"{device},57600"]) == 4
+    err = capsys.readouterr().err
+    assert err.strip() == f"tml run: cannot open serial port {device}: No such file or directory"
+
+
+def test_pyserial_is_a_dependency() -> None:
+    import tomllib
+
+    project = tomllib.loads((ROOT_MISSIONS.parent / "pyproject.toml").read_text())["project"]
+    assert any(d.replace(" ", "").startswith("pyserial>=") for d in project["dependencies"])
+
+
+@pytest.fixture
+def pseudo_terminal(tmp_path: Path) -> Iterator[tuple[Path, int]]:
+    """A serial device (a pseudo-terminal made by socat) carrying a simulated vehicle's
+    TCP port, as a telemetry radio carries an autopilot's serial port: (device, port)."""
+    import shutil
+
+    from tests.process_lines import follow, wait_for
+
+    if shutil.which("socat") is None:
+        pytest.skip("socat is not installed (apt-get install socat)")
+    device = tmp_path / "ttyTML"
+    with simulator("--fast-boot", "--speedup", "10") as port:
+        bridge = subprocess.Popen(["socat", "-d", "-d", f"pty,link={device},raw,echo=0",
+                                   f"tcp:127.0.0.1:{port}"], stderr=subprocess.PIPE, text=True)
+        try:
+            assert bridge.stderr is not None
+            wait_for(follow(bridge.stderr), [], "starting data transfer loop",
+                     time.monotonic() + 60, "socat")
+            yield device, port
+        finally:
+            bridge.terminate()
+            bridge.wait(timeout=60)
+
+
+def test_a_vehicle_on_a_serial_port_flies(pseudo_terminal: tuple[Path, int], tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    device, _ = pseudo_terminal
+    code = main(["run", write(tmp_path, SHORT), "--connect", f"{device},57600", "-q",
+                 "--timeout", "60"])
+    out = capsys.readouterr()
+    assert code == 0, out
+    assert "vehicle 1: mission completed: all tasks done" in out.out
+
+
+@pytest.mark.parametrize("scheme", ["udpin", "udp"])
+def test_a_vehicle_that_sends_to_a_udp_port_flies(scheme: str, tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    # As ArduPilot's --serial0 udpclient:HOST:PORT, or mavlink-router's UDP endpoint: the
+    # vehicle sends first, tml answers whoever sent.
+    port = _free_udp_port()
+    with simulator("--fast-boot", "--speedup", "10", "--out", f"udp:127.0.0.1:{port}"):
+        code = main(["run", write(tmp_path, SHORT), "--connect", f"{scheme}:127.0.0.1:{port}",
+                     "-q", "--timeout", "60"])
+    out = capsys.readouterr()
+    assert code == 0, out
+    assert "vehicle 1: mission completed: all tasks done" in out.out
+
+
+def test_a_vehicle_that_signs_its_messages_met_without_a_key_is_said_at_once(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    key = tmp_path / "key"
+    key.write_text("a passphrase the vehicle was given\n")
+    with simulator("--fast-boot", "--signing-key-file", str(key)) as port:
+        code = main(["run", write(tmp_path, SHORT), "--connect", f"tcp:127.0.0.1:{port}",
+                     "--timeout", "60"])
+    err = capsys.readouterr().err
+    assert code == 4, err
+    assert err.strip().splitlines()[-1] == (
+        f"tml run: vehicle 1: tcp:127.0.0.1:{port}: the vehicle signs its messages (MAVLink 2 "
+        "signing) and ignores unsigned commands: give its key (--signing-key-file, or "
+        "TML_SIGNING_KEY)")
+
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])

@@ -20,6 +20,7 @@ import httpx
 import pytest
 from serving import FAST_SIM, ROOT, SHORT, free_port
 
+from tests.process_lines import simulator
 from tml.commands.cli import main
 
 DOC = (ROOT / "docs" / "serve.md").read_text(encoding="utf-8")
@@ -144,6 +145,19 @@ def test_a_run_flying_when_the_service_was_killed_is_interrupted_after_a_restart
         assert client.get(f"/runs/{run}/log").text.count("\n") >= 1, "its log so far is kept"
         assert client.get("/vehicles/1").json()["run"] is None
         code, out = again.stop()
+        assert code == 0, out
+
+
+def test_a_vehicle_at_a_connection_address_flies_a_run_of_the_api(data: Path) -> None:
+    with simulator("--fast-boot", "--speedup", "10") as port, \
+            Server(["--connect", f"tcp:127.0.0.1:{port}", "--timeout", "60"], data) as server, \
+            httpx.Client(base_url=server.url, timeout=30) as client:
+        assert client.get("/vehicles").json()[0]["id"] == 1
+        run = start_a_run(client)
+        while (found := client.get(f"/runs/{run}").json())["status"] in ("queued", "running"):
+            pass
+        assert (found["status"], found["exit_code"]) == ("completed", 0), found
+        code, out = server.stop()
         assert code == 0, out
 
 

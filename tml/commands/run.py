@@ -471,7 +471,7 @@ def open_vehicles(args: argparse.Namespace, world: World, errors: Any = None,
             link = stack.enter_context(Link(address, outputs=args.out, signing_key=key,
                                             timebase=timebase))
             link.on_change(lambda _system_id: news())
-            if not system_id and errors is not None and not args.quiet:
+            if not system_id and errors is not None and not getattr(args, "quiet", False):
                 # Said once: pymavlink's own retry messages are kept from the terminal.
                 errors.print(f"tml run: waiting up to {args.timeout:g} s for a vehicle "
                              f"at {address}", markup=False)

@@ -170,7 +170,7 @@ def _serve(args: argparse.Namespace, token: str | None, listening: socket.socket
             hangar.notify()
 
     try:
-        with open_vehicles(args, World(), notify) as (vehicles, _wake, clock, _timebase):
+        with open_vehicles(args, World(), notify=notify) as (vehicles, _wake, clock, _timebase):
             hangar = Hangar(vehicles, clock)
             hangars.append(hangar)
             service = Service(storage, hangar, ServiceOptions(

@@ -60,6 +60,7 @@ from tml.errors import LinkLost, VehicleError, VehicleTimeout
 from tml.mavlink import codec
 from tml.mavlink.codec import mavlink, mavutil
 from tml.mavlink.telemetry import Telemetry, TelemetryTracker
+from tml.signing import signature_first, timestamp_now
 from tml.timebase import SYSTEM, Timebase
 
 HEARTBEAT_PERIOD = 1.0
@@ -103,6 +104,17 @@ def address_problem(text: str, output: bool = False) -> str | None:
         return None
     if output:
         return f"not an address a copy can be sent to ({networks})"
+    if colon and "/" not in text and "\\" not in text:
+        # Not a path: a network address without its scheme, or a scheme misspelt.
+        host, _, port = text.rpartition(":")
+        example = (f"tcp:{host}:{port} (connect to a vehicle that listens) or udpin:{host}:"
+                   f"{port} (listen for one that sends)"
+                   if port.isdigit() and host and (":" not in host or host.startswith("["))
+                   else
+                   "tcp:127.0.0.1:5760 or udpin:0.0.0.0:14550")
+        return (f"not an address: a network address starts with its scheme "
+                f"({', '.join(s + ':' for s in SCHEMES)}), e.g. {example}; a serial port is "
+                f"DEVICE or DEVICE,BAUD (e.g. /dev/ttyUSB0,57600)")
     device, comma, speed = text.partition(",")
     if not device or (comma and not speed.isdigit()):
         return (f"expected DEVICE or DEVICE,BAUD (e.g. /dev/ttyUSB0,57600), or a network "
@@ -193,6 +205,9 @@ class Link:
         self.lost_after = lost_after
         self.stats = LinkStats()
         self._expected = None if system_ids is None else frozenset(system_ids)
+        self._signing = signing_key is not None
+        self._signed_by: set[int] = set()
+        """The vehicles heard signing their messages while this link has no key."""
         self._conn = _connect(address, baud, source_system, source_component)
         self.down = ""
         """Why the connection is down (a TCP vehicle went away), or "" while it is up."""
@@ -209,6 +224,7 @@ class Link:
                 raise VehicleError("a MAVLink 2 signing key is 32 bytes")
             self._conn.setup_signing(signing_key, sign_outgoing=True,
                                      allow_unsigned_callback=lambda _mav, _msgid: False)
+            signature_first(self._conn.mav)  # a keyless frame moves no stream's time stamp
         lock = threading.RLock()
         self._lock = threading.Condition(lock)
         # Woken only when a machine finishes or its deadline comes closer, so that a
@@ -267,7 +283,14 @@ class Link:
                 found = [v for v in self._vehicles.values()
                          if system_id is None or v.system_id == system_id]
                 if found:
-                    return min(found, key=lambda v: v.system_id)
+                    first = min(found, key=lambda v: v.system_id)
+                    if first.system_id in self._signed_by:
+                        raise VehicleError(
+                            f"{self.address}: the vehicle signs its messages (MAVLink 2 "
+                            "signing) and ignores unsigned commands: give its key "
+                            "(--signing-key-file, or TML_SIGNING_KEY)",
+                            first.system_id)
+                    return first
                 left = end - self.timebase.now()
                 if left <= 0:
                     who = "a vehicle" if system_id is None else f"vehicle {system_id}"
@@ -352,6 +375,9 @@ class Link:
         if not isinstance(msg, mavlink.MAVLink_message):
             msg = codec.encode(msg, system_id, component_id)
         with self._send_lock:
+            signing = self._conn.mav.signing
+            if signing.sign_outgoing:  # stamps that follow the clock, not one up per frame
+                signing.timestamp = max(signing.timestamp, timestamp_now())
             self._conn.mav.send(msg)
 
     def run(self, machine: Machine, system_id: int, component_id: int,
@@ -492,6 +518,8 @@ class Link:
             with contextlib.suppress(OSError):  # a watcher that went away must not stop a flight
                 out.write(raw)
         with self._lock:
+            if not self._signing and _signed(msg):
+                self._signed_by.add(sysid)
             self._discover(msg, sysid)
             tracker = self._trackers.get(sysid)
             revision = -1 if tracker is None else tracker.revision
@@ -540,6 +568,13 @@ class Link:
             self._trackers[sysid] = TelemetryTracker(sysid, autopilot_component=component)
         else:
             self._vehicles[sysid] = _with_component(known, component)
+
+
+def _signed(msg: Any) -> bool:
+    """Whether a message came signed (MAVLink 2's incompatibility flag), whether or not
+    the signature could be checked."""
+    header = getattr(msg, "_header", None)
+    return header is not None and bool(header.incompat_flags & mavlink.MAVLINK_IFLAG_SIGNED)
 
 
 def _read_ahead(conn: Any) -> None:
@@ -600,7 +635,16 @@ def _connect(address: str, baud: int, source_system: int, source_component: int,
                                           source_component=source_component,
                                           dialect="ardupilotmega", autoreconnect=True,
                                           input=not (output and parsed.scheme == "udp"))
+    except ModuleNotFoundError as error:  # pyserial, a dependency: a broken installation
+        raise LinkLost(f"cannot open serial port {address!r}: {error} (pip install "
+                       "pyserial)") from error
     except (OSError, ValueError) as error:
+        if parsed.scheme == "serial":
+            # pyserial's own words repeat the device and the errno: the system's cause is
+            # what it wraps.
+            cause = error.__context__ if isinstance(error.__context__, OSError) else error
+            raise LinkLost(f"cannot open serial port {address}: {_reason(cause)}"
+                           ) from error
         raise LinkLost(f"cannot open MAVLink connection {address!r}: {_reason(error)}"
                        ) from error
 

@@ -53,6 +53,7 @@ from sitl.model import TICK, VehicleModel
 from sitl.params import UnknownParameter
 from sitl.wire import Fields, encode
 from tml.geo import to_global
+from tml.signing import signature_first, timestamp_now
 from tml.timebase import Lockstep
 from tml.world import Home, World
 
@@ -67,8 +68,6 @@ def _own(kind: type[VehicleModel], params: dict[str, float] | None) -> dict[str,
     return {name: value for name, value in (params or {}).items() if name in names}
 
 
-SIGNING_EPOCH = 1420070400
-"""1 January 2015 (Unix time), from which MAVLink 2 signing time stamps count."""
 
 
 def parse_udp_address(text: str) -> tuple[str, int]:
@@ -96,6 +95,7 @@ class _Peer:
         if signing_key is not None:  # as ArduPilot with a key: nothing unsigned is taken
             self.parser.signing.secret_key = signing_key
             self.parser.signing.allow_unsigned_callback = lambda _mav, _msgid: False
+            signature_first(self.parser)  # a keyless frame moves no stream's time stamp
         self.backlog = bytearray()
         self.routes: set[tuple[int, int]] = set()  # (system, component) heard on it
 
@@ -163,9 +163,10 @@ class _Endpoint:
             signer = mavlink.MAVLink(None, self.model.system_id, component)
             signer.signing.secret_key = self.signing_key
             signer.signing.sign_outgoing = True
-            # 10 us units since 2015, as the MAVLink signing specification says
-            signer.signing.timestamp = int((time.time() - SIGNING_EPOCH) * 1e5)
             self.signers[component] = signer
+        # The time stamp follows the clock (pymavlink only counts one up per frame, and
+        # a client that comes later refuses a new stream more than a minute behind its own).
+        signer.signing.timestamp = max(signer.signing.timestamp, timestamp_now())
         packet: bytes = msg.pack(signer)
         signer.seq = (signer.seq + 1) % 256  # pack() leaves counting to send()
         return packet

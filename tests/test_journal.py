@@ -131,3 +131,34 @@ def test_telemetry_carries_what_an_operator_reads() -> None:
     fields = telemetry_fields(state)
     assert (fields["voltage"], fields["satellites"], fields["climb"]) == (12.35, 11, -0.46)
     assert fields["mission"]["item"] == 43 and fields["mission"]["items"] == 145
+
+
+class FullDisk:
+    """A stream that takes ``room`` lines and then fails as a full disk does."""
+
+    def __init__(self, room: int) -> None:
+        self.room = room
+        self.text: list[str] = []
+
+    def write(self, text: str, /) -> int:
+        if len(self.text) >= self.room:
+            raise OSError(28, "No space left on device")
+        self.text.append(text)
+        return len(text)
+
+    def flush(self) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+def test_a_log_that_cannot_be_written_is_said_once_and_stops_nothing() -> None:
+    said: list[str] = []
+    journal = Journal(FullDisk(room=2), on_failure=said.append)
+    for t in range(5):
+        journal.write(float(t), "telemetry", 1, mode="GUIDED")
+    assert (journal.lines, journal.unwritten) == (2, 3)
+    assert journal.failure == "could not write line 3: No space left on device"
+    assert said == ["flight log: could not write line 3: No space left on device; "
+                    "the flight goes on without it"]

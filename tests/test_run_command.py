@@ -611,3 +611,14 @@ def _free_udp_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
         probe.bind(("127.0.0.1", 0))
         return int(probe.getsockname()[1])
+
+
+def test_a_flight_log_on_a_full_disk_stops_nothing(tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    # /dev/full takes the file open and refuses every write, as a full disk does.
+    code = main(["run", write(tmp_path, SHORT), "--sim", *FAST, "-q", "--log", "/dev/full"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "vehicle 1: mission completed: all tasks done" in out
+    assert "flight log: /dev/full (0 lines; could not write line 1: No space left on device" \
+        in out

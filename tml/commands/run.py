@@ -552,6 +552,8 @@ def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
         if display is not None:
             display.say(message)
 
+    journal.on_failure = on_safety  # a log that cannot be written never stops the flight
+
     payloads: dict[int, list[str]] = {}
     for number, names in args.payload:
         payloads.setdefault(number, []).extend(names)
@@ -581,5 +583,7 @@ def _fly(args: argparse.Namespace, mission: Mission, world: World, profile: Any,
         for message in said:
             console.print(printable(message, False), markup=False)
     if args.log:
-        console.print(f"flight log: {args.log} ({journal.lines} lines)", markup=False)
+        console.print(f"flight log: {args.log} ({journal.lines} lines"
+                      + (f"; {journal.failure}, {journal.unwritten} lines not written)"
+                         if journal.failure else ")"), markup=False)
     return outcome.exit_code

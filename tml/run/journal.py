@@ -23,6 +23,11 @@ fields. Lines are flushed at once, so that a log survives a crash of the run up 
 event, and every decision (:data:`DECISIONS`) is synced to the disk too (fsync), so that a
 log read back after the machine itself went down holds every decision taken: ``tml run
 --resume`` goes on from it (:mod:`tml.run.resume`).
+
+A log that cannot be written (a full disk, a directory removed under it) never stops the
+flight: the first failure is kept (:attr:`Journal.failure`) and told to ``on_failure``, the
+lines after it are only counted (:attr:`Journal.unwritten`), and the run goes on to its end
+and its safe state as it would have; the command says what it could not write.
 """
 
 from __future__ import annotations
@@ -120,11 +125,17 @@ class Journal:
     tells the wall-clock time of each line (the local time by default)."""
 
     def __init__(self, stream: Sink | None, owned: bool = False,
-                 wall: Callable[[], datetime] = local_now) -> None:
+                 wall: Callable[[], datetime] = local_now,
+                 on_failure: Callable[[str], None] | None = None) -> None:
         self.stream = stream
         self.owned = owned  # the journal opened the stream, and closes it
         self.wall = wall
+        self.on_failure = on_failure
         self.lines = 0
+        self.failure = ""
+        """Why the log could not be written, from the first line that was not ("": none)."""
+        self.unwritten = 0
+        """Lines not written since then."""
         self.mission_start: float | None = None
         """Where mission time 0 is on the run's clock (``t``); None before the mission
         started."""
@@ -167,11 +178,25 @@ class Journal:
         for name, value in data.items():
             key = f"{kind}_{name}" if name in HEAD else name
             line[key] = jsonable(value)
-        self.stream.write(json.dumps(line, separators=(",", ":")) + "\n")
-        self.stream.flush()
+        if self.failure:
+            self.unwritten += 1
+            return
+        try:
+            self.stream.write(json.dumps(line, separators=(",", ":")) + "\n")
+            self.stream.flush()
+        except (OSError, ValueError) as error:
+            self._failed(error)
+            return
         if kind in DECISIONS:
             self._sync()
         self.lines += 1
+
+    def _failed(self, error: Exception) -> None:
+        reason = error.strerror if isinstance(error, OSError) and error.strerror else error
+        self.failure = f"could not write line {self.lines + 1}: {reason}"
+        self.unwritten = 1
+        if self.on_failure is not None:
+            self.on_failure(f"flight log: {self.failure}; the flight goes on without it")
 
     def _sync(self) -> None:
         """Put what was written on the disk (a stream without a file descriptor: nothing)."""
@@ -185,7 +210,11 @@ class Journal:
     def close(self) -> None:
         """Close the file (a journal on a caller's stream leaves it open)."""
         if self.owned and self.stream is not None:
-            self.stream.close()
+            try:
+                self.stream.close()
+            except OSError as error:  # what the file's buffer held could not be written
+                if not self.failure:
+                    self._failed(error)
 
 
 def read(path: str) -> list[dict[str, Any]]:

@@ -133,8 +133,9 @@ def test_usage_errors_exit_2(capsys: pytest.CaptureFixture[str]) -> None:
     (["verify"], "tml verify: error: the following arguments are required: FILE "
                  "(see tml verify --help)"),
     (["frobnicate"], "tml: error: argument COMMAND: invalid choice: 'frobnicate' (choose "
-                     "from 'validate', 'verify', 'run', 'companion', 'export', 'import', "
-                     "'report', 'schema', 'completion', 'serve', 'sim') (see tml --help)"),
+                     "from 'validate', 'verify', 'run', 'companion', 'command', 'export', "
+                     "'import', 'report', 'schema', 'completion', 'serve', 'sim') (see tml "
+                     "--help)"),
     (["sim", "--vehicles", "0"], "tml sim: error: argument --vehicles: expected a whole "
                                  "number of at least 1, got '0' (see tml sim --help)"),
 ])
@@ -249,6 +250,7 @@ def test_validate_loads_what_validation_needs_only(files: Path) -> None:
     assert code == "0" and "tml.language.check" in modules.split()
     loaded = set(modules.split())
     assert not loaded & {"tml.commands.run", "tml.commands.verify", "tml.commands.plans",
+                         "tml.commands.command", "tml.engine",
                          "tml.commands.serve", "tml.commands.report", "argcomplete",
                          "difflib", "shapely", "pymavlink", "tml.world"}
 
@@ -257,8 +259,8 @@ def test_every_command_keeps_its_options_and_help_lists_them_all(
         capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["--help"]) == 0
     listed = capsys.readouterr().out
-    for command in ("validate", "verify", "run", "companion", "export", "import", "report",
-                    "schema", "completion", "serve", "sim"):
+    for command in ("validate", "verify", "run", "companion", "command", "export", "import",
+                    "report", "schema", "completion", "serve", "sim"):
         assert command in listed
     assert main(["run", "--help"]) == 0
     assert "--sim" in capsys.readouterr().out

@@ -7,7 +7,13 @@ from dataclasses import replace
 import pytest
 
 from tml.engine.failures import ACTION_FAILURES, FailureReason
-from tml.engine.safety import safe_state_request, safe_state_shown
+from tml.engine.safety import (
+    CommandRefusal,
+    operator_command_shown,
+    operator_request,
+    safe_state_request,
+    safe_state_shown,
+)
 from tml.language import parameters
 from tml.vehicle import VehicleState
 
@@ -67,3 +73,59 @@ def test_a_vehicle_s_reason_is_read_as_a_failure_reason() -> None:
     assert FailureReason.of("timeout") is FailureReason.TIMEOUT
     assert FailureReason.of("") is FailureReason.REJECTED  # refused without a word
     assert FailureReason.of("MAV_RESULT_DENIED") is FailureReason.GENERAL
+
+
+# --- an operator's command (tml command, POST /vehicles/{id}/command) ------------------------
+
+FLYING = VehicleState(1, 10.0, armed=True, landed=False, mode="GUIDED", position=(0, 0, 12))
+
+
+@pytest.mark.parametrize(("state", "command", "expected"), [
+    (FLYING, "rtl", "ReturnToLaunch"), (FLYING, "land", "Land"), (FLYING, "hold", "Hold"),
+    (VehicleState(1, 0.0, armed=True, landed=True), "disarm", "Disarm"),
+    (VehicleState(1, 0.0, armed=False, landed=True), "disarm", None),
+    (VehicleState(1, 0.0, armed=False, landed=True), "rtl", None),
+    (VehicleState(1, 0.0, armed=True, landed=False, vehicle_type="rover"), "disarm", "Disarm"),
+    (VehicleState(1, 0.0, armed=True, landed=False, vehicle_type="rover"), "rtl",
+     "ReturnToLaunch"),
+    (VehicleState(1, 0.0, armed=True, landed=False, vehicle_type="rover"), "hold", "Hold"),
+    (VehicleState(1, 0.0, armed=True, landed=False, vehicle_type="fixed-wing"), "land", "Land"),
+])
+def test_an_operator_command_is_the_request_of_its_kind(state: VehicleState, command: str,
+                                                       expected: str | None) -> None:
+    found = operator_request(state, command)
+    assert (found.name if found else None) == expected
+
+
+@pytest.mark.parametrize(("state", "command", "reason"), [
+    (FLYING, "disarm", "flying at 12.0 m: disarming would drop it"),
+    (VehicleState(1, 0.0, armed=False, landed=False), "disarm", "flying"),  # in doubt
+    (replace(ON_THE_GROUND, heard=4.0, asked=5.0, flight_asked=5.0), "disarm", "flying"),
+    (VehicleState(1, 0.0, armed=True, landed=False, vehicle_type="rover"), "land",
+     "a ground vehicle does not land"),
+    (VehicleState(1, 0.0, armed=True, landed=True), "rtl", "on the ground, armed"),
+    (replace(FLYING, link="lost"), "rtl", "link is lost"),
+    (FLYING, "flip", "not a command"),
+])
+def test_an_unsafe_or_impossible_operator_command_is_refused_with_the_reason(
+        state: VehicleState, command: str, reason: str) -> None:
+    with pytest.raises(CommandRefusal, match=reason):
+        operator_request(state, command)
+
+
+@pytest.mark.parametrize(("state", "command", "shown"), [
+    (replace(FLYING, mode="RTL", heard=6.0, asked=5.0), "rtl", True),
+    (replace(FLYING, mode="RTL", heard=4.0, asked=5.0), "rtl", False),  # an older picture
+    (replace(FLYING, mode="GUIDED", heard=6.0, asked=5.0), "rtl", False),
+    (replace(FLYING, mode="LAND", heard=6.0, asked=5.0), "land", True),
+    (replace(FLYING, mode="AUTO", vehicle_type="fixed-wing", heard=6.0, asked=5.0), "land",
+     True),
+    (replace(FLYING, mode="BRAKE", heard=6.0, asked=5.0), "hold", True),
+    (replace(FLYING, mode="RTL", heard=6.0, asked=5.0), "hold", False),
+    (replace(ON_THE_GROUND, heard=6.0, asked=5.0), "disarm", True),
+    (replace(ON_THE_GROUND, armed=True, heard=6.0, asked=5.0), "disarm", False),
+    (replace(FLYING, armed=False, heard=6.0, asked=5.0), "disarm", False),  # not landed
+])
+def test_an_operator_command_is_shown_by_telemetry_after_it(state: VehicleState, command: str,
+                                                           shown: bool) -> None:
+    assert operator_command_shown(state, command) is shown

@@ -176,6 +176,13 @@ def cmd_serve(args: argparse.Namespace) -> ExitCode:
     return run(args)
 
 
+def cmd_command(args: argparse.Namespace) -> ExitCode:
+    """Tell a vehicle to return, land, hold or disarm (see :mod:`tml.commands.command`)."""
+    from tml.commands.command import run
+
+    return run(args)
+
+
 def cmd_schema(args: argparse.Namespace) -> ExitCode:
     """Show the installed schema (see :mod:`tml.commands.schema`)."""
     from tml.commands.schema import run
@@ -276,6 +283,20 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
 
         add_companion_arguments(companion)
     companion.set_defaults(handler=cmd_companion)
+
+    command_parser = commands.add_parser(
+        "command", help="tell a vehicle to return, land, hold or disarm, now",
+        description="Tell the vehicle at ADDRESS to return to launch, land, hold where it "
+                    "is or disarm, and confirm it from telemetry that arrived after the "
+                    "command. Exit 0 done (or nothing to do), 2 usage error or a command "
+                    "refused as unsafe (disarm in the air, land a ground vehicle), 4 no "
+                    "vehicle, refused by the vehicle or not shown within --timeout. See "
+                    "docs/command.md.")
+    if wanted("command"):
+        from tml.commands.command import add_arguments as add_command_arguments
+
+        add_command_arguments(command_parser)
+    command_parser.set_defaults(handler=cmd_command)
 
     export = commands.add_parser(
         "export", help="write a mission as a QGroundControl plan, a waypoint file or a map",

@@ -60,3 +60,80 @@ def safe_state_shown(state: VehicleState, safe_state: str) -> bool:
     if safe_state == "land" and kind_of(state.vehicle_type) is Kind.FIXED_WING:
         shown = shown | {"AUTO"}
     return state.flying and state.mode in shown
+
+
+# --- an operator's command -------------------------------------------------------------------
+
+OPERATOR_COMMANDS = ("rtl", "land", "hold", "disarm")
+"""What an operator may tell a vehicle at any moment (``tml command``, ``POST
+/vehicles/{id}/command``)."""
+
+COMMAND_SHOWN: dict[str, frozenset[str]] = {
+    "rtl": frozenset({"RTL", "SMART_RTL", "QRTL"}),
+    "land": frozenset({"LAND", "QLAND"}),
+    "hold": frozenset({"GUIDED", "LOITER", "BRAKE", "HOLD", "POSHOLD", "QLOITER"}),
+}
+"""The modes in which a vehicle shows an operator's command taken (hold: a multicopter
+stopped in GUIDED, a fixed-wing circling in GUIDED, a rover in HOLD)."""
+
+
+class CommandRefusal(ValueError):
+    """An operator's command refused before it is sent, saying why (it would be unsafe, or
+    the vehicle cannot do it)."""
+
+
+def operator_request(state: VehicleState, command: str) -> Request | None:
+    """The request that carries out an operator's ``command`` (one of
+    :data:`OPERATOR_COMMANDS`); None when there is nothing to do (a disarmed vehicle told
+    to disarm, one on the ground and disarmed told to return, land or hold: it is safe
+    where it is). Raises :class:`CommandRefusal` with the reason when it must not be sent:
+
+    - a vehicle whose link is lost hears nothing;
+    - ``disarm`` of a vehicle that may be in the air (flying, saying it is not landed, or
+      asked to fly with no reading since) would drop it: land it first. A ground vehicle
+      is disarmed wherever it is (it stops);
+    - ``land`` of a ground vehicle: it has nowhere to land (hold or disarm stops it);
+    - ``rtl``, ``land`` or ``hold`` of an air vehicle armed on the ground: it is not
+      flying, disarm it (a copter told to land there would wait for its own disarm).
+    """
+    if command not in OPERATOR_COMMANDS:
+        raise CommandRefusal(f"{command!r} is not a command (commands: "
+                             f"{', '.join(OPERATOR_COMMANDS)})")
+    if state.link == "lost":
+        raise CommandRefusal("the vehicle's link is lost: no heartbeat")
+    vid = state.vehicle_id
+    ground = kind_of(state.vehicle_type) is Kind.GROUND
+    if command == "disarm":
+        if not ground and state.possibly_flying:
+            where = f" at {state.altitude:.1f} m" if state.position is not None else ""
+            raise CommandRefusal(f"the vehicle is flying{where}: disarming would drop it "
+                                 "(land it first)")
+        return Disarm(vid) if state.armed or state.flight_unseen else None
+    if ground:
+        if command == "land":
+            raise CommandRefusal("a ground vehicle does not land (hold or disarm stops it)")
+        if not state.armed:
+            return None
+        return ReturnToLaunch(vid) if command == "rtl" else Hold(vid)
+    if not state.possibly_flying:
+        if state.armed:
+            raise CommandRefusal(f"the vehicle is on the ground, armed: nothing to "
+                                 f"{'return from' if command == 'rtl' else command} "
+                                 "(disarm it)")
+        return None
+    return SAFE_STATES[command](vid)
+
+
+def operator_command_shown(state: VehicleState, command: str) -> bool:
+    """Whether telemetry that arrived after the command (:attr:`VehicleState.current`)
+    shows it taken: disarmed for ``disarm`` (on the ground, for an air vehicle), the
+    command's mode (:data:`COMMAND_SHOWN`; a fixed-wing lands in AUTO), or on the ground
+    and disarmed for the others."""
+    if state.link == "lost" or not state.current:
+        return False
+    if command == "disarm" or not state.armed:
+        return not state.armed and (state.landed or kind_of(state.vehicle_type) is Kind.GROUND)
+    shown = COMMAND_SHOWN.get(command, frozenset())
+    if command == "land" and kind_of(state.vehicle_type) is Kind.FIXED_WING:
+        shown = shown | {"AUTO"}
+    return state.mode in shown

@@ -1,0 +1,127 @@
+"""``tml command`` against the embedded simulator: a vehicle flown up by another client is
+returned, refused a disarm in the air, and disarmed on the ground; an independent
+pymavlink client on the vehicle's port judges what the vehicle did."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import pytest
+from pymavlink import mavutil
+
+from sitl.server import Simulator
+from tml.commands.cli import main
+from tml.mavlink.link import Link
+from tml.mavlink.vehicle import Vehicle
+
+# Armable at once; an armed vehicle left on the ground does not disarm by itself.
+PARAMS = {"SIM_GPS_LOCKTIME": 0.5, "SIM_EKF_GPS_TIME": 1.0, "DISARM_DELAY": 0}
+LIMIT = 60.0  # wall seconds for each state waited for (a bound, not a timing)
+RTL_MODE = 6
+
+
+class Observer:
+    """A plain pymavlink client on the vehicle's port, reading its HEARTBEATs."""
+
+    def __init__(self, port: int) -> None:
+        self.conn: Any = mavutil.mavlink_connection(f"tcp:127.0.0.1:{port}",
+                                                    source_system=250, dialect="ardupilotmega")
+        self.modes: list[int] = []
+        self.armed = False
+
+    def until(self, check: Callable[[Observer], bool], limit: float = LIMIT) -> bool:
+        end = time.monotonic() + limit
+        while time.monotonic() < end:
+            msg = self.conn.recv_match(type="HEARTBEAT", blocking=True, timeout=0.5)
+            if msg is not None and msg.get_srcSystem() == 1 and msg.get_srcComponent() == 1:
+                self.modes.append(msg.custom_mode)
+                self.armed = bool(msg.base_mode & mavutil.mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+                if check(self):
+                    return True
+        return False
+
+    def close(self) -> None:
+        self.conn.close()
+
+
+@pytest.fixture
+def vehicle() -> Iterator[tuple[Simulator, Vehicle, Observer]]:
+    """A simulated copter, a pilot's client armed on it in GUIDED, and an observer."""
+    with Simulator(vehicles=1, tcp_base_port=0, speedup=20.0, params=PARAMS) as sim, \
+            Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}") as link:
+        pilot = Vehicle.connect(link, 1, timeout=10)
+        pilot.request_rates()
+        link.wait_telemetry(1, lambda t: t.position_ready, timeout=LIMIT)
+        pilot.set_mode("GUIDED")
+        pilot.arm()
+        observer = Observer(sim.tcp_ports[0])
+        try:
+            yield sim, pilot, observer
+        finally:
+            observer.close()
+
+
+def fly_up(pilot: Vehicle) -> None:
+    pilot.takeoff(10.0)
+    pilot.link.wait_telemetry(1, lambda t: t.position is not None
+                              and t.position.relative_altitude > 9.0, timeout=LIMIT)
+
+
+def command(sim: Simulator, *words: str) -> list[str]:
+    return ["command", *words, "--connect", f"tcp:127.0.0.1:{sim.tcp_ports[0]}",
+            "--timeout", "30"]
+
+
+def test_rtl_returns_a_flying_vehicle_and_it_lands(
+        vehicle: tuple[Simulator, Vehicle, Observer], capsys: pytest.CaptureFixture[str]
+) -> None:
+    sim, pilot, observer = vehicle
+    fly_up(pilot)
+    assert main(command(sim, "rtl")) == 0
+    out = capsys.readouterr().out
+    assert "vehicle 1: rtl done: mode RTL, armed" in out
+    assert observer.until(lambda o: o.modes[-1] == RTL_MODE)
+    assert observer.until(lambda o: not o.armed), "never landed and disarmed"
+    assert sim.vehicle(1).landed
+
+
+def test_a_disarm_in_the_air_is_refused_and_the_vehicle_flies_on(
+        vehicle: tuple[Simulator, Vehicle, Observer], capsys: pytest.CaptureFixture[str]
+) -> None:
+    sim, pilot, observer = vehicle
+    fly_up(pilot)
+    assert main(command(sim, "disarm", "--sysid", "1")) == 2
+    err = capsys.readouterr().err
+    assert "vehicle 1: disarm refused: the vehicle is flying" in err
+    assert "disarming would drop it" in err
+    assert observer.until(lambda o: o.armed and len(o.modes) >= 3)
+    assert sim.vehicle(1).armed and not sim.vehicle(1).landed
+    assert pilot.telemetry.position is not None
+    assert pilot.telemetry.position.relative_altitude > 8.0
+
+
+def test_a_disarm_on_the_ground_disarms(
+        vehicle: tuple[Simulator, Vehicle, Observer], capsys: pytest.CaptureFixture[str]
+) -> None:
+    sim, _pilot, observer = vehicle
+    assert observer.until(lambda o: o.armed)
+    assert main(command(sim, "disarm")) == 0
+    assert "vehicle 1: disarm done: mode GUIDED, disarmed, on the ground" in \
+        capsys.readouterr().out
+    assert observer.until(lambda o: not o.armed)
+    assert not sim.vehicle(1).armed
+
+
+def test_no_vehicle_at_the_address_is_a_failure(capsys: pytest.CaptureFixture[str]) -> None:
+    with Simulator(vehicles=1, tcp_base_port=0, speedup=20.0, params=PARAMS) as sim:
+        words = command(sim, "land", "--sysid", "7")
+        words[-1] = "1"
+        assert main(words) == 4
+    assert "no heartbeat from vehicle 7" in capsys.readouterr().err
+
+
+def test_a_malformed_address_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["command", "hold", "--connect", "127.0.0.1:5760"]) == 2
+    assert "--connect 127.0.0.1:5760: not an address" in capsys.readouterr().err

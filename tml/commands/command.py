@@ -1,0 +1,205 @@
+"""``tml command rtl|land|hold|disarm``: tell one vehicle to return, land, hold or disarm,
+now, with no mission, and confirm it from its telemetry.
+
+Theory of operation
+-------------------
+The link is opened (:class:`~tml.mavlink.link.Link`, signed with ``--signing-key-file``),
+the vehicle's HEARTBEAT is waited for, the telemetry the rule judges by is asked for and
+waited for (HEARTBEAT, the landed state, the position), and the rule of
+:func:`tml.engine.safety.operator_request` says what to send -- or refuses, with the
+reason, what would be unsafe (a disarm in the air) or what the vehicle cannot do (a rover
+landing). The request is carried out as a run carries it out
+(:class:`~tml.mavlink.adapter.MavlinkVehicle`: RTL, LAND, a hold as the vehicle's kind
+holds -- a multicopter stopped in GUIDED, a fixed-wing circling, a rover in HOLD --, a
+disarm), and is done only when telemetry that arrived after it shows it
+(:func:`~tml.engine.safety.operator_command_shown`): the mode, or disarmed on the ground.
+
+Exit codes: 0 done and shown (or nothing to do: a vehicle on the ground and disarmed told
+to return, land, hold or disarm); 2 a usage error, or a command refused here as unsafe or
+impossible, with the reason; 4 no vehicle or telemetry within ``--timeout``, the vehicle
+refused the command, or its telemetry did not show it within ``--timeout``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+from tml.errors import ExitCode
+
+if TYPE_CHECKING:
+    from tml.mavlink.adapter import MavlinkVehicle
+    from tml.mavlink.link import Link
+    from tml.vehicle import RequestResult, VehicleState
+
+PROGRAM = "tml command"
+POLL_PERIOD = 0.05  # s between two looks at the vehicle's state while waiting
+
+
+def _system_id(text: str) -> int:
+    try:
+        number = int(text)
+    except ValueError:
+        number = 0
+    if not 1 <= number <= 255:
+        raise argparse.ArgumentTypeError(f"expected a MAVLink system id from 1 to 255, "
+                                         f"got {text}")
+    return number
+
+
+def _seconds(text: str) -> float:
+    try:
+        number = float(text)
+    except ValueError:
+        number = 0.0
+    if not number > 0 or number == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected seconds above 0, got {text}")
+    return number
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Declare the arguments of ``tml command``."""
+    from tml.engine.safety import OPERATOR_COMMANDS
+
+    parser.add_argument("command", choices=OPERATOR_COMMANDS,
+                        help="rtl: return to launch; land: land where it is; hold: stop "
+                             "where it is (a multicopter hovers, a fixed-wing circles, a "
+                             "rover stops); disarm: stop the motors, only on the ground")
+    parser.add_argument("--connect", required=True, metavar="ADDRESS",
+                        help="the vehicle's MAVLink address (tcp:HOST:PORT, "
+                             "udpin:0.0.0.0:14550, /dev/ttyACM0 ...)")
+    parser.add_argument("--sysid", type=_system_id, metavar="N",
+                        help="the vehicle's MAVLink system id (default: the first heard)")
+    parser.add_argument("--signing-key-file", metavar="FILE",
+                        help="MAVLink 2 signing: the file holds 64 hex digits or a "
+                             "passphrase (else the key of TML_SIGNING_KEY, if set)")
+    parser.add_argument("--timeout", type=_seconds, default=30.0, metavar="S",
+                        help="seconds to wait for each step: the heartbeat, the telemetry, "
+                             "the vehicle's answer, the telemetry showing it done "
+                             "(default 30)")
+
+
+def run(args: argparse.Namespace) -> ExitCode:
+    """Carry out ``tml command``; the exit code (module docstring)."""
+    from tml.errors import TmlError
+    from tml.mavlink.link import Link, address_problem
+    from tml.signing import signing_key
+
+    problem = address_problem(args.connect)
+    if problem is not None:
+        return _say(ExitCode.USAGE, f"--connect {args.connect}: {problem}")
+    try:
+        key = signing_key(args.signing_key_file)
+    except OSError as error:
+        return _say(ExitCode.USAGE, f"--signing-key-file {args.signing_key_file}: "
+                                    f"{error.strerror or error}")
+    except TmlError as error:
+        return _say(ExitCode.USAGE, f"signing key: {error}")
+    try:
+        link = Link(args.connect, signing_key=key,
+                    system_ids=None if args.sysid is None else [args.sysid])
+    except (OSError, TmlError) as error:
+        return _say(ExitCode.FAILURE, f"cannot open {args.connect}: {error}")
+    try:
+        with link:
+            return _command(link, args)
+    except TmlError as error:
+        return _say(ExitCode.FAILURE, str(error))
+
+
+def _command(link: Link, args: argparse.Namespace) -> ExitCode:
+    from tml.mavlink.adapter import MavlinkVehicle
+
+    info = link.wait_vehicle(args.sysid, args.timeout)
+    vehicle = MavlinkVehicle(link, info.system_id, connect_timeout=args.timeout)
+    try:
+        return _carry_out(vehicle, args.command, args.timeout)
+    finally:
+        vehicle.close()
+
+
+def _carry_out(vehicle: MavlinkVehicle, command: str, timeout: float) -> ExitCode:
+    """Wait for the telemetry, ask the rule, send, and wait for the answer and the
+    telemetry that shows it."""
+    from dataclasses import replace
+
+    from tml.engine.safety import CommandRefusal, operator_command_shown, operator_request
+
+    vid = vehicle.vehicle_id
+    vehicle.mav.request_rates()
+    state = _wait(vehicle, lambda s: _telemetry_in(vehicle, s), timeout)
+    if state is None:
+        return _say(ExitCode.FAILURE, f"vehicle {vid}: no telemetry within {timeout:g} s "
+                                      f"(heartbeat, landed state and position)")
+    try:
+        request = operator_request(state, command)
+    except CommandRefusal as refusal:
+        return _say(ExitCode.USAGE, f"vehicle {vid}: {command} refused: {refusal}")
+    if request is None:
+        print(f"vehicle {vid}: nothing to do: {_where(state)}")
+        return ExitCode.OK
+    request = replace(request, request_id=1)
+    vehicle.submit(request)
+    result = _answer(vehicle, timeout)
+    if result is None:
+        return _say(ExitCode.FAILURE, f"vehicle {vid}: {command}: no answer within "
+                                      f"{timeout:g} s")
+    if not result.ok:
+        return _say(ExitCode.FAILURE, f"vehicle {vid}: {command} refused by the vehicle: "
+                                      f"{result.reason} {result.detail}".rstrip())
+    shown = _wait(vehicle, lambda s: operator_command_shown(s, command), timeout)
+    if shown is None:
+        return _say(ExitCode.FAILURE, f"vehicle {vid}: {command} accepted, but not shown "
+                                      f"within {timeout:g} s ({_where(vehicle.state())})")
+    print(f"vehicle {vid}: {command} done: {_where(shown)}")
+    return ExitCode.OK
+
+
+def _telemetry_in(vehicle: MavlinkVehicle, state: VehicleState) -> bool:
+    """Whether the readings the rule judges by have arrived: the HEARTBEAT, the position,
+    and the landed state (which a ground vehicle may never send)."""
+    from tml.language.kinds import Kind, kind_of
+
+    arrived = vehicle.link.arrivals(vehicle.system_id)
+    landed = "EXTENDED_SYS_STATE" in arrived or kind_of(state.vehicle_type) is Kind.GROUND
+    return "HEARTBEAT" in arrived and "GLOBAL_POSITION_INT" in arrived and landed \
+        and state.link != "lost"
+
+
+def _wait(vehicle: MavlinkVehicle, until: Callable[[VehicleState], bool],
+          timeout: float) -> VehicleState | None:
+    """The first state for which ``until`` holds, within ``timeout`` s; None after."""
+    end = time.monotonic() + timeout
+    while True:
+        state = vehicle.state()
+        if until(state):
+            return state
+        if time.monotonic() >= end:
+            return None
+        time.sleep(POLL_PERIOD)
+
+
+def _answer(vehicle: MavlinkVehicle, timeout: float) -> RequestResult | None:
+    """The result of the one request sent (numbered 1), within ``timeout`` s."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        for result in vehicle.poll():
+            if result.request_id == 1:
+                return result
+        time.sleep(POLL_PERIOD)
+    return None
+
+
+def _where(state: VehicleState) -> str:
+    """Mode, armed and where the vehicle is, in a few words."""
+    armed = "armed" if state.armed else "disarmed"
+    ground = "on the ground" if state.landed else f"{state.altitude:.1f} m up"
+    return f"mode {state.mode or '?'}, {armed}, {ground}"
+
+
+def _say(code: ExitCode, message: str) -> ExitCode:
+    print(f"{PROGRAM}: {message}", file=sys.stderr)
+    return code

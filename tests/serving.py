@@ -14,7 +14,6 @@ import tempfile
 import threading
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from types import SimpleNamespace
 from typing import Any
 
 from tml.serve.hangar import Hangar
@@ -101,20 +100,20 @@ class FakeHangar(Hangar):
 @contextlib.contextmanager
 def simulated(vehicles: int = 2, speedup: float = 20.0) -> Iterator[Hangar]:
     """A hangar of simulated vehicles, opened as ``tml serve --sim`` opens them."""
-    from tml.commands.run import open_vehicles
+    from tml.commands.vehicles import open_simulator
+    from tml.run.session import SessionOptions, SimulatorOptions, open_session
 
-    args = SimpleNamespace(sim=True, vehicles=vehicles, speedup=speedup,
-                           sim_param=list(FAST_SIM.items()), sim_frame=["copter"], out=[],
-                           connect=None, timeout=30.0, clock="wall")
+    options = SessionOptions(simulator=SimulatorOptions(vehicles=vehicles, speedup=speedup,
+                                                        params=FAST_SIM),
+                             open_simulator=open_simulator, program="tml serve")
     hangars: list[Hangar] = []
 
     def notify() -> None:
         for hangar in hangars:
             hangar.notify()
 
-    with open_vehicles(args, World(), notify) as (found, _wake, clock,  # type: ignore[arg-type]
-                                                  _timebase):
-        hangars.append(Hangar(found, clock))
+    with open_session(options, World(), notify=notify) as session:
+        hangars.append(Hangar(session.vehicles, session.clock))
         yield hangars[0]
 
 

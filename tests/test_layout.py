@@ -79,3 +79,22 @@ def test_no_module_of_tml_imports_the_simulator_outside_the_commands() -> None:
             assert not any(m.startswith("sitl") for m in
                            re.findall(r"^\s*(?:from|import)\s+(sitl[\w.]*)",
                                       path.read_text(encoding="utf-8"), re.M)), path
+
+
+@pytest.mark.parametrize("path", [p for p in modules("tml") if "commands" not in p.parts],
+                         ids=lambda p: str(p.relative_to(ROOT)))
+def test_argparse_stays_in_the_commands(path: Path) -> None:
+    """Below tml/commands a flight session gets typed options, never a Namespace."""
+    source = path.read_text(encoding="utf-8")
+    assert not re.search(r"^\s*(?:import argparse|from argparse import)", source, re.M)
+    assert "Namespace" not in re.sub(r"noNamespaceSchemaLocation", "", source)
+
+
+def test_the_commands_that_fly_share_the_session_not_each_other() -> None:
+    """tml serve opens its vehicles as tml run does, through tml.run.session, without
+    importing tml run's command module."""
+    for name in ("serve", "companion"):
+        found = imports(ROOT / "tml" / "commands" / f"{name}.py")
+        assert "tml.commands.run" not in found, name
+    assert "tml.run.session" in imports(ROOT / "tml" / "commands" / "serve.py")
+    assert "tml.run.session" in imports(ROOT / "tml" / "commands" / "run.py")

@@ -152,6 +152,10 @@ def test_a_vehicle_at_a_connection_address_flies_a_run_of_the_api(data: Path) ->
     with simulator("--fast-boot", "--speedup", "10") as port, \
             Server(["--connect", f"tcp:127.0.0.1:{port}", "--timeout", "60"], data) as server, \
             httpx.Client(base_url=server.url, timeout=30) as client:
+        assert f"tml serve: waiting up to 60 s for a vehicle at tcp:127.0.0.1:{port}" \
+            in server.said
+        # The pre-flight policy of tml run: the vehicle's own failsafe is read.
+        assert "tml serve: warning: vehicle 1: FS_GCS_ENABLE is 0" in server.said
         assert client.get("/vehicles").json()[0]["id"] == 1
         run = start_a_run(client)
         while (found := client.get(f"/runs/{run}").json())["status"] in ("queued", "running"):
@@ -159,6 +163,27 @@ def test_a_vehicle_at_a_connection_address_flies_a_run_of_the_api(data: Path) ->
         assert (found["status"], found["exit_code"]) == ("completed", 0), found
         code, out = server.stop()
         assert code == 0, out
+
+
+def test_a_vehicle_without_a_gcs_failsafe_is_refused_when_one_is_required(
+        data: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(["serve", "--sim", *FAST, "--require-gcs-failsafe", "--port", "0",
+                 "--data", str(data)])
+    err = capsys.readouterr().err
+    assert code == 4, err
+    assert ("tml serve: vehicle 1: FS_GCS_ENABLE is 0: the vehicle does nothing by itself "
+            "when it loses this ground station") in err
+    assert "tml serve: not flown (--require-gcs-failsafe)" in err
+
+
+def test_an_address_without_its_scheme_is_a_usage_error(
+        data: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["serve", "--connect", "127.0.0.1:5760", "--port", "0",
+                 "--data", str(data)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("tml serve: --connect 127.0.0.1:5760: not an address: a network "
+                          "address starts with its scheme"), err
+    assert len(err.strip().splitlines()) == 1
 
 
 def test_sigterm_sends_a_flying_vehicle_to_its_safe_state_first(data: Path) -> None:

@@ -44,9 +44,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--system-id", type=_system_id, metavar="N",
                         help="the vehicle's MAVLink system id (default: the first autopilot "
                              "heard)")
-    from tml.commands.run import _positive
+    from tml.commands.vehicles import positive
 
-    parser.add_argument("--timeout", type=_positive, default=30.0, metavar="S",
+    parser.add_argument("--timeout", type=positive, default=30.0, metavar="S",
                         help="seconds to wait for the autopilot's heartbeat (default 30)")
     parser.add_argument("-q", "--quiet", action="store_true",
                         help="print nothing but errors (no line per first sighting)")

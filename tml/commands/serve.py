@@ -18,8 +18,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from tml.commands.run import add_vehicle_arguments
 from tml.commands.signals import on_stop_signals
+from tml.commands.vehicles import add_vehicle_arguments, session_options, vehicle_problem
 from tml.errors import ExitCode
 
 TOKEN_VARIABLE = "TML_SERVE_TOKEN"
@@ -110,6 +110,10 @@ def run(args: argparse.Namespace) -> ExitCode:
     if not 0 <= args.port <= 65535:
         print(f"tml serve: --port {args.port}: expected 0 to 65535", file=sys.stderr)
         return ExitCode.USAGE
+    problem = vehicle_problem(args)
+    if problem is not None:
+        print(f"tml serve: {problem}", file=sys.stderr)
+        return ExitCode.USAGE
     if args.max_body < 1:
         print(f"tml serve: --max-body {args.max_body}: expected a number of bytes above 0",
               file=sys.stderr)
@@ -161,7 +165,8 @@ def _serve(args: argparse.Namespace, token: str | None, listening: socket.socket
     except (OSError, TmlError) as error:
         print(f"tml serve: {error}", file=sys.stderr)
         return ExitCode.USAGE
-    from tml.commands.run import open_vehicles
+    from tml.run.display import output_console
+    from tml.run.session import open_session
 
     hangars: list[Hangar] = []  # the hangar, once the vehicles it holds are open
 
@@ -169,8 +174,14 @@ def _serve(args: argparse.Namespace, token: str | None, listening: socket.socket
         for hangar in hangars:
             hangar.notify()
 
+    # The service's threads fly its runs, on the system's time: the simulator runs free.
+    options = session_options(args, "tml serve")
     try:
-        with open_vehicles(args, World(), notify=notify) as (vehicles, _wake, clock, _timebase):
+        with open_session(options, World(), output_console(stderr=True),
+                          notify=notify) as session:
+            if session.gcs_failsafe() is not None:
+                return ExitCode.FAILURE
+            vehicles, clock = session.vehicles, session.clock
             hangar = Hangar(vehicles, clock)
             hangars.append(hangar)
             service = Service(storage, hangar, ServiceOptions(

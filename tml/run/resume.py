@@ -92,9 +92,17 @@ def resume_point(path: str, mission: Mission, digest: str,
         raise ResumeRefused(f"{path}: the run flew the vehicles at "
                             f"{', '.join(first.get('connect') or []) or 'the simulator'}, "
                             f"not {', '.join(vehicles) or 'the simulator'}")
+    ids = [vid for vid in first.get("vehicles") or [] if isinstance(vid, int)]
+    return progress_point(lines, mission, ids)
+
+
+def progress_point(lines: Sequence[Mapping[str, Any]], mission: Mission,
+                   vehicles: Sequence[int]) -> ResumePoint:
+    """Where each of ``vehicles`` (vehicle ids) stood in a run's log ``lines``, and the
+    next free request id; ResumeRefused for a mission that cannot go on from a log (one
+    with roles). ``tml run --resume`` and ``tml serve``'s continue both go by it."""
     if mission.roles:
         raise ResumeRefused(f"{mission.file}: a mission with roles cannot be resumed")
-    ids = list(first.get("vehicles") or [])
-    found = {vid: progress(lines, vid) for vid in ids if isinstance(vid, int)}
+    found = {vid: progress(list(lines), vid) for vid in vehicles}
     last = max((p.last_id for p in found.values()), default=0)
     return ResumePoint(found, last + 1)

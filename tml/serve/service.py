@@ -46,19 +46,20 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar, cast
 
-from tml.engine.resume import Progress, progress
+from tml.engine.resume import Progress
 from tml.errors import ControlRefused, TmlError
 from tml.language.model import Mission, Task
-from tml.language.validation import validate_file
+from tml.language.validation import ValidationResult, validate_file
 from tml.run.checked import checked_options
 from tml.run.journal import jsonable, telemetry_fields
+from tml.run.resume import ResumeRefused, progress_point
 from tml.serve.hangar import Hangar, VehicleTaken
 from tml.serve.live import LiveRun, TaskBoard
 from tml.serve.storage import ACTIVE, Storage, StoredMission, StoredRun
 from tml.vehicle import IdSource, awaiting
 from tml.verify.inflight import preflight
 from tml.verify.motion import PredictedState
-from tml.verify.profile import SHIPPED, load_profile
+from tml.verify.profile import SHIPPED, VehicleProfile, load_profile
 from tml.verify.report import report_document
 from tml.verify.static import verify_mission
 from tml.world import Cylinder, World
@@ -71,7 +72,7 @@ TRIM_ABOVE = 256 * 1024  # bytes of a mission whose parsing is followed by a hea
 _parsed_large = threading.local()  # .seen: this thread parsed a large mission (_validate)
 
 
-def _validate(filename: str, data: bytes) -> Any:
+def _validate(filename: str, data: bytes) -> ValidationResult:
     """:func:`validate_file`, noting a large mission for :func:`_gives_memory_back`."""
     if len(data) > TRIM_ABOVE:
         _parsed_large.seen = True
@@ -295,12 +296,12 @@ class Service:
         if later is not None:
             raise Refused(f"run {run_id} was continued already, as run {later}")
         mission = self._parse(f"run {stored.id}", "mission.xml", stored.mission_source)
-        if mission.roles:
-            raise Refused("a mission with roles cannot be continued")
         lines = [json.loads(line) for _, line in self.storage.lines(run_id)]
-        found = {vid: progress(lines, vid) for vid in stored.vehicles}
-        last = max((p.last_id for p in found.values()), default=0)
-        while self.ids.take() <= last:  # its requests and plans are numbered on
+        try:
+            point = progress_point(lines, mission, stored.vehicles)
+        except ResumeRefused as refused:
+            raise Refused(f"run {run_id}: {refused}") from None
+        while self.ids.take() < point.next_id:  # its requests and plans are numbered on
             pass
         options = {**stored.options, "continues": run_id}
         record = StoredRun(secrets.token_hex(6), stored.mission_id, stored.mission_name,
@@ -308,9 +309,9 @@ class Service:
                            None, self.options.instance, options, time.time(), None)
         return self._launch(record, mission, _profile(str(options.get("profile",
                                                                        "quadcopter"))),
-                            found)
+                            point.progress)
 
-    def _launch(self, record: StoredRun, mission: Mission, checked: Any,
+    def _launch(self, record: StoredRun, mission: Mission, checked: VehicleProfile,
                 resume: Mapping[int, Progress] | None = None,
                 claimed: bool = False) -> dict[str, Any]:
         """Hold the run's vehicles (unless ``claimed`` already), store it and start flying
@@ -529,7 +530,7 @@ def _safety_said(record: Mapping[str, Any]) -> str:
     return f"vehicle {vehicle}: {message}"
 
 
-def _profile(name: str) -> Any:
+def _profile(name: str) -> VehicleProfile:
     if name not in SHIPPED:
         raise Refused(f"profile {name!r}: expected one of {', '.join(SHIPPED)}")
     return load_profile(name)

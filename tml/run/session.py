@@ -1,0 +1,355 @@
+"""The flight session: the one way in for ``tml run`` and ``tml serve``.
+
+Theory of operation
+-------------------
+A command parses its arguments into :class:`SessionOptions` (typed: nothing of the command
+line parser goes below ``tml/commands``) and opens a :class:`Session` with
+:func:`open_session`. The session
+
+1. opens the vehicles: the embedded simulator, through the factory the command passes
+   (``tml/run`` does not import ``sitl``), and a link to each of its vehicles; or a link
+   per ``--connect`` address, each waited for (``timeout``) and its vehicles discovered;
+2. wakes whoever flies them on every message that changes what a vehicle shows and on
+   every request result: its own :attr:`Session.wake` flag (one runner), or ``notify``
+   (a service whose runs each have their own);
+3. clears a mission for flight before anything is sent (:meth:`Session.clear`): the
+   actions the vehicles cannot do at all, the vehicles' own reaction to a lost ground
+   station (``FS_GCS_ENABLE``), the verifier's profile read from the vehicle (``--profile
+   vehicle``) and the mission verified with it. A refusal is a :class:`Refusal`, which the
+   command maps to its exit code;
+4. gives the runner what it needs: vehicles, wake flag, clock, time base and its options
+   (:meth:`Session.run_options`).
+
+In lock-step (``tml run --sim``) the opening, the clearance and the run take part in the
+simulator's time (:mod:`tml.timebase`): it moves on only while the thread that opened the
+session waits for it; closing does not.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import enum
+import os
+import time
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import AbstractContextManager
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Protocol
+
+from tml.errors import TmlError
+from tml.timebase import SYSTEM, Flag, Lockstep, Timebase
+
+if TYPE_CHECKING:
+    from rich.console import Console
+
+    from tml.language.model import Mission
+    from tml.mavlink.adapter import MavlinkVehicle
+    from tml.mavlink.link import Link
+    from tml.run.runner import RunOptions
+    from tml.verify.profile import VehicleProfile
+    from tml.world import World
+
+VEHICLE_PROFILE = "vehicle"
+"""The profile name that means: fill the shipped profile from the vehicle's parameters."""
+
+GCS_FAILSAFE = "FS_GCS_ENABLE"
+"""ArduPilot's parameter for what a vehicle does by itself when its ground station falls
+silent (0: nothing; 1 RTL, 5 LAND ...; see docs/run.md)."""
+
+DISCOVERY_WAIT = 1.0
+"""Seconds other vehicles on a link (a radio, a router) have to say hello after the first."""
+
+
+@dataclass(frozen=True)
+class SimulatorOptions:
+    """What the embedded simulator is started with (``--vehicles``, ``--sim-*``)."""
+
+    vehicles: int = 1
+    speedup: float = 1.0
+    params: Mapping[str, float] = field(default_factory=dict)
+    frames: tuple[str, ...] = ("copter",)
+
+
+class Simulated(Protocol):
+    """What the session needs of a started simulator."""
+
+    @property
+    def tcp_ports(self) -> list[int]: ...
+
+    @property
+    def time(self) -> float: ...
+
+
+SimulatorFactory = Callable[[SimulatorOptions, "World", "bytes | None", "Lockstep | None"],
+                            AbstractContextManager[Simulated]]
+"""Starts the simulator (options, world, signing key, lock-step time base or None)."""
+
+
+@dataclass(frozen=True)
+class SessionOptions:
+    """Everything a command decides about a flight session."""
+
+    connect: tuple[str, ...] = ()
+    """The MAVLink addresses of the vehicles (empty with ``simulator``)."""
+    simulator: SimulatorOptions | None = None
+    """Fly on the embedded simulator (``--sim``), started by ``open_simulator``."""
+    open_simulator: SimulatorFactory | None = None
+    outputs: tuple[str, ...] = ()
+    """Addresses that get a copy of every vehicle message (``--out``)."""
+    signing_key_file: str | None = None
+    timeout: float = 30.0
+    """Seconds to wait for each address's first HEARTBEAT."""
+    clock: str = "wall"
+    """``wall`` (the ground station's) or ``vehicle`` (the first vehicle's time stamps)."""
+    lockstep: bool = False
+    """The simulator in lock-step with this thread (``tml run --sim``)."""
+    link_lost_limit: float = 10.0
+    ready_timeout: float = 180.0
+    safe_state: str = "rtl"
+    safe_state_timeout: float = 120.0
+    require_gcs_failsafe: bool = False
+    force: bool = False
+    """Fly a mission refused as infeasible or beyond its vehicles anyway."""
+    quiet: bool = False
+    """Say nothing but problems (no line while a vehicle is waited for)."""
+    program: str = "tml run"
+    """The name lines said begin with."""
+
+    @property
+    def sim(self) -> bool:
+        return self.simulator is not None
+
+    @property
+    def signing_on(self) -> bool:
+        """Whether the links sign (a key file given, or the environment's key)."""
+        from tml.signing import ENVIRONMENT
+
+        return self.signing_key_file is not None or ENVIRONMENT in os.environ
+
+
+class Refusal(enum.Enum):
+    """Why a mission was not cleared for flight."""
+
+    MISSION = "mission"
+    """The mission: infeasible, or with actions its vehicles cannot do (exit 1)."""
+    VEHICLE = "vehicle"
+    """A vehicle: no failsafe of its own while one is required (exit 4)."""
+
+
+class Session:
+    """Opened vehicles and what flies them; see the module docstring."""
+
+    def __init__(self, options: SessionOptions, vehicles: list[MavlinkVehicle], wake: Flag,
+                 clock: Callable[[], float], timebase: Timebase,
+                 errors: Console | None) -> None:
+        self.options = options
+        self.vehicles = vehicles
+        self.wake = wake
+        self.clock = clock
+        self.timebase = timebase
+        self.errors = errors
+
+    def say(self, text: str) -> None:
+        """Say a line on the error console (with the program's name)."""
+        if self.errors is not None:
+            self.errors.print(f"{self.options.program}: {text}", markup=False,
+                              highlight=False)
+
+    # -- clearance -----------------------------------------------------------------------
+
+    def clear(self, mission: Mission, profile: VehicleProfile | None,
+              extra: World | None = None) -> VehicleProfile | Refusal:
+        """Clear ``mission`` for flight on every vehicle of the session, before anything
+        is sent: its actions, the vehicles' GCS failsafe, and, with ``profile`` None
+        (``--profile vehicle``), the profile read from the first vehicle and the mission
+        verified with it. The profile to fly with, or why not."""
+        refused = self.preflight(mission) or self.gcs_failsafe()
+        if refused is not None:
+            return refused
+        if profile is None:
+            profile = self.vehicle_profile(self.vehicles[0])
+            refused = self.verify(mission, profile, extra)
+            if refused is not None:
+                return refused
+        return profile
+
+    def preflight(self, mission: Mission,
+                  vehicles: Sequence[MavlinkVehicle] | None = None) -> Refusal | None:
+        """Refuse a mission with actions the vehicles cannot do at all
+        (:func:`tml.verify.inflight.preflight`)."""
+        from tml.verify.inflight import preflight
+
+        found = preflight(mission, {v.vehicle_id: v.state().vehicle_type
+                                    for v in vehicles or self.vehicles})
+        if not found:
+            return None
+        for violation in found:
+            whose = f" (role {violation.role})" if violation.role else ""
+            if self.errors is not None:
+                self.errors.print(f"{violation} (vehicle {violation.vehicles[0]}{whose})",
+                                  markup=False, highlight=False)
+        return self._refused(mission, "mission with actions its vehicles cannot do")
+
+    def verify(self, mission: Mission, profile: VehicleProfile,
+               extra: World | None = None) -> Refusal | None:
+        """Verify the mission with ``profile``; the refusal if it must not be flown."""
+        return verify(mission, profile, extra, self.options, self.errors)
+
+    def gcs_failsafe(self) -> Refusal | None:
+        """Read each vehicle's own reaction to a lost ground station: without one, a
+        vehicle whose link dies hovers until its battery runs out. Warns (with
+        ``--connect``), or refuses with ``require_gcs_failsafe``."""
+        required = self.options.require_gcs_failsafe
+        if not required and self.options.sim:
+            return None  # the simulator is in this process: its link does not die alone
+        missing = []
+        for vehicle in self.vehicles:
+            value = vehicle.read_parameters([GCS_FAILSAFE]).get(GCS_FAILSAFE)
+            if value is None:
+                missing.append(f"vehicle {vehicle.vehicle_id}: {GCS_FAILSAFE} not reported: "
+                               "what the vehicle does when it loses this ground station is "
+                               "unknown")
+            elif value == 0:
+                missing.append(f"vehicle {vehicle.vehicle_id}: {GCS_FAILSAFE} is 0: the "
+                               "vehicle does nothing by itself when it loses this ground "
+                               "station (1 returns home, 5 lands)")
+        for problem in missing:
+            self.say(f"{'' if required else 'warning: '}{problem}")
+        if missing and required:
+            self.say("not flown (--require-gcs-failsafe)")
+            return Refusal.VEHICLE
+        return None
+
+    def vehicle_profile(self, vehicle: MavlinkVehicle) -> VehicleProfile:
+        """The shipped profile of the vehicle's kind filled in from its own parameters."""
+        from tml.verify.profile import describe_parameters, profile_from_vehicle, shipped_for
+
+        profile, params = profile_from_vehicle(vehicle.read_parameters,
+                                               shipped_for(vehicle.state().vehicle_type))
+        self.say(f"{profile.name} profile from vehicle {vehicle.vehicle_id}'s parameters: "
+                 + describe_parameters(params))
+        return profile
+
+    def _refused(self, mission: Mission, what: str) -> Refusal | None:
+        return refused(mission, what, self.options, self.errors)
+
+    # -- the run ----------------------------------------------------------------------------
+
+    def run_options(self, profile: VehicleProfile, world: World) -> RunOptions:
+        """The runner's options for a flight checked against ``profile`` and ``world``."""
+        from tml.run.checked import checked_options
+
+        return checked_options(profile, world, safe_state=self.options.safe_state,
+                               link_lost_limit=self.options.link_lost_limit,
+                               ready_timeout=self.options.ready_timeout,
+                               safe_state_timeout=self.options.safe_state_timeout)
+
+    def signing_counts(self) -> list[tuple[str, int, int]]:
+        """With signing on, what each link dropped: (address, unsigned, wrongly signed)."""
+        if not self.options.signing_on:
+            return []
+        links: dict[int, Link] = {id(v.link): v.link for v in self.vehicles}
+        return [(link.address, *link.signing_counts) for link in links.values()]
+
+
+def verify(mission: Mission, profile: VehicleProfile, extra: World | None,
+           options: SessionOptions, errors: Console | None) -> Refusal | None:
+    """Verify ``mission`` with ``profile`` (and the ``extra`` world); the refusal if it must
+    not be flown (infeasible, without ``force``). Used before the vehicles are opened too."""
+    from tml.verify.report import print_report
+    from tml.verify.static import verify_mission
+
+    report = verify_mission(mission, profile, extra)
+    if report.feasible:
+        return None
+    if errors is not None:
+        print_report(report, errors)
+    return refused(mission, "infeasible mission", options, errors)
+
+
+def refused(mission: Mission, what: str, options: SessionOptions,
+            errors: Console | None) -> Refusal | None:
+    """Refusal.MISSION for a mission refused as ``what``; None when ``force`` flies it
+    anyway (said either way)."""
+    if errors is not None:
+        if not options.force:
+            errors.print(f"{options.program}: {mission.file}: {what}, not flown (--force "
+                         "flies it anyway)", markup=False, highlight=False)
+        else:
+            errors.print(f"{options.program}: {what} flown anyway (--force)", markup=False,
+                         highlight=False)
+    return None if options.force else Refusal.MISSION
+
+
+@contextlib.contextmanager
+def open_session(options: SessionOptions, world: World, errors: Console | None = None,
+                 notify: Callable[[], None] | None = None) -> Iterator[Session]:
+    """Start the simulator or open the links, and wait for every vehicle; yield the
+    session. ``notify``, when given, is called on every change instead of setting the
+    session's wake flag. Raises TmlError (no vehicle, a vehicle that signs while no key
+    is given ...) and OSError (an address that cannot be opened)."""
+    from tml.mavlink.adapter import MavlinkVehicle
+    from tml.mavlink.clock import VehicleClock
+    from tml.mavlink.link import Link
+    from tml.signing import signing_key
+
+    if options.sim and options.open_simulator is None:
+        raise TmlError("a simulated session needs a simulator factory")
+    timebase: Timebase = Lockstep() if options.sim and options.lockstep else SYSTEM
+    wake = Flag(timebase)
+    key = signing_key(options.signing_key_file)
+    news = notify or wake.set
+    # In lock-step the opening, the pre-flight checks and the run take part in the
+    # simulator's time (tml.timebase): it moves on only while this thread waits for it.
+    # Closing (the stack, left after) does not: the workers finish with time moving.
+    with contextlib.ExitStack() as stack, timebase.taking_part():
+        clock: Callable[[], float]
+        addresses: list[tuple[str, int | None]]
+        if options.simulator is not None and options.open_simulator is not None:
+            sim = stack.enter_context(options.open_simulator(
+                options.simulator, world, key,
+                timebase if isinstance(timebase, Lockstep) else None))
+            clock = lambda: sim.time  # noqa: E731 - the vehicles' own time
+            addresses = [(f"tcp:127.0.0.1:{port}", index + 1)
+                         for index, port in enumerate(sim.tcp_ports)]
+        else:
+            clock = time.monotonic
+            addresses = [(url, None) for url in options.connect]
+        vehicles: list[MavlinkVehicle] = []
+        link_clock = None  # the runner's clock
+        vehicle_clock: VehicleClock | None = None
+        for address, system_id in addresses:
+            link = stack.enter_context(Link(address, outputs=options.outputs,
+                                            signing_key=key, timebase=timebase))
+            link.on_change(lambda _system_id: news())
+            if not system_id and errors is not None and not options.quiet:
+                # Said once: pymavlink's own retry messages are kept from the terminal.
+                errors.print(f"{options.program}: waiting up to {options.timeout:g} s for a "
+                             f"vehicle at {address}", markup=False, highlight=False)
+            ids = [system_id] if system_id else _discover(link, options.timeout)
+            if not options.sim and options.clock == "vehicle" and not vehicles:
+                # The first vehicle's clock times the mission and every vehicle's link.
+                clock = vehicle_clock = VehicleClock(link, ids[0])
+                # Link health stays on the local clock: see tml.mavlink.adapter.
+                link_clock = time.monotonic
+            for sid in ids:
+                vehicle = MavlinkVehicle(
+                    link, sid, clock=clock, world=world,
+                    vehicle_id=len(vehicles) + 1 if not options.sim else sid,
+                    connect_timeout=options.timeout, on_result=news, link_clock=link_clock)
+                stack.callback(vehicle.close)
+                vehicle.prepare()
+                vehicles.append(vehicle)
+        if vehicle_clock is not None and not vehicle_clock.wait_started(options.timeout):
+            raise TmlError(f"vehicle {vehicles[0].vehicle_id} sent no time stamp "
+                           f"(time_boot_ms) in {options.timeout:g} s; --clock vehicle needs "
+                           "one")
+        yield Session(options, vehicles, wake, clock, timebase, errors)
+
+
+def _discover(link: Link, timeout: float) -> list[int]:
+    """The system ids of the vehicles on a link: the first one, and any heard within
+    :data:`DISCOVERY_WAIT`."""
+    first = link.wait_vehicle(None, timeout)
+    time.sleep(DISCOVERY_WAIT)  # other vehicles on the same link say hello too
+    return sorted({first.system_id, *link.vehicles()})

@@ -1,14 +1,19 @@
 """The geofence as ArduCopter checks it: which limit, if any, a position breaks.
 
 ``FENCE_TYPE`` is a bit mask: 1 maximum altitude (``FENCE_ALT_MAX``, or the world's
-ceiling when lower), 2 a circle of ``FENCE_RADIUS`` metres around home, 4 an inclusion
-polygon (the one uploaded with the fence mission type, else the world's). Positions are
-local (north, east, up) metres.
+ceiling when lower), 2 a circle of ``FENCE_RADIUS`` metres around home, 4 the polygons and
+circles uploaded with the fence mission type (else the world's polygon). As ArduPilot's
+AC_PolyFence_loader reads them, the vehicle must be inside every inclusion polygon
+(MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION, a run of param1 corners) and inclusion circle
+(NAV_FENCE_CIRCLE_INCLUSION, param1 the radius), and outside every exclusion polygon and
+circle (..._EXCLUSION), from the ground to the sky. Positions are local (north, east, up)
+metres.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 from shapely.geometry import Point, Polygon
 
@@ -31,9 +36,41 @@ def inclusion_polygon(vertices: list[tuple[float, float]], world: World) -> Poly
     return Polygon(vertices) if len(vertices) >= 3 else world_polygon(world)
 
 
+POLYGON_INCLUSION, POLYGON_EXCLUSION = 5001, 5002
+CIRCLE_INCLUSION, CIRCLE_EXCLUSION = 5003, 5004
+
+
+def uploaded_zones(items: Sequence[tuple[int, float, tuple[float, float]]]
+                   ) -> tuple[list[Polygon], list[Polygon]]:
+    """The inclusion and exclusion zones of uploaded fence items, each given as (command,
+    param1, local (north, east)): consecutive polygon corners make a polygon of param1
+    corners; a circle is a polygon of 64 sides round its centre. A polygon left short of
+    its count, or with fewer than three corners, is left out as ArduPilot refuses it."""
+    inclusion: list[Polygon] = []
+    exclusion: list[Polygon] = []
+    corners: list[tuple[float, float]] = []
+    for i, (command, param1, point) in enumerate(items):
+        if command in (CIRCLE_INCLUSION, CIRCLE_EXCLUSION):
+            zone = Point(point).buffer(param1, quad_segs=16)
+            (inclusion if command == CIRCLE_INCLUSION else exclusion).append(zone)
+        elif command in (POLYGON_INCLUSION, POLYGON_EXCLUSION):
+            corners.append(point)
+            ends = i + 1 == len(items) or items[i + 1][0] != command or len(
+                corners) >= round(param1)
+            if ends:
+                if len(corners) == round(param1) >= 3:
+                    (inclusion if command == POLYGON_INCLUSION else exclusion).append(
+                        Polygon(corners))
+                corners = []
+    return inclusion, exclusion
+
+
 def breach(position: Vector, params: Params, home: Vector, polygon: Polygon | None,
-           ceiling: float | None = None) -> str:
-    """The limit ``position`` breaks ("maximum altitude", "circle", "polygon"), or ""."""
+           ceiling: float | None = None, *, inclusions: Sequence[Polygon] = (),
+           exclusions: Sequence[Polygon] = ()) -> str:
+    """The limit ``position`` breaks ("maximum altitude", "circle", "polygon", "exclusion
+    zone"), or "". ``inclusions`` are uploaded zones the vehicle must be inside besides
+    ``polygon``, ``exclusions`` those it must stay out of (both with bit 4)."""
     kinds = round(params["FENCE_TYPE"])
     max_alt = params["FENCE_ALT_MAX"] if ceiling is None else min(params["FENCE_ALT_MAX"],
                                                                    ceiling)
@@ -42,6 +79,10 @@ def breach(position: Vector, params: Params, home: Vector, polygon: Polygon | No
     if kinds & 2 and math.hypot(position[0] - home[0], position[1] - home[1]) > params[
             "FENCE_RADIUS"]:
         return "circle"
-    if kinds & 4 and polygon is not None and not polygon.contains(Point(position[:2])):
+    here = Point(position[:2])
+    if kinds & 4 and any(not zone.contains(here) for zone in (
+            *([] if polygon is None else [polygon]), *inclusions)):
         return "polygon"
+    if kinds & 4 and any(zone.contains(here) for zone in exclusions):
+        return "exclusion zone"
     return ""

@@ -188,6 +188,8 @@ class VehicleModel:
         self.camera = Camera(self.params)
         self.obstacles = Obstacles(self.world)
         self._fence_polygon = fence.world_polygon(self.world)
+        self._fence_inclusions: list[Any] = []  # uploaded zones beyond the first polygon
+        self._fence_exclusions: list[Any] = []
         # The last conversions (position, origin, result) and (home, origin, result).
         self._last_global: tuple[Vector | None, Home | None, Vector] = (None, None, (0, 0, 0))
         self._last_home_local: tuple[Home | None, Home | None, Vector] = (None, None, (0, 0, 0))
@@ -1147,7 +1149,8 @@ class VehicleModel:
         geofence = self.world.geofence
         ceiling = geofence.max_altitude if geofence is not None else None
         return fence.breach(position, self.params, self._home_local(), self._fence_polygon,
-                            ceiling)
+                            ceiling, inclusions=self._fence_inclusions,
+                            exclusions=self._fence_exclusions)
 
     # ------------------------------------------------------------- obstacles
     def _blocked(self, position: Vector) -> bool:
@@ -1246,9 +1249,13 @@ class VehicleModel:
         elif mission_type == FENCE:
             items = self.missions.items(FENCE)
             self.params.set("FENCE_TOTAL", len(items))
-            vertices = [self._local(i.x / 1e7, i.y / 1e7, self.origin.altitude)[:2]
-                        for i in items if i.command == M.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION]
-            self._fence_polygon = fence.inclusion_polygon(vertices, self.world)
+            inclusions, self._fence_exclusions = fence.uploaded_zones([
+                (i.command, i.param1, self._local(i.x / 1e7, i.y / 1e7,
+                                                  self.origin.altitude)[:2]) for i in items])
+            # No inclusion zone uploaded: the world's polygon (a vehicle set up beforehand).
+            self._fence_polygon = inclusions[0] if inclusions else fence.world_polygon(
+                self.world)
+            self._fence_inclusions = inclusions[1:]
         else:
             self.params.set("RALLY_TOTAL", len(self.missions.items(mission_type)))
 

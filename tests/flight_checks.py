@@ -133,7 +133,22 @@ def check_uav_surface(lines: list[dict]) -> None:
         assert not track[-1]["armed"]
 
 
+def check_fenced_patrol(lines: list[dict]) -> None:
+    """missions/fenced_patrol.xml: the fence and rally points went on the vehicle before
+    anything was asked of it, the read-back matched, and the patrol never breached them."""
+    (told,) = [line for line in lines if line["kind"] == "safeguard"]
+    assert told["ok"], told["message"]
+    for part in ("inclusion polygon of 4 corners", "exclusion circle water tower",
+                 "FENCE_ALT_MAX 40 m", "2 rally points", "not uploaded: shed",
+                 "read back matched"):
+        assert part in told["message"], told["message"]
+    first_request = next(line for line in lines if line["kind"] == "request")
+    assert told["t"] <= first_request["t"]
+    assert not [line for line in lines if line["kind"] == "autopilot"
+                and "Fence" in line["text"] and "Breach" in line["text"]]
+
+
 LOG_CHECKS = {"imav2016": check_imav2016, "catalogue_tour": check_catalogue_tour,
               "plane_patrol": check_plane_patrol, "rover_delivery": check_rover_delivery,
-              "dolphin_uav_surface": check_uav_surface}
+              "dolphin_uav_surface": check_uav_surface, "fenced_patrol": check_fenced_patrol}
 """mission -> what its flight log must show besides the outcome, on any vehicle."""

@@ -37,6 +37,7 @@ EXPECTED: dict[str, tuple[int, str, list[str]]] = {
     "dolphin_single_vehicle": (0, "event 'Battery below 30 %' ended the mission",
                                ["--sim-param", "BATT_CAPACITY=1000"]),
     "dolphin_survey_north": (0, "all tasks done", []),
+    "fenced_patrol": (0, "all tasks done", []),
     "fleet_compositions": (0, "all tasks done", ["--vehicles", "3", "--link-lost-limit", "60"]),
     "imav2016": (0, "all tasks done", []),
     "jump_and_repeat": (0, "all tasks done", []),

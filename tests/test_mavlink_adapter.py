@@ -30,6 +30,7 @@ from tml.vehicle import (
     Land,
     Request,
     RequestResult,
+    Safeguard,
     SetMode,
     SetSkill,
     SetSpeed,
@@ -37,7 +38,7 @@ from tml.vehicle import (
     TakeOff,
     VehicleState,
 )
-from tml.world import World, WorldObject
+from tml.world import Cylinder, Geofence, RallyPoint, World, WorldObject
 
 FAST = {"SIM_GPS_LOCKTIME": 0.5, "SIM_EKF_GPS_TIME": 1.0}
 HERE = Location("test.xml", 1)
@@ -170,6 +171,40 @@ def test_a_flip_that_cannot_start_leaves_the_vehicle_in_guided(rig: Rig) -> None
     assert result.detail == "MAV_CMD_DO_SET_MODE: MAV_RESULT_FAILED"
     model = rig.sim.vehicle(1)
     assert model.mode == "GUIDED" and eventually(lambda: not model.sticks_overridden)
+
+
+def test_the_missions_fence_and_rally_points_go_on_the_vehicle_and_stop_it(
+        rig: Rig) -> None:
+    rig.until(lambda s: s.ready and s.home is not None, "ready")
+    world = World(geofence=Geofence(((-200.0, -200.0), (200.0, -200.0), (200.0, 200.0),
+                                     (-200.0, 200.0)), max_altitude=40.0),
+                  obstacles=(Cylinder("mast", 40.0, 0.0, 5.0),),
+                  rally=(RallyPoint(-20.0, 0.0, 15.0),))
+    result = rig.do(Safeguard(1, world, request_id=7))
+    assert result.ok, result.detail
+    assert result.detail == ("inclusion polygon of 4 corners; exclusion circle mast; "
+                             "FENCE_ALT_MAX 40 m; FENCE_TYPE 5, FENCE_ENABLE 1; "
+                             "1 rally point; read back matched")
+    model = rig.sim.vehicle(1)
+    assert [item.command for item in model.missions.items(1)] == [5001] * 4 + [5004]
+    assert [item.command for item in model.missions.items(2)] == [5100]
+    assert (model.params["FENCE_ENABLE"], model.params["FENCE_TYPE"],
+            model.params["FENCE_ALT_MAX"]) == (1, 5, 40)
+    rig.fly(10.0)
+    assert rig.do(GoTo(1, (80.0, 0.0, 10.0))).ok  # straight through the mast's zone
+    stopped = rig.until(lambda s: s.mode == "RTL", "the fence's RTL")
+    assert any(m.text == "Fence Breached: exclusion zone" for m in stopped.messages)
+    assert stopped.position[0] < 40.0
+
+
+def test_the_vehicles_own_fence_can_be_kept(rig: Rig) -> None:
+    rig.until(lambda s: s.ready and s.home is not None, "ready")
+    world = World(geofence=Geofence(max_altitude=40.0), rally=(RallyPoint(-20.0, 0, 15),))
+    result = rig.do(Safeguard(1, world, fence=False))
+    assert result.ok
+    assert result.detail == "the vehicle's fence kept; 1 rally point; read back matched"
+    model = rig.sim.vehicle(1)
+    assert model.missions.items(1) == [] and model.params["FENCE_ENABLE"] == 0
 
 
 def test_camera_requests_reach_the_camera(rig: Rig) -> None:

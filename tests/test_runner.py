@@ -541,3 +541,45 @@ def test_the_link_coming_back_while_the_safe_state_is_awaited_is_journaled() -> 
                  and "status" in line)
     assert changes[0][0] == pytest.approx(3.0, abs=0.11)
     assert changes[1][0] == pytest.approx(23.0, abs=0.11) and changes[1][0] > ended
+
+
+FENCED = ('<environment><geofence max_altitude="50"><point north="-100" east="-100"/>'
+          '<point north="100" east="-100"/><point north="100" east="100"/>'
+          '<point north="-100" east="100"/></geofence>'
+          '<rally><point north="-20" east="0" altitude="15"/></rally></environment>')
+
+
+def test_the_missions_fence_goes_on_each_vehicle_before_the_first_take_off() -> None:
+    outcome, sim, lines, _, _ = run(FENCED + TAKE_OFF + LAND, vehicles=2)
+    assert outcome.exit_code == ExitCode.OK
+    for vehicle in sim.vehicles:
+        first = vehicle.submitted[0]
+        assert (first.name, first.fence) == ("Safeguard", True)  # type: ignore[attr-defined]
+        assert first.world.rally[0].altitude == 15  # type: ignore[attr-defined]
+        assert [r.name for r in vehicle.submitted].count("Safeguard") == 1
+    told = [line for line in lines if line["kind"] == "safeguard"]
+    assert [(line["vehicle"], line["ok"]) for line in told] == [(1, True), (2, True)]
+    first_request = next(line for line in lines if line["kind"] == "request")
+    assert first_request["t"] >= max(line["t"] for line in told)
+
+
+def test_a_fence_the_vehicle_refuses_fails_the_run_before_anything_flies() -> None:
+    sim = Sim(FakeVehicle(reject={"Safeguard": "rejected"}))
+    log = io.StringIO()
+    runner = Runner(mission(FENCED + TAKE_OFF + LAND), sim.vehicles, clock=sim.clock,
+                    wait=sim.wait, journal=Journal(log))
+    outcome = runner.run()
+    assert outcome.exit_code == ExitCode.FAILURE
+    (vehicle,) = outcome.vehicles
+    assert (vehicle.status, vehicle.cause) == (Status.FAILED, "ready")
+    assert vehicle.reason == ("the mission's fence and rally points could not be put on the "
+                              "vehicle: rejected")
+    assert [r.name for r in sim.vehicles[0].submitted] == ["Safeguard"]
+
+
+def test_keeping_the_vehicles_fence_still_sends_the_rally_points() -> None:
+    _, sim, _, _, _ = run(FENCED + TAKE_OFF + LAND, options=RunOptions(vehicle_fence=False))
+    first = sim.vehicles[0].submitted[0]
+    assert (first.name, first.fence) == ("Safeguard", False)  # type: ignore[attr-defined]
+    _, sim, _, _, _ = run(TAKE_OFF + LAND)  # nothing to put on the vehicle
+    assert "Safeguard" not in [r.name for r in sim.vehicles[0].submitted]

@@ -24,7 +24,7 @@ from typing import Protocol
 from tml.geo import Point as Point  # re-exported: requests and states speak in local points
 from tml.language.actions import BoundAction
 from tml.language.kinds import Kind, kind_of
-from tml.world import DEFAULT_HOME, Home
+from tml.world import DEFAULT_HOME, Home, World
 
 _EMPTY: Mapping[str, object] = MappingProxyType({})
 
@@ -386,6 +386,18 @@ class FlyMission(Request):
     actions: tuple[BoundAction, ...]
     start: Point
     track: bool = False
+
+
+@dataclass(frozen=True)
+class Safeguard(Request):
+    """Put the mission's safety on the vehicle before the first take-off: ``world``'s
+    geofence and obstacles as its fence (unless ``fence`` is False: the vehicle's own fence
+    is kept as it is) and its rally points; read back and compared
+    (:mod:`tml.mavlink.safeguards`). The result's ``detail`` says what was uploaded. The
+    runner sends it, never the engine."""
+
+    world: World
+    fence: bool = True
 
 
 FLIGHT_REQUESTS: tuple[type[Request], ...] = (Arm, TakeOff, SetMode, FlyMission, Flip)

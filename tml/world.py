@@ -95,18 +95,32 @@ class WorldObject:
     location: Location | None = None
 
 
+@dataclass(frozen=True)
+class RallyPoint:
+    """A place the vehicle may return to instead of home (ArduPilot's rally point): its
+    position and the altitude above home (m) it flies there at."""
+
+    north: float
+    east: float
+    altitude: float
+    location: Location | None = None
+    # The point's latitude and longitude as written, when it was given so.
+    written: tuple[tuple[float, float], ...] = ()
+
+
 OBJECT_KINDS = ("marker", "aruco", "item", "bucket", "frame", "subject")
 
 
 @dataclass(frozen=True)
 class World:
-    """Home, geofence, obstacles and recognisable objects."""
+    """Home, geofence, obstacles, recognisable objects and rally points."""
 
     home: Home | None = None
     geofence: Geofence | None = None
     obstacles: tuple[Obstacle, ...] = ()
     objects: tuple[WorldObject, ...] = ()
     location: Location | None = None
+    rally: tuple[RallyPoint, ...] = ()
 
     @property
     def home_or_default(self) -> Home:
@@ -123,4 +137,18 @@ class World:
             geofence=other.geofence or self.geofence,
             obstacles=self.obstacles + other.obstacles,
             objects=self.objects + other.objects,
+            rally=self.rally + other.rally,
         )
+
+
+def inside(polygon: tuple[Point2, ...], point: Point2) -> bool:
+    """True when ``point`` is inside ``polygon`` (even-odd rule; a point on an edge may
+    count either way)."""
+    north, east = point
+    found = False
+    for (n1, e1), (n2, e2) in zip(polygon, polygon[1:] + polygon[:1], strict=True):
+        if (e1 > east) != (e2 > east):
+            crossing = n1 + (east - e1) * (n2 - n1) / (e2 - e1)
+            if north < crossing:
+                found = not found
+    return found

@@ -51,7 +51,7 @@ from tml.language.quantities import RANGES, Quantity, out_of_range
 from tml.language.xml import XmlDocument, element_name, read_xml
 
 if TYPE_CHECKING:
-    from tml.world import Home, World
+    from tml.world import Geofence, Home, RallyPoint, World
 
 
 E = TypeVar("E", bound=StrEnum)
@@ -360,7 +360,7 @@ class _Builder:
     def world(self, element: etree._Element) -> World:
         # Imported here: a mission without an <environment> does without these classes,
         # whose creation is a tenth of the start-up of a one-file validation.
-        from tml.world import Cylinder, Geofence, Home, Prism, World, WorldObject
+        from tml.world import Cylinder, Geofence, Home, Prism, RallyPoint, World, WorldObject
 
         homes = self.children(element, "home")
         for extra in homes[1:]:
@@ -396,6 +396,7 @@ class _Builder:
                                 self.written(self.children(f, "point")))
         obstacles: list[Cylinder | Prism] = []
         objects: list[WorldObject] = []
+        rally: list[RallyPoint] = []
         for child in element:
             if child in self.left_out:
                 continue
@@ -420,7 +421,34 @@ class _Builder:
                     self.number(child, "altitude", Quantity.ALTITUDE, "0"),
                     child.get("color", ""),
                     child.get("name", ""), self.loc(child)))
-        return World(home, geofence, tuple(obstacles), tuple(objects), self.loc(element))
+            elif child.tag == "rally":
+                for p in self.children(child, "point"):
+                    north, east = self.point(p, home)
+                    rally.append(RallyPoint(
+                        north, east, self.number(p, "altitude", Quantity.ALTITUDE),
+                        self.loc(p), self.written([p])))
+                    self.rally_point_fits(p, rally[-1], geofence)
+        return World(home, geofence, tuple(obstacles), tuple(objects), self.loc(element),
+                     tuple(rally))
+
+    def rally_point_fits(self, element: etree._Element, point: RallyPoint,
+                         geofence: Geofence | None) -> None:
+        """A rally point outside the geofence is one the vehicle could never return to:
+        its fence would stop it on the way (E253)."""
+        from tml.world import inside
+
+        if geofence is None:
+            return
+        if geofence.polygon and not inside(geofence.polygon, (point.north, point.east)):
+            self.diagnostics.append(error(
+                self.loc(element), "E253",
+                f"rally point at north {point.north:g} m, east {point.east:g} m is outside "
+                "the geofence", "move it inside the geofence polygon"))
+        if geofence.max_altitude is not None and point.altitude > geofence.max_altitude:
+            self.diagnostics.append(error(
+                self.loc(element, "altitude"), "E253",
+                f"rally point altitude {point.altitude:g} m is above the geofence's "
+                f"max_altitude {geofence.max_altitude:g} m"))
 
     def top(self, element: etree._Element) -> float:
         top = self.optional_number(element, "top", Quantity.ALTITUDE)

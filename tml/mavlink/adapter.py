@@ -99,7 +99,9 @@ from tml.mavlink.compile import (
 )
 from tml.mavlink.health import LinkHealth
 from tml.mavlink.link import Link
+from tml.mavlink.mission import MissionType
 from tml.mavlink.modes import ModeWatch, mode_names
+from tml.mavlink.safeguards import safeguards
 from tml.mavlink.telemetry import COMPANION_COMPONENT, Telemetry
 from tml.mavlink.vehicle import DEFAULT_RATES, Vehicle
 from tml.timebase import Empty, Flag, Mailbox
@@ -121,6 +123,7 @@ from tml.vehicle import (
     Request,
     RequestResult,
     ReturnToLaunch,
+    Safeguard,
     SetHome,
     SetMode,
     SetSkill,
@@ -535,7 +538,7 @@ class MavlinkVehicle:
 
         try:
             handler = _HANDLERS[type(request)]
-            if not isinstance(request, (SetYaw, SetSpeed, Camera, Gripper, SetSkill)):
+            if not isinstance(request, (SetYaw, SetSpeed, Camera, Gripper, SetSkill, Safeguard)):
                 self._target = None  # the request takes the kept target's place
             detail = handler(self, request)
         except CommandRejected as error:
@@ -795,6 +798,20 @@ class MavlinkVehicle:
             for name, setting in binding.autopilot_on:
                 self._write_param(name, setting, AUTOPILOT)
 
+    def _safeguard(self, request: Safeguard) -> str:
+        """Upload the mission's fence and rally points, read them back and compare, then set
+        the fence parameters and read them back (:mod:`tml.mavlink.safeguards`)."""
+        home = self._require_home()
+        put = safeguards(request.world, home, fence=request.fence)
+        if request.fence and put.fence:
+            self.mav.upload(put.fence, MissionType.FENCE)
+        if put.rally:
+            self.mav.upload(put.rally, MissionType.RALLY)
+        for name, value in put.parameters.items():
+            self._write_param(name, value, AUTOPILOT)
+        kept = "" if request.fence else "the vehicle's fence kept; "
+        return f"{kept}{put.summary or 'nothing to upload'}; read back matched"
+
     def _fly_mission(self, request: FlyMission) -> None:
         # A mission may be the first thing asked: wait for home (and for a position good
         # enough to arm with, when the mission starts on the ground).
@@ -940,6 +957,7 @@ _HANDLERS: dict[type, Callable[[MavlinkVehicle, Any], str | None]] = {
     Camera: MavlinkVehicle._camera, Gripper: MavlinkVehicle._gripper,
     SetHome: MavlinkVehicle._set_home, SetSkill: MavlinkVehicle._set_skill,
     FlyMission: MavlinkVehicle._fly_mission, Flip: MavlinkVehicle._flip,
+    Safeguard: MavlinkVehicle._safeguard,
 }
 
 

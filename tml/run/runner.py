@@ -38,6 +38,17 @@ whenever that changes; a vehicle still not ready then fails the run (exit 4) wit
 lacked and the autopilot's own reason, before anything is sent to any vehicle. So the
 first conditions never read a value that has not arrived as if it were real.
 
+*The vehicle's own safety.* Once a vehicle on the ground is ready, and before the first
+task, the runner puts the mission's fence and rally points on it (one
+:class:`~tml.vehicle.Safeguard` request, :mod:`tml.mavlink.safeguards`): the geofence and the
+obstacles that reach the sky as its fence, the ``<rally>`` points as its rally points, read
+back and compared, and the fence parameters set. Meanwhile the vehicle is waiting for "fence
+and rally upload"; the journal's ``safeguard`` line says what was uploaded and that the
+read-back matched, or why it could not be done, which fails the run (exit 4) before anything
+flies: what keeps a vehicle safe when tml is gone lives on the vehicle.
+``RunOptions.vehicle_fence`` False keeps the vehicle's own fence (rally points still go up).
+A vehicle already armed or flying is taken as it is.
+
 *Resume.* Given ``resume`` (each vehicle's :class:`~tml.engine.resume.Progress`, read from
 the flight log of an interrupted run by :mod:`tml.run.resume`), the run's first line says
 ``run resumed`` and each interpreter starts from its vehicle's progress instead of from the
@@ -84,7 +95,7 @@ from tml.errors import ControlRefused, ExitCode
 from tml.language.model import Mission
 from tml.run.journal import Journal, autopilot_fields, telemetry_fields
 from tml.timebase import SYSTEM, Flag, Timebase
-from tml.vehicle import IdSource, RequestResult, Vehicle, VehicleState, awaiting
+from tml.vehicle import IdSource, RequestResult, Safeguard, Vehicle, VehicleState, awaiting
 
 
 @dataclass
@@ -100,6 +111,7 @@ class RunOptions:
     safe_state_timeout: float = 120.0  # s to command the safe state until telemetry shows it
     safe_state_period: float = 5.0  # s between two commands of a safe state not shown yet
     safe_state: str = "rtl"
+    vehicle_fence: bool = True  # put the mission's fence on the vehicles (False: keep theirs)
     engine: Options = field(default_factory=Options)
 
 
@@ -160,6 +172,9 @@ class _Flight:
         self.revision: object = None  # the vehicle's revision when its state was built
         self.refresh_at = -math.inf  # when the state is rebuilt however the revision stands
         self.link = "ok"  # the link's health last journaled
+        # The mission's fence and rally points on the vehicle: None not asked yet, the
+        # request's id while asked, "done", or why they could not be put there.
+        self.safeguard: int | str | None = None
 
 
 class _Crew:
@@ -389,6 +404,8 @@ class Runner:
                 self._tell_messages(flight, now)
                 vid = flight.vehicle.vehicle_id
                 missing = waiting[vid] = awaiting(state)
+                if not missing:
+                    missing = waiting[vid] = self._safeguard(flight, state, now)
                 if missing != said.get(vid, ()) or vid not in said:
                     said[vid] = missing
                     message = f"waiting for {', '.join(missing)}" if missing else "ready"
@@ -396,13 +413,19 @@ class Runner:
                                        awaiting=list(missing))
             if not any(waiting.values()):
                 return None
-            if self._stop_reason or now - start > timeout:
+            refused = any(isinstance(f.safeguard, str) and f.safeguard != "done"
+                          for f in self.flights)
+            if self._stop_reason or now - start > timeout or refused:
                 stopped = bool(self._stop_reason)
                 outcomes = []
                 for flight in self.flights:
                     vid = flight.vehicle.vehicle_id
                     if stopped:
                         reason, status = self._stop_reason, Status.ABORTED
+                    elif isinstance(flight.safeguard, str) and flight.safeguard != "done":
+                        reason, status = flight.safeguard, Status.FAILED
+                    elif refused:
+                        reason, status = "another vehicle was not ready", Status.ABORTED
                     elif waiting[vid]:
                         reason = (f"not ready after {timeout:g} s: waiting for "
                                   f"{', '.join(waiting[vid])}")
@@ -417,6 +440,36 @@ class Runner:
             if self.on_update is not None:
                 self.on_update(self)
             self._wait(1.0 / self.options.rate)
+
+    def _safeguard(self, flight: _Flight, state: VehicleState, now: float) -> tuple[str, ...]:
+        """Put the mission's fence and rally points on a ready vehicle (once, on the ground,
+        a :class:`~tml.vehicle.Safeguard` request); what it still waits for meanwhile."""
+        world = self.options.engine.world or self.mission.world
+        if flight.safeguard is None:
+            if world is None or state.armed or not (
+                    world.rally or (self.options.vehicle_fence and (
+                        world.geofence or world.obstacles))):
+                flight.safeguard = "done"
+                return ()
+            request = Safeguard(flight.vehicle.vehicle_id, world,
+                                fence=self.options.vehicle_fence, request_id=self.ids.take())
+            flight.safeguard = request.request_id
+            flight.vehicle.submit(request)
+        if isinstance(flight.safeguard, int):
+            for result in flight.vehicle.poll():  # nothing else is asked before take-off
+                if result.request_id != flight.safeguard:
+                    continue
+                vid = flight.vehicle.vehicle_id
+                if result.ok:
+                    flight.safeguard = "done"
+                    self.journal.write(now, "safeguard", vid, ok=True,
+                                       message=f"on the vehicle: {result.detail}")
+                else:
+                    flight.safeguard = (f"the mission's fence and rally points could not be "
+                                        f"put on the vehicle: {result.detail or result.reason}")
+                    self.journal.write(now, "safeguard", vid, ok=False,
+                                       message=flight.safeguard, reason=result.reason)
+        return () if flight.safeguard == "done" else ("fence and rally upload",)
 
     def _tell_messages(self, flight: _Flight, now: float) -> None:
         """Journal the autopilot's messages not journaled yet."""

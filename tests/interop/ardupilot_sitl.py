@@ -31,7 +31,7 @@ import subprocess
 import tempfile
 import threading
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -55,10 +55,12 @@ class Launcher:
     is_script: bool
 
     def command(self, vehicle: str, instance: int, speedup: float, home: str,
-                scratch: Path, boot_parm: Path | None = None) -> list[str]:
+                scratch: Path, boot_parm: Path | None = None,
+                extra: Sequence[str] = ()) -> list[str]:
         """The command line that starts ``vehicle`` as ``instance``; ``boot_parm`` is a
         parameter file read after ArduPilot's autotest one (for parameters that take
-        effect only at boot, such as GRIP_ENABLE)."""
+        effect only at boot, such as GRIP_ENABLE); ``extra``: more of ArduPilot's options
+        (e.g. ``--serial1 udpclient:127.0.0.1:14550``)."""
         if self.is_script:
             command = [str(self.path), "--vehicle", vehicle, "-I", str(instance),
                        "--speedup", f"{speedup:g}", "--home", home]
@@ -66,7 +68,7 @@ class Launcher:
                 beside = self.path.parent / f"{vehicle}.parm"
                 files = [beside, boot_parm] if beside.is_file() else [boot_parm]
                 command += ["--defaults", ",".join(map(str, files))]
-            return command
+            return [*command, *extra]
         binary = self.path.parent / BINARIES[vehicle]
         command = [str(binary), "--wipe", "--model", MODELS[vehicle], "--speedup",
                    f"{speedup:g}", "-I", str(instance), "--sysid", str(instance + 1),
@@ -74,7 +76,7 @@ class Launcher:
         files = [p for p in (parameter_file(binary, vehicle), boot_parm) if p is not None]
         if files:
             command += ["--defaults", ",".join(map(str, files))]
-        return command
+        return [*command, *extra]
 
 
 def parameter_file(binary: Path, vehicle: str) -> Path | None:
@@ -197,7 +199,7 @@ class SitlVehicle:
 def start_vehicle(launcher: Launcher, vehicle: str = "copter", *, speedup: float = 10.0,
                   home: str = DEFAULT_HOME, params: Mapping[str, float] | None = None,
                   boot_params: Mapping[str, float] | None = None,
-                  scratch: Path | None = None) -> SitlVehicle:
+                  scratch: Path | None = None, extra: Sequence[str] = ()) -> SitlVehicle:
     """Start one vehicle, wait until it answers on SERIAL0, and set ``params`` on it.
 
     ``boot_params`` are read at boot, after ArduPilot's autotest parameters (those that
@@ -217,7 +219,8 @@ def start_vehicle(launcher: Launcher, vehicle: str = "copter", *, speedup: float
                                          for name, value in boot_params.items()))
         with log.open("wb") as out:
             process = subprocess.Popen(
-                launcher.command(vehicle, instance, speedup, home, folder, boot_parm),
+                launcher.command(vehicle, instance, speedup, home, folder, boot_parm,
+                                 extra),
                 cwd=folder,
                 stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
         sitl = SitlVehicle(vehicle, instance, process, log)

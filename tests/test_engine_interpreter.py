@@ -745,3 +745,13 @@ def test_a_plan_resumed_after_an_event_says_its_item_runs_once() -> None:
     lines = task_lines(flight)
     assert lines.count(("Auto/P1", "running")) == 1 and lines.count(("Auto/P1", "done")) == 1
     assert lines.index(("Auto/P2", "done")) < lines.index(("Auto", "done"))
+
+
+def test_say_out_loud_is_said_by_tml_and_never_sent_to_the_vehicle() -> None:
+    flight = Flight(TAKE_OFF + hover("Hover", 2) + LAND,
+                    extra='<skill name="SAY_OUT_LOUD_CURRENT_TASK"/>\n')
+    flight.run()
+    assert flight.interp.status is Status.COMPLETED
+    assert not [r for r in flight.requests if isinstance(r, SetSkill)]
+    said = [r.data["task"] for r in flight.records if r.kind == "say"]
+    assert said == ["Take off", "Hover", "Land"]

@@ -25,6 +25,7 @@ from tml.engine.roles import Candidate, candidates
 from tml.engine.safety import safe_state_request
 from tml.engine.scripts import Limits
 from tml.errors import EngineError
+from tml.language import skills
 from tml.language.actions import BoundAction
 from tml.language.model import Condition, Mission, Task
 from tml.vehicle import IdSource, Point, Request, RequestResult, SetSkill, VehicleState
@@ -63,6 +64,10 @@ def moved(moves: Mapping[State, frozenset[State]], current: State, to: State,
     if to not in moves[current]:
         raise EngineError(f"{what} cannot go from {current.value} to {to.value}")
     return to
+
+
+SAY_TASKS = "SAY_OUT_LOUD_CURRENT_TASK"
+"""The skill that announces each task as it starts (tml says it: a ``say`` line)."""
 
 
 class Duty(Enum):
@@ -405,6 +410,9 @@ class Run:
             more["decided"] = round(self.log.stamp, 3)  # the mission time it was decided
         self.log.note_at(now, "task", f"{path}: {state.value}", vehicle_id, task=path,
                          state=state.value, **more)
+        if state is TaskState.RUNNING and vehicle_id is not None \
+                and self.pilots[vehicle_id].skills.get(SAY_TASKS, 0) > 0:
+            self.log.note_at(now, "say", f"now: {path}", vehicle_id, task=path)
         self.changes += 1
         change = Change(self.log.stamp_of(now), path, state, vehicle_id, self.changes)
         if vehicle_id is None:
@@ -423,7 +431,8 @@ class Run:
         if count < 0:
             raise EngineError(f"skill {name} switched off more often than on")
         pilot.skills[name] = count
-        if count == (1 if on else 0):
+        spec = skills.lookup(name)
+        if count == (1 if on else 0) and not (spec is not None and spec.ground):
             self.send(SetSkill(pilot.vehicle_id, name, on))
 
     def mission_skills(self, pilot: Pilot, on: bool) -> None:

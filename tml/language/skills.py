@@ -8,6 +8,7 @@ they have a name, a description and the detection parameters they feed.
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 
@@ -19,6 +20,8 @@ class SkillSpec:
     description: str
     feeds: tuple[str, ...] = ()
     aliases: tuple[str, ...] = ()
+    ground: bool = False
+    """Carried out by tml itself, not switched on the vehicle (nothing is sent)."""
 
 
 CATALOGUE: tuple[SkillSpec, ...] = (
@@ -37,7 +40,9 @@ CATALOGUE: tuple[SkillSpec, ...] = (
               ("RECOGNIZED_FRAMES",)),
     SkillSpec("DETECT_OBSTACLES_BY_ARUCO_MARKERS",
               "Treat ArUco markers as obstacles (Aerostack)."),
-    SkillSpec("SAY_OUT_LOUD_CURRENT_TASK", "Announce the current task (Aerostack)."),
+    SkillSpec("SAY_OUT_LOUD_CURRENT_TASK",
+              "Announce each task as it starts (Aerostack): tml says it in the flight log and "
+              "the live view.", ground=True),
 )
 
 
@@ -51,6 +56,13 @@ _BY_NAME = {_key(n): s for s in CATALOGUE for n in (s.name, *s.aliases)}
 def lookup(name: str) -> SkillSpec | None:
     """The skill spec for a written skill name (case and separators ignored), or None."""
     return _BY_NAME.get(_key(name))
+
+
+def vehicle_skills(names: Iterable[str]) -> frozenset[str]:
+    """The skills among ``names`` that a vehicle must switch (the ground ones left out),
+    by their catalogue names."""
+    found = (lookup(name) for name in names)
+    return frozenset(spec.name for spec in found if spec is not None and not spec.ground)
 
 
 def skill_names() -> list[str]:

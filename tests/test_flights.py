@@ -14,6 +14,11 @@ from flight_checks import LOG_CHECKS
 from tml.commands.cli import main
 from tml.run.journal import read
 
+# A guard against a hang, not a time limit: a flight in lock-step with the simulator is
+# slower, never different, on a busy machine (tests/test_timebase.py), and one of a fleet
+# beside three CPU spinners takes several minutes.
+pytestmark = pytest.mark.timeout(900)
+
 MISSIONS = Path(__file__).parent.parent / "missions"
 FAST = ["--speedup", "50", "--sim-param", "SIM_GPS_LOCKTIME=1",
         "--sim-param", "SIM_EKF_GPS_TIME=2"]

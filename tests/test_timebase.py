@@ -17,6 +17,11 @@ from tml.commands.cli import main
 from tml.run.journal import read
 from tml.timebase import SYSTEM, Empty, Flag, Lockstep, Mailbox
 
+# A guard against a hang, not a time limit: a flight in lock-step with the simulator is
+# slower, never different, on a busy machine (tests/test_timebase.py), and one of a fleet
+# beside three CPU spinners takes several minutes.
+pytestmark = pytest.mark.timeout(900)
+
 MISSIONS = Path(__file__).parent.parent / "missions"
 
 

@@ -121,3 +121,13 @@ def test_jump_goes_on_from_the_task(service: Service) -> None:
     out = max(r["position"][0] for r in lines(service, run)
               if r["kind"] == "telemetry" and r["position"])
     assert out < 100, "it landed on its way out, not at the end of the leg"
+
+
+def test_a_run_verified_with_the_profile_read_from_its_vehicle(service: Service) -> None:
+    """As ``tml run --profile vehicle``: the quadcopter profile filled in from the
+    vehicle's own parameters (a speed limit above what a leg needs flies)."""
+    mission = service.upload("short.xml", SHORT)["id"]
+    run = service.start_run(mission, [1], profile="vehicle")
+    assert service.run(run["id"])["options"]["profile"] == "vehicle"
+    assert (ended(service, run["id"])["status"]) == "completed"
+

@@ -126,7 +126,10 @@ class RunRequest(BaseModel):
         description="the vehicles to fly it (default: the first free one; with roles, "
                     "every free one)")
     safe_state: Literal["rtl", "land", "hold"] = "rtl"
-    profile: Literal["quadcopter", "fixed-wing", "rover"] = "quadcopter"
+    profile: Literal["quadcopter", "fixed-wing", "rover", "vehicle"] = Field(
+        default="quadcopter", description="the verifier's profile: a shipped one, or vehicle: "
+                                          "the first vehicle's kind filled in from its "
+                                          "parameters (as tml run --profile vehicle)")
     force: bool = Field(default=False, description="fly even an infeasible mission")
 
 

@@ -53,13 +53,20 @@ from tml.language.validation import ValidationResult, validate_file
 from tml.run.checked import checked_options
 from tml.run.journal import jsonable, telemetry_fields
 from tml.run.resume import ResumeRefused, progress_point
+from tml.run.session import VEHICLE_PROFILE
 from tml.serve.hangar import Hangar, VehicleTaken
 from tml.serve.live import LiveRun, TaskBoard
 from tml.serve.storage import ACTIVE, Storage, StoredMission, StoredRun
 from tml.vehicle import IdSource, awaiting
 from tml.verify.inflight import preflight
 from tml.verify.motion import PredictedState
-from tml.verify.profile import SHIPPED, VehicleProfile, load_profile
+from tml.verify.profile import (
+    SHIPPED,
+    VehicleProfile,
+    load_profile,
+    profile_from_vehicle,
+    shipped_for,
+)
 from tml.verify.report import report_document
 from tml.verify.static import verify_mission
 from tml.world import Cylinder, World
@@ -258,7 +265,7 @@ class Service:
         run_id = secrets.token_hex(6)
         chosen = self._choose(mission, vehicles, run_id)
         try:
-            checked = _profile(profile)
+            checked = self._profile(profile, chosen)
             report = verify_mission(mission, checked)
             if not report.feasible and not force:
                 raise Refused(f"{stored.filename}: infeasible mission, not flown (force "
@@ -307,9 +314,24 @@ class Service:
         record = StoredRun(secrets.token_hex(6), stored.mission_id, stored.mission_name,
                            stored.mission_source, list(stored.vehicles), "waiting", "", [],
                            None, self.options.instance, options, time.time(), None)
-        return self._launch(record, mission, _profile(str(options.get("profile",
-                                                                       "quadcopter"))),
+        return self._launch(record, mission,
+                            self._profile(str(options.get("profile", "quadcopter")),
+                                          stored.vehicles),
                             point.progress)
+
+    def _profile(self, name: str, vehicles: Sequence[int]) -> VehicleProfile:
+        """The profile a run is verified and flown with: a shipped one, or, for
+        ``vehicle``, the shipped profile of the first vehicle's kind filled in from its own
+        parameters, as ``tml run --profile vehicle`` reads it."""
+        if name != VEHICLE_PROFILE:
+            return _profile(name)
+        first = self.hangar.vehicles[vehicles[0]]
+        read = getattr(first, "read_parameters", None)
+        if read is None:
+            raise Refused(f"profile 'vehicle': vehicle {vehicles[0]} does not report its "
+                          "parameters")
+        profile, _params = profile_from_vehicle(read, shipped_for(first.state().vehicle_type))
+        return profile
 
     def _launch(self, record: StoredRun, mission: Mission, checked: VehicleProfile,
                 resume: Mapping[int, Progress] | None = None,
@@ -531,6 +553,7 @@ def _safety_said(record: Mapping[str, Any]) -> str:
 
 
 def _profile(name: str) -> VehicleProfile:
+    """A shipped profile by name (``vehicle`` is a run's, read from its vehicle)."""
     if name not in SHIPPED:
         raise Refused(f"profile {name!r}: expected one of {', '.join(SHIPPED)}")
     return load_profile(name)

@@ -187,6 +187,72 @@ def test_a_vehicle_gives_what_an_operator_reads_and_where_its_home_is(served: Se
         assert answer.headers["cache-control"] == "no-cache", "an upgrade is never half seen"
 
 
+# --- operator commands -----------------------------------------------------------------------
+
+def test_a_command_to_a_free_vehicle_is_sent_and_answered_once_accepted(
+        served: Served) -> None:
+    fake = served.hangar.fakes[0]
+    fake.armed, fake.mode, fake.position = True, "GUIDED", (20.0, 0.0, 10.0)
+    answer = served.client.post("/vehicles/1/command", json={"command": "rtl"})
+    assert answer.status_code == 200, answer.text
+    body = answer.json()
+    assert (body["vehicle"], body["command"], body["run"]) == (1, "rtl", None)
+    assert "rtl accepted (ReturnToLaunch)" in body["message"]
+    assert fake.mode == "RTL" and body["vehicle_state"]["mode"] == "RTL"
+    seen = served.client.get("/vehicles/1").json()
+    assert (seen["mode"], seen["run"]) == ("RTL", None), "the vehicle is free again"
+    assert (seen["command"]["command"], seen["command"]["outcome"]) == ("rtl", "accepted")
+
+
+def test_a_disarm_in_the_air_is_refused_with_the_reason(served: Served) -> None:
+    fake = served.hangar.fakes[0]
+    fake.armed, fake.mode, fake.position = True, "GUIDED", (0.0, 0.0, 10.0)
+    answer = served.client.post("/vehicles/1/command", json={"command": "disarm"})
+    assert answer.status_code == 409
+    assert "disarm refused: the vehicle is flying at 10.0 m" in answer.json()["error"]
+    assert fake.armed and not [r for r in fake.submitted if r.name == "Disarm"]
+    assert served.client.get("/vehicles/1").json()["command"]["outcome"] == "refused"
+    fake.position = (0.0, 0.0, 0.0)  # landed, still armed: now it may be disarmed
+    assert served.client.post("/vehicles/1/command", json={"command": "disarm"}
+                              ).status_code == 200
+    assert not fake.armed
+
+
+def test_a_command_the_vehicle_refuses_is_a_conflict(served: Served) -> None:
+    fake = served.hangar.fakes[1]
+    fake.armed, fake.mode, fake.position = True, "GUIDED", (0.0, 0.0, 10.0)
+    fake.reject["Land"] = "rejected"
+    answer = served.client.post("/vehicles/2/command", json={"command": "land"})
+    assert answer.status_code == 409
+    assert "land refused by the vehicle: rejected" in answer.json()["error"]
+
+
+def test_a_command_to_a_vehicle_in_a_run_ends_the_run_into_that_safe_state(
+        served: Served) -> None:
+    mission = served.upload()
+    run = served.start(mission)  # its safe state is rtl
+    fake = served.hangar.fakes[0]
+    served.hangar.fly_until(lambda: fake.position[2] > 5)  # the take-off is under way
+    answer = served.client.post("/vehicles/1/command", json={"command": "land"})
+    assert answer.status_code in (200, 202), answer.text
+    assert answer.json()["run"] == run["id"]
+    ended = served.finish(run["id"])
+    assert (ended["status"], ended["exit_code"]) == ("aborted", 3)
+    assert "operator command: land" in ended["reason"]
+    assert fake.mode == "LAND"
+    assert any("Land" in said for said in ended["safety"])
+
+
+def test_a_command_is_checked_before_anything_is_sent(served: Served) -> None:
+    assert served.client.post("/vehicles/7/command", json={"command": "rtl"}
+                              ).status_code == 404
+    assert served.client.post("/vehicles/1/command", json={"command": "flip"}
+                              ).status_code == 422
+    nothing = served.client.post("/vehicles/1/command", json={"command": "rtl"})
+    assert nothing.status_code == 200 and "nothing to do" in nothing.json()["message"]
+    assert served.hangar.fakes[0].submitted == []
+
+
 # --- the flight log and its stream ---------------------------------------------------------
 
 def test_the_stream_sends_the_flight_log_lines_then_the_end(served: Served) -> None:

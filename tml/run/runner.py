@@ -250,8 +250,12 @@ class Runner:
 
     # --- control -------------------------------------------------------------------------
 
-    def stop(self, reason: str) -> None:
-        """Ask the loop to abort the run (safe to call from a signal handler or a thread)."""
+    def stop(self, reason: str, safe_state: str | None = None) -> None:
+        """Ask the loop to abort the run (safe to call from a signal handler or a thread);
+        with ``safe_state`` (rtl, land, hold: an operator's command), into that one instead
+        of the run's own, unless the run is stopping already."""
+        if safe_state is not None and not self._stop_reason:
+            self.options.safe_state = self.options.engine.safe_state = safe_state
         self._stop_reason = self._stop_reason or reason
         self.wake.set()
 

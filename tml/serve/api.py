@@ -180,6 +180,18 @@ class HomeView(BaseModel):
     altitude: float = Field(description="metres above mean sea level")
 
 
+class OperatorCommandSeen(BaseModel):
+    """An operator's last command to a vehicle, as the service saw it through."""
+
+    command: Literal["rtl", "land", "hold", "disarm"]
+    outcome: Literal["refused", "sent", "unanswered", "accepted", "done"] = Field(
+        description="refused (by the rule or the vehicle), sent (through the run that "
+                    "held it), unanswered, accepted by the vehicle, done (shown, or nothing "
+                    "to do)")
+    detail: str
+    at: float = Field(description="when (Unix time)")
+
+
 class VehicleView(BaseModel):
     """A vehicle with its live telemetry."""
 
@@ -206,6 +218,28 @@ class VehicleView(BaseModel):
     detections: dict[str, Any]
     status_text: str = Field(description="the autopilot's last message")
     awaiting: list[str] = Field(description="what it still lacks before a mission may start")
+    command: OperatorCommandSeen | None = Field(
+        default=None, description="the last operator command and what came of it")
+
+
+class CommandRequest(BaseModel):
+    """An operator's command to a vehicle."""
+
+    model_config = ConfigDict(extra="forbid")
+    command: Literal["rtl", "land", "hold", "disarm"] = Field(
+        description="rtl: return to launch; land: land where it is; hold: stop where it is "
+                    "(a multicopter hovers, a fixed-wing circles, a rover stops); disarm: "
+                    "only on the ground")
+
+
+class CommandAnswer(BaseModel):
+    """What an operator's command did."""
+
+    vehicle: int
+    command: Literal["rtl", "land", "hold", "disarm"]
+    run: str | None = Field(description="the run that held the vehicle, ended by the command")
+    message: str = Field(description="what was done, in one sentence")
+    vehicle_state: VehicleView = Field(description="the vehicle as it is now")
 
 
 class ServiceStatus(BaseModel):
@@ -458,6 +492,24 @@ def _vehicles(api: APIRouter, service: Service) -> None:
     def vehicle(vehicle_id: int = Path(ge=0, le=2**31)) -> dict[str, Any]:
         """One vehicle."""
         return service.vehicle(vehicle_id)
+
+    @api.post("/vehicles/{vehicle_id}/command", response_model=CommandAnswer,
+              tags=["vehicles"],
+              responses={202: {"model": CommandAnswer,
+                               "description": "the run that held the vehicle was aborted "
+                                              "into the command and is still ending"}})
+    def command(request: CommandRequest, response: Response,
+                vehicle_id: int = Path(ge=0, le=2**31)) -> dict[str, Any]:
+        """Tell a vehicle to return to launch, land, hold or disarm, now; answered once the
+        vehicle accepted it (its mode then shows in GET /vehicles). 409 with the reason when
+        it would be unsafe or cannot be done (a disarm in the air, a ground vehicle told to
+        land), when the vehicle refuses it or does not answer. A vehicle held by a run: the
+        run is aborted into that safe state (every vehicle of the run); 202 while it is
+        still ending."""
+        answer, done = service.command(vehicle_id, request.command)
+        if not done:
+            response.status_code = 202
+        return answer
 
 
 async def _events(service: Service, run_id: str, after: int,

@@ -207,9 +207,10 @@ class LiveRun:
         if kind in ("pause", "resume") and not self.ended:
             self._set_status("paused" if self.runner.paused else "running")
 
-    def abort(self, reason: str) -> None:
-        """End the run now: every vehicle to its safe state (as Ctrl-C does to tml run)."""
-        self.runner.stop(reason)
+    def abort(self, reason: str, safe_state: str | None = None) -> None:
+        """End the run now: every vehicle to its safe state (as Ctrl-C does to tml run), or
+        to ``safe_state`` (an operator's command: rtl, land or hold)."""
+        self.runner.stop(reason, safe_state)
 
     def join(self, timeout: float | None = None) -> bool:
         """Wait for the run's thread to end; whether it has."""

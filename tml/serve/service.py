@@ -148,6 +148,7 @@ class ServiceOptions:
     link_lost_limit: float = 10.0  # s of a lost link before a run is aborted
     ready_timeout: float = 180.0  # s for a run's vehicles to be ready before its first task
     stop_timeout: float = 60.0  # wall s to wait for each run to end when the service stops
+    command_timeout: float = 30.0  # wall s an operator's command waits for its answer
 
 
 class Service:
@@ -167,6 +168,7 @@ class Service:
         self._unsaved: dict[str, LiveRun] = {}  # ended, not stored yet (module docstring)
         self._parsed: OrderedDict[str, Mission] = OrderedDict()  # small ones: _parse
         self._lock = threading.Lock()
+        self._commands: dict[int, dict[str, Any]] = {}  # each vehicle's last operator command
 
     # --- life ----------------------------------------------------------------------------
 
@@ -446,7 +448,108 @@ class Service:
         return {"id": vehicle_id, "run": self.hangar.holder(vehicle_id),
                 "vehicle_type": state.vehicle_type, "time": round(state.time, 3),
                 **telemetry_fields(state), "home": home, "status_text": state.status_text,
-                "awaiting": list(awaiting(state))}
+                "awaiting": list(awaiting(state)),
+                "command": self._commands.get(vehicle_id)}
+
+    def command(self, vehicle_id: int, command: str) -> tuple[dict[str, Any], bool]:
+        """An operator's command to a vehicle (rtl, land, hold, disarm), and whether it is
+        done (False: the run that held the vehicle is still ending).
+
+        Refused (409) with the reason when the rule of
+        :func:`tml.engine.safety.operator_request` refuses it (a disarm in the air ...).
+        A vehicle held by a run: the run is aborted into that safe state (a disarm, on the
+        ground: into its own, which disarms a vehicle on the ground), and once it has
+        ended, the command is sent again should the vehicle not show it. A free vehicle is
+        held for the command (no run takes it meanwhile), sent the request, and answered
+        once the vehicle accepted it; refused by the vehicle or unanswered: 409.
+        """
+        from tml.engine.safety import CommandRefusal, operator_command_shown, operator_request
+
+        found = self.hangar.vehicles.get(vehicle_id)
+        if found is None:
+            raise NotFound(f"no vehicle {vehicle_id}")
+        try:
+            operator_request(found.state(), command)
+        except CommandRefusal as refusal:
+            self._tell(vehicle_id, command, "refused", str(refusal))
+            raise Conflict(f"vehicle {vehicle_id}: {command} refused: {refusal}") from None
+        answer: dict[str, Any] = {"vehicle": vehicle_id, "command": command, "run": None}
+        holder = self.hangar.holder(vehicle_id)
+        live = self.live(holder) if holder is not None else None
+        if live is not None and not live.ended:
+            answer["run"] = live.id
+            reason = f"operator command: {command}"
+            live.abort(reason, safe_state=None if command == "disarm" else command)
+            self._tell(vehicle_id, command, "sent", f"run {live.id} aborted into {command}")
+            if not live.join(self.options.command_timeout):
+                return ({**answer, "message": f"run {live.id} is ending: it sends vehicle "
+                                              f"{vehicle_id} to {command}",
+                         "vehicle_state": self.vehicle(vehicle_id)}, False)
+            if operator_command_shown(found.state(), command):
+                self._tell(vehicle_id, command, "done", f"shown: {found.state().mode}")
+                return ({**answer, "message": f"run {live.id} ended: vehicle {vehicle_id} "
+                                              f"shows {command}",
+                         "vehicle_state": self.vehicle(vehicle_id)}, True)
+        message = self._send(found, vehicle_id, command)
+        return {**answer, "message": message, "vehicle_state": self.vehicle(vehicle_id)}, True
+
+    def _send(self, found: Any, vehicle_id: int, command: str) -> str:
+        """Send an operator's command to a vehicle no run holds, and wait for its answer;
+        what was done."""
+        from dataclasses import replace
+
+        from tml.engine.safety import CommandRefusal, operator_request
+
+        holder = f"command {secrets.token_hex(3)}"
+        try:
+            self.hangar.claim([vehicle_id], holder)
+        except VehicleTaken as taken:
+            raise Conflict(f"vehicle {vehicle_id}: {command} not sent: {taken}",
+                           run=taken.run_id) from None
+        wake = threading.Event()
+        self.hangar.subscribe(wake)
+        try:
+            try:
+                request = operator_request(found.state(), command)
+            except CommandRefusal as refusal:
+                self._tell(vehicle_id, command, "refused", str(refusal))
+                raise Conflict(f"vehicle {vehicle_id}: {command} refused: {refusal}") from None
+            if request is None:
+                self._tell(vehicle_id, command, "done", "nothing to do")
+                return f"vehicle {vehicle_id}: nothing to do: {found.state().mode}, " \
+                       "on the ground, disarmed"
+            request = replace(request, request_id=self.ids.take())
+            found.submit(request)
+            self._tell(vehicle_id, command, "sent", request.name)
+            end = time.monotonic() + self.options.command_timeout
+            while True:
+                result = next((r for r in found.poll() if r.request_id == request.request_id),
+                              None)
+                if result is not None:
+                    break
+                if time.monotonic() >= end:
+                    self._tell(vehicle_id, command, "unanswered", request.name)
+                    raise Conflict(f"vehicle {vehicle_id}: {command}: no answer within "
+                                   f"{self.options.command_timeout:g} s")
+                self.hangar.wait(wake, 0.05)
+        finally:
+            self.hangar.unsubscribe(wake)
+            self.hangar.release(holder)
+        if not result.ok:
+            detail = f"{result.reason} {result.detail}".strip()
+            self._tell(vehicle_id, command, "refused", f"by the vehicle: {detail}")
+            raise Conflict(f"vehicle {vehicle_id}: {command} refused by the vehicle: {detail}")
+        self._tell(vehicle_id, command, "accepted", request.name)
+        return f"vehicle {vehicle_id}: {command} accepted ({request.name})"
+
+    def _tell(self, vehicle_id: int, command: str, outcome: str, detail: str) -> None:
+        """Keep a vehicle's last operator command (GET /vehicles shows it) and log it."""
+        import logging
+
+        self._commands[vehicle_id] = {"command": command, "outcome": outcome,
+                                      "detail": detail, "at": time.time()}
+        logging.getLogger("tml.serve").warning("vehicle %d: operator command %s: %s (%s)",
+                                               vehicle_id, command, outcome, detail)
 
     # --- helpers -------------------------------------------------------------------------
 

@@ -212,6 +212,47 @@ def test_upload_fly_and_watch_a_mission_in_the_browser(browser: Any, page: str,
     assert driver.save_screenshot(str(shot)) and shot.stat().st_size > 10_000
 
 
+def test_rtl_from_a_vehicle_card_asks_then_brings_the_vehicle_home(browser: Any,
+                                                                   page: str) -> None:
+    from selenium.webdriver.common.by import By
+
+    driver = browser
+    driver.get(page)
+    # Vehicle 1 flies a run (its own safe state: land) out along a long leg.
+    mission = httpx.post(f"{page}missions", content=LONG,
+                         headers={"Content-Type": "application/xml"}).json()["id"]
+    run = httpx.post(f"{page}runs", json={"mission": mission, "vehicles": [1],
+                                          "safe_state": "land"}).json()["id"]
+    card = ".vehicle-card[data-vehicle='1']"
+
+    def field(d: Any, name: str) -> str:
+        return str(d.find_element(By.CSS_SELECTOR, f"{card} [data-field='{name}']").text)
+
+    wait(driver, "vehicle 1 flying", lambda d: field(d, "armed") == "armed, flying"
+         and float(httpx.get(f"{page}vehicles/1").json()["position"][2]) > 5, timeout=180)
+
+    # RTL asks first, naming the vehicle and the run that holds it; cancelled, nothing is sent.
+    click(driver, f"{card} button[data-command='rtl']")
+    asked = wait(driver, "the question", lambda d: d.find_elements(
+        By.CSS_SELECTOR, "dialog#confirm[open]"))
+    assert "RTL vehicle 1?" in asked[0].text and f"Run {run}" in asked[0].text
+    click(driver, "#confirm-cancel")
+    wait(driver, "the question closed", lambda d: not d.find_elements(
+        By.CSS_SELECTOR, "dialog#confirm[open]"))
+    assert httpx.get(f"{page}vehicles/1").json()["command"] is None
+
+    click(driver, f"{card} button[data-command='rtl']")
+    confirm(driver, "RTL vehicle 1")
+    wait(driver, "the card showing RTL", lambda d: field(d, "mode") == "RTL")
+    wait(driver, "the card showing it landed", lambda d: field(d, "armed") in (
+        "disarmed", "armed, on the ground"), timeout=180)
+    ended = httpx.get(f"{page}runs/{run}").json()
+    assert ended["status"] == "aborted" and "operator command: rtl" in ended["reason"]
+    assert "RTL:" in wait(driver, "the command's outcome", lambda d: field(d, "command"))
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    driver.save_screenshot(str(ARTIFACTS / "serve-page-rtl.png"))
+
+
 def test_an_interrupted_run_is_continued_from_the_page(browser: Any, tmp_path: Path) -> None:
     """A run the service was flying when it died: its Continue button starts the run that
     goes on from where it stood, shown at once, which completes without a second take-off."""

@@ -45,6 +45,7 @@ const state = {
   log: freshLog(),              // what the shown run's flight log said so far
   stream: null,                 // AbortController of the run's event stream
   choosing: false,              // a run is being chosen by default
+  commandSaid: {},              // per vehicle id: what its last command from here came to
   ticks: 0,
 };
 
@@ -718,13 +719,65 @@ function drawTelemetry() {
       list.append(element("dd", {class: "note", "data-field": "status-text",
         title: "the autopilot's last message", textContent: `“${v.status_text}”`}));
     }
+    const said = state.commandSaid[v.id] || commandSeen(v.command);
+    if (said) {
+      list.append(element("dd", {class: `note${said.error ? " error" : ""}`,
+        "data-field": "command", textContent: said.text}));
+    }
+    const buttons = element("div", {class: "commands"}, ...Object.entries(COMMANDS).map(
+      ([command, {label}]) => element("button", {type: "button", textContent: label,
+        class: command === "disarm" ? "danger" : "", "data-command": command,
+        "data-vehicle": v.id, title: COMMANDS[command].title})));
     return coloured(element("article", {class: "vehicle-card", "data-vehicle": v.id},
       element("h3", {}, `vehicle ${v.id}`, element("small", {textContent: v.vehicle_type}),
         element("span", {class: `link link-${v.link}`, "data-field": "link",
           textContent: `link ${v.link}`})),
-      list), v.id);
+      list, buttons), v.id);
   }));
 }
+
+// --- an operator's command to a vehicle: RTL, land, hold, disarm ------------------------------
+
+const COMMANDS = {
+  rtl: {label: "RTL", title: "return to launch", ask: "return to launch and land"},
+  land: {label: "Land", title: "land where it is", ask: "land where it is"},
+  hold: {label: "Hold", title: "stop and hold where it is", ask: "stop and hold where it is"},
+  disarm: {label: "Disarm", title: "stop the motors (only on the ground)",
+    ask: "stop its motors (refused while it flies)"},
+};
+
+// The last command the service saw through for a vehicle (GET /vehicles), in words.
+function commandSeen(seen) {
+  if (!seen) return null;
+  return {text: `${COMMANDS[seen.command].label}: ${seen.outcome} (${seen.detail})`,
+    error: seen.outcome === "refused" || seen.outcome === "unanswered"};
+}
+
+// One handler for every card's buttons: the cards are drawn again every second.
+$("#telemetry").addEventListener("click", async (event) => {
+  const button = event.target.closest("button[data-command]");
+  if (!button) return;
+  const command = button.dataset.command;
+  const id = Number(button.dataset.vehicle);
+  const vehicle = state.vehicles.find((v) => v.id === id);
+  const held = vehicle && vehicle.run ? ` Run ${vehicle.run}, which holds it, ends: every ` +
+    `vehicle of that run goes to ${COMMANDS[command].label}` +
+    (command === "disarm" ? " (its safe state)" : "") + "." : "";
+  if (!await confirmCommand(`${COMMANDS[command].label} vehicle ${id}? It is told to ` +
+      `${COMMANDS[command].ask}, now.${held}`, `${COMMANDS[command].label} vehicle ${id}`)) {
+    return;
+  }
+  state.commandSaid[id] = {text: `${COMMANDS[command].label}: sent…`};
+  drawTelemetry();
+  try {
+    const answer = await api("POST", `/vehicles/${id}/command`, {command: command});
+    state.commandSaid[id] = {text: `${COMMANDS[command].label}: ${answer.message}`};
+  } catch (error) {
+    state.commandSaid[id] = {text: `${COMMANDS[command].label}: ${error.message}`, error: true};
+  }
+  await refreshVehicles();
+  await refreshRuns();
+});
 
 async function refreshVehicles() {
   state.vehicles = await api("GET", "/vehicles");

@@ -36,6 +36,11 @@ def inclusion_polygon(vertices: list[tuple[float, float]], world: World) -> Poly
     return Polygon(vertices) if len(vertices) >= 3 else world_polygon(world)
 
 
+BREACH_TEXTS = {"maximum altitude": "Max altitude fence breached",
+                "circle": "Circle fence breached", "polygon": "Polygon fence breached",
+                "exclusion zone": "Polygon fence breached"}
+"""The limit broken -> ArduCopter's STATUSTEXT (AC_Fence; exclusion zones are polygons)."""
+
 POLYGON_INCLUSION, POLYGON_EXCLUSION = 5001, 5002
 CIRCLE_INCLUSION, CIRCLE_EXCLUSION = 5003, 5004
 

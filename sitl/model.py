@@ -1094,7 +1094,7 @@ class VehicleModel:
             breach = self._fence_breach(self.position)
             if breach and "fence" not in self._failsafes:
                 self._failsafes.add("fence")
-                self._text(M.MAV_SEVERITY_CRITICAL, f"Fence Breached: {breach}")
+                self._text(M.MAV_SEVERITY_CRITICAL, fence.BREACH_TEXTS[breach])
                 action = round(self.params["FENCE_ACTION"])
                 if action and self.mode not in ("RTL", "LAND"):
                     self._failsafe_action({1: 2, 2: 1, 3: 2, 4: 4, 5: 2}.get(action, 2))

@@ -193,7 +193,7 @@ def test_the_missions_fence_and_rally_points_go_on_the_vehicle_and_stop_it(
     rig.fly(10.0)
     assert rig.do(GoTo(1, (80.0, 0.0, 10.0))).ok  # straight through the mast's zone
     stopped = rig.until(lambda s: s.mode == "RTL", "the fence's RTL")
-    assert any(m.text == "Fence Breached: exclusion zone" for m in stopped.messages)
+    assert any(m.text == "Polygon fence breached" for m in stopped.messages)  # ArduCopter's
     assert stopped.position[0] < 40.0
 
 

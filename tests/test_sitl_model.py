@@ -507,7 +507,7 @@ def test_fence_breach_returns():
     v = flying(10.0, world=world)
     v.fly_to((0.0, 0.0, 30.0))
     out = run_until(v, lambda: v.mode == "RTL", 30)
-    assert "Fence Breached: maximum altitude" in texts(out)
+    assert "Max altitude fence breached" in texts(out)
 
 
 def test_collision_stops_the_vehicle_and_is_reported():

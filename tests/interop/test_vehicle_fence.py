@@ -1,0 +1,107 @@
+"""The mission's fence and rally points on ArduCopter SITL: uploaded, read back, enforced.
+
+A mission's ``<environment>`` goes onto the vehicle before take-off
+(:mod:`tml.mavlink.safeguards`). Here ArduCopter takes the fence and rally points of
+missions/fenced_patrol.xml, reads them back as tml sent them (by ArduPilot's storage rules),
+and its own fence, not tml, stops a flight that strays into the water tower's exclusion
+zone; and the whole mission flies with them in place.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from tml.commands.cli import main
+from tml.errors import Location
+from tml.language.actions import BoundAction, bind
+from tml.language.model import Action, Argument
+from tml.language.validation import load_mission
+from tml.mavlink.adapter import MavlinkVehicle
+from tml.mavlink.link import Link
+from tml.mavlink.mission import MissionType
+from tml.run.journal import read
+from tml.vehicle import FlyMission, Request, RequestResult, Safeguard, VehicleState
+
+ROOT = Path(__file__).resolve().parents[2]
+PATROL = ROOT / "missions" / "fenced_patrol.xml"
+HERE = Location("test.xml", 1)
+WALL_LIMIT = 120.0
+
+
+def act(name: str, **values: str) -> BoundAction:
+    return bind(Action(name, tuple(Argument(k, v, None, HERE) for k, v in values.items()),
+                       HERE))
+
+
+def until(vehicle: MavlinkVehicle, what: Callable[[VehicleState], bool], label: str
+          ) -> VehicleState:
+    end = time.monotonic() + WALL_LIMIT
+    while time.monotonic() < end:
+        state = vehicle.state()
+        if what(state):
+            return state
+        time.sleep(0.05)
+    raise AssertionError(f"never: {label}; last state {vehicle.state()}")
+
+
+def do(vehicle: MavlinkVehicle, request: Request) -> RequestResult:
+    vehicle.submit(request)
+    end = time.monotonic() + WALL_LIMIT
+    while time.monotonic() < end:
+        for result in vehicle.poll():
+            return result
+        time.sleep(0.02)
+    raise AssertionError(f"no result for {request}")
+
+
+def test_arducopter_takes_the_missions_fence_and_stops_a_flight_that_strays(
+        ardupilot) -> None:
+    (sitl,) = ardupilot()
+    world = load_mission(str(PATROL)).world
+    assert world is not None
+    with Link(sitl.address) as link:
+        vehicle = MavlinkVehicle(link, sitl.system_id, world=world)
+        try:
+            vehicle.prepare()
+            until(vehicle, lambda s: s.home is not None and s.ready, "home and EKF")
+            result = do(vehicle, Safeguard(sitl.system_id, world, request_id=1))
+            assert result.ok, result.detail
+            assert result.detail.endswith("read back matched")
+            fence = vehicle.mav.download(MissionType.FENCE)
+            assert [item.command for item in fence] == [5001] * 4 + [5004]
+            assert [item.command for item in vehicle.mav.download(MissionType.RALLY)] == [
+                5100, 5100]
+            values = vehicle.read_parameters(["FENCE_ENABLE", "FENCE_TYPE", "FENCE_ALT_MAX"])
+            assert values == {"FENCE_ENABLE": 1, "FENCE_TYPE": 5, "FENCE_ALT_MAX": 40}
+            # Uploaded as a mission (AUTO checks no destination against the fence): a
+            # straight line from home through the water tower (60 N, 20 E, radius 6).
+            actions = (act("TAKE_OFF", altitude="10"),
+                       act("GO_TO_POINT", coordinates="(90, 30, 10)"),
+                       act("LAND"))
+            assert do(vehicle, FlyMission(sitl.system_id, 2, actions, (0.0, 0.0, 0.0),
+                                          request_id=2)).ok
+            stopped = until(vehicle, lambda s: s.mode in ("RTL", "LAND", "BRAKE"),
+                            "the fence's action")
+            said = [m.text for m in stopped.messages]
+            assert "Polygon fence breached" in said, said  # as the simulator says it
+            # Stopped at the tower's edge, never past it to the point it was sent to.
+            assert stopped.position is not None and stopped.position[0] < 62.0
+        finally:
+            vehicle.close()
+
+
+def test_the_fenced_patrol_flies_with_its_fence_on_arducopter(ardupilot, tmp_path: Path
+                                                               ) -> None:
+    (sitl,) = ardupilot()
+    log = tmp_path / "fenced_patrol.jsonl"
+    code = main(["run", str(PATROL), "--connect", sitl.address, "-q", "--log", str(log)])
+    lines = read(str(log))
+    ended = [line for line in lines if line["kind"] == "run" and "outcomes" in line]
+    reason = ended[-1]["outcomes"][0]["reason"] if ended else ""
+    assert (code, reason) == (0, "all tasks done"), [
+        line.get("message") for line in lines
+        if line["kind"] in ("action", "result", "error", "safeguard")][-8:]
+    (told,) = [line for line in lines if line["kind"] == "safeguard"]
+    assert told["ok"] and told["message"].endswith("read back matched"), told

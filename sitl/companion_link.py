@@ -105,8 +105,14 @@ class CompanionLink:
                     source_component=COMPANION, dialect="ardupilotmega", autoreconnect=True)
             except (OSError, ValueError) as error:
                 if time.monotonic() >= end:
+                    # pyserial's words repeat the device and the errno: the system's cause
+                    # is what it wraps.
+                    cause = error.__context__ if isinstance(error.__context__, OSError) \
+                        else error
+                    why = cause.strerror if isinstance(cause, OSError) and cause.strerror \
+                        else cause
                     raise LinkLost(f"cannot open MAVLink connection {self.address!r}: "
-                                   f"{error}") from None
+                                   f"{why}") from None
                 time.sleep(0.5)
         while self.autopilot_component is None:
             if stop.is_set():

@@ -104,3 +104,22 @@ def test_no_autopilot_heard_is_a_link_failure(capsys: pytest.CaptureFixture[str]
                      "--timeout", "0.5", "-q"])
     assert code == 4
     assert "no heartbeat from an autopilot" in capsys.readouterr().err
+
+
+def test_a_serial_device_that_does_not_exist_is_one_line(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    device = tmp_path / "ttyUSB9"
+    code = main(["companion", "--connect", f"{device},57600", "--world", IMAV,
+                 "--timeout", "0.5", "-q"])
+    err = capsys.readouterr().err
+    assert code == 4, err
+    assert err.strip() == (f"tml companion: cannot open MAVLink connection '{device},57600': "
+                           "No such file or directory")
+
+
+def test_an_address_without_its_scheme_says_the_forms(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["companion", "--connect", "127.0.0.1:5762", "--world", IMAV]) == 2
+    err = capsys.readouterr().err
+    assert "not an address: a network address starts with its scheme" in err
+    assert "e.g. tcp:127.0.0.1:5762" in err and len(err.strip().splitlines()) == 1

@@ -16,11 +16,14 @@ import socket
 import sys
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from tml.commands.signals import on_stop_signals
 from tml.commands.vehicles import add_vehicle_arguments, session_options, vehicle_problem
 from tml.errors import ExitCode
+
+if TYPE_CHECKING:
+    import uvicorn
 
 TOKEN_VARIABLE = "TML_SERVE_TOKEN"
 MAX_BODY = 4 * 1024 * 1024  # the default of --max-body (tml.serve.guard.MAX_BODY)
@@ -77,7 +80,7 @@ def _token(args: argparse.Namespace) -> str | None:
 
 
 @contextlib.contextmanager
-def _stopped_by_signals(server: Any) -> Iterator[None]:
+def _stopped_by_signals(server: uvicorn.Server) -> Iterator[None]:
     """SIGINT and SIGTERM stop the server. uvicorn handles them while it serves, and raises
     the signal again once it has shut down gracefully; this handler then takes it, so that
     the service ends with its own exit code rather than killed by the signal."""

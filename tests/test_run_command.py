@@ -636,3 +636,25 @@ def test_a_skill_that_needs_a_companion_computer_is_waited_for_and_named(
     assert code == 4, out
     assert ("not ready after 20 s: waiting for skill AVOID_OBSTACLES (needs a companion "
             "computer (component 191), not heard yet)") in out
+
+
+FENCED_HOP = SHORT.replace('<mission name="Hop">\n', '<mission name="Hop">\n<environment>'
+                           '<geofence max_altitude="30"><point north="-50" east="-50"/>'
+                           '<point north="50" east="-50"/><point north="50" east="50"/>'
+                           '<point north="-50" east="50"/></geofence><rally>'
+                           '<point north="-10" east="0" altitude="10"/></rally>'
+                           '</environment>\n')
+
+
+@pytest.mark.parametrize("keep", [False, True])
+def test_the_missions_fence_goes_on_the_vehicle_unless_it_keeps_its_own(
+        tmp_path: Path, keep: bool) -> None:
+    log = tmp_path / "flight.jsonl"
+    code = main(["run", write(tmp_path, FENCED_HOP), "--sim", "-q", "--log", str(log), *FAST,
+                 *(["--keep-vehicle-fence"] if keep else [])])
+    assert code == 0
+    (told,) = [line for line in read(str(log)) if line["kind"] == "safeguard"]
+    assert told["ok"] and told["message"] == "on the vehicle: " + (
+        "the vehicle's fence kept; 1 rally point" if keep else
+        "inclusion polygon of 4 corners; FENCE_ALT_MAX 30 m; FENCE_TYPE 5, FENCE_ENABLE 1; "
+        "1 rally point") + "; read back matched"

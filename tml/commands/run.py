@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 from typing import TYPE_CHECKING, NamedTuple
 
 from tml.commands.signals import Stopped, on_stop_signals
@@ -78,6 +79,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="after the run stopped early, command the safe state again "
                              "until the vehicle shows it, for at most S seconds (default "
                              "120; a link that comes back finds it told again)")
+    parser.add_argument("--keep-vehicle-fence", action="store_true",
+                        help="leave each vehicle's own fence as it is (by default the "
+                             "mission's geofence and obstacles are uploaded as its fence "
+                             "before take-off; rally points go up either way)")
     parser.add_argument("--force", action="store_true",
                         help="fly even when the verifier finds the mission infeasible")
     parser.add_argument("--profile", default="quadcopter", metavar="P",
@@ -100,6 +105,7 @@ def run(args: argparse.Namespace) -> ExitCode:
     options = session_options(args, "tml run", lockstep=True, quiet=args.quiet,
                               force=args.force, safe_state=args.safe_state,
                               safe_state_timeout=args.safe_state_timeout)
+    options = dataclasses.replace(options, keep_vehicle_fence=args.keep_vehicle_fence)
     try:
         loaded = _load(args, options, errors)
     except OSError as error:

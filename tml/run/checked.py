@@ -17,10 +17,12 @@ from tml.world import World
 
 def checked_options(profile: VehicleProfile, world: World, *, safe_state: str = "rtl",
                     link_lost_limit: float = 10.0, ready_timeout: float = 180.0,
-                    safe_state_timeout: float = 120.0) -> RunOptions:
-    """The runner's options for a flight checked against ``profile`` and ``world``."""
+                    safe_state_timeout: float = 120.0, vehicle_fence: bool = True
+                    ) -> RunOptions:
+    """The runner's options for a flight checked against ``profile`` and ``world``
+    (``vehicle_fence`` False: the vehicles keep their own fence, see RunOptions)."""
     engine = Options(world=world, pre_check=pre_check(profile, world),
                      route=router(profile, world))
     return RunOptions(safe_state=safe_state, link_lost_limit=link_lost_limit,
                       ready_timeout=ready_timeout, safe_state_timeout=safe_state_timeout,
-                      engine=engine)
+                      vehicle_fence=vehicle_fence, engine=engine)

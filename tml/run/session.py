@@ -108,6 +108,8 @@ class SessionOptions:
     safe_state: str = "rtl"
     safe_state_timeout: float = 120.0
     require_gcs_failsafe: bool = False
+    keep_vehicle_fence: bool = False
+    """Leave each vehicle's fence as it is: only the mission's rally points go up."""
     force: bool = False
     """Fly a mission refused as infeasible or beyond its vehicles anyway."""
     quiet: bool = False
@@ -242,7 +244,8 @@ class Session:
         return checked_options(profile, world, safe_state=self.options.safe_state,
                                link_lost_limit=self.options.link_lost_limit,
                                ready_timeout=self.options.ready_timeout,
-                               safe_state_timeout=self.options.safe_state_timeout)
+                               safe_state_timeout=self.options.safe_state_timeout,
+                               vehicle_fence=not self.options.keep_vehicle_fence)
 
     def signing_counts(self) -> list[tuple[str, int, int]]:
         """With signing on, what each link dropped: (address, unsigned, wrongly signed)."""

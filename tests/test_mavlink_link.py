@@ -312,6 +312,19 @@ def test_a_vehicle_that_signs_is_said_as_soon_as_it_is_heard_by_a_link_without_a
     assert caught.value.system_id == 3
 
 
+def test_a_vehicle_heard_only_unsigned_by_a_signing_link_is_said_in_the_timeout() -> None:
+    from tml.errors import LinkLost
+
+    with Link("udpin:127.0.0.1:0", signing_key=KEY) as link:
+        assert link.local_address is not None
+        with FakeAutopilot(system_id=3, connect=link.local_address):
+            assert eventually(lambda: link.signing_counts[0] > 0, timeout=60)
+            with pytest.raises(LinkLost, match=r"within 1 s \(signing: [1-9]\d* unsigned and "
+                                               r"0 wrongly signed message\(s\) dropped: the "
+                                               r"vehicle does not sign with this key\)"):
+                link.wait_vehicle(None, timeout=1)
+
+
 @pytest.mark.parametrize(("text", "hint"), [
     ("127.0.0.1:18001", "e.g. tcp:127.0.0.1:18001 (connect to a vehicle that listens) or "
                         "udpin:127.0.0.1:18001 (listen for one that sends)"),

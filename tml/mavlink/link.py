@@ -295,8 +295,19 @@ class Link:
                 if left <= 0:
                     who = "a vehicle" if system_id is None else f"vehicle {system_id}"
                     raise LinkLost(f"no heartbeat from {who} on {self.address} "
-                                   f"within {timeout:g} s", system_id)
+                                   f"within {timeout:g} s{self._signing_hint()}", system_id)
                 self.timebase.wait(self._lock, left)
+
+    def _signing_hint(self) -> str:
+        """Why nothing was heard, when signing dropped what came (a vehicle that does not
+        sign, or signs with another key); "" otherwise."""
+        if not self._signing:
+            return ""
+        unsigned, bad = self.signing_counts
+        if not unsigned and not bad:
+            return ""
+        return (f" (signing: {unsigned} unsigned and {bad} wrongly signed message(s) "
+                "dropped: the vehicle does not sign with this key)")
 
     @property
     def local_address(self) -> tuple[str, int] | None:

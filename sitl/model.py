@@ -49,7 +49,7 @@ from sitl.companion import Companion
 from sitl.faults import Faults
 from sitl.items import MissionItem
 from sitl.messages import AUTOPILOT, COMPANION, stamp, statustext, targets
-from sitl.missions import FENCE, MISSION, MissionServer
+from sitl.missions import FENCE, MISSION, RALLY, MissionServer
 from sitl.modes import COPTER, FLIP_FROM, FLIP_NEEDS_THROTTLE, PILOT_MODES, ModeTable
 from sitl.obstacles import Obstacles
 from sitl.params import AUTOPILOT_DEFAULTS, Params, param_replies
@@ -176,6 +176,7 @@ class VehicleModel:
         self._landing: tuple[float, float] | None = None
         self._yaw: tuple[float, float] | None = None  # (heading, rate)
         self._rtl_phase = ""
+        self._rtl_to: Vector = (0.0, 0.0, 0.0)  # where the RTL in progress lands
         self._rtl_since = 0.0
         self.auto: auto.AutoMission | None = None
         self._mission_current = 0
@@ -1036,16 +1037,40 @@ class VehicleModel:
         The return altitude is ``RTL_ALT``, or the present altitude (plus ``RTL_CLIMB_MIN``)
         if higher, but no higher than ``RTL_CONE_SLOPE`` times the distance home, so a
         vehicle already near home does not climb (``ModeRTL::compute_return_target``). The
-        climb and the return are two waypoint legs, the first blended into the second."""
-        p, here, home = self.params, self._stopping_point(keep_altitude=True), self._home_local()
+        climb and the return are two waypoint legs, the first blended into the second.
+        "Home" is the nearest uploaded rally point when that is nearer (at no less than its
+        altitude; :meth:`_rtl_destination`)."""
+        p, here = self.params, self._stopping_point(keep_altitude=True)
+        home, rally_altitude = self._rtl_destination(here)
+        self._rtl_to = home
         lowest = max(RTL_ALT_MIN, here[2] + max(0.0, p["RTL_CLIMB_MIN"] / 100.0))
         altitude = max(p["RTL_ALT"] / 100.0, lowest)
         distance = math.hypot(home[0] - here[0], home[1] - here[1])
         if p["RTL_CONE_SLOPE"] >= 0.5:
             altitude = min(altitude, max(distance * p["RTL_CONE_SLOPE"], lowest))
-        altitude = max(altitude, here[2])
+        altitude = max(altitude, here[2], rally_altitude)
         self._rtl_phase = "climb"
         self._fly_legs((here[0], here[1], altitude), (home[0], home[1], altitude))
+
+    def _rtl_destination(self, here: Vector) -> tuple[Vector, float]:
+        """Where RTL returns to, and the least altitude there: ArduCopter's
+        ``AP_Rally::calc_best_rally_or_home_location``. The rally point nearest to ``here``
+        (one within ``RALLY_LIMIT_KM`` of home, when that is above 0), unless home is nearer
+        and ``RALLY_INCL_HOME`` is set; else home (0: no least altitude)."""
+        home = self._home_local()
+        best: tuple[float, Vector, float] | None = None
+        limit = self.params["RALLY_LIMIT_KM"] * 1000.0
+        for item in self.missions.items(RALLY):
+            point = self._local(item.x / 1e7, item.y / 1e7, self.origin.altitude)
+            if limit > 0 and math.hypot(point[0] - home[0], point[1] - home[1]) > limit:
+                continue
+            distance = math.hypot(point[0] - here[0], point[1] - here[1])
+            if best is None or distance < best[0]:
+                best = (distance, (point[0], point[1], home[2]), home[2] + item.z)
+        if best is None or (self.params["RALLY_INCL_HOME"] and math.hypot(
+                home[0] - here[0], home[1] - here[1]) <= best[0]):
+            return home, 0.0
+        return best[1], best[2]
 
     def _update_rtl(self) -> None:
         if not self._rtl_phase or not self.armed:
@@ -1062,8 +1087,7 @@ class VehicleModel:
             self.time - self._rtl_since >= self.params["RTL_LOIT_TIME"] / 1000.0
         ):
             self._rtl_phase = "land"
-            home = self._home_local()
-            self.land_at(home[0], home[1])
+            self.land_at(self._rtl_to[0], self._rtl_to[1])
 
     # ---------------------------------------------------------------- failsafes
     def _check_failsafes(self) -> None:

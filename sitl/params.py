@@ -90,6 +90,8 @@ AUTOPILOT_DEFAULTS: tuple[tuple[str, float, int], ...] = (
     ("FENCE_MARGIN", 2, REAL32),
     ("FENCE_TOTAL", 0, INT8),
     ("RALLY_TOTAL", 0, INT8),
+    ("RALLY_LIMIT_KM", 0.3, REAL32),
+    ("RALLY_INCL_HOME", 1, INT8),
     ("MIS_TOTAL", 0, INT16),
     ("AVOID_ENABLE", 3, INT8),
     ("AVOID_MARGIN", 2, REAL32),

@@ -135,7 +135,8 @@ def check_uav_surface(lines: list[dict]) -> None:
 
 def check_fenced_patrol(lines: list[dict]) -> None:
     """missions/fenced_patrol.xml: the fence and rally points went on the vehicle before
-    anything was asked of it, the read-back matched, and the patrol never breached them."""
+    anything was asked of it, the read-back matched, the patrol never breached them, and the
+    vehicle's RTL ("come home") landed at the rally point nearer than home."""
     (told,) = [line for line in lines if line["kind"] == "safeguard"]
     assert told["ok"], told["message"]
     for part in ("inclusion polygon of 4 corners", "exclusion circle water tower",
@@ -145,7 +146,10 @@ def check_fenced_patrol(lines: list[dict]) -> None:
     first_request = next(line for line in lines if line["kind"] == "request")
     assert told["t"] <= first_request["t"]
     assert not [line for line in lines if line["kind"] == "autopilot"
-                and "Fence" in line["text"] and "Breach" in line["text"]]
+                and "fence breached" in line["text"].lower()]
+    landed = [line for line in lines if line["kind"] == "telemetry" and line["landed"]
+              and line["position"] is not None][-1]
+    assert math.dist(landed["position"][:2], (-25, 70)) < 5.0, landed["position"]
 
 
 LOG_CHECKS = {"imav2016": check_imav2016, "catalogue_tour": check_catalogue_tour,

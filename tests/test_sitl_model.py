@@ -797,3 +797,46 @@ def test_a_battery_started_low_drains_from_there_and_charges_to_full() -> None:
     assert command(v, M.MAV_CMD_NAV_LAND)[0] == M.MAV_RESULT_ACCEPTED
     run_until(v, lambda: not v.armed, 30)
     run_until(v, lambda: v.battery_remaining == 100, 600)  # the pad fills it
+
+
+def upload_rally(v: VehicleModel, points: list[tuple[float, float, float]]) -> None:
+    """Rally points (north, east, altitude above home) through the mission protocol."""
+    v.handle(M.MAVLink_mission_count_message(1, 1, len(points), 2))
+    for seq, (north, east, altitude) in enumerate(points):
+        lat, lon, _ = v._global((north, east, 0.0))
+        replies = v.handle(M.MAVLink_mission_item_int_message(
+            1, 1, seq, 3, 5100, 0, 0, 0, 0, 0, 0, round(lat * 1e7), round(lon * 1e7),
+            altitude, 2))
+    assert [(r.type, r.mission_type) for r in replies if r.get_type() == "MISSION_ACK"] == [
+        (0, 2)]
+    assert v.params["RALLY_TOTAL"] == len(points)
+
+
+def test_rtl_goes_to_the_nearest_rally_point_when_it_is_nearer_than_home():
+    # ArduCopter's AP_Rally::calc_best_rally_or_home_location: RALLY_INCL_HOME 1 weighs
+    # home too; RALLY_LIMIT_KM 0.3 leaves out a point farther than that from home.
+    v = flying(5.0)
+    upload_rally(v, [(40.0, 30.0, 25.0), (-40.0, 0.0, 10.0), (400.0, 0.0, 10.0)])
+    v.fly_to((50.0, 20.0, 5.0))
+    run_until(v, lambda: v.arrived((50.0, 20.0, 5.0), 0.2), 30)
+    command(v, M.MAV_CMD_NAV_RETURN_TO_LAUNCH)
+    top = 0.0
+
+    def landed() -> bool:
+        nonlocal top
+        top = max(top, v.position[2])
+        return not v.armed
+
+    run_until(v, landed, 120)
+    assert math.dist(v.position[:2], (40.0, 30.0)) < 1.0
+    assert top == pytest.approx(25.0, abs=0.3)  # at no less than the rally point's altitude
+
+
+def test_rtl_goes_home_when_home_is_nearer_than_every_rally_point():
+    v = flying(5.0)
+    upload_rally(v, [(60.0, 0.0, 15.0)])
+    v.fly_to((10.0, 0.0, 5.0))
+    run_until(v, lambda: v.arrived((10.0, 0.0, 5.0), 0.2), 30)
+    command(v, M.MAV_CMD_NAV_RETURN_TO_LAUNCH)
+    run_until(v, lambda: not v.armed, 120)
+    assert math.hypot(*v.position[:2]) < 1.0

@@ -184,7 +184,8 @@ def test_the_missions_fence_and_rally_points_go_on_the_vehicle_and_stop_it(
     assert result.ok, result.detail
     assert result.detail == ("inclusion polygon of 4 corners; exclusion circle mast; "
                              "FENCE_ALT_MAX 40 m; FENCE_TYPE 5, FENCE_ENABLE 1; "
-                             "1 rally point; read back matched")
+                             "1 rally point; FENCE_ACTION 1 (RTL or land); "
+                             "read back matched")
     model = rig.sim.vehicle(1)
     assert [item.command for item in model.missions.items(1)] == [5001] * 4 + [5004]
     assert [item.command for item in model.missions.items(2)] == [5100]

@@ -8,7 +8,7 @@ import pytest
 
 from tml import geo
 from tml.mavlink.mission import MissionType, ardupilot_form, read_back_differences
-from tml.mavlink.safeguards import has_safeguards, safeguards
+from tml.mavlink.safeguards import fence_action, has_safeguards, safeguards
 from tml.world import (
     DEFAULT_HOME,
     Cylinder,
@@ -84,3 +84,10 @@ def test_what_arducopter_reads_back_of_them_matches() -> None:
     rally_back = [replace(item, z=float(int(item.z)), autocontinue=0) for item in put.rally]
     assert read_back_differences(put.fence, fence_back, ardupilot_form) == []
     assert read_back_differences(put.rally, rally_back, ardupilot_form) == []
+
+
+def test_the_vehicles_fence_action_is_said_and_report_only_is_a_warning() -> None:
+    assert fence_action(1.0) == "FENCE_ACTION 1 (RTL or land)"
+    assert fence_action(0.0) == "FENCE_ACTION 0 (report only): a breach is only reported"
+    assert fence_action(None) == "FENCE_ACTION not reported"
+    assert fence_action(9.0) == "FENCE_ACTION 9 (unknown)"

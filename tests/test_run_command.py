@@ -657,4 +657,4 @@ def test_the_missions_fence_goes_on_the_vehicle_unless_it_keeps_its_own(
     assert told["ok"] and told["message"] == "on the vehicle: " + (
         "the vehicle's fence kept; 1 rally point" if keep else
         "inclusion polygon of 4 corners; FENCE_ALT_MAX 30 m; FENCE_TYPE 5, FENCE_ENABLE 1; "
-        "1 rally point") + "; read back matched"
+        "1 rally point; FENCE_ACTION 1 (RTL or land)") + "; read back matched"

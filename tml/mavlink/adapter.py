@@ -101,7 +101,7 @@ from tml.mavlink.health import LinkHealth
 from tml.mavlink.link import Link
 from tml.mavlink.mission import MissionType
 from tml.mavlink.modes import ModeWatch, mode_names
-from tml.mavlink.safeguards import safeguards
+from tml.mavlink.safeguards import fence_action, safeguards
 from tml.mavlink.telemetry import COMPANION_COMPONENT, Telemetry
 from tml.mavlink.vehicle import DEFAULT_RATES, Vehicle
 from tml.timebase import Empty, Flag, Mailbox
@@ -820,7 +820,8 @@ class MavlinkVehicle:
         for name, value in put.parameters.items():
             self._write_param(name, value, AUTOPILOT)
         kept = "" if request.fence else "the vehicle's fence kept; "
-        return f"{kept}{put.summary or 'nothing to upload'}; read back matched"
+        action = f"; {fence_action(self._read_param('FENCE_ACTION'))}" if put.has_fence else ""
+        return f"{kept}{put.summary or 'nothing to upload'}{action}; read back matched"
 
     def _fly_mission(self, request: FlyMission) -> None:
         # A mission may be the first thing asked: wait for home (and for a position good

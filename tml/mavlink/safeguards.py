@@ -15,8 +15,10 @@ the runner asks each vehicle (:class:`tml.vehicle.Safeguard`) to take the missio
 * ``max_altitude`` becomes the parameter FENCE_ALT_MAX with bit 1 of FENCE_TYPE; bit 4
   (polygons and circles) is set when zones were uploaded; FENCE_ENABLE is set to 1 when
   either is. The circle around home (bit 2) is switched off: the mission's fence is the
-  fence. ``min_altitude`` is not put on the vehicle: a copter takes off and lands below
-  it, and ArduCopter's floor would have to be enabled in the air (the verifier checks it);
+  fence; FENCE_ACTION, what the vehicle does on a breach, stays the vehicle's and is said
+  (:func:`fence_action`). ``min_altitude`` is not put on the vehicle: a copter takes off
+  and lands below it, and ArduCopter's floor would have to be enabled in the air (the
+  verifier checks it);
 * the ``<rally>`` points become MAV_CMD_NAV_RALLY_POINT items of the rally mission type,
   altitudes relative to home, where ArduPilot's RTL may go instead of home.
 
@@ -44,6 +46,20 @@ FRAME_RELATIVE = 3  # MAV_FRAME_GLOBAL_RELATIVE_ALT
 FENCE_ALT_MAX_BIT = 1
 FENCE_CIRCLE_BIT = 2
 FENCE_POLYGON_BIT = 4
+
+
+FENCE_ACTIONS = {0: "report only", 1: "RTL or land", 2: "land", 3: "SmartRTL, RTL or land",
+                 4: "brake or land", 5: "SmartRTL or land"}
+"""ArduCopter's FENCE_ACTION values: what the vehicle does on a breach. tml leaves it as the
+vehicle has it and says it (0, report only, is said as a warning: the fence stops nothing)."""
+
+
+def fence_action(value: float | None) -> str:
+    """How the journal says the vehicle's FENCE_ACTION ``value`` (None: not reported)."""
+    if value is None:
+        return "FENCE_ACTION not reported"
+    said = f"FENCE_ACTION {value:g} ({FENCE_ACTIONS.get(round(value), 'unknown')})"
+    return said + (": a breach is only reported" if round(value) == 0 else "")
 
 
 @dataclass(frozen=True)

@@ -300,10 +300,11 @@ def test_what_has_no_tml_form_is_a_loss_naming_its_item() -> None:
     ]}, "geoFence": {"polygons": [
         {"inclusion": True, "polygon": [[1, 1], [1, 2], [2, 2]]},
         {"inclusion": True, "polygon": [[3, 3], [3, 4], [4, 4]]}]},
-        "rallyPoints": {"points": [[1, 1, 30]]}}
+        "rallyPoints": {"points": [[1, 1, 30], [1.2, 1.2, -5]]}}
     imported = import_plan(read_plan(json.dumps(document)), "lossy")
     assert [loss.split(":")[0] for loss in imported.losses] == [
-        "item 2", "item 3", "1 rally point(s) have no TML form", "geofence zone 2"]
+        "item 2", "item 3", "geofence zone 2", "rally point 2"]
+    assert '<point latitude="1" longitude="1" altitude="30"/>' in imported.text
 
 
 def test_a_plan_with_no_item_is_refused() -> None:
@@ -390,3 +391,17 @@ def test_a_plan_made_for_another_firmware_is_said() -> None:
     assert read_plan(json.dumps(document)).skipped == (
         "the plan was made for firmware type 12 (PX4): its items are kept as written, and "
         "tml flies and exports them for ArduPilot (firmware type 3)",)
+
+
+def test_rally_points_go_to_a_plan_and_come_back() -> None:
+    plan = plan_mission(load_mission(ROOT / "missions/fenced_patrol.xml"))
+    document = json.loads(write_plan(plan))
+    points = document["rallyPoints"]["points"]
+    assert [p[2] for p in points] == [15, 20]
+    read = read_plan(json.dumps(document))
+    assert read.rally == tuple(tuple(p) for p in points)
+    imported = import_plan(read, "back")
+    world = validate_file("back.xml", imported.text.encode()).mission.world
+    assert world is not None and [(round(p.north, 1), round(p.east, 1), p.altitude)
+                                  for p in world.rally] == [(100.0, -20.0, 15), (-25.0, 70.0, 20)]
+    assert not [loss for loss in imported.losses if "rally" in loss]

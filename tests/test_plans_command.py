@@ -90,7 +90,8 @@ def test_import_refuses_what_it_cannot_carry_unless_allowed(tmp_path: Path, caps
     assert main(["import", str(plan), "-o", str(mission)]) == 1
     err = capsys.readouterr().err
     assert "scan.plan: item 2: complex item 'StructureScan' saved without its mission items" \
-        in err and "1 rally point(s) have no TML form" in err
+        in err and "1 rally point(s): a mission places latitudes and longitudes from its " \
+        "home, and the file gives none" in err
     assert "not written: 2 thing(s)" in err and not mission.exists()
     assert main(["import", str(plan), "-o", str(mission), "--allow-loss"]) == 0
     err = capsys.readouterr().err

@@ -17,9 +17,10 @@ the same.
 
 Positions travel as the 1e-7-degree integers mission items carry, never through a local
 frame; a param left unset (null in a ``.plan``, NaN) stays unset. The plan's home, its
-geofence (the inclusion polygon) and its exclusion zones (as obstacles from the ground up:
-a plan gives them no top) become the mission's ``<environment>``. What has no TML form (a
-second inclusion zone, rally points, a complex item saved without its items) is a *loss*:
+geofence (the inclusion polygon), its exclusion zones (as obstacles from the ground up:
+a plan gives them no top) and its rally points become the mission's ``<environment>``.
+What has no TML form (a second inclusion zone, a rally point below home, a complex item
+saved without its items) is a *loss*:
 :attr:`Imported.losses` names each source item, and ``tml import`` refuses the file
 unless the losses are allowed.
 """
@@ -307,7 +308,7 @@ def import_plan(plan: PlanFile, name: str) -> Imported:
     (:attr:`Imported.world`): the fence, for ``--world``. Raises :class:`PlanFileError`
     for a plan with no mission item and nothing a world file holds (a TML mission flies
     at least one task)."""
-    if not plan.items and plan.zones and plan.home is not None:
+    if not plan.items and (plan.zones or plan.rally) and plan.home is not None:
         return _world(plan, name)
     if not plan.items:
         what = " (it holds a fence or rally points only, and no home to place them from)" \
@@ -365,8 +366,9 @@ def _environment(root: etree._Element, plan: PlanFile, losses: list[str],
                  environment: etree._Element | None = None) -> None:
     """The plan's home and zones in a new ``<environment>`` of ``root`` (or in
     ``environment``: a world file's root)."""
-    if plan.rally:
-        losses.append(f"{len(plan.rally)} rally point(s) have no TML form: left out")
+    if plan.home is None and plan.rally:
+        losses.append(f"{len(plan.rally)} rally point(s): a mission places latitudes and "
+                      "longitudes from its home, and the file gives none: left out")
     if plan.home is None and plan.zones:
         losses.append(f"{len(plan.zones)} fence zone(s): a mission places latitudes and "
                       "longitudes from its home, and the file gives none: left out")
@@ -398,3 +400,13 @@ def _environment(root: etree._Element, plan: PlanFile, losses: list[str],
             parent = etree.SubElement(environment, "prism", name=f"exclusion zone {index}")
         for lat, lon in zone.points:
             etree.SubElement(parent, "point", latitude=_value(lat), longitude=_value(lon))
+    rally = None
+    for index, (lat, lon, altitude) in enumerate(plan.rally, start=1):
+        if not altitude >= 0:
+            losses.append(f"rally point {index}: altitude {altitude:g} m, below home, has no "
+                          "TML form: left out")
+            continue
+        if rally is None:
+            rally = etree.SubElement(environment, "rally")
+        etree.SubElement(rally, "point", latitude=_value(lat), longitude=_value(lon),
+                         altitude=_value(altitude))

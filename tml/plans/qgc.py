@@ -154,7 +154,9 @@ def write_plan(plan: Plan) -> str:
             "plannedHomePosition": [home.latitude, home.longitude, home.altitude],
             "items": items},
         "geoFence": {"version": 2, "polygons": polygons, "circles": circles},
-        "rallyPoints": {"version": 2, "points": []},
+        "rallyPoints": {"version": 2, "points": [
+            [*_corners(home, ((p.north, p.east),), p.written)[0], p.altitude]
+            for p in plan.world.rally]},
     }
     return json.dumps(document, indent=4) + "\n"
 

@@ -201,7 +201,9 @@ def test_a_command_to_a_free_vehicle_is_sent_and_answered_once_accepted(
     assert fake.mode == "RTL" and body["vehicle_state"]["mode"] == "RTL"
     seen = served.client.get("/vehicles/1").json()
     assert (seen["mode"], seen["run"]) == ("RTL", None), "the vehicle is free again"
-    assert (seen["command"]["command"], seen["command"]["outcome"]) == ("rtl", "accepted")
+    # Accepted, then shown by the telemetry: done.
+    assert (seen["command"]["command"], seen["command"]["outcome"]) == ("rtl", "done")
+    assert seen["command"]["detail"] == "shown: mode RTL"
 
 
 def test_a_disarm_in_the_air_is_refused_with_the_reason(served: Served) -> None:

@@ -248,7 +248,8 @@ def test_rtl_from_a_vehicle_card_asks_then_brings_the_vehicle_home(browser: Any,
         "disarmed", "armed, on the ground"), timeout=180)
     ended = httpx.get(f"{page}runs/{run}").json()
     assert ended["status"] == "aborted" and "operator command: rtl" in ended["reason"]
-    assert "RTL:" in wait(driver, "the command's outcome", lambda d: field(d, "command"))
+    wait(driver, "the card saying the command done", lambda d: field(d, "command").startswith(
+        "RTL: done (shown: mode RTL"))
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
     driver.save_screenshot(str(ARTIFACTS / "serve-page-rtl.png"))
 

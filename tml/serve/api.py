@@ -186,8 +186,8 @@ class OperatorCommandSeen(BaseModel):
     command: Literal["rtl", "land", "hold", "disarm"]
     outcome: Literal["refused", "sent", "unanswered", "accepted", "done"] = Field(
         description="refused (by the rule or the vehicle), sent (through the run that "
-                    "held it), unanswered, accepted by the vehicle, done (shown, or nothing "
-                    "to do)")
+                    "held it), unanswered, accepted by the vehicle, done (shown by telemetry "
+                    "that arrived after it, or nothing to do)")
     detail: str
     at: float = Field(description="when (Unix time)")
 

@@ -57,7 +57,7 @@ from tml.run.session import VEHICLE_PROFILE
 from tml.serve.hangar import Hangar, VehicleTaken
 from tml.serve.live import LiveRun, TaskBoard
 from tml.serve.storage import ACTIVE, Storage, StoredMission, StoredRun
-from tml.vehicle import IdSource, awaiting
+from tml.vehicle import IdSource, VehicleState, awaiting
 from tml.verify.inflight import preflight
 from tml.verify.motion import PredictedState
 from tml.verify.profile import (
@@ -449,7 +449,19 @@ class Service:
                 "vehicle_type": state.vehicle_type, "time": round(state.time, 3),
                 **telemetry_fields(state), "home": home, "status_text": state.status_text,
                 "awaiting": list(awaiting(state)),
-                "command": self._commands.get(vehicle_id)}
+                "command": self._command_seen(vehicle_id, state)}
+
+    def _command_seen(self, vehicle_id: int, state: VehicleState) -> dict[str, Any] | None:
+        """A vehicle's last operator command; one accepted (or sent through a run) becomes
+        ``done`` once telemetry that arrived after it shows it."""
+        from tml.engine.safety import operator_command_shown
+
+        seen = self._commands.get(vehicle_id)
+        if seen is not None and seen["outcome"] in ("accepted", "sent") \
+                and operator_command_shown(state, seen["command"]):
+            seen = self._commands[vehicle_id] = {
+                **seen, "outcome": "done", "detail": _shown(state), "at": time.time()}
+        return seen
 
     def command(self, vehicle_id: int, command: str) -> tuple[dict[str, Any], bool]:
         """An operator's command to a vehicle (rtl, land, hold, disarm), and whether it is
@@ -485,8 +497,9 @@ class Service:
                 return ({**answer, "message": f"run {live.id} is ending: it sends vehicle "
                                               f"{vehicle_id} to {command}",
                          "vehicle_state": self.vehicle(vehicle_id)}, False)
-            if operator_command_shown(found.state(), command):
-                self._tell(vehicle_id, command, "done", f"shown: {found.state().mode}")
+            shown = found.state()
+            if operator_command_shown(shown, command):
+                self._tell(vehicle_id, command, "done", _shown(shown))
                 return ({**answer, "message": f"run {live.id} ended: vehicle {vehicle_id} "
                                               f"shows {command}",
                          "vehicle_state": self.vehicle(vehicle_id)}, True)
@@ -504,6 +517,7 @@ class Service:
         try:
             self.hangar.claim([vehicle_id], holder)
         except VehicleTaken as taken:
+            self._tell(vehicle_id, command, "refused", f"not sent: {taken}")
             raise Conflict(f"vehicle {vehicle_id}: {command} not sent: {taken}",
                            run=taken.run_id) from None
         wake = threading.Event()
@@ -653,6 +667,11 @@ def _safety_said(record: Mapping[str, Any]) -> str:
     if vehicle is None or message.startswith(f"vehicle {vehicle} "):
         return message
     return f"vehicle {vehicle}: {message}"
+
+
+def _shown(state: VehicleState) -> str:
+    """How telemetry shows an operator's command done: "shown: mode RTL, disarmed"."""
+    return f"shown: mode {state.mode}" + ("" if state.armed else ", disarmed")
 
 
 def _profile(name: str) -> VehicleProfile:

@@ -769,11 +769,16 @@ $("#telemetry").addEventListener("click", async (event) => {
   }
   state.commandSaid[id] = {text: `${COMMANDS[command].label}: sent…`};
   drawTelemetry();
+  // Once answered, the card says what the service saw through (GET /vehicles: accepted,
+  // then done when the telemetry shows it; refused with the reason); what it never saw
+  // (no token, an unreachable service) is said here.
   try {
-    const answer = await api("POST", `/vehicles/${id}/command`, {command: command});
-    state.commandSaid[id] = {text: `${COMMANDS[command].label}: ${answer.message}`};
+    await api("POST", `/vehicles/${id}/command`, {command: command});
+    delete state.commandSaid[id];
   } catch (error) {
-    state.commandSaid[id] = {text: `${COMMANDS[command].label}: ${error.message}`, error: true};
+    if (error.status === 409) delete state.commandSaid[id];
+    else state.commandSaid[id] = {text: `${COMMANDS[command].label}: ${error.message}`,
+      error: true};
   }
   await refreshVehicles();
   await refreshRuns();

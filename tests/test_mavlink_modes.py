@@ -176,3 +176,15 @@ def test_a_mode_change_on_the_ground_disarmed_is_not_taken() -> None:
     assert not watch.seen("LAND", armed=True, now=0.0)
     assert not watch.seen("STABILIZE", armed=False, now=1.0)
     assert not watch.seen("STABILIZE", armed=False, now=2.0) and watch.taken == ""
+
+
+def test_auto_to_rtl_is_a_take_over_on_a_copter_and_the_end_of_a_planes_mission() -> None:
+    from tml.mavlink.modes import ModeWatch
+
+    copter, plane = ModeWatch(), ModeWatch(fixed_wing=True)
+    for watch in (copter, plane):
+        watch.ask("AUTO")
+        watch.seen("AUTO", armed=True, now=0.0)
+        watch.seen("RTL", armed=True, now=1.0)  # ArduCopter's fence breached: AUTO -> RTL
+        watch.seen("RTL", armed=True, now=2.0)
+    assert (copter.taken, plane.taken) == ("RTL", "")

@@ -407,6 +407,18 @@ def test_a_vehicle_taken_by_the_autopilot_is_commanded_no_more() -> None:
     assert len(taken) == 1 and taken[0]["mode"] == "LAND"
 
 
+def test_a_take_over_says_the_autopilots_warning() -> None:
+    def breach(sim: Sim) -> None:
+        vehicle = sim.vehicles[0]
+        if sim.time == 3.0:  # ArduCopter's fence: a warning, then RTL
+            vehicle.say(4, "Polygon fence breached")
+            vehicle.mode, vehicle.taken = "RTL", "RTL"
+
+    outcome, *_ = run(TAKE_OFF + GO + LAND, hooks=[breach])
+    assert outcome.vehicles[0].reason.endswith(
+        "switched to RTL outside tml (autopilot: Polygon fence breached)")
+
+
 class Outage(FakeVehicle):
     """A vehicle whose link is down from 3 s to 23 s: what is sent meanwhile is lost."""
 

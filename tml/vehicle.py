@@ -70,6 +70,7 @@ class AutopilotMessage:
 
 
 INFO = SEVERITIES.index("info")
+WARNING = SEVERITIES.index("warning")
 
 
 def shown_severity(severity: int, text: str) -> int:

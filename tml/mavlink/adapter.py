@@ -299,7 +299,9 @@ class MavlinkVehicle:
         self._target: tuple[float, float, float, float | None] | None = None
         self._target_sent = 0.0
         self._ground_speed: float | None = None  # a rover's speed, sent with each target
-        self._modes = ModeWatch()  # tells a mode change nobody here asked for
+        # Tells a mode change nobody here asked for (a fixed-wing ends its mission in RTL).
+        self._modes = ModeWatch(
+            kind_of(link.telemetry(system_id).airframe) is Kind.FIXED_WING)
         self._asked: float | None = None  # when the latest request was submitted
         self._flight_asked: float | None = None  # ... the latest of FLIGHT_REQUESTS
         link.listen(self._on_message)

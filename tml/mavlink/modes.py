@@ -89,10 +89,14 @@ def commanded_mode(vehicle_type: int, autopilot: int, command: CommandLong) -> s
 
 
 FOLLOWS: dict[str, frozenset[str]] = {
-    "AUTO": frozenset({"RTL"}),  # ArduPlane at the end of its mission ("changing mode to RTL")
     "FLIP": frozenset({"ALT_HOLD", "STABILIZE", "ACRO"}),  # ArduCopter, back where it began
 }
 """Modes an autopilot enters by itself as the end of a mode tml asked for: not taken."""
+FIXED_WING_FOLLOWS: dict[str, frozenset[str]] = {
+    **FOLLOWS, "AUTO": frozenset({"RTL"}),  # ArduPlane at the end of its mission
+}
+"""The same for a fixed-wing. An ArduCopter ends its mission in AUTO (its RTL item is flown
+in AUTO): AUTO to RTL there is a failsafe (a fence breached, a battery low), not an end."""
 
 
 AGREE = 0.9
@@ -107,7 +111,8 @@ class ModeWatch:
     Sans-IO: :meth:`ask` before each mode change is sent (:meth:`refused` if it failed),
     :meth:`seen` with each autopilot HEARTBEAT's mode and the time it came. A vehicle is
     *taken* when, armed, after the mode asked was shown, the HEARTBEATs show another mode
-    that does not follow it (:data:`FOLLOWS`), all of them for :data:`AGREE` s: one stray
+    that does not follow it (:data:`FOLLOWS`, :data:`FIXED_WING_FOLLOWS` for a
+    ``fixed_wing``), all of them for :data:`AGREE` s: one stray
     or forged HEARTBEAT (without signing any client on the link can send one as the
     autopilot) is answered by the real one's next, and believes nothing. ``taken`` then
     keeps that mode. Before the first ask the vehicle's mode is its own (on the ground,
@@ -115,7 +120,8 @@ class ModeWatch:
     expected.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, fixed_wing: bool = False) -> None:
+        self.follows = FIXED_WING_FOLLOWS if fixed_wing else FOLLOWS
         self.asked: str | None = None
         self.confirmed = False
         self.taken = ""
@@ -135,7 +141,7 @@ class ModeWatch:
         """A HEARTBEAT shows ``mode`` at ``now``; True when that makes the vehicle taken."""
         if self.taken or self.asked is None:
             return False
-        if mode == self.asked or mode in FOLLOWS.get(self.asked, ()):
+        if mode == self.asked or mode in self.follows.get(self.asked, ()):
             self.confirmed, self.since = True, None
             return False
         if not (self.confirmed and armed):

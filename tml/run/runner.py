@@ -98,7 +98,15 @@ from tml.language.model import Mission
 from tml.language.skills import vehicle_skills
 from tml.run.journal import Journal, autopilot_fields, telemetry_fields
 from tml.timebase import SYSTEM, Flag, Timebase
-from tml.vehicle import IdSource, RequestResult, Safeguard, Vehicle, VehicleState, awaiting
+from tml.vehicle import (
+    WARNING,
+    IdSource,
+    RequestResult,
+    Safeguard,
+    Vehicle,
+    VehicleState,
+    awaiting,
+)
 
 
 @dataclass
@@ -576,6 +584,9 @@ class Runner:
         # switch and another ground station's command look alike (the journal's line keeps
         # the autopilot's last message, which may tell a reader).
         reason = f"switched to {mode} outside tml"
+        said = [m for m in flight.state.messages if m.severity <= WARNING]
+        if said:  # the autopilot's own words, when it gave a warning (Fence Breached ...)
+            reason += f" (autopilot: {said[-1].text})"
         self.journal.write(now, "taken", vid, message=f"vehicle {vid} {reason}", mode=mode,
                            status_text=flight.state.status_text)
         self._said(f"vehicle {vid} {reason}: tml commands it no more")

@@ -125,3 +125,33 @@ def test_no_vehicle_at_the_address_is_a_failure(capsys: pytest.CaptureFixture[st
 def test_a_malformed_address_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["command", "hold", "--connect", "127.0.0.1:5760"]) == 2
     assert "--connect 127.0.0.1:5760: not an address" in capsys.readouterr().err
+
+
+def test_hold_then_land_a_flying_vehicle(
+        vehicle: tuple[Simulator, Vehicle, Observer], capsys: pytest.CaptureFixture[str]
+) -> None:
+    sim, pilot, observer = vehicle
+    fly_up(pilot)
+    pilot.set_mode("LOITER")  # hold switches it back to GUIDED, where it stops
+    assert main(command(sim, "hold")) == 0
+    assert "vehicle 1: hold done: mode GUIDED, armed" in capsys.readouterr().out
+    assert main(command(sim, "land")) == 0
+    assert "vehicle 1: land done: mode LAND, armed" in capsys.readouterr().out
+    assert observer.until(lambda o: not o.armed), "never landed and disarmed"
+
+
+def test_a_rover_is_refused_a_landing_and_holds(capsys: pytest.CaptureFixture[str]) -> None:
+    fast = {"SIM_GPS_LOCKTIME": 0.5, "SIM_EKF_GPS_TIME": 1.0}
+    with Simulator(vehicles=1, frames=["rover"], tcp_base_port=0, speedup=20.0,
+                   params=fast) as sim, \
+            Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}") as link:
+        driver = Vehicle.connect(link, 1, timeout=10)
+        driver.request_rates()
+        link.wait_telemetry(1, lambda t: t.position_ready, timeout=LIMIT)
+        driver.set_mode("GUIDED")
+        driver.arm()
+        assert main(command(sim, "land")) == 2
+        assert "a ground vehicle does not land" in capsys.readouterr().err
+        assert main(command(sim, "hold")) == 0
+        assert "vehicle 1: hold done: mode HOLD, armed" in capsys.readouterr().out
+        assert sim.vehicle(1).mode == "HOLD"

@@ -566,9 +566,12 @@ class VehicleModel:
             return Result.DENIED
         if not self.armed or self.landed:
             return Result.FAILED
+        target = self._reposition_target(p)
+        if self._outside_fence(target):
+            return Result.FAILED
         if self.mode != "GUIDED" and not self.set_mode("GUIDED"):
             return Result.FAILED
-        self._go(self._reposition_target(p))
+        self._go(target)
         return Result.ACCEPTED
 
     def _reposition_target(self, p: list[float]) -> Vector:
@@ -612,6 +615,8 @@ class VehicleModel:
         self._apply_target(msg.type_mask, target, (msg.vx, msg.vy, -msg.vz), msg.yaw)
 
     def _apply_target(self, mask: int, position: Vector, velocity: Vector, yaw: float) -> None:
+        if not mask & 0b111 and self._outside_fence(position):
+            return  # ignored, as ArduCopter's ModeGuided::set_destination does
         if not mask & 0b111:
             self._go(position)
         elif not mask & 0b111000:
@@ -1168,6 +1173,12 @@ class VehicleModel:
                 self.set_mode("LAND")
         elif action == 5:
             self.disarm()
+
+    def _outside_fence(self, destination: Vector) -> bool:
+        """True when the fence is on and ``destination`` breaks it: ArduCopter refuses such
+        a GUIDED destination (AC_Fence::check_destination_within_fence), a DO_REPOSITION
+        with FAILED and a position target by ignoring it."""
+        return bool(self.params["FENCE_ENABLE"]) and bool(self._fence_breach(destination))
 
     def _fence_breach(self, position: Vector) -> str:
         geofence = self.world.geofence

@@ -840,3 +840,26 @@ def test_rtl_goes_home_when_home_is_nearer_than_every_rally_point():
     command(v, M.MAV_CMD_NAV_RETURN_TO_LAUNCH)
     run_until(v, lambda: not v.armed, 120)
     assert math.hypot(*v.position[:2]) < 1.0
+
+
+def test_a_guided_destination_beyond_the_fence_is_refused_as_on_arducopter():
+    # ArduCopter SITL, observed: with its fence on, a position target beyond it (outside
+    # the polygon, above the ceiling) is ignored and the vehicle stays; a DO_REPOSITION
+    # there fails (ModeGuided::set_destination refuses both).
+    square = ((-50.0, -50.0), (50.0, -50.0), (50.0, 50.0), (-50.0, 50.0))
+    world = World(home=DEFAULT_HOME, geofence=Geofence(square, max_altitude=30.0))
+    v = flying(10.0, world=world)
+    lat, lon, _ = v._global((80.0, 0.0, 0.0))
+    v.handle(M.MAVLink_set_position_target_global_int_message(
+        0, 1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, 0b110111111000, round(lat * 1e7),
+        round(lon * 1e7), 10.0, 0, 0, 0, 0, 0, 0, 0, 0))
+    v.step(5)
+    assert math.hypot(*v.position[:2]) < 0.5
+    result, _ = command(v, M.MAV_CMD_DO_REPOSITION, -1, 1, 0, 0, lat, lon, 10.0)
+    assert result == M.MAV_RESULT_FAILED
+    result, _ = command(v, M.MAV_CMD_DO_REPOSITION, -1, 1, 0, 0, *v._global((20, 0, 0))[:2],
+                        40.0)  # above the ceiling
+    assert result == M.MAV_RESULT_FAILED
+    result, _ = command(v, M.MAV_CMD_DO_REPOSITION, -1, 1, 0, 0, *v._global((20, 0, 0))[:2],
+                        10.0)
+    assert result == M.MAV_RESULT_ACCEPTED

@@ -300,11 +300,12 @@ def test_what_has_no_tml_form_is_a_loss_naming_its_item() -> None:
     ]}, "geoFence": {"polygons": [
         {"inclusion": True, "polygon": [[1, 1], [1, 2], [2, 2]]},
         {"inclusion": True, "polygon": [[3, 3], [3, 4], [4, 4]]}]},
-        "rallyPoints": {"points": [[1, 1, 30], [1.2, 1.2, -5]]}}
+        "rallyPoints": {"points": [[1.2, 1.8, 30], [1.2, 1.2, -5], [0.5, 1.5, 20]]}}
     imported = import_plan(read_plan(json.dumps(document)), "lossy")
     assert [loss.split(":")[0] for loss in imported.losses] == [
-        "item 2", "item 3", "geofence zone 2", "rally point 2"]
-    assert '<point latitude="1" longitude="1" altitude="30"/>' in imported.text
+        "item 2", "item 3", "geofence zone 2", "rally point 2", "rally point 3"]
+    assert "rally point 3: outside the geofence" in imported.losses[-1]
+    assert '<point latitude="1.2" longitude="1.8" altitude="30"/>' in imported.text
 
 
 def test_a_plan_with_no_item_is_refused() -> None:

@@ -19,8 +19,8 @@ Positions travel as the 1e-7-degree integers mission items carry, never through 
 frame; a param left unset (null in a ``.plan``, NaN) stays unset. The plan's home, its
 geofence (the inclusion polygon), its exclusion zones (as obstacles from the ground up:
 a plan gives them no top) and its rally points become the mission's ``<environment>``.
-What has no TML form (a second inclusion zone, a rally point below home, a complex item
-saved without its items) is a *loss*:
+What has no TML form (a second inclusion zone, a rally point below home or outside the
+geofence, a complex item saved without its items) is a *loss*:
 :attr:`Imported.losses` names each source item, and ``tml import`` refuses the file
 unless the losses are allowed.
 """
@@ -43,7 +43,7 @@ from tml.mavlink.compile import PRECISION_MODES, SPEED_TYPES, CompileError, comp
 from tml.mavlink.mission import LOITER_TURNS_MAX, MissionItem
 from tml.plans.planned import AMSL_FRAMES, GLOBAL_FRAMES, TERRAIN_FRAMES
 from tml.plans.qgc import PlanFile, PlanFileError
-from tml.world import DEFAULT_HOME
+from tml.world import DEFAULT_HOME, inside
 
 SCHEMA_INSTANCE = "http://www.w3.org/2001/XMLSchema-instance"
 
@@ -381,10 +381,10 @@ def _environment(root: etree._Element, plan: PlanFile, losses: list[str],
         etree.SubElement(environment, "home", latitude=_value(plan.home.latitude),
                          longitude=_value(plan.home.longitude),
                          altitude=_value(plan.home.altitude))
-    fenced = False
+    fenced: tuple[tuple[float, float], ...] = ()
     for index, zone in enumerate(plan.zones, start=1):
         if zone.inclusion and zone.radius is None and not fenced:
-            fenced = True
+            fenced = zone.points
             parent = etree.SubElement(environment, "geofence")
         elif zone.inclusion:
             losses.append(f"geofence zone {index}: a second inclusion zone or an inclusion "
@@ -405,6 +405,10 @@ def _environment(root: etree._Element, plan: PlanFile, losses: list[str],
         if not altitude >= 0:
             losses.append(f"rally point {index}: altitude {altitude:g} m, below home, has no "
                           "TML form: left out")
+            continue
+        if fenced and not inside(fenced, (lat, lon)):
+            losses.append(f"rally point {index}: outside the geofence, where the vehicle's "
+                          "fence would stop it on the way: left out")
             continue
         if rally is None:
             rally = etree.SubElement(environment, "rally")

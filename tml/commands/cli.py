@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
 from tml import __version__
+from tml.commands.signals import Stopped, StopSignals
 from tml.errors import ExitCode
 
 if TYPE_CHECKING:
@@ -398,10 +399,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def entry_point() -> None:
     """Console-script entry point."""
-    from tml.commands.signals import Stopped, StopSignals
-
     # Until a command takes the stop signals over, Ctrl-C raises where tml is, and again
-    # should a library swallow it (tml.commands.signals.StopSignals).
+    # should a library swallow it (tml.commands.signals.StopSignals). Imported with this
+    # module, so that no Ctrl-C comes between the two.
     stops = StopSignals()
     try:
         with stops:

@@ -184,7 +184,10 @@ def test_udp_out_streams_and_accepts_commands():
 def test_realtime_loop_serves_and_stops():
     with Simulator(tcp_base_port=0, speedup=20) as sim:
         link = mavutil.mavlink_connection(f"tcp:127.0.0.1:{sim.tcp_ports[0]}")
-        beat = link.recv_match(type="HEARTBEAT", blocking=True, timeout=10)
+        # The autopilot's (component 1): the companion computer on board says hello too,
+        # and either may come first.
+        beat = link.recv_match(type="HEARTBEAT", blocking=True, timeout=10,
+                               condition="HEARTBEAT.get_srcComponent() == 1")
         assert beat is not None and beat.type == M.MAV_TYPE_QUADROTOR
         link.close()
     assert sim.tcp_ports == []

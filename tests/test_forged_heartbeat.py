@@ -9,13 +9,11 @@ next HEARTBEAT says GUIDED again: tml must fly on to the end, and say nothing of
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
 import time
 from pathlib import Path
 from typing import Any
 
+from connected_flight import FAST, log_lines, start_tml
 from pymavlink import mavutil
 
 from sitl.server import Simulator
@@ -26,26 +24,13 @@ MISSION = ('<mission name="Hover">\n'
            '  <task name="Stay"><action name="WAIT"><argument name="duration" value="20"/>'
            '</action></task>\n'
            '  <task name="Down"><action name="LAND"/></task>\n</mission>\n')
-FAST = {"SIM_GPS_LOCKTIME": 0.5, "SIM_EKF_GPS_TIME": 1.0}
 LIMIT = 120.0  # wall seconds for each state waited for
 
 
-def log_lines(log: Path) -> list[dict[str, Any]]:
-    if not log.exists():
-        return []
-    return [json.loads(text) for text in log.read_text().splitlines() if text.endswith("}")]
-
-
 def test_one_forged_heartbeat_does_not_make_tml_let_go(tmp_path: Path) -> None:
-    mission = tmp_path / "hover.xml"
-    mission.write_text(MISSION)
-    log = tmp_path / "flight.jsonl"
     with Simulator(vehicles=1, tcp_base_port=0, speedup=5.0, params=FAST) as sim:
         port = sim.tcp_ports[0]
-        process = subprocess.Popen(
-            [sys.executable, "-m", "tml", "run", str(mission), "--connect",
-             f"tcp:127.0.0.1:{port}", "-q", "--log", str(log)],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        process, log = start_tml(tmp_path, MISSION, port)
         forger: Any = mavutil.mavlink_connection(f"tcp:127.0.0.1:{port}", source_system=1,
                                                  source_component=1, dialect="ardupilotmega")
         try:

@@ -8,15 +8,14 @@ from tml: after tml has exited, the vehicle must be seen disarmed on the ground.
 
 from __future__ import annotations
 
-import json
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 from typing import Any
 
 import pytest
+from connected_flight import FAST, log_lines, start_tml
 from pymavlink import mavutil
 
 from sitl.server import Simulator
@@ -25,7 +24,6 @@ MISSION = ('<mission name="Hop">\n'
            '  <task name="Up"><action name="TAKE_OFF"><argument name="altitude" value="4"/>'
            '</action></task>\n'
            '  <task name="Down"><action name="LAND"/></task>\n</mission>\n')
-FAST = {"SIM_GPS_LOCKTIME": 0.5, "SIM_EKF_GPS_TIME": 1.0}
 LIMIT = 120.0  # wall seconds for each state waited for: generous, a state is what is tested
 
 
@@ -33,11 +31,9 @@ def wait_for_request(log: Path, name: str, process: subprocess.Popen[str]) -> No
     """Until the flight log has the request line ``name`` (tml flushes it at each decision)."""
     end = time.monotonic() + LIMIT
     while time.monotonic() < end:
-        if log.exists():
-            for text in log.read_text().splitlines():
-                line = json.loads(text) if text.endswith("}") else {}
-                if line.get("kind") == "request" and line.get("message") == name:
-                    return
+        if any(line.get("kind") == "request" and line.get("message") == name
+               for line in log_lines(log)):
+            return
         assert process.poll() is None, process.communicate()
         time.sleep(0.005)
     raise AssertionError(f"no {name} request in the log")
@@ -73,15 +69,9 @@ def observe_safe(port: int) -> tuple[bool, float]:
 @pytest.mark.parametrize("request_name", ["SetMode", "Arm", "TakeOff"])
 def test_ctrl_c_right_after_a_request_leaves_the_vehicle_on_the_ground(
         tmp_path: Path, request_name: str) -> None:
-    mission = tmp_path / "hop.xml"
-    mission.write_text(MISSION)
-    log = tmp_path / "flight.jsonl"
     with Simulator(vehicles=1, tcp_base_port=0, speedup=10.0, params=FAST) as sim:
         port = sim.tcp_ports[0]
-        process = subprocess.Popen(
-            [sys.executable, "-m", "tml", "run", str(mission), "--connect",
-             f"tcp:127.0.0.1:{port}", "-q", "--log", str(log)],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        process, log = start_tml(tmp_path, MISSION, port)
         try:
             wait_for_request(log, request_name, process)
             process.send_signal(signal.SIGINT)
@@ -91,6 +81,5 @@ def test_ctrl_c_right_after_a_request_leaves_the_vehicle_on_the_ground(
         assert process.returncode == 3, (out, err)
         armed, altitude = observe_safe(port)
         assert (armed, altitude < 0.3) == (False, True), (out, err, armed, altitude)
-    lines = [json.loads(text) for text in log.read_text().splitlines()]
-    safety = [line for line in lines if line["kind"] == "safety"]
+    safety = [line for line in log_lines(log) if line["kind"] == "safety"]
     assert safety and safety[-1].get("confirmed"), safety

@@ -142,6 +142,12 @@ STREAM_CHECK_PERIOD = 2.0
 """Seconds between the worker's checks that the streams asked for arrive."""
 PARAM_TIMEOUT = 1.0
 PARAM_RETRIES = 3
+"""Times a PARAM_REQUEST_READ is sent, PARAM_TIMEOUT s apart, before the parameter is taken
+as absent (an autopilot does not answer for a parameter it does not have)."""
+PARAM_SET_RETRIES = 12
+"""Times a PARAM_SET is sent before its PARAM_VALUE is given up: at 30 % loss each way one
+exchange in two fails, and a flight's pre-flight writes (the fence's parameters) must not
+fail on that (12 in a row: 1 in 3,000)."""
 
 AUTOPILOT = "autopilot"
 COMPANION = "companion"
@@ -894,14 +900,15 @@ class MavlinkVehicle:
         component = self._component(which)
         msg = mavlink.MAVLink_param_set_message(self.system_id, component, name.encode(),
                                                 value, mavlink.MAV_PARAM_TYPE_REAL32)
-        stored = self._param_exchange(msg, component, name)
+        stored = self._param_exchange(msg, component, name, PARAM_SET_RETRIES)
         if not math.isclose(stored, value, abs_tol=1e-6):
             raise CommandRejected(f"PARAM_SET {name}", f"stored {stored:g}", self.system_id)
 
-    def _param_exchange(self, msg: Any, component: int, name: str) -> float:
+    def _param_exchange(self, msg: Any, component: int, name: str,
+                        tries: int = PARAM_RETRIES) -> float:
         """Send a PARAM_SET/PARAM_REQUEST_READ until its PARAM_VALUE comes back."""
         key = (component, name)
-        for _ in range(PARAM_RETRIES):
+        for _ in range(tries):
             with self._param_arrived:
                 self._params.pop(key, None)
             self.link.send(msg)

@@ -624,20 +624,6 @@ def test_a_flight_log_on_a_full_disk_stops_nothing(tmp_path: Path,
         in out
 
 
-def test_a_skill_that_needs_a_companion_computer_is_waited_for_and_named(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    # No companion computer on board: the mission's AVOID_OBSTACLES can never be switched;
-    # the run says so before anything moves, instead of failing the request in the air.
-    mission = SHORT.replace('<task name="Up">', '<skill name="AVOID_OBSTACLES"/>\n  '
-                            '<task name="Up">')
-    code = main(["run", write(tmp_path, mission), "--sim", *FAST, "-q",
-                 "--sim-param", "SIM_COMPANION=0", "--ready-timeout", "20"])
-    out = capsys.readouterr().out
-    assert code == 4, out
-    assert ("not ready after 20 s: waiting for skill AVOID_OBSTACLES (needs a companion "
-            "computer (component 191), not heard yet)") in out
-
-
 FENCED_HOP = SHORT.replace('<mission name="Hop">\n', '<mission name="Hop">\n<environment>'
                            '<geofence max_altitude="30"><point north="-50" east="-50"/>'
                            '<point north="50" east="-50"/><point north="50" east="50"/>'

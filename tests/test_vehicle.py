@@ -169,21 +169,3 @@ def test_the_fake_vehicle_reports_what_an_operator_reads() -> None:
     # What only an operator reads is no change of state for the rules.
     assert VehicleState(1, 0.0, voltage=12.0) == VehicleState(1, 0.0, voltage=11.0)
 
-
-def test_a_vehicle_is_not_ready_while_a_skill_of_the_mission_cannot_be_switched() -> None:
-    from types import MappingProxyType
-
-    from tml.vehicle import VehicleState, awaiting
-
-    state = VehicleState(1, 0.0, position=(0.0, 0.0, 0.0), home=None, battery=100.0,
-                         gps_fix=3, skills=MappingProxyType({
-                             "AVOID_OBSTACLES": "needs a companion computer (component 191), "
-                                                "not heard yet",
-                             "RECOGNIZE_ITEMS": ""}))
-    found = awaiting(state, {"AVOID_OBSTACLES", "RECOGNIZE_ITEMS", "FLY_BACKWARDS"})
-    assert [m for m in found if m.startswith("skill")] == [
-        "skill AVOID_OBSTACLES (needs a companion computer (component 191), not heard yet)",
-        "skill FLY_BACKWARDS (nothing on this vehicle switches it)"]
-    assert not [m for m in awaiting(state, {"RECOGNIZE_ITEMS"}) if m.startswith("skill")]
-    said_nothing = VehicleState(1, 0.0, skills=None)
-    assert not [m for m in awaiting(said_nothing, {"AVOID_OBSTACLES"}) if m.startswith("skill")]

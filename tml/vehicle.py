@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 from typing import Protocol
@@ -119,10 +119,6 @@ class VehicleState:
     mission: MissionProgress | None = None
     detections: Mapping[str, object] = field(default_factory=lambda: _EMPTY)
     capabilities: frozenset[str] = frozenset()  # "gripper", "flip", "camera"
-    skills: Mapping[str, str] | None = None
-    """Each skill the vehicle could switch, and why it cannot now ("": it can; a companion
-    computer not heard yet); a skill not in it has nothing on this vehicle to switch it.
-    None: the vehicle does not say, and every skill is taken as there."""
     status_text: str = ""  # the last STATUSTEXT
     messages: tuple[AutopilotMessage, ...] = ()  # the latest STATUSTEXTs, oldest first
     vehicle_type: str = ""  # a word of VEHICLE_TYPES, "" while unknown
@@ -180,7 +176,7 @@ class VehicleState:
                                                              self.position[1])
 
 
-def awaiting(state: VehicleState, skills: Iterable[str] = ()) -> tuple[str, ...]:
+def awaiting(state: VehicleState) -> tuple[str, ...]:
     """What a vehicle still lacks before a mission may start on it ("" items: none).
 
     Everything the interpreter reads must have arrived (a value not yet reported is
@@ -188,17 +184,11 @@ def awaiting(state: VehicleState, skills: Iterable[str] = ()) -> tuple[str, ...]
     vehicle on the ground and disarmed must also be armable: a position estimate the
     autopilot flies on (ArduPilot's EKF) and pre-arm checks that pass, whose failure is
     named with the autopilot's own words when it said them. A vehicle already armed or
-    flying is taken as it is. Each of the ``skills`` the mission switches on the vehicle
-    must be there too (:attr:`VehicleState.skills`: a companion computer heard).
+    flying is taken as it is.
     """
     if state.link == "lost":
         return ("heartbeat",)
     missing: list[str] = []
-    if state.skills is not None:
-        for skill in sorted(skills):
-            why = state.skills.get(skill, "nothing on this vehicle switches it")
-            if why:
-                missing.append(f"skill {skill} ({why})")
     if state.gps_fix is None:
         missing.append("GPS status")
     if state.position is None:

@@ -121,9 +121,10 @@ def test_an_item_changed_behind_tmls_back_is_named(ardupilot) -> None:
         with pytest.raises(MissionTransferError) as caught:
             vehicle.check_read_back(sent)
     assert caught.value.result == "MISMATCH"
-    assert f"item {changed.seq} NAV_WAYPOINT: param1 sent 0, read back 7" in str(caught.value)
-    assert re.search(rf"item {changed.seq} NAV_WAYPOINT: z sent [\d.]+, read back [\d.]+ "
-                     r"\(expected [\d.]+\)", str(caught.value))
+    assert (f"item {changed.seq} MAV_CMD_NAV_WAYPOINT (16): param1 sent 0, read back 7"
+            in str(caught.value))
+    assert re.search(rf"item {changed.seq} MAV_CMD_NAV_WAYPOINT \(16\): z sent [\d.]+, "
+                     r"read back [\d.]+ \(expected [\d.]+\)", str(caught.value))
 
 
 def replace_item(address: str, item: MissionItem, **changes: float) -> None:

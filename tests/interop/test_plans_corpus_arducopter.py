@@ -66,8 +66,9 @@ def mavproxy_load(sitl: object, waypoints: Path, tmp_path: Path) -> list:
     mavproxy = shutil.which("mavproxy.py", path=os.path.dirname(sys.executable))
     assert mavproxy, "MAVProxy is part of the test extra"
     address = sitl.address  # type: ignore[attr-defined]
+    system = sitl.system_id  # type: ignore[attr-defined]  # instance + 1: 21 on a 2nd worker
     process = subprocess.Popen(
-        [sys.executable, mavproxy, f"--master={address}", "--target-system=1",
+        [sys.executable, mavproxy, f"--master={address}", f"--target-system={system}",
          "--target-component=1", "--no-state", "--default-modules=wp",
          f"--state-basedir={tmp_path}"],
         stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
@@ -76,7 +77,7 @@ def mavproxy_load(sitl: object, waypoints: Path, tmp_path: Path) -> list:
     seen: list[str] = []
     deadline = time.monotonic() + 90
     try:
-        wait_for(sink, seen, r"Detected vehicle 1:1 ", deadline)
+        wait_for(sink, seen, rf"Detected vehicle {system}:1 ", deadline)
         time.sleep(2)  # ArduCopter answers NO_SPACE to uploads for about a second after boot
         assert process.stdin is not None
         process.stdin.write(f"wp load {waypoints}\n")

@@ -367,20 +367,11 @@ class MavlinkVehicle:
             battery=None if t.battery_remaining is None else float(t.battery_remaining),
             gps_fix=t.gps_fix, satellites=t.satellites, voltage=t.battery_voltage,
             climb=-velocity[2], home=home, mission=progress, detections=detections,
-            capabilities=self.capabilities, skills=self._skills(), vehicle_type=t.airframe,
+            capabilities=self.capabilities, vehicle_type=t.airframe,
             status_text=t.status_texts[-1].text if t.status_texts else "",
             messages=_messages(t), rejected=t.rejected, rejected_last=t.rejected_last,
             taken=self._modes.taken, heard=self._heard(now), asked=self._asked,
             flight_asked=self._flight_asked)
-
-    def _skills(self) -> Mapping[str, str]:
-        """Each skill of :data:`SKILL_BINDINGS` and why it cannot be switched now ("": it
-        can): one bound to the companion computer needs its HEARTBEAT first."""
-        waiting = (f"needs a companion computer (component {COMPANION_COMPONENT}), "
-                   "not heard yet")
-        return MappingProxyType({
-            name: waiting if binding.component == COMPANION and not self._companion_seen
-            else "" for name, binding in SKILL_BINDINGS.items()})
 
     def _heard(self, now: float) -> float:
         """When (the runner's clock) the oldest of the readings the rules judge by arrived
@@ -464,9 +455,8 @@ class MavlinkVehicle:
         kind = msg.get_type()
         component = msg.get_srcComponent()
         now = self.clock()
-        if component == COMPANION_COMPONENT and not self._companion_seen:
+        if component == COMPANION_COMPONENT:
             self._companion_seen = True
-            self._changes += 1  # its skills can be switched from now on
         if component == self.mav.component_id:
             self.health.heard(self.link_clock(), kind == "HEARTBEAT", snapshot.boot_time,
                               snapshot.received, snapshot.lost)

@@ -32,13 +32,12 @@ changes what happens in it.
 
 *Readiness.* Before the first task, every vehicle must be ready
 (:func:`tml.vehicle.awaiting`): its heartbeat, position, home, GPS and battery reported,
-and, on the ground, armable (a position estimate and the autopilot's pre-arm checks); in a
-mission without roles, every skill the mission switches on the vehicle must be there (a
-companion computer heard). The loop waits for that up to ``ready_timeout`` seconds of its
-clock, writing what each vehicle still lacks to the journal whenever that changes; a vehicle
-still not ready then fails the run (exit 4) with what it lacked and the autopilot's own
-reason, before anything is sent to any vehicle. So the first conditions never read a value
-that has not arrived as if it were real.
+and, on the ground, armable (a position estimate and the autopilot's pre-arm checks). The
+loop waits for that up to ``ready_timeout`` seconds of its clock, writing what each vehicle
+still lacks to the journal whenever that changes; a vehicle still not ready then fails the
+run (exit 4) with what it lacked and the autopilot's own reason, before anything is sent to
+any vehicle. So the first conditions never read a value that has not arrived as if it were
+real.
 
 *The vehicle's own safety.* Once a vehicle on the ground is ready, and before the first
 task, the runner puts the mission's fence and rally points on it (one
@@ -95,7 +94,6 @@ from tml.engine.resume import Progress
 from tml.engine.safety import safe_state_request, safe_state_shown
 from tml.errors import ControlRefused, ExitCode
 from tml.language.model import Mission
-from tml.language.skills import vehicle_skills
 from tml.run.journal import Journal, autopilot_fields, telemetry_fields
 from tml.timebase import SYSTEM, Flag, Timebase
 from tml.vehicle import (
@@ -232,11 +230,6 @@ class Runner:
         engine = self.options.engine
         engine.safe_state = self.options.safe_state
         self.flights = [_Flight(v) for v in vehicles]
-        # The skills each vehicle must be able to switch before the first task (a companion
-        # computer heard): with roles, which vehicle flies which task is decided in flight.
-        self.skills = frozenset() if mission.roles else vehicle_skills(
-            skill.name for skill in (*mission.skills,
-                                     *(s for task in mission.walk() for s in task.skills)))
         # One numbering for every request of the run (and of the runs before it on the
         # same vehicles, when the caller gives its source).
         self.ids = ids or IdSource()
@@ -423,7 +416,7 @@ class Runner:
                 state = flight.state = flight.vehicle.state()
                 self._tell_messages(flight, now)
                 vid = flight.vehicle.vehicle_id
-                missing = waiting[vid] = awaiting(state, self.skills)
+                missing = waiting[vid] = awaiting(state)
                 if not missing:
                     missing = waiting[vid] = self._safeguard(flight, state, now)
                 if missing != said.get(vid, ()) or vid not in said:

@@ -39,29 +39,9 @@ PROGRAM = "tml command"
 POLL_PERIOD = 0.05  # s between two looks at the vehicle's state while waiting
 
 
-def _system_id(text: str) -> int:
-    try:
-        number = int(text)
-    except ValueError:
-        number = 0
-    if not 1 <= number <= 255:
-        raise argparse.ArgumentTypeError(f"expected a MAVLink system id from 1 to 255, "
-                                         f"got {text}")
-    return number
-
-
-def _seconds(text: str) -> float:
-    try:
-        number = float(text)
-    except ValueError:
-        number = 0.0
-    if not number > 0 or number == float("inf"):
-        raise argparse.ArgumentTypeError(f"expected seconds above 0, got {text}")
-    return number
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the arguments of ``tml command``."""
+    from tml.commands.vehicles import positive, system_id
     from tml.engine.safety import OPERATOR_COMMANDS
 
     parser.add_argument("command", choices=OPERATOR_COMMANDS,
@@ -71,12 +51,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--connect", required=True, metavar="ADDRESS",
                         help="the vehicle's MAVLink address (tcp:HOST:PORT, "
                              "udpin:0.0.0.0:14550, /dev/ttyACM0 ...)")
-    parser.add_argument("--sysid", type=_system_id, metavar="N",
+    parser.add_argument("--sysid", type=system_id, metavar="N",
                         help="the vehicle's MAVLink system id (default: the first heard)")
     parser.add_argument("--signing-key-file", metavar="FILE",
                         help="MAVLink 2 signing: the file holds 64 hex digits or a "
                              "passphrase (else the key of TML_SIGNING_KEY, if set)")
-    parser.add_argument("--timeout", type=_seconds, default=30.0, metavar="S",
+    parser.add_argument("--timeout", type=positive, default=30.0, metavar="S",
                         help="seconds to wait for each step: the heartbeat, the telemetry, "
                              "the vehicle's answer, the telemetry showing it done "
                              "(default 30)")

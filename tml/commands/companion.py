@@ -26,14 +26,10 @@ if TYPE_CHECKING:
 
 
 
-def _system_id(text: str) -> int:
-    if not text.isdigit() or not 1 <= int(text) <= 255:
-        raise argparse.ArgumentTypeError(f"expected a system id from 1 to 255, got {text!r}")
-    return int(text)
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the options of ``tml companion``."""
+    from tml.commands.vehicles import positive, system_id
+
     parser.add_argument("--connect", required=True, metavar="ADDRESS",
                         help="the autopilot's companion port (ArduPilot SITL instance I: "
                              "tcp:127.0.0.1:5762+10*I, its SERIAL1), any address `tml run "
@@ -41,11 +37,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--world", required=True, metavar="FILE",
                         help="what the camera can see: a world file (as `tml run --world`) "
                              "or a mission file (its <environment>)")
-    parser.add_argument("--system-id", type=_system_id, metavar="N",
+    parser.add_argument("--system-id", type=system_id, metavar="N",
                         help="the vehicle's MAVLink system id (default: the first autopilot "
                              "heard)")
-    from tml.commands.vehicles import positive
-
     parser.add_argument("--timeout", type=positive, default=30.0, metavar="S",
                         help="seconds to wait for the autopilot's heartbeat (default 30)")
     parser.add_argument("-q", "--quiet", action="store_true",

@@ -57,6 +57,14 @@ def positive(text: str) -> float:
     return check(text)
 
 
+def system_id(text: str) -> int:
+    """A MAVLink system id, 1 to 255 (an argparse type)."""
+    if not text.strip().isdigit() or not 1 <= int(text) <= 255:
+        raise argparse.ArgumentTypeError(f"expected a MAVLink system id from 1 to 255, "
+                                         f"got {text!r}")
+    return int(text)
+
+
 def non_negative(text: str) -> float:
     """A number of 0 or more (an argparse type)."""
     from sitl.cli import non_negative as check

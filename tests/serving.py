@@ -143,9 +143,11 @@ def postgresql() -> Iterator[str]:
     data = Path(tempfile.mkdtemp(prefix="tml-pg-"))
     try:
         if os.geteuid() == 0:  # PostgreSQL refuses to run as root: its own user runs it
-            if shutil.which("runuser") is None:
+            # /usr/sbin is not on every root's PATH (env -i, some CI shells).
+            runuser = shutil.which("runuser") or shutil.which("runuser", path="/usr/sbin:/sbin")
+            if runuser is None:
                 raise LookupError("running as root without runuser to start PostgreSQL")
-            as_user = ["runuser", "-u", "postgres", "--"]
+            as_user = [runuser, "-u", "postgres", "--"]
             data.chmod(0o755)
             shutil.chown(data, "postgres")
         port = free_port()

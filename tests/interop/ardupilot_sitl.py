@@ -12,7 +12,9 @@ Where ArduPilot is found, in this order:
 2. ``../shared/ardupilot/ardupilot-sitl`` beside the checkout (CI has it).
 
 Instance ``N`` serves MAVLink on TCP ``5760 + 10 * N`` (SERIAL0) and ``5762 + 10 * N``
-(SERIAL1, where a companion computer attaches), with system id ``N + 1``. Instances are
+(SERIAL1, where a companion computer attaches), with system id ``N + 1``. SERIAL0 can be put
+elsewhere (``serial0="uart:/dev/pts/3:57600"``, a serial device; ``udpclient:HOST:PORT``,
+UDP sent to a ground station): the vehicle is then waited for and set up on SERIAL1. Instances are
 taken from ``TML_INTEROP_FIRST_INSTANCE`` (default 0) upwards, skipping any whose ports are
 busy, so that several runs of the suite on one machine keep out of each other's way; under
 pytest-xdist each worker starts 20 instances further up.
@@ -157,6 +159,8 @@ class SitlVehicle:
     instance: int
     process: subprocess.Popen[bytes]
     log: Path
+    serial0: str | None = None
+    """ArduPilot's SERIAL0 device when it is not TCP (``uart:PATH:BAUD``, ``udpclient:...``)."""
 
     @property
     def system_id(self) -> int:
@@ -177,6 +181,12 @@ class SitlVehicle:
     def companion_address(self) -> str:
         """SERIAL1, where a companion computer is attached."""
         return f"tcp:127.0.0.1:{self.port + 2}"
+
+    @property
+    def setup_port(self) -> int:
+        """The TCP port the harness waits for and sets parameters on: SERIAL0's, or
+        SERIAL1's when SERIAL0 is elsewhere (a serial device, UDP)."""
+        return self.port if self.serial0 is None else self.port + 2
 
     def output(self) -> str:
         """What the vehicle printed (for failure messages)."""
@@ -199,8 +209,13 @@ class SitlVehicle:
 def start_vehicle(launcher: Launcher, vehicle: str = "copter", *, speedup: float = 10.0,
                   home: str = DEFAULT_HOME, params: Mapping[str, float] | None = None,
                   boot_params: Mapping[str, float] | None = None,
-                  scratch: Path | None = None, extra: Sequence[str] = ()) -> SitlVehicle:
+                  scratch: Path | None = None, extra: Sequence[str] = (),
+                  serial0: str | None = None) -> SitlVehicle:
     """Start one vehicle, wait until it answers on SERIAL0, and set ``params`` on it.
+
+    ``serial0`` puts SERIAL0 on another of ArduPilot's devices (``uart:PATH:BAUD``,
+    ``udpclient:HOST:PORT``); the vehicle is then waited for and set up on SERIAL1, and
+    its clock runs from the start (there is no first client to wait for).
 
     ``boot_params`` are read at boot, after ArduPilot's autotest parameters (those that
     take effect only then: GRIP_ENABLE ...). The first connection starts the vehicle's
@@ -217,13 +232,14 @@ def start_vehicle(launcher: Launcher, vehicle: str = "copter", *, speedup: float
             boot_parm = folder / "boot.parm"
             boot_parm.write_text("".join(f"{name} {value:g}\n"
                                          for name, value in boot_params.items()))
+        more = [*extra, "--serial0", serial0] if serial0 is not None else list(extra)
         with log.open("wb") as out:
             process = subprocess.Popen(
                 launcher.command(vehicle, instance, speedup, home, folder, boot_parm,
-                                 extra),
+                                 more),
                 cwd=folder,
                 stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
-        sitl = SitlVehicle(vehicle, instance, process, log)
+        sitl = SitlVehicle(vehicle, instance, process, log, serial0)
         if _wait_listening(sitl):
             break
         sitl.stop()  # another run took the ports between the check and the start
@@ -243,17 +259,18 @@ def _wait_listening(sitl: SitlVehicle) -> bool:
         if sitl.process.poll() is not None:
             return False
         with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
-            if sock.connect_ex(("127.0.0.1", sitl.port)) == 0:
+            if sock.connect_ex(("127.0.0.1", sitl.setup_port)) == 0:
                 return True
         time.sleep(0.1)
     return False
 
 
 def _first_contact(sitl: SitlVehicle, params: dict[str, float]) -> None:
-    conn = mavutil.mavlink_connection(sitl.address, source_system=250, source_component=190)
+    address = f"tcp:127.0.0.1:{sitl.setup_port}"
+    conn = mavutil.mavlink_connection(address, source_system=250, source_component=190)
     try:
         if conn.wait_heartbeat(timeout=BOOT_TIMEOUT) is None:
-            raise RuntimeError(f"no heartbeat from {sitl.address}: {sitl.output()}")
+            raise RuntimeError(f"no heartbeat from {address}: {sitl.output()}")
         for name, value in params.items():
             set_parameter(conn, sitl.system_id, name, value)
     finally:

@@ -5,18 +5,10 @@ vehicle, a companion computer or mavlink-router sends to a ground station): ``tm
 from __future__ import annotations
 
 import socket
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
-
-HOP = ('<mission name="Hop">\n'
-       '  <task name="Up"><action name="TAKE_OFF"><argument name="altitude" value="5"/>'
-       '</action></task>\n'
-       '  <task name="Over"><action name="GO_TO_POINT"><argument name="coordinates" '
-       'value="(20, 0, 5)"/></action></task>\n'
-       '  <task name="Down"><action name="LAND"/></task>\n</mission>\n')
+from hop_flight import fly_hop
 
 
 def _free_udp_port() -> int:
@@ -31,11 +23,7 @@ def test_arducopter_sending_udp_is_flown_through_udpin(ardupilot, tmp_path: Path
                                                        scheme: str) -> None:
     port = _free_udp_port()
     ardupilot(extra=("--serial1", f"udpclient:127.0.0.1:{port}"))
-    mission = tmp_path / "hop.xml"
-    mission.write_text(HOP)
-    done = subprocess.run([sys.executable, "-m", "tml", "run", str(mission), "--connect",
-                           f"{scheme}:127.0.0.1:{port}", "--clock", "vehicle", "-q",
-                           "--timeout", "120"], capture_output=True, text=True, timeout=500)
+    done = fly_hop(tmp_path, f"{scheme}:127.0.0.1:{port}")
     said = done.stdout + done.stderr
     assert done.returncode == 0, said
     assert "vehicle 1: mission completed: all tasks done" in said

@@ -16,8 +16,10 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+from fake_vehicle import FakeVehicle
+
 from tml.serve.hangar import Hangar
-from tml.vehicle import FakeVehicle, Request, RequestResult, VehicleState
+from tml.vehicle import Request, RequestResult, VehicleState
 from tml.world import World
 
 ROOT = Path(__file__).resolve().parent.parent

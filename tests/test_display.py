@@ -7,13 +7,14 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
+from fake_vehicle import FakeVehicle
 from rich.console import Console
 
 from tml.engine import Change, Interpreter, Status, TaskState
 from tml.language.validation import load_mission, validate_file
 from tml.run.display import LineDisplay, render_text
 from tml.run.fold import fold
-from tml.vehicle import AutopilotMessage, FakeVehicle
+from tml.vehicle import AutopilotMessage
 
 XML = b"""<mission name="Show">
   <task name="Take off"><action name="TAKE_OFF"><argument name="altitude" value="5"/></action>

@@ -6,11 +6,12 @@ from __future__ import annotations
 from dataclasses import replace
 
 import pytest
+from fake_vehicle import FakeVehicle
 from test_engine_interpreter import LAND, TAKE_OFF, Flight, goto, mission
 
 from tml.engine import Interpreter, Status, TaskState
 from tml.errors import ControlRefused
-from tml.vehicle import FLIGHT_REQUESTS, FakeVehicle, GoTo, Hold, Land, TakeOff
+from tml.vehicle import FLIGHT_REQUESTS, GoTo, Hold, Land, TakeOff
 
 WAIT_10 = ('<task name="Wait"><action name="WAIT"><argument name="duration" value="10"/>'
            '</action></task>\n')

@@ -11,12 +11,12 @@ from collections.abc import Callable
 from itertools import pairwise
 
 import pytest
+from fake_vehicle import FakeVehicle
 from test_engine_interpreter import SEEN, goto, hover, mission
 
 from tml.engine import Interpreter, Options, Record, Status, TaskState
 from tml.vehicle import (
     Disarm,
-    FakeVehicle,
     GoTo,
     Hold,
     Land,

@@ -8,6 +8,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import pytest
+from fake_vehicle import FakeVehicle
 
 from tml.engine import Interpreter, Options, Status, TaskState, View
 from tml.engine.context import Duty
@@ -15,7 +16,6 @@ from tml.errors import EngineError
 from tml.language.validation import validate_file
 from tml.vehicle import (
     Disarm,
-    FakeVehicle,
     Flip,
     FlyMission,
     GoTo,

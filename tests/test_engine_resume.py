@@ -8,13 +8,14 @@ import json
 from typing import Any
 
 import pytest
+from fake_vehicle import FakeVehicle
 
 from tml.engine import Interpreter, Status
 from tml.engine.resume import Progress, progress
 from tml.errors import EngineError
 from tml.language.validation import validate_file
 from tml.run.journal import Journal
-from tml.vehicle import FakeVehicle, FlyMission, IdSource, TakeOff
+from tml.vehicle import FlyMission, IdSource, TakeOff
 
 
 def task(name: str, action: str, argument: str = "", extra: str = "") -> str:

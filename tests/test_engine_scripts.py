@@ -5,11 +5,12 @@ from __future__ import annotations
 import math
 
 import pytest
+from fake_vehicle import FakeVehicle
 from test_engine_interpreter import Flight
 
 from tml.engine import Options, Status
 from tml.errors import Location
-from tml.vehicle import Circle, Disarm, FakeVehicle, GoTo, Land, ReturnToLaunch
+from tml.vehicle import Circle, Disarm, GoTo, Land, ReturnToLaunch
 
 HERE = Location("m.xml", 1, 1)
 TAKE_OFF_30 = '<task name="Up"><action name="TAKE_OFF"><argument name="altitude" ' \

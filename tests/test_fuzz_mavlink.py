@@ -21,6 +21,7 @@ from dataclasses import replace
 from typing import Any
 
 import pytest
+from fake_vehicle import FakeVehicle
 from fuzzing import fuzz_settings, memory_bound, time_bound
 from hypothesis import given
 from hypothesis import strategies as st
@@ -31,7 +32,6 @@ from tml.language.validation import validate_file
 from tml.mavlink.adapter import MavlinkVehicle
 from tml.mavlink.codec import mavlink
 from tml.mavlink.link import Link
-from tml.vehicle import FakeVehicle
 
 SYSTEM = 1
 INTEGERS = {"int8_t": (-(1 << 7), (1 << 7) - 1), "uint8_t": (0, (1 << 8) - 1),

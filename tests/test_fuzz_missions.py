@@ -15,6 +15,7 @@ import copy
 import io
 from pathlib import Path
 
+from fake_vehicle import FakeVehicle
 from fuzzing import fuzz_settings, memory_bound, time_bound
 from hypothesis import given
 from hypothesis import strategies as st
@@ -24,7 +25,6 @@ from tml.engine import Interpreter, Status
 from tml.errors import TmlError
 from tml.language.diagnostics import format_human_all
 from tml.language.validation import validate_file
-from tml.vehicle import FakeVehicle
 from tml.verify.motion import PredictedState
 from tml.verify.profile import load_profile
 from tml.verify.report import print_report

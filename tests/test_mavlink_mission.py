@@ -44,7 +44,7 @@ from tml.mavlink.mission import (
 ACCEPTED = MissionResult.MAV_MISSION_ACCEPTED
 
 
-class FakeVehicle:
+class MissionResponder:
     """The vehicle's side of the mission protocol, as ArduPilot's MissionItemProtocol plays it.
 
     It asks for items with the legacy MISSION_REQUEST, asks again every ``rerequest``
@@ -149,7 +149,7 @@ class LossyLink:
                 heapq.heappush(self.queue, (now + self.latency, self._order, to, msg))
 
 
-def run(transfer: Transfer, vehicle: FakeVehicle, link: LossyLink, limit: float = 600.0
+def run(transfer: Transfer, vehicle: MissionResponder, link: LossyLink, limit: float = 600.0
         ) -> float:
     """Drive ``transfer`` against ``vehicle`` until it ends; returns the simulated duration."""
     now = 0.0
@@ -184,7 +184,7 @@ def test_hundred_uploads_of_hundred_items_survive_30_percent_loss_each_way() -> 
     rng = random.Random(20250601)
     outcomes = []
     for _ in range(100):
-        vehicle = FakeVehicle()
+        vehicle = MissionResponder()
         items = mission(100)
         upload = Upload(items, system_id=1)
         run(upload, vehicle, LossyLink(rng, 0.3, 0.3))
@@ -282,7 +282,7 @@ def test_a_lost_final_ack_is_given_up_on_after_five_retries_of_the_last_item() -
 @pytest.mark.parametrize("mission_type", [MissionType.MISSION, MissionType.FENCE,
                                           MissionType.RALLY])
 def test_upload_download_and_clear_each_mission_type(mission_type: MissionType) -> None:
-    vehicle = FakeVehicle()
+    vehicle = MissionResponder()
     vehicle.lists[MissionType.MISSION] = mission(3)
     items = mission(5, mission_type)
     rng = random.Random(1)
@@ -307,7 +307,7 @@ def test_upload_sends_items_with_the_transfer_mission_type() -> None:
 
 
 def test_ardupilot_home_slot_is_placeholder_and_read_back_compares_from_item_one() -> None:
-    vehicle = FakeVehicle(home_slot=True)
+    vehicle = MissionResponder(home_slot=True)
     real = mission(4)
     sent = with_home_placeholder(real)
     assert [item.seq for item in sent] == [0, 1, 2, 3, 4]
@@ -335,7 +335,7 @@ REFUSALS = [r for r in MissionResult if r != MissionResult.MAV_MISSION_ACCEPTED]
 def test_every_refusal_becomes_a_transfer_error_naming_the_result(result: MissionResult
                                                                   ) -> None:
     upload = Upload(mission(2), system_id=7)
-    run(upload, FakeVehicle(refuse=result), LossyLink(random.Random(3), 0, 0))
+    run(upload, MissionResponder(refuse=result), LossyLink(random.Random(3), 0, 0))
     assert not upload.succeeded
     assert isinstance(upload.error, MissionTransferError)
     assert upload.error.result == result.name
@@ -366,7 +366,7 @@ def test_result_names_are_those_of_the_mavlink_definition() -> None:
 def test_silent_vehicle_fails_after_five_retries_of_mission_count() -> None:
     upload = Upload(mission(3), system_id=2)
     link = LossyLink(random.Random(4), loss_up=1.0, loss_down=1.0)
-    took = run(upload, FakeVehicle(), link)
+    took = run(upload, MissionResponder(), link)
     assert upload.error is not None and upload.error.result == "TIMEOUT"
     assert upload.error.seq is None
     assert "no request for item 0 after MISSION_COUNT (3), 5 retries 1500 ms apart" in str(
@@ -476,7 +476,7 @@ def test_messages_of_another_mission_type_are_ignored() -> None:
 
 
 def test_progress_is_reported_as_items_move() -> None:
-    vehicle = FakeVehicle()
+    vehicle = MissionResponder()
     upload = Upload(mission(10))
     seen = []
     link = LossyLink(random.Random(5), 0, 0)
@@ -520,7 +520,7 @@ def test_items_must_be_numbered_from_zero() -> None:
 
 def test_empty_upload_succeeds_on_the_ack() -> None:
     upload = Upload([])
-    run(upload, FakeVehicle(), LossyLink(random.Random(6), 0, 0))
+    run(upload, MissionResponder(), LossyLink(random.Random(6), 0, 0))
     assert upload.succeeded and upload.progress.total == 0
 
 

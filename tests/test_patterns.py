@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from itertools import pairwise
 
 import pytest
+from fake_vehicle import FakeVehicle
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -37,7 +38,7 @@ from tml.patterns import (
     survey,
     survey_offsets,
 )
-from tml.vehicle import FakeVehicle, GoTo, Point, VehicleState
+from tml.vehicle import GoTo, Point, VehicleState
 from tml.verify.motion import FlightModel, PredictedState
 from tml.verify.profile import load_profile
 from tml.world import DEFAULT_HOME, World

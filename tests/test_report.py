@@ -8,6 +8,7 @@ from pathlib import Path
 
 import gpxpy
 import pytest
+from fake_vehicle import FakeVehicle
 from lxml import etree
 
 from tml.commands.cli import main
@@ -18,7 +19,6 @@ from tml.report.pages import page
 from tml.report.tracks import gpx, kml
 from tml.run.journal import Journal
 from tml.run.runner import Runner
-from tml.vehicle import FakeVehicle
 
 ROOT = Path(__file__).resolve().parent.parent
 MISSION = "missions/paper_example1.xml"  # relative, as a user names it: the log keeps it

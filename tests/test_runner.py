@@ -9,13 +9,14 @@ import threading
 from dataclasses import replace
 
 import pytest
+from fake_vehicle import FakeVehicle
 
 from tml.engine import Status
 from tml.errors import ControlRefused, ExitCode
 from tml.language.validation import validate_file
 from tml.run.journal import Journal
 from tml.run.runner import Runner, RunOptions
-from tml.vehicle import FakeVehicle, Hold, Land, RequestResult, ReturnToLaunch, VehicleState
+from tml.vehicle import Hold, Land, RequestResult, ReturnToLaunch, VehicleState
 
 TAKE_OFF = ('<task name="Take off"><action name="TAKE_OFF"><argument name="altitude" '
             'value="5"/></action></task>')

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import pytest
+from fake_vehicle import FakeVehicle
 
 from tml.language.kinds import VEHICLE_TYPE_CLASSES, VEHICLE_TYPES, vehicle_type_matches
 from tml.vehicle import (
     Arm,
     AutopilotMessage,
-    FakeVehicle,
     GoTo,
     IdSource,
     Land,

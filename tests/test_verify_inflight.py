@@ -5,10 +5,12 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
+from fake_vehicle import FakeVehicle
+
 from tml.engine import Interpreter, Options, Status
 from tml.language.actions import bind
 from tml.language.validation import validate_file
-from tml.vehicle import FakeVehicle, GoTo, VehicleState
+from tml.vehicle import GoTo, VehicleState
 from tml.verify.inflight import live_variables, pre_check, preflight
 from tml.verify.profile import load_profile
 from tml.world import Cylinder, World

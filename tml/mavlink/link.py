@@ -179,6 +179,8 @@ class LinkStats:
     bad_data: int = 0
     losses: int = 0
     disconnects: int = 0
+    fenced: int = 0
+    """Messages not sent because :attr:`Link.gate` refused them."""
 
 
 Listener = Callable[[int, Telemetry, Any], None]
@@ -239,6 +241,10 @@ class Link:
         self._changes: list[Callable[[int], None]] = []
         self._running = False
         self._thread: threading.Thread | None = None
+        self.gate: Callable[[int], bool] | None = None
+        """When set, asked with each message's target system (0: broadcast) before it is
+        sent; a message it refuses is dropped and counted (``stats.fenced``). A cluster of
+        ``tml serve`` instances fences its vehicles this way (tml.serve.cluster)."""
 
     # -- life cycle -------------------------------------------------------------------
 
@@ -385,6 +391,10 @@ class Link:
         """Send a plain message (addressed here) or a ready pymavlink message."""
         if not isinstance(msg, mavlink.MAVLink_message):
             msg = codec.encode(msg, system_id, component_id)
+        gate = self.gate
+        if gate is not None and not gate(getattr(msg, "target_system", 0)):
+            self.stats.fenced += 1
+            return
         with self._send_lock:
             signing = self._conn.mav.signing
             if signing.sign_outgoing:  # stamps that follow the clock, not one up per frame

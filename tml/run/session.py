@@ -116,6 +116,9 @@ class SessionOptions:
     """Say nothing but problems (no line while a vehicle is waited for)."""
     program: str = "tml run"
     """The name lines said begin with."""
+    source_system: int = 255
+    """The MAVLink system id this ground station sends as (ArduPilot's default GCS id;
+    each instance of a ``tml serve`` cluster has its own)."""
 
     @property
     def sim(self) -> bool:
@@ -323,7 +326,8 @@ def open_session(options: SessionOptions, world: World, errors: Console | None =
         vehicle_clock: VehicleClock | None = None
         for address, system_id in addresses:
             link = stack.enter_context(Link(address, outputs=options.outputs,
-                                            signing_key=key, timebase=timebase))
+                                            signing_key=key, timebase=timebase,
+                                            source_system=options.source_system))
             link.on_change(lambda _system_id: news())
             if not system_id and errors is not None and not options.quiet:
                 # Said once: pymavlink's own retry messages are kept from the terminal.

@@ -209,7 +209,7 @@ class ArduCopter:
         pass
 
     def stored_items(self) -> list[Any]:
-        return []  # tml's own read-back (tml.mavlink.vehicle.check_read_back) says it
+        return []  # tml's own read-back (tml.mavlink.autopilot.check_read_back) says it
 
     def stop(self) -> None:
         self._running = False

@@ -294,7 +294,7 @@ def peer(vehicles: int, speedup: float, seconds: float) -> Result:
     """
     import select
 
-    from tml.mavlink.vehicle import DEFAULT_RATES
+    from tml.mavlink.autopilot import DEFAULT_RATES
 
     probe = Probe()
     with ExitStack() as stack:

@@ -4,7 +4,7 @@ Starts the simulator (one vehicle, TCP on a free port) in a process of its own, 
 neither tml nor MAVProxy shares an interpreter lock with it, and, for missions of 10, 100 and
 500 waypoints (plus ArduPilot's home slot), measures in the same run:
 
-* tml: ``Vehicle.upload(items, verify=False)``, MISSION_COUNT to MISSION_ACK;
+* tml: ``Autopilot.upload(items, verify=False)``, MISSION_COUNT to MISSION_ACK;
 * MAVProxy: ``wp load FILE`` of the same mission, from its "Loaded N waypoints from" line
   (printed right before it sends MISSION_COUNT) to its "Got MISSION_ACK" line;
 * the floor: one round trip per message exchanged (N + 2 of them: COUNT -> request, each
@@ -32,10 +32,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from tml.mavlink.autopilot import Autopilot
 from tml.mavlink.codec import mavlink, mavutil
 from tml.mavlink.link import Link
 from tml.mavlink.mission import MissionItem
-from tml.mavlink.vehicle import Vehicle
 
 HOME = (-35.3632621, 149.1652374, 584.0)
 TML_SYSTEM = 250
@@ -75,7 +75,7 @@ def round_trip(port: int, samples: int) -> float:
     return statistics.median(times)
 
 
-def tml_upload(vehicle: Vehicle, n: int) -> float:
+def tml_upload(vehicle: Autopilot, n: int) -> float:
     """Seconds of tml's upload of ``n`` waypoints (MISSION_COUNT to MISSION_ACK)."""
     items = mission(n)
     start = time.perf_counter()
@@ -183,7 +183,7 @@ def compare(port: int, sizes: list[int], repeat: int, directory: str) -> None:
     try:
         # Not system 255 like MAVProxy: each must know the vehicle's answers for its own.
         with Link(f"tcp:127.0.0.1:{port}", source_system=TML_SYSTEM) as link:
-            vehicle = Vehicle.connect(link, 1, timeout=10)
+            vehicle = Autopilot.connect(link, 1, timeout=10)
             for n in sizes:
                 path = waypoint_file(n, directory)
                 vehicle.upload(mission(n), verify=True)  # warm-up, and proof it arrives whole

@@ -13,8 +13,8 @@ from pymavlink import mavutil
 
 from sitl.server import Simulator
 from tml.commands.cli import main
+from tml.mavlink.autopilot import Autopilot
 from tml.mavlink.link import Link
-from tml.mavlink.vehicle import Vehicle
 
 # Armable at once; an armed vehicle left on the ground does not disarm by itself.
 PARAMS = {"SIM_GPS_LOCKTIME": 0.5, "SIM_EKF_GPS_TIME": 1.0, "DISARM_DELAY": 0}
@@ -47,11 +47,11 @@ class Observer:
 
 
 @pytest.fixture
-def vehicle() -> Iterator[tuple[Simulator, Vehicle, Observer]]:
+def vehicle() -> Iterator[tuple[Simulator, Autopilot, Observer]]:
     """A simulated copter, a pilot's client armed on it in GUIDED, and an observer."""
     with Simulator(vehicles=1, tcp_base_port=0, speedup=20.0, params=PARAMS) as sim, \
             Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}") as link:
-        pilot = Vehicle.connect(link, 1, timeout=10)
+        pilot = Autopilot.connect(link, 1, timeout=10)
         pilot.request_rates()
         link.wait_telemetry(1, lambda t: t.position_ready, timeout=LIMIT)
         pilot.set_mode("GUIDED")
@@ -63,7 +63,7 @@ def vehicle() -> Iterator[tuple[Simulator, Vehicle, Observer]]:
             observer.close()
 
 
-def fly_up(pilot: Vehicle) -> None:
+def fly_up(pilot: Autopilot) -> None:
     pilot.takeoff(10.0)
     pilot.link.wait_telemetry(1, lambda t: t.position is not None
                               and t.position.relative_altitude > 9.0, timeout=LIMIT)
@@ -75,7 +75,7 @@ def command(sim: Simulator, *words: str) -> list[str]:
 
 
 def test_rtl_returns_a_flying_vehicle_and_it_lands(
-        vehicle: tuple[Simulator, Vehicle, Observer], capsys: pytest.CaptureFixture[str]
+        vehicle: tuple[Simulator, Autopilot, Observer], capsys: pytest.CaptureFixture[str]
 ) -> None:
     sim, pilot, observer = vehicle
     fly_up(pilot)
@@ -88,7 +88,7 @@ def test_rtl_returns_a_flying_vehicle_and_it_lands(
 
 
 def test_a_disarm_in_the_air_is_refused_and_the_vehicle_flies_on(
-        vehicle: tuple[Simulator, Vehicle, Observer], capsys: pytest.CaptureFixture[str]
+        vehicle: tuple[Simulator, Autopilot, Observer], capsys: pytest.CaptureFixture[str]
 ) -> None:
     sim, pilot, observer = vehicle
     fly_up(pilot)
@@ -103,7 +103,7 @@ def test_a_disarm_in_the_air_is_refused_and_the_vehicle_flies_on(
 
 
 def test_a_disarm_on_the_ground_disarms(
-        vehicle: tuple[Simulator, Vehicle, Observer], capsys: pytest.CaptureFixture[str]
+        vehicle: tuple[Simulator, Autopilot, Observer], capsys: pytest.CaptureFixture[str]
 ) -> None:
     sim, _pilot, observer = vehicle
     assert observer.until(lambda o: o.armed)
@@ -128,7 +128,7 @@ def test_a_malformed_address_is_a_usage_error(capsys: pytest.CaptureFixture[str]
 
 
 def test_hold_then_land_a_flying_vehicle(
-        vehicle: tuple[Simulator, Vehicle, Observer], capsys: pytest.CaptureFixture[str]
+        vehicle: tuple[Simulator, Autopilot, Observer], capsys: pytest.CaptureFixture[str]
 ) -> None:
     sim, pilot, observer = vehicle
     fly_up(pilot)
@@ -145,7 +145,7 @@ def test_a_rover_is_refused_a_landing_and_holds(capsys: pytest.CaptureFixture[st
     with Simulator(vehicles=1, frames=["rover"], tcp_base_port=0, speedup=20.0,
                    params=fast) as sim, \
             Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}") as link:
-        driver = Vehicle.connect(link, 1, timeout=10)
+        driver = Autopilot.connect(link, 1, timeout=10)
         driver.request_rates()
         link.wait_telemetry(1, lambda t: t.position_ready, timeout=LIMIT)
         driver.set_mode("GUIDED")

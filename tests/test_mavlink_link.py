@@ -15,9 +15,9 @@ from typing import Any
 import pytest
 
 from tml.errors import LinkLost
+from tml.mavlink.autopilot import Autopilot
 from tml.mavlink.codec import mavlink
 from tml.mavlink.link import Address, Link, parse_address
-from tml.mavlink.vehicle import Vehicle
 
 KEY = bytes(range(32))
 
@@ -270,7 +270,7 @@ def test_output_forwarding_copies_vehicle_messages_to_a_watcher(
 def test_forwarding_is_one_way_a_watchers_commands_never_reach_the_vehicle(
         watched: tuple[FakeAutopilot, Link, socket.socket]) -> None:
     ap, link, watcher = watched
-    vehicle = Vehicle.connect(link, 4, timeout=5)
+    vehicle = Autopilot.connect(link, 4, timeout=5)
     _, forwarder = watcher.recvfrom(65536)  # where the copies come from
     qgc = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
     guided = qgc.command_long_encode(4, 1, mavlink.MAV_CMD_DO_SET_MODE, 0,
@@ -435,7 +435,7 @@ def test_a_listening_udp_link_is_found_by_a_vehicle_that_sends_first(scheme: str
     with Link(f"{scheme}:127.0.0.1:0") as link:
         assert link.local_address is not None
         with FakeAutopilot(system_id=6, connect=link.local_address) as ap:
-            vehicle = Vehicle.connect(link, 6, timeout=5)
+            vehicle = Autopilot.connect(link, 6, timeout=5)
             vehicle.set_mode("GUIDED")  # the replies find their way back to the vehicle
             assert ap.mode == 4 and vehicle.telemetry.mode == "GUIDED"
 
@@ -444,7 +444,7 @@ def test_a_listening_tcp_link_accepts_a_vehicle_that_dials_in() -> None:
     with Link("tcpin:127.0.0.1:0") as link:
         assert link.local_address is not None
         with FakeAutopilot(system_id=7, connect=link.local_address, tcp=True) as ap:
-            vehicle = Vehicle.connect(link, 7, timeout=5)
+            vehicle = Autopilot.connect(link, 7, timeout=5)
             vehicle.set_mode("LAND")
             assert ap.mode == 9 and vehicle.telemetry.mode == "LAND"
 
@@ -457,7 +457,7 @@ def test_connecting_links_have_no_local_listening_address() -> None:
 def test_two_vehicles_sending_from_one_udp_socket_are_told_apart_by_system_id() -> None:
     with Link("udpin:127.0.0.1:0") as link, \
             FakeAutopilot(system_ids=(1, 2), connect=link.local_address) as ap:
-        first, second = Vehicle.connect(link, 1, timeout=5), Vehicle.connect(link, 2, timeout=5)
+        first, second = Autopilot.connect(link, 1, timeout=5), Autopilot.connect(link, 2, timeout=5)
         second.set_mode("RTL")
         first.set_mode("LOITER")
         assert ap.modes == {1: 5, 2: 6}

@@ -19,6 +19,7 @@ from sitl.missions import REQUEST_INTERVAL, UPLOAD_TIMEOUT, MissionServer
 from sitl.model import VehicleModel
 from sitl.server import Simulator
 from tml.geo import to_local
+from tml.mavlink.autopilot import Autopilot
 from tml.mavlink.link import Link
 from tml.mavlink.mission import (
     MissionItem,
@@ -26,7 +27,6 @@ from tml.mavlink.mission import (
     read_back_differences,
     with_home_placeholder,
 )
-from tml.mavlink.vehicle import Vehicle
 from tml.world import DEFAULT_HOME
 
 HOME = MissionItem(0, 0, 16, x=-353632610, y=1491652300, z=584.0)
@@ -202,7 +202,7 @@ def test_tmls_uploader_gets_a_mission_through_30_percent_loss_each_way(seed):
     sent = mission(6)
     with Simulator(tcp_base_port=0, speedup=5.0, faults=faults) as sim, \
             Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}") as link:
-        vehicle = Vehicle.connect(link, 1, timeout=20)
+        vehicle = Autopilot.connect(link, 1, timeout=20)
         deadline = time.monotonic() + 10
         while sim.time < 1.5:  # uploads get NO_SPACE for a second after boot
             assert time.monotonic() < deadline

@@ -22,6 +22,7 @@ from pymavlink import mavutil
 
 from tml.commands.cli import main
 from tml.errors import MissionTransferError
+from tml.mavlink.autopilot import Autopilot
 from tml.mavlink.codec import mavlink
 from tml.mavlink.link import Link
 from tml.mavlink.mission import (
@@ -31,7 +32,6 @@ from tml.mavlink.mission import (
     exact_form,
     read_back_differences,
 )
-from tml.mavlink.vehicle import Vehicle
 from tml.run.journal import read
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -39,11 +39,11 @@ RECORDED = json.loads((ROOT / "tests" / "data" / "arducopter_read_back.json").re
 LAT, LON = -353632610, 1491652300
 
 
-def connect(link: Link) -> Vehicle:
-    return Vehicle.connect(link, None, timeout=30)
+def connect(link: Link) -> Autopilot:
+    return Autopilot.connect(link, None, timeout=30)
 
 
-def upload_when_ready(vehicle: Vehicle, items: list[MissionItem]) -> list[MissionItem]:
+def upload_when_ready(vehicle: Autopilot, items: list[MissionItem]) -> list[MissionItem]:
     """Upload, retrying while ArduCopter answers NO_SPACE (about a second after boot)."""
     deadline = time.monotonic() + 30
     while True:

@@ -6,7 +6,7 @@ The interpreter reads :class:`~tml.vehicle.VehicleState` and submits requests wi
 waiting; a MAVLink vehicle answers commands in round trips of tens of milliseconds (and
 seconds when the link is poor). So each :class:`MavlinkVehicle` owns one worker thread that
 takes the submitted requests in order and carries each out with the link's command sender
-(:class:`tml.mavlink.vehicle.Vehicle`): ``submit`` only queues, ``poll`` returns the
+(:class:`tml.mavlink.autopilot.Autopilot`): ``submit`` only queues, ``poll`` returns the
 :class:`~tml.vehicle.RequestResult` of the requests finished since the last poll.
 
 ``state`` is built on demand from the link's latest :class:`~tml.mavlink.telemetry.Telemetry`
@@ -88,6 +88,7 @@ from tml.errors import CommandRejected, MissionTransferError, VehicleError, Vehi
 from tml.geo import to_global, to_local
 from tml.language.kinds import HANDLING, Kind, kind_of
 from tml.mavlink import codec
+from tml.mavlink.autopilot import DEFAULT_RATES, Autopilot
 from tml.mavlink.codec import mavlink
 from tml.mavlink.command import CommandLong
 from tml.mavlink.compile import (
@@ -103,7 +104,6 @@ from tml.mavlink.mission import MissionType
 from tml.mavlink.modes import ModeWatch, mode_names
 from tml.mavlink.safeguards import fence_action, safeguards
 from tml.mavlink.telemetry import COMPANION_COMPONENT, Telemetry
-from tml.mavlink.vehicle import DEFAULT_RATES, Vehicle
 from tml.timebase import Empty, Flag, Mailbox
 from tml.vehicle import (
     FLIGHT_REQUESTS,
@@ -277,7 +277,7 @@ class MavlinkVehicle:
                  link_clock: Clock | None = None) -> None:
         self.link = link
         self.timebase = link.timebase  # every wait and period of the worker (tml.timebase)
-        self.mav = Vehicle(link, link.wait_vehicle(system_id, connect_timeout),
+        self.mav = Autopilot(link, link.wait_vehicle(system_id, connect_timeout),
                            command_timeout=command_timeout)
         self.system_id = system_id
         self.vehicle_id = system_id if vehicle_id is None else vehicle_id

@@ -15,7 +15,7 @@ copy, and then answer the retry by what it is doing now: ArduCopter refuses NAV_
 with FAILED once it is off the ground, so the ACK of a retry cannot say whether the command
 was carried out. The sender does not know the vehicle's state; its caller may inject
 ``taken``, a function saying whether telemetry shows the command carried out (the rules
-are in :data:`tml.mavlink.vehicle.TAKEN`). Then a retry answered FAILED, DENIED or
+are in :data:`tml.mavlink.autopilot.TAKEN`). Then a retry answered FAILED, DENIED or
 TEMPORARILY_REJECTED is held for up to ``settle`` seconds while the telemetry may still
 show the command taken (it counts as accepted, ``by_telemetry``), and a retransmission is
 not sent at all once the telemetry shows it taken: a repeated FLIP would flip twice. The

@@ -12,7 +12,7 @@ coordinates and the autopilot never has to guess what "here" meant.
 Every local point is converted to WGS84 with :mod:`tml.geo` against the vehicle's home.
 Altitudes go in frame GLOBAL_RELATIVE_ALT_INT (above home), GLOBAL_INT when the author gave
 ``altitude_reference="amsl"`` and GLOBAL_TERRAIN_ALT_INT for ``terrain``. Items are numbered
-from 0; :meth:`tml.mavlink.vehicle.Vehicle.upload` shifts them behind ArduPilot's home
+from 0; :meth:`tml.mavlink.autopilot.Autopilot.upload` shifts them behind ArduPilot's home
 item. ``action_index[i]`` says which action item ``i`` came from, so that MISSION_CURRENT
 and MISSION_ITEM_REACHED tell the interpreter which action is being flown.
 

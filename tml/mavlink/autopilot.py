@@ -2,7 +2,7 @@
 
 Every method builds plain messages (``command``, ``mission``, ``modes``), lets the link
 drive the sans-IO machine, and turns the outcome into the error hierarchy at one place
-(:meth:`Vehicle.command`, :meth:`Vehicle.upload`): a refusal is CommandRejected or
+(:meth:`Autopilot.command`, :meth:`Autopilot.upload`): a refusal is CommandRejected or
 MissionTransferError naming the result, silence is VehicleTimeout, a vehicle that stops
 sending HEARTBEATs is LinkLost. Methods return when the vehicle has *acknowledged*; that it
 then flies where it was told is watched from telemetry -- except a mode change, which is
@@ -10,7 +10,7 @@ done only when a HEARTBEAT shows the new mode (:class:`~tml.mavlink.modes.ModeCh
 
 A command whose ACK was lost is sent again, and the vehicle may refuse the copy because it
 took the first one (ArduCopter refuses NAV_TAKEOFF once it is off the ground). :data:`TAKEN`
-says, per command, what in the telemetry shows the command taken; :meth:`Vehicle.command`
+says, per command, what in the telemetry shows the command taken; :meth:`Autopilot.command`
 hands that judgement to the command sender, which then neither repeats a command the vehicle
 is seen carrying out nor takes a refused repeat of it for a refusal.
 """
@@ -54,7 +54,7 @@ DEFAULT_RATES = {
     "ATTITUDE": 10.0, "SYS_STATUS": 2.0, "EXTENDED_SYS_STATE": 2.0, "GPS_RAW_INT": 2.0,
     "EKF_STATUS_REPORT": 2.0, "MISSION_CURRENT": 2.0, "HOME_POSITION": 0.5,
 }
-"""Messages and rates (Hz) :meth:`Vehicle.request_rates` asks for by default: what a
+"""Messages and rates (Hz) :meth:`Autopilot.request_rates` asks for by default: what a
 vehicle's state is built from, and nothing else (every message costs each vehicle's link
 its parsing; LOCAL_POSITION_NED is not asked for: the local frame comes from
 GLOBAL_POSITION_INT and HOME_POSITION)."""
@@ -138,7 +138,7 @@ was lost (see the module docstring). Commands left out (speed, yaw, message rate
 answered alike however often they come, so their ACK is enough."""
 
 
-class Vehicle:
+class Autopilot:
     """Commands and mission transfers for the vehicle ``info`` on ``link``.
 
     ``mode_timeout``: seconds after a mode change's ACK within which a HEARTBEAT must show
@@ -157,7 +157,7 @@ class Vehicle:
 
     @classmethod
     def connect(cls, link: Link, system_id: int | None = None, timeout: float = 10.0
-                ) -> Vehicle:
+                ) -> Autopilot:
         """Wait for the vehicle's HEARTBEAT on ``link`` and return its handle."""
         return cls(link, link.wait_vehicle(system_id, timeout))
 

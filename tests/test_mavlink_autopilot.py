@@ -12,12 +12,12 @@ from test_mavlink_link import FakeAutopilot, eventually
 from sitl.faults import Faults
 from sitl.server import Simulator
 from tml.errors import CommandRejected, LinkLost, MissionTransferError, VehicleTimeout
+from tml.mavlink.autopilot import TAKEN, Autopilot
 from tml.mavlink.codec import mavlink
 from tml.mavlink.command import CommandLong
 from tml.mavlink.link import Link
 from tml.mavlink.mission import MissionItem, MissionType, Progress
 from tml.mavlink.telemetry import COMPANION_COMPONENT, Telemetry
-from tml.mavlink.vehicle import TAKEN, Vehicle
 from tml.timebase import Lockstep
 from tml.world import World, WorldObject
 
@@ -33,9 +33,9 @@ def fake() -> Iterator[FakeAutopilot]:
 
 
 @pytest.fixture
-def vehicle(fake: FakeAutopilot) -> Iterator[Vehicle]:
+def vehicle(fake: FakeAutopilot) -> Iterator[Autopilot]:
     with Link(f"udpout:127.0.0.1:{fake.port}") as link:
-        yield Vehicle.connect(link, 1, timeout=5)
+        yield Autopilot.connect(link, 1, timeout=5)
 
 
 class ForgetfulCopter(FakeAutopilot):
@@ -79,14 +79,14 @@ class ForgetfulCopter(FakeAutopilot):
 
 
 @pytest.fixture
-def forgetful(request: pytest.FixtureRequest) -> Iterator[tuple[ForgetfulCopter, Vehicle]]:
+def forgetful(request: pytest.FixtureRequest) -> Iterator[tuple[ForgetfulCopter, Autopilot]]:
     with ForgetfulCopter(climbs=getattr(request, "param", True)) as ap, \
             Link(f"udpout:127.0.0.1:{ap.port}") as link:
-        yield ap, Vehicle(link, link.wait_vehicle(1, timeout=5), command_timeout=0.3)
+        yield ap, Autopilot(link, link.wait_vehicle(1, timeout=5), command_timeout=0.3)
 
 
 def test_a_take_off_whose_ack_was_lost_is_judged_by_the_climb_not_by_the_refused_repeat(
-        forgetful: tuple[ForgetfulCopter, Vehicle]) -> None:
+        forgetful: tuple[ForgetfulCopter, Autopilot]) -> None:
     ap, vehicle = forgetful
     vehicle.takeoff(10.0)  # no ACK, but the vehicle is seen climbing before the timeout
     assert [c.confirmation for c in ap.commands] == [0]  # so it is not sent again
@@ -94,7 +94,7 @@ def test_a_take_off_whose_ack_was_lost_is_judged_by_the_climb_not_by_the_refused
 
 @pytest.mark.parametrize("forgetful", [False], indirect=True)
 def test_a_refused_repeat_of_a_take_off_the_telemetry_does_not_show_is_a_refusal(
-        forgetful: tuple[ForgetfulCopter, Vehicle]) -> None:
+        forgetful: tuple[ForgetfulCopter, Autopilot]) -> None:
     ap, vehicle = forgetful
     with pytest.raises(CommandRejected) as caught:
         vehicle.takeoff(10.0)
@@ -103,7 +103,7 @@ def test_a_refused_repeat_of_a_take_off_the_telemetry_does_not_show_is_a_refusal
 
 
 def test_a_flip_whose_ack_was_lost_is_not_sent_again_once_the_vehicle_rolled(
-        forgetful: tuple[ForgetfulCopter, Vehicle]) -> None:
+        forgetful: tuple[ForgetfulCopter, Autopilot]) -> None:
     ap, vehicle = forgetful
     vehicle.set_mode("FLIP")  # no ACK and no HEARTBEAT in FLIP: the roll shows it
     assert ap.flips == 1
@@ -122,7 +122,7 @@ def items(n: int) -> list[MissionItem]:
 
 
 def test_mode_by_name_reaches_the_vehicle_and_shows_in_telemetry(
-        fake: FakeAutopilot, vehicle: Vehicle) -> None:
+        fake: FakeAutopilot, vehicle: Autopilot) -> None:
     vehicle.set_mode("guided")
     assert fake.mode == 4
     assert vehicle.telemetry.mode == "GUIDED"  # set_mode waited for the HEARTBEAT
@@ -131,7 +131,7 @@ def test_mode_by_name_reaches_the_vehicle_and_shows_in_telemetry(
 def test_a_vehicle_that_accepts_a_mode_but_keeps_its_own_is_caught() -> None:
     with FakeAutopilot(system_id=1, obey_modes=False) as stubborn, \
             Link(f"udpout:127.0.0.1:{stubborn.port}") as link:
-        vehicle = Vehicle.connect(link, 1, timeout=5)
+        vehicle = Autopilot.connect(link, 1, timeout=5)
         with pytest.raises(CommandRejected) as caught:
             vehicle.set_mode("GUIDED")
         assert caught.value.command == "MAV_CMD_DO_SET_MODE"
@@ -142,13 +142,13 @@ def test_a_vehicle_that_accepts_a_mode_but_keeps_its_own_is_caught() -> None:
 def test_a_mode_change_without_a_heartbeat_after_the_ack_times_out() -> None:
     with FakeAutopilot(system_id=1, silent_after=mavlink.MAV_CMD_DO_SET_MODE) as mute, \
             Link(f"udpout:127.0.0.1:{mute.port}", lost_after=30.0) as link:
-        vehicle = Vehicle(link, link.wait_vehicle(1, timeout=5), mode_timeout=0.3)
+        vehicle = Autopilot(link, link.wait_vehicle(1, timeout=5), mode_timeout=0.3)
         with pytest.raises(VehicleTimeout, match="GUIDED accepted, but no HEARTBEAT"):
             vehicle.set_mode("GUIDED")
         assert mute.mode == 4  # it did switch: only the proof is missing
 
 
-def test_refused_command_raises_command_rejected_with_names(vehicle: Vehicle) -> None:
+def test_refused_command_raises_command_rejected_with_names(vehicle: Autopilot) -> None:
     with pytest.raises(CommandRejected) as caught:
         vehicle.arm()
     error = caught.value
@@ -157,8 +157,8 @@ def test_refused_command_raises_command_rejected_with_names(vehicle: Vehicle) ->
 
 
 def test_unanswered_command_is_retransmitted_then_times_out(
-        fake: FakeAutopilot, vehicle: Vehicle) -> None:
-    impatient = Vehicle(vehicle.link, vehicle.info, command_timeout=0.05, command_retries=3)
+        fake: FakeAutopilot, vehicle: Autopilot) -> None:
+    impatient = Autopilot(vehicle.link, vehicle.info, command_timeout=0.05, command_retries=3)
     with pytest.raises(VehicleTimeout, match="MAV_CMD_DO_GRIPPER"):
         impatient.gripper(grab=True)
     sent = [m for m in fake.commands if m.command == mavlink.MAV_CMD_DO_GRIPPER]
@@ -167,7 +167,7 @@ def test_unanswered_command_is_retransmitted_then_times_out(
 
 
 def test_convenience_commands_send_the_right_mav_cmds(fake: FakeAutopilot,
-                                                      vehicle: Vehicle) -> None:
+                                                      vehicle: Autopilot) -> None:
     vehicle.takeoff(12.0)
     vehicle.land()
     vehicle.return_to_launch()
@@ -190,14 +190,14 @@ def test_convenience_commands_send_the_right_mav_cmds(fake: FakeAutopilot,
     assert (reposition.x, reposition.y, reposition.z) == (-353600000, 1491600000, 15.0)
 
 
-def test_rates_fall_back_to_request_data_stream(fake: FakeAutopilot, vehicle: Vehicle) -> None:
+def test_rates_fall_back_to_request_data_stream(fake: FakeAutopilot, vehicle: Autopilot) -> None:
     assert vehicle.request_rates({"ATTITUDE": 10.0}) is False
     assert eventually(lambda: any(m.get_type() == "REQUEST_DATA_STREAM" and
                                   m.req_message_rate == 10 for m in fake.received))
 
 
 def test_mission_upload_with_home_slot_and_read_back(fake: FakeAutopilot,
-                                                     vehicle: Vehicle) -> None:
+                                                     vehicle: Autopilot) -> None:
     progress: list[Progress] = []
     sent = vehicle.upload(items(20), on_progress=progress.append)
     stored = fake.missions[MissionType.MISSION]
@@ -211,7 +211,7 @@ def test_mission_upload_with_home_slot_and_read_back(fake: FakeAutopilot,
 
 
 def test_fence_upload_keeps_seq_zero_and_clear_empties_it(fake: FakeAutopilot,
-                                                          vehicle: Vehicle) -> None:
+                                                          vehicle: Autopilot) -> None:
     fence = [MissionItem(seq=i, frame=5, command=5001, param1=3, x=i, y=i,
                          mission_type=MissionType.FENCE) for i in range(3)]
     vehicle.upload(fence, MissionType.FENCE)
@@ -221,7 +221,7 @@ def test_fence_upload_keeps_seq_zero_and_clear_empties_it(fake: FakeAutopilot,
     assert fake.missions[MissionType.FENCE] == []
 
 
-def test_read_back_mismatch_is_a_transfer_error(fake: FakeAutopilot, vehicle: Vehicle) -> None:
+def test_read_back_mismatch_is_a_transfer_error(fake: FakeAutopilot, vehicle: Autopilot) -> None:
     fake.store_altitude = 99.0  # a vehicle that does not keep what it was sent
     with pytest.raises(MissionTransferError) as caught:
         vehicle.upload(items(2))
@@ -232,7 +232,7 @@ def test_read_back_mismatch_is_a_transfer_error(fake: FakeAutopilot, vehicle: Ve
 
 
 def test_ardupilot_read_back_is_compared_by_its_storage_rules(fake: FakeAutopilot,
-                                                             vehicle: Vehicle) -> None:
+                                                             vehicle: Autopilot) -> None:
     # The fake keeps what it is sent: a hold of 2.5 s that ArduPilot would store as 2 s is
     # a difference, and a yaw that ArduPilot drops is not compared.
     hold = [replace(item, param1=2.5, param4=90.0) for item in items(5)]
@@ -257,7 +257,7 @@ def sim_link() -> Iterator[tuple[Simulator, Link]]:
 def test_simulated_copter_is_discovered_takes_off_and_reports_it(
         sim_link: tuple[Simulator, Link]) -> None:
     sim, link = sim_link
-    vehicle = Vehicle.connect(link, 1, timeout=10)
+    vehicle = Autopilot.connect(link, 1, timeout=10)
     assert (vehicle.info.vehicle_type, vehicle.info.autopilot) == (
         mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA)
     assert vehicle.request_rates() is True
@@ -280,7 +280,7 @@ def test_simulated_copter_mode_changes_are_confirmed_or_refused() -> None:
     params = {"SIM_EKF_GPS_TIME": 1000, "DISARM_DELAY": 0}
     with Simulator(vehicles=1, tcp_base_port=0, speedup=20.0, params=params) as sim, \
             Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}") as link:
-        vehicle = Vehicle.connect(link, 1, timeout=10)
+        vehicle = Autopilot.connect(link, 1, timeout=10)
         vehicle.set_mode("GUIDED")  # disarmed, ArduCopter enters any mode
         vehicle.set_mode("LAND")  # returns only once a HEARTBEAT has shown LAND
         assert vehicle.telemetry.mode == "LAND" and sim.vehicle(1).mode == "LAND"
@@ -292,7 +292,7 @@ def test_simulated_copter_mode_changes_are_confirmed_or_refused() -> None:
         assert caught.value.result == "MAV_RESULT_FAILED" and sim.vehicle(1).mode == "STABILIZE"
 
 
-def arms(vehicle: Vehicle) -> bool:
+def arms(vehicle: Autopilot) -> bool:
     """One arming attempt: True when accepted."""
     try:
         vehicle.arm()
@@ -304,7 +304,7 @@ def arms(vehicle: Vehicle) -> bool:
 def test_simulated_copter_keeps_an_uploaded_mission_in_items_1_to_n(
         sim_link: tuple[Simulator, Link]) -> None:
     sim, link = sim_link
-    vehicle = Vehicle.connect(link, 1, timeout=10)
+    vehicle = Autopilot.connect(link, 1, timeout=10)
     assert eventually(lambda: sim.time > 1.5)  # uploads are refused for a second after boot
     sent = vehicle.upload(items(50))  # read back and compared from item 1 on
     stored = sim.vehicle(1).mission_items
@@ -326,7 +326,7 @@ def test_upload_and_read_back_survive_30_percent_loss_each_way(seed: int) -> Non
             Simulator(vehicles=1, tcp_base_port=0, speedup=50.0, faults=faults,
                       lockstep=timebase) as sim, \
             Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}", timebase=timebase) as link:
-        vehicle = Vehicle.connect(link, 1, timeout=20)
+        vehicle = Autopilot.connect(link, 1, timeout=20)
         timebase.sleep(1.5 - timebase.now())  # uploads are refused a second after boot
         vehicle.upload(sent)  # read back over the same lossy link and compared, or raises
         assert [(m.seq - 1, m.x, m.z) for m in sim.vehicle(1).mission_items[1:]] == [
@@ -340,7 +340,7 @@ def test_a_simulated_outage_makes_the_vehicle_lost_until_it_ends() -> None:
     faults = Faults(outages=((20.0, 60.0),))
     with Simulator(vehicles=1, tcp_base_port=0, speedup=20.0, faults=faults) as sim, \
             Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}", lost_after=0.5) as link:
-        vehicle = Vehicle.connect(link, 1, timeout=10)
+        vehicle = Autopilot.connect(link, 1, timeout=10)
         lost = link.wait_telemetry(1, lambda t: t.link_lost, timeout=20)
         assert sim.faults.in_outage(sim.time) and lost.mode == "STABILIZE"
         with pytest.raises(LinkLost):  # sent once, but its retries are not waited out
@@ -361,7 +361,7 @@ def test_an_object_under_the_flying_vehicle_is_detected_over_the_link() -> None:
     with Simulator(vehicles=1, tcp_base_port=0, speedup=20.0, world=world,
                    params=quick_fix) as sim, \
             Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}") as link:
-        vehicle = Vehicle.connect(link, 1, timeout=10)
+        vehicle = Autopilot.connect(link, 1, timeout=10)
         vehicle.request_rates()  # nothing streams until asked, as on ArduPilot
         link.send(mavlink.MAVLink_param_set_message(1, COMPANION_COMPONENT, b"RECOG_MARKERS", 1,
                                                     mavlink.MAV_PARAM_TYPE_REAL32))
@@ -382,7 +382,7 @@ def test_two_simulated_vehicles_on_two_links_are_kept_apart() -> None:
     with Simulator(vehicles=2, tcp_base_port=0, speedup=20.0) as sim, \
             Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}") as one, \
             Link(f"tcp:127.0.0.1:{sim.tcp_ports[1]}") as two:
-        first, second = Vehicle.connect(one, 1, timeout=10), Vehicle.connect(two, 2, timeout=10)
+        first, second = Autopilot.connect(one, 1, timeout=10), Autopilot.connect(two, 2, timeout=10)
         second.set_mode("LAND")
         assert eventually(lambda: second.telemetry.mode == "LAND")
         assert sim.vehicle(2).mode == "LAND" and sim.vehicle(1).mode != "LAND"

@@ -592,6 +592,50 @@ def test_a_vehicle_that_sends_to_a_udp_port_flies(scheme: str, tmp_path: Path,
     assert "vehicle 1: mission completed: all tasks done" in out.out
 
 
+@pytest.fixture
+def two_systems_on_one_port() -> Iterator[str]:
+    """A router's view: two simulated vehicles sending to one UDP port, system 1 a rover
+    and system 2 a copter; the address that hears both."""
+    port = _free_udp_port()
+    with simulator("--vehicles", "2", "--frame", "rover,copter", "--fast-boot",
+                   "--speedup", "10", "--out", f"udp:127.0.0.1:{port}"):
+        yield f"udpin:127.0.0.1:{port}"
+
+
+def test_a_link_that_hears_several_vehicles_flies_the_one_its_sysid_names(
+        two_systems_on_one_port: str, tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(["run", write(tmp_path, SHORT), "--connect", two_systems_on_one_port,
+                 "--sysid", "2", "-q", "--timeout", "60"])
+    out = capsys.readouterr()
+    assert code == 0, out  # the copter: the rover would have been refused a take-off
+    assert "vehicle 1: mission completed: all tasks done" in out.out
+
+
+def test_a_link_that_hears_several_vehicles_without_a_sysid_says_which_it_heard(
+        two_systems_on_one_port: str, tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(["run", write(tmp_path, SHORT), "--connect", two_systems_on_one_port,
+                 "-q", "--timeout", "60"])
+    err = capsys.readouterr().err
+    assert code == ExitCode.USAGE, err
+    assert err.strip().splitlines() == [
+        f"tml run: {two_systems_on_one_port}: vehicles with system ids 1, 2 heard: say which "
+        "to fly with --sysid N (repeated for several: --sysid 1 --sysid 2)"]
+
+
+def test_a_sysid_not_heard_names_those_that_were(two_systems_on_one_port: str,
+                                                 tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(["run", write(tmp_path, SHORT), "--connect", two_systems_on_one_port,
+                 "--sysid", "7", "-q", "--timeout", "5"])
+    err = capsys.readouterr().err
+    assert code == ExitCode.FAILURE, err
+    assert err.strip().splitlines() == [
+        f"tml run: vehicle 7: no heartbeat from vehicle 7 on {two_systems_on_one_port} "
+        "within 5 s (heard: system id 1, 2)"]
+
+
 def test_a_vehicle_that_signs_its_messages_met_without_a_key_is_said_at_once(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     key = tmp_path / "key"

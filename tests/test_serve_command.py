@@ -10,6 +10,7 @@ import json
 import re
 import shlex
 import signal
+import socket
 import sqlite3
 import subprocess
 import sys
@@ -184,6 +185,22 @@ def test_an_address_without_its_scheme_is_a_usage_error(
     assert err.startswith("tml serve: --connect 127.0.0.1:5760: not an address: a network "
                           "address starts with its scheme"), err
     assert len(err.strip().splitlines()) == 1
+
+
+def test_a_link_that_hears_several_vehicles_needs_a_sysid(
+        data: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    with simulator("--vehicles", "2", "--fast-boot", "--speedup", "10", "--out",
+                   f"udp:127.0.0.1:{port}"):
+        code = main(["serve", "--connect", f"udpin:127.0.0.1:{port}", "--port", "0",
+                     "--data", str(data)])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert err.strip().splitlines()[-1] == (
+        f"tml serve: udpin:127.0.0.1:{port}: vehicles with system ids 1, 2 heard: say which "
+        "to fly with --sysid N (repeated for several: --sysid 1 --sysid 2)")
 
 
 def test_sigterm_sends_a_flying_vehicle_to_its_safe_state_first(data: Path) -> None:

@@ -178,7 +178,7 @@ def _run(args: argparse.Namespace, options: SessionOptions, mission: Mission, wo
          console: Console, errors: Console, resumed: Resumed) -> ExitCode:
     """Open the vehicles, clear the mission and fly; the exit code."""
     from tml.errors import TmlError
-    from tml.run.session import Refusal, open_session
+    from tml.run.session import Refusal, SeveralVehicles, open_session
 
     try:
         with open_session(options, world, errors) as session:
@@ -189,6 +189,9 @@ def _run(args: argparse.Namespace, options: SessionOptions, mission: Mission, wo
     except Stopped as error:
         errors.print(f"tml run: {error} before the mission started", markup=False)
         return ExitCode.ABORTED
+    except SeveralVehicles as error:
+        errors.print(f"tml run: {error}", markup=False)
+        return ExitCode.USAGE
     except TmlError as error:
         errors.print(f"tml run: {error}", markup=False)
         return ExitCode.FAILURE

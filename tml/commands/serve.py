@@ -169,7 +169,7 @@ def _serve(args: argparse.Namespace, token: str | None, listening: socket.socket
         print(f"tml serve: {error}", file=sys.stderr)
         return ExitCode.USAGE
     from tml.run.display import output_console
-    from tml.run.session import open_session
+    from tml.run.session import SeveralVehicles, open_session
 
     hangars: list[Hangar] = []  # the hangar, once the vehicles it holds are open
 
@@ -207,6 +207,9 @@ def _serve(args: argparse.Namespace, token: str | None, listening: socket.socket
             for message in service.said:
                 print(f"tml serve: {message}", file=sys.stderr)
             return ExitCode.OK if server.started else ExitCode.USAGE
+    except SeveralVehicles as error:
+        print(f"tml serve: {error}", file=sys.stderr)
+        return ExitCode.USAGE
     except TmlError as error:
         print(f"tml serve: {error}", file=sys.stderr)
         return ExitCode.FAILURE

@@ -92,6 +92,10 @@ def add_vehicle_arguments(parser: argparse.ArgumentParser) -> None:
     where.add_argument("--connect", action="append", metavar="URL",
                        help="fly the vehicle at this MAVLink address (tcp:HOST:PORT, "
                             "udpin:0.0.0.0:14550, /dev/ttyACM0 ...); repeatable")
+    parser.add_argument("--sysid", type=system_id, action="append", default=[], metavar="N",
+                        help="--connect: fly the vehicle with this MAVLink system id "
+                             "(repeatable, in this order); needed when an address hears "
+                             "several vehicles (default: the one vehicle heard)")
     parser.add_argument("--vehicles", type=_sim_vehicles, default=1, metavar="N",
                         help="--sim: number of simulated vehicles (default 1)")
     parser.add_argument("--speedup", type=positive, default=1.0, metavar="K",
@@ -150,7 +154,8 @@ def session_options(args: argparse.Namespace, program: str, *, lockstep: bool = 
         simulator = SimulatorOptions(vehicles=args.vehicles, speedup=args.speedup,
                                      params=dict(args.sim_param), frames=tuple(args.sim_frame))
     return SessionOptions(
-        connect=tuple(args.connect or ()), simulator=simulator,
+        connect=tuple(args.connect or ()), system_ids=tuple(dict.fromkeys(args.sysid)),
+        simulator=simulator,
         open_simulator=open_simulator if args.sim else None, outputs=tuple(args.out),
         signing_key_file=args.signing_key_file, timeout=args.timeout, clock=args.clock,
         lockstep=lockstep and args.sim, link_lost_limit=args.link_lost_limit,
@@ -162,6 +167,9 @@ def session_options(args: argparse.Namespace, program: str, *, lockstep: bool = 
 def vehicle_problem(args: argparse.Namespace) -> str | None:
     """What is wrong with the signing key or an address of :func:`add_vehicle_arguments`,
     said with the option and the value; None when nothing is."""
+    if args.sim and args.sysid:
+        return ("--sysid picks vehicles on --connect addresses; the simulator's are "
+                "numbered 1 to --vehicles")
     return _signing_problem(args) or _address_problem(args)
 
 

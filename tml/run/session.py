@@ -8,7 +8,9 @@ line parser goes below ``tml/commands``) and opens a :class:`Session` with
 
 1. opens the vehicles: the embedded simulator, through the factory the command passes
    (``tml/run`` does not import ``sitl``), and a link to each of its vehicles; or a link
-   per ``--connect`` address, each waited for (``timeout``) and its vehicles discovered;
+   per ``--connect`` address, each waited for (``timeout``) and its vehicle found: the
+   one it hears, or those named by system id (``--sysid``); a link that hears several
+   vehicles when none is named is :class:`SeveralVehicles`, never a guess;
 2. wakes whoever flies them on every message that changes what a vehicle shows and on
    every request result: its own :attr:`Session.wake` flag (one runner), or ``notify``
    (a service whose runs each have their own);
@@ -36,7 +38,7 @@ from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Protocol
 
-from tml.errors import TmlError
+from tml.errors import LinkLost, TmlError
 from tml.timebase import SYSTEM, Flag, Lockstep, Timebase
 
 if TYPE_CHECKING:
@@ -91,6 +93,9 @@ class SessionOptions:
 
     connect: tuple[str, ...] = ()
     """The MAVLink addresses of the vehicles (empty with ``simulator``)."""
+    system_ids: tuple[int, ...] = ()
+    """The vehicles to fly on those addresses, by MAVLink system id (``--sysid``), in
+    this order; empty: the one vehicle each address hears."""
     simulator: SimulatorOptions | None = None
     """Fly on the embedded simulator (``--sim``), started by ``open_simulator``."""
     open_simulator: SimulatorFactory | None = None
@@ -139,6 +144,11 @@ class Refusal(enum.Enum):
     """The mission: infeasible, or with actions its vehicles cannot do (exit 1)."""
     VEHICLE = "vehicle"
     """A vehicle: no failsafe of its own while one is required (exit 4)."""
+
+
+class SeveralVehicles(TmlError):
+    """A link hears several vehicles and none was named (``--sysid``): which to fly is
+    the operator's to say (exit 2), not tml's to guess."""
 
 
 class Session:
@@ -333,7 +343,10 @@ def open_session(options: SessionOptions, world: World, errors: Console | None =
                 # Said once: pymavlink's own retry messages are kept from the terminal.
                 errors.print(f"{options.program}: waiting up to {options.timeout:g} s for a "
                              f"vehicle at {address}", markup=False, highlight=False)
-            ids = [system_id] if system_id else _discover(link, options.timeout)
+            ids = [system_id] if system_id else _discover(
+                link, options.timeout, options.system_ids, alone=len(addresses) == 1)
+            if options.system_ids:  # a vehicle heard on two links is flown on the first
+                ids = [sid for sid in ids if sid not in {v.system_id for v in vehicles}]
             if not options.sim and options.clock == "vehicle" and not vehicles:
                 # The first vehicle's clock times the mission and every vehicle's link.
                 clock = vehicle_clock = VehicleClock(link, ids[0])
@@ -347,6 +360,13 @@ def open_session(options: SessionOptions, world: World, errors: Console | None =
                 stack.callback(vehicle.close)
                 vehicle.prepare()
                 vehicles.append(vehicle)
+        missing = [sid for sid in options.system_ids
+                   if sid not in {vehicle.system_id for vehicle in vehicles}]
+        if missing:
+            heard = sorted({sid for v in vehicles for sid in v.link.vehicles()})
+            raise TmlError(f"no vehicle with system id {_ids(missing)} heard on "
+                           f"{', '.join(options.connect)} within {options.timeout:g} s "
+                           f"(heard: {_ids(heard) or 'none'})")
         if vehicle_clock is not None and not vehicle_clock.wait_started(options.timeout):
             raise TmlError(f"vehicle {vehicles[0].vehicle_id} sent no time stamp "
                            f"(time_boot_ms) in {options.timeout:g} s; --clock vehicle needs "
@@ -354,9 +374,32 @@ def open_session(options: SessionOptions, world: World, errors: Console | None =
         yield Session(options, vehicles, wake, clock, timebase, errors)
 
 
-def _discover(link: Link, timeout: float) -> list[int]:
-    """The system ids of the vehicles on a link: the first one, and any heard within
-    :data:`DISCOVERY_WAIT`."""
+def _discover(link: Link, timeout: float, wanted: Sequence[int], alone: bool) -> list[int]:
+    """The system ids of the vehicles to fly on ``link``: those of ``wanted`` it carries,
+    in that order (each waited for when the link is the only one: they are all on it),
+    else the one vehicle it hears. Other vehicles have :data:`DISCOVERY_WAIT` after the
+    first to say hello. Raises :class:`SeveralVehicles` when more than one is heard and
+    none is wanted."""
+    if wanted and alone:
+        try:
+            return [link.wait_vehicle(sid, timeout).system_id for sid in wanted]
+        except LinkLost as error:
+            heard = sorted(link.vehicles())
+            if not heard:
+                raise
+            raise LinkLost(f"{error} (heard: system id {_ids(heard)})") from None
     first = link.wait_vehicle(None, timeout)
     time.sleep(DISCOVERY_WAIT)  # other vehicles on the same link say hello too
-    return sorted({first.system_id, *link.vehicles()})
+    heard = sorted({first.system_id, *link.vehicles()})
+    if wanted:
+        return [sid for sid in wanted if sid in heard]
+    if len(heard) > 1:
+        raise SeveralVehicles(
+            f"{link.address}: vehicles with system ids {_ids(heard)} heard: say which to "
+            f"fly with --sysid N (repeated for several: --sysid {heard[0]} --sysid "
+            f"{heard[1]})")
+    return heard
+
+
+def _ids(system_ids: Sequence[int]) -> str:
+    return ", ".join(map(str, system_ids))

@@ -169,6 +169,10 @@ class Service:
         self._parsed: OrderedDict[str, Mission] = OrderedDict()  # small ones: _parse
         self._lock = threading.Lock()
         self._commands: dict[int, dict[str, Any]] = {}  # each vehicle's last operator command
+        # In a cluster (tml.serve.cluster): has the instance named carry out a request
+        # about a run it flies, and answers as it did (tml.serve.forward).
+        self.forward: Callable[[str, dict[str, Any]], tuple[int, str, dict[str, Any]]] \
+            | None = None
 
     # --- life ----------------------------------------------------------------------------
 
@@ -396,6 +400,8 @@ class Service:
 
     def abort(self, run_id: str) -> dict[str, Any]:
         """Abort a live run: every vehicle to its safe state."""
+        if self._elsewhere(run_id, {"op": "abort"}):
+            return self.run(run_id)
         live = self._live_run(run_id)
         live.abort("aborted by the operator")
         return self.run(run_id)
@@ -403,6 +409,8 @@ class Service:
     def control(self, run_id: str, kind: str, target: str = "") -> dict[str, Any]:
         """Pause, resume or jump a live run: 409 when the run refuses now (not started,
         paused already ...), 422 when the language refuses the jump (with its ``code``)."""
+        if self._elsewhere(run_id, {"op": "control", "kind": kind, "target": target}):
+            return self.run(run_id)
         live = self._live_run(run_id)
         try:
             live.control(kind, target)
@@ -412,6 +420,37 @@ class Service:
                               ) from None
             raise Conflict(f"cannot {kind} run {run_id}: {refusal}") from None
         return self.run(run_id)
+
+    def carry_out(self, request: Mapping[str, Any]) -> tuple[int, str, dict[str, Any]]:
+        """A request another instance of the cluster forwarded about a run this one flies
+        (``op``: ``abort`` or ``control``): its HTTP status, message and detail."""
+        try:
+            if request.get("op") == "abort":
+                self.abort(str(request["run"]))
+            elif request.get("op") == "control":
+                self.control(str(request["run"]), str(request["kind"]),
+                             str(request.get("target", "")))
+            else:
+                raise RequestError(f"unknown forwarded request {request.get('op')!r}")
+        except RequestError as refused:
+            return refused.status, refused.message, jsonable(refused.detail)
+        return 200, "done", {}
+
+    def _elsewhere(self, run_id: str, request: dict[str, Any]) -> bool:
+        """Whether the run is flown by another instance of the cluster, which then
+        carried out ``request`` (its refusal raised here as it gave it)."""
+        if self.forward is None or self.live(run_id) is not None:
+            return False
+        stored = self.storage.run(run_id)
+        if stored is None or stored.instance == self.options.instance \
+                or stored.status not in ACTIVE:
+            return False
+        status, message, detail = self.forward(stored.instance, {**request, "run": run_id})
+        if status != 200:
+            refused = RequestError(message, **detail)
+            refused.status = status
+            raise refused
+        return True
 
     def live(self, run_id: str) -> LiveRun | None:
         """The run if it is flying (or about to), or has ended and is not stored yet; else

@@ -184,7 +184,9 @@ class Storage:
     def update_run(self, run_id: str, *, status: str, reason: str | None = None,
                    outcomes: list[dict[str, Any]] | None = None, exit_code: int | None = None,
                    ended: float | None = None) -> None:
-        """Change a run's status (and, when it has ended, its outcome)."""
+        """Change a run's status (and, when it has ended, its outcome). A run marked
+        ``interrupted`` stays so: in a cluster, another instance has taken it over, and
+        what a stalled instance still writes of it changes nothing (tml.serve.cluster)."""
         values: dict[str, Any] = {"status": status}
         if reason is not None:
             values["reason"] = reason
@@ -195,7 +197,8 @@ class Storage:
         if ended is not None:
             values["ended"] = ended
         with self.engine.begin() as db:
-            db.execute(_runs.update().where(_runs.c.id == run_id).values(**values))
+            db.execute(_runs.update().where(_runs.c.id == run_id,
+                                            _runs.c.status != "interrupted").values(**values))
 
     def runs(self) -> list[StoredRun]:
         """Every run, the oldest first."""

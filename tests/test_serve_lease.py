@@ -1,0 +1,207 @@
+"""The cluster's leases, fence and control channel (tml.serve.lease, tml.serve.cluster,
+tml.serve.forward) against a real PostgreSQL server (Debian's ``postgresql`` package;
+skipped with the reason where there is none). Leases expire by the server's clock: a test
+waits for the state it needs (an expiry) with a hang guard, never for a set time."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import pytest
+import sqlalchemy as sa
+from serving import postgresql
+
+from tml.serve.cluster import ClusterHangar, VehicleLeased
+from tml.serve.forward import Forwarder, Unanswered
+from tml.serve.lease import ClusterError, Leases, Taken
+from tml.serve.storage import Storage, StoredRun
+
+
+@pytest.fixture(scope="module")
+def database() -> Iterator[str]:
+    try:
+        with postgresql() as url:
+            yield url
+    except LookupError as why:
+        pytest.skip(str(why))
+
+
+@pytest.fixture
+def engine(database: str) -> Iterator[sa.Engine]:
+    storage = Storage(database)  # the runs table, as a service makes it
+    with storage.engine.begin() as db:
+        for table in ("runs", "log_lines", "cluster_instances", "vehicle_leases",
+                      "lease_handovers"):
+            db.execute(sa.text(f"DROP TABLE IF EXISTS {table}"))
+    storage.close()
+    storage = Storage(database)
+    yield storage.engine
+    storage.close()
+
+
+def until(done: Callable[[], bool], guard: float = 20.0) -> None:
+    """Wait for ``done`` (a hang guard, not a timing assertion)."""
+    end = time.monotonic() + guard
+    while not done():
+        assert time.monotonic() < end, "state not reached"
+        time.sleep(0.02)
+
+
+def test_an_instance_name_is_held_by_one_live_process(engine: sa.Engine) -> None:
+    first, second = Leases(engine, "a", lease=0.5), Leases(engine, "a", lease=0.5)
+    assert first.join()
+    assert not second.join()  # the first one's lease runs
+    until(second.join)  # ... until it expires: a restarted process gets the name
+    assert not first.renew()  # and the first one's session is over for good
+    assert second.renew()
+
+
+def test_a_vehicle_is_owned_by_one_instance_until_its_lease_expires(
+        engine: sa.Engine) -> None:
+    a, b = Leases(engine, "a", lease=0.5), Leases(engine, "b", lease=30.0)
+    assert a.join() and b.join()
+    taken = a.take(7)
+    assert taken is not None and taken.token == 1 and taken.previous is None
+    assert a.take(7) == Taken(7, 1, "a")  # taking it again changes nothing
+    assert b.take(7) is None
+    assert b.owners([7, 8]) == {7: "a"}
+    until(lambda: b.take(7) is not None)  # a stopped renewing: b takes it over
+    assert b.owners([7]) == {7: "b"}
+    assert a.take(7) is None and not a.renew()
+    with engine.connect() as db:
+        handovers = db.execute(sa.text(
+            "SELECT token, owner, previous FROM lease_handovers WHERE vehicle = 7 "
+            "ORDER BY token")).all()
+    assert [tuple(h) for h in handovers] == [(1, "a", None), (2, "b", "a")]
+
+
+def test_a_released_vehicle_is_free_at_once_and_leaving_frees_every_one(
+        engine: sa.Engine) -> None:
+    a, b = Leases(engine, "a", lease=30.0), Leases(engine, "b", lease=30.0)
+    assert a.join() and b.join()
+    assert a.take(1) and a.take(2)
+    a.release(1)
+    assert b.take(1) == Taken(1, 2, None)  # nobody owned it: a gave it back
+    a.leave()
+    assert b.take(2) == Taken(2, 2, None)
+    assert b.live_instances() == {"b": 255}
+
+
+def test_two_instances_taking_one_vehicle_at_once_get_it_once(engine: sa.Engine) -> None:
+    instances = [Leases(engine, f"i{n}", lease=30.0) for n in range(4)]
+    assert all(i.join() for i in instances)
+    won: list[str] = []
+    start = threading.Barrier(len(instances))
+
+    def take(leases: Leases) -> None:
+        start.wait()
+        if leases.take(3) is not None:
+            won.append(leases.name)
+
+    threads = [threading.Thread(target=take, args=(i,)) for i in instances]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert len(won) == 1
+
+
+def test_the_runs_of_an_expired_instance_are_adopted_by_one_survivor(
+        engine: sa.Engine, database: str) -> None:
+    storage = Storage(database)
+    dead, one, two = (Leases(engine, name, lease=lease)
+                      for name, lease in (("dead", 0.3), ("one", 30.0), ("two", 30.0)))
+    assert dead.join() and one.join() and two.join()
+    for run_id, instance, status in (("r1", "dead", "running"), ("r2", "one", "running"),
+                                     ("r3", "dead", "completed")):
+        storage.add_run(StoredRun(run_id, "m", "M", "<mission/>", [1], status, "", [], None,
+                                  instance, {}, time.time(), None))
+    assert one.orphans() == []
+    until(lambda: one.orphans() == ["r1"])
+    assert two.adopt("r1", "its instance died", time.time())
+    assert not one.adopt("r1", "its instance died", time.time())
+    stored = storage.run("r1")
+    assert stored is not None and stored.status == "interrupted"
+    # What the dead instance still writes of it changes nothing.
+    storage.update_run("r1", status="failed", reason="late", ended=time.time())
+    assert storage.run("r1").status == "interrupted"  # type: ignore[union-attr]
+    # A process restarted under a live name adopts what its predecessor flew.
+    assert one.orphans(own=True) == ["r2"]
+    storage.close()
+
+
+class _Link:
+    gate: Callable[[int], bool] | None = None
+
+
+class _Vehicle:
+    def __init__(self, vehicle_id: int, system_id: int, link: _Link) -> None:
+        self.vehicle_id, self.system_id, self.link = vehicle_id, system_id, link
+
+    def state(self) -> Any:
+        return type("State", (), {"armed": False})()
+
+
+def test_the_fence_opens_only_for_owned_vehicles_within_the_proven_lease(
+        engine: sa.Engine) -> None:
+    now = [100.0]
+    shared, alone = _Link(), _Link()
+    vehicles = [_Vehicle(1, 1, shared), _Vehicle(2, 2, shared), _Vehicle(3, 1, alone)]
+    leases = Leases(engine, "a", lease=3.0)
+    hangar = ClusterHangar(vehicles, time.monotonic, leases,  # type: ignore[arg-type]
+                           monotonic=lambda: now[0])
+    assert shared.gate is not None and alone.gate is not None
+    assert not alone.gate(0)  # nothing owned, nothing proven: not even a HEARTBEAT
+    sent = now[0]
+    assert leases.join()
+    hangar.renewed(sent)
+    hangar.claim([3, 1], "run")
+    assert alone.gate(0) and alone.gate(1) and shared.gate(1)
+    assert not shared.gate(2) and not shared.gate(0)  # vehicle 2 is not ours
+    now[0] = sent + 3.0 - 0.5 - 0.01
+    assert alone.gate(1)
+    now[0] = sent + 3.0 - 0.5  # the renewal's proof has run out: silence at once
+    assert not alone.gate(1) and not hangar.may_send(3)
+    hangar.renewed(now[0])
+    assert alone.gate(1)
+    other = Leases(engine, "b", lease=3.0)
+    assert other.join() and other.take(2) is not None
+    with pytest.raises(VehicleLeased, match="leased by the service instance 'b'"):
+        hangar.claim([2], "run2")
+    assert hangar.holder(2) is None
+    hangar.release("run")
+    assert sorted(hangar.give_back()) == [1, 3]  # disarmed and held by nothing
+    assert not alone.gate(1)
+
+
+def test_a_cluster_needs_postgresql(tmp_path: Any) -> None:
+    storage = Storage(f"sqlite:///{tmp_path / 'x.sqlite'}")
+    with pytest.raises(ClusterError, match="needs PostgreSQL"):
+        Leases(storage.engine, "a")
+    storage.close()
+
+
+def test_a_control_reaches_the_instance_named_and_comes_back_with_its_answer(
+        engine: sa.Engine) -> None:
+    carried: list[dict[str, Any]] = []
+
+    def owner(request: dict[str, Any]) -> tuple[int, str, dict[str, Any]]:
+        carried.append(request)
+        return 409, "cannot pause run r1: it is paused already", {"run_status": "paused"}
+
+    a = Forwarder(engine, "a", owner)
+    b = Forwarder(engine, "b", lambda request: (500, "not me", {}))
+    a.start()
+    b.start()
+    try:
+        assert b.ask("a", {"op": "control", "kind": "pause", "run": "r1"}) == (
+            409, "cannot pause run r1: it is paused already", {"run_status": "paused"})
+        assert carried == [{"op": "control", "kind": "pause", "run": "r1"}]
+        with pytest.raises(Unanswered, match="'ghost' did not answer"):
+            b.ask("ghost", {"op": "abort", "run": "r2"}, timeout=0.5)
+    finally:
+        a.stop()
+        b.stop()

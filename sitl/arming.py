@@ -47,7 +47,7 @@ REPORT_SOON = 2.0  # s from a mode change or disarm to the report it brings forw
 REPORT_GAP = 4.0  # s: a report brought forward never follows the last one sooner
 
 
-class Vehicle(Protocol):
+class Armable(Protocol):
     """What the checks read from the vehicle model."""
 
     time: float
@@ -67,7 +67,7 @@ def startup_scale(ekf_gps_time: float) -> float:
     return min(1.0, max(ekf_gps_time, 0.0) / EKF_GPS_DEFAULT)
 
 
-def failures(v: Vehicle, ekf_gps_time: float) -> list[str]:
+def failures(v: Armable, ekf_gps_time: float) -> list[str]:
     """The checks that fail now, in ArduCopter's order (empty: armable)."""
     scale = startup_scale(ekf_gps_time)
     if v.time < READY_AT * scale:
@@ -87,7 +87,7 @@ def failures(v: Vehicle, ekf_gps_time: float) -> list[str]:
     return found + v.extra_arming_failures()
 
 
-def prearm_passes(v: Vehicle, ekf_gps_time: float) -> bool:
+def prearm_passes(v: Armable, ekf_gps_time: float) -> bool:
     """SYS_STATUS's pre-arm check bit: the checks pass in the present mode (armed: always)."""
     return v.armed or not [f for f in failures(v, ekf_gps_time) if f != MODE_NOT_ARMABLE]
 

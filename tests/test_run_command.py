@@ -605,11 +605,13 @@ def two_systems_on_one_port() -> Iterator[str]:
 def test_a_link_that_hears_several_vehicles_flies_the_one_its_sysid_names(
         two_systems_on_one_port: str, tmp_path: Path,
         capsys: pytest.CaptureFixture[str]) -> None:
+    log = tmp_path / "flight.jsonl"
     code = main(["run", write(tmp_path, SHORT), "--connect", two_systems_on_one_port,
-                 "--sysid", "2", "-q", "--timeout", "60"])
+                 "--sysid", "2", "-q", "--timeout", "60", "--log", str(log)])
     out = capsys.readouterr()
     assert code == 0, out  # the copter: the rover would have been refused a take-off
     assert "vehicle 1: mission completed: all tasks done" in out.out
+    assert read(str(log))[0]["system_ids"] == [2]
 
 
 def test_a_link_that_hears_several_vehicles_without_a_sysid_says_which_it_heard(

@@ -4,6 +4,7 @@ vehicle, a companion computer or mavlink-router sends to a ground station): ``tm
 
 from __future__ import annotations
 
+import json
 import socket
 from pathlib import Path
 
@@ -27,3 +28,24 @@ def test_arducopter_sending_udp_is_flown_through_udpin(ardupilot, tmp_path: Path
     said = done.stdout + done.stderr
     assert done.returncode == 0, said
     assert "vehicle 1: mission completed: all tasks done" in said
+
+
+@pytest.mark.timeout(600)
+def test_two_arducopters_sending_to_one_port_need_a_sysid(ardupilot, tmp_path: Path) -> None:
+    # As mavlink-router forwards a fleet to one ground-station port: two vehicles, each
+    # with its SERIAL0 sending UDP to the same udpin address.
+    port = _free_udp_port()
+    first, second = ardupilot(count=2, serial0=f"udpclient:127.0.0.1:{port}")
+    address = f"udpin:127.0.0.1:{port}"
+    refused = fly_hop(tmp_path, address)
+    ids = sorted((first.system_id, second.system_id))
+    assert refused.returncode == 2, refused.stdout + refused.stderr
+    assert refused.stderr.strip().splitlines()[-1] == (
+        f"tml run: {address}: vehicles with system ids {ids[0]}, {ids[1]} heard: say which "
+        f"to fly with --sysid N (repeated for several: --sysid {ids[0]} --sysid {ids[1]})")
+    log = tmp_path / "flight.jsonl"
+    done = fly_hop(tmp_path, address, "--sysid", str(second.system_id), "--log", str(log))
+    said = done.stdout + done.stderr
+    assert done.returncode == 0, said
+    assert "vehicle 1: mission completed: all tasks done" in said
+    assert json.loads(log.read_text().splitlines()[0])["system_ids"] == [second.system_id]

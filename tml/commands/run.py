@@ -258,7 +258,8 @@ def _fly(args: argparse.Namespace, session: Session, mission: Mission, world: Wo
                     on_update=(lambda r: display.update(r.views())) if display else None,
                     ids=None if point is None else IdSource(point.next_id),
                     resume=None if point is None else point.progress,
-                    about={"sha256": resumed.digest, "connect": args.connect or []})
+                    about={"sha256": resumed.digest, "connect": args.connect or [],
+                           "system_ids": [v.system_id for v in session.vehicles]})
     try:
         with on_stop_signals(lambda name: runner.stop(f"interrupted ({name})")), \
                 display if display is not None else contextlib.nullcontext():

@@ -60,6 +60,19 @@ def test_take_off_climbs_where_the_vehicle_is() -> None:
         M.MAV_CMD_NAV_TAKEOFF, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, 0, 0, 15.0)
 
 
+def test_frame_encoding_float_names_the_frames_without_int() -> None:
+    plan = compiled(act("TAKE_OFF", altitude="15", frame_encoding="float"),
+                    act("GO_TO_POSITION", latitude="-35.36", longitude="149.16", altitude="600",
+                        altitude_reference="amsl", frame_encoding="float"),
+                    act("LOITER", turns="2", frame_encoding="float"),
+                    act("GO_TO_POSITION", latitude="-35.36", longitude="149.16", altitude="20"),
+                    act("SET_SPEED", speed="4"), start=(0, 0, 0))
+    assert [i.frame for i in plan.items] == [
+        M.MAV_FRAME_GLOBAL_RELATIVE_ALT, M.MAV_FRAME_GLOBAL, M.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+        M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, M.MAV_FRAME_MISSION]
+    assert (plan.items[1].x, plan.items[1].y, plan.items[1].z) == (-353600000, 1491600000, 600)
+
+
 def test_local_points_are_converted_against_home() -> None:
     items = compiled(act("GO_TO_POINT", coordinates="(10, -5, 12)"),
                      act("GO_TO_POINT", relative_coordinates="(1, 1, 1)"),

@@ -253,6 +253,30 @@ def test_waypoints_far_from_home_are_imported_where_they_are(tmp_path: Path) -> 
     assert (back.items[1].x, back.items[1].y) == (363244251, 1386379423)
 
 
+def test_frames_without_int_are_actions_that_name_them(tmp_path: Path) -> None:
+    # ArduPilot's and QGroundControl's files write frame 3 (GLOBAL_RELATIVE_ALT), 0 and 10
+    # where tml writes 6, 5 and 11: the same position, so the same action, which says so.
+    text = WPL_HOME + ("1\t0\t3\t22\t0\t0\t0\t0\t0\t0\t20\t1\n"
+                       "2\t0\t3\t16\t0\t0\t0\t0\t-35.3621\t149.1651\t20\t1\n"
+                       "3\t0\t0\t16\t0\t0\t0\t0\t-35.3622\t149.1652\t620.5\t1\n"
+                       "4\t0\t10\t16\t0\t0\t0\t0\t-35.3623\t149.1653\t30\t1\n"
+                       "5\t0\t3\t19\t10\t0\t15\t0\t-35.3624\t149.1654\t20\t1\n"
+                       "6\t0\t6\t16\t0\t0\t0\t0\t-35.3625\t149.1655\t20\t1\n"
+                       "7\t0\t3\t21\t0\t0\t0\t0\t-35.3625\t149.1655\t20\t1\n")
+    imported = import_plan(read_wpl(text), "frames")
+    assert imported.raw == 0
+    root = etree.fromstring(imported.text.encode())
+    actions = root.findall(".//action")
+    assert [a.get("name") for a in actions] == [
+        "TAKE_OFF", "GO_TO_POSITION", "GO_TO_POSITION", "GO_TO_POSITION", "LOITER",
+        "GO_TO_POSITION", "LANDING_POINT"]
+    encodings = [a.find("argument[@name='frame_encoding']") for a in actions]
+    assert [e is not None and e.get("value") for e in encodings] == [
+        "float", "float", "float", "float", "float", False, "float"]
+    back = _round_trip(read_wpl(text), tmp_path)
+    assert [i.frame for i in back.items] == [3, 3, 0, 10, 3, 6, 3]
+
+
 def test_a_null_param_stays_unset(tmp_path: Path) -> None:
     # QGroundControl writes NaN as null: an altitude null is not 0 m above sea level.
     document = {"fileType": "Plan", "version": 1, "mission": {

@@ -83,7 +83,7 @@ def test_import_of_a_file_that_is_not_a_plan_exits_1(tmp_path: Path, capsys) -> 
 def test_import_refuses_what_it_cannot_carry_unless_allowed(tmp_path: Path, capsys) -> None:
     plan = tmp_path / "scan.plan"
     plan.write_text(json.dumps({"fileType": "Plan", "mission": {"items": [
-        {"type": "SimpleItem", "command": 22, "frame": 3, "params": [0, 0, 0, 0, 0, 0, 10]},
+        {"type": "SimpleItem", "command": 84, "frame": 3, "params": [0, 0, 0, 0, 0, 0, 10]},
         {"type": "ComplexItem", "complexItemType": "StructureScan"}]},
         "rallyPoints": {"points": [[47.1, 8.5, 30]]}}))
     mission = tmp_path / "scan.xml"

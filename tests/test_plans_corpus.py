@@ -91,11 +91,12 @@ def test_each_file_imports_exactly_and_exports_back_item_for_item(
 FLOWN = ["ardupilot_copter_auto_land_to_brake.txt", "ardupilot_copter_do_change_speed.txt",
          "ardupilot_copter_far_origin.txt", "ardupilot_copter_gripper_mission.txt",
          "ardupilot_copter_loiter_to_alt.txt", "ardupilot_copter_nav_delay.txt",
-         "ardupilot_copter_terrain_mission.txt", "ardupilot_copter_weathervane_mission.txt"]
+         "ardupilot_copter_weathervane_mission.txt"]
 """The copter files the embedded simulator flies. The other copter files hold commands it
 refuses in an upload (NAV_ARC_WAYPOINT, DO_AUX_FUNCTION, CONDITION_DISTANCE with
 DO_SET_SERVO, DO_PARACHUTE, NAV_PAYLOAD_PLACE, command 5005) or a home at 0, 0, where it
-finds no position."""
+finds no position; the terrain mission's waypoints are 6,000 km from its home, which the
+verifier finds beyond the vehicle's range and battery (infeasible, not flown)."""
 
 
 @pytest.mark.parametrize("name", FLOWN)

@@ -156,6 +156,13 @@ _ALTITUDE_REFERENCE = ArgumentSpec(
     "what altitude is measured from: home (relative), mean sea level (amsl) or terrain",
     default="relative", choices=("relative", "amsl", "terrain"),
 )
+_FRAME_ENCODING = ArgumentSpec(
+    "frame_encoding", ArgType.CHOICE,
+    "how its mission items name their frame: int (GLOBAL_RELATIVE_ALT_INT, GLOBAL_INT, "
+    "GLOBAL_TERRAIN_ALT_INT) or float (GLOBAL_RELATIVE_ALT, GLOBAL, GLOBAL_TERRAIN_ALT, as "
+    "ArduPilot's and QGroundControl's files write them); the same position either way",
+    default="int", choices=("int", "float"),
+)
 _RADIUS = _number("radius", "loiter circle radius", "m", Quantity.RADIUS, default=15.0,
                   positive=True)
 _YAW = _number(
@@ -168,7 +175,7 @@ _PRECISION = ArgumentSpec(
     default="disabled", choices=("disabled", "opportunistic", "required"),
     aliases=("land_mode", "landMode"),
 )
-_GLOBAL = (_LATITUDE, _LONGITUDE, _ALTITUDE, _ALTITUDE_REFERENCE)
+_GLOBAL = (_LATITUDE, _LONGITUDE, _ALTITUDE, _ALTITUDE_REFERENCE, _FRAME_ENCODING)
 _INTERVAL = _number("interval", "time between photos", "s", Quantity.DURATION, default=2.0,
                     positive=True)
 _LOITER_POSITION = (
@@ -209,6 +216,7 @@ CATALOGUE: tuple[ActionSpec, ...] = (
                     positive=True, aliases=("height",)),
             _number("pitch", "take-off pitch for fixed-wing vehicles (Dolphin takeOff)", "deg",
                     Quantity.ANGLE, default=15.0, minimum=0.0, maximum=90.0),
+            _FRAME_ENCODING,
         ),
     ),
     ActionSpec("LAND", Category.TAKE_OFF_LANDING,
@@ -328,7 +336,7 @@ CATALOGUE: tuple[ActionSpec, ...] = (
     ActionSpec(
         "GO_TO_POSITION", Category.TRANSLATION,
         "Fly to a WGS84 position (Dolphin goPos).",
-        (*(replace(s, required=True) for s in _GLOBAL[:3]), _ALTITUDE_REFERENCE),
+        (*(replace(s, required=True) for s in _GLOBAL[:3]), *_GLOBAL[3:]),
     ),
     ActionSpec(
         "LOITER", Category.HOVER,
@@ -383,7 +391,7 @@ CATALOGUE: tuple[ActionSpec, ...] = (
     ActionSpec(
         "SET_ALTITUDE", Category.TRANSLATION,
         "Climb or descend to an altitude where the vehicle is (Dolphin altitude).",
-        (replace(_ALTITUDE, required=True), _ALTITUDE_REFERENCE),
+        (replace(_ALTITUDE, required=True), _ALTITUDE_REFERENCE, _FRAME_ENCODING),
         aliases=("CHANGE_ALTITUDE", "ALTITUDE"),
     ),
     ActionSpec(
@@ -430,7 +438,8 @@ CATALOGUE: tuple[ActionSpec, ...] = (
         "Set the home position to the vehicle's current position, or to a WGS84 position "
         "(Dolphin home).",
         (_LATITUDE, _LONGITUDE,
-         _number("altitude", "altitude above mean sea level", "m", Quantity.ALTITUDE)),
+         _number("altitude", "altitude above mean sea level", "m", Quantity.ALTITUDE),
+         _FRAME_ENCODING),
         together=(("latitude", "longitude", "altitude"),),
         aliases=("HOME",),
     ),

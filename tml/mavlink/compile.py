@@ -11,7 +11,8 @@ coordinates and the autopilot never has to guess what "here" meant.
 
 Every local point is converted to WGS84 with :mod:`tml.geo` against the vehicle's home.
 Altitudes go in frame GLOBAL_RELATIVE_ALT_INT (above home), GLOBAL_INT when the author gave
-``altitude_reference="amsl"`` and GLOBAL_TERRAIN_ALT_INT for ``terrain``. Items are numbered
+``altitude_reference="amsl"`` and GLOBAL_TERRAIN_ALT_INT for ``terrain`` (their twins without
+_INT, GLOBAL_RELATIVE_ALT ..., with ``frame_encoding="float"``). Items are numbered
 from 0; :meth:`tml.mavlink.autopilot.Autopilot.upload` shifts them behind ArduPilot's home
 item. ``action_index[i]`` says which action item ``i`` came from, so that MISSION_CURRENT
 and MISSION_ITEM_REACHED tell the interpreter which action is being flown.
@@ -31,7 +32,7 @@ NAV_RETURN_TO_LAUNCH would only circle home.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from tml.geo import Point, to_global, to_local
 from tml.language.actions import GLOBAL_FRAME_NUMBERS, RAW_PARAMS, BoundAction
@@ -46,6 +47,14 @@ FRAMES = {
     "amsl": mavlink.MAV_FRAME_GLOBAL_INT,
     "terrain": mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT,
 }
+FLOAT_FRAMES = {
+    mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT: mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+    mavlink.MAV_FRAME_GLOBAL_INT: mavlink.MAV_FRAME_GLOBAL,
+    mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT: mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT,
+}
+"""Each global frame tml writes -> its twin without _INT (frame_encoding="float"): the same
+position (MAVLink made the _INT frames synonyms of their twins), named as ArduPilot's and
+QGroundControl's files name it."""
 SPEED_TYPES = {"airspeed": 0, "ground": 1, "climb": 2, "descent": 3}
 PRECISION_MODES = {"disabled": 0, "opportunistic": 1, "required": 2}
 
@@ -134,7 +143,11 @@ def compile_mission(actions: tuple[BoundAction, ...] | list[BoundAction], home: 
         compiler = _COMPILERS.get(action.name)
         if compiler is None:
             raise CompileError(f"{action.name} cannot be flown as a mission item")
+        first = len(builder.items)
         compiler(builder, action)
+        if action.values.get("frame_encoding") == "float":
+            builder.items[first:] = [replace(item, frame=FLOAT_FRAMES.get(item.frame, item.frame))
+                                     for item in builder.items[first:]]
     _close_trailing_commands(builder)
     return CompiledMission(tuple(builder.items), tuple(builder.owners))
 

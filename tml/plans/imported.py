@@ -39,7 +39,13 @@ from tml.language.kinds import Kind
 from tml.language.mavlink_tables import MAV_CMD, MAV_FRAME
 from tml.language.model import Action, Argument
 from tml.mavlink.codec import mavlink
-from tml.mavlink.compile import PRECISION_MODES, SPEED_TYPES, CompileError, compile_mission
+from tml.mavlink.compile import (
+    FLOAT_FRAMES,
+    PRECISION_MODES,
+    SPEED_TYPES,
+    CompileError,
+    compile_mission,
+)
 from tml.mavlink.mission import LOITER_TURNS_MAX, MissionItem
 from tml.plans.planned import AMSL_FRAMES, GLOBAL_FRAMES, TERRAIN_FRAMES
 from tml.plans.qgc import PlanFile, PlanFileError
@@ -87,6 +93,13 @@ def _position(action: _Action, item: MissionItem) -> None:
         action.arguments["altitude_reference"] = "amsl"
     elif item.frame in TERRAIN_FRAMES:
         action.arguments["altitude_reference"] = "terrain"
+    _encoding(action, item)
+
+
+def _encoding(action: _Action, item: MissionItem) -> None:
+    """frame_encoding="float" for an item in a global frame without _INT (frame 3 ...)."""
+    if item.frame in FLOAT_FRAMES.values():
+        action.arguments["frame_encoding"] = "float"
 
 
 def _placed(item: MissionItem) -> bool:
@@ -94,12 +107,16 @@ def _placed(item: MissionItem) -> bool:
 
 
 def _take_off(item: MissionItem) -> _Action:
-    return _Action("TAKE_OFF", {"altitude": _value(item.z), "pitch": _value(item.param1)})
+    action = _Action("TAKE_OFF", {"altitude": _value(item.z), "pitch": _value(item.param1)})
+    _encoding(action, item)
+    return action
 
 
 def _waypoint(item: MissionItem) -> _Action:
     if not _placed(item):  # "here", at an altitude
-        return _Action("SET_ALTITUDE", {"altitude": _value(item.z)})
+        action = _Action("SET_ALTITUDE", {"altitude": _value(item.z)})
+        _encoding(action, item)
+        return action
     action = _Action("GO_TO_POSITION")
     _position(action, item)
     return action
@@ -165,8 +182,11 @@ def _gripper(item: MissionItem) -> _Action:
 def _set_home(item: MissionItem) -> _Action:
     if item.param1 == 1 or not (item.x or item.y):
         return _Action("SET_HOME")
-    return _Action("SET_HOME", {"latitude": _value(item.x / 1e7),
-                                "longitude": _value(item.y / 1e7), "altitude": _value(item.z)})
+    action = _Action("SET_HOME", {"latitude": _value(item.x / 1e7),
+                                  "longitude": _value(item.y / 1e7),
+                                  "altitude": _value(item.z)})
+    _encoding(action, item)
+    return action
 
 
 ACTIONS: dict[int, Callable[[MissionItem], _Action]] = {

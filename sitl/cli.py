@@ -234,6 +234,8 @@ def build_parser(prog: str = "python -m sitl") -> argparse.ArgumentParser:
     faults.add_argument("--gps-loss-at", type=non_negative, help="vehicle time the GPS fails")
     faults.add_argument("--battery-failure-at", type=non_negative,
                         help="vehicle time the battery fails")
+    faults.add_argument("--reboot-at", type=non_negative,
+                        help="vehicle time the autopilot reboots")
     return parser
 
 
@@ -279,6 +281,7 @@ def main(argv: Sequence[str] | None = None, prog: str = "python -m sitl") -> int
         jitter=args.jitter, duplicate=args.duplicate, reorder=args.reorder,
         outages=tuple(args.outage), reject_commands=dict(args.reject),
         gps_loss_at=args.gps_loss_at, battery_failure_at=args.battery_failure_at,
+        reboot_at=args.reboot_at,
     )
     from sitl.frames import frame_of
     from sitl.server import Simulator

@@ -31,6 +31,8 @@ class Faults:
     ``reject_commands``: command id -> MAV_RESULT the vehicle answers instead of executing.
     ``gps_loss_at``/``battery_failure_at``: vehicle time at which the GPS loses its fix /
     the battery collapses to its critical voltage.
+    ``reboot_at``: vehicle time at which the autopilot reboots (its clock starts again from
+    zero, disarmed, on the ground where it booted: :meth:`sitl.model.VehicleModel.rebooted`).
     """
 
     seed: int = 0
@@ -45,6 +47,7 @@ class Faults:
     reject_commands: dict[int, int] = field(default_factory=dict)
     gps_loss_at: float | None = None
     battery_failure_at: float | None = None
+    reboot_at: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("loss_in", "loss_out", "duplicate", "reorder"):

@@ -83,6 +83,7 @@ THROTTLE_DEADZONE = 30  # microseconds above 1000 where the throttle reads 0 (RC
 # BRAKE stops in about 21 m as ArduCopter SITL does, no shorter than GUIDED's stop.
 BRAKE_DECEL = 7.5
 FORCE_ARM = (2989, 21196)  # param2 magic numbers that skip the checks
+FORCE_REBOOT = 20190226  # PREFLIGHT_REBOOT_SHUTDOWN param4 that reboots even when armed
 LANDED_AFTER = 1.0  # seconds on the ground before touch-down counts (ArduCopter's detector)
 GUIDED_VELOCITY_TIMEOUT = 3.0  # a velocity target older than this stops the vehicle
 # ArduCopter SITL sits 3.0 s on the ground after NAV_TAKEOFF before it climbs: the motors
@@ -126,6 +127,8 @@ class VehicleModel:
         params: dict[str, float] | None = None, faults: Faults | None = None,
     ) -> None:
         self.system_id = system_id
+        self.seed = seed
+        self.reboot_due = False  # asked to reboot: the server puts :meth:`rebooted` in its place
         self.origin = home
         self.home = home
         self.world = world or World(home=home)
@@ -404,6 +407,8 @@ class VehicleModel:
             if built is not None:
                 extra.append(built)
             return ok
+        if command == M.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN:
+            return self._reboot(p[0], p[3])
         if command == M.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
             extra.append(messages.autopilot_version(self))
             return ok
@@ -414,6 +419,27 @@ class VehicleModel:
             extra.append(built)
             return ok
         return Result.UNSUPPORTED
+
+    def _reboot(self, what: float, force: float) -> Result:
+        """PREFLIGHT_REBOOT_SHUTDOWN as ArduPilot answers it: FAILED while armed unless
+        forced (param4 :data:`FORCE_REBOOT`), UNSUPPORTED for anything but rebooting the
+        autopilot (param1 1); else ACCEPTED, and the reboot follows the ACK."""
+        if self.armed and round(force) != FORCE_REBOOT:
+            return Result.FAILED
+        if round(what) != 1:
+            return Result.UNSUPPORTED
+        self.reboot_due = True
+        return Result.ACCEPTED
+
+    def rebooted(self) -> VehicleModel:
+        """The vehicle after a reboot: a new boot of the same kind, clock at zero, disarmed
+        in its first mode, on the ground where it first booted (as an ArduPilot SITL
+        started again), with the parameters it had (ArduPilot keeps them in its EEPROM).
+        The fault that rebooted it (``reboot_at``) does not strike again."""
+        params = {name: value for name, value in self.params.items()
+                  if name not in ("MAV_SYSID", "SYSID_THISMAV")}
+        return type(self)(self.system_id, self.origin, self.world, self.seed, params,
+                          replace(self.faults, reboot_at=None))
 
     def _change_speed(self, speed_type: float, speed: float) -> Result:
         """DO_CHANGE_SPEED as a command, as ArduCopter answers it: DENIED for a speed that
@@ -791,6 +817,9 @@ class VehicleModel:
         failure_at = self.faults.battery_failure_at
         if failure_at is not None and self.time >= failure_at:
             self.battery.failed = True
+        reboot_at = self.faults.reboot_at
+        if reboot_at is not None and self.time >= reboot_at:
+            self.reboot_due = True
         self._check_failsafes()
         if self.mode == "FLIP":
             self._update_flip()

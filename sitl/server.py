@@ -416,6 +416,8 @@ class Simulator:
                 endpoint.incoming.send(self.time, msg)
             else:
                 self._emit(endpoint, endpoint.model.handle(msg))
+                if endpoint.model.reboot_due:  # asked: after its ACK, as ArduPilot
+                    self._reboot(endpoint)
 
     def _route(self, endpoint: _Endpoint, source: _Peer, msg: Any) -> None:
         """Forward ``msg`` from ``source`` to the vehicle's other clients, as ArduPilot's
@@ -441,6 +443,8 @@ class Simulator:
             if endpoint.incoming is not None:
                 for msg in endpoint.incoming.due(self.time):
                     self._emit(endpoint, endpoint.model.handle(msg))
+                    if endpoint.model.reboot_due:
+                        self._reboot(endpoint)
             if endpoint.outgoing is not None:
                 for packet in endpoint.outgoing.due(self.time):
                     for peer in endpoint.peers():
@@ -469,6 +473,14 @@ class Simulator:
         self.time = self._ticks * TICK
         for endpoint in self._endpoints:
             self._emit(endpoint, endpoint.model.step_wire(TICK))
+            if endpoint.model.reboot_due:  # a fault (Faults.reboot_at)
+                self._reboot(endpoint)
+
+    def _reboot(self, endpoint: _Endpoint) -> None:
+        """The vehicle reboots: a new boot takes the model's place (its clients stay
+        connected, as to an ArduPilot SITL's serial port; packets count from 0 again)."""
+        endpoint.model = endpoint.model.rebooted()
+        endpoint.sequences.clear()
 
     def _loop(self) -> None:
         wall_start, time_start = time.monotonic(), self.time

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 
 from tml.language.actions import BoundAction
+from tml.language.failures import FailureReason
 from tml.language.kinds import Kind, kind_of
 from tml.vehicle import (
     MESSAGES_KEPT,
@@ -127,7 +128,8 @@ class FakeVehicle:
         return results
 
     def _answer(self, request: Request, ok: bool, reason: str) -> None:
-        self._results.append(RequestResult(self.vehicle_id, request.request_id, ok, reason))
+        self._results.append(RequestResult(self.vehicle_id, request.request_id, ok,
+                                           None if ok else FailureReason(reason)))
 
     def _apply(self, request: Request) -> str | None:
         n, e, u = self.position

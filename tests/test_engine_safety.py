@@ -6,7 +6,6 @@ from dataclasses import replace
 
 import pytest
 
-from tml.engine.failures import ACTION_FAILURES, FailureReason
 from tml.engine.safety import (
     CommandRefusal,
     operator_command_shown,
@@ -15,6 +14,7 @@ from tml.engine.safety import (
     safe_state_shown,
 )
 from tml.language import parameters
+from tml.language.failures import ACTION_FAILURES
 from tml.vehicle import VehicleState
 
 
@@ -67,12 +67,6 @@ def test_action_failures_are_the_values_of_the_action_failure_parameter() -> Non
     spec = parameters.lookup("ACTION_FAILURE")
     assert spec is not None
     assert set(spec.values) == {reason.value for reason in ACTION_FAILURES}
-
-
-def test_a_vehicle_s_reason_is_read_as_a_failure_reason() -> None:
-    assert FailureReason.of("timeout") is FailureReason.TIMEOUT
-    assert FailureReason.of("") is FailureReason.REJECTED  # refused without a word
-    assert FailureReason.of("MAV_RESULT_DENIED") is FailureReason.GENERAL
 
 
 # --- an operator's command (tml command, POST /vehicles/{id}/command) ------------------------

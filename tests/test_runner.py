@@ -13,6 +13,7 @@ from fake_vehicle import FakeVehicle
 
 from tml.engine import Status
 from tml.errors import ControlRefused, ExitCode
+from tml.language.failures import FailureReason
 from tml.language.validation import validate_file
 from tml.run.journal import Journal
 from tml.run.runner import Runner, RunOptions
@@ -436,7 +437,7 @@ class Outage(FakeVehicle):
             return
         self.submitted.append(request)  # sent into the dead link, never carried out
         self._results.append(RequestResult(self.vehicle_id, request.request_id, False,
-                                           "timeout", "link lost"))
+                                           FailureReason.TIMEOUT, "link lost"))
 
 
 def test_the_safe_state_is_commanded_until_the_vehicle_shows_it() -> None:

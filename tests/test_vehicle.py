@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 from fake_vehicle import FakeVehicle
 
+from tml.language.failures import FailureReason
 from tml.language.kinds import VEHICLE_TYPE_CLASSES, VEHICLE_TYPES, vehicle_type_matches
 from tml.vehicle import (
     Arm,
@@ -48,7 +49,7 @@ def test_scripted_refusals_and_silence() -> None:
     arm, takeoff = Arm(1), TakeOff(1, 5.0)
     vehicle.submit(arm)
     vehicle.submit(takeoff)
-    assert vehicle.poll() == [RequestResult(1, arm.request_id, False, "rejected")]
+    assert vehicle.poll() == [RequestResult(1, arm.request_id, False, FailureReason.REJECTED)]
     assert vehicle.submitted == [arm, takeoff]
 
 

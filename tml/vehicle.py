@@ -24,6 +24,7 @@ from typing import Protocol
 
 from tml.geo import Point as Point  # re-exported: requests and states speak in local points
 from tml.language.actions import BoundAction
+from tml.language.failures import FailureReason
 from tml.world import Home, World
 
 _EMPTY: Mapping[str, object] = MappingProxyType({})
@@ -125,6 +126,7 @@ class VehicleState:
     rejected: int = 0  # telemetry messages ignored for an absurd value (battery 127 %, NaN)
     rejected_last: str = ""  # what was absurd in the last of them
     taken: str = ""  # the mode the vehicle was switched to by someone else (the autopilot)
+    rebooted: str = ""  # the autopilot rebooted during the run: how that was seen
     # How old the picture is, in the runner's time (None: the source does not say, and
     # its readings are taken as current). Left out of the comparison: they move with
     # every message and every request, and the rules below read them on every step.
@@ -409,15 +411,15 @@ FLIGHT_REQUESTS: tuple[type[Request], ...] = (Arm, TakeOff, SetMode, FlyMission,
 class RequestResult:
     """The outcome of a request: ``ok``, or the failure's ``reason`` and ``detail``.
 
-    Reasons are the values of the ACTION_FAILURE parameter: ``rejected`` (the vehicle
-    refused), ``timeout`` (no answer), ``unsupported`` (the vehicle cannot do it) or
-    ``general``.
+    A vehicle's reasons are values of the ACTION_FAILURE parameter: REJECTED (the vehicle
+    refused), TIMEOUT (no answer), UNSUPPORTED (the vehicle cannot do it) or GENERAL; a
+    failure without one counts as REJECTED.
     """
 
     vehicle_id: int
     request_id: int
     ok: bool
-    reason: str = ""
+    reason: FailureReason | None = None
     detail: str = ""
 
 

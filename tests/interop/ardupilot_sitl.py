@@ -161,6 +161,8 @@ class SitlVehicle:
     log: Path
     serial0: str | None = None
     """ArduPilot's SERIAL0 device when it is not TCP (``uart:PATH:BAUD``, ``udpclient:...``)."""
+    command: tuple[str, ...] = ()
+    """The command line it was started with (:meth:`restart` runs it again)."""
 
     @property
     def system_id(self) -> int:
@@ -191,6 +193,19 @@ class SitlVehicle:
     def output(self) -> str:
         """What the vehicle printed (for failure messages)."""
         return self.log.read_text(errors="replace")[-2000:] if self.log.exists() else ""
+
+    def restart(self) -> None:
+        """Kill the vehicle's process (SIGKILL: a crash, a power loss) and start it again
+        as it was started, the same instance on the same ports: an autopilot that
+        reboots. Its parameters start from the launcher's again (the EEPROM is wiped) and
+        its clock when a client connects to SERIAL0 (a ground station that dials again)."""
+        if self.process.poll() is None:
+            os.kill(self.process.pid, signal.SIGKILL)
+            self.process.wait(timeout=5)
+        with self.log.open("ab") as out:
+            self.process = subprocess.Popen(self.command, cwd=self.log.parent, stdout=out,
+                                            stderr=subprocess.STDOUT,
+                                            stdin=subprocess.DEVNULL)
 
     def stop(self) -> None:
         """Stop the vehicle by its pid: SIGTERM, then SIGKILL after 5 s."""
@@ -233,13 +248,11 @@ def start_vehicle(launcher: Launcher, vehicle: str = "copter", *, speedup: float
             boot_parm.write_text("".join(f"{name} {value:g}\n"
                                          for name, value in boot_params.items()))
         more = [*extra, "--serial0", serial0] if serial0 is not None else list(extra)
+        command = launcher.command(vehicle, instance, speedup, home, folder, boot_parm, more)
         with log.open("wb") as out:
-            process = subprocess.Popen(
-                launcher.command(vehicle, instance, speedup, home, folder, boot_parm,
-                                 more),
-                cwd=folder,
-                stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
-        sitl = SitlVehicle(vehicle, instance, process, log, serial0)
+            process = subprocess.Popen(command, cwd=folder, stdout=out,
+                                       stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+        sitl = SitlVehicle(vehicle, instance, process, log, serial0, tuple(command))
         if _wait_listening(sitl):
             break
         sitl.stop()  # another run took the ports between the check and the start

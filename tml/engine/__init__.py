@@ -4,10 +4,10 @@ See :mod:`tml.engine.interpreter` for the theory of operation.
 """
 
 from tml.engine.context import Options
-from tml.engine.failures import FailureReason
 from tml.engine.interpreter import Interpreter
 from tml.engine.records import Change, Output, Record, Status, TaskState, View
 from tml.engine.scripts import Limits
+from tml.language.failures import FailureReason
 
 __all__ = ["Change", "FailureReason", "Interpreter", "Limits", "Options", "Output", "Record",
            "Status", "TaskState", "View"]

@@ -18,7 +18,7 @@ from enum import Enum
 from typing import Protocol, TypeVar
 
 from tml.engine.conditions import Memory, evaluate, evaluate_all
-from tml.engine.failures import Failure, FailureReason
+from tml.engine.failures import Failure
 from tml.engine.records import Change, Output, Record, Status, TaskState, View, request_fields
 from tml.engine.resume import Restoring
 from tml.engine.roles import Candidate, candidates
@@ -27,6 +27,7 @@ from tml.engine.scripts import Limits
 from tml.errors import EngineError
 from tml.language import skills
 from tml.language.actions import BoundAction
+from tml.language.failures import FailureReason
 from tml.language.model import Condition, Mission, Task
 from tml.vehicle import IdSource, Point, Request, RequestResult, SetSkill, VehicleState
 from tml.world import World

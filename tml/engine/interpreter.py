@@ -69,13 +69,14 @@ from collections.abc import Iterable, Mapping, Sequence
 from tml.engine.composites import NodeStatus, TasksNode
 from tml.engine.context import Duty, Options, Pilot, Run, Verdict
 from tml.engine.events import Events, find_task
-from tml.engine.failures import Failure, FailureReason
+from tml.engine.failures import Failure
 from tml.engine.records import Output, Status, View
 from tml.engine.resume import Progress, Restoring
 from tml.engine.tasks import TaskNode
 from tml.errors import ControlRefused, EngineError
 from tml.language.actions import CAPABILITIES, lookup
 from tml.language.check import check_jump
+from tml.language.failures import FailureReason
 from tml.language.model import Mission
 from tml.vehicle import Hold, IdSource, RequestResult, VehicleState
 

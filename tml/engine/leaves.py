@@ -33,10 +33,11 @@ from tml.engine.context import (
     WorkMode,
     moved,
 )
-from tml.engine.failures import Failure, FailureReason
+from tml.engine.failures import Failure
 from tml.engine.records import TaskState
 from tml.engine.scripts import ActionFailed, Script, Send, Sleep, Until, script_for
 from tml.language.actions import BoundAction, Category, bind
+from tml.language.failures import FailureReason
 from tml.language.model import Action, Task
 from tml.patterns import survey
 from tml.vehicle import FlyMission, Hold, Request, RequestResult
@@ -342,7 +343,7 @@ class ActionLeaf(Leaf):
             self.since = self.run.now if self.resume_since is None else self.resume_since
             self.resume_since = None
         else:
-            self._failed(FailureReason.of(result.reason), f"{wait.request.name} refused"
+            self._failed(result.reason or FailureReason.REJECTED, f"{wait.request.name} refused"
                          + (f": {result.detail}" if result.detail else ""))
         return True
 
@@ -534,7 +535,7 @@ class PlanLeaf(Leaf):
         if result.request_id != self.request_id or self.mode is not WorkMode.ACTIVE:
             return False
         if not result.ok:
-            self._failed(FailureReason.of(result.reason), "the vehicle refused the mission"
+            self._failed(result.reason or FailureReason.REJECTED, "the vehicle refused the mission"
                          + (f": {result.detail}" if result.detail else ""))
         return True
 

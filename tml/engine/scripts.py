@@ -33,9 +33,9 @@ from itertools import pairwise
 from typing import Protocol
 
 from tml import geo
-from tml.engine.failures import FailureReason
 from tml.geo import Point
 from tml.language.actions import BoundAction, Category
+from tml.language.failures import FailureReason
 from tml.language.kinds import HANDLING, Kind, final_length, kind_of, refusal
 from tml.patterns import (
     CIRCLE_POINTS_PER_TURN,

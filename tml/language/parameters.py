@@ -16,6 +16,7 @@ import re
 from dataclasses import dataclass
 from enum import StrEnum
 
+from tml.language.failures import ACTION_FAILURES
 from tml.language.model import Comparison, normalize_name
 from tml.language.quantities import Quantity
 
@@ -82,7 +83,7 @@ BUILT_IN: tuple[ParameterSpec, ...] = (
                   quantity=Quantity.DURATION),
     ParameterSpec("ACTION_FAILURE", ParamType.STRING,
                   "why the last action failed; absent while no action has failed", "", (),
-                  ("timeout", "rejected", "infeasible", "unsupported", "general")),
+                  tuple(reason.value for reason in ACTION_FAILURES)),
     ParameterSpec("CURRENT_TASK", ParamType.STRING,
                   "path of the running task, names joined by '/'", "", ("currentTask",)),
     ParameterSpec("CURRENT_ACTION", ParamType.STRING, "name of the running action"),

@@ -86,6 +86,7 @@ from typing import Any
 
 from tml.errors import CommandRejected, MissionTransferError, VehicleError, VehicleTimeout
 from tml.geo import to_global, to_local
+from tml.language.failures import FailureReason
 from tml.language.kinds import HANDLING, Kind, kind_of
 from tml.mavlink import codec
 from tml.mavlink.autopilot import DEFAULT_RATES, Autopilot
@@ -102,6 +103,7 @@ from tml.mavlink.health import LinkHealth
 from tml.mavlink.link import Link
 from tml.mavlink.mission import MissionType
 from tml.mavlink.modes import ModeWatch, mode_names
+from tml.mavlink.reboot import RebootWatch
 from tml.mavlink.safeguards import fence_action, safeguards
 from tml.mavlink.telemetry import COMPANION_COMPONENT, Telemetry
 from tml.timebase import Empty, Flag, Mailbox
@@ -140,6 +142,11 @@ VITAL = ("HEARTBEAT", "EXTENDED_SYS_STATE", "GLOBAL_POSITION_INT")
 """The messages of the readings the rules judge by: armed and mode, landed, position."""
 STREAM_CHECK_PERIOD = 2.0
 """Seconds between the worker's checks that the streams asked for arrive."""
+STAMP_SILENCE = 1.5
+"""Seconds (the link's clock) without a ``time_boot_ms`` stamp from the autopilot after which
+its HEARTBEAT brings a new request for the streams: a rebooted autopilot has forgotten
+them, and its reboot shows only in the stamps (tml.mavlink.reboot) -- the sooner they come,
+the clearer the clock's fall."""
 PARAM_TIMEOUT = 1.0
 PARAM_RETRIES = 3
 """Times a PARAM_REQUEST_READ is sent, PARAM_TIMEOUT s apart, before the parameter is taken
@@ -308,6 +315,9 @@ class MavlinkVehicle:
         # Tells a mode change nobody here asked for (a fixed-wing ends its mission in RTL).
         self._modes = ModeWatch(
             kind_of(link.telemetry(system_id).airframe) is Kind.FIXED_WING)
+        self._reboots = RebootWatch()  # the autopilot's clock going back: a new boot
+        self._stamps_asked = -math.inf  # when the streams were last asked for by _keep_stamps
+        self._stamped_at: float | None = None  # when the autopilot's last stamp came
         self._asked: float | None = None  # when the latest request was submitted
         self._flight_asked: float | None = None  # ... the latest of FLIGHT_REQUESTS
         link.listen(self._on_message)
@@ -371,6 +381,7 @@ class MavlinkVehicle:
             status_text=t.status_texts[-1].text if t.status_texts else "",
             messages=_messages(t), rejected=t.rejected, rejected_last=t.rejected_last,
             taken=self._modes.taken, heard=self._heard(now), asked=self._asked,
+            rebooted="" if self._reboots.reboot is None else str(self._reboots.reboot),
             flight_asked=self._flight_asked)
 
     def _heard(self, now: float) -> float:
@@ -460,10 +471,18 @@ class MavlinkVehicle:
         if component == self.mav.component_id:
             self.health.heard(self.link_clock(), kind == "HEARTBEAT", snapshot.boot_time,
                               snapshot.received, snapshot.lost)
+            boot_ms = getattr(msg, "time_boot_ms", None)
+            if boot_ms is not None:
+                self._stamped_at = self.link_clock()
+                with self._lock:
+                    if self._reboots.seen(boot_ms / 1000, self.link_clock()):
+                        self._changes += 1
         if kind == "HEARTBEAT" and component == self.mav.component_id:
             with self._lock:
                 self._modes.seen(snapshot.mode, snapshot.armed, self.link_clock())
+                self._reboots.heartbeat(snapshot.armed)
             self._keep_target(snapshot)
+            self._keep_stamps()
         elif kind == "PARAM_VALUE":
             with self._param_arrived:
                 self._params[(component, _text(msg.param_id))] = msg.param_value
@@ -482,6 +501,19 @@ class MavlinkVehicle:
                 else:
                     self._values[name] = msg.value
                 self._changes += 1
+
+    def _keep_stamps(self) -> None:
+        """Ask again for the streams when the autopilot beats but sends no stamp (see
+        :data:`STAMP_SILENCE`); at most once per silence period."""
+        now = self.link_clock()
+        if self._stamped_at is None or now - self._stamped_at < STAMP_SILENCE \
+                or now - self._stamps_asked < STAMP_SILENCE:
+            return
+        self._stamps_asked = now
+        with contextlib.suppress(OSError):
+            for name, hz in DEFAULT_RATES.items():
+                if name != "HEARTBEAT" and hz > 0:
+                    self.mav.ask_again(name, hz)
 
     def _keep_target(self, snapshot: Telemetry) -> None:
         target = self._target
@@ -541,7 +573,7 @@ class MavlinkVehicle:
             self.mav.request_message("HOME_POSITION")
 
     def _carry_out(self, request: Request) -> RequestResult:
-        def fail(reason: str, detail: str) -> RequestResult:
+        def fail(reason: FailureReason, detail: str) -> RequestResult:
             return RequestResult(self.vehicle_id, request.request_id, False, reason, detail)
 
         try:
@@ -550,17 +582,18 @@ class MavlinkVehicle:
                 self._target = None  # the request takes the kept target's place
             detail = handler(self, request)
         except CommandRejected as error:
-            return fail("rejected", f"{error.command}: {error.result}")
+            return fail(FailureReason.REJECTED, f"{error.command}: {error.result}")
         except MissionTransferError as error:
-            return fail("timeout" if error.result in ("", "TIMEOUT") else "rejected", str(error))
+            return fail(FailureReason.TIMEOUT if error.result in ("", "TIMEOUT")
+                        else FailureReason.REJECTED, str(error))
         except VehicleTimeout as error:
-            return fail("timeout", str(error))
+            return fail(FailureReason.TIMEOUT, str(error))
         except _Unsupported as error:
-            return fail("unsupported", str(error))
+            return fail(FailureReason.UNSUPPORTED, str(error))
         except CompileError as error:
-            return fail("unsupported", str(error))
+            return fail(FailureReason.UNSUPPORTED, str(error))
         except VehicleError as error:
-            return fail("general", str(error))
+            return fail(FailureReason.GENERAL, str(error))
         return RequestResult(self.vehicle_id, request.request_id, True, detail=detail or "")
 
     # --- one method per request ----------------------------------------------------------

@@ -144,7 +144,8 @@ class VehicleOutcome:
     vehicle_id: int
     status: Status
     reason: str
-    cause: str = ""  # "link", "error", "stop", "ready", "taken" when the runner ended it
+    # "link", "error", "stop", "ready", "taken", "rebooted" when the runner ended it
+    cause: str = ""
 
 
 @dataclass(frozen=True)
@@ -156,7 +157,8 @@ class Outcome:
     @property
     def exit_code(self) -> ExitCode:
         """0 all completed, 4 a vehicle or link failed (or the engine broke), 3 aborted."""
-        if any(v.status is Status.FAILED or v.cause in ("link", "error", "ready", "taken")
+        if any(v.status is Status.FAILED
+               or v.cause in ("link", "error", "ready", "taken", "rebooted")
                for v in self.vehicles):
             return ExitCode.FAILURE
         if any(v.status is not Status.COMPLETED for v in self.vehicles):
@@ -551,7 +553,7 @@ class Runner:
                     lost.append(flight)
             else:
                 flight.lost_since = None
-            if state.taken and not flight.taken:
+            if (state.taken or state.rebooted) and not flight.taken:
                 taken.append(flight)
         for flight in taken:
             self._taken(crew, flight, now)
@@ -569,8 +571,11 @@ class Runner:
     def _taken(self, crew: _Crew, flight: _Flight, now: float) -> None:
         """Someone else switched the vehicle's mode (see tml.mavlink.modes.ModeWatch): its
         work fails, and nothing is sent to it any more, not even the safe state -- whoever
-        took it flies it now."""
+        took it flies it now. A vehicle whose autopilot rebooted is let go too."""
         assert flight.state is not None
+        if flight.state.rebooted:
+            self._rebooted(crew, flight, now)
+            return
         vid, mode = flight.vehicle.vehicle_id, flight.state.taken
         flight.taken, flight.cause = True, "taken"
         # Nothing in the telemetry says who: the autopilot's failsafe, the pilot's RC
@@ -583,6 +588,23 @@ class Runner:
         self.journal.write(now, "taken", vid, message=f"vehicle {vid} {reason}", mode=mode,
                            status_text=flight.state.status_text)
         self._said(f"vehicle {vid} {reason}: tml commands it no more")
+        self._guarded(crew, now, partial(crew.engine.lost, now, vid, reason, True))
+
+    def _rebooted(self, crew: _Crew, flight: _Flight, now: float) -> None:
+        """The autopilot rebooted (tml.mavlink.reboot): it came back disarmed, in its first
+        mode, with nothing of what it was asked. On the ground that ends its work; in the
+        air the vehicle fell or flies on nothing tml set up. Either way its work fails with
+        the reason and nothing is sent to it any more: what it does now is the operator's
+        to decide, on what the vehicle shows."""
+        assert flight.state is not None
+        vid, state = flight.vehicle.vehicle_id, flight.state
+        flight.taken, flight.cause = True, "rebooted"
+        reason = state.rebooted  # "rebooted while armed (its clock went from ...)"
+        self.journal.write(now, "taken", vid, message=f"vehicle {vid} {reason}",
+                           mode=state.mode, reboot=True, status_text=state.status_text)
+        self._said(f"vehicle {vid} {reason}: tml commands it no more")
+        if flight.lost:
+            return  # its work failed with the link already
         self._guarded(crew, now, partial(crew.engine.lost, now, vid, reason, True))
 
     def _guarded(self, crew: _Crew, now: float, call: Callable[[], Output]) -> None:

@@ -102,14 +102,88 @@ def test_a_mission_with_roles_needs_one_chosen() -> None:
     assert mavlink.MAV_CMD_NAV_TAKEOFF not in [i.command for i in surface.items]
 
 
-def test_repeats_are_unrolled() -> None:
+def test_a_repeat_is_its_body_once_and_a_do_jump_back() -> None:
     once = plan_mission(load_mission(ROOT / "missions/paper_example2.xml"))
     assert len(once.items) == 3
     mission = load_mission(ROOT / "missions/battery_event.xml")
-    repeated = [t for t in mission.walk() if t.repeat > 1]
-    assert repeated, "battery_event.xml repeats a task"
+    repeated, = [t for t in mission.walk() if t.repeat > 1]
     plan = plan_mission(mission)
-    assert sum(1 for t in plan.tasks if t.startswith(repeated[0].path_name)) >= repeated[0].repeat
+    commands = [i.command for i in plan.items]
+    assert commands == [22, 16, 16, 16, 16, 177, 20]
+    jump = plan.items[5]
+    # Back to item 2 (numbered from 1, behind home), 4 more times: 5 rounds in all.
+    assert (jump.frame, jump.param1, jump.param2) == (0, 2.0, repeated.repeat - 1)
+    assert plan.tasks[5] == repeated.path_name
+
+
+REPEATS = """<mission name="r"><task name="t" dispatch="mission">
+  <task name="up"><action name="TAKE_OFF"><argument name="altitude" value="10"/></action></task>
+  {body}
+</task></mission>"""
+
+
+def _repeat_plan(body: str) -> Plan:
+    mission = validate_file("r.xml", REPEATS.format(body=body).encode()).mission
+    assert mission is not None
+    return plan_mission(mission)
+
+
+def test_a_repeat_whose_rounds_fly_elsewhere_stays_unrolled() -> None:
+    # Each round moves 10 m on from where the last ended: a DO_JUMP would fly the same
+    # leg again.
+    plan = _repeat_plan('<task name="legs"><repeat times="3"/><task name="m"><action '
+                        'name="MOVE"><argument name="coordinates" value="(10, 0, 0)"/>'
+                        '</action></task></task>')
+    assert [i.command for i in plan.items] == [22, 16, 16, 16]
+    assert len({i.x for i in plan.items[1:]}) == 3
+
+
+def test_a_repeat_inside_a_repeat_is_a_do_jump_in_each_round() -> None:
+    # ArduPilot counts a DO_JUMP's repeats once per mission: the outer repeat is unrolled,
+    # so that each round's inner loop has its own DO_JUMP.
+    plan = _repeat_plan(
+        '<task name="outer"><repeat times="2"/><task name="inner"><repeat times="3"/>'
+        '<task name="a"><action name="GO_TO_POSITION"><argument name="latitude" '
+        'value="-35.36"/><argument name="longitude" value="149.16"/><argument '
+        'name="altitude" value="10"/></action></task></task>'
+        '<task name="b"><action name="WAIT"><argument name="duration" value="2"/></action>'
+        '</task></task>')
+    assert [(i.command, i.param1, i.param2) for i in plan.items if i.command != 16] == [
+        (22, 15.0, 0.0), (177, 2.0, 2.0), (93, 2.0, -1.0), (177, 5.0, 2.0), (93, 2.0, -1.0)]
+
+
+def test_a_do_jump_back_over_whole_actions_is_imported_as_a_repeat(tmp_path: Path) -> None:
+    text = WPL_HOME + ("1\t0\t3\t22\t0\t0\t0\t0\t0\t0\t20\t1\n"
+                       "2\t0\t3\t16\t0\t0\t0\t0\t-35.3621\t149.1651\t20\t1\n"
+                       "3\t0\t3\t16\t0\t0\t0\t0\t-35.3622\t149.1652\t20\t1\n"
+                       "4\t0\t0\t177\t2\t3\t0\t0\t0\t0\t0\t1\n"  # back to 2, 3 more times
+                       "5\t0\t0\t177\t3\t-1\t0\t0\t0\t0\t0\t1\n"  # forever: raw
+                       "6\t0\t0\t177\t8\t1\t0\t0\t0\t0\t0\t1\n"  # forward: raw
+                       "7\t0\t3\t16\t0\t0\t0\t0\t-35.3623\t149.1653\t20\t1\n"
+                       "8\t0\t3\t21\t0\t0\t0\t0\t-35.3623\t149.1653\t20\t1\n")
+    imported = import_plan(read_wpl(text), "loop")
+    assert imported.raw == 2  # the two other DO_JUMPs
+    root = etree.fromstring(imported.text.encode())
+    loop, = root.iter("repeat")
+    assert loop.get("times") == "4"
+    body = loop.getparent()
+    assert [t.get("name") for t in body.findall("task")] == [
+        "item 2 (line 4): GO_TO_POSITION", "item 3 (line 5): GO_TO_POSITION"]
+    assert [e.get("param1") for e in root.iter("mission_item")
+            if e.get("command") == "MAV_CMD_DO_JUMP"] == ["3", "8"]
+    _round_trip(read_wpl(text), tmp_path)
+
+
+def test_a_do_jump_into_the_middle_of_an_action_stays_a_mission_item(tmp_path: Path) -> None:
+    # Items 2-3 are one LANDING_POINT with a yaw (CONDITION_YAW, then NAV_LAND): a jump to
+    # item 3 lands in the middle of it.
+    text = WPL_HOME + ("1\t0\t3\t22\t0\t0\t0\t0\t0\t0\t20\t1\n"
+                       "2\t0\t2\t115\t90\t0\t1\t0\t0\t0\t0\t1\n"
+                       "3\t0\t3\t21\t0\t0\t0\t90\t-35.3622\t149.1652\t20\t1\n"
+                       "4\t0\t0\t177\t3\t1\t0\t0\t0\t0\t0\t1\n")
+    imported = import_plan(read_wpl(text), "middle")
+    assert "<repeat" not in imported.text and "LANDING_POINT" in imported.text
+    _round_trip(read_wpl(text), tmp_path)
 
 
 def test_plan_file_has_fence_obstacles_and_home() -> None:
@@ -183,7 +257,7 @@ def test_bad_waypoint_files_are_refused_saying_where(text: str, message: str) ->
 def test_items_with_no_action_are_carried_as_mission_items(tmp_path: Path) -> None:
     text = ("QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\t-35.36\t149.16\t584\t1\n"
             "1\t0\t3\t22\t0\t0\t0\t0\t0\t0\t12\t1\n"
-            "2\t0\t0\t177\t1\t3\t0\t0\t0\t0\t0\t1\n"  # DO_JUMP
+            "2\t0\t0\t177\t5\t3\t0\t0\t0\t0\t0\t1\n"  # DO_JUMP forward
             "3\t0\t0\t114\t5\t0\t0\t0\t0\t0\t0\t1\n"  # CONDITION_DISTANCE
             "4\t0\t0\t116\t0\t0\t0\t0\t0\t0\t0\t1\n"  # no MAV_CMD has 116
             "5\t0\t3\t20\t0\t0\t0\t0\t0\t0\t0\t1\n")

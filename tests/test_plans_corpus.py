@@ -9,6 +9,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
+from lxml import etree
 from plans_corpus import differences, read
 
 from tml.language.build import load_world
@@ -108,3 +109,16 @@ def test_copter_files_fly_on_the_simulator(name: str, tmp_path: Path) -> None:
     mission.write_text(imported.text, encoding="utf-8")
     assert main(["run", str(mission), "--sim", "-q", "--speedup", "50",
                  "--sim-param", "SIM_GPS_LOCKTIME=1", "--sim-param", "SIM_EKF_GPS_TIME=2"]) == 0
+
+
+@pytest.mark.parametrize(("name", "repeats"), [
+    ("ardupilot_copter_far_origin.txt", ["2"]),  # back to item 8 once: items 8-9 twice
+    ("ardupilot_quadplane_ksfo_vtol.txt", ["2"]),  # the circuit, items 3-6, twice
+    ("ardupilot_plane_delay_secs.txt", []),  # a DO_JUMP forever: carried as written
+])
+def test_do_jumps_back_over_whole_actions_are_repeats(name: str, repeats: list[str]) -> None:
+    text = import_plan(read(CORPUS / name), Path(name).stem).text
+    root = etree.fromstring(text.encode("utf-8"))
+    assert [r.get("times") for r in root.iter("repeat")] == repeats
+    jumps = [e for e in root.iter("mission_item") if e.get("command") == "MAV_CMD_DO_JUMP"]
+    assert len(jumps) == 1 - len(repeats)

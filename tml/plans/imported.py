@@ -47,7 +47,14 @@ from tml.mavlink.compile import (
     compile_mission,
 )
 from tml.mavlink.mission import LOITER_TURNS_MAX, MissionItem
-from tml.plans.planned import AMSL_FRAMES, GLOBAL_FRAMES, TERRAIN_FRAMES
+from tml.plans.planned import (
+    AMSL_FRAMES,
+    GLOBAL_FRAMES,
+    JUMP_FRAME,
+    TERRAIN_FRAMES,
+    plan_mission,
+    same_item,
+)
 from tml.plans.qgc import PlanFile, PlanFileError
 from tml.world import DEFAULT_HOME, inside
 
@@ -259,18 +266,6 @@ def _raw(item: MissionItem) -> _Action:
     return _Action("MISSION_ITEM", arguments)
 
 
-def same_item(a: MissionItem, b: MissionItem) -> bool:
-    """Whether two items are the same item (their seq aside; NaN is NaN)."""
-    def same(x: float, y: float) -> bool:
-        return x == y or (math.isnan(x) and math.isnan(y))
-
-    return (a.command, a.frame, a.x, a.y, bool(a.autocontinue)) \
-        == (b.command, b.frame, b.x, b.y, bool(b.autocontinue)) and all(
-            same(x, y) for x, y in zip((a.param1, a.param2, a.param3, a.param4, a.z),
-                                       (b.param1, b.param2, b.param3, b.param4, b.z),
-                                       strict=True))
-
-
 def _bound(action: _Action, line: int) -> BoundAction | None:
     """The action typed as the language types it, or None when it does not validate."""
     location = Location("import", line, 0)
@@ -344,6 +339,45 @@ def import_plan(plan: PlanFile, name: str) -> Imported:
         if not (actions and action.name != "MISSION_ITEM" and _joined(actions[-1], action)):
             actions.append(action)
     actions = _exact(actions, plan, losses)
+    repeats = _repeats(actions, plan)
+    text = _mission(plan, name, actions, repeats, losses)
+    if repeats and not _compiles_back(text, plan):  # a round flies other items than the first
+        repeats = {}
+        text = _mission(plan, name, actions, repeats, losses)
+    raw = sum(a.name == "MISSION_ITEM" for a in actions) - len(repeats)
+    return Imported(text, tuple(warnings), len(actions) - len(repeats), tuple(losses), raw)
+
+
+def _repeats(actions: list[_Action], plan: PlanFile) -> dict[int, tuple[int, int]]:
+    """The DO_JUMPs that are a ``<repeat>``: body's first action -> (the DO_JUMP's action,
+    times). A DO_JUMP is one when it is what a repeat exports (:data:`JUMP_FRAME`, a repeat
+    count of 1 or more, nothing else set) and jumps back to the first item of an action,
+    over a body that holds no other DO_JUMP; any other (forward, into the middle of an
+    action, forever, in another frame) stays a MISSION_ITEM with its target."""
+    starts = {a.items[0]: n for n, a in enumerate(actions)}
+    found: dict[int, tuple[int, int]] = {}
+    for n, action in enumerate(actions):
+        item = plan.items[action.items[0]]
+        if action.name != "MISSION_ITEM" or item.command != mavlink.MAV_CMD_DO_JUMP \
+                or (item.frame, item.param3, item.param4, item.x, item.y, item.z,
+                    bool(item.autocontinue)) != (JUMP_FRAME, 0, 0, 0, 0, 0, True) \
+                or not (item.param1.is_integer() and item.param2.is_integer()
+                        and item.param2 >= 1):
+            continue
+        body = starts.get(int(item.param1) - 1)
+        if body is None or body >= n or any(
+                plan.items[a.items[0]].command == mavlink.MAV_CMD_DO_JUMP
+                and a.name == "MISSION_ITEM" for a in actions[body:n]) \
+                or any(start < n and body <= jump for start, (jump, _) in found.items()):
+            continue
+        found[body] = (n, int(item.param2) + 1)
+    return found
+
+
+def _mission(plan: PlanFile, name: str, actions: list[_Action],
+             repeats: dict[int, tuple[int, int]], losses: list[str]) -> str:
+    """The mission's XML text: a task per action, in one ``dispatch="mission"`` task; the
+    actions of a repeat's body in a task with ``<repeat>``."""
     root = etree.Element("mission", nsmap={"xsi": SCHEMA_INSTANCE}, name=name)
     from tml.language.schema import SCHEMA_LOCATION
 
@@ -351,11 +385,22 @@ def import_plan(plan: PlanFile, name: str) -> Imported:
     root.append(etree.Comment(f" Imported from a plan of {len(plan.items)} mission items. "))
     _environment(root, plan, losses)
     top = etree.SubElement(root, "task", name="Plan", dispatch="mission")
-    for action in actions:
+    parent, ends = top, -1
+    for n, action in enumerate(actions):
+        if n in repeats:
+            ends, times = repeats[n]
+            jump = plan.source(actions[ends].items[0])
+            parent = etree.SubElement(top, "task", name=f"{plan.source(action.items[0])} to "
+                                      f"{plan.source(actions[ends - 1].items[-1])}: "
+                                      f"{times} times ({jump}: DO_JUMP)")
+            etree.SubElement(parent, "repeat", times=str(times))
+        if n == ends:  # the DO_JUMP is the repeat
+            parent = top
+            continue
         sources = ", ".join(plan.source(seq) for seq in action.items)
         what = action.name if action.name != "MISSION_ITEM" else \
             action.arguments["command"].removeprefix("MAV_CMD_")
-        task = etree.SubElement(top, "task", name=f"{sources}: {what}")
+        task = etree.SubElement(parent, "task", name=f"{sources}: {what}")
         if action.name == "MISSION_ITEM":  # the item on one line: <mission_item .../>
             etree.SubElement(task, "mission_item", _without_defaults(action))
             continue
@@ -363,9 +408,19 @@ def import_plan(plan: PlanFile, name: str) -> Imported:
         for argument, value in _without_defaults(action).items():
             etree.SubElement(element, "argument", name=argument, value=value)
     etree.indent(root, space="  ")
-    text = etree.tostring(root, xml_declaration=True, encoding="UTF-8").decode("utf-8")
-    raw = sum(a.name == "MISSION_ITEM" for a in actions)
-    return Imported(text + "\n", tuple(warnings), len(actions), tuple(losses), raw)
+    return etree.tostring(root, xml_declaration=True, encoding="UTF-8").decode("utf-8") + "\n"
+
+
+def _compiles_back(text: str, plan: PlanFile) -> bool:
+    """Whether the mission ``text`` exports as ``plan``'s items, item for item."""
+    from tml.language.validation import validate_file
+
+    result = validate_file("import.xml", text.encode("utf-8"))
+    if result.errors or result.mission is None:
+        return False
+    items = plan_mission(result.mission).items
+    return len(items) == len(plan.items) and all(
+        same_item(a, b) for a, b in zip(items, plan.items, strict=True))
 
 
 def _world(plan: PlanFile, name: str) -> Imported:

@@ -5,7 +5,9 @@ Theory of operation
 A plan file holds one vehicle's list of mission items, flown in order in AUTO: no events,
 no conditions, no second vehicle. :func:`plan_mission` therefore takes the mission's
 *nominal* path: the terminal tasks in document order (of one role, in a mission with
-roles), each repeat unrolled, and compiles their actions with the mission compiler
+roles), a repeated task's body once and a DO_JUMP back to it with the repeat count (a
+repeat that holds another repeat unrolled), and compiles their actions with the mission
+compiler
 (:mod:`tml.mavlink.compile`), the one that compiles ``dispatch="mission"`` tasks in
 flight. Actions flown as GUIDED commands become the mission items that do the same thing
 in AUTO; an action with no such item (MEMORIZE_POINT, FLIP, an argument read from a
@@ -20,11 +22,12 @@ default location), which the plan carries as its planned home.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
+from itertools import pairwise
 
 from tml.geo import to_global
-from tml.language.actions import bind
+from tml.language.actions import BoundAction, bind
 from tml.language.kinds import Kind, refusal, role_kinds
 from tml.language.model import Composition, Mission, Task
 from tml.mavlink.codec import mavlink
@@ -99,6 +102,18 @@ class Plan:
         return points
 
 
+def same_item(a: MissionItem, b: MissionItem) -> bool:
+    """Whether two items are the same item (their seq aside; NaN is NaN)."""
+    def same(x: float, y: float) -> bool:
+        return x == y or (math.isnan(x) and math.isnan(y))
+
+    return (a.command, a.frame, a.x, a.y, bool(a.autocontinue)) \
+        == (b.command, b.frame, b.x, b.y, bool(b.autocontinue)) and all(
+            same(x, y) for x, y in zip((a.param1, a.param2, a.param3, a.param4, a.z),
+                                       (b.param1, b.param2, b.param3, b.param4, b.z),
+                                       strict=True))
+
+
 def world_left_out(world: World, form: str) -> list[str]:
     """What of ``world`` a plan file of ``form`` ("plan" or "wpl") cannot carry: a
     ``.plan``'s geofence has no altitudes and its exclusion zones no top or bottom; a
@@ -167,8 +182,13 @@ def plan_mission(mission: Mission, role: str | None = None, kind: Kind | None = 
     home = world.home_or_default
     notes = _notes(mission, role)
     skipped: dict[Skipped, None] = {}  # in order, each once (a repeat skips it again)
-    flown = []
-    for task in _nominal(mission.tasks, role, notes):
+    flown: list[tuple[Task, BoundAction]] = []
+    nominal: list[Task] = []
+    repeats: list[_Rounds] = []
+    _nominal(mission.tasks, role, notes, nominal, repeats)
+    flown_at: list[int] = []  # for each entry of nominal, len(flown) before it
+    for task in nominal:
+        flown_at.append(len(flown))
         assert task.action is not None
         bound = bind(task.action)
         line = task.action.location.line
@@ -186,13 +206,78 @@ def plan_mission(mission: Mission, role: str | None = None, kind: Kind | None = 
             flown.append((task, bound))
     compiled = compile_mission([b for _, b in flown], home, (0.0, 0.0, 0.0), home.heading,
                                kind)
-    tasks = tuple(flown[index][0].path_name for index in compiled.action_index)
-    return Plan(mission.name, home, kind, world, compiled.items, tasks, tuple(skipped),
+    flown_at.append(len(flown))
+    items, owners = _jumps(compiled.items, compiled.action_index,
+                           [(r.task, [flown_at[n] for n in r.starts]) for r in repeats])
+    tasks = tuple(flown[index][0].path_name if index >= 0 else task
+                  for index, task in owners)
+    return Plan(mission.name, home, kind, world, items, tasks, tuple(skipped),
                 tuple(notes), role)
 
 
-def _nominal(tasks: tuple[Task, ...], role: str | None, notes: list[str]) -> Iterator[Task]:
-    """The terminal tasks flown when nothing goes wrong, in order, repeats unrolled."""
+JUMP_FRAME = mavlink.MAV_FRAME_GLOBAL
+"""The frame of the DO_JUMP a ``<repeat>`` is written as: ArduPilot's ``wp save`` writes its
+DO_JUMPs in frame 0, and an import reads such a DO_JUMP back as the repeat."""
+
+
+@dataclass(frozen=True)
+class _Rounds:
+    """A repeated task with no repeat inside: where each of its rounds starts in the
+    nominal list, and where the last ends."""
+
+    task: Task
+    starts: list[int]
+
+
+def _jumps(items: tuple[MissionItem, ...], action_index: tuple[int, ...],
+           repeats: list[tuple[Task, list[int]]]
+           ) -> tuple[tuple[MissionItem, ...], list[tuple[int, str]]]:
+    """The items with the rounds after the first of each repeat made one DO_JUMP back to
+    the first round's first item (its number from 1), repeated ``repeat - 1`` times, where
+    every round compiled to the same items as the first (a round of relative moves, flown
+    from where the one before ended, is not: it stays unrolled). Also the owner of each
+    item: (action index, "") or (-1, the repeated task's path) for a DO_JUMP."""
+    def span(start: int, end: int) -> range:  # the items of the actions start..end-1
+        first = next((n for n, a in enumerate(action_index) if a >= start), len(items))
+        last = next((n for n, a in enumerate(action_index) if a >= end), len(items))
+        return range(first, last)
+
+    jump_at: dict[int, tuple[Task, range, int]] = {}  # 2nd round's first item -> jump
+    for task, starts in repeats:
+        rounds = [span(a, b) for a, b in pairwise(starts)]
+        first = rounds[0]
+        if first and all(len(r) == len(first) and all(
+                same_item(items[x], items[y]) for x, y in zip(first, r, strict=True))
+                for r in rounds[1:]):
+            jump_at[rounds[1].start] = (task, first, rounds[-1].stop)
+    kept: list[MissionItem] = []
+    owners: list[tuple[int, str]] = []
+    new_seq: dict[int, int] = {}
+    n = 0
+    while n < len(items):
+        if n in jump_at:
+            task, first, stop = jump_at[n]
+            kept.append(MissionItem(seq=len(kept), frame=JUMP_FRAME,
+                                    command=mavlink.MAV_CMD_DO_JUMP,
+                                    param1=float(new_seq[first.start] + 1),
+                                    param2=float(task.repeat - 1)))
+            owners.append((-1, task.path_name))
+            n = stop
+            continue
+        new_seq[n] = len(kept)
+        kept.append(replace(items[n], seq=len(kept)))
+        owners.append((action_index[n], ""))
+        n += 1
+    return tuple(kept), owners
+
+
+def _nominal(tasks: tuple[Task, ...], role: str | None, notes: list[str],
+             out: list[Task], repeats: list[_Rounds]) -> None:
+    """The terminal tasks flown when nothing goes wrong, in order, repeats unrolled, into
+    ``out``; where each round of a repeated task with no repeat inside starts, into
+    ``repeats`` (its rounds may become one DO_JUMP, :func:`_jumps`; one with a repeat
+    inside stays unrolled, ArduPilot keeping one count per DO_JUMP for the whole mission,
+    so an inner DO_JUMP flown again would not repeat again)."""
     for task in tasks:
         children = task.children
         if task.composition in (Composition.CHOICE, Composition.FIRST) and children:
@@ -200,12 +285,16 @@ def _nominal(tasks: tuple[Task, ...], role: str | None, notes: list[str]) -> Ite
                          f"({task.composition.value}): the plan has the first, "
                          f"{children[0].name!r}")
             children = children[:1]
+        starts = []
         for _ in range(task.repeat):
+            starts.append(len(out))
             if task.is_terminal:
                 if role is None or task.role == role:
-                    yield task
+                    out.append(task)
             else:
-                yield from _nominal(children, role, notes)
+                _nominal(children, role, notes, out, repeats)
+        if task.repeat > 1 and not any(t.repeat > 1 for t in task.walk() if t is not task):
+            repeats.append(_Rounds(task, [*starts, len(out)]))
 
 
 def _notes(mission: Mission, role: str | None) -> list[str]:

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +25,17 @@ def start_tml(tmp_path: Path, mission: str, port: int) -> tuple[subprocess.Popen
          f"tcp:127.0.0.1:{port}", "-q", "--log", str(log)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     return process, log
+
+
+def wait_for_task(process: subprocess.Popen[str], log: Path, task: str, state: str,
+                  limit: float) -> None:
+    """Wait until the flight log says task ``task`` is ``state`` (at most ``limit`` wall
+    seconds, a hang guard; the run must not end first)."""
+    end = time.monotonic() + limit
+    while not any(line.get("kind") == "task" and line.get("task") == task
+                  and line.get("state") == state for line in log_lines(log)):
+        assert time.monotonic() < end and process.poll() is None, f"never: {task} {state}"
+        time.sleep(0.01)
 
 
 def log_lines(log: Path) -> list[dict[str, Any]]:

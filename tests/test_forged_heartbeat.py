@@ -9,11 +9,10 @@ next HEARTBEAT says GUIDED again: tml must fly on to the end, and say nothing of
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 from typing import Any
 
-from connected_flight import FAST, log_lines, start_tml
+from connected_flight import FAST, log_lines, start_tml, wait_for_task
 from pymavlink import mavutil
 
 from sitl.server import Simulator
@@ -34,11 +33,7 @@ def test_one_forged_heartbeat_does_not_make_tml_let_go(tmp_path: Path) -> None:
         forger: Any = mavutil.mavlink_connection(f"tcp:127.0.0.1:{port}", source_system=1,
                                                  source_component=1, dialect="ardupilotmega")
         try:
-            end = time.monotonic() + LIMIT
-            while not any(line.get("kind") == "task" and line.get("task") == "Stay"
-                          and line.get("state") == "running" for line in log_lines(log)):
-                assert time.monotonic() < end and process.poll() is None, "never hovered"
-                time.sleep(0.01)
+            wait_for_task(process, log, "Stay", "running", LIMIT)
             armed = mavutil.mavlink.MAV_MODE_FLAG_SAFETY_ARMED
             custom = mavutil.mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
             forger.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_QUADROTOR,

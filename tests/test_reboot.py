@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 os.environ.setdefault("MAVLINK20", "1")
-from connected_flight import FAST, log_lines, start_tml
+from connected_flight import FAST, log_lines, start_tml, wait_for_task
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as M
 from test_mavlink_adapter import make_rig
@@ -93,11 +93,8 @@ def test_a_vehicle_rebooted_in_flight_is_reported_and_commanded_no_more(
         other: Any = mavutil.mavlink_connection(f"tcp:127.0.0.1:{port}", source_system=254,
                                                 dialect="ardupilotmega")
         try:
+            wait_for_task(process, log, "Stay", "running", LIMIT)
             end = time.monotonic() + LIMIT
-            while not any(line.get("kind") == "task" and line.get("task") == "Stay"
-                          and line.get("state") == "running" for line in log_lines(log)):
-                assert time.monotonic() < end and process.poll() is None, "never hovered"
-                time.sleep(0.01)
             # An uptime the new boot's first stamps are far below (they come a second or
             # two after its first HEARTBEAT, at five times real time).
             while sim.vehicle(1).time < 40.0:

@@ -1,0 +1,123 @@
+"""``tml serve --connect`` on two ArduCopter SITL vehicles, driven over HTTP as an operator's
+tools drive it: two runs at once, one paused, resumed and jumped to its landing, the other
+aborted; then a run whose service is killed in flight, marked interrupted by the restarted
+service and continued from its stored log without a second take-off."""
+
+from __future__ import annotations
+
+import json
+import re
+import shlex
+import signal
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import httpx
+from serving import SHORT
+from test_serve_command import DOC, Server
+
+LONG = SHORT.replace(b"(40,0,10)", b"(120,0,10)")  # Up, Out (120 m north), Down
+WITHIN = 300.0  # wall seconds: a hang guard, never a verdict
+
+
+def until(what: str, done: Callable[[], Any]) -> Any:
+    """Poll ``done`` until it returns something true; fail naming ``what`` after WITHIN."""
+    end = time.monotonic() + WITHIN
+    while not (found := done()):
+        assert time.monotonic() < end, f"never: {what}"
+        time.sleep(0.2)
+    return found
+
+
+def status(client: httpx.Client, run: str, *wanted: str) -> dict[str, Any] | None:
+    found = dict(client.get(f"/runs/{run}").json())
+    return found if found["status"] in wanted else None
+
+
+def out_beyond(client: httpx.Client, vehicle: int, metres: float) -> bool:
+    position = client.get(f"/vehicles/{vehicle}").json()["position"]
+    return position is not None and position[0] > metres
+
+
+def after(client: httpx.Client, vehicle: int, when: float) -> dict[str, Any] | None:
+    """The vehicle, once its own clock is past ``when``."""
+    found = dict(client.get(f"/vehicles/{vehicle}").json())
+    return found if found["time"] > when else None
+
+
+def records(client: httpx.Client, run: str) -> list[dict[str, Any]]:
+    return [json.loads(line) for line in client.get(f"/runs/{run}/log").text.splitlines()]
+
+
+def post(client: httpx.Client, path: str, **body: object) -> dict[str, Any]:
+    answer = client.post(path, json=body) if body else client.post(path)
+    assert answer.status_code in (200, 201), (path, answer.status_code, answer.text)
+    return dict(answer.json())
+
+
+def test_the_service_flies_two_arducopters(ardupilot, tmp_path: Path) -> None:
+    first, second = ardupilot(count=2)
+    data = tmp_path / "data"
+    command = re.search(r"```\n(tml serve --connect tcp:\S+ --connect tcp:\S+ .*)\n```",
+                        DOC)
+    assert command, "docs/serve.md shows how to serve two ArduCopters"
+    serve = shlex.split(command.group(1))[2:]
+    serve[1], serve[3] = first.address, second.address  # this run's instances
+    serve += ["--timeout", "120"]
+    with Server(serve, data) as server, \
+            httpx.Client(base_url=server.url, timeout=60) as client:
+        assert [v["id"] for v in client.get("/vehicles").json()] == [1, 2]
+        mission = client.post("/missions", content=LONG, params={"filename": "long.xml"},
+                              headers={"Content-Type": "application/xml"}).json()["id"]
+        one = post(client, "/runs", mission=mission, vehicles=[1])["id"]
+        two = post(client, "/runs", mission=mission, vehicles=[2])["id"]
+        until("both runs flying", lambda: status(client, one, "running")
+              and status(client, two, "running"))
+
+        until("vehicle 1 on its way out", lambda: out_beyond(client, 1, 15))
+        assert post(client, f"/runs/{one}/pause")["status"] == "paused"
+        post(client, f"/runs/{two}/abort")
+        # Told to hold, ArduCopter brakes and stays (vehicle seconds, from its telemetry).
+        told = client.get("/vehicles/1").json()["time"]
+        held = until("vehicle 1 braked", lambda: after(client, 1, told + 10))
+        now = until("vehicle 1 held", lambda: after(client, 1, held["time"] + 5))
+        assert all(abs(a - b) < 1.0 for a, b in zip(now["position"], held["position"],
+                                                      strict=True)), (held, now)
+        assert post(client, f"/runs/{one}/resume")["status"] == "running"
+        assert post(client, f"/runs/{one}/jump", task="Down")["tasks"]["1"]["Out"] == "aborted"
+
+        ended = until("run 1 ended", lambda: status(client, one, "completed", "failed",
+                                                   "aborted"))
+        assert (ended["status"], ended["tasks"]["1"]["Down"]) == ("completed", "done"), ended
+        controls = [r["control"] for r in records(client, one) if r["kind"] == "control"]
+        assert controls == ["pause", "resume", "jump"]
+        aborted = until("run 2 aborted", lambda: status(client, two, "aborted", "completed",
+                                                       "failed"))
+        assert (aborted["status"], aborted["exit_code"]) == ("aborted", 3), aborted
+        safety = [r for r in records(client, two) if r["kind"] == "safety"]
+        assert safety and safety[0]["request"] == "ReturnToLaunch"
+
+        # A run whose service dies in flight.
+        third = post(client, "/runs", mission=mission, vehicles=[1])["id"]
+        until("run 3 out of its take-off", lambda: any(
+            r["kind"] == "task" and r["task"] == "Out" for r in records(client, third)))
+        server.process.send_signal(signal.SIGKILL)
+        server.process.communicate(timeout=60)
+    with Server(serve, data) as again, \
+            httpx.Client(base_url=again.url, timeout=60) as client:
+        assert f"run {third} was flying when the service stopped: marked interrupted" \
+            in again.said
+        assert client.get(f"/runs/{third}").json()["status"] == "interrupted"
+        going_on = post(client, f"/runs/{third}/continue")
+        assert going_on["options"]["continues"] == third
+        ended = until("the continued run ended", lambda: status(
+            client, going_on["id"], "completed", "failed", "aborted"))
+        assert ended["status"] == "completed", ended
+        assert ended["tasks"]["1"] == dict.fromkeys(("Up", "Out", "Down"), "done")
+        requests = [r["message"] for r in records(client, going_on["id"])
+                    if r["kind"] == "request"]
+        assert "TakeOff" not in requests, "the vehicle was in the air: no second take-off"
+        code, out = again.stop()
+        assert code == 0, out

@@ -488,8 +488,33 @@ def test_a_plan_made_for_another_firmware_is_said() -> None:
     document = {"fileType": "Plan", "mission": {"firmwareType": 12, "items": [
         {"type": "SimpleItem", "command": 22, "frame": 3, "params": [0, 0, 0, 0, 0, 0, 10]}]}}
     assert read_plan(json.dumps(document)).skipped == (
-        "the plan was made for firmware type 12 (PX4): its items are kept as written, and "
-        "tml flies and exports them for ArduPilot (firmware type 3)",)
+        "the plan was made for firmware type 12 (PX4): its items are kept as written and "
+        "flown as ArduPilot flies them; the export writes firmware type 12 back",)
+
+
+def test_the_plans_mission_settings_come_back(tmp_path: Path) -> None:
+    # QGroundControl's Mission Settings: planned home, firmware, vehicle, speeds.
+    document = {"fileType": "Plan", "mission": {
+        "firmwareType": 12, "vehicleType": 20, "cruiseSpeed": 17.5, "hoverSpeed": 3,
+        "plannedHomePosition": [47.3977419, 8.5455939, 487.9], "items": [
+            {"type": "SimpleItem", "command": 22, "frame": 3, "params": [0, 0, 0, 0, 0, 0, 10]},
+            {"type": "SimpleItem", "command": 20, "frame": 2, "params": [0] * 7}]}}
+    imported = import_plan(read_plan(json.dumps(document)), "settings")
+    settings = etree.fromstring(imported.text.encode()).find("environment/plan_settings")
+    assert settings is not None and dict(settings.attrib) == {
+        "firmware_type": "12", "vehicle_type": "20", "cruise_speed": "17.5", "hover_speed": "3"}
+    back = json.loads(write_plan(_imported_plan(imported.text, Kind.MULTICOPTER, tmp_path)))
+    mission = back["mission"]
+    assert (mission["firmwareType"], mission["vehicleType"], mission["cruiseSpeed"],
+            mission["hoverSpeed"]) == (12, 20, 17.5, 3)
+    assert mission["plannedHomePosition"] == [47.3977419, 8.5455939, 487.9]
+
+
+def test_a_plan_from_tml_says_ardupilot_the_kind_and_qgroundcontrols_speeds() -> None:
+    mission = json.loads(write_plan(plan_mission(
+        load_mission(ROOT / "missions/mission_dispatch.xml"), kind=Kind.GROUND)))["mission"]
+    assert (mission["firmwareType"], mission["vehicleType"], mission["cruiseSpeed"],
+            mission["hoverSpeed"]) == (3, 10, 15, 5)
 
 
 def test_rally_points_go_to_a_plan_and_come_back() -> None:

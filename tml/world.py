@@ -112,8 +112,22 @@ OBJECT_KINDS = ("marker", "aruco", "item", "bucket", "frame", "subject")
 
 
 @dataclass(frozen=True)
+class PlanSettings:
+    """What a ground station's plan says beside its items, as QGroundControl's Mission
+    Settings hold it: the firmware and vehicle the plan was made for (MAV_AUTOPILOT and
+    MAV_TYPE numbers) and the speeds it estimates times with (m/s). Kept so that a plan
+    imported from a ``.plan`` exports back with them; None where the plan gave none."""
+
+    firmware_type: int | None = None
+    vehicle_type: int | None = None
+    cruise_speed: float | None = None
+    hover_speed: float | None = None
+    location: Location | None = None
+
+
+@dataclass(frozen=True)
 class World:
-    """Home, geofence, obstacles, recognisable objects and rally points."""
+    """Home, geofence, obstacles, recognisable objects, rally points and the plan settings."""
 
     home: Home | None = None
     geofence: Geofence | None = None
@@ -121,6 +135,7 @@ class World:
     objects: tuple[WorldObject, ...] = ()
     location: Location | None = None
     rally: tuple[RallyPoint, ...] = ()
+    plan_settings: PlanSettings | None = None
 
     @property
     def home_or_default(self) -> Home:
@@ -138,6 +153,7 @@ class World:
             obstacles=self.obstacles + other.obstacles,
             objects=self.objects + other.objects,
             rally=self.rally + other.rally,
+            plan_settings=other.plan_settings or self.plan_settings,
         )
 
 

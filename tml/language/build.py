@@ -360,7 +360,16 @@ class _Builder:
     def world(self, element: etree._Element) -> World:
         # Imported here: a mission without an <environment> does without these classes,
         # whose creation is a tenth of the start-up of a one-file validation.
-        from tml.world import Cylinder, Geofence, Home, Prism, RallyPoint, World, WorldObject
+        from tml.world import (
+            Cylinder,
+            Geofence,
+            Home,
+            PlanSettings,
+            Prism,
+            RallyPoint,
+            World,
+            WorldObject,
+        )
 
         homes = self.children(element, "home")
         for extra in homes[1:]:
@@ -428,8 +437,21 @@ class _Builder:
                         north, east, self.number(p, "altitude", Quantity.ALTITUDE),
                         self.loc(p), self.written([p])))
                     self.rally_point_fits(p, rally[-1], geofence)
+        settings = self.children(element, "plan_settings")
+        for extra in settings[1:]:
+            self.diagnostics.append(error(self.loc(extra), "E253",
+                                          "more than one <plan_settings>", "keep one"))
+        plan_settings = None
+        if settings:
+            s = settings[0]
+            numbers = [s.get(name) for name in ("firmware_type", "vehicle_type")]
+            firmware, vehicle = (None if n is None else _whole(n) for n in numbers)
+            plan_settings = PlanSettings(
+                firmware, vehicle,
+                self.optional_number(s, "cruise_speed", Quantity.SPEED),
+                self.optional_number(s, "hover_speed", Quantity.SPEED), self.loc(s))
         return World(home, geofence, tuple(obstacles), tuple(objects), self.loc(element),
-                     tuple(rally))
+                     tuple(rally), plan_settings)
 
     def rally_point_fits(self, element: etree._Element, point: RallyPoint,
                          geofence: Geofence | None) -> None:

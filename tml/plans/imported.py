@@ -447,8 +447,7 @@ def _environment(root: etree._Element, plan: PlanFile, losses: list[str],
     if plan.home is None and plan.zones:
         losses.append(f"{len(plan.zones)} fence zone(s): a mission places latitudes and "
                       "longitudes from its home, and the file gives none: left out")
-        return
-    if plan.home is None:
+    if plan.home is None and plan.settings is None:
         return
     if environment is None:
         environment = etree.SubElement(root, "environment")
@@ -456,6 +455,15 @@ def _environment(root: etree._Element, plan: PlanFile, losses: list[str],
         etree.SubElement(environment, "home", latitude=_value(plan.home.latitude),
                          longitude=_value(plan.home.longitude),
                          altitude=_value(plan.home.altitude))
+    if plan.settings is not None:  # QGroundControl's Mission Settings, for the export
+        settings = {name: _value(value) for name, value in (
+            ("firmware_type", plan.settings.firmware_type),
+            ("vehicle_type", plan.settings.vehicle_type),
+            ("cruise_speed", plan.settings.cruise_speed),
+            ("hover_speed", plan.settings.hover_speed)) if value is not None}
+        etree.SubElement(environment, "plan_settings", settings)
+    if plan.home is None:
+        return
     fenced: tuple[tuple[float, float], ...] = ()
     for index, zone in enumerate(plan.zones, start=1):
         if zone.inclusion and zone.radius is None and not fenced:

@@ -18,12 +18,15 @@ from typing import Any
 from tml.language.kinds import Kind
 from tml.mavlink.mission import MissionItem
 from tml.plans.planned import GLOBAL_FRAMES, Plan, local_to_global
-from tml.world import Cylinder, Home, Prism
+from tml.world import Cylinder, Home, PlanSettings, Prism
 
 FIRMWARE_ARDUPILOT = 3  # MAV_AUTOPILOT_ARDUPILOTMEGA
 FLOAT32_MAX = 3.4028234663852886e38  # the largest param a mission item carries
 FIRMWARES = {0: "generic", 3: "ArduPilot", 12: "PX4"}  # MAV_AUTOPILOT, as QGroundControl
 VEHICLE_TYPES = {Kind.MULTICOPTER: 2, Kind.FIXED_WING: 1, Kind.GROUND: 10}  # MAV_TYPE
+CRUISE_SPEED, HOVER_SPEED = 15, 5
+"""The speeds (m/s) written for a plan that gives none: QGroundControl's own defaults
+(its OfflineEditingCruiseSpeed and OfflineEditingHoverSpeed settings)."""
 
 
 class PlanFileError(ValueError):
@@ -54,6 +57,8 @@ class PlanFile:
     # What the file says that the items cannot carry exactly ("item 4: param5 0.5 ..."):
     # import refuses the file unless the loss is allowed.
     losses: tuple[str, ...] = ()
+    # A .plan's firmware and vehicle type and speeds, as written (None: not in the file).
+    settings: PlanSettings | None = None
 
     def source(self, seq: int) -> str:
         """How item ``seq`` (0-based) is named in messages."""
@@ -145,11 +150,14 @@ def write_plan(plan: Plan) -> str:
         elif isinstance(obstacle, Prism):
             polygons.append({"inclusion": False, "version": 1,
                              "polygon": _corners(home, obstacle.polygon, obstacle.written)})
+    settings = plan.world.plan_settings or PlanSettings()
     document = {
         "fileType": "Plan", "version": 1, "groundStation": "tml",
         "mission": {
-            "version": 2, "firmwareType": FIRMWARE_ARDUPILOT,
-            "vehicleType": VEHICLE_TYPES[plan.kind], "cruiseSpeed": 15, "hoverSpeed": 5,
+            "version": 2, "firmwareType": _given(settings.firmware_type, FIRMWARE_ARDUPILOT),
+            "vehicleType": _given(settings.vehicle_type, VEHICLE_TYPES[plan.kind]),
+            "cruiseSpeed": _given(settings.cruise_speed, CRUISE_SPEED),
+            "hoverSpeed": _given(settings.hover_speed, HOVER_SPEED),
             "globalPlanAltitudeMode": 1,
             "plannedHomePosition": [home.latitude, home.longitude, home.altitude],
             "items": items},
@@ -159,6 +167,12 @@ def write_plan(plan: Plan) -> str:
             for p in plan.world.rally]},
     }
     return json.dumps(document, indent=4) + "\n"
+
+
+def _given(value: float | None, default: float) -> float:
+    """``value`` as the plan gave it (a whole number as an int), else ``default``."""
+    number = default if value is None else value
+    return int(number) if float(number).is_integer() else number
 
 
 def _corners(home: Home, local: tuple[tuple[float, float], ...],
@@ -216,17 +230,35 @@ def read_plan(text: str, name: str = "plan") -> PlanFile:
         raise PlanFileError(f"{name}: {error}") from None
     except (KeyError, TypeError, ValueError, IndexError, AttributeError) as error:
         raise PlanFileError(f"{name}: malformed plan: {error!r}") from None
-    firmware = mission.get("firmwareType")
+    settings = _settings(mission)
+    firmware = settings.firmware_type if settings is not None else None
     if firmware not in (None, FIRMWARE_ARDUPILOT):
         skipped.append(f"the plan was made for firmware type {firmware} "
                        f"({FIRMWARES.get(firmware, 'MAV_AUTOPILOT')}): its items are kept as "
-                       "written, and tml flies and exports them for ArduPilot (firmware "
-                       f"type {FIRMWARE_ARDUPILOT})")
+                       "written and flown as ArduPilot flies them; the export writes firmware "
+                       f"type {firmware} back")
     if nulls:
         skipped.append(f"{', '.join(nulls)}: params 5 and 6 null in a frame where they are "
                        "integers: read as 0, as MISSION_ITEM_INT sends them")
     return PlanFile(tuple(items), home, zones, rally, tuple(skipped), tuple(sources),
-                    tuple(losses))
+                    tuple(losses), settings)
+
+
+def _settings(mission: dict[str, Any]) -> PlanSettings | None:
+    """The firmware and vehicle type and the speeds a plan's mission gives, as
+    QGroundControl reads them (numbers; one of another type is ignored, as it is there)."""
+    def number(key: str) -> float | None:
+        value = mission.get(key)
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            return None
+        return float(value) if math.isfinite(value) and value >= 0 else None
+
+    firmware, vehicle = number("firmwareType"), number("vehicleType")
+    found = PlanSettings(
+        int(firmware) if firmware is not None and firmware.is_integer() else None,
+        int(vehicle) if vehicle is not None and vehicle.is_integer() else None,
+        number("cruiseSpeed"), number("hoverSpeed"))
+    return found if found != PlanSettings() else None
 
 
 def _jumps_by_number(items: list[MissionItem], jump_ids: dict[int, int], sources: list[str],

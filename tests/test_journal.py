@@ -10,7 +10,14 @@ from types import MappingProxyType
 
 import pytest
 
-from tml.run.journal import Journal, autopilot_fields, jsonable, read, telemetry_fields
+from tml.run.journal import (
+    Journal,
+    JournalBusy,
+    autopilot_fields,
+    jsonable,
+    read,
+    telemetry_fields,
+)
 from tml.vehicle import AutopilotMessage, MissionProgress, VehicleState
 from tml.world import Home
 
@@ -162,3 +169,18 @@ def test_a_log_that_cannot_be_written_is_said_once_and_stops_nothing() -> None:
     assert journal.failure == "could not write line 3: No space left on device"
     assert said == ["flight log: could not write line 3: No space left on device; "
                     "the flight goes on without it"]
+
+
+def test_one_writer_at_a_time_and_a_refused_one_changes_nothing(tmp_path) -> None:
+    path = str(tmp_path / "flight.jsonl")
+    first = Journal.open(path)
+    first.write(0.0, "run", message="run started")
+    for append in (False, True):  # a second run given the same --log, a --resume
+        with pytest.raises(JournalBusy, match="another process is writing this flight log"):
+            Journal.open(path, append=append)
+    assert [line["message"] for line in read(path)] == ["run started"]
+    first.close()
+    again = Journal.open(path, append=True)  # closed: free again
+    again.write(1.0, "run", message="run resumed")
+    again.close()
+    assert [line["message"] for line in read(path)] == ["run started", "run resumed"]

@@ -144,3 +144,41 @@ def test_a_plan_flown_in_auto_is_followed_after_a_resume_not_uploaded_again(
     assert resumed.ends == alone.ends
     assert alone.uploads == resumed.uploads == 1
     assert resumed.takeoffs_flown == 1
+
+
+def test_a_log_another_process_writes_is_neither_resumed_nor_written_again(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import os
+    import signal
+    import subprocess
+    import time
+
+    from connected_flight import log_lines
+
+    from tml.run.journal import Journal
+
+    mission = tmp_path / "wait.xml"
+    mission.write_text(HOP.replace('<task name="Down">', '<task name="Stay"><action '
+                                   'name="WAIT"><argument name="duration" value="120"/>'
+                                   '</action></task>\n  <task name="Down">'))
+    log = tmp_path / "flight.jsonl"
+    writer = subprocess.Popen([sys.executable, "-m", "tml", "run", str(mission), "--sim",
+                               "-q", "--log", str(log), "--speedup", "1"],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        end = time.monotonic() + 120  # a hang guard
+        while not any(line["kind"] == "run" for line in log_lines(log)):
+            assert time.monotonic() < end and writer.poll() is None, "the run never began"
+            time.sleep(0.05)
+        said = refusal(capsys, str(mission), "--connect", ADDRESS, "--resume", str(log))
+        assert said == (f"tml run: cannot resume: {log}: another process is writing this "
+                        f"flight log (a run still going on): one run writes a log at a "
+                        f"time\n")
+        said = refusal(capsys, str(mission), "--sim", "-q", "--log", str(log))
+        assert said.startswith(f"tml run: --log {log}: another process is writing")
+        assert log_lines(log)[0]["message"] == "run started"  # left whole
+        assert writer.poll() is None
+    finally:
+        os.kill(writer.pid, signal.SIGKILL)
+        writer.wait(timeout=30)
+    Journal.open(str(log), append=True).close()  # a killed writer holds nothing

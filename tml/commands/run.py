@@ -118,27 +118,35 @@ def run(args: argparse.Namespace) -> ExitCode:
     if not isinstance(loaded, tuple):
         return _exit_code(loaded)
     mission, world, extra, profile = loaded
-    from tml.run.journal import Journal
+    from tml.run.journal import Journal, JournalBusy
     from tml.run.resume import ResumeRefused, file_digest, resume_point
 
+    # Before anything starts, and before the log is read to resume from: a log that cannot
+    # be written, or that another process still writes, is a usage error.
     try:
-        digest = file_digest(args.mission)
-        point = None if args.resume is None else resume_point(args.resume, mission, digest,
-                                                              args.connect or [])
+        journal = Journal.open(args.log, append=args.resume is not None)
+    except JournalBusy as error:
+        errors.print(f"tml run: {'cannot resume: ' if args.resume else '--log '}{error}",
+                     markup=False)
+        return ExitCode.USAGE
     except OSError as error:
         errors.print(f"tml run: --resume {args.resume}: cannot read: "
-                     f"{error.strerror or error}", markup=False)
-        return ExitCode.USAGE
-    except ResumeRefused as error:
-        errors.print(f"tml run: cannot resume: {error}", markup=False)
-        return ExitCode.USAGE
-    try:  # before anything starts: a log that cannot be written is a usage error
-        journal = Journal.open(args.log, append=args.resume is not None)
-    except OSError as error:
-        errors.print(f"tml run: --log {args.log}: cannot write: {error.strerror or error}",
+                     f"{error.strerror or error}" if args.resume is not None else
+                     f"tml run: --log {args.log}: cannot write: {error.strerror or error}",
                      markup=False)
         return ExitCode.USAGE
     try:
+        try:
+            digest = file_digest(args.mission)
+            point = None if args.resume is None else resume_point(
+                args.resume, mission, digest, args.connect or [])
+        except OSError as error:
+            errors.print(f"tml run: --resume {args.resume}: cannot read: "
+                         f"{error.strerror or error}", markup=False)
+            return ExitCode.USAGE
+        except ResumeRefused as error:
+            errors.print(f"tml run: cannot resume: {error}", markup=False)
+            return ExitCode.USAGE
         return _run(args, options, mission, world, extra, profile, journal, console, errors,
                     Resumed(digest, point))
     finally:
@@ -232,8 +240,6 @@ def _fly(args: argparse.Namespace, session: Session, mission: Mission, world: Wo
          profile: VehicleProfile, console: Console, journal: Journal,
          resumed: Resumed) -> ExitCode:
     from tml.run.display import LineDisplay, LiveDisplay
-    from tml.run.runner import Runner
-    from tml.vehicle import IdSource
 
     display: LiveDisplay | LineDisplay | None = None
     if not args.quiet:
@@ -250,16 +256,11 @@ def _fly(args: argparse.Namespace, session: Session, mission: Mission, world: Wo
     payloads: dict[int, list[str]] = {}
     for number, names in args.payload:
         payloads.setdefault(number, []).extend(names)
-    point = resumed.point
-    runner = Runner(mission, session.vehicles, clock=session.clock,
-                    options=session.run_options(profile, world), journal=journal,
-                    wake=session.wake, timebase=session.timebase, on_safety=on_safety,
-                    payloads=payloads,
-                    on_update=(lambda r: display.update(r.views())) if display else None,
-                    ids=None if point is None else IdSource(point.next_id),
-                    resume=None if point is None else point.progress,
-                    about={"sha256": resumed.digest, "connect": args.connect or [],
-                           "system_ids": [v.system_id for v in session.vehicles]})
+    runner = session.runner(
+        mission, profile, world, journal, resumed=resumed.point, payloads=payloads,
+        on_safety=on_safety,
+        on_update=(lambda r: display.update(r.views())) if display else None,
+        about={"sha256": resumed.digest})
     try:
         with on_stop_signals(lambda name: runner.stop(f"interrupted ({name})")), \
                 display if display is not None else contextlib.nullcontext():

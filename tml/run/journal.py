@@ -28,11 +28,20 @@ A log that cannot be written (a full disk, a directory removed under it) never s
 flight: the first failure is kept (:attr:`Journal.failure`) and told to ``on_failure``, the
 lines after it are only counted (:attr:`Journal.unwritten`), and the run goes on to its end
 and its safe state as it would have; the command says what it could not write.
+
+*One writer.* A flight log opened by :meth:`Journal.open` is locked (``flock``, exclusive)
+for as long as its file is open: a second ``tml run --resume LOG`` -- or a second run
+given the same ``--log`` -- while a process still writes LOG would interleave two runs'
+decisions in one log and fly one vehicle from two ground stations. It is refused
+(:class:`JournalBusy`) before the file is changed. The operating system lets go of the lock
+when the writer closes the file, exits or is killed, so a run killed with SIGKILL leaves a
+log that resumes at once.
 """
 
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import json
 import math
 import os
@@ -40,6 +49,7 @@ from collections.abc import Callable, Mapping
 from datetime import datetime
 from typing import Any, Protocol
 
+from tml.errors import TmlError
 from tml.geo import to_global
 from tml.vehicle import AutopilotMessage, VehicleState
 
@@ -120,6 +130,20 @@ HEAD = ("t", "kind", "vehicle", "mission_time", "wall")
 ``<kind>_<name>``."""
 
 
+class JournalBusy(TmlError):
+    """Another process writes this flight log (see "One writer" in the module docstring)."""
+
+
+def lock(stream: Any, path: str) -> None:
+    """Take the flight log's writer lock on ``stream`` (the open file ``path``), or raise
+    :class:`JournalBusy`; held until the file is closed (or the process ends)."""
+    try:
+        fcntl.flock(stream.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        raise JournalBusy(f"{path}: another process is writing this flight log (a run "
+                          f"still going on): one run writes a log at a time") from None
+
+
 class Journal:
     """Writes log lines to ``stream`` (nothing at all when ``stream`` is None); ``wall``
     tells the wall-clock time of each line (the local time by default)."""
@@ -143,10 +167,23 @@ class Journal:
     @classmethod
     def open(cls, path: str | None, append: bool = False) -> Journal:
         """A journal writing to the file ``path`` (created or truncated; ``append``: added
-        to, as a resumed run does), or a silent one."""
+        to, as a resumed run does: the file must exist), or a silent one; locked for its
+        writer (:func:`lock`: :class:`JournalBusy` when another process writes it, before
+        anything of it is changed)."""
         if not path:
             return cls(None)
-        return cls(open(path, "a" if append else "w", encoding="utf-8"), owned=True)
+        # Opened without truncating, so that a log another process writes is left whole.
+        stream = open(path, "r+" if append else "a", encoding="utf-8")  # noqa: SIM115
+        try:
+            lock(stream, path)
+            if append:
+                stream.seek(0, os.SEEK_END)
+            else:
+                stream.truncate(0)
+        except BaseException:
+            stream.close()
+            raise
+        return cls(stream, owned=True)
 
     def mission_time(self, time: float) -> float | None:
         """The mission time of the run's ``time`` (None before the mission started)."""

@@ -216,6 +216,10 @@ def build_parser(prog: str = "python -m sitl") -> argparse.ArgumentParser:
                         help="MAVLink 2 signing: sign what the vehicles send and refuse what "
                              "is unsigned or wrongly signed; the file holds 64 hex digits or "
                              "a passphrase (else the key of TML_SIGNING_KEY, if set)")
+    parser.add_argument("--heard", metavar="FILE",
+                        help="write every message a vehicle receives to FILE, one JSON line "
+                             "each: vehicle, vehicle and wall time, sender system and "
+                             "component, type (who commanded which vehicle when)")
     faults = parser.add_argument_group("faults")
     faults.add_argument("--loss-in", type=_probability, default=0.0,
                         help="probability a message to the vehicle is lost")
@@ -286,10 +290,16 @@ def main(argv: Sequence[str] | None = None, prog: str = "python -m sitl") -> int
     from sitl.frames import frame_of
     from sitl.server import Simulator
 
+    try:
+        heard = open(args.heard, "a", encoding="utf-8") if args.heard else None  # noqa: SIM115
+    except OSError as error:
+        print(f"{prog}: --heard {args.heard}: {error.strerror or error}", file=sys.stderr)
+        return 2
     simulator = Simulator(
         vehicles=args.vehicles, home=args.home, speedup=args.speedup, seed=args.seed,
         world=world, faults=faults, tcp_base_port=args.tcp_base_port, udp_out=args.out,
         bind=args.bind, params=dict(args.param), frames=args.frame, signing_key=key,
+        heard=heard,
     )
     try:
         simulator.start()
@@ -317,4 +327,6 @@ def main(argv: Sequence[str] | None = None, prog: str = "python -m sitl") -> int
         simulator.stop()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+        if heard is not None:
+            heard.close()
     return 0

@@ -29,6 +29,13 @@ when that ground station has handled everything the vehicles said and waits for 
 (:meth:`~tml.timebase.Lockstep.settled`), and never faster than ``speedup`` times
 wall-clock time: a flight is then the same on an idle and on a saturated machine.
 
+*Who spoke to a vehicle.* Given ``heard`` (a text file), every message a vehicle receives
+from a client is written there as one JSON line: the vehicle's system id, its time
+(``t``) and the wall-clock time (``wall``), the sender's system and component ids
+(``src``, ``comp``), the message type and target system, and the client's port: which
+ground station commanded which vehicle when (the cluster test of ``tml serve`` checks
+that no vehicle hears two at once).
+
 Link faults (:class:`sitl.faults.Faults`) act here, on decoded messages going in and on
 encoded packets going out, timed in vehicle time so they replay from the seed.
 """
@@ -36,12 +43,13 @@ encoded packets going out, timed in vehicle time so they replay from the seed.
 from __future__ import annotations
 
 import contextlib
+import json
 import selectors
 import socket
 import threading
 import time
 from dataclasses import replace
-from typing import Any
+from typing import IO, Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
@@ -189,6 +197,7 @@ class Simulator:
         bind: str = "127.0.0.1", realtime: bool = True, params: dict[str, float] | None = None,
         frames: list[str] | tuple[str, ...] = (),
         signing_key: bytes | None = None, lockstep: Lockstep | None = None,
+        heard: IO[str] | None = None,
     ) -> None:
         if not 1 <= vehicles <= MAX_VEHICLES:
             raise ValueError(f"1 to {MAX_VEHICLES} vehicles (a MAVLink system id is one byte)")
@@ -226,6 +235,7 @@ class Simulator:
         self._thread: threading.Thread | None = None
         self._running = threading.Event()
         self._started = False
+        self.heard = heard  # see "Who spoke to a vehicle" in the module docstring
 
     # ------------------------------------------------------------------ API
     @property
@@ -410,6 +420,8 @@ class Simulator:
         for msg in messages:
             if msg.get_type() == "BAD_DATA":
                 continue
+            if self.heard is not None:
+                self._write_heard(endpoint, peer, msg)
             if routing:
                 self._route(endpoint, peer, msg)
             if endpoint.incoming is not None:
@@ -418,6 +430,17 @@ class Simulator:
                 self._emit(endpoint, endpoint.model.handle(msg))
                 if endpoint.model.reboot_due:  # asked: after its ACK, as ArduPilot
                     self._reboot(endpoint)
+
+    def _write_heard(self, endpoint: _Endpoint, peer: _Peer, msg: Any) -> None:
+        assert self.heard is not None
+        where = peer.remote or peer.address
+        self.heard.write(json.dumps({
+            "v": endpoint.model.system_id, "t": round(self.time, 3),
+            "wall": round(time.time(), 4), "src": msg.get_srcSystem(),
+            "comp": msg.get_srcComponent(), "type": msg.get_type(),
+            "to": getattr(msg, "target_system", 0),
+            "port": where[1] if where else None}) + "\n")
+        self.heard.flush()  # read while the simulator runs, and kept if it is killed
 
     def _route(self, endpoint: _Endpoint, source: _Peer, msg: Any) -> None:
         """Forward ``msg`` from ``source`` to the vehicle's other clients, as ArduPilot's

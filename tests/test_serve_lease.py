@@ -205,3 +205,13 @@ def test_a_control_reaches_the_instance_named_and_comes_back_with_its_answer(
     finally:
         a.stop()
         b.stop()
+
+
+def test_tml_serve_cluster_without_postgresql_is_a_usage_error(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    from tml.commands.cli import main
+
+    assert main(["serve", "--sim", "--cluster", "--port", "0"]) == 2
+    assert capsys.readouterr().err == ("tml serve: --cluster needs --database "
+                                       "postgresql://...: the instances share their leases "
+                                       "there\n")

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import contextlib
+import io
+import json
 import os
 import shutil
 import socket
@@ -331,3 +333,21 @@ def test_a_signing_simulator_refuses_unsigned_and_wrongly_signed_commands():
         assert all(m.get_signed() for m in acks)  # what it sends is signed
         for link in (spoofer, wrong, owner):
             link.close()
+
+
+def test_heard_says_which_ground_station_sent_each_vehicle_what():
+    heard = io.StringIO()
+    with Simulator(vehicles=2, tcp_base_port=0, realtime=False, heard=heard) as sim:
+        first, second = connect(sim.tcp_ports[0]), connect(sim.tcp_ports[1])
+        first.mav.srcSystem, second.mav.srcSystem = 251, 252
+        first.send(M.MAVLink_heartbeat_message(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID,
+                                               0, 0, 4, 3))
+        sim.advance(0.5)
+        second.send(M.MAVLink_command_long_message(2, 1, 176, 0, 1, 4, 0, 0, 0, 0, 0))
+        sim.advance(0.5)
+        for link in (first, second):
+            link.close()
+    records = [json.loads(line) for line in heard.getvalue().splitlines()]
+    assert [(r["v"], r["src"], r["comp"], r["type"], r["to"]) for r in records] == [
+        (1, 251, 190, "HEARTBEAT", 0), (2, 252, 190, "COMMAND_LONG", 2)]
+    assert records[0]["t"] < records[1]["t"] and records[0]["wall"] <= records[1]["wall"]

@@ -3,7 +3,8 @@
 Exit codes: 0 stopped (SIGINT, SIGTERM: every flying vehicle sent to its safe state
 first), 2 bad arguments (a non-loopback address without a token, an address and port that
 cannot be served on -- in use, or not this machine's --, a database that cannot be
-opened, the ``serve`` extra not installed), 4 the vehicles cannot be reached.
+opened, ``--cluster`` without PostgreSQL, the ``serve`` extra not installed), 4 the
+vehicles cannot be reached.
 """
 
 from __future__ import annotations
@@ -14,16 +15,28 @@ import ipaddress
 import os
 import socket
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from tml.commands.signals import on_stop_signals
-from tml.commands.vehicles import add_vehicle_arguments, session_options, vehicle_problem
+from tml.commands.vehicles import (
+    add_vehicle_arguments,
+    positive,
+    session_options,
+    system_id,
+    vehicle_problem,
+)
 from tml.errors import ExitCode
 
 if TYPE_CHECKING:
     import uvicorn
+
+    from tml.serve.hangar import Hangar
+    from tml.serve.service import Service
+    from tml.serve.storage import Storage
+    from tml.vehicle import Vehicle
 
 TOKEN_VARIABLE = "TML_SERVE_TOKEN"
 MAX_BODY = 4 * 1024 * 1024  # the default of --max-body (tml.serve.guard.MAX_BODY)
@@ -55,6 +68,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--instance", default="local", metavar="NAME",
                         help="this service's name in a database shared by several "
                              "(default local; see docs/serve.md)")
+    cluster = parser.add_argument_group("cluster (several instances on one PostgreSQL, "
+                                        "docs/serve.md)")
+    cluster.add_argument("--cluster", action="store_true",
+                         help="share the vehicles with the other instances on --database: "
+                              "each vehicle is commanded by the one instance that leases it, "
+                              "and the runs of an instance that dies are continued by another")
+    cluster.add_argument("--lease", type=positive, default=3.0, metavar="S",
+                         help="--cluster: seconds a renewal keeps this instance's vehicles "
+                              "(default 3, renewed every third of it; keep it well inside "
+                              "the vehicles' FS_GCS_TIMEOUT)")
+    cluster.add_argument("--source-system", type=system_id, default=255, metavar="N",
+                         help="the MAVLink system id this instance sends as (default 255; "
+                              "give each instance of a cluster its own)")
 
 
 def is_loopback(host: str) -> bool:
@@ -121,6 +147,10 @@ def run(args: argparse.Namespace) -> ExitCode:
         print(f"tml serve: --max-body {args.max_body}: expected a number of bytes above 0",
               file=sys.stderr)
         return ExitCode.USAGE
+    if args.cluster and not (args.database or "").startswith(("postgresql:", "postgres:")):
+        print("tml serve: --cluster needs --database postgresql://...: the instances share "
+              "their leases there", file=sys.stderr)
+        return ExitCode.USAGE
     try:
         listening = _listen(args.host, args.port)
     except OSError as error:
@@ -156,7 +186,6 @@ def _serve(args: argparse.Namespace, token: str | None, listening: socket.socket
 
     from tml.errors import TmlError
     from tml.serve.api import create_app
-    from tml.serve.hangar import Hangar
     from tml.serve.service import Service, ServiceOptions
     from tml.serve.storage import Storage, database_url
     from tml.world import World
@@ -178,21 +207,19 @@ def _serve(args: argparse.Namespace, token: str | None, listening: socket.socket
             hangar.notify()
 
     # The service's threads fly its runs, on the system's time: the simulator runs free.
-    options = session_options(args, "tml serve")
+    options = replace(session_options(args, "tml serve"), source_system=args.source_system)
     try:
         with open_session(options, World(), output_console(stderr=True),
-                          notify=notify) as session:
+                          notify=notify) as session, contextlib.ExitStack() as stack:
             if session.gcs_failsafe() is not None:
                 return ExitCode.FAILURE
             vehicles, clock = session.vehicles, session.clock
-            hangar = Hangar(vehicles, clock)
+            hangar = _hangar(args, storage, vehicles, clock)
             hangars.append(hangar)
             service = Service(storage, hangar, ServiceOptions(
                 instance=args.instance, link_lost_limit=args.link_lost_limit,
                 ready_timeout=args.ready_timeout))
-            for run_id in service.start():
-                print(f"tml serve: run {run_id} was flying when the service stopped: "
-                      "marked interrupted", file=sys.stderr)
+            stack.enter_context(_joined(args, service, hangar))
             port = listening.getsockname()[1]
             where = f"http://{_url_host(args.host)}:{port}/"
             print(f"tml serve: {where} ({len(vehicles)} vehicle(s): "
@@ -218,6 +245,42 @@ def _serve(args: argparse.Namespace, token: str | None, listening: socket.socket
         return ExitCode.FAILURE
     finally:
         storage.close()
+
+
+def _hangar(args: argparse.Namespace, storage: Storage, vehicles: Sequence[Vehicle],
+            clock: Callable[[], float]) -> Hangar:
+    """The service's vehicles: its own, or (--cluster) leased from the cluster's tables,
+    their links fenced (tml.serve.cluster)."""
+    from tml.serve.hangar import Hangar
+
+    if not args.cluster:
+        return Hangar(vehicles, clock)
+    from tml.serve.cluster import ClusterHangar
+    from tml.serve.lease import Leases
+
+    return ClusterHangar(vehicles, clock, Leases(storage.engine, args.instance, args.lease,
+                                                 args.source_system))
+
+
+@contextlib.contextmanager
+def _joined(args: argparse.Namespace, service: Service, hangar: Hangar) -> Iterator[None]:
+    """The runs this instance was flying when it last stopped: marked interrupted; with
+    --cluster, the cluster joined until left, and those runs continued."""
+    from tml.serve.cluster import ClusterHangar, clustered
+
+    if not isinstance(hangar, ClusterHangar):
+        for run_id in service.start():
+            print(f"tml serve: run {run_id} was flying when the service stopped: "
+                  "marked interrupted", file=sys.stderr)
+        yield
+        return
+    with clustered(service, hangar) as cluster:
+        for old, new in cluster.adopted:
+            print(f"tml serve: run {old} was flying when the service stopped: continued "
+                  f"as run {new}", file=sys.stderr)
+        print(f"tml serve: instance {args.instance} joined the cluster (lease "
+              f"{args.lease:g} s, MAVLink system {args.source_system})", file=sys.stderr)
+        yield
 
 
 def _url_host(host: str) -> str:

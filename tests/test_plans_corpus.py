@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
+from typing import NamedTuple
 
 import pytest
 from lxml import etree
@@ -24,7 +25,9 @@ FILES = sorted(p for p in CORPUS.iterdir() if p.suffix in (".plan", ".txt", ".mi
 
 REFUSED = {
     "ardupilot_rover_rally.txt": "not a waypoint file",  # MAVProxy's RALLY list
-    "ardupilot_rover_path_planning_fence.txt": "no mission items to fly (it holds a fence",
+    "ardupilot_rover_path_planning_fence.txt":
+        "no mission items to fly (it holds a fence or rally points only, and no home to "
+        "place them from)",
     "mavsdk_qgroundcontrol_sample_with_structured_scan.plan":
         "complex item 'StructureScan' saved without its mission items",
     "mavsdk_qgroundcontrol_sample_with_survey_missing_items.plan":
@@ -41,15 +44,25 @@ WORLDS = {"qgc_geofence_rd_2.plan": "world file"}
 laid over a mission gives the same fence back."""
 
 
-def outcome(path: Path, tmp_path: Path) -> tuple[str, int, int]:
-    """("exact" or the reason refused, items in the file, items carried as MISSION_ITEM)."""
+class Outcome(NamedTuple):
+    """What became of a file: "exact", "world file" or the reason it was refused."""
+
+    result: str
+    items: int = 0  # in the file
+    raw: int = 0  # carried as MISSION_ITEM
+    repeats: int = 0  # DO_JUMPs imported as <repeat>
+
+
+def outcome(path: Path, tmp_path: Path) -> Outcome:
+    """Import ``path``, validate the mission and export it back in the file's format,
+    asserting that the export holds the file's items."""
     try:
         source = read(path)
         imported = import_plan(source, path.stem)
     except PlanFileError as error:
-        return str(error), 0, 0
+        return Outcome(str(error))
     if imported.losses:
-        return "; ".join(imported.losses), len(source.items), imported.raw
+        return Outcome("; ".join(imported.losses), len(source.items))
     if imported.world:  # a fence and no item: a world file, laid over a one-task mission
         world = tmp_path / f"{path.stem}.xml"
         world.write_text(imported.text, encoding="utf-8")
@@ -58,7 +71,7 @@ def outcome(path: Path, tmp_path: Path) -> tuple[str, int, int]:
         assert lands is not None
         back = read_plan(write_plan(plan_mission(lands, world=load_world(world))))
         assert differences(source, replace(back, items=())) == []
-        return "world file", 0, 0
+        return Outcome("world file")
     mission = tmp_path / f"{path.stem}.xml"
     mission.write_text(imported.text, encoding="utf-8")
     result = validate_file(mission)
@@ -69,7 +82,8 @@ def outcome(path: Path, tmp_path: Path) -> tuple[str, int, int]:
     back = tmp_path / ("back.plan" if json else "back.waypoints")
     back.write_text(write_plan(plan) if json else write_wpl(plan), encoding="utf-8")
     assert differences(source, read(back)) == []
-    return "exact", len(source.items), imported.raw
+    return Outcome("exact", len(source.items), imported.raw,
+                   imported.text.count("<repeat "))
 
 
 def test_the_corpus_has_40_files_with_their_sources() -> None:
@@ -82,11 +96,56 @@ def test_the_corpus_has_40_files_with_their_sources() -> None:
 @pytest.mark.parametrize("path", FILES, ids=lambda p: p.name)
 def test_each_file_imports_exactly_and_exports_back_item_for_item(
         path: Path, tmp_path: Path) -> None:
-    result, _, _ = outcome(path, tmp_path)
+    result = outcome(path, tmp_path).result
     if path.name in REFUSED:
         assert REFUSED[path.name] in result
     else:
         assert result == WORLDS.get(path.name, "exact")
+
+
+SOURCES = {"ardupilot_copter": "ArduPilot copter autotest missions",
+           "ardupilot_plane": "ArduPilot plane and quadplane",
+           "ardupilot_quadplane": "ArduPilot plane and quadplane",
+           "ardupilot_rover": "ArduPilot rover", "mavsdk": "MAVSDK test plans",
+           "px4": "PX4 test missions", "qgc": "QGroundControl geofence"}
+"""The source of each file, by the start of its name."""
+ARTIFACT = Path(__file__).parent.parent / "test-artifacts" / "plans-corpus.md"
+
+
+def test_the_closing_table_counts_every_file(tmp_path: Path) -> None:
+    """The corpus in numbers, per source, written to test-artifacts/plans-corpus.md (the
+    table docs/plans.md quotes): files, items, exact round trips, the items carried as
+    actions and as MISSION_ITEMs, the DO_JUMPs imported as repeats, the refusals and why."""
+    rows: dict[str, list[int]] = {}
+    refusals: dict[str, list[str]] = {}
+    for path in FILES:
+        source = next(v for k, v in SOURCES.items() if path.name.startswith(k + "_"))
+        folder = tmp_path / path.stem
+        folder.mkdir()
+        found = outcome(path, folder)
+        row = rows.setdefault(source, [0] * 6)
+        exact = found.result in ("exact", "world file")
+        row[0] += 1
+        row[1] += found.items
+        row[2] += exact
+        row[3] += found.items - found.raw if exact else 0
+        row[4] += found.raw if exact else 0
+        row[5] += found.repeats
+        if not exact:
+            refusals.setdefault(source, []).append(f"`{path.name}`: {REFUSED[path.name]}")
+    lines = ["| source | files | items | exact round trips | items as actions | items as "
+             "MISSION_ITEM | DO_JUMPs as `<repeat>` | refused, and why |",
+             "|---|---|---|---|---|---|---|---|"]
+    total = [0] * 6
+    for source, row in rows.items():
+        total = [a + b for a, b in zip(total, row, strict=True)]
+        lines.append(f"| {source} | {' | '.join(map(str, row))} | "
+                     f"{'; '.join(refusals.get(source, [])) or '-'} |")
+    lines.append(f"| all | {' | '.join(map(str, total))} | "
+                 f"{sum(map(len, refusals.values()))} files |")
+    ARTIFACT.parent.mkdir(exist_ok=True)
+    ARTIFACT.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    assert total[0] == len(FILES) and total[2] + len(REFUSED) == len(FILES)
 
 
 FLOWN = ["ardupilot_copter_auto_land_to_brake.txt", "ardupilot_copter_do_change_speed.txt",

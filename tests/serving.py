@@ -102,8 +102,8 @@ class FakeHangar(Hangar):
 @contextlib.contextmanager
 def simulated(vehicles: int = 2, speedup: float = 20.0) -> Iterator[Hangar]:
     """A hangar of simulated vehicles, opened as ``tml serve --sim`` opens them."""
-    from tml.commands.vehicles import open_simulator
     from tml.run.session import SessionOptions, SimulatorOptions, open_session
+    from tml.simulator import open_simulator
 
     options = SessionOptions(simulator=SimulatorOptions(vehicles=vehicles, speedup=speedup,
                                                         params=FAST_SIM),

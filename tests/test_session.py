@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from tml.commands.vehicles import add_vehicle_arguments, open_simulator, session_options
+from tml.commands.vehicles import add_vehicle_arguments, session_options
 from tml.language.validation import load_mission
 from tml.run.session import (
     GCS_FAILSAFE,
@@ -21,6 +21,7 @@ from tml.run.session import (
     SimulatorOptions,
     open_session,
 )
+from tml.simulator import open_simulator
 from tml.vehicle import SetMode
 from tml.verify.profile import load_profile
 from tml.world import World

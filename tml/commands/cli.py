@@ -201,9 +201,9 @@ def cmd_completion(args: argparse.Namespace) -> ExitCode:
 
 def cmd_sim(argv: Sequence[str]) -> int:
     """Run the embedded simulator (same options as ``python -m sitl``)."""
-    from sitl.cli import main as sim_main
+    from tml.simulator import simulator_main
 
-    return sim_main(list(argv), prog="tml sim")
+    return simulator_main(argv, prog="tml sim")
 
 
 class Parser(argparse.ArgumentParser):

@@ -1,9 +1,10 @@
 """``tml companion``: the simulated companion computer, attached to an autopilot from outside.
 
-Runs :class:`sitl.companion_link.CompanionLink` (the embedded simulator's companion
-computer, MAVLink component 191) against a vehicle at a connection address -- on ArduPilot,
-its second serial port (SERIAL1; SITL instance I: ``tcp:127.0.0.1:5762+10*I``) -- until
-SIGINT or SIGTERM. See docs/simulator.md.
+Attaches the embedded simulator's companion computer (MAVLink component 191, reached through
+:mod:`tml.simulator`) to a vehicle at a connection address -- on ArduPilot, its second
+serial port (SERIAL1; SITL instance I: ``tcp:127.0.0.1:5762+10*I``) -- through the flight
+session (:func:`tml.run.session.open_companion`: the address, ``--sysid`` and
+``--timeout`` as typed options), until SIGINT or SIGTERM. See docs/simulator.md.
 
 Exit codes: 0 stopped by SIGINT or SIGTERM, 2 bad arguments, a malformed address or an
 unreadable or invalid world file, 4 the address cannot be opened or no autopilot was heard
@@ -15,6 +16,7 @@ from __future__ import annotations
 import argparse
 import sys
 import threading
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -67,6 +69,8 @@ def run(args: argparse.Namespace) -> ExitCode:
     """Run ``tml companion``; return the exit code."""
     from tml.errors import TmlError, VehicleError
     from tml.mavlink.link import parse_address
+    from tml.run.session import SessionOptions, open_companion
+    from tml.simulator import open_companion as companion_factory
 
     def fail(message: str, code: ExitCode) -> ExitCode:
         print(f"tml companion: {message}", file=sys.stderr)
@@ -82,11 +86,14 @@ def run(args: argparse.Namespace) -> ExitCode:
         return fail(f"{args.world}: {error.strerror or error}", ExitCode.USAGE)
     except TmlError as error:
         return fail(str(error), ExitCode.USAGE)
-
-    from sitl.companion_link import CompanionLink
+    options = SessionOptions(
+        connect=(args.connect,), system_ids=() if args.system_id is None else (args.system_id,),
+        timeout=args.timeout, quiet=args.quiet, program="tml companion",
+        open_companion=companion_factory)
 
     stop = threading.Event()
     stopped_by: list[str] = []
+    clock: list[Callable[[], float]] = [lambda: 0.0]  # the autopilot's, once attached
 
     def on_signal(name: str) -> None:
         stopped_by.append(name)
@@ -94,25 +101,25 @@ def run(args: argparse.Namespace) -> ExitCode:
 
     def say(text: str) -> None:
         if not args.quiet:
-            print(f"[{link.time:8.1f} s] {text}", flush=True)
+            print(f"[{clock[0]():8.1f} s] {text}", flush=True)
 
-    link = CompanionLink(args.connect, world, system_id=args.system_id, on_text=say)
     with on_stop_signals(on_signal):
         try:
-            if not link.open(args.timeout, stop):
-                return ExitCode.OK
-            if not args.quiet:
-                print(f"tml companion: component 191 of system {link.system_id} attached to "
-                      f"{args.connect} (autopilot component {link.autopilot_component}); "
-                      f"{Path(args.world).name}: {len(world.objects)} object(s), "
-                      f"{len(world.obstacles)} obstacle(s)", flush=True)
-            link.serve(stop)
+            with open_companion(options, world, stop, say) as companion:
+                if companion is None:
+                    return ExitCode.OK
+                clock[0] = lambda: companion.time
+                if not args.quiet:
+                    print(f"tml companion: component 191 of system {companion.system_id} "
+                          f"attached to {args.connect} (autopilot component "
+                          f"{companion.autopilot_component}); {Path(args.world).name}: "
+                          f"{len(world.objects)} object(s), {len(world.obstacles)} "
+                          "obstacle(s)", flush=True)
+                companion.serve(stop)
         except VehicleError as error:
             return fail(str(error), ExitCode.FAILURE)
         except OSError as error:
             return fail(f"link to {args.connect} failed: {error}", ExitCode.FAILURE)
-        finally:
-            link.close()
     if not args.quiet:
         print(f"tml companion: stopped ({', '.join(stopped_by) or 'asked'})", flush=True)
     return ExitCode.OK

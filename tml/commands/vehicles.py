@@ -1,30 +1,27 @@
 """The options every command that flies takes to say which vehicles (``tml run``,
 ``tml serve``), and how they become a flight session's typed options
 (:class:`tml.run.session.SessionOptions`): the only place an argparse Namespace meets the
-session, and the only place the session's simulator (``sitl``) is started from.
+session. The simulator's option values are checked by its own rules, and it is started,
+through :mod:`tml.simulator`.
 """
 
 from __future__ import annotations
 
 import argparse
-import contextlib
-from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from tml.run.session import SessionOptions, Simulated, SimulatorOptions
-    from tml.timebase import Lockstep
-    from tml.world import World
+    from tml.run.session import SessionOptions
 
 
 def _sim_param(text: str) -> tuple[str, float]:
-    from sitl.cli import param_setting
+    from tml.simulator import param_setting
 
     return param_setting(text)
 
 
 def _sim_frames(text: str) -> list[str]:
-    from sitl.frames import parse_frames
+    from tml.simulator import parse_frames
 
     try:
         return parse_frames(text)
@@ -33,13 +30,13 @@ def _sim_frames(text: str) -> list[str]:
 
 
 def _sim_battery(text: str) -> tuple[str, float]:
-    from sitl.cli import battery_start
+    from tml.simulator import battery_start
 
     return battery_start(text)
 
 
 def _fast_boot() -> type[argparse.Action]:
-    from sitl.cli import FastBoot
+    from tml.simulator import FastBoot
 
     return FastBoot
 
@@ -52,7 +49,7 @@ past 1023."""
 
 def positive(text: str) -> float:
     """A number above 0 (an argparse type)."""
-    from sitl.cli import positive as check
+    from tml.simulator import positive as check
 
     return check(text)
 
@@ -67,13 +64,13 @@ def system_id(text: str) -> int:
 
 def non_negative(text: str) -> float:
     """A number of 0 or more (an argparse type)."""
-    from sitl.cli import non_negative as check
+    from tml.simulator import non_negative as check
 
     return check(text)
 
 
 def _sim_vehicles(text: str) -> int:
-    from sitl.cli import count
+    from tml.simulator import count
 
     number = count(text)
     if number > MAX_SIM_VEHICLES:
@@ -148,6 +145,7 @@ def session_options(args: argparse.Namespace, program: str, *, lockstep: bool = 
     """The typed options of a flight session from the arguments of
     :func:`add_vehicle_arguments`, and the ones a command has of its own."""
     from tml.run.session import SessionOptions, SimulatorOptions
+    from tml.simulator import open_simulator
 
     simulator = None
     if args.sim:
@@ -200,15 +198,3 @@ def _address_problem(args: argparse.Namespace) -> str | None:
             if problem is not None:
                 return f"{option} {address}: {problem}"
     return None
-
-
-@contextlib.contextmanager
-def open_simulator(options: SimulatorOptions, world: World, key: bytes | None,
-                   lockstep: Lockstep | None) -> Iterator[Simulated]:
-    """The embedded simulator on loopback, on free ports, running until left."""
-    from sitl.server import Simulator
-
-    with Simulator(vehicles=options.vehicles, speedup=options.speedup, tcp_base_port=0,
-                   world=world, params=dict(options.params), frames=list(options.frames),
-                   signing_key=key, lockstep=lockstep) as sim:
-        yield sim

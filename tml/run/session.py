@@ -1,4 +1,4 @@
-"""The flight session: the one way in for ``tml run`` and ``tml serve``.
+"""The flight session: the one way in for ``tml run``, ``tml serve`` and ``tml companion``.
 
 Theory of operation
 -------------------
@@ -19,8 +19,13 @@ line parser goes below ``tml/commands``) and opens a :class:`Session` with
    station (``FS_GCS_ENABLE``), the verifier's profile read from the vehicle (``--profile
    vehicle``) and the mission verified with it. A refusal is a :class:`Refusal`, which the
    command maps to its exit code;
-4. gives the runner what it needs: vehicles, wake flag, clock, time base and its options
-   (:meth:`Session.run_options`).
+4. makes the runner that flies the cleared mission on its vehicles, with their wake flag,
+   clock, time base and the options checked against the profile and world
+   (:meth:`Session.runner`; a resumed run goes on from its point).
+
+``tml companion`` attaches the simulator's companion computer (through the factory its
+command passes, as the simulator's) to the autopilot at one address with the same options
+(address, ``--sysid``, ``timeout``): :func:`open_companion`.
 
 In lock-step (``tml run --sim``) the opening, the clearance and the run take part in the
 simulator's time (:mod:`tml.timebase`): it moves on only while the thread that opened the
@@ -32,8 +37,9 @@ from __future__ import annotations
 import contextlib
 import enum
 import os
+import threading
 import time
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Protocol
@@ -47,7 +53,9 @@ if TYPE_CHECKING:
     from tml.language.model import Mission
     from tml.mavlink.adapter import MavlinkVehicle
     from tml.mavlink.link import Link
-    from tml.run.runner import RunOptions
+    from tml.run.journal import Journal
+    from tml.run.resume import ResumePoint
+    from tml.run.runner import Runner, RunOptions
     from tml.verify.profile import VehicleProfile
     from tml.world import World
 
@@ -87,6 +95,33 @@ SimulatorFactory = Callable[[SimulatorOptions, "World", "bytes | None", "Lockste
 """Starts the simulator (options, world, signing key, lock-step time base or None)."""
 
 
+class Companion(Protocol):
+    """What the session needs of a companion computer attached to an autopilot."""
+
+    @property
+    def system_id(self) -> int | None: ...
+
+    @property
+    def autopilot_component(self) -> int | None: ...
+
+    @property
+    def time(self) -> float:
+        """The autopilot's clock, seconds since its boot."""
+
+    def open(self, timeout: float, stop: threading.Event | None = None) -> bool:
+        """Connect and wait for the autopilot; False when ``stop`` was set meanwhile."""
+
+    def serve(self, stop: threading.Event) -> None:
+        """Play the companion until ``stop`` is set."""
+
+    def close(self) -> None: ...
+
+
+CompanionFactory = Callable[[str, "World", "int | None", Callable[[str], None]], Companion]
+"""Makes the companion computer (address, world, the vehicle's system id or None, where it
+says what it sees)."""
+
+
 @dataclass(frozen=True)
 class SessionOptions:
     """Everything a command decides about a flight session."""
@@ -99,6 +134,8 @@ class SessionOptions:
     simulator: SimulatorOptions | None = None
     """Fly on the embedded simulator (``--sim``), started by ``open_simulator``."""
     open_simulator: SimulatorFactory | None = None
+    open_companion: CompanionFactory | None = None
+    """Makes the companion computer :func:`open_companion` attaches (``tml companion``)."""
     outputs: tuple[str, ...] = ()
     """Addresses that get a copy of every vehicle message (``--out``)."""
     signing_key_file: str | None = None
@@ -124,6 +161,11 @@ class SessionOptions:
     source_system: int = 255
     """The MAVLink system id this ground station sends as (ArduPilot's default GCS id;
     each instance of a ``tml serve`` cluster has its own)."""
+    fenced: bool = False
+    """Open the vehicles without a word to them: every link's gate closed from its start
+    (its HEARTBEAT included), no telemetry rates asked, no parameter read. The caller
+    opens each gate and prepares each vehicle once it may command it (``tml serve
+    --cluster``: once it leases the vehicle, tml.serve.cluster)."""
 
     @property
     def sim(self) -> bool:
@@ -260,6 +302,28 @@ class Session:
                                safe_state_timeout=self.options.safe_state_timeout,
                                vehicle_fence=not self.options.keep_vehicle_fence)
 
+    def runner(self, mission: Mission, profile: VehicleProfile, world: World, journal: Journal,
+               *, resumed: ResumePoint | None = None,
+               payloads: Mapping[int, Iterable[str]] | None = None,
+               on_safety: Callable[[str], None] | None = None,
+               on_update: Callable[[Runner], None] | None = None,
+               about: Mapping[str, object] | None = None) -> Runner:
+        """The runner that flies the cleared ``mission`` on the session's vehicles, with
+        :meth:`run_options`, going on from ``resumed`` (an interrupted run's point, its
+        request numbers continued) when given. The run's first log line names the
+        addresses and each vehicle's system id, and ``about``."""
+        from tml.run.runner import Runner
+        from tml.vehicle import IdSource
+
+        return Runner(mission, self.vehicles, clock=self.clock,
+                      options=self.run_options(profile, world), journal=journal,
+                      wake=self.wake, timebase=self.timebase, on_safety=on_safety,
+                      payloads=payloads, on_update=on_update,
+                      ids=None if resumed is None else IdSource(resumed.next_id),
+                      resume=None if resumed is None else resumed.progress,
+                      about={**(about or {}), "connect": list(self.options.connect),
+                             "system_ids": [v.system_id for v in self.vehicles]})
+
     def signing_counts(self) -> list[tuple[str, int, int]]:
         """With signing on, what each link dropped: (address, unsigned, wrongly signed)."""
         if not self.options.signing_on:
@@ -335,9 +399,11 @@ def open_session(options: SessionOptions, world: World, errors: Console | None =
         link_clock = None  # the runner's clock
         vehicle_clock: VehicleClock | None = None
         for address, system_id in addresses:
-            link = stack.enter_context(Link(address, outputs=options.outputs,
-                                            signing_key=key, timebase=timebase,
-                                            source_system=options.source_system))
+            link = Link(address, outputs=options.outputs, signing_key=key,
+                        timebase=timebase, source_system=options.source_system)
+            if options.fenced:
+                link.gate = lambda _target: False
+            stack.enter_context(link)
             link.on_change(lambda _system_id: news())
             if not system_id and errors is not None and not options.quiet:
                 # Said once: pymavlink's own retry messages are kept from the terminal.
@@ -358,7 +424,8 @@ def open_session(options: SessionOptions, world: World, errors: Console | None =
                     vehicle_id=len(vehicles) + 1 if not options.sim else sid,
                     connect_timeout=options.timeout, on_result=news, link_clock=link_clock)
                 stack.callback(vehicle.close)
-                vehicle.prepare()
+                if not options.fenced:
+                    vehicle.prepare()
                 vehicles.append(vehicle)
         missing = [sid for sid in options.system_ids
                    if sid not in {vehicle.system_id for vehicle in vehicles}]
@@ -372,6 +439,25 @@ def open_session(options: SessionOptions, world: World, errors: Console | None =
                            f"(time_boot_ms) in {options.timeout:g} s; --clock vehicle needs "
                            "one")
         yield Session(options, vehicles, wake, clock, timebase, errors)
+
+
+@contextlib.contextmanager
+def open_companion(options: SessionOptions, world: World, stop: threading.Event,
+                   on_text: Callable[[str], None]) -> Iterator[Companion | None]:
+    """Attach the companion computer of ``options.open_companion`` to the autopilot at the
+    one ``connect`` address: the vehicle of the first ``system_ids``, else the first
+    autopilot heard, waited for up to ``timeout``. Yield it (None when ``stop`` was set
+    meanwhile); closed on leaving. Raises VehicleError when the address cannot be opened
+    or no autopilot is heard in time."""
+    if options.open_companion is None or len(options.connect) != 1:
+        raise TmlError("a companion session needs one address and a companion factory")
+    companion = options.open_companion(options.connect[0], world,
+                                       options.system_ids[0] if options.system_ids else None,
+                                       on_text)
+    try:
+        yield companion if companion.open(options.timeout, stop) else None
+    finally:
+        companion.close()
 
 
 def _discover(link: Link, timeout: float, wanted: Sequence[int], alone: bool) -> list[int]:

@@ -57,7 +57,7 @@ from tml.run.session import VEHICLE_PROFILE
 from tml.serve.hangar import Hangar, VehicleTaken
 from tml.serve.live import LiveRun, TaskBoard
 from tml.serve.storage import ACTIVE, Storage, StoredMission, StoredRun
-from tml.vehicle import IdSource, VehicleState, awaiting
+from tml.vehicle import IdSource, Vehicle, VehicleState, awaiting
 from tml.verify.inflight import preflight
 from tml.verify.motion import PredictedState
 from tml.verify.profile import (
@@ -545,7 +545,7 @@ class Service:
         message = self._send(found, vehicle_id, command)
         return {**answer, "message": message, "vehicle_state": self.vehicle(vehicle_id)}, True
 
-    def _send(self, found: Any, vehicle_id: int, command: str) -> str:
+    def _send(self, found: Vehicle, vehicle_id: int, command: str) -> str:
         """Send an operator's command to a vehicle no run holds, and wait for its answer;
         what was done."""
         from dataclasses import replace

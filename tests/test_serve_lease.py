@@ -14,7 +14,7 @@ import pytest
 import sqlalchemy as sa
 from serving import postgresql
 
-from tml.serve.cluster import ClusterHangar, VehicleLeased
+from tml.serve.cluster import ClusterHangar, FailsafeMissing, VehicleLeased
 from tml.serve.forward import Forwarder, Unanswered
 from tml.serve.lease import ClusterError, Leases, Taken
 from tml.serve.storage import Storage, StoredRun
@@ -138,8 +138,19 @@ class _Link:
 
 
 class _Vehicle:
-    def __init__(self, vehicle_id: int, system_id: int, link: _Link) -> None:
+    def __init__(self, vehicle_id: int, system_id: int, link: _Link,
+                 failsafe: float | None = 1.0) -> None:
         self.vehicle_id, self.system_id, self.link = vehicle_id, system_id, link
+        self.failsafe = failsafe
+        self.spoken: list[str] = []  # what was asked of it, and whether the gate was open
+
+    def prepare(self) -> None:
+        assert self.link.gate is not None
+        self.spoken.append(f"prepare {'open' if self.link.gate(self.system_id) else 'shut'}")
+
+    def read_parameters(self, names: list[str]) -> dict[str, float]:
+        self.spoken.append(f"read {' '.join(names)}")
+        return {} if self.failsafe is None else {name: self.failsafe for name in names}
 
     def state(self) -> Any:
         return type("State", (), {"armed": False})()
@@ -175,6 +186,27 @@ def test_the_fence_opens_only_for_owned_vehicles_within_the_proven_lease(
     hangar.release("run")
     assert sorted(hangar.give_back()) == [1, 3]  # disarmed and held by nothing
     assert not alone.gate(1)
+    # Spoken to once it was first leased (the session opened it without a word), and only
+    # then: taken again, it is not prepared again.
+    assert vehicles[2].spoken == ["prepare open", "read FS_GCS_ENABLE"]
+    hangar.claim([3], "run3")
+    assert vehicles[2].spoken == ["prepare open", "read FS_GCS_ENABLE"]
+
+
+def test_a_vehicle_without_its_own_failsafe_is_not_leased_when_one_is_required(
+        engine: sa.Engine) -> None:
+    link = _Link()
+    vehicles = [_Vehicle(1, 1, link, failsafe=0.0)]
+    leases = Leases(engine, "a", lease=30.0)
+    hangar = ClusterHangar(vehicles, time.monotonic, leases,  # type: ignore[arg-type]
+                           require_gcs_failsafe=True)
+    assert leases.join()
+    hangar.renewed(time.monotonic())
+    with pytest.raises(FailsafeMissing, match="vehicle 1: FS_GCS_ENABLE is 0: the vehicle "
+                       "does nothing by itself when it loses its ground station: not "
+                       "flown"):
+        hangar.claim([1], "run")
+    assert hangar.holder(1) is None and hangar.owned == {} and leases.owners([1]) == {}
 
 
 def test_a_cluster_needs_postgresql(tmp_path: Any) -> None:

@@ -207,11 +207,14 @@ def _serve(args: argparse.Namespace, token: str | None, listening: socket.socket
             hangar.notify()
 
     # The service's threads fly its runs, on the system's time: the simulator runs free.
-    options = replace(session_options(args, "tml serve"), source_system=args.source_system)
+    # A cluster's instance opens its vehicles without a word to them: it speaks to each
+    # once it leases it (tml.serve.cluster), the FS_GCS_ENABLE check included.
+    options = replace(session_options(args, "tml serve"), source_system=args.source_system,
+                      fenced=args.cluster)
     try:
         with open_session(options, World(), output_console(stderr=True),
                           notify=notify) as session, contextlib.ExitStack() as stack:
-            if session.gcs_failsafe() is not None:
+            if not args.cluster and session.gcs_failsafe() is not None:
                 return ExitCode.FAILURE
             vehicles, clock = session.vehicles, session.clock
             hangar = _hangar(args, storage, vehicles, clock)
@@ -259,7 +262,8 @@ def _hangar(args: argparse.Namespace, storage: Storage, vehicles: Sequence[Vehic
     from tml.serve.lease import Leases
 
     return ClusterHangar(vehicles, clock, Leases(storage.engine, args.instance, args.lease,
-                                                 args.source_system))
+                                                 args.source_system),
+                         require_gcs_failsafe=args.require_gcs_failsafe)
 
 
 @contextlib.contextmanager

@@ -72,19 +72,32 @@ class VehicleLeased(VehicleTaken):
         self.vehicle_id, self.run_id, self.owner = vehicle_id, f"on {owner}", owner
 
 
+class FailsafeMissing(VehicleTaken):
+    """A vehicle whose own failsafe does nothing on a lost ground station, not flown
+    (``--require-gcs-failsafe``)."""
+
+    def __init__(self, vehicle_id: int, problem: str) -> None:
+        TmlError.__init__(self, f"vehicle {vehicle_id}: {problem}: not flown "
+                                "(--require-gcs-failsafe)")
+        self.vehicle_id, self.run_id = vehicle_id, ""
+
+
 class ClusterHangar(Hangar):
     """A hangar whose vehicles are held in the cluster's lease table too, and whose links
     send only what :meth:`may_send` lets through (see the module docstring)."""
 
     def __init__(self, vehicles: Sequence[Vehicle], clock: Callable[[], float],
-                 leases: Leases, monotonic: Callable[[], float] = time.monotonic) -> None:
+                 leases: Leases, monotonic: Callable[[], float] = time.monotonic,
+                 require_gcs_failsafe: bool = False) -> None:
         super().__init__(vehicles, clock)
+        self.require_gcs_failsafe = require_gcs_failsafe
         self.leases = leases
         self.monotonic = monotonic
         self.margin = leases.lease / 6
         self.owned: dict[int, int] = {}  # vehicle id -> fencing token, this session's
         self.valid_until = 0.0  # monotonic time the fence closes (renewed())
         self._own_lock = threading.RLock()  # a take and a give-back never cross
+        self._prepared: set[int] = set()  # vehicles asked for their telemetry (_prepare)
         for vehicle in vehicles:
             link = getattr(vehicle, "link", None)
             if link is not None:
@@ -175,6 +188,40 @@ class ClusterHangar(Hangar):
         self.owned[vehicle_id] = taken.token
         log.warning("vehicle %d: leased by %s (token %d%s)", vehicle_id, self.leases.name,
                     taken.token, f", from {taken.previous}" if taken.previous else "")
+        if vehicle_id not in self._prepared:
+            try:
+                self._prepare(vehicle_id)
+            except FailsafeMissing:
+                self.leases.release(vehicle_id)
+                del self.owned[vehicle_id]
+                raise
+
+    def _prepare(self, vehicle_id: int) -> None:
+        """What opening a vehicle does, done once it is first leased (the session opened it
+        without a word: ``SessionOptions.fenced``): its telemetry rates asked, what it can
+        do read; and a warning when its own failsafe does nothing on a lost ground
+        station, as ``tml serve`` says of every vehicle it opens (FailsafeMissing with
+        ``require_gcs_failsafe``)."""
+        from tml.run.session import GCS_FAILSAFE
+
+        vehicle = self.vehicles[vehicle_id]
+        prepare = getattr(vehicle, "prepare", None)
+        read = getattr(vehicle, "read_parameters", None)
+        if prepare is None or read is None:
+            return
+        try:
+            prepare()
+            value = read([GCS_FAILSAFE]).get(GCS_FAILSAFE)
+        except TmlError as error:  # asked again the next time it is leased
+            log.warning("vehicle %d: telemetry not asked for: %s", vehicle_id, error)
+            return
+        if not value:
+            problem = f"{GCS_FAILSAFE} is {'not reported' if value is None else '0'}: " \
+                      "the vehicle does nothing by itself when it loses its ground station"
+            if self.require_gcs_failsafe:
+                raise FailsafeMissing(vehicle_id, problem)
+            log.warning("vehicle %d: %s", vehicle_id, problem)
+        self._prepared.add(vehicle_id)
 
 
 class Cluster:
@@ -188,7 +235,12 @@ class Cluster:
         self.renew_period = self.leases.lease / 3
         self.adopted: list[tuple[str, str]] = []  # (interrupted run, its continuation)
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._loop, name="cluster lease", daemon=True)
+        # Two threads: a renewal is never held up by a takeover's start (which prepares
+        # its vehicles, a round trip each) and the fence stays open meanwhile.
+        self._threads = [threading.Thread(target=self._renewing, name="cluster lease",
+                                          daemon=True),
+                         threading.Thread(target=self._tending, name="cluster takeover",
+                                          daemon=True)]
 
     def start(self) -> list[str]:
         """Join the cluster (waiting for an earlier process of this instance's name to
@@ -204,16 +256,18 @@ class Cluster:
                 raise ClusterError(f"the instance name {self.leases.name!r} is held by a "
                                    "live service: give each instance its own --instance")
             time.sleep(self.renew_period)
+        self._threads[0].start()
         continued = self._adopt(own=True)
-        self._thread.start()
+        self._threads[1].start()
         return continued
 
     def stop(self) -> None:
         """Stop renewing and end this session (its vehicles are free at once); called
         once the service has stopped its runs."""
         self._stop.set()
-        if self._thread.is_alive():
-            self._thread.join(5.0)
+        for thread in self._threads:
+            if thread.is_alive():
+                thread.join(5.0)
         try:
             self.leases.leave()
         except Exception as error:  # the lease then expires by itself
@@ -227,13 +281,19 @@ class Cluster:
                 "owned": {str(v): t for v, t in sorted(self.hangar.owned.items())},
                 "adopted": [{"run": a, "continued_as": b} for a, b in self.adopted]}
 
-    def _loop(self) -> None:
+    def _renewing(self) -> None:
         while not self._stop.wait(self.renew_period):
             try:
                 self._renew()
+            except Exception as error:  # a database blip: the fence closes itself
+                log.warning("cluster: renewing the lease: %s", error)
+
+    def _tending(self) -> None:
+        while not self._stop.wait(self.renew_period):
+            try:
                 self.hangar.give_back()
                 self._adopt()
-            except Exception as error:  # a database blip: the fence closes itself
+            except Exception as error:  # the next round tries again
                 log.warning("cluster: %s", error)
 
     def _renew(self) -> None:

@@ -236,7 +236,9 @@ QUICK: list[tuple[str, Sequence[tuple[int, float]]]] = [
 @contextlib.contextmanager
 def arducopter(speedup: float = 10.0) -> Iterator[str]:
     """ArduCopter SITL (tests/interop/ardupilot_sitl.py finds it; instances from
-    TML_INTEROP_FIRST_INSTANCE); its address. Stopped by its pid."""
+    TML_INTEROP_FIRST_INSTANCE) with ``tml companion`` on its second port, for the skills
+    of paper_example1 and aerostack_example (tml run waits for it); its address. Both are
+    stopped by their pids."""
     sys.path.insert(0, str(ROOT / "tests" / "interop"))
     from ardupilot_sitl import find_launcher, vehicles
 
@@ -244,7 +246,14 @@ def arducopter(speedup: float = 10.0) -> Iterator[str]:
     if launcher is None:
         raise SystemExit(f"no ArduPilot SITL: {reason}")
     with vehicles(launcher, 1, "copter", speedup=speedup) as [sitl]:
-        yield sitl.address
+        helper = subprocess.Popen([sys.executable, "-m", "tml", "companion", "--connect",
+                                   sitl.companion_address], stdout=subprocess.DEVNULL,
+                                  stderr=subprocess.DEVNULL)
+        try:
+            yield sitl.address
+        finally:
+            helper.terminate()
+            helper.wait(timeout=10)
 
 
 def main() -> int:

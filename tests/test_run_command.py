@@ -690,3 +690,17 @@ def test_the_missions_fence_goes_on_the_vehicle_unless_it_keeps_its_own(
         "the vehicle's fence kept; 1 rally point" if keep else
         "inclusion polygon of 4 corners; FENCE_ALT_MAX 30 m; FENCE_TYPE 5, FENCE_ENABLE 1; "
         "1 rally point; FENCE_ACTION 1 (RTL or land)") + "; read back matched"
+
+
+def test_a_skill_that_needs_a_companion_computer_is_waited_for_and_named(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # No companion computer on board: the mission's AVOID_OBSTACLES can never be switched;
+    # the run says so before anything moves, instead of failing the request in the air.
+    mission = SHORT.replace('<task name="Up">', '<skill name="AVOID_OBSTACLES"/>\n  '
+                            '<task name="Up">')
+    code = main(["run", write(tmp_path, mission), "--sim", *FAST, "-q",
+                 "--sim-param", "SIM_COMPANION=0", "--ready-timeout", "20"])
+    out = capsys.readouterr().out
+    assert code == 4, out
+    assert ("not ready after 20 s: waiting for skill AVOID_OBSTACLES (needs a companion "
+            "computer (component 191), not heard yet)") in out

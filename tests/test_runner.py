@@ -597,3 +597,40 @@ def test_keeping_the_vehicles_fence_still_sends_the_rally_points() -> None:
     assert (first.name, first.fence) == ("Safeguard", False)  # type: ignore[attr-defined]
     _, sim, _, _, _ = run(TAKE_OFF + LAND)  # nothing to put on the vehicle
     assert "Safeguard" not in [r.name for r in sim.vehicles[0].submitted]
+
+
+class WithSkills(FakeVehicle):
+    """A fake vehicle that says which skills it switches: none until ``companion_at``,
+    then AVOID_OBSTACLES (its companion computer heard); RECOGNIZE_ITEMS never."""
+
+    companion_at = 2.0
+
+    def state(self) -> VehicleState:
+        from types import MappingProxyType
+
+        heard = self.time >= self.companion_at
+        return replace(super().state(), skills=MappingProxyType({
+            "AVOID_OBSTACLES": "" if heard else "needs a companion computer (component 191), "
+                                                "not heard yet"}))
+
+
+SKILLED = '<task name="Look"><skill name="AVOID_OBSTACLES"/>' + TAKE_OFF + LAND + '</task>'
+
+
+def test_a_skill_waits_for_its_companion_and_one_nothing_switches_is_refused_at_once() -> None:
+    outcome, sim, lines, _, _ = run(SKILLED, fake=WithSkills)
+    assert outcome.exit_code == ExitCode.OK
+    ready = [line["message"] for line in lines if line["kind"] == "ready"]
+    assert ready == ["waiting for skill AVOID_OBSTACLES (needs a companion computer "
+                     "(component 191), not heard yet)", "ready"]
+    requests = [line for line in lines if line["kind"] == "request"]
+    assert requests[0]["t"] >= WithSkills.companion_at  # nothing before it was heard
+    items = SKILLED.replace('<skill name="AVOID_OBSTACLES"/>',
+                            '<skill name="AVOID_OBSTACLES"/><skill name="RECOGNIZE_ITEMS"/>')
+    outcome, sim, _, _, _ = run(items, fake=WithSkills)
+    (vehicle,) = outcome.vehicles
+    assert (outcome.exit_code, vehicle.status, vehicle.cause) == (
+        ExitCode.FAILURE, Status.FAILED, "ready")
+    assert vehicle.reason == ("the mission's skill RECOGNIZE_ITEMS: nothing on this vehicle "
+                              "switches it")
+    assert sim.vehicles[0].submitted == [] and sim.time < 0.5  # at once, nothing sent

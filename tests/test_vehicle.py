@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 from fake_vehicle import FakeVehicle
 
@@ -170,3 +172,27 @@ def test_the_fake_vehicle_reports_what_an_operator_reads() -> None:
     # What only an operator reads is no change of state for the rules.
     assert VehicleState(1, 0.0, voltage=12.0) == VehicleState(1, 0.0, voltage=11.0)
 
+
+
+def test_a_vehicle_is_not_ready_while_a_skill_of_the_mission_cannot_be_switched() -> None:
+    from types import MappingProxyType
+
+    from tml.vehicle import VehicleState, awaiting, unprovided
+
+    state = VehicleState(1, 0.0, position=(0.0, 0.0, 0.0), home=None, battery=100.0,
+                         gps_fix=3, skills=MappingProxyType({
+                             "AVOID_OBSTACLES": "needs a companion computer (component 191), "
+                                                "not heard yet",
+                             "RECOGNIZE_ITEMS": ""}))
+    wanted = {"AVOID_OBSTACLES", "RECOGNIZE_ITEMS", "RECOGNIZE_BUCKETS"}
+    assert [m for m in awaiting(state, wanted) if m.startswith("skill")] == [
+        "skill AVOID_OBSTACLES (needs a companion computer (component 191), not heard yet)",
+        "skill RECOGNIZE_BUCKETS (nothing on this vehicle switches it)"]
+    assert unprovided(state, wanted) == ("RECOGNIZE_BUCKETS",)
+    assert not [m for m in awaiting(state, {"RECOGNIZE_ITEMS"}) if m.startswith("skill")]
+    flying = dataclasses.replace(state, armed=True, landed=False)  # a resumed run waits too
+    assert "skill AVOID_OBSTACLES (needs a companion computer (component 191), not heard " \
+           "yet)" in awaiting(flying, wanted)
+    said_nothing = VehicleState(1, 0.0, skills=None)
+    assert not [m for m in awaiting(said_nothing, {"AVOID_OBSTACLES"}) if m.startswith("skill")]
+    assert unprovided(said_nothing, wanted) == ()

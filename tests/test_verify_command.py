@@ -214,3 +214,17 @@ def test_the_shipped_world_file_adds_obstacles_the_legs_go_around(
     # The tent stands on the way home: the planned legs there are longer.
     assert sum(a["distance"] for a in laid["actions"]) > sum(
         a["distance"] for a in alone["actions"])
+
+
+def test_the_report_says_which_skills_the_vehicle_must_provide(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    mission = Path(__file__).resolve().parent.parent / "missions" / "paper_example1.xml"
+    assert main(["verify", str(mission)]) == 0
+    assert ("skills the vehicle must provide: AVOID_OBSTACLES, RECOGNIZE_VISUAL_MARKERS "
+            "(tml run waits for the component that switches them before take-off)"
+            ) in capsys.readouterr().out
+    assert main(["verify", str(mission), "--format", "json"]) == 0
+    assert json.loads(capsys.readouterr().out)["skills"] == [
+        "AVOID_OBSTACLES", "RECOGNIZE_VISUAL_MARKERS"]
+    assert main(["verify", str(FEASIBLE), "--format", "json"]) == 0
+    assert json.loads(capsys.readouterr().out)["skills"] == []

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Protocol
@@ -120,6 +120,10 @@ class VehicleState:
     mission: MissionProgress | None = None
     detections: Mapping[str, object] = field(default_factory=lambda: _EMPTY)
     capabilities: frozenset[str] = frozenset()  # "gripper", "flip", "camera"
+    skills: Mapping[str, str] | None = None
+    """Each skill the vehicle can switch, and why it cannot now ("": it can; its companion
+    computer not heard yet); a skill not in it has nothing on this vehicle to switch it.
+    None: the vehicle does not say, and every skill is taken as there."""
     status_text: str = ""  # the last STATUSTEXT
     messages: tuple[AutopilotMessage, ...] = ()  # the latest STATUSTEXTs, oldest first
     vehicle_type: str = ""  # a word of VEHICLE_TYPES, "" while unknown
@@ -178,7 +182,19 @@ class VehicleState:
                                                              self.position[1])
 
 
-def awaiting(state: VehicleState) -> tuple[str, ...]:
+NO_SKILL = "nothing on this vehicle switches it"
+"""Why a skill cannot be switched on a vehicle that has no component for it."""
+
+
+def unprovided(state: VehicleState, skills: Iterable[str]) -> tuple[str, ...]:
+    """The ``skills`` nothing on the vehicle switches (:attr:`VehicleState.skills`): a
+    mission switching them is refused at once, waiting would not bring them."""
+    if state.skills is None:
+        return ()
+    return tuple(sorted(skill for skill in skills if skill not in state.skills))
+
+
+def awaiting(state: VehicleState, skills: Iterable[str] = ()) -> tuple[str, ...]:
     """What a vehicle still lacks before a mission may start on it ("" items: none).
 
     Everything the interpreter reads must have arrived (a value not yet reported is
@@ -186,11 +202,18 @@ def awaiting(state: VehicleState) -> tuple[str, ...]:
     vehicle on the ground and disarmed must also be armable: a position estimate the
     autopilot flies on (ArduPilot's EKF) and pre-arm checks that pass, whose failure is
     named with the autopilot's own words when it said them. A vehicle already armed or
-    flying is taken as it is.
+    flying is taken as it is. Each of the ``skills`` the mission switches on the vehicle
+    must be there too, its component heard (a companion computer): flying or not, a skill
+    switched before its component is heard fails.
     """
     if state.link == "lost":
         return ("heartbeat",)
     missing: list[str] = []
+    if state.skills is not None:
+        for skill in sorted(skills):
+            why = state.skills.get(skill, NO_SKILL)
+            if why:
+                missing.append(f"skill {skill} ({why})")
     if state.gps_fix is None:
         missing.append("GPS status")
     if state.position is None:

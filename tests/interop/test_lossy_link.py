@@ -3,7 +3,10 @@
 ``tml run --connect`` reaches ArduCopter through tests/lossy_proxy.py: a GUIDED mission and
 a ``dispatch="mission"`` one fly every task, judged from the flight log. ArduCopter answers a
 repeated command by what it is doing (a NAV_TAKEOFF repeated once it is off the ground is
-FAILED), so these flights need tml's judgement of lost ACKs by telemetry.
+FAILED), so these flights need tml's judgement of lost ACKs by telemetry. paper_example1
+switches skills of the companion computer: ``tml companion`` is attached to the vehicle's
+second port (not through the proxy), and tml, which waits for it before take-off, hears it
+through ArduCopter's routing and the lossy link.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ from pathlib import Path
 
 import pytest
 from lossy_proxy import LossyProxy
+from test_ardupilot_missions import companion, stop
 from test_flights import MISSIONS
 
 from tml.commands.cli import main
@@ -39,7 +43,12 @@ def outcome(lines: list[dict]) -> dict:
 def test_a_guided_mission_flies_on_ardupilot_through_30_percent_loss(ardupilot,
                                                                      tmp_path: Path) -> None:
     (sitl,) = ardupilot(params=PARAMS)
-    code, lines, proxy = fly_through_loss("paper_example1", sitl.port, tmp_path / "g.jsonl")
+    helper = companion(sitl, MISSIONS / "paper_example1.xml", tmp_path / "companion.log")
+    try:
+        code, lines, proxy = fly_through_loss("paper_example1", sitl.port,
+                                              tmp_path / "g.jsonl")
+    finally:
+        stop(helper)
     ended = outcome(lines)
     assert (code, ended["outcomes"][0]["reason"]) == (0, "all tasks done"), ended
     done = [line["action"] for line in lines

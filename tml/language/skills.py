@@ -8,7 +8,12 @@ they have a name, a description and the detection parameters they feed.
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from tml.language.model import Mission
 
 
 @dataclass(frozen=True)
@@ -55,6 +60,20 @@ _BY_NAME = {_key(n): s for s in CATALOGUE for n in (s.name, *s.aliases)}
 def lookup(name: str) -> SkillSpec | None:
     """The skill spec for a written skill name (case and separators ignored), or None."""
     return _BY_NAME.get(_key(name))
+
+
+def vehicle_skills(names: Iterable[str]) -> frozenset[str]:
+    """The skills among ``names`` that a vehicle must switch (the ground ones left out),
+    by their catalogue names."""
+    found = (lookup(name) for name in names)
+    return frozenset(spec.name for spec in found if spec is not None and not spec.ground)
+
+
+def mission_vehicle_skills(mission: Mission) -> frozenset[str]:
+    """Every skill ``mission`` switches on a vehicle, its own and its tasks' (ground ones left
+    out): what the vehicle must provide."""
+    return vehicle_skills(skill.name for skill in (
+        *mission.skills, *(s for task in mission.walk() for s in task.skills)))
 
 
 def skill_names() -> list[str]:

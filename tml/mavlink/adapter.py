@@ -203,6 +203,11 @@ SKILL_BINDINGS: dict[str, SkillBinding] = {
     "RECOGNIZE_BUCKETS": SkillBinding(COMPANION, ("RECOG_BUCKETS",)),
 }
 """Skill name -> what switching it does (SAY_OUT_LOUD_CURRENT_TASK has no vehicle side)."""
+_ALL_SKILLS: Mapping[str, str] = MappingProxyType({name: "" for name in SKILL_BINDINGS})
+_SKILLS_WITHOUT_COMPANION: Mapping[str, str] = MappingProxyType({
+    name: f"needs a companion computer (component {COMPANION_COMPONENT}), not heard yet"
+    if binding.component == COMPANION else "" for name, binding in SKILL_BINDINGS.items()})
+"""The skills a vehicle switches, with what stops them before its companion is heard."""
 
 DETECTION_SETS = {"ITEM": "RECOGNIZED_ITEMS", "SUBJECT": "RECOGNIZED_ITEMS",
                   "BUCKET": "RECOGNIZED_BUCKETS", "MARKER": "RECOGNIZED_VISUAL_MARKERS",
@@ -377,12 +382,19 @@ class MavlinkVehicle:
             battery=None if t.battery_remaining is None else float(t.battery_remaining),
             gps_fix=t.gps_fix, satellites=t.satellites, voltage=t.battery_voltage,
             climb=-velocity[2], home=home, mission=progress, detections=detections,
-            capabilities=self.capabilities, vehicle_type=t.airframe,
+            capabilities=self.capabilities, skills=self._skills(), vehicle_type=t.airframe,
             status_text=t.status_texts[-1].text if t.status_texts else "",
             messages=_messages(t), rejected=t.rejected, rejected_last=t.rejected_last,
             taken=self._modes.taken, heard=self._heard(now), asked=self._asked,
             rebooted="" if self._reboots.reboot is None else str(self._reboots.reboot),
             flight_asked=self._flight_asked)
+
+    def _skills(self) -> Mapping[str, str]:
+        """Each skill of :data:`SKILL_BINDINGS` and why it cannot be switched now ("": it
+        can): one bound to the companion computer needs its HEARTBEAT first."""
+        if self._companion_seen:
+            return _ALL_SKILLS
+        return _SKILLS_WITHOUT_COMPANION
 
     def _heard(self, now: float) -> float:
         """When (the runner's clock) the oldest of the readings the rules judge by arrived
@@ -466,8 +478,9 @@ class MavlinkVehicle:
         kind = msg.get_type()
         component = msg.get_srcComponent()
         now = self.clock()
-        if component == COMPANION_COMPONENT:
+        if component == COMPANION_COMPONENT and not self._companion_seen:
             self._companion_seen = True
+            self._changes += 1  # its skills can be switched from now on
         if component == self.mav.component_id:
             self.health.heard(self.link_clock(), kind == "HEARTBEAT", snapshot.boot_time,
                               snapshot.received, snapshot.lost)

@@ -32,12 +32,15 @@ changes what happens in it.
 
 *Readiness.* Before the first task, every vehicle must be ready
 (:func:`tml.vehicle.awaiting`): its heartbeat, position, home, GPS and battery reported,
-and, on the ground, armable (a position estimate and the autopilot's pre-arm checks). The
-loop waits for that up to ``ready_timeout`` seconds of its clock, writing what each vehicle
-still lacks to the journal whenever that changes; a vehicle still not ready then fails the
-run (exit 4) with what it lacked and the autopilot's own reason, before anything is sent to
-any vehicle. So the first conditions never read a value that has not arrived as if it were
-real.
+and, on the ground, armable (a position estimate and the autopilot's pre-arm checks); in a
+mission without roles, every skill the mission switches on the vehicle must be there (its
+companion computer heard; a resumed run waits for it too, flying or not). The loop waits
+for that up to ``ready_timeout`` seconds of its clock, writing what each vehicle still lacks
+to the journal whenever that changes; a vehicle still not ready then fails the run (exit 4)
+with what it lacked and the autopilot's own reason, before anything is sent to any vehicle.
+A skill nothing on a vehicle switches (:func:`tml.vehicle.unprovided`) fails it at once:
+waiting would not bring it. So the first conditions never read a value that has not arrived
+as if it were real, and no skill is found missing in flight.
 
 *The vehicle's own safety.* Once a vehicle on the ground is ready, and before the first
 task, the runner puts the mission's fence and rally points on it (one
@@ -94,6 +97,7 @@ from tml.engine.resume import Progress
 from tml.engine.safety import safe_state_request, safe_state_shown
 from tml.errors import ControlRefused, ExitCode
 from tml.language.model import Mission
+from tml.language.skills import mission_vehicle_skills
 from tml.run.journal import Journal, autopilot_fields, telemetry_fields
 from tml.timebase import SYSTEM, Flag, Timebase
 from tml.vehicle import (
@@ -104,6 +108,7 @@ from tml.vehicle import (
     Vehicle,
     VehicleState,
     awaiting,
+    unprovided,
 )
 
 
@@ -232,6 +237,9 @@ class Runner:
         engine = self.options.engine
         engine.safe_state = self.options.safe_state
         self.flights = [_Flight(v) for v in vehicles]
+        # The skills each vehicle must be able to switch before the first task (a companion
+        # computer heard): with roles, which vehicle flies which task is decided in flight.
+        self.skills = frozenset() if mission.roles else mission_vehicle_skills(mission)
         # One numbering for every request of the run (and of the runs before it on the
         # same vehicles, when the caller gives its source).
         self.ids = ids or IdSource()
@@ -418,7 +426,7 @@ class Runner:
                 state = flight.state = flight.vehicle.state()
                 self._tell_messages(flight, now)
                 vid = flight.vehicle.vehicle_id
-                missing = waiting[vid] = awaiting(state)
+                missing = waiting[vid] = awaiting(state, self.skills)
                 if not missing:
                     missing = waiting[vid] = self._safeguard(flight, state, now)
                 if missing != said.get(vid, ()) or vid not in said:
@@ -428,8 +436,10 @@ class Runner:
                                        awaiting=list(missing))
             if not any(waiting.values()):
                 return None
+            absent = {f.vehicle.vehicle_id: unprovided(f.state, self.skills)
+                      for f in self.flights if f.state is not None}
             refused = any(isinstance(f.safeguard, str) and f.safeguard != "done"
-                          for f in self.flights)
+                          for f in self.flights) or any(absent.values())
             if self._stop_reason or now - start > timeout or refused:
                 stopped = bool(self._stop_reason)
                 outcomes = []
@@ -439,6 +449,12 @@ class Runner:
                         reason, status = self._stop_reason, Status.ABORTED
                     elif isinstance(flight.safeguard, str) and flight.safeguard != "done":
                         reason, status = flight.safeguard, Status.FAILED
+                    elif absent.get(vid):
+                        names = absent[vid]
+                        reason = (f"the mission's skill{'s' if len(names) > 1 else ''} "
+                                  f"{', '.join(names)}: nothing on this vehicle switches "
+                                  f"{'them' if len(names) > 1 else 'it'}")
+                        status = Status.FAILED
                     elif refused:
                         reason, status = "another vehicle was not ready", Status.ABORTED
                     elif waiting[vid]:

@@ -76,6 +76,10 @@ def print_report(report: Report, console: Console) -> None:
                       "the least battery were kept", highlight=False)
     for warning in report.warnings:
         console.print(_safe(f"warning: {warning}"), highlight=False)
+    if report.skills:
+        console.print(f"skills the vehicle must provide: {', '.join(report.skills)} (tml run "
+                      "waits for the component that switches them before take-off)",
+                      highlight=False)
     for violation in report.violations:
         console.print(_safe(_finding(violation)), highlight=False)
     verdict = "feasible" if report.feasible else \
@@ -115,6 +119,7 @@ def report_document(report: Report) -> dict[str, object]:
         "violations": [_violation(v) for v in report.violations],
         "notes": report.notes,
         "warnings": report.warnings,
+        "skills": list(report.skills),
         "end": _end(report.end),
     }
     if report.roles:

@@ -49,6 +49,7 @@ from tml.language import actions
 from tml.language.kinds import Kind, role_kinds
 from tml.language.model import Comparison, Composition, ConditionKind, Event, Mission, Role, Task
 from tml.language.parameters import ORDERINGS, compare_numbers, lookup, parse_boolean
+from tml.language.skills import mission_vehicle_skills
 from tml.verify.constraints import Constraint, Violation, check_step
 from tml.verify.motion import FlightModel, Labels, PredictedState, Step
 from tml.verify.planner import Point3
@@ -103,6 +104,9 @@ class Report:
     roles: tuple[str, ...] = ()  # the roles verified, each as its own vehicle
     ends: dict[str, PredictedState] = field(default_factory=dict)  # role -> worst end
     warnings: list[str] = field(default_factory=list)  # not violations: the mission may fly
+    skills: tuple[str, ...] = ()
+    """The skills the mission switches on the vehicle (catalogue names, the ground ones left
+    out): the vehicle must provide them (a companion computer), tml run waits for them."""
 
     @property
     def feasible(self) -> bool:
@@ -456,6 +460,7 @@ def verify_mission(mission: Mission, profile: VehicleProfile, world: World | Non
     rows = [row for walker in walkers for row in walker.rows]
     end = min(ends.values(), key=lambda s: s.battery, default=None)
     roles = tuple(role.name for role in mission.roles)
+    skills = mission_vehicle_skills(mission)
     return Report(mission.file, profile, rows, violations, list(notes), end,
                   any(w.approximate for w in walkers), roles,
-                  ends if mission.roles else {}, warnings)
+                  ends if mission.roles else {}, warnings, tuple(sorted(skills)))

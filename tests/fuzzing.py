@@ -15,7 +15,6 @@ import contextlib
 import os
 import resource
 import signal
-import time
 from collections.abc import Iterator
 
 from hypothesis import HealthCheck, settings
@@ -31,7 +30,8 @@ PROFILE = os.environ.get("TML_FUZZ", "ci")
 if PROFILE not in ("ci", "deep"):
     raise ValueError(f"TML_FUZZ={PROFILE!r}: the profiles are ci and deep")
 CASE_SECONDS = 20.0 if PROFILE == "deep" else 10.0
-"""Wall-clock seconds one case may take before it counts as a hang."""
+"""CPU seconds one case may take before it counts as a hang: CPU time, not wall-clock time,
+so that a case on a busy machine (waiting for a core, not looping) is never called one."""
 MEMORY_MARGIN = 2 << 30
 """Bytes of address space a fuzzer may take beyond what the process had when it started."""
 
@@ -50,20 +50,19 @@ class Hang(Exception):
 
 @contextlib.contextmanager
 def time_bound(seconds: float = CASE_SECONDS) -> Iterator[None]:
-    """Raise :class:`Hang` in the main thread if the block runs longer than ``seconds``."""
+    """Raise :class:`Hang` in the main thread if the block spends more than ``seconds`` of
+    the process's CPU time. A case that blocks without spinning is left to pytest-timeout,
+    whose wall-clock timer (ITIMER_REAL) this one (ITIMER_PROF) does not touch."""
     def expire(_signum: int, _frame: object) -> None:
-        raise Hang(f"still running after {seconds:g} s")
+        raise Hang(f"still running after {seconds:g} s of CPU time")
 
-    # pytest-timeout times the whole test on the same timer: its time left is put back.
-    previous = signal.signal(signal.SIGALRM, expire)
-    start = time.monotonic()
-    outer, _ = signal.setitimer(signal.ITIMER_REAL, seconds)
+    previous = signal.signal(signal.SIGPROF, expire)
+    signal.setitimer(signal.ITIMER_PROF, seconds)
     try:
         yield
     finally:
-        left = outer - (time.monotonic() - start)
-        signal.setitimer(signal.ITIMER_REAL, max(left, 0.001) if outer else 0)
-        signal.signal(signal.SIGALRM, previous)
+        signal.setitimer(signal.ITIMER_PROF, 0)
+        signal.signal(signal.SIGPROF, previous)
 
 
 def _address_space() -> int:

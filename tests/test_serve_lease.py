@@ -115,10 +115,11 @@ def test_the_runs_of_an_expired_instance_are_adopted_by_one_survivor(
     dead, one, two = (Leases(engine, name, lease=lease)
                       for name, lease in (("dead", 0.3), ("one", 30.0), ("two", 30.0)))
     assert dead.join() and one.join() and two.join()
-    for run_id, instance, status in (("r1", "dead", "running"), ("r2", "one", "running"),
-                                     ("r3", "dead", "completed")):
-        storage.add_run(StoredRun(run_id, "m", "M", "<mission/>", [1], status, "", [], None,
-                                  instance, {}, time.time(), None))
+    for vehicle, (run_id, instance, status) in enumerate(
+            (("r1", "dead", "running"), ("r2", "one", "running"),
+             ("r3", "dead", "completed")), start=1):
+        storage.add_run(StoredRun(run_id, "m", "M", "<mission/>", [vehicle], status, "", [],
+                                  None, instance, {}, time.time(), None))
     assert one.orphans() == []
     until(lambda: one.orphans() == ["r1"])
     assert two.adopt("r1", "its instance died", time.time())
@@ -130,7 +131,26 @@ def test_the_runs_of_an_expired_instance_are_adopted_by_one_survivor(
     assert storage.run("r1").status == "interrupted"  # type: ignore[union-attr]
     # A process restarted under a live name adopts what its predecessor flew.
     assert one.orphans(own=True) == ["r2"]
+    # r1's vehicle is a survivor's to go on with (unless r1 was interrupted long ago) ...
+    assert one.in_runs(since=0.0) == {1, 2}
+    assert one.in_runs(since=time.time() + 60) == {2}
+    # ... and once r1 is continued (here on vehicle 4), the continuation's.
+    storage.add_run(StoredRun("r4", "m", "M", "<mission/>", [4], "running", "", [], None,
+                              "two", {"continues": "r1"}, time.time(), None))
+    assert one.in_runs(since=0.0) == {2, 4}
     storage.close()
+
+
+def test_a_vehicle_whose_owner_died_is_abandoned_for_as_long_as_it_stays_so(
+        engine: sa.Engine) -> None:
+    dead, alive = Leases(engine, "dead", lease=0.3), Leases(engine, "alive", lease=30.0)
+    assert dead.join() and alive.join()
+    assert dead.take(5) and alive.take(6)
+    assert alive.abandoned() == {}
+    until(lambda: 5 in alive.abandoned())
+    assert list(alive.abandoned()) == [5]
+    until(lambda: alive.abandoned()[5] > 0.3)  # seconds since, by the server's clock
+    assert alive.take(5) is not None and alive.abandoned() == {}
 
 
 class _Link:

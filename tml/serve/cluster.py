@@ -293,8 +293,34 @@ class Cluster:
             try:
                 self.hangar.give_back()
                 self._adopt()
+                self._rescue()
             except Exception as error:  # the next round tries again
                 log.warning("cluster: %s", error)
+
+    def _rescue(self) -> None:
+        """Send home each vehicle still flying whose owner died and that no run will go on
+        with (a run with roles, a vehicle returning after its run had ended): one lease
+        later than the takeover of runs, leased by this instance, sent to RTL as an
+        operator's command does, and kept until it has landed."""
+        from tml.serve.service import RequestError
+
+        abandoned = {vid: silent for vid, silent in self.leases.abandoned().items()
+                     if silent > self.leases.lease and vid in self.hangar.vehicles}
+        if not abandoned:
+            return
+        flown = self.leases.in_runs(time.time() - 10 * self.leases.lease)
+        for vid in sorted(set(abandoned) - flown):
+            state = self.hangar.vehicles[vid].state()
+            if not state.armed:
+                continue
+            try:
+                self.service.command(vid, "rtl")
+            except RequestError as refused:
+                log.error("cluster: vehicle %d, flying without its owner: %s", vid,
+                          refused.message)
+                continue
+            log.warning("cluster: vehicle %d was flying without its owner: RTL sent by %s",
+                        vid, self.leases.name)
 
     def _renew(self) -> None:
         sent = self.hangar.monotonic()

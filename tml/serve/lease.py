@@ -34,6 +34,7 @@ SQLite, whose single writer cannot be shared by machines).
 
 from __future__ import annotations
 
+import json
 import secrets
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -208,6 +209,19 @@ class Leases:
                 "AND vehicle = ANY(:vehicles)"), {"vehicles": wanted})
             return {row.vehicle: row.owner for row in rows}
 
+    def abandoned(self) -> dict[int, float]:
+        """The vehicles still owned by a session whose lease has expired, with the seconds
+        since it expired by the server's clock (a very large number when the instance
+        has joined again since, as a new session)."""
+        with self.engine.connect() as db:
+            rows = db.execute(sa.text(
+                "SELECT v.vehicle, COALESCE(EXTRACT(EPOCH FROM clock_timestamp() - "
+                "i.expires), 1e9) AS silent FROM vehicle_leases v LEFT JOIN "
+                "cluster_instances i ON i.name = v.owner AND i.session = v.session "
+                "WHERE v.owner IS NOT NULL AND (i.expires IS NULL OR "
+                "i.expires <= clock_timestamp()) ORDER BY v.vehicle"))
+            return {row.vehicle: float(row.silent) for row in rows}
+
     # --- runs ----------------------------------------------------------------------------
 
     def orphans(self, own: bool = False) -> list[str]:
@@ -221,6 +235,17 @@ class Leases:
                 "r.instance AND i.expires > clock_timestamp()) OR (:own AND r.instance = "
                 ":name)) ORDER BY created, id"), {"own": own, "name": self.name})
             return [row.id for row in rows]
+
+    def in_runs(self, since: float) -> set[int]:
+        """The vehicles of every run still flying in the database, or interrupted since
+        ``since`` (a wall-clock time) and not continued yet: a survivor is about to."""
+        with self.engine.connect() as db:
+            rows = db.execute(sa.text(
+                "SELECT r.vehicles FROM runs r WHERE r.status IN ('waiting', 'running', "
+                "'paused') OR (r.status = 'interrupted' AND r.ended > :since AND NOT EXISTS "
+                "(SELECT 1 FROM runs c WHERE c.options LIKE "
+                "'%\"continues\": \"' || r.id || '\"%'))"), {"since": since})
+            return {int(v) for row in rows for v in json.loads(row.vehicles)}
 
     def adopt(self, run_id: str, reason: str, ended: float) -> bool:
         """Mark an orphan run ``interrupted`` so that this instance continues it; False

@@ -427,6 +427,12 @@ def test_a_raw_mission_items_x_and_y_are_what_an_item_carries() -> None:
     assert raw("MISSION", "-7") == []
 
 
+def test_a_raw_mission_item_without_its_command_is_one_error() -> None:
+    item = _raw(("frame", "GLOBAL_RELATIVE_ALT"), ("param5", "36.5"))
+    assert codes(run(TAKE_OFF + f'<task name="p" dispatch="mission"><task name="w">{item}'
+                     '</task></task>\n')) == ["E211"]
+
+
 def test_a_command_number_mavlink_does_not_define_is_a_warning() -> None:
     item = _raw(("command", "116"), ("frame", "2"))
     result = run(TAKE_OFF + f'<task name="p" dispatch="mission"><task name="w">{item}'

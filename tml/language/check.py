@@ -303,7 +303,7 @@ class _Checker:
             return  # the argument checks above say why
         for problem in actions.raw_item_problems(bound.values):
             self.found.append(error(action.location, "E263", f"MISSION_ITEM: {problem}"))
-        command = bound.text("command")
+        command = bound.text("command", "")  # absent: the checks above say so
         if command.isdigit():
             self.found.append(warning(
                 action.location, "W309",

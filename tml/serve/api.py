@@ -41,7 +41,7 @@ import logging
 from collections.abc import AsyncIterator, Awaitable, Callable, Sequence
 from contextlib import asynccontextmanager
 from importlib import resources
-from typing import Any, Literal, TypeVar
+from typing import Any, Literal, ParamSpec, TypeVar
 
 from fastapi import APIRouter, Depends, FastAPI, Header, Path, Query, Request
 from fastapi.exceptions import RequestValidationError
@@ -63,6 +63,7 @@ from tml.serve.storage import StorageError
 LAST_RECORD = 2**31  # the highest record number asked for (after, Last-Event-ID)
 METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
 T = TypeVar("T")
+P = ParamSpec("P")
 log = logging.getLogger("tml.serve")
 
 
@@ -333,7 +334,7 @@ def _id() -> Any:
     return Path(pattern=r"^[0-9a-f]{1,32}$", description="the id given when it was created")
 
 
-async def _call(function: Callable[..., T], *args: Any, **kwargs: Any) -> T:
+async def _call(function: Callable[P, T], *args: P.args, **kwargs: P.kwargs) -> T:
     """A service call in the thread pool (it may read the database or wait on a lock)."""
     return await run_in_threadpool(function, *args, **kwargs)
 

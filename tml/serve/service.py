@@ -44,7 +44,7 @@ import time
 from collections import OrderedDict
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, TypeVar, cast
+from typing import Any, ParamSpec, TypeVar
 
 from tml.engine.resume import Progress
 from tml.errors import ControlRefused, TmlError
@@ -71,7 +71,8 @@ from tml.verify.report import report_document
 from tml.verify.static import verify_mission
 from tml.world import Cylinder, World
 
-F = TypeVar("F", bound=Callable[..., Any])
+P = ParamSpec("P")
+T = TypeVar("T")
 SAFE_STATES = ("rtl", "land", "hold")
 KEPT_SOURCE = 64 * 1024  # characters of the largest mission kept parsed between requests
 KEPT_MISSIONS = 64  # how many are kept
@@ -86,13 +87,13 @@ def _validate(filename: str, data: bytes) -> ValidationResult:
     return validate_file(filename, data)
 
 
-def _gives_memory_back(method: F) -> F:
+def _gives_memory_back(method: Callable[P, T]) -> Callable[P, T]:
     """A service call after which, when it parsed a large mission, the C heap's free
     memory is given back to the system: the parser's and the model's memory is freed
     when the call returns, but glibc keeps it unless asked (without this a service that
     took six 4 MB missions stays 150 MB larger after they are deleted)."""
     @functools.wraps(method)
-    def call(*args: Any, **kwargs: Any) -> Any:
+    def call(*args: P.args, **kwargs: P.kwargs) -> T:
         try:
             return method(*args, **kwargs)
         finally:
@@ -100,7 +101,7 @@ def _gives_memory_back(method: F) -> F:
                 _parsed_large.seen = False
                 _trim()
 
-    return cast(F, call)
+    return call
 
 
 def _trim() -> None:
@@ -149,6 +150,7 @@ class ServiceOptions:
     ready_timeout: float = 180.0  # s for a run's vehicles to be ready before its first task
     stop_timeout: float = 60.0  # wall s to wait for each run to end when the service stops
     command_timeout: float = 30.0  # wall s an operator's command waits for its answer
+    vehicle_fence: bool = True  # put each mission's fence on its vehicles (False: keep theirs)
 
 
 class Service:
@@ -354,7 +356,8 @@ class Service:
         options = checked_options(checked, world,
                                   safe_state=str(record.options.get("safe_state", "rtl")),
                                   link_lost_limit=self.options.link_lost_limit,
-                                  ready_timeout=self.options.ready_timeout)
+                                  ready_timeout=self.options.ready_timeout,
+                                  vehicle_fence=self.options.vehicle_fence)
         try:
             self.storage.add_run(record)
             live = LiveRun(record, mission, self.hangar, self.storage, options, self.ids,

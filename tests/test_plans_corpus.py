@@ -193,14 +193,17 @@ def test_rover_files_drive_on_the_simulator(name: str, tmp_path: Path) -> None:
     assert _fly(name, tmp_path, "--sim-frame", "rover", "--profile", "rover") == 0
 
 
-@pytest.mark.parametrize(("name", "repeats"), [
-    ("ardupilot_copter_far_origin.txt", ["2"]),  # back to item 8 once: items 8-9 twice
-    ("ardupilot_quadplane_ksfo_vtol.txt", ["2"]),  # the circuit, items 3-6, twice
-    ("ardupilot_plane_delay_secs.txt", []),  # a DO_JUMP forever: carried as written
+@pytest.mark.parametrize(("name", "repeats", "raw"), [
+    ("ardupilot_copter_far_origin.txt", ["2"], 0),  # back to item 8 once: items 8-9 twice
+    ("ardupilot_quadplane_ksfo_vtol.txt", ["2"], 0),  # the circuit, items 3-6, twice
+    # the triangle, items 20-22, twice; item 19 jumps 0 times: carried as written
+    ("ardupilot_plane_mission_item_types.txt", ["2"], 1),
+    ("ardupilot_plane_delay_secs.txt", [], 1),  # a DO_JUMP forever: carried as written
 ])
-def test_do_jumps_back_over_whole_actions_are_repeats(name: str, repeats: list[str]) -> None:
+def test_do_jumps_back_over_whole_actions_are_repeats(name: str, repeats: list[str],
+                                                      raw: int) -> None:
     text = import_plan(read(CORPUS / name), Path(name).stem).text
     root = etree.fromstring(text.encode("utf-8"))
     assert [r.get("times") for r in root.iter("repeat")] == repeats
     jumps = [e for e in root.iter("mission_item") if e.get("command") == "MAV_CMD_DO_JUMP"]
-    assert len(jumps) == 1 - len(repeats)
+    assert len(jumps) == raw

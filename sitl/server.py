@@ -234,6 +234,7 @@ class Simulator:
         self._selector = selectors.DefaultSelector()
         self._thread: threading.Thread | None = None
         self._running = threading.Event()
+        self._rebase = threading.Event()  # the speed-up changed: count from now on
         self._started = False
         self.heard = heard  # see "Who spoke to a vehicle" in the module docstring
 
@@ -291,6 +292,15 @@ class Simulator:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+    def set_speedup(self, speedup: float) -> None:
+        """Run real time ``speedup`` times faster from now on: vehicle time goes on from
+        where it stands (a test slows a flight down for a while, as when a link cut must
+        last long on the wall clock of a ground station in another process)."""
+        if speedup <= 0:
+            raise ValueError("speedup must be positive")
+        self.speedup = speedup
+        self._rebase.set()
 
     def advance(self, seconds: float) -> None:
         """Step vehicle time by ``seconds`` (realtime=False), serving I/O between ticks."""
@@ -508,6 +518,9 @@ class Simulator:
     def _loop(self) -> None:
         wall_start, time_start = time.monotonic(), self.time
         while self._running.is_set():
+            if self._rebase.is_set():
+                self._rebase.clear()
+                wall_start, time_start = time.monotonic(), self.time
             target = time_start + (time.monotonic() - wall_start) * self.speedup
             if target - self.time > 1.0:  # too slow: run behind instead of bursting
                 wall_start, time_start = time.monotonic(), self.time
@@ -534,6 +547,9 @@ class Simulator:
                 continue
             if lockstep.fire():  # the timers of this instant, once its messages are handled
                 continue
+            if self._rebase.is_set():
+                self._rebase.clear()
+                wall_start, time_start = time.monotonic(), self.time
             target = time_start + (time.monotonic() - wall_start) * self.speedup
             if target - self.time > 1.0:  # held up: run behind instead of bursting
                 wall_start, time_start = time.monotonic(), self.time

@@ -9,11 +9,14 @@ they came. A frame is what a radio loses, so this is how a poor link looks to bo
 sequence numbers jump, a COMMAND_ACK or a MISSION_REQUEST never comes.
 
 For a chaos campaign (benchmarks/chaos.py) it also cuts the link: :meth:`LossyProxy.cut`
-drops every frame both ways for some seconds from now, :meth:`LossyProxy.cut_on` from the
-first frame of a kind (mid-upload: the first MISSION_ITEM_INT); :meth:`LossyProxy.retarget`
+drops every frame both ways for some seconds from now (``math.inf``: until
+:meth:`LossyProxy.restore`), :meth:`LossyProxy.cut_on` from the first frame of a kind
+(mid-upload: the first MISSION_ITEM_INT); :meth:`LossyProxy.retarget`
 hangs up every connection and sends the next ones to another port, as a vehicle that
 rebooted looks to a ground station; ``up.sent`` keeps the last frame of each kind and
-sequence number the ground station sent (an uploaded mission's items).
+sequence number the ground station sent (an uploaded mission's items), and
+``on_message`` of a direction sees every frame passing (the interrupt campaign names the
+requests a vehicle is sent from them).
 
 The proxy runs one thread of its own, from ``start`` (or ``with``) until ``stop``, and
 stops by itself after ``lifetime`` seconds. ``up`` is ground station to vehicle, ``down``
@@ -52,6 +55,8 @@ class Direction:
     """Monotonic time until which every frame is dropped (an outage)."""
     on_frame: Callable[[str], None] | None = None
     """Called with the kind of each frame before it is judged."""
+    on_message: Callable[[Any], None] | None = None
+    """Called with each frame (the pymavlink message) before it is judged."""
     sent: dict[tuple[str, int], Any] = field(default_factory=dict)
     """The last frame of each (kind, seq field) among KEPT_KINDS."""
 
@@ -71,6 +76,8 @@ class Direction:
             kind = msg.get_type()
             if self.on_frame is not None and kind != BAD_DATA:
                 self.on_frame(kind)
+            if self.on_message is not None and kind != BAD_DATA:
+                self.on_message(msg)
             if kind in KEPT_KINDS:
                 self.sent[(kind, msg.seq)] = msg
             if kind != BAD_DATA and (time.monotonic() < self.cut_until
@@ -150,6 +157,10 @@ class LossyProxy:
         self.outages.append((start, seconds))
         self.up.cut_until = self.down.cut_until = start + seconds
         return start
+
+    def restore(self) -> None:
+        """End a cut now (one of ``math.inf`` seconds lasts until this is called)."""
+        self.up.cut_until = self.down.cut_until = 0.0
 
     def cut_on(self, kind: str, seconds: float) -> None:
         """Cut the link for ``seconds`` when the first frame of ``kind`` comes either way."""

@@ -453,6 +453,19 @@ def test_the_safe_state_is_commanded_until_the_vehicle_shows_it() -> None:
     assert len(confirmed) == 1 and confirmed[0]["mode"] == "RTL"
 
 
+def test_a_vehicle_heard_again_after_an_outage_is_told_its_safe_state_at_once() -> None:
+    # Given up at 13 s, the RTL sent into the dead link is lost; the next one goes the
+    # moment the link is back (23 s), not a safe_state_period later.
+    outcome, sim, lines, _, _ = run(TAKE_OFF + GO + LAND, options=RunOptions(
+        link_lost_limit=10.0, safe_state_period=60.0), fake=Outage)
+    assert outcome.exit_code == ExitCode.FAILURE
+    back = [line for line in lines if line["kind"] == "safety"
+            and "the link came back" in line.get("message", "")]
+    assert len(back) == 1 and 23.0 <= back[0]["t"] < 23.5, back
+    confirmed = [line for line in lines if line["kind"] == "safety" and line.get("confirmed")]
+    assert confirmed and confirmed[0]["t"] < 24.0 and sim.vehicles[0].mode == "RTL"
+
+
 def test_a_safe_state_never_shown_is_given_up_after_its_bound() -> None:
     class Gone(Outage):
         def down(self) -> bool:

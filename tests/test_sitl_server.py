@@ -195,6 +195,20 @@ def test_realtime_loop_serves_and_stops():
     assert sim.tcp_ports == []
 
 
+def test_a_slower_speedup_goes_on_from_where_vehicle_time_stands():
+    with Simulator(tcp_base_port=0, speedup=50) as sim:
+        while sim.time < 40.0:  # far ahead of what twice real time would have reached
+            time.sleep(0.01)
+        with pytest.raises(ValueError):
+            sim.set_speedup(0)
+        sim.set_speedup(2.0)
+        slowed = sim.time
+        end = time.monotonic() + 10.0  # a hang guard: counted from the start, time would
+        while sim.time < slowed + 0.2:  # stand still for some 20 s of wall time
+            assert time.monotonic() < end, "vehicle time stood still"
+            time.sleep(0.01)
+
+
 @pytest.mark.parametrize("text", ["udp:localhost", "udp::14550", "udp:host:99999", "host:port"])
 def test_bad_udp_addresses(text):
     with pytest.raises(ValueError, match="UDP address"):

@@ -185,6 +185,9 @@ class _Flight:
         self.rejected_told = 0  # absurd telemetry messages journaled so far
         self.taken = False  # someone else switched its mode: it is commanded no more
         self.safe_asked = False  # the safe state was commanded: to be confirmed
+        # The link was lost since the safe state was last commanded: that command may not
+        # have arrived, and the next is sent the moment the vehicle is heard again.
+        self.unheard = False
         self.revision: object = None  # the vehicle's revision when its state was built
         self.refresh_at = -math.inf  # when the state is rebuilt however the revision stands
         self.link = "ok"  # the link's health last journaled
@@ -569,6 +572,8 @@ class Runner:
                     lost.append(flight)
             else:
                 flight.lost_since = None
+            if flight.lost:  # given up on: back, it is told its safe state at once
+                self._heard_again(flight, state, now)
             if (state.taken or state.rebooted) and not flight.taken:
                 taken.append(flight)
         for flight in taken:
@@ -731,6 +736,8 @@ class Runner:
                     self._said(f"vehicle {vid}: safe state not confirmed within "
                                f"{self.options.safe_state_timeout:g} s (mode {state.mode}, "
                                f"link {state.link}): given up")
+                elif self._heard_again(flight, state, now):
+                    sent[id(flight)] = now
                 elif _idle(flight.vehicle) and (sent[id(flight)] is None or now - (
                         sent[id(flight)] or 0.0) >= self.options.safe_state_period):
                     if sent[id(flight)] is not None:  # the first was the run's own
@@ -738,6 +745,22 @@ class Runner:
                     sent[id(flight)] = now
             if waiting:
                 self._wait(0.1)
+
+    def _heard_again(self, flight: _Flight, state: VehicleState, now: float) -> bool:
+        """A vehicle told its safe state whose link was lost since: command the safe state
+        again the moment it is heard (and its requests are through), without waiting for
+        the next period -- the command sent into the dead link never arrived, and the
+        vehicle hovers on in GUIDED meanwhile. Whether it was sent."""
+        if not flight.safe_asked or flight.taken:
+            return False
+        if state.link == "lost":
+            flight.unheard = True
+            return False
+        if not flight.unheard or not _idle(flight.vehicle):
+            return False
+        flight.unheard = False
+        self._fallback_safe_state(flight, now, "the link came back")
+        return True
 
     def _tell_link(self, flight: _Flight, state: VehicleState, now: float) -> None:
         """Journal a change of the vehicle's link health at the wake that sees it, not only

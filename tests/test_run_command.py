@@ -487,9 +487,22 @@ def _start_against_a_silent_vehicle(tmp_path: Path, silent: socket.socket
     there for a HEARTBEAT for the whole --timeout (a refused connection would end it with
     exit 4 first, sooner on a fast machine than a slow one)."""
     port = silent.getsockname()[1]
-    return subprocess.Popen([sys.executable, "-m", "tml", "run", write(tmp_path, SHORT),
-                             "--connect", f"tcp:127.0.0.1:{port}", "--timeout", "300"],
+    # -X faulthandler: should tml ever not end, SIGABRT makes it say where each thread was.
+    return subprocess.Popen([sys.executable, "-X", "faulthandler", "-m", "tml", "run",
+                             write(tmp_path, SHORT), "--connect", f"tcp:127.0.0.1:{port}",
+                             "--timeout", "300"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _ended(process: subprocess.Popen[str]) -> tuple[str, str]:
+    """stdout and stderr of ``process`` once it has ended; a test failure, with where each
+    of its threads was, if it has not ended within a minute."""
+    try:
+        return process.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        process.send_signal(signal.SIGABRT)
+        _, err = process.communicate(timeout=60)
+        pytest.fail(f"tml did not end within 60 s of SIGINT; its threads:\n{err}")
 
 
 def test_ctrl_c_while_tml_waits_for_its_vehicle_ends_it_in_one_line(tmp_path: Path) -> None:
@@ -500,7 +513,7 @@ def test_ctrl_c_while_tml_waits_for_its_vehicle_ends_it_in_one_line(tmp_path: Pa
             first = process.stderr.readline()  # the state the signal must find: waiting
             assert first.startswith("tml run: waiting up to 300 s for a vehicle at "), first
             process.send_signal(signal.SIGINT)
-            out, err = process.communicate(timeout=60)
+            out, err = _ended(process)
         finally:
             process.kill()
     assert process.returncode == ExitCode.ABORTED, (out, err)
@@ -520,7 +533,7 @@ def test_ctrl_c_while_tml_starts_ends_it_without_a_traceback(tmp_path: Path,
         try:
             time.sleep(delay)  # when the signal comes, not a timing assertion
             process.send_signal(signal.SIGINT)
-            out, err = process.communicate(timeout=60)
+            out, err = _ended(process)
         finally:
             process.kill()
     if process.returncode == 1 and err.startswith("Fatal Python error: init_import_site"):

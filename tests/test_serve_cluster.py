@@ -33,9 +33,9 @@ pytestmark = pytest.mark.cluster
 
 ROOT = Path(__file__).resolve().parent.parent
 ARTIFACT = ROOT / "test-artifacts" / "cluster-takeover.md"
-VEHICLES = 30
 RUNS = 10
 PER_RUN = 3
+VEHICLES = RUNS * PER_RUN + PER_RUN  # and one run with roles, which is not continued
 INSTANCES = ("alpha", "bravo", "charlie")
 SOURCE = {"alpha": 251, "bravo": 252, "charlie": 253}  # each instance's MAVLink system id
 VICTIM = "alpha"
@@ -59,6 +59,12 @@ MISSION = b"""<mission name="Cluster hop">
   <task name="Down"><action name="LAND"/></task>
 </mission>
 """
+# The same flown by a role: a run that a survivor cannot continue (POST /runs/{id}/continue
+# refuses roles), whose vehicles a survivor sends home instead.
+ROLES_MISSION = MISSION.replace(
+    b'<task name="Up">',
+    b'<roles><role name="fleet" count="3"/></roles>\n  <task name="Hop" role="fleet">\n'
+    b'  <task name="Up">').replace(b"</mission>", b"</task>\n</mission>")
 
 
 def recipe() -> tuple[list[str], list[str]]:
@@ -197,6 +203,14 @@ def test_a_killed_instance_has_its_runs_continued_and_no_vehicle_hears_two(
             assert run["instance"] == name
             started[run["id"]] = name
         victims = [run_id for run_id, name in started.items() if name == VICTIM]
+        status, roles = call(bases["bravo"], "POST", "/missions?filename=roles.xml",
+                             ROLES_MISSION, "application/xml")
+        assert status == 201, roles
+        status, run = call(bases[VICTIM], "POST", "/runs", {
+            "mission": roles["id"], "vehicles": list(range(VEHICLES - PER_RUN + 1,
+                                                           VEHICLES + 1))})
+        assert status == 201, run
+        with_roles = run["id"]
 
         # Every instance answers for every run; a control of another's run reaches it.
         other = next(r for r, name in started.items() if name == "charlie")
@@ -212,10 +226,11 @@ def test_a_killed_instance_has_its_runs_continued_and_no_vehicle_hears_two(
         assert status == 200 and resumed["status"] == "running", resumed
 
         def flying_out() -> bool:
-            for run_id in victims:
+            for run_id in [*victims, with_roles]:
                 _status, run = call(bases[VICTIM], "GET", f"/runs/{run_id}")
+                out = "Hop/Out" if run_id == with_roles else "Out"
                 if run["status"] != "running" or any(
-                        states.get("Out") != "running" for vehicle, states in
+                        states.get(out) != "running" for vehicle, states in
                         run["tasks"].items() if vehicle):
                     return False
             return True
@@ -231,6 +246,8 @@ def test_a_killed_instance_has_its_runs_continued_and_no_vehicle_hears_two(
             continued = {run["options"].get("continues") for run in runs}
             if not all(run_id in continued for run_id in victims):
                 return None
+            if not any(run["options"].get("not_continued") for run in runs):
+                return None
             return list(runs)
 
         runs = until("every run ended", ended)
@@ -245,6 +262,10 @@ def test_a_killed_instance_has_its_runs_continued_and_no_vehicle_hears_two(
                 assert run["instance"] in ("bravo", "charlie")
             assert run["status"] == "completed", run
             assert run["exit_code"] == 0
+        # The run with roles is interrupted, not continued: its vehicles were sent home.
+        assert by_id[with_roles]["status"] == "interrupted"
+        assert "roles" in by_id[with_roles]["options"]["not_continued"]
+        assert with_roles not in continuation
 
         def landed() -> bool:
             _status, vehicles = call(bases["charlie"], "GET", "/vehicles")
@@ -258,7 +279,7 @@ def test_a_killed_instance_has_its_runs_continued_and_no_vehicle_hears_two(
                     for name in INSTANCES if name != VICTIM},
             "database": {key: (value - before[key]) / seconds
                          for key, value in _database_counts(database).items()}}
-        table = _heard(heard, killed, victims, by_id)
+        table = _heard(heard, killed, [*victims, with_roles], by_id)
     finally:
         for process in reversed(processes):
             process.stop()
@@ -309,12 +330,12 @@ def _heard(path: Path, killed: float, victims: list[str],
             assert first_new[0] > killed
             table.append({"vehicle": vehicle, "old": VICTIM, "new": changes[1],
                           "wall": first_new[0] - killed, "vehicle_s": first_new[1] - last_old})
-        elif vehicle <= RUNS * PER_RUN:
-            assert len(changes) == 1 and changes[0] != VICTIM, (vehicle, changes)
         else:
-            assert changes == [], (vehicle, changes)  # in no run: nobody spoke to it
+            assert len(changes) == 1 and changes[0] != VICTIM, (vehicle, changes)
     for row in table:
         row["run"] = next(r for r in victims if row["vehicle"] in runs[r]["vehicles"])
+        row["did"] = "sent it home (RTL)" if runs[row["run"]]["options"].get(
+            "not_continued") else "continued the run"
     return table
 
 
@@ -322,23 +343,23 @@ def _write_table(table: list[dict[str, Any]], measured: dict[str, Any]) -> None:
     ARTIFACT.parent.mkdir(exist_ok=True)
     lines = ["# Cluster takeover (tests/test_serve_cluster.py)", "",
              f"Three `tml serve --cluster` instances, {VEHICLES} simulated vehicles at "
-             f"{SPEEDUP:g}x, {RUNS} runs of {PER_RUN} vehicles; instance {VICTIM} killed "
-             f"(SIGKILL) while its runs flew out. Lease {LEASE:g} s, renewed every "
-             f"{LEASE / 3:g} s. Takeover: from the SIGKILL to the first message the new "
-             "owner sent the vehicle (wall seconds), and from the last message of the old "
-             "owner to it (vehicle seconds).", "",
-             "| run | vehicle | old owner | new owner | takeover wall s | "
-             "silence vehicle s |", "|---|---|---|---|---|---|"]
+             f"{SPEEDUP:g}x, {RUNS} runs of {PER_RUN} vehicles and one with roles (which is "
+             f"not continued); instance {VICTIM} killed (SIGKILL) while its runs flew out. "
+             f"Lease {LEASE:g} s, renewed every {LEASE / 3:g} s. Takeover: from the SIGKILL "
+             "to the first message the new owner sent the vehicle (wall seconds), and from "
+             "the last message of the old owner to it (vehicle seconds).", "",
+             "| run | vehicle | old owner | new owner | what it did | takeover wall s | "
+             "silence vehicle s |", "|---|---|---|---|---|---|---|"]
     lines += [f"| {row['run']} | {row['vehicle']} | {row['old']} | {row['new']} | "
-              f"{row['wall']:.2f} | {row['vehicle_s']:.2f} |" for row in table]
-    if table:
-        walls = sorted(row["wall"] for row in table)
-        lines += ["", f"Takeover wall seconds: min {walls[0]:.2f}, median "
+              f"{row['did']} | {row['wall']:.2f} | {row['vehicle_s']:.2f} |" for row in table]
+    for did in sorted({row["did"] for row in table}):
+        walls = sorted(row["wall"] for row in table if row["did"] == did)
+        lines += ["", f"Takeover wall seconds ({did}): min {walls[0]:.2f}, median "
                       f"{walls[len(walls) // 2]:.2f}, max {walls[-1]:.2f}."]
     cpu = ", ".join(f"{name} {share:.0%}" for name, share in measured["cpu"].items())
     per_second = measured["database"]
     lines += ["", f"From the join to every vehicle landed ({measured['seconds']:.0f} s): CPU "
-                  f"of a core per surviving instance (30 vehicle links each): {cpu}; the "
+                  f"of a core per surviving instance ({VEHICLES} vehicle links each): {cpu}; the "
                   f"database: {per_second['commits']:.0f} commits/s, "
                   f"{per_second['inserted']:.0f} rows inserted/s, "
                   f"{per_second['updated']:.0f} rows updated/s (three instances, then two, "

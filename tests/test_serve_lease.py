@@ -138,6 +138,14 @@ def test_the_runs_of_an_expired_instance_are_adopted_by_one_survivor(
     storage.add_run(StoredRun("r4", "m", "M", "<mission/>", [4], "running", "", [], None,
                               "two", {"continues": "r1"}, time.time(), None))
     assert one.in_runs(since=0.0) == {2, 4}
+    # A run the survivor cannot go on with (roles) is given up: its vehicles are no run's.
+    storage.add_run(StoredRun("r5", "m", "M", "<mission/>", [5], "interrupted", "", [],
+                              None, "dead", {"safe_state": "rtl"}, time.time(), time.time()))
+    assert one.in_runs(since=0.0) == {2, 4, 5}
+    one.give_up("r5", "run r5 has roles")
+    assert one.in_runs(since=0.0) == {2, 4}
+    assert storage.run("r5").options == {  # type: ignore[union-attr]
+        "safe_state": "rtl", "not_continued": "run r5 has roles"}
     storage.close()
 
 

@@ -299,23 +299,23 @@ class Cluster:
 
     def _rescue(self) -> None:
         """Send home each vehicle still flying whose owner died and that no run will go on
-        with (a run with roles, a vehicle returning after its run had ended): one lease
-        later than the takeover of runs, leased by this instance, sent to RTL as an
-        operator's command does, and kept until it has landed."""
+        with (a run with roles, a vehicle returning after its run had ended): leased by
+        this instance, sent to RTL as an operator's command does, and kept until it has
+        landed."""
         from tml.serve.service import RequestError
 
-        abandoned = {vid: silent for vid, silent in self.leases.abandoned().items()
-                     if silent > self.leases.lease and vid in self.hangar.vehicles}
+        abandoned = set(self.leases.abandoned()) & set(self.hangar.vehicles)
         if not abandoned:
             return
         flown = self.leases.in_runs(time.time() - 10 * self.leases.lease)
-        for vid in sorted(set(abandoned) - flown):
-            state = self.hangar.vehicles[vid].state()
-            if not state.armed:
+        for vid in sorted(abandoned - flown):
+            if not self.hangar.vehicles[vid].state().armed:
                 continue
             try:
                 self.service.command(vid, "rtl")
             except RequestError as refused:
+                if self.leases.owners([vid]):  # another survivor was first: its to send
+                    continue
                 log.error("cluster: vehicle %d, flying without its owner: %s", vid,
                           refused.message)
                 continue
@@ -354,6 +354,7 @@ class Cluster:
                 run = self.service.continue_run(run_id)
             except RequestError as refused:
                 log.error("cluster: run %s not continued: %s", run_id, refused.message)
+                self.leases.give_up(run_id, refused.message)
                 continue
             self.adopted.append((run_id, run["id"]))
             continued.append(run["id"])

@@ -238,11 +238,13 @@ class Leases:
 
     def in_runs(self, since: float) -> set[int]:
         """The vehicles of every run still flying in the database, or interrupted since
-        ``since`` (a wall-clock time) and not continued yet: a survivor is about to."""
+        ``since`` (a wall-clock time) and neither continued nor given up yet: a survivor
+        is about to go on with it."""
         with self.engine.connect() as db:
             rows = db.execute(sa.text(
                 "SELECT r.vehicles FROM runs r WHERE r.status IN ('waiting', 'running', "
-                "'paused') OR (r.status = 'interrupted' AND r.ended > :since AND NOT EXISTS "
+                "'paused') OR (r.status = 'interrupted' AND r.ended > :since AND "
+                "r.options NOT LIKE '%\"not_continued\"%' AND NOT EXISTS "
                 "(SELECT 1 FROM runs c WHERE c.options LIKE "
                 "'%\"continues\": \"' || r.id || '\"%'))"), {"since": since})
             return {int(v) for row in rows for v in json.loads(row.vehicles)}
@@ -256,6 +258,17 @@ class Leases:
                 "WHERE id = :id AND status IN ('waiting', 'running', 'paused') RETURNING id"),
                 {"id": run_id, "reason": reason, "ended": ended}).first()
             return row is not None
+
+    def give_up(self, run_id: str, why: str) -> None:
+        """Note in an adopted run's options why it is not continued (``not_continued``):
+        its vehicles are no run's to go on with."""
+        with self.engine.begin() as db:
+            row = db.execute(sa.text("SELECT options FROM runs WHERE id = :id FOR UPDATE"),
+                             {"id": run_id}).first()
+            if row is not None:
+                options = {**json.loads(row.options), "not_continued": why}
+                db.execute(sa.text("UPDATE runs SET options = :options WHERE id = :id"),
+                           {"id": run_id, "options": json.dumps(options)})
 
     # --- helpers -------------------------------------------------------------------------
 

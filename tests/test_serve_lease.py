@@ -275,3 +275,44 @@ def test_tml_serve_cluster_without_postgresql_is_a_usage_error(
     assert capsys.readouterr().err == ("tml serve: --cluster needs --database "
                                        "postgresql://...: the instances share their leases "
                                        "there\n")
+
+
+def test_an_operator_command_to_a_vehicle_another_instance_leases_is_carried_out_there(
+        tmp_path: Any) -> None:
+    from serving import FakeHangar
+
+    from tml.serve.service import RequestError, Service, ServiceOptions
+
+    class Leased(FakeHangar):
+        owner: str | None = None
+
+        def owner_elsewhere(self, vehicle_id: int) -> str | None:
+            return self.owner
+
+    here, there = Leased(1), Leased(1)
+    storages = [Storage(f"sqlite:///{tmp_path / name}.sqlite") for name in "ab"]
+    a = Service(storages[0], here, ServiceOptions(instance="a"))
+    b = Service(storages[1], there, ServiceOptions(instance="b"))
+    asked: list[tuple[str, dict[str, Any]]] = []
+
+    def forward(instance: str, request: dict[str, Any]) -> tuple[int, str, dict[str, Any]]:
+        asked.append((instance, request))
+        if instance != "b":
+            return 504, f"the service instance {instance!r} did not answer in 10 s", {}
+        return b.carry_out(request)
+
+    a.forward = forward
+    answer, done = a.command(1, "rtl")  # nobody else leases it: sent from here
+    assert asked == [] and done
+    here.owner = "b"
+    answer, done = a.command(1, "rtl")
+    assert asked == [("b", {"op": "command", "vehicle": 1, "command": "rtl"})]
+    assert done and answer["message"] == "vehicle 1: nothing to do: " \
+        f"{there.fakes[0].state().mode}, on the ground, disarmed"
+    assert answer["vehicle_state"]["id"] == 1
+    here.owner = "ghost"
+    with pytest.raises(RequestError, match="'ghost' did not answer") as refused:
+        a.command(1, "land")
+    assert refused.value.status == 504
+    for storage in storages:
+        storage.close()

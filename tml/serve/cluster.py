@@ -133,6 +133,14 @@ class ClusterHangar(Hangar):
 
         return gate
 
+    def owner_elsewhere(self, vehicle_id: int) -> str | None:
+        """The other instance that leases ``vehicle_id`` now, or None (this one does, or
+        nobody): where an operator's command to it is carried (Service.command)."""
+        if vehicle_id in self.owned:
+            return None
+        owner = self.leases.owners([vehicle_id]).get(vehicle_id)
+        return owner if owner != self.leases.name else None
+
     # --- holding vehicles ----------------------------------------------------------------
 
     def claim(self, vehicle_ids: Iterable[int], run_id: str) -> None:
@@ -368,14 +376,18 @@ def clustered(service: Service, hangar: ClusterHangar) -> Iterator[Cluster]:
     """Join the cluster with ``service`` (its vehicles in ``hangar``), controls of other
     instances' runs forwarded to them, until left; the runs of an earlier process of
     this instance are continued on entry (:attr:`Cluster.adopted`)."""
-    from tml.serve.forward import Forwarder, Unanswered
+    from tml.serve.forward import TIMEOUT, Forwarder, Unanswered
 
     forwarder = Forwarder(hangar.leases.engine, hangar.leases.name, service.carry_out)
     forwarder.start()
 
     def forward(instance: str, request: dict[str, Any]) -> tuple[int, str, dict[str, Any]]:
+        # An operator's command waits for the run that held the vehicle to end, up to the
+        # service's command timeout, there as here.
+        wait = service.options.command_timeout + TIMEOUT if request.get("op") == "command" \
+            else TIMEOUT
         try:
-            return forwarder.ask(instance, request)
+            return forwarder.ask(instance, request, wait)
         except Unanswered as silent:
             return 504, str(silent), {"instance": instance}
 

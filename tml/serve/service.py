@@ -426,8 +426,12 @@ class Service:
 
     def carry_out(self, request: Mapping[str, Any]) -> tuple[int, str, dict[str, Any]]:
         """A request another instance of the cluster forwarded about a run this one flies
-        (``op``: ``abort`` or ``control``): its HTTP status, message and detail."""
+        or a vehicle it leases (``op``: ``abort``, ``control`` or ``command``): its HTTP
+        status, message and detail."""
         try:
+            if request.get("op") == "command":
+                answer, done = self.command(int(request["vehicle"]), str(request["command"]))
+                return 200 if done else 202, str(answer["message"]), {"run": answer["run"]}
             if request.get("op") == "abort":
                 self.abort(str(request["run"]))
             elif request.get("op") == "control":
@@ -438,6 +442,26 @@ class Service:
         except RequestError as refused:
             return refused.status, refused.message, jsonable(refused.detail)
         return 200, "done", {}
+
+    def _command_elsewhere(self, vehicle_id: int,
+                           command: str) -> tuple[dict[str, Any], bool] | None:
+        """In a cluster, an operator's command to a vehicle another instance leases:
+        carried out there, and answered as it answered; None for a vehicle no other
+        instance leases (tml.serve.cluster.ClusterHangar.owner_elsewhere)."""
+        owner_elsewhere = getattr(self.hangar, "owner_elsewhere", None)
+        owner = None if self.forward is None or owner_elsewhere is None \
+            else owner_elsewhere(vehicle_id)
+        if self.forward is None or owner is None:
+            return None
+        status, message, detail = self.forward(
+            str(owner), {"op": "command", "vehicle": vehicle_id, "command": command})
+        if status not in (200, 202):
+            refused = RequestError(message, **detail)
+            refused.status = status
+            raise refused
+        return ({"vehicle": vehicle_id, "command": command, "run": detail.get("run"),
+                 "message": message, "vehicle_state": self.vehicle(vehicle_id)},
+                status == 200)
 
     def _elsewhere(self, run_id: str, request: dict[str, Any]) -> bool:
         """Whether the run is flown by another instance of the cluster, which then
@@ -522,6 +546,9 @@ class Service:
         found = self.hangar.vehicles.get(vehicle_id)
         if found is None:
             raise NotFound(f"no vehicle {vehicle_id}")
+        elsewhere = self._command_elsewhere(vehicle_id, command)
+        if elsewhere is not None:
+            return elsewhere
         try:
             operator_request(found.state(), command)
         except CommandRefusal as refusal:

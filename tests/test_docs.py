@@ -194,3 +194,14 @@ def test_every_doc_mission_table_row_names_an_existing_file() -> None:
     assert named
     absent = sorted(n for n in named if not (ROOT / n).is_file())
     assert not absent, f"docs/language.md names missing files: {absent}"
+
+
+@pytest.mark.parametrize("page", ["run.md", "serve.md"])
+def test_the_missions_the_run_and_serve_pages_name_are_files_the_suite_flies(page: str) -> None:
+    # Their examples (the fence and rally points, the API's runs) name missions of missions/,
+    # each validated and flown by tests/test_missions.py.
+    text = (ROOT / "docs" / page).read_text(encoding="utf-8")
+    named = set(re.findall(r"(missions/[\w.\-]+\.xml)", text))
+    assert named, f"docs/{page} names no mission of missions/"
+    for path in sorted(named):
+        assert (ROOT / path).is_file(), f"docs/{page} names {path}, which does not exist"

@@ -107,12 +107,20 @@ def test_the_curl_examples_of_the_docs_work_as_written(server: Server, tmp_path:
     stream = next(out for block, out in zip(blocks, outputs, strict=True) if "/stream" in block)
     assert "event: end" in stream, stream
     assert json.loads(stream.split("data: ")[-1])["status"] == "completed", stream
+    patrol = next(out for block, out in zip(blocks, outputs, strict=True)
+                  if "fenced_patrol.xml" in block)
+    (safeguard,) = [json.loads(line) for line in patrol.splitlines()
+                    if '"kind":"safeguard"' in line]
+    assert safeguard["ok"] is True, patrol
+    assert safeguard["message"].startswith("on the vehicle: inclusion polygon of 4 corners; "
+                                           "exclusion circle water tower; FENCE_ALT_MAX 40 m")
+    assert "2 rally points" in safeguard["message"]
     log = [json.loads(line) for line in (tmp_path / "flight.jsonl").read_text().splitlines()]
     assert [c["control"] for c in log if c["kind"] == "control"] == ["pause", "resume", "jump"]
     assert log[-1]["kind"] == "run" and log[-1]["exit_code"] == 0
     with httpx.Client(base_url=server.url) as client:
         runs = client.get("/runs").json()
-        assert [r["status"] for r in runs] == ["completed", "aborted"]
+        assert [r["status"] for r in runs] == ["completed", "aborted", "aborted"]
         assert client.get("/missions").json() == []
     code, out = server.stop()
     assert code == 0, out

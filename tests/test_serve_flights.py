@@ -131,3 +131,30 @@ def test_a_run_verified_with_the_profile_read_from_its_vehicle(service: Service)
     assert service.run(run["id"])["options"]["profile"] == "vehicle"
     assert (ended(service, run["id"])["status"]) == "completed"
 
+
+
+FENCED = SHORT.replace(b'<mission name="Short hop">', (
+    b'<mission name="Short hop"><environment><geofence max_altitude="30">'
+    b'<point north="-100" east="-100"/><point north="100" east="-100"/>'
+    b'<point north="100" east="100"/><point north="-100" east="100"/></geofence><rally>'
+    b'<point north="-10" east="0" altitude="10"/></rally></environment>'))
+
+
+@pytest.mark.parametrize("keep", [False, True], ids=["uploaded", "kept"])
+def test_each_run_puts_its_fence_and_rally_points_on_the_vehicle_unless_told_to_keep(
+        tmp_path: Path, keep: bool) -> None:
+    with simulated(vehicles=1, speedup=10) as hangar:
+        storage = Storage(database_url(None, tmp_path))
+        found = Service(storage, hangar, ServiceOptions(stop_timeout=60,
+                                                        vehicle_fence=not keep))
+        try:
+            run = found.start_run(found.upload("fenced.xml", FENCED)["id"], [1])
+            assert ended(found, run["id"])["status"] == "completed"
+            (told,) = [line for line in lines(found, run["id"]) if line["kind"] == "safeguard"]
+        finally:
+            found.stop()
+            storage.close()
+    assert told["ok"] is True and told["message"].endswith("read back matched")
+    assert "1 rally point" in told["message"]
+    assert ("the vehicle's fence kept" in told["message"]) is keep
+    assert ("inclusion polygon of 4 corners" in told["message"]) is not keep

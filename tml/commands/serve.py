@@ -68,6 +68,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--instance", default="local", metavar="NAME",
                         help="this service's name in a database shared by several "
                              "(default local; see docs/serve.md)")
+    parser.add_argument("--keep-vehicle-fence", action="store_true",
+                        help="leave each vehicle's own fence as it is (by default each run "
+                             "uploads its mission's geofence and obstacles as the vehicle's "
+                             "fence before take-off; rally points go up either way)")
     cluster = parser.add_argument_group("cluster (several instances on one PostgreSQL, "
                                         "docs/serve.md)")
     cluster.add_argument("--cluster", action="store_true",
@@ -221,7 +225,8 @@ def _serve(args: argparse.Namespace, token: str | None, listening: socket.socket
             hangars.append(hangar)
             service = Service(storage, hangar, ServiceOptions(
                 instance=args.instance, link_lost_limit=args.link_lost_limit,
-                ready_timeout=args.ready_timeout))
+                ready_timeout=args.ready_timeout,
+                vehicle_fence=not args.keep_vehicle_fence))
             stack.enter_context(_joined(args, service, hangar))
             port = listening.getsockname()[1]
             where = f"http://{_url_host(args.host)}:{port}/"

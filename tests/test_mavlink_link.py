@@ -6,10 +6,12 @@ binds 127.0.0.1 port 0 and every wait in these tests is bounded.
 
 from __future__ import annotations
 
+import re
 import socket
 import threading
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -622,3 +624,21 @@ def test_a_tcp_link_takes_in_every_message_of_a_burst_in_order() -> None:
                 ap.send(mavlink.MAVLink_mission_current_message(seq))
             assert eventually(lambda: len(seen) >= 200)
     assert seen == list(range(200))
+
+
+def test_every_address_form_of_docs_connections_is_flown_by_the_tests_it_names() -> None:
+    """docs/connections.md's table names, for each address form, the tests that fly a
+    mission through it: each named test exists (``::name`` alone is in the file before)."""
+    root = Path(__file__).resolve().parent.parent
+    doc = (root / "docs" / "connections.md").read_text(encoding="utf-8")
+    rows = [line for line in doc.splitlines()
+            if re.match(r"\| `(udp|tcp|DEVICE)", line) and "tests/" in line]
+    assert {row.split("`")[1] for row in rows} == {
+        "udpin:", "udpout:", "udp:", "tcp:", "tcpin:", "DEVICE,BAUD", "DEVICE"}
+    for row in rows:
+        named = re.findall(r"(tests/[\w/]+\.py)?::(\w+)", row)
+        assert named, row
+        source = ""
+        for path, test in named:
+            source = (root / path).read_text(encoding="utf-8") if path else source
+            assert f"def {test}(" in source, f"{path or 'the file before'}::{test}"

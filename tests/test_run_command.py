@@ -557,35 +557,79 @@ def test_pyserial_is_a_dependency() -> None:
     assert any(d.replace(" ", "").startswith("pyserial>=") for d in project["dependencies"])
 
 
-@pytest.fixture
-def pseudo_terminal(tmp_path: Path) -> Iterator[tuple[Path, int]]:
-    """A serial device (a pseudo-terminal made by socat) carrying a simulated vehicle's
-    TCP port, as a telemetry radio carries an autopilot's serial port: (device, port)."""
+@contextlib.contextmanager
+def socat(*addresses: str, ready: str | None = None) -> Iterator[None]:
+    """socat joining ``addresses``, stopped by its pid on leaving; with ``ready``, once it
+    has printed a line that matches."""
     import shutil
 
     from tests.process_lines import follow, wait_for
 
     if shutil.which("socat") is None:
         pytest.skip("socat is not installed (apt-get install socat)")
+    bridge = subprocess.Popen(["socat", "-d", "-d", *addresses], stderr=subprocess.PIPE,
+                              text=True)
+    try:
+        assert bridge.stderr is not None
+        lines = follow(bridge.stderr)
+        if ready is not None:
+            wait_for(lines, [], ready, time.monotonic() + 60, "socat")
+        yield
+    finally:
+        bridge.terminate()
+        bridge.wait(timeout=60)
+
+
+@pytest.fixture
+def pseudo_terminal(tmp_path: Path) -> Iterator[tuple[Path, int]]:
+    """A serial device (a pseudo-terminal made by socat) carrying a simulated vehicle's
+    TCP port, as a telemetry radio carries an autopilot's serial port: (device, port)."""
     device = tmp_path / "ttyTML"
-    with simulator("--fast-boot", "--speedup", "10") as port:
-        bridge = subprocess.Popen(["socat", "-d", "-d", f"pty,link={device},raw,echo=0",
-                                   f"tcp:127.0.0.1:{port}"], stderr=subprocess.PIPE, text=True)
-        try:
-            assert bridge.stderr is not None
-            wait_for(follow(bridge.stderr), [], "starting data transfer loop",
-                     time.monotonic() + 60, "socat")
-            yield device, port
-        finally:
-            bridge.terminate()
-            bridge.wait(timeout=60)
+    with simulator("--fast-boot", "--speedup", "10") as port, \
+            socat(f"pty,link={device},raw,echo=0", f"tcp:127.0.0.1:{port}",
+                  ready="starting data transfer loop"):
+        yield device, port
 
 
+@pytest.mark.parametrize("baud", [",57600", ""])  # DEVICE,BAUD and DEVICE (57600)
 def test_a_vehicle_on_a_serial_port_flies(pseudo_terminal: tuple[Path, int], tmp_path: Path,
-                                          capsys: pytest.CaptureFixture[str]) -> None:
+                                          capsys: pytest.CaptureFixture[str],
+                                          baud: str) -> None:
     device, _ = pseudo_terminal
-    code = main(["run", write(tmp_path, SHORT), "--connect", f"{device},57600", "-q",
+    code = main(["run", write(tmp_path, SHORT), "--connect", f"{device}{baud}", "-q",
                  "--timeout", "60"])
+    out = capsys.readouterr()
+    assert code == 0, out
+    assert "vehicle 1: mission completed: all tasks done" in out.out
+
+
+def test_a_vehicle_that_waits_to_be_contacted_over_udp_flies_through_udpout(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # A Wi-Fi vehicle or companion computer listening on UDP: it answers whoever sends
+    # first (socat relays that UDP port to the simulated vehicle's TCP port).
+    port = _free_udp_port()
+    with simulator("--fast-boot", "--speedup", "10") as vehicle, \
+            socat(f"udp-listen:{port},bind=127.0.0.1,reuseaddr", f"tcp:127.0.0.1:{vehicle}",
+                  ready="listening on"):
+        code = main(["run", write(tmp_path, SHORT), "--connect", f"udpout:127.0.0.1:{port}",
+                     "-q", "--timeout", "60"])
+    out = capsys.readouterr()
+    assert code == 0, out
+    assert "vehicle 1: mission completed: all tasks done" in out.out
+
+
+def test_a_vehicle_that_dials_in_flies_through_tcpin(tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]
+                                                     ) -> None:
+    # A companion computer or router that connects to the ground station (socat dials
+    # tml's tcpin: port, retrying until it listens, and carries the simulated vehicle).
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    with simulator("--fast-boot", "--speedup", "10") as vehicle, \
+            socat(f"tcp:127.0.0.1:{port},retry=600,interval=0.1", f"tcp:127.0.0.1:{vehicle}"):
+        code = main(["run", write(tmp_path, SHORT), "--connect", f"tcpin:127.0.0.1:{port}",
+                     "-q", "--timeout", "60"])
     out = capsys.readouterr()
     assert code == 0, out
     assert "vehicle 1: mission completed: all tasks done" in out.out

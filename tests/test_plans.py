@@ -409,7 +409,8 @@ def test_what_has_no_tml_form_is_a_loss_naming_its_item() -> None:
 def test_a_plan_with_no_item_is_refused() -> None:
     fence = read_wpl("QGC WPL 110\n0\t0\t0\t5003\t100\t0\t0\t0\t47.1\t8.5\t0\t1\n")
     assert fence.items == () and fence.zones[0].radius == 100.0
-    with pytest.raises(PlanFileError, match=r"no mission items to fly \(it holds a fence"):
+    with pytest.raises(PlanFileError, match=r"no mission items to fly \(it holds a fence"
+                       r".*give one with --home"):
         import_plan(fence, "fence")
 
 

@@ -206,3 +206,48 @@ def test_a_plan_with_a_fence_and_no_item_is_imported_as_a_world_file(tmp_path: P
     circles = json.loads((tmp_path / "m.plan").read_text())["geoFence"]["circles"]
     assert {"inclusion": False, "version": 1,
             "circle": {"center": [38.76, -77.48], "radius": 20.0}} in circles
+
+
+FENCE_LIST = ROOT / "tests/data/plans_corpus/ardupilot_rover_path_planning_fence.txt"
+RALLY_LIST = ROOT / "tests/data/plans_corpus/ardupilot_rover_rally.txt"
+
+
+def test_a_fence_or_rally_list_needs_a_home_to_be_a_world_file(tmp_path: Path,
+                                                               capsys) -> None:
+    assert main(["import", str(FENCE_LIST)]) == 1
+    assert "no home to place them from): give one with --home LAT,LON[,ALT]" \
+        in capsys.readouterr().err
+    world = tmp_path / "fence.xml"
+    assert main(["import", str(FENCE_LIST), "--home", "40.071613,-105.230118",
+                 "-o", str(world)]) == 0
+    assert "the fence (3 zone(s)) written as a world file" in capsys.readouterr().err
+    root = world.read_text()
+    assert '<home latitude="40.071613" longitude="-105.230118" altitude="0"/>' in root
+    assert root.count("<point ") == 19 + 4 and '<cylinder name="exclusion zone 3"' in root
+    rally = tmp_path / "rally.xml"
+    assert main(["import", str(RALLY_LIST), "--home", "40.071553,-105.229401,1589",
+                 "-o", str(rally)]) == 0
+    assert "the fence (0 zone(s)) and 2 rally point(s) written" in capsys.readouterr().err
+    assert '<point latitude="40.072265" longitude="-105.231136" altitude="0"/>' \
+        in rally.read_text() and 'altitude="1589"' in rally.read_text()
+
+
+def test_a_rally_line_with_what_a_tml_rally_point_lacks_is_a_loss(tmp_path: Path,
+                                                                   capsys) -> None:
+    plan = tmp_path / "rally.txt"
+    plan.write_text("RALLY 40.07 -105.22 30 40 0 0\nRALLY 40.08 -105.23 30 60 90 1\n")
+    assert main(["import", str(plan), "--home", "40.07,-105.22"]) == 1
+    err = capsys.readouterr().err
+    assert "rally point 2 (line 2): break altitude 60 m, landing direction 90, flags 1" in err
+    assert main(["import", str(plan), "--home", "40.07,-105.22,x"]) == 2
+    assert "--home: expected LAT,LON[,ALT]" in capsys.readouterr().err
+
+
+def test_the_files_home_is_kept_over_the_home_option(tmp_path: Path, capsys) -> None:
+    plan = tmp_path / "fence.txt"
+    plan.write_text("QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\t47.0\t8.5\t400\t1\n"
+                    "1\t0\t0\t5004\t100\t0\t0\t0\t47.1\t8.5\t0\t1\n")
+    assert main(["import", str(plan), "--home", "40.07,-105.22"]) == 0
+    captured = capsys.readouterr()
+    assert "note: the file's home is kept" in captured.err
+    assert '<home latitude="47" longitude="8.5" altitude="400"/>' in captured.out

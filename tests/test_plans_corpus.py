@@ -19,15 +19,12 @@ from tml.plans.imported import import_plan
 from tml.plans.planned import plan_mission
 from tml.plans.qgc import PlanFileError, read_plan, write_plan
 from tml.plans.wpl import write_wpl
+from tml.world import Home
 
 CORPUS = Path(__file__).parent / "data" / "plans_corpus"
 FILES = sorted(p for p in CORPUS.iterdir() if p.suffix in (".plan", ".txt", ".mission"))
 
 REFUSED = {
-    "ardupilot_rover_rally.txt": "not a waypoint file",  # MAVProxy's RALLY list
-    "ardupilot_rover_path_planning_fence.txt":
-        "no mission items to fly (it holds a fence or rally points only, and no home to "
-        "place them from)",
     "mavsdk_qgroundcontrol_sample_with_structured_scan.plan":
         "complex item 'StructureScan' saved without its mission items",
     "mavsdk_qgroundcontrol_sample_with_survey_missing_items.plan":
@@ -39,9 +36,16 @@ REFUSED = {
 }
 """The files refused by design, and why (a substring of the message)."""
 
-WORLDS = {"qgc_geofence_rd_2.plan": "world file"}
-"""The files that hold a fence, a home and no item: imported as a world file, whose export
-laid over a mission gives the same fence back."""
+WORLDS = {"qgc_geofence_rd_2.plan": "world file",
+          "ardupilot_rover_path_planning_fence.txt": "world file",
+          "ardupilot_rover_rally.txt": "world file"}
+"""The files that hold a fence or rally points and no item: imported as a world file, whose
+export laid over a mission gives the same fence and rally points back."""
+
+HOMES = {"ardupilot_rover_path_planning_fence.txt": Home(40.071613, -105.230118, 0),
+         "ardupilot_rover_rally.txt": Home(40.071553, -105.229401, 0)}
+"""The home a fence or rally list gives none of, as ``tml import --home`` gives it: the
+first vertex or rally point."""
 
 
 class Outcome(NamedTuple):
@@ -58,6 +62,8 @@ def outcome(path: Path, tmp_path: Path) -> Outcome:
     asserting that the export holds the file's items."""
     try:
         source = read(path)
+        if path.name in HOMES:
+            source = replace(source, home=HOMES[path.name])
         imported = import_plan(source, path.stem)
     except PlanFileError as error:
         return Outcome(str(error))

@@ -9,11 +9,14 @@ I/O error (a missing file, an unwritable output, a role to choose).
 from __future__ import annotations
 
 import argparse
+import math
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from tml.errors import ExitCode
 from tml.language.kinds import Kind
+from tml.world import Home
 
 FORMATS = {"plan": ".plan", "wpl": ".waypoints", "kml": ".kml", "geojson": ".geojson"}
 SUFFIXES = {".plan": "plan", ".waypoints": "wpl", ".txt": "wpl", ".kml": "kml",
@@ -39,6 +42,27 @@ def add_export_arguments(parser: argparse.ArgumentParser) -> None:
                         help="world file laid over the mission's <environment>")
 
 
+HOME_ALTITUDE = 0.0
+"""The altitude (m AMSL) of an ``--home`` given without one. The fence and rally lists
+it places give altitudes above home (a fence item none at all), so it changes none of
+them; it is the world's ``<home altitude>``."""
+
+
+def home_position(text: str) -> Home:
+    """``LAT,LON[,ALT]`` (degrees, m AMSL; ALT default :data:`HOME_ALTITUDE`) as a home
+    (an argparse type)."""
+    try:
+        values = [float(part) for part in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) not in (2, 3) or not all(map(math.isfinite, values)):
+        raise argparse.ArgumentTypeError(f"expected LAT,LON[,ALT] (e.g. 40.0716,-105.2301), "
+                                         f"got {text!r}")
+    if not (-90 <= values[0] <= 90 and -180 <= values[1] <= 180):
+        raise argparse.ArgumentTypeError(f"latitude or longitude out of range in {text!r}")
+    return Home(values[0], values[1], values[2] if len(values) == 3 else HOME_ALTITUDE)
+
+
 def add_import_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the options of ``tml import``."""
     parser.add_argument("plan", metavar="FILE", help="a .plan or a QGC WPL waypoint file")
@@ -49,6 +73,10 @@ def add_import_arguments(parser: argparse.ArgumentParser) -> None:
                         help="write the mission even when the file holds what it cannot "
                              "carry exactly (each such item is named; without this option "
                              "the file is refused)")
+    parser.add_argument("--home", metavar="LAT,LON[,ALT]", type=home_position,
+                        help="the home to place the file's fence and rally points from when "
+                             "the file gives none (a fence or rally list); ALT in m above sea "
+                             f"level, default {HOME_ALTITUDE:g}")
 
 
 def _say(command: str, message: str) -> None:
@@ -150,6 +178,11 @@ def import_(args: argparse.Namespace) -> ExitCode:
     try:
         plan = read_plan(text, args.plan) if text.lstrip().startswith("{") \
             else read_wpl(text, args.plan)
+        if args.home is not None and plan.home is None:
+            plan = replace(plan, home=args.home)
+        elif args.home is not None:
+            _say("import", f"{args.plan}: note: the file's home is kept (--home places a "
+                 "file that gives none)")
         imported = import_plan(plan, args.name or path.stem)
     except PlanFileError as error:
         message = str(error)
@@ -180,9 +213,10 @@ def import_(args: argparse.Namespace) -> ExitCode:
         return ExitCode.USAGE
     raw = f", {imported.raw} of them as MISSION_ITEM" if imported.raw else ""
     if imported.world:
-        _say("import", f"no mission item: the fence ({len(plan.zones)} zone(s)) written as a "
-             f"world file to {args.output or 'standard output'} (give it to tml run, verify "
-             "or export with --world)")
+        rally = f" and {len(plan.rally)} rally point(s)" if plan.rally else ""
+        _say("import", f"no mission item: the fence ({len(plan.zones)} zone(s)){rally} written "
+             f"as a world file to {args.output or 'standard output'} (give it to tml run, "
+             "verify or export with --world)")
     else:
         _say("import", f"{len(plan.items)} mission item(s) as {imported.actions} task(s){raw} "
              f"written to {args.output or 'standard output'}")

@@ -319,16 +319,18 @@ def _exact(actions: list[_Action], plan: PlanFile, losses: list[str]) -> list[_A
 def import_plan(plan: PlanFile, name: str) -> Imported:
     """The TML mission of ``plan``, named ``name``.
 
-    A plan with a fence and a home but no mission item is a world file
-    (:attr:`Imported.world`): the fence, for ``--world``. Raises :class:`PlanFileError`
-    for a plan with no mission item and nothing a world file holds (a TML mission flies
-    at least one task)."""
+    A plan with a fence or rally points and a home but no mission item is a world file
+    (:attr:`Imported.world`): the fence and rally points, for ``--world``. Raises
+    :class:`PlanFileError` for a plan with no mission item and nothing a world file holds
+    (a TML mission flies at least one task)."""
     if not plan.items and (plan.zones or plan.rally) and plan.home is not None:
         return _world(plan, name)
     if not plan.items:
-        what = " (it holds a fence or rally points only, and no home to place them from)" \
-            if plan.zones or plan.rally else ""
-        raise PlanFileError(f"no mission items to fly{what}: a TML mission needs one")
+        if plan.zones or plan.rally:
+            raise PlanFileError("no mission items to fly (it holds a fence or rally points "
+                                "only, and no home to place them from): give one with --home "
+                                "LAT,LON[,ALT] to have them as a world file")
+        raise PlanFileError("no mission items to fly: a TML mission needs one")
     warnings = list(plan.skipped)
     losses = list(plan.losses)
     actions: list[_Action] = []
@@ -424,12 +426,13 @@ def _compiles_back(text: str, plan: PlanFile) -> bool:
 
 
 def _world(plan: PlanFile, name: str) -> Imported:
-    """The world file of a plan that holds a fence and no item."""
+    """The world file of a plan that holds a fence or rally points and no item."""
     from tml.language.schema import stable_location
 
     root = etree.Element("world", nsmap={"xsi": SCHEMA_INSTANCE}, name=name)
     root.set(f"{{{SCHEMA_INSTANCE}}}noNamespaceSchemaLocation", stable_location("world.xsd"))
-    root.append(etree.Comment(" Imported from a plan with a fence and no mission item. "))
+    root.append(etree.Comment(" Imported from a plan with a fence or rally points and no "
+                                 "mission item. "))
     losses = list(plan.losses)
     _environment(root, plan, losses, environment=root)
     etree.indent(root, space="  ")

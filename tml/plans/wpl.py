@@ -42,6 +42,11 @@ FENCE_COMMANDS = frozenset({FENCE_VERTEX_INCLUSION, FENCE_VERTEX_EXCLUSION,
                             FENCE_CIRCLE_INCLUSION, FENCE_CIRCLE_EXCLUSION,
                             FENCE_RETURN_POINT, RALLY_POINT})
 """The commands of a fence or rally list (MAVProxy's ``fence save``, ``rally save``)."""
+RALLY = "RALLY"
+RALLY_DEFAULTS = (40.0, 0.0, 0)
+"""A ``RALLY`` line's break altitude (m), landing direction (centidegrees) and flags as
+MAVProxy's ``rally add`` writes them (its rally_breakalt and rally_flags settings): what
+a TML rally point, which has none of the three, is written back with."""
 
 
 def read_wpl(text: str, name: str = "waypoints") -> PlanFile:
@@ -50,9 +55,12 @@ def read_wpl(text: str, name: str = "waypoints") -> PlanFile:
     Line 0 is home when it is in ArduPilot's home form (a NAV_WAYPOINT in frame 0, as
     ``wp save`` writes it); any other line 0 (MAVSDK's sample starts with a NAV_TAKEOFF) is
     the first item. A fence or rally list (commands 5000-5004, 5100) becomes zones and
-    rally points. A line that starts with ``#`` is a comment, as ``wp load`` reads it."""
+    rally points. A line that starts with ``#`` is a comment, as ``wp load`` reads it.
+    MAVProxy's older rally list (``RALLY`` lines, :func:`read_rally`) is read too."""
     lines = [(number, line) for number, line in enumerate(text.splitlines(), start=1)
              if line.strip() and not line.lstrip().startswith("#")]
+    if lines and lines[0][1].split()[0].upper() == RALLY:
+        return read_rally(lines, name)
     if not lines or not lines[0][1].startswith("QGC WPL"):
         where = lines[0][0] if lines else 1
         raise PlanFileError(f"{name}:{where}: not a waypoint file (the first line is not "
@@ -115,3 +123,29 @@ def _fence(fence: list[tuple[str, MissionItem]],
         losses.append(f"a polygon of {len(corners)} corner(s) whose count does not match its "
                       "items' param1: left out")
     return tuple(zones), tuple(rally)
+
+
+def read_rally(lines: list[tuple[int, str]], name: str) -> PlanFile:
+    """The rally points of MAVProxy's rally list (pymavlink's ``MAVRallyLoader``): one
+    ``RALLY lat lon alt break_alt land_dir flags`` line per point, the altitude above home.
+    A break altitude, landing direction or flags other than MAVProxy's defaults
+    (:data:`RALLY_DEFAULTS`) has no TML form: a loss."""
+    rally: list[tuple[float, float, float]] = []
+    losses: list[str] = []
+    for number, line in lines:
+        fields = line.split()
+        if len(fields) != 7 or fields[0].upper() != RALLY:
+            raise PlanFileError(f"{name}:{number}: expected 'RALLY lat lon alt break_alt "
+                                f"land_dir flags', got {line.strip()!r}")
+        try:
+            lat, lon, alt, break_alt, land_dir = (float(v) for v in fields[1:6])
+            flags = int(fields[6])
+        except ValueError as error:
+            raise PlanFileError(f"{name}:{number}: {error}") from None
+        if (break_alt, land_dir, flags) != RALLY_DEFAULTS:
+            losses.append(f"rally point {len(rally) + 1} (line {number}): break altitude "
+                          f"{break_alt:g} m, landing direction {land_dir:g}, flags {flags} "
+                          "(a TML rally point has none: written back as "
+                          f"{RALLY_DEFAULTS[0]:g}, {RALLY_DEFAULTS[1]:g}, {RALLY_DEFAULTS[2]})")
+        rally.append((lat, lon, alt))
+    return PlanFile((), rally=tuple(rally), losses=tuple(losses))

@@ -51,7 +51,7 @@ DOC = (ROOT / "docs" / "serve.md").read_text(encoding="utf-8")
 MISSION = b"""<mission name="Cluster hop">
   <task name="Up"><action name="TAKE_OFF"><argument name="altitude" value="10"/></action></task>
   <task name="Out">
-    <action name="GO_TO_POINT"><argument name="point" value="(30,0,10)"/></action>
+    <action name="GO_TO_POINT"><argument name="point" value="(60,0,10)"/></action>
   </task>
   <task name="Back">
     <action name="GO_TO_POINT"><argument name="point" value="(0,0,10)"/></action>
@@ -225,17 +225,20 @@ def test_a_killed_instance_has_its_runs_continued_and_no_vehicle_hears_two(
         status, resumed = call(bases["bravo"], "POST", f"/runs/{other}/resume")
         assert status == 200 and resumed["status"] == "running", resumed
 
-        def flying_out() -> bool:
+        def flying() -> bool:
+            """Every vehicle of the victim's runs has taken off and is not landing yet (a
+            window of about 6 s of wall time: two 60 m legs at 4x)."""
             for run_id in [*victims, with_roles]:
                 _status, run = call(bases[VICTIM], "GET", f"/runs/{run_id}")
-                out = "Hop/Out" if run_id == with_roles else "Out"
+                prefix = "Hop/" if run_id == with_roles else ""
                 if run["status"] != "running" or any(
-                        states.get(out) != "running" for vehicle, states in
-                        run["tasks"].items() if vehicle):
+                        states.get(f"{prefix}Up") != "done"
+                        or states.get(f"{prefix}Down") != "pending"
+                        for vehicle, states in run["tasks"].items() if vehicle):
                     return False
             return True
 
-        until("the victim's runs on their way out", flying_out)
+        until("the victim's runs flying their legs", flying)
         killed = time.time()
         services[VICTIM].stop(signal.SIGKILL)
 
@@ -315,7 +318,7 @@ def _heard(path: Path, killed: float, victims: list[str],
         senders.setdefault(record["v"], []).append(
             (name_of[record["src"]], record["wall"], record["t"]))
     victim_vehicles = {v for run_id in victims for v in runs[run_id]["vehicles"]}
-    table = []
+    table: list[dict[str, Any]] = []
     for vehicle in range(1, VEHICLES + 1):
         heard = senders.get(vehicle, [])
         changes = [heard[0][0]] if heard else []
@@ -344,7 +347,8 @@ def _write_table(table: list[dict[str, Any]], measured: dict[str, Any]) -> None:
     lines = ["# Cluster takeover (tests/test_serve_cluster.py)", "",
              f"Three `tml serve --cluster` instances, {VEHICLES} simulated vehicles at "
              f"{SPEEDUP:g}x, {RUNS} runs of {PER_RUN} vehicles and one with roles (which is "
-             f"not continued); instance {VICTIM} killed (SIGKILL) while its runs flew out. "
+             f"not continued); instance {VICTIM} killed (SIGKILL) while its runs flew "
+             "their legs. "
              f"Lease {LEASE:g} s, renewed every {LEASE / 3:g} s. Takeover: from the SIGKILL "
              "to the first message the new owner sent the vehicle (wall seconds), and from "
              "the last message of the old owner to it (vehicle seconds).", "",

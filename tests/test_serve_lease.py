@@ -316,3 +316,39 @@ def test_an_operator_command_to_a_vehicle_another_instance_leases_is_carried_out
     assert refused.value.status == 504
     for storage in storages:
         storage.close()
+
+
+def test_an_instance_whose_lease_expired_shuts_its_fence_aborts_its_runs_and_joins_again(
+        engine: sa.Engine) -> None:
+    from tml.serve.cluster import Cluster
+
+    class Service:
+        def __init__(self) -> None:
+            self.aborted: list[str] = []
+
+        def status(self) -> dict[str, Any]:
+            return {"live_runs": ["r1"]}
+
+        def abort(self, run_id: str) -> None:
+            self.aborted.append(run_id)
+
+    link = _Link()
+    leases = Leases(engine, "a", lease=3.0)
+    hangar = ClusterHangar([_Vehicle(1, 1, link)], time.monotonic,  # type: ignore[list-item]
+                           leases)
+    service = Service()
+    cluster = Cluster(hangar, service)  # type: ignore[arg-type]
+    assert leases.join()
+    hangar.renewed(time.monotonic())
+    hangar.claim([1], "r1")
+    first = leases.session
+    cluster._renew()
+    assert link.gate is not None and link.gate(1) and service.aborted == []
+    with engine.begin() as db:  # the process stalled past its lease
+        db.execute(sa.text("UPDATE cluster_instances SET expires = clock_timestamp() "
+                           "WHERE name = 'a'"))
+    cluster._renew()
+    assert not link.gate(1) and hangar.owned == {}
+    assert service.aborted == ["r1"]
+    assert leases.session != first and leases.renew()  # a new session, its lease running
+    assert leases.owners([1]) == {}  # what the old session owned is not the new one's

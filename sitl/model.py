@@ -1152,12 +1152,15 @@ class VehicleModel:
             breach = self._fence_breach(self.position)
             if breach and "fence" not in self._failsafes:
                 self._failsafes.add("fence")
-                self._text(M.MAV_SEVERITY_CRITICAL, fence.BREACH_TEXTS[breach])
+                # A notice, as ArduCopter says it (AC_Fence), and "Fence breach cleared"
+                # once back inside.
+                self._text(M.MAV_SEVERITY_NOTICE, fence.BREACH_TEXTS[breach])
                 action = round(self.params["FENCE_ACTION"])
                 if action and self.mode not in ("RTL", "LAND"):
                     self._failsafe_action({1: 2, 2: 1, 3: 2, 4: 4, 5: 2}.get(action, 2))
-            elif not breach:
+            elif not breach and "fence" in self._failsafes:
                 self._failsafes.discard("fence")
+                self._text(M.MAV_SEVERITY_NOTICE, "Fence breach cleared")
 
     def _battery_failsafe(self) -> None:
         """Raise the low and critical battery failsafes as their conditions arise.

@@ -421,6 +421,23 @@ def test_a_take_over_says_the_autopilots_warning() -> None:
         "switched to RTL outside tml (autopilot: Polygon fence breached)")
 
 
+def test_a_take_over_says_the_autopilots_first_most_severe_words_of_the_moment() -> None:
+    # As ArduCopter SITL says a breach in AUTO: notices, the breach first, then what it
+    # does, then "cleared" once back inside -- all before the take-over is believed.
+    def breach(sim: Sim) -> None:
+        vehicle = sim.vehicles[0]
+        if sim.time == 3.0:
+            vehicle.say(5, "Polygon fence breached")
+            vehicle.say(6, "Manual recovery started")
+            vehicle.say(5, "Fence breach cleared")
+        if sim.time == 4.0:
+            vehicle.mode, vehicle.taken = "RTL", "RTL"
+
+    outcome, *_ = run(TAKE_OFF + GO + LAND, hooks=[breach])
+    assert outcome.vehicles[0].reason.endswith(
+        "switched to RTL outside tml (autopilot: Polygon fence breached)")
+
+
 class Outage(FakeVehicle):
     """A vehicle whose link is down from 3 s to 23 s: what is sent meanwhile is lost."""
 

@@ -105,3 +105,32 @@ def test_the_fenced_patrol_flies_with_its_fence_on_arducopter(ardupilot, tmp_pat
         if line["kind"] in ("action", "result", "error", "safeguard")][-8:]
     (told,) = [line for line in lines if line["kind"] == "safeguard"]
     assert told["ok"] and told["message"].endswith("read back matched"), told
+
+
+def test_tml_run_reports_arducopters_fence_breach_in_its_own_words(
+        ardupilot, tmp_path: Path, capsys) -> None:
+    # The patrol's environment, and a plan flown in AUTO straight through the water tower
+    # (AUTO checks no destination against the fence): ArduCopter breaches its exclusion
+    # zone and returns (FENCE_ACTION 1, RTL); tml run sees the switch it did not ask for,
+    # says the autopilot's words, and commands the vehicle no more.
+    text = PATROL.read_text()
+    start, end = text.index("  <task name=\"take off\">"), text.index("  <event_handling>")
+    mission = tmp_path / "strays.xml"
+    mission.write_text(text[:start] + (
+        '  <task name="take off"><action name="TAKE_OFF"><argument name="altitude" '
+        'value="10"/></action></task>\n'
+        '  <task name="through the tower" dispatch="mission"><action name="GO_TO_POINT">'
+        '<argument name="coordinates" value="(90, 30, 10)"/></action></task>\n'
+        '  <task name="down"><action name="LAND"/></task>\n') + text[end:])
+    (sitl,) = ardupilot()
+    log = tmp_path / "strays.jsonl"
+    code = main(["run", str(mission), "--connect", sitl.address, "--force", "-q",
+                 "--log", str(log)])  # --force: the verifier sees the tower on the way
+    said = capsys.readouterr().out
+    assert code == 4, said
+    assert ("vehicle 1 switched to RTL outside tml (autopilot: Polygon fence breached): "
+            "tml commands it no more") in said, said
+    lines = read(str(log))
+    taken = next(i for i, line in enumerate(lines) if line["kind"] == "taken")
+    assert lines[taken]["mode"] == "RTL"
+    assert [line for line in lines[taken:] if line["kind"] in ("request", "safety")] == []

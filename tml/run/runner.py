@@ -87,6 +87,7 @@ import queue
 import threading
 import time
 import traceback
+from collections import deque
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
 from functools import partial
@@ -101,7 +102,9 @@ from tml.language.skills import mission_vehicle_skills
 from tml.run.journal import Journal, autopilot_fields, telemetry_fields
 from tml.timebase import SYSTEM, Flag, Timebase
 from tml.vehicle import (
+    SEVERITIES,
     WARNING,
+    AutopilotMessage,
     IdSource,
     RequestResult,
     Safeguard,
@@ -110,6 +113,11 @@ from tml.vehicle import (
     awaiting,
     unprovided,
 )
+
+SAID_WITHIN = 5.0
+"""Seconds (the run's clock) before a take-over within which the autopilot's messages are
+taken for its words about it: the switch is believed about a second after it is shown."""
+NOTICE = SEVERITIES.index("notice")
 
 
 @dataclass
@@ -183,6 +191,8 @@ class _Flight:
         self.cause = ""
         self.messages_told = 0  # the number of the last autopilot message journaled
         self.rejected_told = 0  # absurd telemetry messages journaled so far
+        # The autopilot's latest messages with when they were told (for a take-over's words).
+        self.said: deque[tuple[float, AutopilotMessage]] = deque(maxlen=16)
         self.taken = False  # someone else switched its mode: it is commanded no more
         self.safe_asked = False  # the safe state was commanded: to be confirmed
         # The link was lost since the safe state was last commanded: that command may not
@@ -511,6 +521,7 @@ class Runner:
         for message in flight.state.messages:
             if message.number > flight.messages_told:
                 flight.messages_told = message.number
+                flight.said.append((now, message))
                 self.journal.write(now, "autopilot", flight.vehicle.vehicle_id,
                                    **autopilot_fields(message))
 
@@ -603,13 +614,25 @@ class Runner:
         # switch and another ground station's command look alike (the journal's line keeps
         # the autopilot's last message, which may tell a reader).
         reason = f"switched to {mode} outside tml"
-        said = [m for m in flight.state.messages if m.severity <= WARNING]
-        if said:  # the autopilot's own words, when it gave a warning (Fence Breached ...)
-            reason += f" (autopilot: {said[-1].text})"
+        words = self._words(flight, now)
+        if words:  # the autopilot's own words, when it gave them (Polygon fence breached)
+            reason += f" (autopilot: {words})"
         self.journal.write(now, "taken", vid, message=f"vehicle {vid} {reason}", mode=mode,
                            status_text=flight.state.status_text)
         self._said(f"vehicle {vid} {reason}: tml commands it no more")
         self._guarded(crew, now, partial(crew.engine.lost, now, vid, reason, True))
+
+    def _words(self, flight: _Flight, now: float) -> str:
+        """What the autopilot said of a take-over: of its messages told within
+        :data:`SAID_WITHIN` s before it, the most severe at NOTICE or worse, the first of
+        those (ArduCopter says ``Polygon fence breached`` as a notice, then ``Fence breach
+        cleared`` as one when it is back inside); else its last warning, if any."""
+        near = [m for at, m in flight.said if now - at <= SAID_WITHIN and m.severity <= NOTICE]
+        if near:
+            return min(near, key=lambda m: (m.severity, m.number)).text
+        assert flight.state is not None
+        warned = [m for m in flight.state.messages if m.severity <= WARNING]
+        return warned[-1].text if warned else ""
 
     def _rebooted(self, crew: _Crew, flight: _Flight, now: float) -> None:
         """The autopilot rebooted (tml.mavlink.reboot): it came back disarmed, in its first

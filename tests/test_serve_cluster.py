@@ -29,7 +29,9 @@ from typing import Any
 import pytest
 from serving import postgresql
 
-pytestmark = pytest.mark.cluster
+# A hang guard, not a time limit: about 90 s on two busy cores, above the suite's 120 s
+# per test when the machine is slower still.
+pytestmark = [pytest.mark.cluster, pytest.mark.timeout(900)]
 
 ROOT = Path(__file__).resolve().parent.parent
 ARTIFACT = ROOT / "test-artifacts" / "cluster-takeover.md"

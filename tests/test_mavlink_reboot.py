@@ -54,3 +54,13 @@ def test_the_new_boots_disarmed_heartbeats_do_not_hide_an_armed_reboot() -> None
     watch.heartbeat(False)  # the new boot's first HEARTBEAT comes before any stamp
     feed(watch, [(0.5, 3.0), (1.5, 4.0)])
     assert watch.reboot is not None and watch.reboot.armed
+
+
+def test_after_a_reboot_the_new_boot_is_followed_and_a_second_reboot_told() -> None:
+    watch = RebootWatch()
+    assert feed(watch, [(300.0, 0.0), (0.5, 1.0), (1.5, 2.0)]) == [False, False, True]
+    assert watch.count == 1
+    # The new boot's stamps go on rising: nothing more; then it reboots again.
+    assert not any(feed(watch, [(2.5, 3.0), (40.0, 40.0)]))
+    assert feed(watch, [(0.3, 41.0), (1.3, 42.0)]) == [False, True]
+    assert watch.count == 2 and watch.reboot == Reboot(40.0, 0.3, armed=False)

@@ -664,3 +664,38 @@ def test_a_skill_waits_for_its_companion_and_one_nothing_switches_is_refused_at_
     assert vehicle.reason == ("the mission's skill RECOGNIZE_ITEMS: nothing on this vehicle "
                               "switches it")
     assert sim.vehicles[0].submitted == [] and sim.time < 0.5  # at once, nothing sent
+
+
+class Rebooting(FakeVehicle):
+    """A fake vehicle whose autopilot rebooted once before the run (a vehicle kept open by
+    a service), and, when ``again_at`` is set, once more then: disarmed, on the ground."""
+
+    again_at: float | None = None
+
+    def state(self) -> VehicleState:
+        reboots = 2 if self.again_at is not None and self.time >= self.again_at else 1
+        if reboots == 2:
+            self.armed = False
+        return replace(super().state(), reboots=reboots,
+                       rebooted=f"rebooted {'while armed' if reboots == 2 else 'disarmed'} "
+                                "(its clock went from 40.0 s back to 0.5 s)")
+
+
+def test_a_reboot_during_the_run_ends_the_vehicles_work_one_before_it_does_not() -> None:
+    outcome, *_ = run(TAKE_OFF + GO + LAND, fake=Rebooting)
+    assert outcome.exit_code == ExitCode.OK  # rebooted before this run: not its business
+
+    class Again(Rebooting):
+        again_at = 3.0
+
+    outcome, _, lines, said, _ = run(TAKE_OFF + GO + LAND, fake=Again)
+    (vehicle,) = outcome.vehicles
+    assert (outcome.exit_code, vehicle.status, vehicle.cause) == (
+        ExitCode.FAILURE, Status.FAILED, "rebooted")
+    assert said[0] == ("vehicle 1 rebooted while armed (its clock went from 40.0 s back to "
+                       "0.5 s): tml commands it no more")
+    (taken,) = [line for line in lines if line["kind"] == "taken"]
+    assert taken["reboot"] is True
+    after = [line for line in lines if line["t"] >= taken["t"]
+             and line["kind"] in ("request", "safety")]
+    assert after == []  # nothing sent to it after

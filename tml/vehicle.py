@@ -130,7 +130,8 @@ class VehicleState:
     rejected: int = 0  # telemetry messages ignored for an absurd value (battery 127 %, NaN)
     rejected_last: str = ""  # what was absurd in the last of them
     taken: str = ""  # the mode the vehicle was switched to by someone else (the autopilot)
-    rebooted: str = ""  # the autopilot rebooted during the run: how that was seen
+    rebooted: str = ""  # the autopilot's latest reboot, as it was seen ("": none)
+    reboots: int = 0  # reboots seen since the vehicle was opened
     # How old the picture is, in the runner's time (None: the source does not say, and
     # its readings are taken as current). Left out of the comparison: they move with
     # every message and every request, and the rules below read them on every step.

@@ -387,6 +387,7 @@ class MavlinkVehicle:
             messages=_messages(t), rejected=t.rejected, rejected_last=t.rejected_last,
             taken=self._modes.taken, heard=self._heard(now), asked=self._asked,
             rebooted="" if self._reboots.reboot is None else str(self._reboots.reboot),
+            reboots=self._reboots.count,
             flight_asked=self._flight_asked)
 
     def _skills(self) -> Mapping[str, str]:

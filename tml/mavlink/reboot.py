@@ -12,7 +12,9 @@ local time it arrived. A stamp more than :data:`SLACK` s behind the highest one 
 a new boot only when every stamp for :data:`AGREE` s stays behind: one stray or forged
 message (without signing any client on the link can send one as the autopilot, and a
 message delayed on the way arrives late) is answered by the real autopilot's next stamp,
-and believes nothing.
+and believes nothing. After a reboot the watch follows the new boot, and tells the next
+reboot too (:attr:`RebootWatch.count`): a vehicle kept open across runs (``tml serve``) is
+judged by each run on the reboots during it.
 
 Whether the vehicle was armed when it rebooted is told from its HEARTBEATs of the old boot
 (:meth:`RebootWatch.heartbeat`): the rebooted autopilot says disarmed wherever it is. Armed
@@ -55,19 +57,20 @@ class RebootWatch:
     def __init__(self) -> None:
         self.highest: float | None = None
         self.reboot: Reboot | None = None
+        """The latest reboot seen (None: none)."""
+        self.count = 0
+        """Reboots seen so far."""
         self._since: tuple[float, float] | None = None  # (local time, stamp) of the first low one
         self._armed_at: float | None = None  # the highest stamp when a HEARTBEAT said armed
 
     def heartbeat(self, armed: bool) -> None:
         """A HEARTBEAT of the autopilot says ``armed`` (or not)."""
-        if armed and self._since is None and self.reboot is None:
+        if armed and self._since is None:
             self._armed_at = self.highest
 
     def seen(self, stamp: float, now: float) -> bool:
         """A message stamped ``stamp`` (s since boot) arrived at ``now`` (local s); True
-        when that makes the reboot believed (once)."""
-        if self.reboot is not None:
-            return False
+        when that makes a reboot believed (once per reboot)."""
         if self.highest is None or stamp >= self.highest - SLACK:
             self._since = None  # the old boot goes on: a low stamp before was stray
             self.highest = stamp if self.highest is None else max(self.highest, stamp)
@@ -79,5 +82,8 @@ class RebootWatch:
             armed = self._armed_at is not None and \
                 self._armed_at >= self.highest - ARMED_WITHIN
             self.reboot = Reboot(self.highest, self._since[1], armed)
+            self.count += 1
+            # The new boot from here on: its stamps, and a next reboot's fall from them.
+            self.highest, self._since, self._armed_at = stamp, None, None
             return True
         return False

@@ -193,6 +193,7 @@ class _Flight:
         self.rejected_told = 0  # absurd telemetry messages journaled so far
         # The autopilot's latest messages with when they were told (for a take-over's words).
         self.said: deque[tuple[float, AutopilotMessage]] = deque(maxlen=16)
+        self.boots = 0  # the autopilot's reboots seen before the run began (a vehicle kept open)
         self.taken = False  # someone else switched its mode: it is commanded no more
         self.safe_asked = False  # the safe state was commanded: to be confirmed
         # The link was lost since the safe state was last commanded: that command may not
@@ -370,6 +371,8 @@ class Runner:
 
     def _run(self) -> Outcome:
         now = self.clock()
+        for flight in self.flights:  # a reboot before this run is not this run's
+            flight.boots = flight.vehicle.state().reboots
         self.journal.write(now, "run", message="run resumed" if self.resume is not None
                            else "run started", mission=self.mission.name,
                            file=self.mission.file, vehicles=[f.vehicle.vehicle_id
@@ -585,7 +588,7 @@ class Runner:
                 flight.lost_since = None
             if flight.lost:  # given up on: back, it is told its safe state at once
                 self._heard_again(flight, state, now)
-            if (state.taken or state.rebooted) and not flight.taken:
+            if (state.taken or state.reboots > flight.boots) and not flight.taken:
                 taken.append(flight)
         for flight in taken:
             self._taken(crew, flight, now)
@@ -605,7 +608,7 @@ class Runner:
         work fails, and nothing is sent to it any more, not even the safe state -- whoever
         took it flies it now. A vehicle whose autopilot rebooted is let go too."""
         assert flight.state is not None
-        if flight.state.rebooted:
+        if flight.state.reboots > flight.boots:
             self._rebooted(crew, flight, now)
             return
         vid, mode = flight.vehicle.vehicle_id, flight.state.taken

@@ -5,7 +5,7 @@ compared as the integers a MISSION_ITEM_INT carries (1e-7 degrees in a global fr
 whole number otherwise, null as 0); a null param is NaN. A waypoint file's line 0 is
 home when it is in ArduPilot's home form. Home, fence corners and rally points are
 compared to 1e-7 degree, the precision a mission item carries; a ``.plan``'s firmware and
-vehicle type and speeds as written.
+vehicle type, speeds and altitude mode as written.
 """
 
 from __future__ import annotations
@@ -58,7 +58,8 @@ def differences(source: PlanFile, back: PlanFile) -> list[str]:
     if sorted(zones_a, key=repr) != sorted(zones_b, key=repr):
         found.append(f"fence {zones_a} back as {zones_b}")
     if source.settings is not None:
-        for name in ("firmware_type", "vehicle_type", "cruise_speed", "hover_speed"):
+        for name in ("firmware_type", "vehicle_type", "cruise_speed", "hover_speed",
+                     "altitude_mode"):
             given = getattr(source.settings, name)
             got = getattr(back.settings, name) if back.settings is not None else None
             if given is not None and given != got:

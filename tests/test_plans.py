@@ -497,25 +497,42 @@ def test_the_plans_mission_settings_come_back(tmp_path: Path) -> None:
     # QGroundControl's Mission Settings: planned home, firmware, vehicle, speeds.
     document = {"fileType": "Plan", "mission": {
         "firmwareType": 12, "vehicleType": 20, "cruiseSpeed": 17.5, "hoverSpeed": 3,
+        "globalPlanAltitudeMode": 4,
         "plannedHomePosition": [47.3977419, 8.5455939, 487.9], "items": [
             {"type": "SimpleItem", "command": 22, "frame": 3, "params": [0, 0, 0, 0, 0, 0, 10]},
             {"type": "SimpleItem", "command": 20, "frame": 2, "params": [0] * 7}]}}
     imported = import_plan(read_plan(json.dumps(document)), "settings")
     settings = etree.fromstring(imported.text.encode()).find("environment/plan_settings")
     assert settings is not None and dict(settings.attrib) == {
-        "firmware_type": "12", "vehicle_type": "20", "cruise_speed": "17.5", "hover_speed": "3"}
+        "firmware_type": "12", "vehicle_type": "20", "cruise_speed": "17.5", "hover_speed": "3",
+        "altitude_mode": "4"}
     back = json.loads(write_plan(_imported_plan(imported.text, Kind.MULTICOPTER, tmp_path)))
     mission = back["mission"]
     assert (mission["firmwareType"], mission["vehicleType"], mission["cruiseSpeed"],
-            mission["hoverSpeed"]) == (12, 20, 17.5, 3)
+            mission["hoverSpeed"], mission["globalPlanAltitudeMode"]) == (12, 20, 17.5, 3, 4)
     assert mission["plannedHomePosition"] == [47.3977419, 8.5455939, 487.9]
+
+
+def test_a_plans_global_altitude_mode_comes_back_as_given_or_not_given(tmp_path: Path) -> None:
+    # QGroundControl reads a plan without globalPlanAltitudeMode as mixed (0): it stays
+    # without one; a mode it has no AltMode for (7) is ignored, as the other settings are.
+    for given, back in ((None, None), (0, 0), (2, 2), (7, None)):
+        mission = {"firmwareType": 3, "plannedHomePosition": [47.39, 8.54, 488], "items": [
+            {"type": "SimpleItem", "command": 22, "frame": 3, "params": [0] * 6 + [10]}]}
+        if given is not None:
+            mission["globalPlanAltitudeMode"] = given
+        plan = read_plan(json.dumps({"fileType": "Plan", "mission": mission}))
+        imported = import_plan(plan, "mode")
+        written = json.loads(write_plan(_imported_plan(imported.text, Kind.MULTICOPTER,
+                                                       tmp_path)))["mission"]
+        assert written.get("globalPlanAltitudeMode") == back, given
 
 
 def test_a_plan_from_tml_says_ardupilot_the_kind_and_qgroundcontrols_speeds() -> None:
     mission = json.loads(write_plan(plan_mission(
         load_mission(ROOT / "missions/mission_dispatch.xml"), kind=Kind.GROUND)))["mission"]
     assert (mission["firmwareType"], mission["vehicleType"], mission["cruiseSpeed"],
-            mission["hoverSpeed"]) == (3, 10, 15, 5)
+            mission["hoverSpeed"], mission["globalPlanAltitudeMode"]) == (3, 10, 15, 5, 1)
 
 
 def test_rally_points_go_to_a_plan_and_come_back() -> None:
@@ -530,3 +547,12 @@ def test_rally_points_go_to_a_plan_and_come_back() -> None:
     assert world is not None and [(round(p.north, 1), round(p.east, 1), p.altitude)
                                   for p in world.rally] == [(100.0, -20.0, 15), (-25.0, 70.0, 20)]
     assert not [loss for loss in imported.losses if "rally" in loss]
+
+
+def test_a_plan_altitude_mode_qgroundcontrol_has_not_is_refused() -> None:
+    def errors(mode: str) -> list[str]:
+        text = ('<mission name="m"><environment><plan_settings altitude_mode="' + mode
+                + '"/></environment><task name="t"><action name="LAND"/></task></mission>')
+        return [d.message for d in validate_file("m.xml", text.encode()).errors]
+
+    assert errors("5") == [] and errors("6") != []

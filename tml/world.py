@@ -115,13 +115,16 @@ OBJECT_KINDS = ("marker", "aruco", "item", "bucket", "frame", "subject")
 class PlanSettings:
     """What a ground station's plan says beside its items, as QGroundControl's Mission
     Settings hold it: the firmware and vehicle the plan was made for (MAV_AUTOPILOT and
-    MAV_TYPE numbers) and the speeds it estimates times with (m/s). Kept so that a plan
-    imported from a ``.plan`` exports back with them; None where the plan gave none."""
+    MAV_TYPE numbers), the speeds it estimates times with (m/s) and its global altitude
+    mode (QGroundControl's AltMode: the altitude frame its editor gives new items; the
+    items keep their own frames). Kept so that a plan imported from a ``.plan`` exports
+    back with them; None where the plan gave none."""
 
     firmware_type: int | None = None
     vehicle_type: int | None = None
     cruise_speed: float | None = None
     hover_speed: float | None = None
+    altitude_mode: int | None = None
     location: Location | None = None
 
 

@@ -444,12 +444,14 @@ class _Builder:
         plan_settings = None
         if settings:
             s = settings[0]
-            numbers = [s.get(name) for name in ("firmware_type", "vehicle_type")]
-            firmware, vehicle = (None if n is None else _whole(n) for n in numbers)
+            numbers = [s.get(name) for name in ("firmware_type", "vehicle_type",
+                                                "altitude_mode")]
+            firmware, vehicle, mode = (None if n is None else _whole(n) for n in numbers)
             plan_settings = PlanSettings(
                 firmware, vehicle,
                 self.optional_number(s, "cruise_speed", Quantity.SPEED),
-                self.optional_number(s, "hover_speed", Quantity.SPEED), self.loc(s))
+                self.optional_number(s, "hover_speed", Quantity.SPEED), mode,
+                location=self.loc(s))
         return World(home, geofence, tuple(obstacles), tuple(objects), self.loc(element),
                      tuple(rally), plan_settings)
 

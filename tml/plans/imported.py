@@ -463,7 +463,8 @@ def _environment(root: etree._Element, plan: PlanFile, losses: list[str],
             ("firmware_type", plan.settings.firmware_type),
             ("vehicle_type", plan.settings.vehicle_type),
             ("cruise_speed", plan.settings.cruise_speed),
-            ("hover_speed", plan.settings.hover_speed)) if value is not None}
+            ("hover_speed", plan.settings.hover_speed),
+            ("altitude_mode", plan.settings.altitude_mode)) if value is not None}
         etree.SubElement(environment, "plan_settings", settings)
     if plan.home is None:
         return

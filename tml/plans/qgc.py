@@ -27,6 +27,17 @@ VEHICLE_TYPES = {Kind.MULTICOPTER: 2, Kind.FIXED_WING: 1, Kind.GROUND: 10}  # MA
 CRUISE_SPEED, HOVER_SPEED = 15, 5
 """The speeds (m/s) written for a plan that gives none: QGroundControl's own defaults
 (its OfflineEditingCruiseSpeed and OfflineEditingHoverSpeed settings)."""
+ALTITUDE_MODES = {0: "mixed", 1: "relative", 2: "absolute", 3: "calculated above terrain",
+                  4: "terrain frame", 5: "none"}
+"""QGroundControl's AltMode, the plan's ``globalPlanAltitudeMode``: the altitude frame
+its editor gives the items added to the plan (1 GLOBAL_RELATIVE_ALT, 2 GLOBAL, 3 GLOBAL
+with altitudes it computes from terrain data, 4 GLOBAL_TERRAIN_ALT; 0 each item its own,
+as loaded). The items of a file keep the frames written in them: the mode changes no
+item the vehicle is sent."""
+ALTITUDE_MODE_RELATIVE = 1
+"""The mode written for a mission written in TML: QGroundControl's default for a new plan.
+An imported plan that gave none is written without one again (QGroundControl reads that
+as mixed)."""
 
 
 class PlanFileError(ValueError):
@@ -151,16 +162,18 @@ def write_plan(plan: Plan) -> str:
             polygons.append({"inclusion": False, "version": 1,
                              "polygon": _corners(home, obstacle.polygon, obstacle.written)})
     settings = plan.world.plan_settings or PlanSettings()
+    mission: dict[str, Any] = {
+        "version": 2, "firmwareType": _given(settings.firmware_type, FIRMWARE_ARDUPILOT),
+        "vehicleType": _given(settings.vehicle_type, VEHICLE_TYPES[plan.kind]),
+        "cruiseSpeed": _given(settings.cruise_speed, CRUISE_SPEED),
+        "hoverSpeed": _given(settings.hover_speed, HOVER_SPEED),
+        "globalPlanAltitudeMode": _given(settings.altitude_mode, ALTITUDE_MODE_RELATIVE),
+        "plannedHomePosition": [home.latitude, home.longitude, home.altitude],
+        "items": items}
+    if plan.world.plan_settings is not None and settings.altitude_mode is None:
+        del mission["globalPlanAltitudeMode"]  # as the imported plan had it
     document = {
-        "fileType": "Plan", "version": 1, "groundStation": "tml",
-        "mission": {
-            "version": 2, "firmwareType": _given(settings.firmware_type, FIRMWARE_ARDUPILOT),
-            "vehicleType": _given(settings.vehicle_type, VEHICLE_TYPES[plan.kind]),
-            "cruiseSpeed": _given(settings.cruise_speed, CRUISE_SPEED),
-            "hoverSpeed": _given(settings.hover_speed, HOVER_SPEED),
-            "globalPlanAltitudeMode": 1,
-            "plannedHomePosition": [home.latitude, home.longitude, home.altitude],
-            "items": items},
+        "fileType": "Plan", "version": 1, "groundStation": "tml", "mission": mission,
         "geoFence": {"version": 2, "polygons": polygons, "circles": circles},
         "rallyPoints": {"version": 2, "points": [
             [*_corners(home, ((p.north, p.east),), p.written)[0], p.altitude]
@@ -245,8 +258,9 @@ def read_plan(text: str, name: str = "plan") -> PlanFile:
 
 
 def _settings(mission: dict[str, Any]) -> PlanSettings | None:
-    """The firmware and vehicle type and the speeds a plan's mission gives, as
-    QGroundControl reads them (numbers; one of another type is ignored, as it is there)."""
+    """The firmware and vehicle type, the speeds and the global altitude mode a plan's
+    mission gives, as QGroundControl reads them (numbers; one of another type is ignored,
+    as it is there; an altitude mode QGroundControl has no AltMode for too)."""
     def number(key: str) -> float | None:
         value = mission.get(key)
         if isinstance(value, bool) or not isinstance(value, int | float):
@@ -254,10 +268,12 @@ def _settings(mission: dict[str, Any]) -> PlanSettings | None:
         return float(value) if math.isfinite(value) and value >= 0 else None
 
     firmware, vehicle = number("firmwareType"), number("vehicleType")
+    mode = number("globalPlanAltitudeMode")
     found = PlanSettings(
         int(firmware) if firmware is not None and firmware.is_integer() else None,
         int(vehicle) if vehicle is not None and vehicle.is_integer() else None,
-        number("cruiseSpeed"), number("hoverSpeed"))
+        number("cruiseSpeed"), number("hoverSpeed"),
+        int(mode) if mode is not None and mode in ALTITUDE_MODES else None)
     return found if found != PlanSettings() else None
 
 

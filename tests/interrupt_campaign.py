@@ -14,7 +14,8 @@ and some are spread over the whole run (anchored on the first request). Each mom
 one interrupt of :data:`INTERRUPTS`: SIGINT or SIGTERM to ``tml run --connect`` (its own
 process, by pid), ``POST /runs/{id}/abort`` on a ``tml serve --connect`` process, or a
 20 s cut of the link between tml and the vehicle (every frame dropped both ways for 20 s
-of vehicle time, then the link restored).
+of vehicle time, then the link restored). A few more cuts (:func:`failsafe_moments`) are
+made with the vehicle's own GCS failsafe on, which then acts during the cut.
 
 *The vehicle's side* is watched through :class:`Watch`: each vehicle is reached by tml
 through a :class:`~lossy_proxy.LossyProxy` (which also cuts the link), whose upward
@@ -64,6 +65,9 @@ CUT = 20.0
 DENSE = 2.0
 """Vehicle seconds after a request within which the dense moments fall."""
 INTERRUPTS = ("SIGINT", "SIGTERM", "abort", "cut")
+FAILSAFE = "cut-failsafe"
+"""A link cut with the vehicle's own GCS failsafe on (FS_GCS_ENABLE 1: RTL)."""
+CUTS = ("cut", FAILSAFE)
 M = mavutil.mavlink
 
 # --- the missions ------------------------------------------------------------------------
@@ -175,6 +179,18 @@ def schedule(seed: int, missions: Sequence[str], per_mission: int, spread: int,
     return moments
 
 
+def failsafe_moments(seed: int, missions: Sequence[str]) -> list[Moment]:
+    """A link cut with the vehicle's GCS failsafe on for each of ``missions``, within
+    :data:`DENSE` s after one of its requests (seeded apart from :func:`schedule`)."""
+    rng = random.Random(f"{seed}/failsafe")
+    found = []
+    for name in missions:
+        anchors = MISSIONS[name].anchors
+        anchor = rng.choice(anchors[anchors.index("NAV_TAKEOFF"):])  # once it flies
+        found.append(Moment(name, FAILSAFE, anchor, round(rng.uniform(0.0, DENSE), 2)))
+    return found
+
+
 # --- what the vehicles see ---------------------------------------------------------------
 
 COPTER_MODES = {0: "STABILIZE", 3: "AUTO", 4: "GUIDED", 5: "LOITER", 6: "RTL", 9: "LAND",
@@ -232,6 +248,7 @@ class Observer:
         self.boot_time = 0.0
         self.samples: list[Sample] = []
         self.texts: list[tuple[float, str]] = []
+        self.params: dict[str, float] = {}  # the PARAM_VALUEs heard
         self._mode, self._armed = "", False
         self._altitude: float | None = None
         self._landed: bool | None = None
@@ -277,6 +294,11 @@ class Observer:
             elif kind == "STATUSTEXT":
                 self.texts.append((self.now(), msg.text))
                 continue
+            elif kind == "PARAM_VALUE":
+                with self._changed:
+                    self.params[msg.param_id] = msg.param_value
+                    self._changed.notify_all()
+                continue
             else:
                 continue
             if self._heard:
@@ -288,6 +310,11 @@ class Observer:
                             self.samples[-1].landed) or _moved(self.samples[-1], sample):
                         self.samples.append(sample)
                     self._changed.notify_all()
+
+    def between(self, start: float, end: float) -> list[Sample]:
+        """The samples from vehicle time ``start`` to ``end``."""
+        with self._changed:
+            return [s for s in self.samples if start <= s.time <= end]
 
     def latest(self) -> Sample | None:
         """The last sample, if any."""
@@ -308,6 +335,18 @@ class Observer:
                 if left <= 0:
                     return None
                 self._changed.wait(min(left, 0.5))
+
+    def set_param(self, name: str, value: float) -> None:
+        """Set a parameter of the vehicle and wait for its echo (a simulation control
+        such as SIM_SPEEDUP, or the vehicle's own failsafe for a case)."""
+        end = time.monotonic() + HANG
+        with self._changed:
+            self.params.pop(name, None)
+            while self.params.get(name) != value:
+                assert time.monotonic() < end, f"{name} = {value} was never taken"
+                self.conn.mav.param_set_send(self.system_id, 1, name.encode(), value,
+                                             M.MAV_PARAM_TYPE_REAL32)
+                self._changed.wait(0.5)
 
     def close(self) -> None:
         self._running = False
@@ -439,6 +478,7 @@ class Row:
     landed: str  # vehicle seconds from the interrupt to disarmed on the ground
     tml: str  # how tml ended
     ok: bool
+    commanded: str = ""  # what tml's flight log says it commanded for safety, in order
 
 
 def wait_vehicle_time(clock: Callable[[], float], until: float, alive: Callable[[], bool],
@@ -575,7 +615,7 @@ def fly_case(moment: Moment, watch: Watch, tmp_path: Path, tml_options: Sequence
                 assert served is not None
                 answer = served.client.post(f"/runs/{run_id}/abort")
                 assert answer.status_code in (200, 409), answer.text
-            else:
+            else:  # a link cut
                 for proxy in watch.proxies:
                     proxy.cut(math.inf)
                 if slow is not None:
@@ -594,9 +634,13 @@ def fly_case(moment: Moment, watch: Watch, tmp_path: Path, tml_options: Sequence
                 time.sleep(0.1)
             status = served.run(run_id)
             said = f"run {status['status']}, exit {status.get('exit_code')}"
+            log = served.client.get(f"/runs/{run_id}/log").text
         else:
             out = stop(process)
             said = f"exit {process.returncode}: {_outcome(out)}"
+            log = (tmp_path / "flight.jsonl").read_text() \
+                if (tmp_path / "flight.jsonl").exists() else ""
+        commanded = safety_lines(log)
     finally:
         if served is not None:
             tail = served.close()
@@ -610,7 +654,18 @@ def fly_case(moment: Moment, watch: Watch, tmp_path: Path, tml_options: Sequence
                f"{moment.anchor} + {offset:.2f} s" + (" (tml had ended)" if ended_first
                                                        else ""),
                "; ".join(r[0] for r in results), "; ".join(r[1] for r in results),
-               "; ".join(r[2] for r in results), said, ok)
+               "; ".join(r[2] for r in results), said, ok, commanded)
+
+
+def safety_lines(log: str) -> str:
+    """The safety steps of a flight log (JSON lines), each as "vehicle: message"."""
+    steps = []
+    for text in log.splitlines():
+        with contextlib.suppress(ValueError):
+            line = json.loads(text)
+            if line.get("kind") == "safety":
+                steps.append(f"{line.get('vehicle')}: {line.get('message', '')}")
+    return "; ".join(steps)
 
 
 def _outcome(out: str) -> str:
@@ -632,8 +687,12 @@ def _judge(observer: Observer, at: float, rover: bool, cut_end: float | None
     assert safe is not None  # the landing itself at least
     if on_ground(safe, rover):
         seen = "disarmed" if rover else "disarmed on the ground"
-    else:
-        seen = f"{safe.mode}, then landed"
+    else:  # the modes it flew in from the first safe one to the ground
+        modes: list[str] = []
+        for sample in observer.between(safe.time, landed.time):
+            if sample.armed and (not modes or modes[-1] != sample.mode):
+                modes.append(sample.mode)
+        seen = f"{' → '.join(modes or [safe.mode])}, then landed"
     if cut_end is not None and not on_ground(safe, rover):
         failsafe = any("GCS Failsafe" in text and at <= when <= cut_end
                        for when, text in observer.texts)
@@ -677,20 +736,22 @@ def write_table(table: Path, moments: Sequence[Moment], title: str, how: str) ->
     rows = table.with_suffix("")
     lines = [f"# {title}", "", how, "",
              "| mission | interrupt | moment (request + offset) | met at | safe state seen "
-             "by the observer | s to safe | s to on the ground | tml |",
-             "|---|---|---|---|---|---|---|---|"]
+             "by the observer | s to safe | s to on the ground | tml | tml's safety steps "
+             "(flight log) |",
+             "|---|---|---|---|---|---|---|---|---|"]
     flown = 0
     for moment in moments:
         path = rows / f"{moment.id}.json"
         if not path.exists():
             lines.append(f"| {moment.mission} | {moment.interrupt} | {moment.label} | not "
-                         "flown | | | | |")
+                         "flown | | | | | |")
             continue
         flown += 1
         row = json.loads(path.read_text())
         mark = "" if row["ok"] else " **(FAILED)**"
         lines.append(f"| {row['mission']} | {row['interrupt']} | {row['moment']} | "
                      f"{row['at']} | {row['safe']}{mark} | {row['seconds']} | "
-                     f"{row['landed']} | {row['tml'].replace('|', '/')} |")
+                     f"{row['landed']} | {row['tml'].replace('|', '/')} | "
+                     f"{row.get('commanded', '').replace('|', '/')} |")
     lines += ["", f"{flown} of {len(moments)} moments flown; seconds are the vehicle's."]
     table.write_text("\n".join(lines) + "\n")

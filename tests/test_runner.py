@@ -17,7 +17,7 @@ from tml.language.failures import FailureReason
 from tml.language.validation import validate_file
 from tml.run.journal import Journal
 from tml.run.runner import Runner, RunOptions
-from tml.vehicle import Hold, Land, RequestResult, ReturnToLaunch, VehicleState
+from tml.vehicle import Disarm, Hold, Land, RequestResult, ReturnToLaunch, VehicleState
 
 TAKE_OFF = ('<task name="Take off"><action name="TAKE_OFF"><argument name="altitude" '
             'value="5"/></action></task>')
@@ -481,6 +481,41 @@ def test_a_vehicle_heard_again_after_an_outage_is_told_its_safe_state_at_once() 
     assert len(back) == 1 and 23.0 <= back[0]["t"] < 23.5, back
     confirmed = [line for line in lines if line["kind"] == "safety" and line.get("confirmed")]
     assert confirmed and confirmed[0]["t"] < 24.0 and sim.vehicles[0].mode == "RTL"
+
+
+class Spooling(FakeVehicle):
+    """A copter that spins up for a second after its take-off request, still on the
+    ground, and refuses a disarm from then on (ArduCopter refuses one once it climbs)."""
+
+    lift_at: float | None = None
+
+    def _apply(self, request):  # type: ignore[no-untyped-def]
+        if isinstance(request, Disarm) and self.lift_at is not None:
+            return "rejected"
+        if request.name == "TakeOff":
+            self.lift_at = self.time + 1.0
+        return super()._apply(request)
+
+    def _advance(self, dt: float) -> None:
+        if self.lift_at is None or self.time >= self.lift_at:
+            super()._advance(dt)
+
+
+def test_a_disarm_overtaken_by_the_take_off_becomes_the_safe_state_at_once() -> None:
+    # Stopped while spinning up: the fresh picture says armed on the ground, so it is told
+    # to disarm, which it refuses; seen in the air, it is told RTL at once, not a
+    # safe_state_period later.
+    sim = Sim(Spooling())
+    runner = Runner(mission(TAKE_OFF + GO + LAND), sim.vehicles, clock=sim.clock,
+                    options=RunOptions(safe_state_period=60.0), wait=sim.wait)
+    vehicle = sim.vehicles[0]
+    sim.hooks.append(lambda s: runner.stop("interrupted (SIGINT)")
+                     if vehicle.lift_at is not None else None)
+    outcome = runner.run()
+    assert outcome.exit_code == ExitCode.ABORTED
+    asked = [r.name for r in vehicle.submitted if r.name in ("Disarm", "ReturnToLaunch")]
+    assert asked == ["Disarm", "ReturnToLaunch"] and vehicle.mode == "RTL"
+    assert sim.time < vehicle.lift_at + 1.0  # (lift_at: set once, by the take-off)
 
 
 def test_a_safe_state_never_shown_is_given_up_after_its_bound() -> None:

@@ -1,7 +1,8 @@
 """The interrupt-at-every-moment campaign on ArduCopter SITL (tests/interrupt_campaign.py
 says how the missions, moments and verdicts are made): the GUIDED, ``dispatch="mission"``
 and event-handler missions, interrupted at twelve seeded moments by SIGINT, SIGTERM,
-``POST /runs/{id}/abort`` and a 20 s link cut; every case must leave the copter disarmed
+``POST /runs/{id}/abort`` and a 20 s link cut, and one more cut with ArduCopter's GCS
+failsafe on (``FS_GCS_ENABLE`` 1); every case must leave the copter disarmed
 on the ground, seen so by an observer of its own on the vehicle's second serial port
 (SERIAL1), and adds its row to test-artifacts/interrupt-campaign-arducopter.md.
 
@@ -10,8 +11,10 @@ Each pytest-xdist worker flies its cases one after another on one ArduCopter, st
 failed. It runs at ten times real time; while a link cut lasts the observer sets
 ``SIM_SPEEDUP`` to 2, so that the 20 s of vehicle time last long enough on tml's wall
 clock for it to give the vehicle up (after a 2 s ``--link-lost-limit``), as at real time.
-The vehicle's own GCS failsafe is left as ArduPilot's defaults have it; the table says
-who brought the vehicle back, tml or the failsafe.
+The vehicle's own GCS failsafe is off (``FS_GCS_ENABLE`` 0, ArduCopter's default) but for
+the failsafe case, flown at twice real time throughout (tml's one HEARTBEAT a wall second
+must come within FS_GCS_TIMEOUT, 5 s of the copter's time, in plain flight); the table
+says who brought the vehicle back, tml or the failsafe.
 """
 
 from __future__ import annotations
@@ -25,20 +28,22 @@ import pytest
 from ardupilot_sitl import Launcher, SitlVehicle, vehicles
 from interrupt_campaign import (
     ARTIFACTS,
+    CUTS,
+    FAILSAFE,
     Moment,
-    Observer,
     Row,
+    failsafe_moments,
     fly_case,
     recorded,
     schedule,
     watching,
 )
-from pymavlink import mavutil
 
 pytestmark = pytest.mark.interop
 
 SEED = 21
-MOMENTS = schedule(SEED, ["guided", "auto", "event"], per_mission=4, spread=1)
+MOMENTS = [*schedule(SEED, ["guided", "auto", "event"], per_mission=4, spread=1),
+           *failsafe_moments(SEED, ["guided"])]
 TABLE = ARTIFACTS / "interrupt-campaign-arducopter.md"
 SPEEDUP = 10.0
 RETURN = {"RTL_LOIT_TIME": 0, "RTL_ALT": 1000, "LAND_SPEED": 100}  # a quicker return home
@@ -46,7 +51,8 @@ HOW = ("ArduCopter SITL (../shared/ardupilot), `pytest -m interop "
        f"tests/interop/test_interrupt_campaign_arducopter.py` (seed {SEED}): tml run "
        "--connect (SIGINT, SIGTERM) or tml serve --connect (abort) in a process of its own, "
        "through a proxy that drops every frame both ways for 20 s of vehicle time on a link "
-       "cut. The observer is a pymavlink client on the copter's SERIAL1.")
+       "cut (cut-failsafe: with ArduCopter's GCS failsafe on, FS_GCS_ENABLE 1). The "
+       "observer is a pymavlink client on the copter's SERIAL1.")
 
 
 class Copter:
@@ -78,19 +84,11 @@ def copter(launcher: Launcher) -> Iterator[Copter]:
         found.close()
 
 
-def _speedup(observer: Observer, system_id: int, speedup: float) -> None:
-    """SITL's own speed-up, set from the observer's link (a simulation control: nothing
-    of the flight changes)."""
-    for _ in range(3):
-        observer.conn.mav.param_set_send(system_id, 1, b"SIM_SPEEDUP", speedup,
-                                         mavutil.mavlink.MAV_PARAM_TYPE_REAL32)
-
-
 @pytest.mark.timeout(900)
 @pytest.mark.parametrize("moment", MOMENTS, ids=[m.id for m in MOMENTS])
 def test_an_interrupt_at_any_moment_leaves_arducopter_safe(
         copter: Copter, tmp_path: Path, moment: Moment) -> None:
-    options = ["--link-lost-limit", "2"] if moment.interrupt == "cut" else []
+    options = ["--link-lost-limit", "2"] if moment.interrupt in CUTS else []
 
     def fly() -> Row:
         sitl = copter.get()
@@ -101,8 +99,17 @@ def test_an_interrupt_at_any_moment_leaves_arducopter_safe(
             while observer.latest() is None or observer.now() == 0.0:
                 assert time.monotonic() < end, "the observer hears nothing on SERIAL1"
                 time.sleep(0.05)
-            return fly_case(moment, watch, tmp_path, options, slow=lambda cut: _speedup(
-                observer, sitl.system_id, 2.0 if cut else SPEEDUP))
+            failsafe = moment.interrupt == FAILSAFE
+            observer.set_param("FS_GCS_ENABLE", 1 if failsafe else 0)
+            # tml's HEARTBEAT comes once a wall second: with the failsafe on, the copter
+            # must hear it within FS_GCS_TIMEOUT (5 s) of its time in plain flight.
+            speedup = 2.0 if failsafe else SPEEDUP
+            observer.set_param("SIM_SPEEDUP", speedup)
+            try:
+                return fly_case(moment, watch, tmp_path, options, slow=lambda cut: (
+                    observer.set_param("SIM_SPEEDUP", 2.0 if cut else speedup)))
+            finally:
+                observer.set_param("SIM_SPEEDUP", SPEEDUP)
 
     try:
         row = recorded(moment, TABLE, MOMENTS, "The interrupt campaign on ArduCopter SITL",

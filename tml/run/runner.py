@@ -199,6 +199,7 @@ class _Flight:
         # The link was lost since the safe state was last commanded: that command may not
         # have arrived, and the next is sent the moment the vehicle is heard again.
         self.unheard = False
+        self.safe_request = ""  # the name of the last safe-state request sent to it
         self.revision: object = None  # the vehicle's revision when its state was built
         self.refresh_at = -math.inf  # when the state is rebuilt however the revision stands
         self.link = "ok"  # the link's health last journaled
@@ -681,6 +682,10 @@ class Runner:
                 for flight in crew.flights:
                     if flight.vehicle.vehicle_id == record.vehicle_id:
                         flight.safe_asked = True
+                        flight.safe_request = str(record.data.get("request", ""))
+                        # Sent into a dead link: again once the vehicle is heard.
+                        flight.unheard = flight.unheard or (
+                            flight.state is not None and flight.state.link == "lost")
         for request in output.requests:
             vehicles[request.vehicle_id].submit(request)
 
@@ -709,7 +714,8 @@ class Runner:
             self.journal.write(now, "safety", vid, message=f"{request.name} ({reason})",
                                request=request.name, request_id=request.request_id)
             self._said(f"vehicle {vid}: {request.name} ({reason})")
-            flight.safe_asked = True
+            flight.safe_asked, flight.safe_request = True, request.name
+            flight.unheard = flight.unheard or state.link == "lost"
             flight.vehicle.submit(request)
 
     def _settle(self) -> None:
@@ -762,7 +768,8 @@ class Runner:
                     self._said(f"vehicle {vid}: safe state not confirmed within "
                                f"{self.options.safe_state_timeout:g} s (mode {state.mode}, "
                                f"link {state.link}): given up")
-                elif self._heard_again(flight, state, now):
+                elif self._heard_again(flight, state, now) or self._overtaken(flight, state,
+                                                                              now):
                     sent[id(flight)] = now
                 elif _idle(flight.vehicle) and (sent[id(flight)] is None or now - (
                         sent[id(flight)] or 0.0) >= self.options.safe_state_period):
@@ -771,6 +778,20 @@ class Runner:
                     sent[id(flight)] = now
             if waiting:
                 self._wait(0.1)
+
+    def _overtaken(self, flight: _Flight, state: VehicleState, now: float) -> bool:
+        """The safe-state request last sent no longer fits what fresh telemetry shows --
+        told to disarm on the ground, the vehicle is seen climbing on the take-off asked a
+        moment before (a copter refuses a disarm in the air) -- so the one that fits now is
+        sent at once rather than a period later. Whether it was sent."""
+        if flight.taken or state.link == "lost" or not state.current \
+                or not _idle(flight.vehicle):
+            return False
+        safe = safe_state_request(state, self.options.safe_state)
+        if safe is None or safe[0].name == flight.safe_request:
+            return False
+        self._fallback_safe_state(flight, now, f"{safe[1].split(':')[0]} now")
+        return True
 
     def _heard_again(self, flight: _Flight, state: VehicleState, now: float) -> bool:
         """A vehicle told its safe state whose link was lost since: command the safe state

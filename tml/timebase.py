@@ -21,7 +21,9 @@ thread. A thread taking part is *running* unless it is inside one of the waits b
   or at its deadline in this time base's seconds. A notify made through the time base counts
   the woken threads as running at once, before they even get the processor, so a message
   handled by a receive thread and the worker it wakes both finish before time moves on;
-- :meth:`Timebase.wait_readable` on a socket, for the next bytes or a deadline.
+- :meth:`Timebase.wait_readable` on a socket, or :meth:`Timebase.wait_ready` on the
+  sockets of a selector (tml.mavlink.reactor: one thread for every link), for the next
+  bytes or a deadline.
 
 *Bytes in flight.* A socket saying it has nothing to read proves nothing: on a busy machine
 the kernel may deliver a loopback segment after the send that made it returned. So both
@@ -49,6 +51,7 @@ import contextlib
 import math
 import os
 import select
+import selectors
 import threading
 import time
 from collections import deque
@@ -94,6 +97,12 @@ class Timebase:
         """Wait until something can be read from ``fileno``, or ``timeout`` seconds."""
         select.select([fileno], [], [], max(timeout, 0.0))
 
+    def wait_ready(self, selector: selectors.BaseSelector, timeout: float
+                   ) -> list[tuple[selectors.SelectorKey, int]]:
+        """Wait until a file of ``selector`` can be read, or ``timeout`` seconds; returns
+        the files ready (none at the time-out)."""
+        return selector.select(max(timeout, 0.0))
+
     def sleep(self, seconds: float) -> None:
         """Let ``seconds`` pass."""
         if seconds > 0:
@@ -109,6 +118,10 @@ class Timebase:
         """Say that a thread about to be started will take part (its
         :meth:`taking_part` is then called with ``announced=True``): time waits for it from
         now on, not only from when it gets to run."""
+
+    def arrived(self) -> None:
+        """Say that what was announced is taken in by a thread already taking part (a
+        link handed to the thread that serves every link), or will not come."""
 
     @contextlib.contextmanager
     def taking_part(self, announced: bool = False) -> Iterator[None]:
@@ -242,6 +255,34 @@ class Lockstep(Timebase):
             with self._lock:
                 self._leave(w)
 
+    def wait_ready(self, selector: selectors.BaseSelector, timeout: float
+                   ) -> list[tuple[selectors.SelectorKey, int]]:
+        ready = selector.select(0)
+        if ready:
+            return ready
+        me = threading.get_ident()
+        with self._lock:
+            pipe = self._pipes.get(me)
+            w = _Wait(me, self._time + max(timeout, 0.0), pipe=pipe)
+            if w.deadline <= self._time:
+                return []
+            self._enter(w)
+        selector.register(pipe[0], selectors.EVENT_READ, None)
+        try:
+            while not w.woken:
+                ready = selector.select(GUARD)
+                if any(key.fd == pipe[0] for key, _ in ready):
+                    with contextlib.suppress(BlockingIOError):
+                        os.read(pipe[0], 512)
+                    ready = [(key, events) for key, events in ready if key.fd != pipe[0]]
+                if ready:
+                    return ready
+            return []
+        finally:
+            selector.unregister(pipe[0])
+            with self._lock:
+                self._leave(w)
+
     def track(self, connection: object) -> None:
         with self._lock:
             self._in_flight.setdefault(connection, 0)
@@ -259,6 +300,11 @@ class Lockstep(Timebase):
     def announce(self) -> None:
         with self._lock:
             self._announced += 1
+
+    def arrived(self) -> None:
+        with self._lock:
+            self._announced -= 1
+            self._settling.notify_all()
 
     @contextlib.contextmanager
     def taking_part(self, announced: bool = False) -> Iterator[None]:

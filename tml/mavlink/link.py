@@ -1,10 +1,11 @@
-"""A MAVLink connection: sockets, the receive thread, heartbeats, routing, forwarding, signing.
+"""A MAVLink connection: sockets, receiving, heartbeats, routing, forwarding, signing.
 
 Theory of operation
 -------------------
 A :class:`Link` owns one pymavlink connection (any address pymavlink understands, see
-docs/connections.md) and one daemon thread. The thread blocks in ``select`` on the socket,
-so a message is handled as soon as it arrives, and for each message it
+docs/connections.md). It has no thread of its own: every link of a process is served by one
+thread, the :mod:`reactor <tml.mavlink.reactor>`, which waits on all their sockets at once,
+so a message is handled as soon as it arrives, and for each message the link
 
 1. drops it if signing is on and the signature is missing or wrong (counted), or if its
    system id is not one of the expected ones (counted);
@@ -14,41 +15,47 @@ so a message is handled as soon as it arrives, and for each message it
    its own system id;
 4. feeds mission-protocol messages, COMMAND_ACKs and HEARTBEATs to the sans-IO state
    machines running for that vehicle (:meth:`run`; each takes the plain messages of its
-   ``inputs``) and sends their answers at once, from the same thread: the time from an
-   item request to the item on the wire is one Python call;
+   ``inputs``) and sends their answers at once, from the reactor's thread: the time from
+   an item request to the item on the wire is one Python call;
 5. calls the listeners (:meth:`listen`) with the new snapshot, and, when the message
    changed what the vehicle shows (:attr:`~tml.mavlink.telemetry.Telemetry.revision`), the
    change listeners (:meth:`on_change`): a runner woken only then does not step its
    interpreter for messages that repeat what it already knows.
 
 *A TCP vehicle that goes away* (a simulator killed, a server that hangs up) is dialled
-again, once every ``REDIAL_PERIOD`` seconds, each attempt bounded by ``REDIAL_TIMEOUT``
-(pymavlink's own reconnection sleeps and retries inside the receive thread and leaves its
-select on the closed socket); meanwhile :attr:`Link.down` says why there is no connection,
-the thread lives on, and the vehicle is lost as below -- and found again when it answers.
+again, once every ``REDIAL_PERIOD`` seconds, each attempt bounded by ``REDIAL_TIMEOUT`` and
+never waited for (pymavlink's own reconnection sleeps and retries, which would hold up every
+link of the process); meanwhile :attr:`Link.down` says why there is no connection, the link
+is still served, and the vehicle is lost as below -- and found again when it answers.
 
 It also sends the ground-station HEARTBEAT at 1 Hz, and marks a vehicle *lost* when no
 HEARTBEAT has come from it for ``lost_after`` seconds (``Telemetry.link_lost``, cleared by
 the next HEARTBEAT): the blocking calls waiting on that vehicle then raise
 :class:`~tml.errors.LinkLost` instead of waiting out their own time limits, and a runner
-reads the state from the snapshot to command its safe state. The calling thread uses the
-link through snapshots (:meth:`telemetry`), :meth:`send`, and :meth:`run`, which starts a
-state machine, then sleeps on a condition until an answer or the machine's deadline and
-ticks it.
-Threads rather than a poll(now) API because the link must answer the vehicle (mission item
-requests, heartbeats) while the interpreter is busy; the interpreter itself stays I/O-free
-and reads snapshots.
+reads the state from the snapshot to command its safe state. The heartbeat, the lost check
+and the redial are the link's :meth:`~Link.duties`, carried out by the reactor when due;
+the lost check comes when the first vehicle of the link could be lost, not on a fixed beat.
+The calling thread uses the link through snapshots (:meth:`telemetry`), :meth:`send`, and
+:meth:`run`, which starts a state machine, then sleeps on a condition until an answer or
+the machine's deadline and ticks it.
+The reactor rather than the caller reads the sockets because the link must answer the
+vehicle (mission item requests, heartbeats) while the interpreter is busy; the interpreter
+itself stays I/O-free and reads snapshots.
 
 *Time.* Every wait, deadline and arrival time of the link reads its ``timebase``
 (:mod:`tml.timebase`): the system's for real vehicles; the embedded simulator's lock-step
-time in ``tml run --sim``, where the receive thread takes part (the simulator moves time on
-only once the thread has handled every byte it was sent) and waits on its socket through
-the time base instead of pymavlink's own timed select.
+time in ``tml run --sim``, where the reactor's thread takes part (the simulator moves time
+on only once it has handled every byte it was sent) and waits on the sockets through the
+time base.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
+import math
+import os
+import select
 import socket
 import threading
 import time
@@ -57,7 +64,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from tml.errors import LinkLost, VehicleError, VehicleTimeout
-from tml.mavlink import codec
+from tml.mavlink import codec, reactor
 from tml.mavlink.codec import mavlink, mavutil
 from tml.mavlink.telemetry import Telemetry, TelemetryTracker
 from tml.signing import signature_first, timestamp_now
@@ -230,7 +237,7 @@ class Link:
         lock = threading.RLock()
         self._lock = threading.Condition(lock)
         # Woken only when a machine finishes or its deadline comes closer, so that a
-        # transfer's caller does not wake (and take the GIL from the receive thread) on
+        # transfer's caller does not wake (and take the GIL from the reactor) on
         # every message.
         self._machine_done = threading.Condition(lock)
         self._send_lock = threading.Lock()
@@ -240,7 +247,8 @@ class Link:
         self._listeners: list[Listener] = []
         self._changes: list[Callable[[int], None]] = []
         self._running = False
-        self._thread: threading.Thread | None = None
+        self._reactor: reactor.Reactor | None = None
+        self._next_heartbeat = self._next_check = -math.inf
         self.gate: Callable[[int], bool] | None = None
         """When set, asked with each message's target system (0: broadcast) before it is
         sent; a message it refuses is dropped and counted (``stats.fenced``). A cluster of
@@ -249,24 +257,29 @@ class Link:
     # -- life cycle -------------------------------------------------------------------
 
     def start(self) -> Link:
-        """Start the receive thread (and the heartbeat); returns self."""
+        """Have the process's reactor serve the link (see the module docstring); returns
+        self."""
         if not self._running:
             self._running = True
-            self.timebase.announce()
-            self._thread = threading.Thread(target=self._loop, name=f"mavlink {self.address}",
-                                            daemon=True)
-            self._thread.start()
+            self._reactor = reactor.serve(self, self.timebase)
         return self
 
     def close(self) -> None:
-        """Stop the thread and close the sockets."""
+        """Stop serving the link and close the sockets."""
         self._running = False
-        if self._thread is not None:
-            self._thread.join(timeout=2.0)
+        if self._reactor is not None:
+            reactor.unserve(self, self._reactor)
+            self._reactor = None
         for conn in (self._conn, *self._outputs):
             if getattr(conn, "port", True) is not None:  # a TCP link down has no socket
                 with contextlib.suppress(OSError):
                     conn.close()
+
+    @property
+    def serving(self) -> bool:
+        """True while the reactor's thread serves the link."""
+        served = self._reactor
+        return served is not None and served.thread is not None and served.thread.is_alive()
 
     def __enter__(self) -> Link:
         return self.start()
@@ -367,14 +380,14 @@ class Link:
                 self.timebase.wait(self._lock, left)
 
     def listen(self, listener: Listener) -> None:
-        """Call ``listener(system_id, snapshot, msg)`` from the receive thread on each message.
+        """Call ``listener(system_id, snapshot, msg)`` from the reactor on each message.
 
         Listeners must return quickly: they hold up the link.
         """
         self._listeners.append(listener)
 
     def on_change(self, listener: Callable[[int], None]) -> None:
-        """Call ``listener(system_id)`` from the receive thread whenever a vehicle's snapshot
+        """Call ``listener(system_id)`` from the reactor whenever a vehicle's snapshot
         changes what it shows: a new :attr:`~tml.mavlink.telemetry.Telemetry.revision`, from
         a message or from the link found lost. Listeners must return quickly."""
         self._changes.append(listener)
@@ -405,7 +418,7 @@ class Link:
             on_progress: Callable[[Machine], None] | None = None) -> Machine:
         """Drive a sans-IO ``machine`` with this vehicle until it is done; returns it.
 
-        The receive thread feeds the machine and sends its answers; this thread only
+        The reactor feeds the machine and sends its answers; this thread only
         sleeps until the machine is done or its deadline passes (then ticks it), waking
         every ``PROGRESS_PERIOD`` to report progress if ``on_progress`` is given. Raises
         LinkLost once the vehicle is lost: a machine started for a lost vehicle still
@@ -445,43 +458,63 @@ class Link:
                            f"(limit {self.lost_after:g} s) on {self.address}",
                            snapshot.system_id)
 
-    # -- the receive thread ------------------------------------------------------------
+    # -- served by the reactor (its thread) ----------------------------------------------
 
-    def _loop(self) -> None:
-        with self.timebase.taking_part(announced=True):
-            self._serve()
+    def fileno(self) -> int | None:
+        """The socket (or serial port) to watch; None while a TCP vehicle is gone."""
+        if self._running and self._conn_up():
+            fd: int = self._conn.fd
+            return fd
+        return None
 
-    def _serve(self) -> None:
-        next_heartbeat = next_check = self.timebase.now()
-        while self._running:
-            now = self.timebase.now()
-            if now >= next_heartbeat:
-                self._heartbeat()
-                next_heartbeat = now + HEARTBEAT_PERIOD
+    def readable(self, limit: int) -> bool:
+        """Handle up to ``limit`` messages that wait (read from the socket, or whole in the
+        parser already); True when more may wait."""
+        conn = self._conn
+        for _ in range(limit):
             try:
-                if now >= next_check:
-                    self._check_lost(now)  # may read the socket too
-                    next_check = now + LOST_CHECK_PERIOD
-                if self.timebase.lockstep:
-                    msg = self._receive(blocking=False)
-                    if msg is None:  # all read: wait for more, or the next duty
-                        self.timebase.wait_readable(
-                            self._conn.fd, min(next_heartbeat, next_check) - now)
-                        continue
-                else:
-                    msg = self._receive(blocking=True)
+                msg = conn.recv_msg()
             except (OSError, ValueError) as error:
-                if not self._running:
-                    return
-                # The vehicle went away: the next receive dials it again (see _Redial);
-                # its silence is judged by the lost check, as any other silence.
-                self._went_down(error)
-                self.timebase.sleep(LOST_CHECK_PERIOD)
-                continue
+                if self._running:
+                    # The vehicle went away: a later duty dials it again (see _Redial);
+                    # its silence is judged by the lost check, as any other silence.
+                    self._went_down(error)
+                return False
+            if msg is None:
+                return False
             if self.down and self._conn_up():
                 self.down = ""
-            if msg is not None:
-                self._handle(msg, self.timebase.now())
+            self._handle(msg, self.timebase.now())
+        return True
+
+    def duties(self, now: float) -> float:
+        """The heartbeat, the lost check and, while a TCP vehicle is gone, its redial, when
+        due; returns when the next is due."""
+        if not self._running:
+            return now + HEARTBEAT_PERIOD
+        if now >= self._next_heartbeat:
+            self._heartbeat()
+            self._next_heartbeat = now + HEARTBEAT_PERIOD
+        try:
+            if now >= self._next_check:
+                self._check_lost(now)  # may read the socket too
+                self._next_check = max(now + LOST_CHECK_PERIOD, self._first_loss(now))
+            if not self._conn_up():
+                self.readable(DRAIN_LIMIT)  # dials again (_Redial), at most as often as it may
+        except (OSError, ValueError) as error:
+            self._went_down(error)
+        if not self._conn_up():
+            return min(self._next_heartbeat, now + LOST_CHECK_PERIOD)
+        return min(self._next_heartbeat, self._next_check)
+
+    def _first_loss(self, now: float) -> float:
+        """When the first vehicle not lost yet would be, without another HEARTBEAT: the
+        next lost check need not come sooner (one for each vehicle's limit, not 20 a
+        second for each link)."""
+        with self._lock:
+            beats = [t.snapshot.last_heartbeat for t in self._trackers.values()
+                     if not t.snapshot.link_lost and t.snapshot.last_heartbeat is not None]
+        return min(beats, default=now) + self.lost_after
 
     def _went_down(self, error: BaseException) -> None:
         reason = _reason(error)
@@ -491,9 +524,6 @@ class Link:
 
     def _conn_up(self) -> bool:
         return getattr(self._conn, "port", True) is not None
-
-    def _receive(self, blocking: bool) -> Any:
-        return self._conn.recv_match(blocking=blocking, timeout=0.1)
 
     def _heartbeat(self) -> None:
         # udpin before any peer, or a TCP peer gone: nothing to send to yet.
@@ -509,11 +539,7 @@ class Link:
             # (a slow listener, a busy machine) the HEARTBEATs may be there, not missing.
             # A connection gone down has nothing waiting: the receive says why.
             with contextlib.suppress(OSError, ValueError):
-                for _ in range(DRAIN_LIMIT):
-                    msg = self._receive(blocking=False)
-                    if msg is None:
-                        break
-                    self._handle(msg, self.timebase.now())
+                self.readable(DRAIN_LIMIT)
             now = self.timebase.now()
         with self._lock:
             changed = [t for t in self._trackers.values() if t.check_link(now, self.lost_after)]
@@ -603,7 +629,7 @@ def _read_ahead(conn: Any) -> None:
 
     pymavlink reads each message with two or three ``recv`` calls of exactly the bytes its
     parser needs next; every call lets go of the interpreter lock and takes it back, and
-    with a receive thread per vehicle that hand-over is most of what a fleet's links cost
+    with a receive thread per vehicle (as links once had) that hand-over was most of their cost
     (54,159 calls for 20,420 messages of 20 vehicles in docs/performance.md). Here a call
     reads up to :data:`READ_AHEAD` bytes, and none while the parser can go on with what it
     has buffered: one call for everything that arrived since the last.
@@ -678,9 +704,12 @@ def _reason(error: BaseException) -> str:
 class _Redial:
     """Dials a pymavlink TCP connection again when its peer went away, in place of
     pymavlink's own reconnection (see the module docstring): at most once every
-    REDIAL_PERIOD, each attempt bounded, the socket and the descriptor select() watches
-    both replaced. Between attempts, and when an attempt fails, the caller gets an
-    OSError saying why (a write drops its message; the receive thread waits and reads again).
+    REDIAL_PERIOD, each attempt bounded by REDIAL_TIMEOUT, the socket and the descriptor
+    the reactor watches both replaced. An attempt never waits: the connection is begun, and
+    looked at again at each later call until it is made, refused or out of time -- the
+    thread that serves every link must not stop for one vehicle's silence. Meanwhile the
+    caller gets an OSError saying why (a write drops its message; the reactor tries again
+    at its next duty).
     """
 
     def __init__(self, conn: Any, on_down: Callable[[BaseException], None]) -> None:
@@ -688,6 +717,7 @@ class _Redial:
         self.on_down = on_down
         self.last = 0.0
         self.why: OSError = ConnectionResetError("connection closed by the vehicle")
+        self.dialling: socket.socket | None = None
         self.lock = threading.Lock()
         conn.reconnect = conn.handle_eof = conn.handle_disconnect = self.redial
 
@@ -699,17 +729,45 @@ class _Redial:
                     conn.port.close()
                 conn.port = None
                 self.on_down(self.why)
-            now = time.monotonic()
-            if now - self.last < REDIAL_PERIOD:
-                raise self.why
-            self.last = now
-            try:
-                sock = socket.create_connection(conn.destination_addr, timeout=REDIAL_TIMEOUT)
-            except OSError as error:
-                self.why = error
-                self.on_down(error)
-                raise
-            sock.setblocking(False)
+            if self.dialling is None:
+                now = time.monotonic()
+                if now - self.last < REDIAL_PERIOD:
+                    raise self.why
+                self.last = now
+                self._dial()
+            sock = self._answered()
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             conn.port, conn.fd = sock, sock.fileno()
             self.why = ConnectionResetError("connection closed by the vehicle")
+
+    def _dial(self) -> None:
+        sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        sock.setblocking(False)
+        code = sock.connect_ex(self.conn.destination_addr)
+        if code not in (0, errno.EINPROGRESS, errno.EWOULDBLOCK):
+            sock.close()
+            self._failed(OSError(code, os.strerror(code)))
+        self.dialling = sock
+
+    def _answered(self) -> socket.socket:
+        """The socket dialled, once connected; raises why not while it is not (yet)."""
+        sock = self.dialling
+        assert sock is not None
+        _, writable, _ = select.select([], [sock], [], 0)
+        if not writable:
+            if time.monotonic() - self.last < REDIAL_TIMEOUT:
+                raise self.why
+            self.dialling = None
+            sock.close()
+            self._failed(TimeoutError("timed out"))
+        self.dialling = None
+        code = sock.getsockopt(socket.SOL_SOCKET, socket.SO_ERROR)
+        if code:
+            sock.close()
+            self._failed(OSError(code, os.strerror(code)))
+        return sock
+
+    def _failed(self, error: OSError) -> None:
+        self.why = error
+        self.on_down(error)
+        raise error

@@ -9,10 +9,15 @@ their telemetry, but *sends* only to the vehicles it owns, through
 :class:`~tml.serve.lease.Leases`:
 
 - **The lease.** The instance's row in ``cluster_instances`` is renewed every
-  ``renew = lease / 3`` seconds (default 1 s of a 3 s lease) by :class:`Cluster`'s thread.
-  A vehicle is owned through a row that names that session (:class:`ClusterHangar` takes
-  it when a run, or an operator's command, needs the vehicle, and gives it back once the
-  vehicle, held by nothing, shows itself disarmed).
+  ``renew = lease / 3`` seconds (default 1 s of a 3 s lease) by a thread of
+  :class:`Cluster` that does nothing else. A vehicle is owned through a row that names
+  that session (:class:`ClusterHangar` takes it when a run, or an operator's command,
+  needs the vehicle, and gives it back once the vehicle, held by nothing, shows itself
+  disarmed).
+- **Silence until leased.** The instance opens its links with every gate shut
+  (``SessionOptions.fenced``): not even its HEARTBEAT goes out, no telemetry rate is
+  asked, no parameter read. What opening a vehicle does is done when the instance first
+  leases it (:meth:`ClusterHangar._prepare`).
 - **The fence.** MAVLink has no field for a fencing token, so the fence is on the sender:
   every message to a vehicle passes :meth:`ClusterHangar.may_send` (the link's gate,
   :attr:`tml.mavlink.link.Link.gate`), which lets it through only while this process can
@@ -32,7 +37,12 @@ their telemetry, but *sends* only to the vehicles it owns, through
   (:meth:`Leases.orphans`), marks one ``interrupted`` (one instance wins it) and
   continues it from its stored journal, as ``POST /runs/{id}/continue`` does
   (:meth:`tml.serve.service.Service.continue_run`): its vehicles are taken with new
-  fencing tokens and its mission goes on where the log stood.
+  fencing tokens and its mission goes on where the log stood. A vehicle of a dead
+  session still flying in no run that goes on (a run with roles, which is not
+  continued; a vehicle returning after its run had ended) is leased and sent home
+  (RTL) instead (:meth:`Cluster._rescue`).
+- **Controls** of a run or a vehicle another instance flies are carried to it
+  (:mod:`tml.serve.forward`, PostgreSQL's LISTEN/NOTIFY).
 
 The lease must be well inside the vehicles' own GCS failsafe time (ArduPilot
 FS_GCS_TIMEOUT, 5 s by default): a vehicle whose instance died hears no ground station
@@ -57,7 +67,6 @@ from tml.vehicle import Vehicle
 if TYPE_CHECKING:
     from tml.serve.service import Service
 
-LEASE = 3.0  # s a renewal keeps an instance's vehicles (--lease)
 JOIN_PATIENCE = 3.0  # leases to wait for an earlier process of this name to expire
 
 log = logging.getLogger("tml.serve")

@@ -64,6 +64,8 @@ def differences(source: PlanFile, back: PlanFile) -> list[str]:
             got = getattr(back.settings, name) if back.settings is not None else None
             if given is not None and given != got:
                 found.append(f"{name} {given} back as {got}")
-    if len(source.rally) != len(back.rally):
-        found.append(f"{len(source.rally)} rally points, {len(back.rally)} back")
+    rally_a = [(_degrees(lat), _degrees(lon), alt) for lat, lon, alt in source.rally]
+    rally_b = [(_degrees(lat), _degrees(lon), alt) for lat, lon, alt in back.rally]
+    if rally_a != rally_b:
+        found.append(f"rally points {rally_a} back as {rally_b}")
     return found

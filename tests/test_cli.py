@@ -229,7 +229,7 @@ def _completions(line: str, tmp_path: Path) -> list[str]:
 def test_the_shell_completes_commands_options_and_choices(tmp_path: Path, capsys) -> None:
     assert _completions("tml ex", tmp_path) == ["export "]
     assert _completions("tml export m.xml --format ", tmp_path) == [
-        "geojson", "kml", "plan", "wpl"]
+        "fence", "geojson", "kml", "plan", "rally", "wpl"]
     assert "--safe-state" in _completions("tml run m.xml --sa", tmp_path)[0]
     assert main(["completion", "bash"]) == 0
     assert "complete " in capsys.readouterr().out  # bash's builtin registers it

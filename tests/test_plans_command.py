@@ -50,7 +50,7 @@ def test_export_names_what_it_leaves_out(capsys) -> None:
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["export", DISPATCH], "--format plan|wpl|kml|geojson is needed"),
+    (["export", DISPATCH], "--format plan|wpl|kml|geojson|fence|rally is needed"),
     (["export", DISPATCH, "-o", "x.txt.bak"], "(-o x.txt.bak: the suffix does not say)"),
     (["export", "nowhere.xml", "--format", "plan"], "nowhere.xml: No such file or directory"),
     (["export", str(ROOT / "missions/dolphin_uav_surface.xml"), "--format", "plan"],
@@ -251,3 +251,35 @@ def test_the_files_home_is_kept_over_the_home_option(tmp_path: Path, capsys) -> 
     captured = capsys.readouterr()
     assert "note: the file's home is kept" in captured.err
     assert '<home latitude="47" longitude="8.5" altitude="400"/>' in captured.out
+
+
+def test_a_world_exports_back_to_its_fence_and_rally_lists(tmp_path: Path, capsys) -> None:
+    world = tmp_path / "fence.xml"
+    assert main(["import", str(FENCE_LIST), "--home", "40.071613,-105.230118",
+                 "-o", str(world)]) == 0
+    back = tmp_path / "fence.txt"
+    assert main(["export", str(world), "--format", "fence", "-o", str(back)]) == 0
+    assert "24 fence item(s) written" in capsys.readouterr().err
+
+    def fields(line: str) -> tuple[float, ...]:  # the numbers, however written
+        return tuple(map(float, line.split()[1:]))
+
+    assert [fields(line) for line in back.read_text().splitlines()[1:]] == [
+        fields(line) for line in FENCE_LIST.read_text().splitlines()[1:]]
+    assert main(["export", str(world), "--format", "plan"]) == 1
+    assert "expected a <mission> document, found a world file" in capsys.readouterr().err
+    rally = tmp_path / "rally.xml"
+    assert main(["import", str(RALLY_LIST), "--home", "40.071553,-105.229401",
+                 "-o", str(rally)]) == 0
+    assert main(["export", str(rally), "--format", "rally", "-o", str(back)]) == 0
+    assert [line.split()[0] for line in back.read_text().splitlines()] == ["RALLY"] * 2
+    assert [fields(line) for line in back.read_text().splitlines()] == [
+        fields(line) for line in RALLY_LIST.read_text().splitlines()]
+
+
+def test_a_fence_list_names_what_it_cannot_hold(capsys) -> None:
+    assert main(["export", str(ROOT / "missions/fenced_patrol.xml"), "--format", "fence"]) == 0
+    err = capsys.readouterr().err
+    assert "note: 2 rally point(s) not in a fence list: export --format rally" in err
+    assert "the geofence's max_altitude 40 m is not in the fence list" in err
+    assert "obstacle 'shed': its top 6 m is not in the fence list" in err

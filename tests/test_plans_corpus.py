@@ -18,7 +18,7 @@ from tml.language.validation import validate_file
 from tml.plans.imported import import_plan
 from tml.plans.planned import plan_mission
 from tml.plans.qgc import PlanFileError, read_plan, write_plan
-from tml.plans.wpl import write_wpl
+from tml.plans.wpl import read_wpl, write_fence, write_rally, write_wpl
 from tml.world import Home
 
 CORPUS = Path(__file__).parent / "data" / "plans_corpus"
@@ -40,7 +40,8 @@ WORLDS = {"qgc_geofence_rd_2.plan": "world file",
           "ardupilot_rover_path_planning_fence.txt": "world file",
           "ardupilot_rover_rally.txt": "world file"}
 """The files that hold a fence or rally points and no item: imported as a world file, whose
-export laid over a mission gives the same fence and rally points back."""
+export laid over a mission gives the same fence and rally points back (and a fence or rally
+list's export as one, the same list)."""
 
 HOMES = {"ardupilot_rover_path_planning_fence.txt": Home(40.071613, -105.230118, 0),
          "ardupilot_rover_rally.txt": Home(40.071553, -105.229401, 0)}
@@ -77,6 +78,10 @@ def outcome(path: Path, tmp_path: Path) -> Outcome:
         assert lands is not None
         back = read_plan(write_plan(plan_mission(lands, world=load_world(world))))
         assert differences(source, replace(back, items=())) == []
+        if path.suffix == ".txt":  # a fence or rally list: back to its own format too
+            write = write_rally if source.rally else write_fence
+            native = read_wpl(write(load_world(world)))
+            assert differences(replace(source, home=None), native) == []
         return Outcome("world file")
     mission = tmp_path / f"{path.stem}.xml"
     mission.write_text(imported.text, encoding="utf-8")

@@ -13,23 +13,34 @@ import math
 import sys
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from tml.errors import ExitCode
 from tml.language.kinds import Kind
 from tml.world import Home
 
-FORMATS = {"plan": ".plan", "wpl": ".waypoints", "kml": ".kml", "geojson": ".geojson"}
+if TYPE_CHECKING:
+    from tml.language.model import Mission
+    from tml.world import World
+
+FORMATS = {"plan": ".plan", "wpl": ".waypoints", "kml": ".kml", "geojson": ".geojson",
+           "fence": ".txt", "rally": ".txt"}
+LISTS = ("fence", "rally")
+"""The formats that hold a world's fence or rally points only (MAVProxy's ``fence save``
+and ``rally save``): exported from a world file or a mission's environment."""
 SUFFIXES = {".plan": "plan", ".waypoints": "wpl", ".txt": "wpl", ".kml": "kml",
             ".geojson": "geojson", ".json": "geojson"}
 
 
 def add_export_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the options of ``tml export``."""
-    parser.add_argument("mission", metavar="FILE")
+    parser.add_argument("mission", metavar="FILE",
+                        help="a mission (or, for fence and rally, a world file)")
     parser.add_argument("--format", choices=tuple(FORMATS),
                         help="plan (QGroundControl), wpl (QGC WPL 110, MAVProxy's wp load), "
-                             "kml or geojson (the path, obstacles and geofence for a map); "
-                             "default: from the suffix of -o")
+                             "kml or geojson (the path, obstacles and geofence for a map), "
+                             "fence or rally (the world's fence or rally list, MAVProxy's "
+                             "fence load and rally load); default: from the suffix of -o")
     parser.add_argument("-o", "--output", metavar="OUT",
                         help="write here (default: standard output)")
     parser.add_argument("--role", metavar="ROLE",
@@ -109,11 +120,11 @@ def export(args: argparse.Namespace) -> ExitCode:
 
     form = args.format or SUFFIXES.get(Path(args.output or "").suffix.lower())
     if form is None:
-        _say("export", "--format plan|wpl|kml|geojson is needed"
+        _say("export", "--format plan|wpl|kml|geojson|fence|rally is needed"
              + (f" (-o {args.output}: the suffix does not say)" if args.output else ""))
         return ExitCode.USAGE
     try:
-        result = validate_file(args.mission)
+        result = validate_file(args.mission, root=None if form in LISTS else "mission")
         extra = load_world(args.world) if args.world else None
     except OSError as error:
         _say("export", f"{error.filename}: {error.strerror or error}")
@@ -121,12 +132,15 @@ def export(args: argparse.Namespace) -> ExitCode:
     except TmlError as error:
         _say("export", f"--world {args.world}: {error}")
         return ExitCode.USAGE
-    if result.errors or result.mission is None:
+    if result.errors or (result.mission is None and form not in LISTS):
         for text in format_human_all(result.diagnostics, {result.file: result.source}):
             print(text, file=sys.stderr)
         _say("export", f"{result.file}: invalid mission, not exported")
         return ExitCode.INVALID
+    if form in LISTS:  # a world file's result holds no mission
+        return _export_list(args, form, result.mission, extra)
     mission = result.mission
+    assert mission is not None
     kind = Kind(args.kind) if args.kind else None
     try:
         if form in ("kml", "geojson") and args.role is None and mission.roles:
@@ -158,6 +172,30 @@ def export(args: argparse.Namespace) -> ExitCode:
     skipped = sum(len(p.skipped) for p in plans)
     _say("export", f"{items} mission item(s) written to {args.output or 'standard output'}"
          + (f"; {skipped} action(s) not exported" if skipped else ""))
+    return ExitCode.OK
+
+
+def _export_list(args: argparse.Namespace, form: str, mission: Mission | None,
+                 extra: World | None) -> ExitCode:
+    """Write the fence or rally list of a world file (``mission`` None) or of a mission's
+    environment, ``extra`` laid over it."""
+    from tml.language.build import load_world
+    from tml.plans.planned import world_left_out
+    from tml.plans.wpl import write_fence, write_rally
+    from tml.world import World
+
+    if mission is None:
+        world = load_world(args.mission).merged(extra)  # validated: it loads
+    else:
+        world = (mission.world or World()).merged(extra)
+    for note in world_left_out(world, form):
+        _say("export", f"note: {note}")
+    text = write_fence(world) if form == "fence" else write_rally(world)
+    if not _write("export", args.output, text):
+        return ExitCode.USAGE
+    what = f"{len(text.splitlines()) - 1} fence item(s)" if form == "fence" \
+        else f"{len(world.rally)} rally point(s)"
+    _say("export", f"{what} written to {args.output or 'standard output'}")
     return ExitCode.OK
 
 

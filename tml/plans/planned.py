@@ -115,9 +115,10 @@ def same_item(a: MissionItem, b: MissionItem) -> bool:
 
 
 def world_left_out(world: World, form: str) -> list[str]:
-    """What of ``world`` a plan file of ``form`` ("plan" or "wpl") cannot carry: a
-    ``.plan``'s geofence has no altitudes and its exclusion zones no top or bottom; a
-    waypoint file holds no fence at all."""
+    """What of ``world`` a file of ``form`` ("plan", "wpl", "fence" or "rally") cannot
+    carry: a ``.plan``'s geofence and a fence list's have no altitudes and their exclusion
+    zones no top or bottom; a waypoint file holds no fence at all, a fence list no rally
+    point and a rally list no fence; neither list holds a home."""
     notes = []
     fence = world.geofence
     if form == "wpl":
@@ -125,21 +126,35 @@ def world_left_out(world: World, form: str) -> list[str]:
             notes.append("the geofence and obstacles are not in a waypoint file (it holds "
                          "mission items only): export a .plan, or upload them with tml run")
         return notes
+    if form in ("fence", "rally") and world.home is not None:
+        notes.append(f"the home is not in a {form} list: tml import --home "
+                     f"{world.home.latitude},{world.home.longitude},"
+                     f"{world.home.altitude:g} places it again")
+    if form == "fence" and world.rally:
+        notes.append(f"{len(world.rally)} rally point(s) not in a fence list: export "
+                     "--format rally")
+    if form == "rally":
+        if fence is not None or world.obstacles:
+            notes.append("the geofence and obstacles are not in a rally list: export "
+                         "--format fence")
+        return notes
+    where, which = ("fence list", "a fence item") if form == "fence" \
+        else ("plan", "QGroundControl's geofence")
     if fence is not None:
         for name, value in (("max_altitude", fence.max_altitude),
                             ("min_altitude", fence.min_altitude)):
             if value is not None:
-                notes.append(f"the geofence's {name} {value:g} m is not in the plan "
-                             "(QGroundControl's geofence has no altitude; ArduPilot takes it "
-                             f"as FENCE_ALT_{name[:3].upper()})")
+                notes.append(f"the geofence's {name} {value:g} m is not in the {where} "
+                             f"({which} has no altitude; ArduPilot takes it as "
+                             f"FENCE_ALT_{name[:3].upper()})")
     for obstacle in world.obstacles:
         kept = [f"{name} {value:g} m" for name, value, plain in (
             ("bottom", obstacle.bottom, 0.0), ("top", obstacle.top, float("inf")))
             if value != plain]
         if kept:
             notes.append(f"obstacle {obstacle.name!r}: its {' and '.join(kept)} "
-                         f"{'are' if len(kept) > 1 else 'is'} not in the plan (an exclusion "
-                         "zone reaches from the ground up)")
+                         f"{'are' if len(kept) > 1 else 'is'} not in the {where} (an "
+                         "exclusion zone reaches from the ground up)")
     return notes
 
 

@@ -152,15 +152,15 @@ def write_plan(plan: Plan) -> str:
     fence = plan.world.geofence
     if fence is not None and fence.polygon:
         polygons.append({"inclusion": True, "version": 1,
-                         "polygon": _corners(home, fence.polygon, fence.written)})
+                         "polygon": global_corners(home, fence.polygon, fence.written)})
     for obstacle in plan.world.obstacles:
         if isinstance(obstacle, Cylinder):
-            centre, = _corners(home, ((obstacle.north, obstacle.east),), obstacle.written)
+            centre, = global_corners(home, ((obstacle.north, obstacle.east),), obstacle.written)
             circles.append({"inclusion": False, "version": 1, "circle": {
                 "center": centre, "radius": obstacle.radius}})
         elif isinstance(obstacle, Prism):
             polygons.append({"inclusion": False, "version": 1,
-                             "polygon": _corners(home, obstacle.polygon, obstacle.written)})
+                             "polygon": global_corners(home, obstacle.polygon, obstacle.written)})
     settings = plan.world.plan_settings or PlanSettings()
     mission: dict[str, Any] = {
         "version": 2, "firmwareType": _given(settings.firmware_type, FIRMWARE_ARDUPILOT),
@@ -176,7 +176,7 @@ def write_plan(plan: Plan) -> str:
         "fileType": "Plan", "version": 1, "groundStation": "tml", "mission": mission,
         "geoFence": {"version": 2, "polygons": polygons, "circles": circles},
         "rallyPoints": {"version": 2, "points": [
-            [*_corners(home, ((p.north, p.east),), p.written)[0], p.altitude]
+            [*global_corners(home, ((p.north, p.east),), p.written)[0], p.altitude]
             for p in plan.world.rally]},
     }
     return json.dumps(document, indent=4) + "\n"
@@ -188,8 +188,8 @@ def _given(value: float | None, default: float) -> float:
     return int(number) if float(number).is_integer() else number
 
 
-def _corners(home: Home, local: tuple[tuple[float, float], ...],
-             written: tuple[tuple[float, float], ...]) -> list[list[float]]:
+def global_corners(home: Home, local: tuple[tuple[float, float], ...],
+                   written: tuple[tuple[float, float], ...]) -> list[list[float]]:
     """Latitude and longitude of each corner: as written in the mission when it was
     written so (exact), else from the local corners."""
     if written and len(written) == len(local):

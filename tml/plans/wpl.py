@@ -3,7 +3,10 @@
 One line ``QGC WPL 110``, then one line per item, its fields separated by tabs: index,
 current, frame, command, params 1-4, x (latitude), y (longitude), z (altitude),
 autocontinue. Line 0 is home (frame 0, altitude AMSL): ArduPilot keeps home in item 0, so
-the mission's items are numbered from 1, as ``wp load`` sends them.
+the mission's items are numbered from 1, as ``wp load`` sends them. MAVProxy's fence list
+is the same layout, of fence items from index 0 and no home; its rally list is ``RALLY``
+lines (:func:`read_rally`). Both are read and written here (:func:`write_fence`,
+:func:`write_rally`).
 """
 
 from __future__ import annotations
@@ -11,8 +14,15 @@ from __future__ import annotations
 from tml.mavlink.codec import mavlink
 from tml.mavlink.mission import MissionItem
 from tml.plans.planned import Plan
-from tml.plans.qgc import PlanFile, PlanFileError, Zone, item_from_params, item_params
-from tml.world import Home
+from tml.plans.qgc import (
+    PlanFile,
+    PlanFileError,
+    Zone,
+    global_corners,
+    item_from_params,
+    item_params,
+)
+from tml.world import Cylinder, Home, World
 
 HEADER = "QGC WPL 110"
 
@@ -44,9 +54,49 @@ FENCE_COMMANDS = frozenset({FENCE_VERTEX_INCLUSION, FENCE_VERTEX_EXCLUSION,
 """The commands of a fence or rally list (MAVProxy's ``fence save``, ``rally save``)."""
 RALLY = "RALLY"
 RALLY_DEFAULTS = (40.0, 0.0, 0)
-"""A ``RALLY`` line's break altitude (m), landing direction (centidegrees) and flags as
-MAVProxy's ``rally add`` writes them (its rally_breakalt and rally_flags settings): what
-a TML rally point, which has none of the three, is written back with."""
+"""A ``RALLY`` line's break altitude (m), landing direction and flags as MAVProxy's
+``rally add`` writes them (its rally_breakalt and rally_flags settings): what a TML rally
+point, which has none of the three, is written back with."""
+
+
+def write_fence(world: World) -> str:
+    """The fence list of ``world``, as MAVProxy's ``fence save`` writes it (and ``fence
+    load`` reads it): a waypoint file of fence items from index 0, with no home line. The
+    geofence's polygon is inclusion vertices (each with the corner count in param1), each
+    prism exclusion vertices, each cylinder an exclusion circle (the radius in param1)."""
+    home = world.home_or_default
+    items: list[tuple[int, float, list[float]]] = []  # command, param1, [lat, lon]
+    if world.geofence is not None and world.geofence.polygon:
+        fence = world.geofence
+        corners = global_corners(home, fence.polygon, fence.written)
+        items += [(FENCE_VERTEX_INCLUSION, len(corners), c) for c in corners]
+    for obstacle in world.obstacles:
+        if isinstance(obstacle, Cylinder):
+            centre, = global_corners(home, ((obstacle.north, obstacle.east),),
+                                     obstacle.written)
+            items.append((FENCE_CIRCLE_EXCLUSION, obstacle.radius, centre))
+        else:
+            corners = global_corners(home, obstacle.polygon, obstacle.written)
+            items += [(FENCE_VERTEX_EXCLUSION, len(corners), c) for c in corners]
+    lines = [HEADER]
+    for index, (command, param1, (lat, lon)) in enumerate(items):
+        lines.append("\t".join([str(index), "0", "0", str(command), _number(param1), "0", "0",
+                                "0", _number(lat), _number(lon), "0", "0"]))
+    return "\n".join(lines) + "\n"
+
+
+def write_rally(world: World) -> str:
+    """The rally list of ``world``, as MAVProxy's ``rally save`` writes it: a line
+    ``RALLY lat lon alt break_alt land_dir flags`` per point, the altitude above home, the
+    other three :data:`RALLY_DEFAULTS`."""
+    home = world.home_or_default
+    lines = []
+    for point in world.rally:
+        (lat, lon), = global_corners(home, ((point.north, point.east),), point.written)
+        lines.append("\t".join([RALLY, *(_number(v) for v in (
+            lat, lon, point.altitude, RALLY_DEFAULTS[0], RALLY_DEFAULTS[1])),
+            str(RALLY_DEFAULTS[2])]))
+    return "".join(line + "\n" for line in lines)
 
 
 def read_wpl(text: str, name: str = "waypoints") -> PlanFile:

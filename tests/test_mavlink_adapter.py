@@ -195,7 +195,17 @@ def test_the_missions_fence_and_rally_points_go_on_the_vehicle_and_stop_it(
     assert rig.do(GoTo(1, (80.0, 0.0, 10.0))).ok  # straight through the mast's zone
     stopped = rig.until(lambda s: s.mode == "RTL", "the fence's RTL")
     assert any(m.text == "Polygon fence breached" for m in stopped.messages)  # ArduCopter's
-    assert stopped.position[0] < 40.0
+    # Where tml first sees RTL depends on how busy the machine is; where the vehicle goes
+    # does not: it brakes (about 20 m from 10 m/s) short of the target 80 m north, and
+    # returns to home, the nearer of home and the rally point (ArduCopter's RALLY_INCL_HOME).
+    furthest = [0.0]
+
+    def home(state: VehicleState) -> bool:
+        furthest[0] = max(furthest[0], state.position[0])
+        return state.mode == "RTL" and math.dist(state.position[:2], (0.0, 0.0)) < 2.0
+
+    rig.until(home, "back home")
+    assert furthest[0] < 70.0
 
 
 def test_the_vehicles_own_fence_can_be_kept(rig: Rig) -> None:

@@ -285,6 +285,13 @@ def test_a_killed_instance_has_its_runs_continued_and_no_vehicle_hears_two(
             "database": {key: (value - before[key]) / seconds
                          for key, value in _database_counts(database).items()}}
         table = _heard(heard, killed, [*victims, with_roles], by_id)
+        # The database says the same: each of those vehicles was handed from the killed
+        # instance to the one heard next, with the next fencing token.
+        handovers = _handovers(database)
+        for row in table:
+            token, owner = handovers[row["vehicle"]][-1][:2]
+            assert (owner, handovers[row["vehicle"]][-1][2]) == (row["new"], VICTIM), row
+            assert [t for t, _o, _p in handovers[row["vehicle"]]] == list(range(1, token + 1))
     finally:
         for process in reversed(processes):
             process.stop()
@@ -295,6 +302,19 @@ def _cpu(pid: int) -> float:
     """CPU seconds (user and system) a process has used."""
     fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _handovers(url: str) -> dict[int, list[tuple[int, str, str | None]]]:
+    """Each vehicle's handovers in the lease table: (token, new owner, old owner)."""
+    import psycopg
+
+    found: dict[int, list[tuple[int, str, str | None]]] = {}
+    with psycopg.connect(url) as conn:
+        for vehicle, token, owner, previous in conn.execute(
+                "SELECT vehicle, token, owner, previous FROM lease_handovers "
+                "ORDER BY vehicle, token"):
+            found.setdefault(vehicle, []).append((token, owner, previous))
+    return found
 
 
 def _database_counts(url: str) -> dict[str, int]:

@@ -352,3 +352,32 @@ def test_an_instance_whose_lease_expired_shuts_its_fence_aborts_its_runs_and_joi
     assert service.aborted == ["r1"]
     assert leases.session != first and leases.renew()  # a new session, its lease running
     assert leases.owners([1]) == {}  # what the old session owned is not the new one's
+
+
+def test_services_started_together_on_one_database_create_its_tables_once(
+        database: str) -> None:
+    with Storage(database).engine.begin() as db:  # a database no service has used yet
+        for table in ("runs", "log_lines", "missions", "cluster_instances",
+                      "vehicle_leases", "lease_handovers"):
+            db.execute(sa.text(f"DROP TABLE IF EXISTS {table}"))
+    opened: list[Storage] = []
+    failed: list[BaseException] = []
+    start = threading.Barrier(4)
+
+    def open_both() -> None:
+        start.wait()
+        try:
+            storage = Storage(database)
+            Leases(storage.engine, f"i{threading.get_ident()}")
+            opened.append(storage)
+        except BaseException as error:  # reported below
+            failed.append(error)
+
+    threads = [threading.Thread(target=open_both) for _ in range(4)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert failed == [] and len(opened) == 4
+    for storage in opened:
+        storage.close()

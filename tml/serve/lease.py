@@ -43,8 +43,7 @@ import sqlalchemy as sa
 from sqlalchemy.engine import Connection, Engine
 
 from tml.errors import TmlError
-
-SCHEMA_LOCK = 0x746D6C  # the advisory lock key held while the tables are created ("tml")
+from tml.serve.storage import SCHEMA_LOCK
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS cluster_instances (

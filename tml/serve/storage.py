@@ -37,6 +37,7 @@ from sqlalchemy.engine import Engine
 from tml.errors import TmlError
 
 ACTIVE = ("waiting", "running", "paused")  # a run in one of these is flying (or about to)
+SCHEMA_LOCK = 0x746D6C  # PostgreSQL advisory lock held while tables are created ("tml")
 
 _meta = sa.MetaData()
 _missions = sa.Table(
@@ -126,7 +127,13 @@ class Storage:
             self.engine: Engine = sa.create_engine(url, pool_pre_ping=True)
             if self.engine.dialect.name == "sqlite":
                 sa.event.listen(self.engine, "connect", _sqlite_pragmas)
-            _meta.create_all(self.engine)
+            with self.engine.begin() as db:
+                if self.engine.dialect.name == "postgresql":
+                    # Services started together on one database would race on CREATE
+                    # TABLE (one fails on pg_type's unique index): one at a time.
+                    db.execute(sa.text("SELECT pg_advisory_xact_lock(:key)"),
+                               {"key": SCHEMA_LOCK})
+                _meta.create_all(db)
         except (sa.exc.SQLAlchemyError, ImportError) as error:
             raise StorageError(f"cannot open the database {_safe(url)}: "
                                f"{_first_line(error)}") from None

@@ -429,13 +429,8 @@ class Watch:
 
     @property
     def addresses(self) -> list[str]:
+        """Where tml reaches each vehicle: its proxy."""
         return [p.address for p in self.proxies]
-
-    def close(self) -> None:
-        for observer in self.observers:
-            observer.close()
-        for proxy in self.proxies:
-            proxy.stop()
 
 
 @contextlib.contextmanager
@@ -690,7 +685,8 @@ def _judge(observer: Observer, at: float, rover: bool, cut_end: float | None
     else:  # the modes it flew in from the first safe one to the ground
         modes: list[str] = []
         for sample in observer.between(safe.time, landed.time):
-            if sample.armed and (not modes or modes[-1] != sample.mode):
+            if sample.armed and (modes or sample.mode in SAFE_MODES) \
+                    and (not modes or modes[-1] != sample.mode):
                 modes.append(sample.mode)
         seen = f"{' → '.join(modes or [safe.mode])}, then landed"
     if cut_end is not None and not on_ground(safe, rover):
@@ -734,7 +730,9 @@ def record(row: Row, table: Path, moments: Sequence[Moment], title: str, how: st
 def write_table(table: Path, moments: Sequence[Moment], title: str, how: str) -> None:
     """The Markdown table of every moment's row (a moment not flown yet says so)."""
     rows = table.with_suffix("")
-    lines = [f"# {title}", "", how, "",
+    shapes = "; ".join(f"{m.name}: {m.shape}" for m in MISSIONS.values()
+                       if any(moment.mission == m.name for moment in moments))
+    lines = [f"# {title}", "", how, "", f"Missions: {shapes}.", "",
              "| mission | interrupt | moment (request + offset) | met at | safe state seen "
              "by the observer | s to safe | s to on the ground | tml | tml's safety steps "
              "(flight log) |",

@@ -771,8 +771,9 @@ class Runner:
                 elif self._heard_again(flight, state, now) or self._overtaken(flight, state,
                                                                               now):
                     sent[id(flight)] = now
-                elif _idle(flight.vehicle) and (sent[id(flight)] is None or now - (
-                        sent[id(flight)] or 0.0) >= self.options.safe_state_period):
+                elif _idle(flight.vehicle) and state.link != "lost" and (
+                        sent[id(flight)] is None or now - (sent[id(flight)] or 0.0)
+                        >= self.options.safe_state_period):  # (not into a dead link)
                     if sent[id(flight)] is not None:  # the first was the run's own
                         self._fallback_safe_state(flight, now, "not shown yet")
                     sent[id(flight)] = now
@@ -795,16 +796,17 @@ class Runner:
 
     def _heard_again(self, flight: _Flight, state: VehicleState, now: float) -> bool:
         """A vehicle told its safe state whose link was lost since: command the safe state
-        again the moment it is heard (and its requests are through), without waiting for
-        the next period -- the command sent into the dead link never arrived, and the
-        vehicle hovers on in GUIDED meanwhile. Whether it was sent."""
+        again the moment it is heard (its requests through, and every reading the rule
+        judges by arrived after the one sent into the dead link), without waiting for the
+        next period -- that command never arrived, and the vehicle hovers on in GUIDED
+        meanwhile. Whether it was sent."""
         if not flight.safe_asked or flight.taken:
             return False
         if state.link == "lost":
             flight.unheard = True
             return False
-        if not flight.unheard or not _idle(flight.vehicle):
-            return False
+        if not flight.unheard or not state.current or not _idle(flight.vehicle):
+            return False  # (not current: a picture from before the outage decides nothing)
         flight.unheard = False
         self._fallback_safe_state(flight, now, "the link came back")
         return True

@@ -85,6 +85,25 @@ def test_another_mission_file_or_other_vehicles_are_refused(
     assert f"flew the vehicles at {ADDRESS}, not tcp:127.0.0.1:5800" in said
 
 
+def test_another_vehicle_on_the_same_address_is_refused(
+        interrupted: tuple[Path, Path], capsys: pytest.CaptureFixture[str]) -> None:
+    # The run flew system 2 of an address that carries several; the vehicle heard there
+    # now is system 1: nothing is flown.
+    from tests.process_lines import simulator
+
+    mission, log = interrupted
+    first, rest = log.read_text().split("\n", 1)
+    with simulator("--fast-boot", "--speedup", "10") as port:
+        address = f"tcp:127.0.0.1:{port}"
+        line = {**json.loads(first), "connect": [address], "system_ids": [2]}
+        log.write_text(json.dumps(line) + "\n" + rest)
+        said = refusal(capsys, str(mission), "--connect", address, "--resume", str(log),
+                       "--timeout", "60")
+    assert said.strip().splitlines()[-1] == (
+        "tml run: cannot resume: the run flew the vehicle(s) with system id 2, not 1: say "
+        "which with --sysid")
+
+
 def test_resume_options_that_cannot_work_are_usage_errors(
         interrupted: tuple[Path, Path], tmp_path: Path,
         capsys: pytest.CaptureFixture[str]) -> None:

@@ -186,10 +186,12 @@ def _run(args: argparse.Namespace, options: SessionOptions, mission: Mission, wo
          console: Console, errors: Console, resumed: Resumed) -> ExitCode:
     """Open the vehicles, clear the mission and fly; the exit code."""
     from tml.errors import TmlError
+    from tml.run.resume import ResumeRefused
     from tml.run.session import Refusal, SeveralVehicles, open_session
 
     try:
         with open_session(options, world, errors) as session:
+            session.check_resume(resumed.point)
             cleared = session.clear(mission, profile, extra)
             if isinstance(cleared, Refusal):
                 return _exit_code(cleared)
@@ -199,6 +201,9 @@ def _run(args: argparse.Namespace, options: SessionOptions, mission: Mission, wo
         return ExitCode.ABORTED
     except SeveralVehicles as error:
         errors.print(f"tml run: {error}", markup=False)
+        return ExitCode.USAGE
+    except ResumeRefused as error:
+        errors.print(f"tml run: cannot resume: {error}", markup=False)
         return ExitCode.USAGE
     except TmlError as error:
         errors.print(f"tml run: {error}", markup=False)

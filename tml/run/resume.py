@@ -35,6 +35,9 @@ class ResumePoint:
 
     progress: Mapping[int, Progress]
     next_id: int
+    system_ids: tuple[int, ...] = ()
+    """Each vehicle's MAVLink system id, as the log's first line has them (empty: a log
+    written before they were kept)."""
 
 
 def file_digest(path: str) -> str:
@@ -93,7 +96,9 @@ def resume_point(path: str, mission: Mission, digest: str,
                             f"{', '.join(first.get('connect') or []) or 'the simulator'}, "
                             f"not {', '.join(vehicles) or 'the simulator'}")
     ids = [vid for vid in first.get("vehicles") or [] if isinstance(vid, int)]
-    return progress_point(lines, mission, ids)
+    point = progress_point(lines, mission, ids)
+    flown = tuple(sid for sid in first.get("system_ids") or [] if isinstance(sid, int))
+    return ResumePoint(point.progress, point.next_id, flown)
 
 
 def progress_point(lines: Sequence[Mapping[str, Any]], mission: Mission,

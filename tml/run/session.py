@@ -302,6 +302,18 @@ class Session:
                                safe_state_timeout=self.options.safe_state_timeout,
                                vehicle_fence=not self.options.keep_vehicle_fence)
 
+    def check_resume(self, point: ResumePoint | None) -> None:
+        """Raise ResumeRefused when the vehicles opened are not the ones the interrupted
+        run flew (their system ids, as its log keeps them): one address may carry several
+        vehicles, and a run goes on only on its own."""
+        from tml.run.resume import ResumeRefused
+
+        opened = tuple(v.system_id for v in self.vehicles)
+        if point is not None and point.system_ids and point.system_ids != opened:
+            raise ResumeRefused(
+                f"the run flew the vehicle(s) with system id {_ids(point.system_ids)}, "
+                f"not {_ids(opened)}: say which with --sysid")
+
     def runner(self, mission: Mission, profile: VehicleProfile, world: World, journal: Journal,
                *, resumed: ResumePoint | None = None,
                payloads: Mapping[int, Iterable[str]] | None = None,

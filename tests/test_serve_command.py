@@ -200,15 +200,20 @@ def test_a_link_that_hears_several_vehicles_needs_a_sysid(
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
-    with simulator("--vehicles", "2", "--fast-boot", "--speedup", "10", "--out",
-                   f"udp:127.0.0.1:{port}"):
-        code = main(["serve", "--connect", f"udpin:127.0.0.1:{port}", "--port", "0",
-                     "--data", str(data)])
-    err = capsys.readouterr().err
-    assert code == 2, err
-    assert err.strip().splitlines()[-1] == (
-        f"tml serve: udpin:127.0.0.1:{port}: vehicles with system ids 1, 2 heard: say which "
-        "to fly with --sysid N (repeated for several: --sysid 1 --sysid 2)")
+    address = f"udpin:127.0.0.1:{port}"
+    with simulator("--vehicles", "2", "--frame", "copter,rover", "--fast-boot", "--speedup",
+                   "10", "--out", f"udp:127.0.0.1:{port}"):
+        code = main(["serve", "--connect", address, "--port", "0", "--data", str(data)])
+        err = capsys.readouterr().err
+        assert code == 2, err
+        assert err.strip().splitlines()[-1] == (
+            f"tml serve: {address}: vehicles with system ids 1, 2 heard: say which to fly "
+            "with --sysid N (repeated for several: --sysid 1 --sysid 2)")
+        with Server(["--connect", address, "--sysid", "2", "--timeout", "60"], data) as server:
+            vehicles = httpx.get(f"{server.url}/vehicles", timeout=30).json()
+            assert [(v["id"], v["vehicle_type"]) for v in vehicles] == [(1, "rover")]
+            code, out = server.stop()
+            assert code == 0, out
 
 
 def test_sigterm_sends_a_flying_vehicle_to_its_safe_state_first(data: Path) -> None:

@@ -84,7 +84,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                               "the vehicles' FS_GCS_TIMEOUT)")
     cluster.add_argument("--source-system", type=system_id, default=255, metavar="N",
                          help="the MAVLink system id this instance sends as (default 255; "
-                              "give each instance of a cluster its own)")
+                              "instances of a cluster may share it, or each have their own "
+                              "to be told apart)")
 
 
 def is_loopback(host: str) -> bool:

@@ -85,11 +85,15 @@ class CompanionLink:
         self._conn: Any = None
         self._last_stream = 0.0
         self._last_request = -math.inf
+        self.autopilots: set[int] = set()
+        """The system ids of the autopilots heard while :meth:`open` waited."""
 
     # ----------------------------------------------------------------- life cycle
-    def open(self, timeout: float, stop: threading.Event | None = None) -> bool:
+    def open(self, timeout: float, stop: threading.Event | None = None,
+             listen: float = 0.0) -> bool:
         """Connect (retrying until ``timeout`` s) and wait for the autopilot's HEARTBEAT;
-        False when ``stop`` was set meanwhile.
+        False when ``stop`` was set meanwhile. Without a system id, other autopilots on
+        the link (a router's) have ``listen`` s more to be heard (:attr:`autopilots`).
 
         Raises :class:`~tml.errors.LinkLost` when the address cannot be opened or no
         autopilot is heard within ``timeout`` s.
@@ -125,6 +129,13 @@ class CompanionLink:
                                f"{timeout:g} s")
             msg = self._receive(min(left, 0.2))
             if msg is not None and self._is_autopilot_heartbeat(msg):
+                self.autopilots.add(msg.get_srcSystem())
+                if self.system_id is None:
+                    end = time.monotonic() + listen
+                    while (left := end - time.monotonic()) > 0 and not stop.is_set():
+                        more = self._receive(min(left, 0.2))
+                        if more is not None and self._is_autopilot_heartbeat(more):
+                            self.autopilots.add(more.get_srcSystem())
                 self.attach(self._conn, msg.get_srcSystem(), msg.get_srcComponent())
         return True
 

@@ -71,6 +71,25 @@ def test_the_world_can_be_a_world_file_and_the_system_id_is_kept(tmp_path: Path)
     assert process.returncode == 0
 
 
+def test_a_link_that_hears_several_autopilots_needs_a_sysid(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    address = f"udpin:127.0.0.1:{port}"
+    with Simulator(vehicles=2, speedup=20, tcp_base_port=None, params=PARAMS,
+                   udp_out=[f"udp:127.0.0.1:{port}"]):
+        assert main(["companion", "--connect", address, "--world", IMAV]) == 2
+        assert capsys.readouterr().err.strip().splitlines() == [
+            f"tml companion: {address}: vehicles with system ids 1, 2 heard: say which "
+            "with --sysid N"]
+        process = companion(address, "--world", IMAV, "--sysid", "2")
+        line = attached(process)
+        _, err = stop(process)
+    assert "component 191 of system 2 attached" in line, err
+    assert process.returncode == 0
+
+
 @pytest.mark.parametrize(("argv", "message"), [
     (["--connect", "tcp:127.0.0.1", "--world", IMAV], "expected tcp:HOST:PORT"),
     (["--connect", "tcp:127.0.0.1:5762", "--world", "no/such/world.xml"],

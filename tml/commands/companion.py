@@ -7,7 +7,8 @@ session (:func:`tml.run.session.open_companion`: the address, ``--sysid`` and
 ``--timeout`` as typed options), until SIGINT or SIGTERM. See docs/simulator.md.
 
 Exit codes: 0 stopped by SIGINT or SIGTERM, 2 bad arguments, a malformed address or an
-unreadable or invalid world file, 4 the address cannot be opened or no autopilot was heard
+unreadable or invalid world file, an address that hears several autopilots without
+``--sysid``, 4 the address cannot be opened or no autopilot was heard
 within ``--timeout``.
 """
 
@@ -69,7 +70,7 @@ def run(args: argparse.Namespace) -> ExitCode:
     """Run ``tml companion``; return the exit code."""
     from tml.errors import TmlError, VehicleError
     from tml.mavlink.link import parse_address
-    from tml.run.session import SessionOptions, open_companion
+    from tml.run.session import SessionOptions, SeveralVehicles, open_companion
     from tml.simulator import open_companion as companion_factory
 
     def fail(message: str, code: ExitCode) -> ExitCode:
@@ -116,6 +117,8 @@ def run(args: argparse.Namespace) -> ExitCode:
                           f"{len(world.objects)} object(s), {len(world.obstacles)} "
                           "obstacle(s)", flush=True)
                 companion.serve(stop)
+        except SeveralVehicles as error:
+            return fail(str(error), ExitCode.USAGE)
         except VehicleError as error:
             return fail(str(error), ExitCode.FAILURE)
         except OSError as error:

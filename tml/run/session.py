@@ -21,7 +21,8 @@ line parser goes below ``tml/commands``) and opens a :class:`Session` with
    command maps to its exit code;
 4. makes the runner that flies the cleared mission on its vehicles, with their wake flag,
    clock, time base and the options checked against the profile and world
-   (:meth:`Session.runner`; a resumed run goes on from its point).
+   (:meth:`Session.runner`; a resumed run goes on from its point, on the vehicles it
+   flew: :meth:`Session.check_resume`).
 
 ``tml companion`` attaches the simulator's companion computer (through the factory its
 command passes, as the simulator's) to the autopilot at one address with the same options
@@ -108,8 +109,14 @@ class Companion(Protocol):
     def time(self) -> float:
         """The autopilot's clock, seconds since its boot."""
 
-    def open(self, timeout: float, stop: threading.Event | None = None) -> bool:
-        """Connect and wait for the autopilot; False when ``stop`` was set meanwhile."""
+    @property
+    def autopilots(self) -> set[int]:
+        """The system ids of the autopilots heard while :meth:`open` waited."""
+
+    def open(self, timeout: float, stop: threading.Event | None = None,
+             listen: float = 0.0) -> bool:
+        """Connect and wait for the autopilot (without a system id, ``listen`` s more for
+        others on the link); False when ``stop`` was set meanwhile."""
 
     def serve(self, stop: threading.Event) -> None:
         """Play the companion until ``stop`` is set."""
@@ -457,17 +464,24 @@ def open_session(options: SessionOptions, world: World, errors: Console | None =
 def open_companion(options: SessionOptions, world: World, stop: threading.Event,
                    on_text: Callable[[str], None]) -> Iterator[Companion | None]:
     """Attach the companion computer of ``options.open_companion`` to the autopilot at the
-    one ``connect`` address: the vehicle of the first ``system_ids``, else the first
-    autopilot heard, waited for up to ``timeout``. Yield it (None when ``stop`` was set
-    meanwhile); closed on leaving. Raises VehicleError when the address cannot be opened
-    or no autopilot is heard in time."""
+    one ``connect`` address: the vehicle of the first ``system_ids``, else the one autopilot
+    heard, waited for up to ``timeout``. Yield it (None when ``stop`` was set meanwhile);
+    closed on leaving. Raises VehicleError when the address cannot be opened or no
+    autopilot is heard in time, and :class:`SeveralVehicles` when several are heard and
+    none is named."""
     if options.open_companion is None or len(options.connect) != 1:
         raise TmlError("a companion session needs one address and a companion factory")
     companion = options.open_companion(options.connect[0], world,
                                        options.system_ids[0] if options.system_ids else None,
                                        on_text)
     try:
-        yield companion if companion.open(options.timeout, stop) else None
+        named = bool(options.system_ids)
+        opened = companion.open(options.timeout, stop, 0.0 if named else DISCOVERY_WAIT)
+        if opened and not named and len(companion.autopilots) > 1:
+            heard = sorted(companion.autopilots)
+            raise SeveralVehicles(f"{options.connect[0]}: vehicles with system ids "
+                                  f"{_ids(heard)} heard: say which with --sysid N")
+        yield companion if opened else None
     finally:
         companion.close()
 

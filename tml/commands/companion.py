@@ -43,7 +43,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sysid", "--system-id", dest="system_id", type=system_id,
                         metavar="N",
                         help="the vehicle's MAVLink system id, as for tml run and tml "
-                             "command (default: the first autopilot heard)")
+                             "command (default: the one autopilot heard; needed when the "
+                             "address carries several)")
     parser.add_argument("--timeout", type=positive, default=30.0, metavar="S",
                         help="seconds to wait for the autopilot's heartbeat (default 30)")
     parser.add_argument("-q", "--quiet", action="store_true",

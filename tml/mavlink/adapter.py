@@ -4,10 +4,15 @@ Theory of operation
 -------------------
 The interpreter reads :class:`~tml.vehicle.VehicleState` and submits requests without ever
 waiting; a MAVLink vehicle answers commands in round trips of tens of milliseconds (and
-seconds when the link is poor). So each :class:`MavlinkVehicle` owns one worker thread that
-takes the submitted requests in order and carries each out with the link's command sender
-(:class:`tml.mavlink.autopilot.Autopilot`): ``submit`` only queues, ``poll`` returns the
-:class:`~tml.vehicle.RequestResult` of the requests finished since the last poll.
+seconds when the link is poor). So a :class:`MavlinkVehicle` with requests to carry out has
+a worker thread that takes them in order and carries each out with the link's command
+sender (:class:`tml.mavlink.autopilot.Autopilot`): ``submit`` only queues (and starts the
+worker if there is none), ``poll`` returns the :class:`~tml.vehicle.RequestResult` of the
+requests finished since the last poll. The worker ends when no request is left: a fleet
+hovering, or waiting for an event, has no thread per vehicle (the link's reactor reads its
+messages, tml.mavlink.reactor); what must be done periodically besides -- the streams asked
+again when they stay away (:data:`STREAM_CHECK_PERIOD`), the GUIDED target kept -- is done
+by the link listener at the vehicle's HEARTBEAT.
 
 ``state`` is built on demand from the link's latest :class:`~tml.mavlink.telemetry.Telemetry`
 snapshot: local position from GLOBAL_POSITION_INT relative to HOME_POSITION (via
@@ -141,7 +146,7 @@ Clock = Callable[[], float]
 VITAL = ("HEARTBEAT", "EXTENDED_SYS_STATE", "GLOBAL_POSITION_INT")
 """The messages of the readings the rules judge by: armed and mode, landed, position."""
 STREAM_CHECK_PERIOD = 2.0
-"""Seconds between the worker's checks that the streams asked for arrive."""
+"""Seconds at least between two checks (at a HEARTBEAT) that the streams asked for arrive."""
 STAMP_SILENCE = 1.5
 """Seconds (the link's clock) without a ``time_boot_ms`` stamp from the autopilot after which
 its HEARTBEAT brings a new request for the streams: a rebooted autopilot has forgotten
@@ -323,8 +328,9 @@ class MavlinkVehicle:
         self._reboots = RebootWatch()  # the autopilot's clock going back: a new boot
         self._stamps_asked = -math.inf  # when the streams were last asked for by _keep_stamps
         self._stamped_at: float | None = None  # when the autopilot's last stamp came
-        self._asked: float | None = None  # when the latest request was submitted
+        self._asked: float | None = None  # when the latest request was submitted or done
         self._flight_asked: float | None = None  # ... the latest of FLIGHT_REQUESTS
+        self._flights_pending = 0  # FLIGHT_REQUESTS submitted and not yet carried out
         link.listen(self._on_message)
         self.timebase.announce()
         self._worker = threading.Thread(target=self._work, daemon=True,
@@ -385,10 +391,12 @@ class MavlinkVehicle:
             capabilities=self.capabilities, skills=self._skills(), vehicle_type=t.airframe,
             status_text=t.status_texts[-1].text if t.status_texts else "",
             messages=_messages(t), rejected=t.rejected, rejected_last=t.rejected_last,
-            taken=self._modes.taken, heard=self._heard(now), asked=self._asked,
+            taken=self._modes.taken, heard=self._heard(now),
+            # A request not yet carried out is asked for now: no reading is newer than it.
+            asked=now if self._queue.unfinished_tasks else self._asked,
             rebooted="" if self._reboots.reboot is None else str(self._reboots.reboot),
             reboots=self._reboots.count,
-            flight_asked=self._flight_asked)
+            flight_asked=now if self._flights_pending else self._flight_asked)
 
     def _skills(self) -> Mapping[str, str]:
         """Each skill of :data:`SKILL_BINDINGS` and why it cannot be switched now ("": it
@@ -422,10 +430,13 @@ class MavlinkVehicle:
         if isinstance(request, SetYaw) and request.relative:
             heading = (self.state().heading + request.heading) % 360.0
             request = replace(request, heading=heading, relative=False)
-        self._asked = self.clock()
-        if isinstance(request, FLIGHT_REQUESTS):
-            self._flight_asked = self._asked
-        self._changes += 1
+        now = self.clock()  # read outside the lock: a vehicle clock reads the link's
+        with self._lock:
+            self._asked = now
+            if isinstance(request, FLIGHT_REQUESTS):
+                self._flight_asked = now
+                self._flights_pending += 1
+            self._changes += 1
         self._queue.put(request)
 
     def poll(self) -> list[RequestResult]:
@@ -567,11 +578,26 @@ class MavlinkVehicle:
             try:
                 result = self._carry_out(request)
             finally:
-                self._queue.task_done()
+                self._carried_out(request)
             with self._lock:
                 self._results.append(result)
             if self.on_result is not None:
                 self.on_result()
+
+    def _carried_out(self, request: Request) -> None:
+        """A request has gone out and been answered (or given up): what the vehicle shows
+        counts for it from now on. A reading that arrived while it waited in the queue or
+        was being sent says nothing about it -- an Arm still queued when the run is
+        aborted would otherwise be judged from a 'disarmed' heard before it went out, and
+        arm the vehicle after the abort decided it was safe."""
+        now = self.clock()
+        with self._lock:
+            self._asked = now
+            if isinstance(request, FLIGHT_REQUESTS):
+                self._flight_asked = now
+                self._flights_pending -= 1
+            self._changes += 1
+        self._queue.task_done()
 
     def _keep_streams(self) -> None:
         """Ask again for each stream that stays away (the request or its answer was lost,

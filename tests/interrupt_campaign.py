@@ -24,10 +24,10 @@ client of its own on the vehicle's port (the simulator's port takes several clie
 ArduPilot SITL's second serial port), never tml's log -- records every vehicle's mode,
 armed state, altitude and landed state.
 
-*The verdict* (:func:`verdict`) is the observer's: after the interrupt every vehicle is
-seen disarmed on the ground, having been in the safe state (RTL or LAND for a copter,
-disarmed for a rover) on the way if it was flying; the row says which safe state was seen
-and how many vehicle seconds after the interrupt. For a link cut it also says who acted:
+*The verdict* (:func:`fly_case`) is the observer's: after the interrupt every vehicle is
+seen disarmed on the ground (a rover: disarmed); the row says in which modes a flying one
+came down (RTL; LAND for one that was landing) and how many vehicle seconds after the
+interrupt it was first seen in one and on the ground. For a link cut it also says who acted:
 tml once it heard the vehicle again, or the vehicle's own GCS failsafe during the cut.
 States are waited for with generous wall-clock hang guards; no fixed sleep decides.
 

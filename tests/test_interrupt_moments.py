@@ -81,5 +81,9 @@ def test_ctrl_c_right_after_a_request_leaves_the_vehicle_on_the_ground(
         assert process.returncode == 3, (out, err)
         armed, altitude = observe_safe(port)
         assert (armed, altitude < 0.3) == (False, True), (out, err, armed, altitude)
+    # A safe state commanded is confirmed. None is commanded when telemetry fresher than
+    # the request already showed the vehicle disarmed on the ground (the rule of
+    # tml.engine.safety), which a busy machine may see before the signal: the observer's
+    # verdict above is the one that counts.
     safety = [line for line in log_lines(log) if line["kind"] == "safety"]
-    assert safety and safety[-1].get("confirmed"), safety
+    assert not safety or safety[-1].get("confirmed"), safety

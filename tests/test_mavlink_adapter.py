@@ -442,3 +442,20 @@ def test_a_mode_change_tml_did_not_ask_for_is_seen_as_taken(rig: Rig) -> None:
     _other_ground_station_sets(rig.sim.tcp_ports[0], 9)  # LAND
     taken = rig.until(lambda s: s.taken != "", "taken")
     assert taken.taken == "LAND" and taken.mode == "LAND"
+
+
+def test_a_flight_request_not_yet_carried_out_keeps_the_vehicle_possibly_flying() -> None:
+    # 5 s each way: the Arm is on its way (or its answer is) for seconds of vehicle time
+    # while readings keep arriving that show the vehicle disarmed on the ground. None of
+    # them may clear it: an abort now must still command the safe state.
+    with make_rig(faults=Faults(latency=5.0), speedup=5.0) as rig:
+        rig.until(lambda s: s.ready and s.home is not None, "ready")
+        assert rig.do(SetMode(1, "GUIDED")).ok
+        submitted = rig.sim.time
+        rig.vehicle.submit(Arm(1))
+        pending = rig.until(lambda s: not rig.vehicle.idle() and s.heard is not None
+                            and s.heard > submitted + 1.0, "a reading while the Arm is out")
+        assert not pending.armed and pending.landed  # what the readings say ...
+        assert pending.possibly_flying and not pending.current  # ... decides nothing yet
+        rig.until(lambda s: rig.vehicle.idle(), "the Arm carried out")
+        rig.until(lambda s: s.current and s.armed, "armed, seen after the Arm was answered")

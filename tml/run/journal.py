@@ -45,6 +45,7 @@ import fcntl
 import json
 import math
 import os
+import stat
 from collections.abc import Callable, Mapping
 from datetime import datetime
 from typing import Any, Protocol
@@ -142,6 +143,10 @@ def lock(stream: Any, path: str) -> None:
     except BlockingIOError:
         raise JournalBusy(f"{path}: another process is writing this flight log (a run "
                           f"still going on): one run writes a log at a time") from None
+    except OSError:
+        # A file that takes no lock (a device such as /dev/full, a file system without
+        # flock): the log is written unguarded -- a missing lock must not stop a flight.
+        pass
 
 
 class Journal:
@@ -178,8 +183,8 @@ class Journal:
             lock(stream, path)
             if append:
                 stream.seek(0, os.SEEK_END)
-            else:
-                stream.truncate(0)
+            elif stat.S_ISREG(os.fstat(stream.fileno()).st_mode):
+                stream.truncate(0)  # (a device or a pipe has nothing to truncate)
         except BaseException:
             stream.close()
             raise

@@ -184,3 +184,12 @@ def test_one_writer_at_a_time_and_a_refused_one_changes_nothing(tmp_path) -> Non
     again.write(1.0, "run", message="run resumed")
     again.close()
     assert [line["message"] for line in read(path)] == ["run started", "run resumed"]
+
+
+def test_a_device_is_no_log_to_lock_two_runs_may_share_dev_null() -> None:
+    first, second = Journal.open("/dev/null"), Journal.open("/dev/null")
+    first.write(0.0, "run", message="run started")
+    second.write(0.0, "run", message="run started")
+    assert (first.lines, second.lines) == (1, 1)
+    first.close()
+    second.close()

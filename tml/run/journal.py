@@ -180,11 +180,14 @@ class Journal:
         # Opened without truncating, so that a log another process writes is left whole.
         stream = open(path, "r+" if append else "a", encoding="utf-8")  # noqa: SIM115
         try:
-            lock(stream, path)
-            if append:
-                stream.seek(0, os.SEEK_END)
-            elif stat.S_ISREG(os.fstat(stream.fileno()).st_mode):
-                stream.truncate(0)  # (a device or a pipe has nothing to truncate)
+            # Only a file is locked and truncated: a device or a pipe (/dev/null, /dev/full)
+            # is no log to resume, has nothing to truncate, and two runs may share it.
+            if stat.S_ISREG(os.fstat(stream.fileno()).st_mode):
+                lock(stream, path)
+                if append:
+                    stream.seek(0, os.SEEK_END)
+                else:
+                    stream.truncate(0)
         except BaseException:
             stream.close()
             raise

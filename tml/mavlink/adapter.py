@@ -308,7 +308,10 @@ class MavlinkVehicle:
         self._names = detection_names(world)
         self._lock = threading.Lock()
         self._results: list[RequestResult] = []
-        self._queue: Mailbox[Request | None] = Mailbox(self.timebase)
+        self._queue: Mailbox[Request] = Mailbox(self.timebase)
+        self._worker: threading.Thread | None = None  # only while requests wait (submit)
+        self._worker_lock = threading.Lock()
+        self._streams_checked = self.timebase.now()  # when _keep_streams last looked
         self._params: dict[tuple[int, str], float] = {}
         self._param_arrived = threading.Condition()
         self._seen: dict[tuple[str, int], float] = {}
@@ -332,10 +335,6 @@ class MavlinkVehicle:
         self._flight_asked: float | None = None  # ... the latest of FLIGHT_REQUESTS
         self._flights_pending = 0  # FLIGHT_REQUESTS submitted and not yet carried out
         link.listen(self._on_message)
-        self.timebase.announce()
-        self._worker = threading.Thread(target=self._work, daemon=True,
-                                        name=f"vehicle {system_id}")
-        self._worker.start()
 
     # --- set-up ---------------------------------------------------------------------------
 
@@ -437,7 +436,13 @@ class MavlinkVehicle:
                 self._flight_asked = now
                 self._flights_pending += 1
             self._changes += 1
-        self._queue.put(request)
+        with self._worker_lock:
+            self._queue.put(request)
+            if self._worker is None:
+                self.timebase.announce()  # time waits for the request to be taken up
+                self._worker = threading.Thread(target=self._work, daemon=True,
+                                                name=f"vehicle {self.system_id}")
+                self._worker.start()
 
     def poll(self) -> list[RequestResult]:
         """Results finished since the last poll."""
@@ -448,9 +453,11 @@ class MavlinkVehicle:
         return results
 
     def close(self) -> None:
-        """Stop the worker once the requests queued so far are done (waits up to 10 s)."""
-        self._queue.put(None)
-        self._worker.join(timeout=10.0)
+        """Return once the requests submitted so far are carried out (waits up to 10 s)."""
+        with self._worker_lock:
+            worker = self._worker
+        if worker is not None:
+            worker.join(timeout=10.0)
 
     def idle(self) -> bool:
         """True when every submitted request has been carried out."""
@@ -508,6 +515,10 @@ class MavlinkVehicle:
                 self._reboots.heartbeat(snapshot.armed)
             self._keep_target(snapshot)
             self._keep_stamps()
+            if self.timebase.now() - self._streams_checked >= STREAM_CHECK_PERIOD:
+                self._streams_checked = self.timebase.now()
+                with contextlib.suppress(OSError):
+                    self._keep_streams()
         elif kind == "PARAM_VALUE":
             with self._param_arrived:
                 self._params[(component, _text(msg.param_id))] = msg.param_value
@@ -556,33 +567,25 @@ class MavlinkVehicle:
         self._target_sent = self.timebase.now()
         self.mav.position_target(latitude, longitude, altitude)
 
-    # --- the worker thread ------------------------------------------------------------
+    # --- the worker thread (while requests wait) --------------------------------------
 
     def _work(self) -> None:
         with self.timebase.taking_part(announced=True):
-            self._serve()
-
-    def _serve(self) -> None:
-        checked = self.timebase.now()
-        while True:
-            if self.timebase.now() - checked >= STREAM_CHECK_PERIOD:
-                checked = self.timebase.now()
-                self._keep_streams()
-            try:
-                request = self._queue.get(timeout=STREAM_CHECK_PERIOD)
-            except Empty:
-                continue
-            if request is None:
-                self._queue.task_done()
-                return
-            try:
-                result = self._carry_out(request)
-            finally:
-                self._carried_out(request)
-            with self._lock:
-                self._results.append(result)
-            if self.on_result is not None:
-                self.on_result()
+            while True:
+                with self._worker_lock:  # ends only with none left: submit starts another
+                    try:
+                        request = self._queue.get(timeout=0)
+                    except Empty:
+                        self._worker = None
+                        return
+                try:
+                    result = self._carry_out(request)
+                finally:
+                    self._carried_out(request)
+                with self._lock:
+                    self._results.append(result)
+                if self.on_result is not None:
+                    self.on_result()
 
     def _carried_out(self, request: Request) -> None:
         """A request has gone out and been answered (or given up): what the vehicle shows

@@ -7,6 +7,7 @@ from dataclasses import replace
 import pytest
 
 from tml.engine.safety import (
+    SAFE_STATES,
     CommandRefusal,
     operator_command_shown,
     operator_request,
@@ -61,6 +62,22 @@ def test_a_safe_state_is_shown_only_by_telemetry_newer_than_the_latest_request()
     assert safe_state_shown(replace(rtl, heard=8.2), "rtl")
     # A source that does not say how old its readings are is read as it always was.
     assert safe_state_shown(replace(rtl, heard=None), "rtl")
+
+
+@pytest.mark.parametrize(("mode", "safe_state", "expected"), [
+    ("LAND", "rtl", None), ("RTL", "rtl", None), ("LAND", "land", None),
+    ("RTL", "land", "Land"), ("GUIDED", "rtl", "ReturnToLaunch"), ("LAND", "hold", "Hold")])
+def test_a_vehicle_landing_or_returning_already_is_left_to_it(mode: str, safe_state: str,
+                                                              expected: str | None) -> None:
+    # An interrupt during the mission's own landing: sending the copter back up to return
+    # would take 25 s to the ground instead of a few.
+    landing = VehicleState(1, 10.0, armed=True, landed=False, mode=mode, asked=8.0, heard=9.0)
+    found = safe_state_request(landing, safe_state)
+    assert (found[0].name if found else None) == expected
+    # ... but only on a picture newer than the latest request, and over a live link.
+    for doubt in (replace(landing, heard=7.0), replace(landing, link="lost")):
+        found = safe_state_request(doubt, safe_state)
+        assert found is not None and found[0].name == SAFE_STATES[safe_state](1).name
 
 
 def test_action_failures_are_the_values_of_the_action_failure_parameter() -> None:

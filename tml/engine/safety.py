@@ -23,13 +23,18 @@ def safe_state_request(state: VehicleState, safe_state: str) -> tuple[Request, s
     that is not on the ground -- flying, saying it is not landed even when disarmed (in
     doubt it is taken to be in the air), or asked to fly with no telemetry since
     (:attr:`~tml.vehicle.VehicleState.possibly_flying`) -- is told ``safe_state`` (rtl,
-    land or hold); one armed on the ground is disarmed.
+    land or hold), unless fresh telemetry shows it landing or returning already in a mode
+    that carries that safe state out (:data:`SHOWN`; a landing copter is not sent back up
+    to return); one armed on the ground is disarmed.
     """
     if kind_of(state.vehicle_type) is Kind.GROUND:
         if state.armed or state.flight_unseen:
             return Disarm(state.vehicle_id), "ground vehicle armed: disarm (it stops)"
         return None
     if state.possibly_flying:
+        if safe_state != "hold" and state.current and state.link != "lost" \
+                and state.mode in SHOWN.get(safe_state, SHOWN["rtl"]):
+            return None  # on its way down already (landing, returning): left to it
         request = SAFE_STATES.get(safe_state, ReturnToLaunch)(state.vehicle_id)
         return request, f"vehicle in the air: {request.name}"
     if state.armed:

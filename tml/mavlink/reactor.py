@@ -131,6 +131,8 @@ class Reactor:
             elif key.data not in turn:
                 turn.append(key.data)
         for owner in turn:
+            if self._removing:  # a closing link waits for this: not for the whole round
+                self._take_in()
             if owner not in self._files:
                 continue  # let go of during this round
             try:

@@ -239,6 +239,16 @@ class Telemetry:
         return float("inf") if self.last_heartbeat is None else now - self.last_heartbeat
 
 
+def _copy(snapshot: Telemetry, changes: Mapping[str, Any]) -> Telemetry:
+    """A copy of ``snapshot`` with ``changes``, as dataclasses.replace makes it but without
+    running __init__ over every field: this runs for most messages of every vehicle (a
+    listener's snapshot of a message that changed only the counts, too)."""
+    new = object.__new__(Telemetry)
+    new.__dict__.update(snapshot.__dict__)
+    new.__dict__.update(changes)
+    return new
+
+
 class TelemetryTracker:
     """Folds one vehicle's messages into :class:`Telemetry` snapshots."""
 
@@ -260,7 +270,8 @@ class TelemetryTracker:
         is next read, so the link builds no snapshot per item of a mission transfer."""
         if self._counted is not None:
             now, received, lost = self._counted
-            self._snapshot = replace(self._snapshot, time=now, received=received, lost=lost)
+            self._snapshot = _copy(self._snapshot, {"time": now, "received": received,
+                                                    "lost": lost})
             self._counted = None
         return self._snapshot
 
@@ -300,12 +311,7 @@ class TelemetryTracker:
                    if name not in BOOKKEEPING):
                 changes["revision"] = current.revision + 1
             changes.update(time=now, received=received, lost=lost)
-            # A copy with the changes, as dataclasses.replace makes it but without running
-            # __init__ over every field: this runs for most messages of every vehicle.
-            new = object.__new__(Telemetry)
-            new.__dict__.update(fields)
-            new.__dict__.update(changes)
-            self._snapshot = new
+            self._snapshot = _copy(current, changes)
             self._counted = None
         else:
             self._counted = (now, received, lost)

@@ -14,7 +14,8 @@ line parser goes below ``tml/commands``) and opens a :class:`Session` with
 2. wakes whoever flies them on every message that changes what a vehicle shows and on
    every request result: its own :attr:`Session.wake` flag (one runner), or ``notify``
    (a service whose runs each have their own);
-3. clears a mission for flight before anything is sent (:meth:`Session.clear`): the
+3. clears a mission for flight before anything is sent (:meth:`Session.clear`, by the
+   rules of :mod:`tml.run.clearance`, which ``tml serve`` clears its runs with too): the
    actions the vehicles cannot do at all, the vehicles' own reaction to a lost ground
    station (``FS_GCS_ENABLE``), the verifier's profile read from the vehicle (``--profile
    vehicle``) and the mission verified with it. A refusal is a :class:`Refusal`, which the
@@ -36,7 +37,6 @@ session waits for it; closing does not.
 from __future__ import annotations
 
 import contextlib
-import enum
 import os
 import threading
 import time
@@ -46,6 +46,10 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Protocol
 
 from tml.errors import LinkLost, TmlError
+
+# Said here too: the session's users name the clearance's rules through it.
+from tml.run.clearance import GCS_FAILSAFE as GCS_FAILSAFE
+from tml.run.clearance import Refusal as Refusal
 from tml.timebase import SYSTEM, Flag, Lockstep, Timebase
 
 if TYPE_CHECKING:
@@ -54,6 +58,7 @@ if TYPE_CHECKING:
     from tml.language.model import Mission
     from tml.mavlink.adapter import MavlinkVehicle
     from tml.mavlink.link import Link
+    from tml.run.clearance import ClearanceOptions, Finding
     from tml.run.journal import Journal
     from tml.run.resume import ResumePoint
     from tml.run.runner import Runner, RunOptions
@@ -62,10 +67,6 @@ if TYPE_CHECKING:
 
 VEHICLE_PROFILE = "vehicle"
 """The profile name that means: fill the shipped profile from the vehicle's parameters."""
-
-GCS_FAILSAFE = "FS_GCS_ENABLE"
-"""ArduPilot's parameter for what a vehicle does by itself when its ground station falls
-silent (0: nothing; 1 RTL, 5 LAND ...; see docs/run.md)."""
 
 DISCOVERY_WAIT = 1.0
 """Seconds other vehicles on a link (a radio, a router) have to say hello after the first."""
@@ -186,15 +187,6 @@ class SessionOptions:
         return self.signing_key_file is not None or ENVIRONMENT in os.environ
 
 
-class Refusal(enum.Enum):
-    """Why a mission was not cleared for flight."""
-
-    MISSION = "mission"
-    """The mission: infeasible, or with actions its vehicles cannot do (exit 1)."""
-    VEHICLE = "vehicle"
-    """A vehicle: no failsafe of its own while one is required (exit 4)."""
-
-
 class SeveralVehicles(TmlError):
     """A link hears several vehicles and none was named (``--sysid``): which to fly is
     the operator's to say (exit 2), not tml's to guess."""
@@ -224,78 +216,50 @@ class Session:
     def clear(self, mission: Mission, profile: VehicleProfile | None,
               extra: World | None = None) -> VehicleProfile | Refusal:
         """Clear ``mission`` for flight on every vehicle of the session, before anything
-        is sent: its actions, the vehicles' GCS failsafe, and, with ``profile`` None
-        (``--profile vehicle``), the profile read from the first vehicle and the mission
-        verified with it. The profile to fly with, or why not."""
-        refused = self.preflight(mission) or self.gcs_failsafe()
-        if refused is not None:
-            return refused
-        if profile is None:
-            profile = self.vehicle_profile(self.vehicles[0])
-            refused = self.verify(mission, profile, extra)
-            if refused is not None:
-                return refused
-        return profile
+        is sent (:func:`tml.run.clearance.clear`, what it found said on the error console):
+        its actions, the vehicles' GCS failsafe, and, with ``profile`` None (``--profile
+        vehicle``), the profile read from the first vehicle and the mission verified with
+        it (a ``profile`` given was verified before the vehicles were opened:
+        :func:`verify`). The profile to fly with, or why not."""
+        from tml.run.clearance import Cleared, clear
 
-    def preflight(self, mission: Mission,
-                  vehicles: Sequence[MavlinkVehicle] | None = None) -> Refusal | None:
-        """Refuse a mission with actions the vehicles cannot do at all
-        (:func:`tml.verify.inflight.preflight`)."""
-        from tml.verify.inflight import preflight
+        found = clear(mission, self.vehicles, profile, extra, self.clearance_options(),
+                      verified=True)
+        self._say(mission, found.findings)
+        return found.profile if isinstance(found, Cleared) else found.refusal
 
-        found = preflight(mission, {v.vehicle_id: v.state().vehicle_type
-                                    for v in vehicles or self.vehicles})
-        if not found:
-            return None
-        for violation in found:
-            whose = f" (role {violation.role})" if violation.role else ""
-            if self.errors is not None:
-                self.errors.print(f"{violation} (vehicle {violation.vehicles[0]}{whose})",
-                                  markup=False, highlight=False)
-        return self._refused(mission, "mission with actions its vehicles cannot do")
+    def clearance_options(self) -> ClearanceOptions:
+        """The clearance's options of the session's: the GCS failsafe not read on the
+        simulator of this process (its link does not die alone) unless required."""
+        from tml.run.clearance import ClearanceOptions
 
-    def verify(self, mission: Mission, profile: VehicleProfile,
-               extra: World | None = None) -> Refusal | None:
-        """Verify the mission with ``profile``; the refusal if it must not be flown."""
-        return verify(mission, profile, extra, self.options, self.errors)
+        return ClearanceOptions(force=self.options.force,
+                                gcs_failsafe=not self.options.sim,
+                                require_gcs_failsafe=self.options.require_gcs_failsafe)
 
     def gcs_failsafe(self) -> Refusal | None:
-        """Read each vehicle's own reaction to a lost ground station: without one, a
-        vehicle whose link dies hovers until its battery runs out. Warns (with
-        ``--connect``), or refuses with ``require_gcs_failsafe``."""
-        required = self.options.require_gcs_failsafe
-        if not required and self.options.sim:
-            return None  # the simulator is in this process: its link does not die alone
-        missing = []
-        for vehicle in self.vehicles:
-            value = vehicle.read_parameters([GCS_FAILSAFE]).get(GCS_FAILSAFE)
-            if value is None:
-                missing.append(f"vehicle {vehicle.vehicle_id}: {GCS_FAILSAFE} not reported: "
-                               "what the vehicle does when it loses this ground station is "
-                               "unknown")
-            elif value == 0:
-                missing.append(f"vehicle {vehicle.vehicle_id}: {GCS_FAILSAFE} is 0: the "
-                               "vehicle does nothing by itself when it loses this ground "
-                               "station (1 returns home, 5 lands)")
-        for problem in missing:
-            self.say(f"{'' if required else 'warning: '}{problem}")
-        if missing and required:
-            self.say("not flown (--require-gcs-failsafe)")
-            return Refusal.VEHICLE
-        return None
+        """Read each vehicle's own reaction to a lost ground station
+        (:func:`tml.run.clearance.failsafe_missing`): warns (with ``--connect``), or
+        refuses with ``require_gcs_failsafe``."""
+        from tml.run.clearance import failsafe_missing
 
-    def vehicle_profile(self, vehicle: MavlinkVehicle) -> VehicleProfile:
-        """The shipped profile of the vehicle's kind filled in from its own parameters."""
-        from tml.verify.profile import describe_parameters, profile_from_vehicle, shipped_for
+        options = self.clearance_options()
+        if not options.gcs_failsafe and not options.require_gcs_failsafe:
+            return None
+        missing = failsafe_missing(self.vehicles, options.require_gcs_failsafe)
+        if missing is None:
+            return None
+        if self.errors is not None:
+            from tml.run.clearance import say
 
-        profile, params = profile_from_vehicle(vehicle.read_parameters,
-                                               shipped_for(vehicle.state().vehicle_type))
-        self.say(f"{profile.name} profile from vehicle {vehicle.vehicle_id}'s parameters: "
-                 + describe_parameters(params))
-        return profile
+            say([missing], "", self.options.program, self.options.force, self.errors)
+        return Refusal.VEHICLE if missing.required else None
 
-    def _refused(self, mission: Mission, what: str) -> Refusal | None:
-        return refused(mission, what, self.options, self.errors)
+    def _say(self, mission: Mission, findings: Iterable[Finding]) -> None:
+        if self.errors is not None:
+            from tml.run.clearance import say
+
+            say(findings, mission.file, self.options.program, self.options.force, self.errors)
 
     # -- the run ----------------------------------------------------------------------------
 
@@ -353,31 +317,15 @@ class Session:
 
 def verify(mission: Mission, profile: VehicleProfile, extra: World | None,
            options: SessionOptions, errors: Console | None) -> Refusal | None:
-    """Verify ``mission`` with ``profile`` (and the ``extra`` world); the refusal if it must
-    not be flown (infeasible, without ``force``). Used before the vehicles are opened too."""
-    from tml.verify.report import print_report
-    from tml.verify.static import verify_mission
+    """Verify ``mission`` with ``profile`` (and the ``extra`` world) before the vehicles are
+    opened (:func:`tml.run.clearance.clear` without vehicles), what it found said on
+    ``errors``; the refusal if it must not be flown (infeasible, without ``force``)."""
+    from tml.run.clearance import ClearanceOptions, NotCleared, clear, say
 
-    report = verify_mission(mission, profile, extra)
-    if report.feasible:
-        return None
+    found = clear(mission, (), profile, extra, ClearanceOptions(force=options.force))
     if errors is not None:
-        print_report(report, errors)
-    return refused(mission, "infeasible mission", options, errors)
-
-
-def refused(mission: Mission, what: str, options: SessionOptions,
-            errors: Console | None) -> Refusal | None:
-    """Refusal.MISSION for a mission refused as ``what``; None when ``force`` flies it
-    anyway (said either way)."""
-    if errors is not None:
-        if not options.force:
-            errors.print(f"{options.program}: {mission.file}: {what}, not flown (--force "
-                         "flies it anyway)", markup=False, highlight=False)
-        else:
-            errors.print(f"{options.program}: {what} flown anyway (--force)", markup=False,
-                         highlight=False)
-    return None if options.force else Refusal.MISSION
+        say(found.findings, mission.file, options.program, options.force, errors)
+    return found.refusal if isinstance(found, NotCleared) else None
 
 
 @contextlib.contextmanager

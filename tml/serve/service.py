@@ -12,9 +12,10 @@ infeasible one with the report of ``tml verify``.
 the pipeline of ``tml validate``; only valid ones are stored (warnings are kept with
 them). A stored mission is parsed again from its text when it is needed (and kept parsed).
 
-*Runs* start as ``tml run`` starts: the mission is verified against the vehicle profile
-(refused when infeasible unless ``force``), the vehicles' kinds are checked against its
-actions (:func:`tml.verify.inflight.preflight`), the vehicles are claimed, and a
+*Runs* start as ``tml run`` starts: the mission is cleared for the run's vehicles by the
+pre-flight clearance (:func:`tml.run.clearance.clear`: verified against the vehicle
+profile, the vehicles' kinds checked against its actions; refused unless ``force``), the
+vehicles are claimed, and a
 :class:`~tml.serve.live.LiveRun` flies it in its own thread with the in-flight checks of
 :func:`tml.run.checked.checked_options`. Without roles every vehicle of the run flies
 the whole mission, as with ``tml run --vehicles N``; with roles the run's vehicles are
@@ -51,6 +52,14 @@ from tml.errors import ControlRefused, TmlError
 from tml.language.model import Mission, Task
 from tml.language.validation import ValidationResult, validate_file
 from tml.run.checked import checked_options
+from tml.run.clearance import (
+    ClearanceOptions,
+    Incapable,
+    Infeasible,
+    NoParameters,
+    NotCleared,
+    clear,
+)
 from tml.run.journal import jsonable, telemetry_fields
 from tml.run.resume import ResumeRefused, progress_point
 from tml.run.session import VEHICLE_PROFILE
@@ -58,15 +67,8 @@ from tml.serve.hangar import Hangar, VehicleTaken
 from tml.serve.live import LiveRun, TaskBoard
 from tml.serve.storage import ACTIVE, Storage, StoredMission, StoredRun
 from tml.vehicle import IdSource, Vehicle, VehicleState, awaiting
-from tml.verify.inflight import preflight
 from tml.verify.motion import PredictedState
-from tml.verify.profile import (
-    SHIPPED,
-    VehicleProfile,
-    load_profile,
-    profile_from_vehicle,
-    shipped_for,
-)
+from tml.verify.profile import SHIPPED, VehicleProfile, load_profile
 from tml.verify.report import report_document
 from tml.verify.static import verify_mission
 from tml.world import Cylinder, World
@@ -273,17 +275,7 @@ class Service:
         run_id = secrets.token_hex(6)
         chosen = self._choose(mission, vehicles, run_id)
         try:
-            checked = self._profile(profile, chosen)
-            report = verify_mission(mission, checked)
-            if not report.feasible and not force:
-                raise Refused(f"{stored.filename}: infeasible mission, not flown (force "
-                              "flies it anyway)", report=report_document(report))
-            kinds = {vid: self.hangar.vehicles[vid].state().vehicle_type for vid in chosen}
-            cannot = preflight(mission, kinds)
-            if cannot and not force:
-                raise Refused(f"{stored.filename}: the vehicles cannot do every action of "
-                              "the mission, not flown (force flies it anyway)",
-                              violations=[v.to_dict() for v in cannot])
+            checked = self._clear(mission, stored.filename, profile, chosen, force)
             record = StoredRun(run_id, stored.id, stored.name, stored.source, list(chosen),
                                "waiting", "", [], None, self.options.instance,
                                {"safe_state": safe_state, "profile": profile,
@@ -322,24 +314,38 @@ class Service:
         record = StoredRun(secrets.token_hex(6), stored.mission_id, stored.mission_name,
                            stored.mission_source, list(stored.vehicles), "waiting", "", [],
                            None, self.options.instance, options, time.time(), None)
-        return self._launch(record, mission,
-                            self._profile(str(options.get("profile", "quadcopter")),
-                                          stored.vehicles),
-                            point.progress)
+        checked = self._clear(mission, f"run {run_id}",
+                              str(options.get("profile", "quadcopter")), stored.vehicles,
+                              bool(options.get("force", False)))
+        return self._launch(record, mission, checked, point.progress)
 
-    def _profile(self, name: str, vehicles: Sequence[int]) -> VehicleProfile:
-        """The profile a run is verified and flown with: a shipped one, or, for
-        ``vehicle``, the shipped profile of the first vehicle's kind filled in from its own
-        parameters, as ``tml run --profile vehicle`` reads it."""
-        if name != VEHICLE_PROFILE:
-            return _profile(name)
-        first = self.hangar.vehicles[vehicles[0]]
-        read = getattr(first, "read_parameters", None)
-        if read is None:
-            raise Refused(f"profile 'vehicle': vehicle {vehicles[0]} does not report its "
+    def _clear(self, mission: Mission, filename: str, profile: str, vehicles: Sequence[int],
+               force: bool) -> VehicleProfile:
+        """The profile a run flies with, once :func:`tml.run.clearance.clear` cleared its
+        mission for its vehicles, as ``tml run`` does: ``profile`` a shipped one, or
+        ``vehicle``, the first vehicle's kind filled in from its own parameters. The GCS
+        failsafe of every vehicle was read when the service opened it (or leased it).
+        Refused (422) with the report, the violations or the reason when not cleared."""
+        choice = None if profile == VEHICLE_PROFILE else _profile(profile)
+        # A vehicle this service does not have (a continued run's) fails when it is flown,
+        # as before there was a clearance here.
+        found = clear(mission, [self.hangar.vehicles[v] for v in vehicles
+                                if v in self.hangar.vehicles], choice,
+                      options=ClearanceOptions(force=force, gcs_failsafe=False))
+        if not isinstance(found, NotCleared):
+            return found.profile
+        why = found.reason
+        if isinstance(why, Infeasible):
+            raise Refused(f"{filename}: infeasible mission, not flown (force flies it "
+                          "anyway)", report=report_document(why.report))
+        if isinstance(why, Incapable):
+            raise Refused(f"{filename}: the vehicles cannot do every action of the mission, "
+                          "not flown (force flies it anyway)",
+                          violations=[v.to_dict() for v in why.violations])
+        if isinstance(why, NoParameters):
+            raise Refused(f"profile 'vehicle': vehicle {why.vehicle_id} does not report its "
                           "parameters")
-        profile, _params = profile_from_vehicle(read, shipped_for(first.state().vehicle_type))
-        return profile
+        raise Refused(f"{filename}: not cleared for flight ({found.refusal.value})")
 
     def _launch(self, record: StoredRun, mission: Mission, checked: VehicleProfile,
                 resume: Mapping[int, Progress] | None = None,

@@ -1,4 +1,5 @@
-"""Fleet: one interpreter flying 10, 100 and 500 simulated vehicles -- CPU and event delay.
+"""Fleet: one interpreter flying 10, 100, 500 or 1,000 simulated vehicles -- CPU, event delay,
+memory and threads.
 
 Run by hand: ``python benchmarks/fleet.py [--vehicles 10,100,500] [--speedup 1] [--seconds 30]``.
 
@@ -22,8 +23,9 @@ this process:
 - *left*: when the COMMAND_LONG NAV_LAND for that vehicle has been written to its socket
   (``Link.send`` is wrapped to note it).
 
-Their difference is the event delay: the receive thread's hand-off, the runner's wake,
-one engine step, the vehicle's worker and the command's encoding. p50/p99 are over the N
+Their difference is the event delay: the reactor's hand-off (tml.mavlink.reactor: one thread
+reads every link), the runner's wake, one engine step, the vehicle's worker and the command's
+encoding. p50/p99 are over the N
 vehicles of one run.
 
 CPU: ``time.process_time`` of this process while ``Runner.run`` flies (take-off, hover,
@@ -31,10 +33,12 @@ landing; the set-up before it is not counted), divided by the vehicle time flown
 1's ``time_boot_ms``) and by N. The runner's wakes (loop rounds) are counted too: the link
 wakes the runner on each message that changes what a vehicle shows, as ``tml run`` does.
 The simulators' CPU comes from ``getrusage(RUSAGE_CHILDREN)`` after their processes have
-exited, over their whole life.
+exited, over their whole life. Memory per vehicle: how much this process's resident set grew
+from before the links were opened to the end of the flight, divided by N; threads: the most
+this process had at once while it flew (read at each wake of the runner).
 
 The peer, measured in the same run at each N (:func:`peer`): one bare pymavlink loop that
-reads the same streams of as many vehicles through ``select``, flies them up, and sends
+reads the same streams of as many vehicles through ``selectors`` (epoll), flies them up, and sends
 NAV_LAND on the first SYS_STATUS that shows a low battery, with the same stamps -- the least
 a Python ground station reading these streams can spend. The ratios tml / peer are printed,
 and tml's growth from the smallest fleet.
@@ -46,6 +50,7 @@ import argparse
 import os
 import re
 import resource
+import selectors
 import signal
 import subprocess
 import sys
@@ -140,6 +145,8 @@ class Result:
     flown: float  # vehicle s the flight took
     cpu: float  # s of this process's CPU during the flight
     wakes: int  # rounds of the runner's loop during the flight
+    memory: float  # MB the resident set grew from before the links to the flight's end
+    threads: int  # the most threads of this process at once during the flight
     sim_cpu: float  # s of the simulator's CPU over its life
     sim_time: float  # vehicle s the simulator ran
     delays: list[float]
@@ -149,6 +156,11 @@ class Result:
     def cpu_per_vehicle_second(self) -> float:
         """ms of CPU per vehicle per simulated second."""
         return self.cpu * 1000 / (self.vehicles * self.flown)
+
+    @property
+    def memory_per_vehicle(self) -> float:
+        """kB of this process's memory per vehicle."""
+        return self.memory * 1024 / self.vehicles
 
     @property
     def sim_cpu_per_vehicle_second(self) -> float:
@@ -226,8 +238,10 @@ def fly(vehicles: int, speedup: float, seconds: float) -> Result:
     assert mission is not None, "the generated mission is invalid"
     probe = Probe()
     wake = threading.Event()
+    threads = [0]
     with ExitStack() as stack:
         at, sim_cpu = stack.enter_context(simulators(vehicles, speedup))
+        resident = _resident()
         links = []
         for number, (port, _) in enumerate(at, start=1):
             link = stack.enter_context(Link(f"tcp:127.0.0.1:{port}"))
@@ -258,6 +272,7 @@ def fly(vehicles: int, speedup: float, seconds: float) -> Result:
             wake.wait(timeout)
             wake.clear()
             wakes[0] += 1
+            threads[0] = max(threads[0], threading.active_count())
 
         runner = Runner(mission, fleet, options=RunOptions(engine=Options()), wake=wake,
                         wait=wait)
@@ -278,27 +293,37 @@ def fly(vehicles: int, speedup: float, seconds: float) -> Result:
         flown = probe.vehicle_time - started_vehicle
         watchdog.cancel()
         sim_time = probe.vehicle_time
+        grown = _resident() - resident
     statuses = sorted({v.status.value for v in outcome.vehicles})
-    return Result(vehicles, wall, flown, cpu, wakes[0], sum(map(sum, sim_cpu)), sim_time,
-                  probe.delays(), f"{'/'.join(statuses)} (exit {int(outcome.exit_code)})")
+    return Result(vehicles, wall, flown, cpu, wakes[0], grown, threads[0],
+                  sum(map(sum, sim_cpu)), sim_time, probe.delays(),
+                  f"{'/'.join(statuses)} (exit {int(outcome.exit_code)})")
+
+
+def _resident() -> float:
+    """MB of this process's resident set now (Linux's /proc; 0 elsewhere)."""
+    try:
+        pages = int(Path("/proc/self/statm").read_text().split()[1])
+    except (OSError, IndexError, ValueError):
+        return 0.0
+    return pages * os.sysconf("SC_PAGE_SIZE") / 2**20
 
 
 def peer(vehicles: int, speedup: float, seconds: float) -> Result:
     """The same flight, stamps and CPU count without tml: one bare pymavlink loop.
 
-    One thread reads every vehicle's socket through ``select``, parses every message
+    One thread reads every vehicle's socket through ``selectors``, parses every message
     pymavlink hands it and notes the same stamps; the vehicles are asked for the same
     streams at the same rates as tml asks (``DEFAULT_RATES``), put in GUIDED, armed and
     taken off to ALTITUDE, and each is sent NAV_LAND on the first SYS_STATUS that shows its
     battery low. The least a Python ground station reading these streams can spend.
     """
-    import select
-
     from tml.mavlink.autopilot import DEFAULT_RATES
 
     probe = Probe()
     with ExitStack() as stack:
         at, sim_cpu = stack.enter_context(simulators(vehicles, speedup))
+        resident = _resident()
         conns = []
         for port, _ in at:
             conn = mavutil.mavlink_connection(f"tcp:127.0.0.1:{port}", source_system=255,
@@ -314,8 +339,9 @@ def peer(vehicles: int, speedup: float, seconds: float) -> Result:
                 conn.mav.command_long_send(
                     system_id, 1, mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
                     getattr(mavlink, f"MAVLINK_MSG_ID_{name}"), 1e6 / hz, 0, 0, 0, 0, 0)
-        by_fd = {conn.fd: (number, system_id, conn)
-                 for number, (conn, (_, system_id)) in enumerate(zip(conns, at, strict=True), 1)}
+        selector = stack.enter_context(selectors.DefaultSelector())
+        for number, (conn, (_, system_id)) in enumerate(zip(conns, at, strict=True), 1):
+            selector.register(conn.fd, selectors.EVENT_READ, (number, system_id, conn))
         armed: set[int] = set()
         asked: dict[int, float] = {}  # system id -> when GUIDED and ARM were last asked
         links: list[Any] = [_Locked(conn, lock) for conn in conns]
@@ -328,10 +354,10 @@ def peer(vehicles: int, speedup: float, seconds: float) -> Result:
         started_cpu, started_wall = time.process_time(), time.perf_counter()
         end = time.monotonic() + limit
         while len(probe.left) < vehicles and time.monotonic() < end:
-            ready, _, _ = select.select(list(by_fd), [], [], 0.1)
+            ready = selector.select(0.1)
             now = time.monotonic()
-            for fd in ready:
-                number, system_id, conn = by_fd[fd]
+            for key, _ in ready:
+                number, system_id, conn = key.data
                 while (msg := conn.recv_msg()) is not None:
                     probe.on_message(number, msg)
                     kind = msg.get_type()
@@ -362,8 +388,10 @@ def peer(vehicles: int, speedup: float, seconds: float) -> Result:
         wall = time.perf_counter() - started_wall
         flown = probe.vehicle_time - (probe.first_vehicle_time or 0.0)
         sim_time = probe.vehicle_time
-    return Result(vehicles, wall, flown, cpu, 0, sum(map(sum, sim_cpu)), sim_time,
-                  probe.delays(), f"{len(probe.left)}/{vehicles} landed")
+        grown = _resident() - resident
+    return Result(vehicles, wall, flown, cpu, 0, grown, threading.active_count(),
+                  sum(map(sum, sim_cpu)), sim_time, probe.delays(),
+                  f"{len(probe.left)}/{vehicles} landed")
 
 
 class _Locked:
@@ -445,21 +473,23 @@ def main() -> None:
                   f"{r.wall:.1f} s wall for {r.flown:.1f} s of vehicle time, "
                   f"{100 * r.cpu / r.wall:.0f} % of a core, {r.cpu_per_vehicle_second:.2f} "
                   f"ms/veh/s, delay p50 {percentile(r.delays, 0.5):.2f} ms, p99 "
-                  f"{percentile(r.delays, 0.99):.2f} ms; simulator "
+                  f"{percentile(r.delays, 0.99):.2f} ms; {r.memory_per_vehicle:.0f} kB/veh, "
+                  f"{r.threads} threads; simulator "
                   f"{r.sim_cpu_per_vehicle_second:.2f} ms/veh/s", flush=True)
     print(f"\nfleet: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}, speedup "
           f"{args.speedup:g}, triggers over {args.seconds:g} vehicle s; delay = trigger "
           f"telemetry parsed -> NAV_LAND written; peer = a bare pymavlink loop reading the "
           f"same streams of the same number of vehicles")
     print(f"{'vehicles':>8} {'who':>4} {'core %':>6} {'ms/veh/s':>8} {'wakes/s':>7} "
-          f"{'p50 ms':>7} {'p99 ms':>7} {'max ms':>7}")
+          f"{'p50 ms':>7} {'p99 ms':>7} {'max ms':>7} {'kB/veh':>6} {'threads':>7}")
     for pair in rows:
         for who, r in zip(("tml", "peer"), pair, strict=True):
             print(f"{r.vehicles:>8} {who:>4} {100 * r.cpu / r.wall:>6.0f} "
                   f"{r.cpu_per_vehicle_second:>8.2f} "
                   f"{r.wakes / r.wall if who == 'tml' else float('nan'):>7.0f} "
                   f"{percentile(r.delays, 0.5):>7.2f} {percentile(r.delays, 0.99):>7.2f} "
-                  f"{max(r.delays, default=float('nan')):>7.2f}")
+                  f"{max(r.delays, default=float('nan')):>7.2f} "
+                  f"{r.memory_per_vehicle:>6.0f} {r.threads:>7}")
     for tml, bare in rows:
         print(f"tml / peer at {tml.vehicles} vehicles: CPU per vehicle-second "
               f"x{tml.cpu_per_vehicle_second / bare.cpu_per_vehicle_second:.2f}, delay p50 "

@@ -107,7 +107,7 @@ def test_bind_types_arguments_and_fills_defaults() -> None:
     bound = actions.bind(action("LOITER", turns="3", point="(1, 2, 10)"))
     assert bound.name == "LOITER"
     assert bound.values == {"turns": 3, "coordinates": (1.0, 2.0, 10.0), "radius": 15.0,
-                            "altitude_reference": "relative"}
+                            "altitude_reference": "relative", "frame_encoding": "int"}
     assert "duration" not in bound.values
 
 

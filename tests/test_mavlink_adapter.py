@@ -293,7 +293,8 @@ def test_link_degrades_then_is_lost_when_heartbeats_stop() -> None:
     outage = 40.0
     with make_rig(faults=Faults(outages=((outage, 1e6),)), speedup=10.0) as rig:
         up = rig.until(lambda s: s.link == "ok" and s.time > 1.0, "link up")
-        degraded = rig.until(lambda s: s.link != "ok", "link degraded")
+        # (A link starved of a core may look degraded for a moment before the outage too.)
+        degraded = rig.until(lambda s: s.link != "ok" and s.time > outage, "link degraded")
         lost = rig.until(lambda s: s.link == "lost", "link lost")
         assert up.time < outage < degraded.time < lost.time
         assert degraded.link == "degraded"

@@ -488,10 +488,18 @@ def _start_against_a_silent_vehicle(tmp_path: Path, silent: socket.socket
     exit 4 first, sooner on a fast machine than a slow one)."""
     port = silent.getsockname()[1]
     # -X faulthandler: should tml ever not end, SIGABRT makes it say where each thread was.
+    # SIGINT as a terminal leaves it to tml: a test run started in the background by a
+    # script (``cmd &``) would hand its children SIGINT ignored, and a Ctrl-C that comes
+    # before tml takes the signal over would be ignored with it.
     return subprocess.Popen([sys.executable, "-X", "faulthandler", "-m", "tml", "run",
                              write(tmp_path, SHORT), "--connect", f"tcp:127.0.0.1:{port}",
                              "--timeout", "300"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_interruptible)
+
+
+def _interruptible() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _ended(process: subprocess.Popen[str]) -> tuple[str, str]:

@@ -79,6 +79,7 @@ def server(data: Path) -> Iterator[Server]:
         yield found
 
 
+@pytest.mark.timeout(900)  # several flights of the service's simulator: a hang guard only
 def test_the_curl_examples_of_the_docs_work_as_written(server: Server, tmp_path: Path) -> None:
     api = DOC[DOC.index("## The API"):DOC.index("## The page")]
     blocks = re.findall(r"```sh\n(.*?)```", api, re.S)

@@ -51,7 +51,8 @@ def until(done: Callable[[], bool], guard: float = 20.0) -> None:
 
 
 def test_an_instance_name_is_held_by_one_live_process(engine: sa.Engine) -> None:
-    first, second = Leases(engine, "a", lease=0.5), Leases(engine, "a", lease=0.5)
+    # The second's lease is long: its renew below must not find it expired on a busy machine.
+    first, second = Leases(engine, "a", lease=0.5), Leases(engine, "a", lease=30.0)
     assert first.join()
     assert not second.join()  # the first one's lease runs
     until(second.join)  # ... until it expires: a restarted process gets the name

@@ -493,6 +493,21 @@ def test_progress_is_reported_as_items_move() -> None:
     assert len(set(seen)) == 10
 
 
+def test_a_download_goes_on_through_an_error_ack_that_answers_a_late_upload_item() -> None:
+    items = mission(2)
+    download = Download()
+    download.start(0.0)
+    assert download.receive(MissionCount(2), 0.1) == [MissionRequest(0)]
+    assert download.receive(MissionAck(MissionResult.MAV_MISSION_ERROR), 0.15) == []
+    assert download.receive(items[0], 0.2) == [MissionRequest(1)]
+    assert download.receive(items[1], 0.3) == [MissionAck(ACCEPTED)]
+    assert download.succeeded and download.items == items
+    refused = Download()
+    refused.start(0.0)
+    refused.receive(MissionAck(MissionResult.MAV_MISSION_DENIED), 0.1)  # a refusal stands
+    assert refused.error is not None and refused.error.result == "MAV_MISSION_DENIED"
+
+
 def test_download_of_an_empty_list_acknowledges_at_once() -> None:
     download = Download(MissionType.RALLY)
     assert download.start(0.0) == [MissionRequestList(MissionType.RALLY)]

@@ -469,9 +469,16 @@ class Download(Transfer):
             if moved:
                 self._received[msg.seq] = msg
             return self._request_next_or_finish(now, moved)
-        if isinstance(msg, MissionAck) and msg.result != MissionResult.MAV_MISSION_ACCEPTED:
+        if isinstance(msg, MissionAck) and msg.result not in _NO_ANSWER_TO_A_DOWNLOAD:
             self._ack_failure(msg)
         return []
+
+
+_NO_ANSWER_TO_A_DOWNLOAD = (MissionResult.MAV_MISSION_ACCEPTED, MissionResult.MAV_MISSION_ERROR)
+"""Acks a download goes on through. A vehicle serving a download acknowledges nothing of
+its own; an ERROR then answers a late copy of the last upload's item (ArduPilot answers an
+item it does not expect with MAV_MISSION_ERROR): the read-back of an upload through a slow
+link failed on it. Should the vehicle really stop answering, the download times out."""
 
 
 class Clear(Transfer):

@@ -49,7 +49,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -247,6 +247,7 @@ class Observer:
         self._clock = clock
         self.boot_time = 0.0
         self.samples: list[Sample] = []
+        self.confirmed = -math.inf  # vehicle time of the latest message a sample stands for
         self.texts: list[tuple[float, str]] = []
         self.params: dict[str, float] = {}  # the PARAM_VALUEs heard
         self._mode, self._armed = "", False
@@ -309,6 +310,7 @@ class Observer:
                             self.samples[-1].mode, self.samples[-1].armed,
                             self.samples[-1].landed) or _moved(self.samples[-1], sample):
                         self.samples.append(sample)
+                    self.confirmed = sample.time  # the latest sample still holds then
                     self._changed.notify_all()
 
     def between(self, start: float, end: float) -> list[Sample]:
@@ -331,6 +333,12 @@ class Observer:
                 for sample in self.samples:
                     if sample.time >= after and done(sample):
                         return sample
+                # Samples are kept on a change only: a vehicle that was (and stays) on the
+                # ground when the interrupt came shows no new one, only messages saying the
+                # same after it (a fleet's second copter not yet armed on a busy machine).
+                last = self.samples[-1] if self.samples else None
+                if last is not None and last.time < after <= self.confirmed and done(last):
+                    return replace(last, time=after)
                 left = end - time.monotonic()
                 if left <= 0:
                     return None

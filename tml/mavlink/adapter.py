@@ -8,11 +8,12 @@ seconds when the link is poor). So a :class:`MavlinkVehicle` with requests to ca
 a worker thread that takes them in order and carries each out with the link's command
 sender (:class:`tml.mavlink.autopilot.Autopilot`): ``submit`` only queues (and starts the
 worker if there is none), ``poll`` returns the :class:`~tml.vehicle.RequestResult` of the
-requests finished since the last poll. The worker ends when no request is left: a fleet
-hovering, or waiting for an event, has no thread per vehicle (the link's reactor reads its
-messages, tml.mavlink.reactor); what must be done periodically besides -- the streams asked
-again when they stay away (:data:`STREAM_CHECK_PERIOD`), the GUIDED target kept -- is done
-by the link listener at the vehicle's HEARTBEAT.
+requests finished since the last poll. The worker ends when no request has come for
+:data:`WORKER_KEPT` seconds: a fleet hovering, or waiting for an event, has no thread per
+vehicle (the link's reactor reads its messages, tml.mavlink.reactor); what must be done
+periodically besides -- the streams asked again when they stay away
+(:data:`STREAM_CHECK_PERIOD`), the GUIDED target kept -- is done by the link listener at the
+vehicle's HEARTBEAT.
 
 ``state`` is built on demand from the link's latest :class:`~tml.mavlink.telemetry.Telemetry`
 snapshot: local position from GLOBAL_POSITION_INT relative to HOME_POSITION (via
@@ -147,6 +148,9 @@ VITAL = ("HEARTBEAT", "EXTENDED_SYS_STATE", "GLOBAL_POSITION_INT")
 """The messages of the readings the rules judge by: armed and mode, landed, position."""
 STREAM_CHECK_PERIOD = 2.0
 """Seconds at least between two checks (at a HEARTBEAT) that the streams asked for arrive."""
+WORKER_KEPT = 10.0
+"""Seconds a worker thread waits for the next request before it ends: requests in a burst
+(a take-off's, or an event's answer) do not start a thread each."""
 STAMP_SILENCE = 1.5
 """Seconds (the link's clock) without a ``time_boot_ms`` stamp from the autopilot after which
 its HEARTBEAT brings a new request for the streams: a rebooted autopilot has forgotten
@@ -308,7 +312,7 @@ class MavlinkVehicle:
         self._names = detection_names(world)
         self._lock = threading.Lock()
         self._results: list[RequestResult] = []
-        self._queue: Mailbox[Request] = Mailbox(self.timebase)
+        self._queue: Mailbox[Request | None] = Mailbox(self.timebase)  # None: close
         self._worker: threading.Thread | None = None  # only while requests wait (submit)
         self._worker_lock = threading.Lock()
         self._streams_checked = self.timebase.now()  # when _keep_streams last looked
@@ -456,6 +460,8 @@ class MavlinkVehicle:
         """Return once the requests submitted so far are carried out (waits up to 10 s)."""
         with self._worker_lock:
             worker = self._worker
+            if worker is not None:
+                self._queue.put(None)  # ends it after them, without waiting out WORKER_KEPT
         if worker is not None:
             worker.join(timeout=10.0)
 
@@ -572,12 +578,19 @@ class MavlinkVehicle:
     def _work(self) -> None:
         with self.timebase.taking_part(announced=True):
             while True:
-                with self._worker_lock:  # ends only with none left: submit starts another
-                    try:
-                        request = self._queue.get(timeout=0)
-                    except Empty:
+                try:
+                    request = self._queue.get(timeout=WORKER_KEPT)
+                except Empty:
+                    with self._worker_lock:  # none left: submit starts another from now on
+                        if not self._queue.unfinished_tasks:
+                            self._worker = None
+                            return
+                    continue
+                if request is None:
+                    with self._worker_lock:
                         self._worker = None
-                        return
+                    self._queue.task_done()
+                    return
                 try:
                     result = self._carry_out(request)
                 finally:

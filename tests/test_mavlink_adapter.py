@@ -287,10 +287,10 @@ def test_mission_with_an_unflyable_action_is_unsupported(rig: Rig) -> None:
 
 
 def test_link_degrades_then_is_lost_when_heartbeats_stop() -> None:
-    # The outage begins 40 s into the vehicle's time (4 s of wall time at a speed-up of 10):
+    # The outage begins 40.5 s into the vehicle's time (4 s of wall time at a speed-up of 10):
     # the rig must be up before it. Beside three CPU spinners the simulator ran on while
     # the link's threads waited for a core, and 8 s of vehicle time was not enough.
-    outage = 40.0
+    outage = 40.5  # half-way between two HEARTBEATs (1 Hz): the last one comes 0.5 s before
     with make_rig(faults=Faults(outages=((outage, 1e6),)), speedup=10.0) as rig:
         up = rig.until(lambda s: s.link == "ok" and s.time > 1.0, "link up")
         # (A link starved of a core may look degraded for a moment before the outage too.)

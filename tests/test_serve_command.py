@@ -14,8 +14,10 @@ import socket
 import sqlite3
 import subprocess
 import sys
+import threading
 from collections.abc import Iterator
 from pathlib import Path
+from typing import IO
 
 import httpx
 import pytest
@@ -44,13 +46,23 @@ class Server:
         while not (line := self.process.stdout.readline()).startswith("tml serve: http://"):
             assert line, self.said
             self.said += line
+        # What it says from now on is read as it comes: a pipe nobody reads fills up (64 kB
+        # on Linux), and the service, blocked on a write, would stop answering mid-test.
+        self.later: list[str] = []
+        self._reader = threading.Thread(target=self._read, args=(self.process.stdout,),
+                                        daemon=True)
+        self._reader.start()
         with httpx.Client() as client:  # the banner comes just before the server binds
             while True:
                 try:
                     client.get(f"{self.url}/status")
                     break
                 except httpx.TransportError:
-                    assert self.process.poll() is None, self.process.stdout.read()
+                    assert self.process.poll() is None, "".join(self.later)
+
+    def _read(self, stream: IO[str]) -> None:
+        for line in stream:
+            self.later.append(line)
 
     def __enter__(self) -> Server:
         return self
@@ -58,12 +70,15 @@ class Server:
     def __exit__(self, *exc: object) -> None:
         if self.process.poll() is None:  # a test that failed half way: stop it all the same
             self.process.kill()
-            self.process.communicate(timeout=60)
+            self.process.wait(timeout=60)
+        self._reader.join(timeout=60)
 
     def stop(self, sig: int = signal.SIGTERM) -> tuple[int, str]:
+        """Send ``sig``; the exit code and what it said after its banner."""
         self.process.send_signal(sig)
-        out, _ = self.process.communicate(timeout=120)
-        return self.process.returncode, out
+        self.process.wait(timeout=120)
+        self._reader.join(timeout=60)
+        return self.process.returncode, "".join(self.later)
 
 
 @pytest.fixture
@@ -94,9 +109,14 @@ def test_the_curl_examples_of_the_docs_work_as_written(server: Server, tmp_path:
         script = (f"set -euo pipefail\nsource {state}\n"
                   + block.replace("127.0.0.1:8080", f"127.0.0.1:{server.port}")
                   + f"\ndeclare -p {' '.join(names)} > {state} 2>/dev/null || true\n")
-        done = subprocess.run(["bash", "-c", script], capture_output=True, text=True,
-                              cwd=tmp_path if "flight.jsonl" in block else ROOT, timeout=600)
-        assert done.returncode == 0, (block, done.stdout, done.stderr)
+        try:
+            done = subprocess.run(["bash", "-c", script], capture_output=True, text=True,
+                                  cwd=tmp_path if "flight.jsonl" in block else ROOT,
+                                  timeout=600)
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"{block}\nstill running after 600 s; the service said last:\n"
+                        + "".join(server.later[-40:]))
+        assert done.returncode == 0, (block, done.stdout, done.stderr, server.later[-40:])
         outputs.append(done.stdout)
     # What the docs show of the answers is what the service answers.
     shown = json.loads(re.search(r"```json\n(.*?)```", api, re.S).group(1))

@@ -338,6 +338,7 @@ class MavlinkVehicle:
         self._asked: float | None = None  # when the latest request was submitted or done
         self._flight_asked: float | None = None  # ... the latest of FLIGHT_REQUESTS
         self._flights_pending = 0  # FLIGHT_REQUESTS submitted and not yet carried out
+        self._vital_at: dict[str, float] = {}  # when each VITAL message last came (clock)
         link.listen(self._on_message)
 
     # --- set-up ---------------------------------------------------------------------------
@@ -411,11 +412,12 @@ class MavlinkVehicle:
     def _heard(self, now: float) -> float:
         """When (the runner's clock) the oldest of the readings the rules judge by arrived
         (:data:`VITAL`); minus infinity before any has."""
-        arrived = self.link.arrivals(self.system_id)
-        times = [arrived[name] for name in VITAL if name in arrived]
-        if not times:
-            return -math.inf
-        return now - (self.timebase.now() - min(times))
+        # Noted on the runner's clock as each arrives (_on_message): the link's own arrival
+        # times are on its time base, which a simulator's clock outruns at its speed-up --
+        # a HEARTBEAT from before an Arm looked newer than the Arm, and an aborted run left
+        # the vehicle climbing, judged disarmed on the ground.
+        times = [self._vital_at[name] for name in VITAL if name in self._vital_at]
+        return min(times) if times else -math.inf
 
     def revision(self) -> tuple[int, int]:
         """Changes when :meth:`state` may show something new, apart from what time alone
@@ -503,6 +505,8 @@ class MavlinkVehicle:
         kind = msg.get_type()
         component = msg.get_srcComponent()
         now = self.clock()
+        if kind in VITAL and component == self.mav.component_id:
+            self._vital_at[kind] = now
         if component == COMPANION_COMPONENT and not self._companion_seen:
             self._companion_seen = True
             self._changes += 1  # its skills can be switched from now on

@@ -240,6 +240,7 @@ class Link:
         # transfer's caller does not wake (and take the GIL from the reactor) on
         # every message.
         self._machine_done = threading.Condition(lock)
+        self._waiting = 0  # threads waiting on _lock for news (changed under it)
         self._send_lock = threading.Lock()
         self._vehicles: dict[int, VehicleInfo] = {}
         self._trackers: dict[int, TelemetryTracker] = {}
@@ -315,7 +316,17 @@ class Link:
                     who = "a vehicle" if system_id is None else f"vehicle {system_id}"
                     raise LinkLost(f"no heartbeat from {who} on {self.address} "
                                    f"within {timeout:g} s{self._signing_hint()}", system_id)
-                self.timebase.wait(self._lock, left)
+                self._wait_for_news(left)
+
+    def _wait_for_news(self, timeout: float) -> None:
+        """Wait (holding ``_lock``) for the next message handled, or ``timeout``. Counted:
+        the reactor wakes the waiters of a link only while there are some (a notify with
+        nobody waiting cost a tenth of its time at 100 vehicles)."""
+        self._waiting += 1
+        try:
+            self.timebase.wait(self._lock, timeout)
+        finally:
+            self._waiting -= 1
 
     def _signing_hint(self) -> str:
         """Why nothing was heard, when signing dropped what came (a vehicle that does not
@@ -377,7 +388,7 @@ class Link:
                 if left <= 0:
                     raise VehicleTimeout(f"condition not reached within {timeout:g} s",
                                          system_id)
-                self.timebase.wait(self._lock, left)
+                self._wait_for_news(left)
 
     def listen(self, listener: Listener) -> None:
         """Call ``listener(system_id, snapshot, msg)`` from the reactor on each message.
@@ -571,7 +582,8 @@ class Link:
             tracker = self._trackers.get(sysid)
             revision = -1 if tracker is None else tracker.revision
             if tracker is None or not tracker.apply(msg, now):
-                self.timebase.notify_all(self._lock)
+                if self._waiting:
+                    self.timebase.notify_all(self._lock)
                 return
             machines = self._machines.get(sysid)
             plain = codec.decode(msg) if machines else None  # no plain message unless asked
@@ -585,7 +597,8 @@ class Link:
                             self.timebase.notify_all(self._machine_done)
             snapshot = tracker.snapshot if self._listeners else None
             changed = tracker.revision != revision
-            self.timebase.notify_all(self._lock)
+            if self._waiting:
+                self.timebase.notify_all(self._lock)
         if snapshot is not None:
             for listener in self._listeners:
                 listener(sysid, snapshot, msg)

@@ -47,6 +47,7 @@ and tml's growth from the smallest fleet.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import re
 import resource
@@ -151,6 +152,8 @@ class Result:
     sim_time: float  # vehicle s the simulator ran
     delays: list[float]
     outcome: str
+    runner_cpu: float = math.nan  # s of the flight's CPU in the runner's thread
+    reactor_cpu: float = math.nan  # ... in the thread that reads every link (Linux only)
 
     @property
     def cpu_per_vehicle_second(self) -> float:
@@ -287,7 +290,10 @@ def fly(vehicles: int, speedup: float, seconds: float) -> Result:
         watchdog.start()
         started_cpu, started_wall = time.process_time(), time.perf_counter()
         started_vehicle = probe.vehicle_time
+        started_runner, started_reactor = time.thread_time(), _reactor_cpu()
         outcome = runner.run()
+        runner_cpu = time.thread_time() - started_runner
+        reactor_cpu = _reactor_cpu() - started_reactor
         cpu = time.process_time() - started_cpu
         wall = time.perf_counter() - started_wall
         flown = probe.vehicle_time - started_vehicle
@@ -297,7 +303,21 @@ def fly(vehicles: int, speedup: float, seconds: float) -> Result:
     statuses = sorted({v.status.value for v in outcome.vehicles})
     return Result(vehicles, wall, flown, cpu, wakes[0], grown, threads[0],
                   sum(map(sum, sim_cpu)), sim_time, probe.delays(),
-                  f"{'/'.join(statuses)} (exit {int(outcome.exit_code)})")
+                  f"{'/'.join(statuses)} (exit {int(outcome.exit_code)})", runner_cpu,
+                  reactor_cpu)
+
+
+def _reactor_cpu() -> float:
+    """CPU seconds of the thread that reads every link so far (NaN where /proc has none)."""
+    for thread in threading.enumerate():
+        if thread.name == "mavlink reactor" and thread.native_id is not None:
+            try:
+                stat = Path(f"/proc/self/task/{thread.native_id}/stat").read_text()
+            except OSError:
+                break
+            fields = stat.rsplit(")", 1)[1].split()  # utime and stime: fields 14 and 15
+            return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    return math.nan
 
 
 def _resident() -> float:
@@ -476,6 +496,12 @@ def main() -> None:
                   f"{percentile(r.delays, 0.99):.2f} ms; {r.memory_per_vehicle:.0f} kB/veh, "
                   f"{r.threads} threads; simulator "
                   f"{r.sim_cpu_per_vehicle_second:.2f} ms/veh/s", flush=True)
+        if not math.isnan(tml.reactor_cpu):
+            print(f"  {n} vehicles, tml's CPU by thread: reading the links "
+                  f"{100 * tml.reactor_cpu / tml.cpu:.0f} %, the runner (state, events, task "
+                  f"tree) {100 * tml.runner_cpu / tml.cpu:.0f} %, requests and the rest "
+                  f"{100 * (tml.cpu - tml.reactor_cpu - tml.runner_cpu) / tml.cpu:.0f} %",
+                  flush=True)
     print(f"\nfleet: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}, speedup "
           f"{args.speedup:g}, triggers over {args.seconds:g} vehicle s; delay = trigger "
           f"telemetry parsed -> NAV_LAND written; peer = a bare pymavlink loop reading the "

@@ -38,7 +38,7 @@ from tml.engine.records import Status
 from tml.engine.scripts import SCRIPTS, ActionFailed
 from tml.language.actions import Category, bind
 from tml.language.model import ConditionKind, Event, EventTrigger, TerminationMode
-from tml.vehicle import Hold
+from tml.vehicle import Hold, VehicleState
 
 
 class Handler(SequenceNode):
@@ -56,6 +56,14 @@ class Events:
     def __init__(self, run: Run) -> None:
         self.run = run
         self.handlers: dict[int, Handler] = {}  # the handler running on each vehicle
+        # Per vehicle: the state (and role) in which its last check fired nothing, when all
+        # its handlers' conditions read only that vehicle. Checked again in the same state
+        # they read the same values and fire nothing again (an edge needs a change; a level
+        # event that held would have fired), so the check is skipped: in a fleet most
+        # vehicles' states do not change between two steps. (A handling begins only where a
+        # check fired, which forgets the mark.)
+        self._quiet: dict[int, tuple[VehicleState, str | None]] = {}
+        self._vehicle_only: dict[str | None, bool] = {}  # per role: see _reads_vehicle_only
         run.react = self.react
 
     def watch(self, pilot: Pilot) -> None:
@@ -66,7 +74,9 @@ class Events:
             self._rearm(pilot)
             self._drive(pilot, handler)
         elif pilot.duty is Duty.WATCHING and pilot.flying_a_task():
-            self._check(pilot)
+            quiet = self._quiet.get(pilot.vehicle_id)
+            if quiet is None or quiet[0] is not pilot.state or quiet[1] != pilot.role:
+                self._check(pilot)
 
     def react(self, pilot: Pilot) -> bool:
         """An action failed on the vehicle: True when a handler fired and decides what
@@ -116,10 +126,24 @@ class Events:
             elif not triggers or not holds:
                 pilot.holding[event.name] = holds  # a rising edge left pending fires next
         if fired is None:
+            if self._reads_vehicle_only(pilot.role):
+                self._quiet[vid] = (pilot.state, pilot.role)
             return False
+        self._quiet.pop(vid, None)
         pilot.events.append((run.log.stamp, fired.name))
         self._fire(pilot, fired)
         return True
+
+    def _reads_vehicle_only(self, role: str | None) -> bool:
+        """Whether every condition of the handlers of a vehicle in ``role`` reads that
+        vehicle's state alone (not the interpreter's, not another vehicle's)."""
+        known = self._vehicle_only.get(role)
+        if known is None:
+            known = self._vehicle_only[role] = all(
+                condition.role is None and reads_vehicle(condition)
+                for event in self.run.mission.events if event.role in (None, role)
+                for condition in event.conditions)
+        return known
 
     def _rearm(self, pilot: Pilot) -> None:
         """During a handling: arm again each edge-triggered event one of whose conditions

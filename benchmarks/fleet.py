@@ -57,6 +57,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections import Counter
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack, contextmanager
@@ -301,9 +302,14 @@ def fly(vehicles: int, speedup: float, seconds: float) -> Result:
         sim_time = probe.vehicle_time
         grown = _resident() - resident
     statuses = sorted({v.status.value for v in outcome.vehicles})
+    # Why the vehicles that did not complete ended, the commonest first (numbers elided).
+    why = Counter(re.sub(r"\d+(\.\d+)?", "N", f"{v.cause or v.status.value}: {v.reason}")
+                  for v in outcome.vehicles if v.status.value != "completed")
     return Result(vehicles, wall, flown, cpu, wakes[0], grown, threads[0],
                   sum(map(sum, sim_cpu)), sim_time, probe.delays(),
-                  f"{'/'.join(statuses)} (exit {int(outcome.exit_code)})", runner_cpu,
+                  f"{'/'.join(statuses)} (exit {int(outcome.exit_code)})"
+                  + "".join(f"; {count} x {reason}" for reason, count in why.most_common(3)),
+                  runner_cpu,
                   reactor_cpu)
 
 

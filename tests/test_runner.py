@@ -734,3 +734,35 @@ def test_a_reboot_during_the_run_ends_the_vehicles_work_one_before_it_does_not()
     after = [line for line in lines if line["t"] >= taken["t"]
              and line["kind"] in ("request", "safety")]
     assert after == []  # nothing sent to it after
+
+
+def test_a_change_alone_steps_again_only_after_the_rest_a_long_step_earns() -> None:
+    # Each step takes 0.2 s of the runner's clock (a large fleet's step): a vehicle that
+    # changes at every wake steps the interpreter again only 0.2 s after the step ended
+    # (the steps take at most half of the time); a request's result steps it at once; the
+    # mission flies as before.
+    from tml.timebase import Timebase
+
+    class Unslept(Timebase):
+        def sleep(self, seconds: float) -> None:
+            """The runner's rest is the test clock's: nothing to wait for here."""
+
+    sim = Sim(FakeVehicle())
+    runner = Runner(mission(TAKE_OFF + GO + LAND), sim.vehicles, clock=sim.clock,
+                    options=RunOptions(rate=1.0), wait=sim.wait, timebase=Unslept())
+    engine = runner.crews[0].engine
+    step = engine.step
+    steps: list[tuple[float, float, bool]] = []  # began, ended, with results
+
+    def slow(now, states, results):  # type: ignore[no-untyped-def]
+        out = step(now, states, results)
+        sim.time = round(sim.time + 0.2, 6)
+        steps.append((now, sim.time, any(results.values())))
+        return out
+    engine.step = slow  # type: ignore[method-assign]
+    outcome = runner.run()
+    assert outcome.exit_code == ExitCode.OK
+    rested = [(a, b) for a, b in itertools.pairwise(steps) if not b[2]]
+    assert rested and all(b[0] >= a[1] + 0.2 - 1e-9 for a, b in rested)
+    early = [b for a, b in itertools.pairwise(steps) if b[0] < a[1] + 0.2 - 1e-9]
+    assert early and all(with_results for _, _, with_results in early)

@@ -20,6 +20,9 @@ changed (the time aside), results came, a vehicle was lost, or ``1 / rate`` seco
 its last step (its own timers: waits, time limits); a vehicle that cannot tell its revision
 has its state read, and its interpreter stepped, on every wake. So a fleet hovering in place
 costs the interpreter ``rate`` steps a second, not one for every message of every vehicle.
+A change alone does not step an interpreter again sooner than :data:`STEP_REST` times its
+last step's duration after it: in a large fleet some vehicle changes at every wake, and the
+steps take at most half of the process's time, the rest left to reading the links.
 
 *Time.* The interpreter sees the runner's ``clock``. For a real vehicle that is the
 monotonic clock; for the embedded simulator it is the simulator's own vehicle time, so a
@@ -118,6 +121,14 @@ SAID_WITHIN = 5.0
 """Seconds (the run's clock) before a take-over within which the autopilot's messages are
 taken for its words about it: the switch is believed about a second after it is shown."""
 NOTICE = SEVERITIES.index("notice")
+STEP_REST = 1.0
+"""After a step that took ``d`` seconds of the runner's clock, a vehicle's change alone
+steps the interpreter again only ``STEP_REST * d`` seconds later (the changes of that
+time are taken together); results, lost vehicles and the ``1 / rate`` tick step it at
+once. With hundreds of vehicles some vehicle changes at every wake, and a step over all
+of them each time left the thread that reads the links too little of the process (see
+docs/performance.md, *Fleet*): so the steps take at most half of it. On the simulator in
+lock-step, and with a test's clock, no time passes during a step and nothing waits."""
 
 
 @dataclass
@@ -216,6 +227,8 @@ class _Crew:
         self.flights = flights
         self.broken = False  # the engine raised: it is not asked anything again
         self.step_at = -math.inf  # when the engine is stepped even if nothing changed
+        self.changed = False  # a vehicle's state changed since the last step
+        self.rest_until = -math.inf  # a change alone steps the engine from then on (STEP_REST)
 
     @property
     def running(self) -> bool:
@@ -392,6 +405,9 @@ class Runner:
         with self._control_lock:
             self._flying = True
         while any(c.running for c in self.crews):
+            rest = min(c.rest_until for c in self.crews) - self.clock()
+            if rest > 0:  # changes coming meanwhile are taken together after it
+                self.timebase.sleep(min(rest, 1.0 / self.options.rate))
             self._wait(1.0 / self.options.rate)
             now = self.clock()
             if self._stop_reason:
@@ -600,9 +616,14 @@ class Runner:
             self._said(f"vehicle {flight.vehicle.vehicle_id}: {reason}")
             self._guarded(crew, now, partial(crew.engine.lost, now, flight.vehicle.vehicle_id,
                                              reason))
-        if crew.running and (changed or results or lost or taken or now >= crew.step_at):
+        crew.changed = crew.changed or changed
+        if crew.running and (results or lost or taken or now >= crew.step_at
+                             or (crew.changed and now >= crew.rest_until)):
             crew.step_at = now + 1.0 / self.options.rate
+            crew.changed = False
             self._guarded(crew, now, lambda: crew.engine.step(now, crew.states(), results))
+            ended = self.clock()
+            crew.rest_until = ended + STEP_REST * (ended - now)
 
     def _taken(self, crew: _Crew, flight: _Flight, now: float) -> None:
         """Someone else switched the vehicle's mode (see tml.mavlink.modes.ModeWatch): its

@@ -740,16 +740,22 @@ def test_a_change_alone_steps_again_only_after_the_rest_a_long_step_earns() -> N
     # Each step takes 0.2 s of the runner's clock (a large fleet's step): a vehicle that
     # changes at every wake steps the interpreter again only 0.2 s after the step ended
     # (the steps take at most half of the time); a request's result steps it at once; the
-    # mission flies as before.
+    # mission flies as before; the loop sleeps the rest on its time base, which a
+    # simulator's clock outruns.
     from tml.timebase import Timebase
 
-    class Unslept(Timebase):
-        def sleep(self, seconds: float) -> None:
-            """The runner's rest is the test clock's: nothing to wait for here."""
-
     sim = Sim(FakeVehicle())
+    slept: list[float] = []
+
+    class TenTimesSlower(Timebase):  # the runner's clock is a simulator's at 10x
+        def now(self) -> float:
+            return sim.time / 10
+
+        def sleep(self, seconds: float) -> None:
+            slept.append(seconds)
+
     runner = Runner(mission(TAKE_OFF + GO + LAND), sim.vehicles, clock=sim.clock,
-                    options=RunOptions(rate=1.0), wait=sim.wait, timebase=Unslept())
+                    options=RunOptions(rate=1.0), wait=sim.wait, timebase=TenTimesSlower())
     engine = runner.crews[0].engine
     step = engine.step
     steps: list[tuple[float, float, bool]] = []  # began, ended, with results
@@ -766,3 +772,5 @@ def test_a_change_alone_steps_again_only_after_the_rest_a_long_step_earns() -> N
     assert rested and all(b[0] >= a[1] + 0.2 - 1e-9 for a, b in rested)
     early = [b for a, b in itertools.pairwise(steps) if b[0] < a[1] + 0.2 - 1e-9]
     assert early and all(with_results for _, _, with_results in early)
+    # The rest is slept on the time base: 0.2 s of the clock is 0.02 s of it.
+    assert slept and max(slept) <= 0.02 + 1e-9

@@ -229,6 +229,7 @@ class _Crew:
         self.step_at = -math.inf  # when the engine is stepped even if nothing changed
         self.changed = False  # a vehicle's state changed since the last step
         self.rest_until = -math.inf  # a change alone steps the engine from then on (STEP_REST)
+        self.rest_for = 0.0  # the same rest in seconds of the time base (to sleep it)
 
     @property
     def running(self) -> bool:
@@ -405,9 +406,11 @@ class Runner:
         with self._control_lock:
             self._flying = True
         while any(c.running for c in self.crews):
-            rest = min(c.rest_until for c in self.crews) - self.clock()
-            if rest > 0:  # changes coming meanwhile are taken together after it
-                self.timebase.sleep(min(rest, 1.0 / self.options.rate))
+            if all(c.rest_until > self.clock() for c in self.crews):
+                # Changes coming meanwhile are taken together after it. The rest is slept
+                # on the time base: the runner's clock may be a simulator's, faster.
+                self.timebase.sleep(min(min(c.rest_for for c in self.crews),
+                                        1.0 / self.options.rate))
             self._wait(1.0 / self.options.rate)
             now = self.clock()
             if self._stop_reason:
@@ -566,6 +569,7 @@ class Runner:
         self.wake.clear()
 
     def _tick(self, crew: _Crew, now: float) -> None:
+        began = self.timebase.now()
         results: dict[int, list[RequestResult]] = {}
         lost: list[_Flight] = []
         taken: list[_Flight] = []
@@ -624,6 +628,7 @@ class Runner:
             self._guarded(crew, now, lambda: crew.engine.step(now, crew.states(), results))
             ended = self.clock()
             crew.rest_until = ended + STEP_REST * (ended - now)
+            crew.rest_for = STEP_REST * (self.timebase.now() - began)
 
     def _taken(self, crew: _Crew, flight: _Flight, now: float) -> None:
         """Someone else switched the vehicle's mode (see tml.mavlink.modes.ModeWatch): its

@@ -967,6 +967,10 @@ class VehicleModel:
             self._ground_since = self.time
             if not self.landed or not self._wants_climb():
                 self._lift_off_at = None
+            if self.landed and self.armed and self.mode == "LAND":
+                # ArduCopter's ModeLand disarms whenever the land detector says landed: a
+                # vehicle armed on the ground (a take-off not begun) is disarmed at once.
+                self.disarm()
             return
         body.position = (body.position[0], body.position[1], 0.0)
         body.stop()

@@ -255,6 +255,19 @@ def test_land_lands_slowly_below_land_alt_low_and_disarms():
     assert max(s for up, s in descents if up > 10.5) > 1.0  # faster up high
 
 
+def test_land_on_the_ground_disarms_at_once():
+    # ArduCopter's LAND disarms whenever its land detector says landed: armed on the ground
+    # in GUIDED (a take-off not begun), LAND disarms it in the next loop, not after 10 s.
+    v = vehicle()
+    v.step(3)
+    v.set_mode("GUIDED")
+    command(v, M.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+    assert v.armed and v.landed
+    assert command(v, M.MAV_CMD_NAV_LAND)[0] == M.MAV_RESULT_ACCEPTED
+    out = v.step(TICK)
+    assert not v.armed and "Disarming motors" in texts(out)
+
+
 def test_idle_on_the_ground_disarms_after_disarm_delay():
     v = vehicle()
     v.step(3)

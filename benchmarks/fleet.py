@@ -315,8 +315,10 @@ def fly(vehicles: int, speedup: float, seconds: float) -> Result:
 
 def _reactor_cpu() -> float:
     """CPU seconds of the thread that reads every link so far (NaN where /proc has none)."""
+    from tml.mavlink.reactor import THREAD_NAME
+
     for thread in threading.enumerate():
-        if thread.name == "mavlink reactor" and thread.native_id is not None:
+        if thread.name == THREAD_NAME and thread.native_id is not None:
             try:
                 stat = Path(f"/proc/self/task/{thread.native_id}/stat").read_text()
             except OSError:

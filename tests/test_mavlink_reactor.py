@@ -66,7 +66,7 @@ def test_one_thread_serves_every_connection_and_ends_with_the_last() -> None:
         p.far.sendall(bytes([i]) * 3)
     until(lambda: all(len(p.read) == 3 for p in pipes))
     until(lambda: all(p.duties_done >= 2 for p in pipes))
-    assert {name for p in pipes for name in p.threads} == {"mavlink reactor"}
+    assert {name for p in pipes for name in p.threads} == {reactor.THREAD_NAME}
     thread = served[0].thread
     assert thread is not None
     for p in pipes:

@@ -51,6 +51,8 @@ IDLE_WAIT = 1.0
 """Seconds the loop waits at most when no duty is due sooner."""
 LET_GO_TIMEOUT = 2.0
 """Wall seconds :func:`unserve` waits for the loop to let go of an owner."""
+THREAD_NAME = "mavlink reactor"
+"""The name of the loop's thread (profiles and benchmarks find it by it)."""
 
 
 class Served(Protocol):
@@ -229,7 +231,7 @@ def serve(owner: Served, timebase: Timebase) -> Reactor:
         timebase.announce()  # time waits until the loop has taken the owner in
         if reactor.thread is None:
             timebase.announce()
-            reactor.thread = threading.Thread(target=reactor.run, name="mavlink reactor",
+            reactor.thread = threading.Thread(target=reactor.run, name=THREAD_NAME,
                                               daemon=True)
             reactor.thread.start()
         reactor.wake()

@@ -406,10 +406,11 @@ class Runner:
         with self._control_lock:
             self._flying = True
         while any(c.running for c in self.crews):
-            if all(c.rest_until > self.clock() for c in self.crews):
+            running, at = [c for c in self.crews if c.running], self.clock()
+            if all(c.rest_until > at for c in running):
                 # Changes coming meanwhile are taken together after it. The rest is slept
                 # on the time base: the runner's clock may be a simulator's, faster.
-                self.timebase.sleep(min(min(c.rest_for for c in self.crews),
+                self.timebase.sleep(min(min(c.rest_for for c in running),
                                         1.0 / self.options.rate))
             self._wait(1.0 / self.options.rate)
             now = self.clock()

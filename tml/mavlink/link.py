@@ -222,8 +222,9 @@ class Link:
         """Why the connection is down (a TCP vehicle went away), or "" while it is up."""
         if isinstance(self._conn, mavutil.mavtcp):
             _Redial(self._conn, self._went_down)
+        self._reader: _ReadAhead | None = None
         if parse_address(address, baud).scheme in ("tcp", "tcpin"):
-            _read_ahead(self._conn)
+            self._reader = _ReadAhead(self._conn)
             if timebase.lockstep:
                 _count_bytes(self._conn, timebase)
         self._outputs = [_connect(out, baud, source_system, source_component, output=True)
@@ -482,6 +483,8 @@ class Link:
         """Handle up to ``limit`` messages that wait (read from the socket, or whole in the
         parser already); True when more may wait."""
         conn = self._conn
+        if self._reader is not None:
+            self._reader.turn()
         for _ in range(limit):
             try:
                 msg = conn.recv_msg()
@@ -637,8 +640,8 @@ def _signed(msg: Any) -> bool:
     return header is not None and bool(header.incompat_flags & mavlink.MAVLINK_IFLAG_SIGNED)
 
 
-def _read_ahead(conn: Any) -> None:
-    """Make a TCP connection read what waits in its socket at once.
+class _ReadAhead:
+    """Makes a TCP connection read what waits in its socket at once, once per turn.
 
     pymavlink reads each message with two or three ``recv`` calls of exactly the bytes its
     parser needs next; every call lets go of the interpreter lock and takes it back, and
@@ -646,15 +649,29 @@ def _read_ahead(conn: Any) -> None:
     (54,159 calls for 20,420 messages of 20 vehicles in docs/performance.md). Here a call
     reads up to :data:`READ_AHEAD` bytes, and none while the parser can go on with what it
     has buffered: one call for everything that arrived since the last.
+
+    Within one turn of the reactor (:meth:`turn` begins it) the socket is read once, and
+    again only after a read that filled :data:`READ_AHEAD` (more may wait): a second read
+    of a socket just emptied finds nothing, and costs a system call, an exception inside
+    pymavlink and a hand-over of the interpreter lock to the runner, for each vehicle at
+    each turn. Whatever arrives after the read wakes the reactor again.
     """
-    read, parser = conn.recv, conn.mav
 
-    def recv(n: int | None = None) -> Any:
-        if parser.buf_len() >= parser.expected_length:
+    def __init__(self, conn: Any) -> None:
+        self.read, self.parser = conn.recv, conn.mav
+        self.may_read = True
+        conn.recv = self
+
+    def turn(self) -> None:
+        """A new turn: the socket may be read again."""
+        self.may_read = True
+
+    def __call__(self, n: int | None = None) -> Any:
+        if not self.may_read or self.parser.buf_len() >= self.parser.expected_length:
             return b""
-        return read(READ_AHEAD)
-
-    conn.recv = recv
+        data = self.read(READ_AHEAD)
+        self.may_read = len(data) >= READ_AHEAD
+        return data
 
 
 def _count_bytes(conn: Any, timebase: Timebase) -> None:

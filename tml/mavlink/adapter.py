@@ -324,6 +324,8 @@ class MavlinkVehicle:
         self._changes = 0  # counts what changes the state besides the link's snapshot
         self._progress: MissionProgress | None = None
         self._cache: tuple[Any, Any, tuple[float, float, float] | None] = (None, None, None)
+        # (status_texts, their count, the messages built of them): see _latest_messages
+        self._said: tuple[object, int, tuple[AutopilotMessage, ...]] = (None, -1, ())
         self._companion_seen = False
         # lat, lon, alt and yaw (degrees, None: the autopilot's choice) kept in GUIDED
         self._target: tuple[float, float, float, float | None] | None = None
@@ -394,7 +396,7 @@ class MavlinkVehicle:
             climb=-velocity[2], home=home, mission=progress, detections=detections,
             capabilities=self.capabilities, skills=self._skills(), vehicle_type=t.airframe,
             status_text=t.status_texts[-1].text if t.status_texts else "",
-            messages=_messages(t), rejected=t.rejected, rejected_last=t.rejected_last,
+            messages=self._latest_messages(t), rejected=t.rejected, rejected_last=t.rejected_last,
             taken=self._modes.taken, heard=self._heard(now),
             # A request not yet carried out is asked for now: no reading is newer than it.
             asked=now if self._queue.unfinished_tasks else self._asked,
@@ -485,6 +487,16 @@ class MavlinkVehicle:
         local = (north, east, p.relative_altitude)
         self._cache = (p, home, local)
         return local
+
+    def _latest_messages(self, t: Telemetry) -> tuple[AutopilotMessage, ...]:
+        """:func:`_messages`, built again only when a new STATUSTEXT came (a state is
+        built at most messages)."""
+        said = self._said
+        if said[0] is t.status_texts and said[1] == t.status_text_count:
+            return said[2]
+        messages = _messages(t)
+        self._said = (t.status_texts, t.status_text_count, messages)
+        return messages
 
     def _detections(self, now: float) -> Mapping[str, object]:
         sets: dict[str, set[str]] = {}
@@ -1062,6 +1074,8 @@ _HANDLERS: dict[type, Callable[[MavlinkVehicle, Any], str | None]] = {
     FlyMission: MavlinkVehicle._fly_mission, Flip: MavlinkVehicle._flip,
     Safeguard: MavlinkVehicle._safeguard,
 }
+
+
 
 
 def _messages(t: Telemetry) -> tuple[AutopilotMessage, ...]:

@@ -887,3 +887,85 @@ def test_work_that_would_start_on_a_lost_vehicle_fails_at_once() -> None:
     assert flight.state_of("Guarded/Down") is TaskState.FAILED
     assert flight.requests(Land) == []  # nothing more is sent to it but the safe state
     assert [type(r) for t, r in flight.sent if t == flight.time] == [Hold, ReturnToLaunch]
+
+
+def _team(body: str) -> str:
+    """``body`` flown by every vehicle of a role of four."""
+    return f'<task name="Team" role="all">{body}</task>\n'
+
+
+LOW_BATTERY = ('<event name="Low" role="all">'
+               + condition("BATTERY_CHARGE_PERCENTAGE", "less than", "93")
+               + '<action name="LAND"/><termination mode="NEXT_TASK"/></event>')
+SEEN_EVENT = ('<event name="Seen" role="all">' + condition("seen", "equal", "yes")
+              + '<action name="WAIT"><argument name="duration" value="2"/></action>'
+              + '<termination mode="CONTINUE"/></event>')
+
+
+@pytest.mark.parametrize("scenario", ["waits", "low battery", "time limit", "lost",
+                                      "requests between waits", "seen during a wait"])
+def test_a_team_member_that_waits_is_not_ticked_and_nothing_differs(
+        scenario: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    # A team's branches that wait (a WAIT, a request's answer) are not ticked until their
+    # time, a change of what they read, or something done to their work: the flight must
+    # be the same as when every branch is ticked at every step, with fewer ticks.
+    from tml.engine import composites
+    from tml.engine.leaves import ActionLeaf
+
+    body, events, each = {
+        "waits": (_team(take_off() + hover("Hover", 20) + land()), "", None),
+        "low battery": (_team(take_off() + hover("Hover", 300) + land()), LOW_BATTERY, None),
+        "time limit": (_team(take_off() + '<task name="Bounded" time_limit="7">'
+                             + hover("Long", 60) + "</task>" + land()), "", None),
+        "lost": (_team(take_off() + hover("Hover", 20) + land()), "",
+                 lambda f: f.take(f.fleet.lost(f.time, 3, "link lost"))
+                 if f.time == 12.0 else None),
+        "requests between waits": (_team(take_off() + hover("H1", 3) + goto("Go", "(20, 0, 5)")
+                                         + hover("H2", 4) + land()), "", None),
+        "seen during a wait": (_team(take_off() + hover("Hover", 20) + land()), SEEN_EVENT,
+                               lambda f: f.vehicles[2].detections.__setitem__(
+                                   "seen", 9.0 <= f.time < 9.5)),
+    }[scenario]
+    ticks: list[int] = []
+    step = ActionLeaf.step
+
+    def counted(self: ActionLeaf) -> object:
+        ticks.append(1)
+        return step(self)
+    monkeypatch.setattr(ActionLeaf, "step", counted)
+
+    def fly(asleep: bool) -> tuple[list[Record], list[tuple[float, Request]], int]:
+        ticks.clear()
+        with monkeypatch.context() as patch:
+            if not asleep:
+                patch.setattr(composites._Asleep, "sleeps", lambda *_: False)
+            vehicles = [FakeVehicle(vehicle_id=i, drain_per_second=0.2 * i)
+                        for i in range(1, 5)]
+            flight = FleetFlight(body, vehicles, events=events,
+                                 extra=roles('<role name="all" count="4"/>')
+                                 + (SEEN if "seen" in scenario else ""))
+            flight.run(each=each)
+        assert flight.fleet.status is not Status.RUNNING
+        return flight.records, flight.sent, len(ticks)
+
+    records, sent, every = fly(asleep=False)
+    records_asleep, sent_asleep, fewer = fly(asleep=True)
+    assert records_asleep == records
+    assert sent_asleep == sent
+    assert fewer < every * 0.6  # most steps find every branch waiting
+
+
+def test_a_view_between_steps_shows_the_time_and_the_wait_at_that_moment() -> None:
+    # A WAIT is not stepped until it ends (tml.engine.wake): the display's view, asked
+    # between steps, shows the mission time and the WAIT's progress at the moment asked.
+    flight = FleetFlight(take_off() + hover("Hover", 20) + land(), 1)
+    while not flight.task("Hover", "running"):
+        flight.run(seconds=STEP)
+    flight.run(seconds=1.0)  # its Hold answered: the WAIT runs
+    last = flight.time
+    now, later = flight.fleet.views(last)[1], flight.fleet.views(last + 5.0)[1]
+    assert later.current_action == "WAIT"
+    assert now.progress is not None and later.progress is not None
+    assert later.progress - now.progress == pytest.approx(5.0 / 20)
+    assert later.mission_time == pytest.approx(last + 5.0)
+    assert flight.fleet.views()[1].mission_time == pytest.approx(last)  # the last step's

@@ -774,3 +774,42 @@ def test_a_change_alone_steps_again_only_after_the_rest_a_long_step_earns() -> N
     assert early and all(with_results for _, _, with_results in early)
     # The rest is slept on the time base: 0.2 s of the clock is 0.02 s of it.
     assert slept and max(slept) <= 0.02 + 1e-9
+
+
+def test_a_wait_is_stepped_at_its_end_and_when_what_an_event_reads_changes() -> None:
+    # During a 30 s WAIT the battery falls at every wake, which no rule of this mission
+    # reads: the interpreter is not stepped for it (tml.engine.wake). A detection an
+    # event reads steps it at the wake that shows it, and the WAIT ends at its time.
+    seen_at = 20.0
+
+    def see(sim: Sim) -> None:
+        sim.vehicles[0].detections["seen"] = sim.time >= seen_at
+
+    seen = ('<event name="Seen"><condition parameter="seen" comparison="equal" value="yes"/>'
+            '<action name="MEMORIZE_POINT"><argument name="coordinates" label="p"/></action>'
+            '<termination mode="CONTINUE"/></event>')
+    sim = Sim(FakeVehicle(drain_per_second=0.5))
+    sim.hooks.append(see)
+    log = io.StringIO()
+    runner = Runner(mission('<parameter name="seen" type="boolean"/>' + TAKE_OFF + HOVER
+                            + LAND, seen), sim.vehicles, clock=sim.clock,
+                    options=RunOptions(rate=1.0), journal=Journal(log), wait=sim.wait)
+    engine = runner.crews[0].engine
+    step = engine.step
+    steps: list[float] = []
+
+    def counted(now, states, results):  # type: ignore[no-untyped-def]
+        steps.append(now)
+        return step(now, states, results)
+    engine.step = counted  # type: ignore[method-assign]
+    assert runner.run().exit_code == ExitCode.OK
+    lines = [json.loads(line) for line in log.getvalue().splitlines()]
+    hover = [line["t"] for line in lines if line.get("task") == "Hover"]
+    began, ended = hover[0], hover[-1]
+    assert 30.0 <= ended - began <= 30.0 + 0.1 + 1e-9
+    fired = next(line["t"] for line in lines if line["kind"] == "event")
+    assert seen_at <= fired <= seen_at + 0.1 + 1e-9
+    # In the WAIT: its Hold's result, the detection, the end (and the rate's 1 s ticks
+    # until the engine has said what it waits for); not one step per battery reading.
+    during = [t for t in steps if began < t < ended]
+    assert len(during) <= 5, during

@@ -18,7 +18,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from types import MappingProxyType
 from typing import Protocol
 
@@ -181,6 +181,18 @@ class VehicleState:
         """Metres from home, horizontally (None when the position is unknown)."""
         return None if self.position is None else math.hypot(self.position[0],
                                                              self.position[1])
+
+
+COMPARED_FIELDS = tuple(f.name for f in fields(VehicleState) if f.name != "time" and f.compare)
+"""The fields that say what a vehicle shows: all but its time and what only an operator
+reads (the fields of VehicleState left out of its comparison)."""
+
+
+def same_state(a: VehicleState, b: VehicleState,
+               names: Iterable[str] = COMPARED_FIELDS) -> bool:
+    """Whether two states of a vehicle show the same in the fields ``names`` (by default
+    :data:`COMPARED_FIELDS`)."""
+    return a is b or all(getattr(a, name) == getattr(b, name) for name in names)
 
 
 NO_SKILL = "nothing on this vehicle switches it"

@@ -25,13 +25,15 @@ goes on from the child on the way to the target.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from enum import Enum
 
-from tml.engine.context import Roles, Run
+from tml.engine.context import Pilot, Roles, Run
 from tml.engine.failures import Failure
 from tml.engine.records import TaskState
+from tml.engine.wake import Waker
 from tml.language.model import Task
+from tml.vehicle import COMPARED_FIELDS, VehicleState, same_state
 
 
 class NodeStatus(Enum):
@@ -82,6 +84,11 @@ class Node:
         """Go on from the task at ``path`` (JUMP_TO_TASK); False when it is not below."""
         return False
 
+    def wake(self, waker: Waker) -> None:
+        """Tell ``waker`` what this running node waits for (:mod:`tml.engine.wake`); by
+        default anything: it is stepped at every tick and on every change."""
+        waker.anything()
+
 
 # Builds the node of a sub-task; ``entry`` is the path of a jump's target below it, if any.
 Build = Callable[[Task, tuple[str, ...] | None], Node]
@@ -120,6 +127,12 @@ class SequenceNode(Node):
     def end(self, status: NodeStatus, why: str) -> None:
         if self.current is not None:
             self.current.stop(why)
+
+    def wake(self, waker: Waker) -> None:
+        if self.current is None or self.run.halted:
+            waker.anything()
+        else:
+            self.current.wake(waker)
 
 
 class TasksNode(SequenceNode):
@@ -160,7 +173,14 @@ def _leads_to(task: Task, path: tuple[str, ...]) -> bool:
 
 class ParallelNode(Node):
     """Sub-tasks side by side: done when all are done, or with ``first`` when the first is
-    (the others are stopped); a failure stops the others and fails the node."""
+    (the others are stopped); a failure stops the others and fails the node.
+
+    *Asleep.* After its tick, each branch says what it waits for (:mod:`tml.engine.wake`);
+    until then it is not ticked: not before the time it named, nor while the states it
+    reads show the same in the fields it reads and nothing was done to its vehicles' work
+    from outside (:meth:`~tml.engine.context.Pilot.stir`). So of a team of hundreds of
+    vehicles flying a WAIT or waiting for their requests, a step ticks only those whose
+    turn it is."""
 
     def __init__(self, run: Run, children: Callable[[], list[Node]], first: bool = False) -> None:
         super().__init__()
@@ -168,12 +188,17 @@ class ParallelNode(Node):
         self.children = children
         self.first = first
         self.running: list[Node] = []
+        self._asleep: dict[Node, _Asleep] = {}
 
     def start(self) -> None:
         self.running = self.children()
+        self._asleep = {}
 
     def step(self) -> NodeStatus:
         for child in list(self.running):
+            asleep = self._asleep.get(child)
+            if asleep is not None and asleep.sleeps(self.run):
+                continue
             status = child.tick()
             if status is NodeStatus.SUCCESS:
                 self.running.remove(child)
@@ -185,17 +210,70 @@ class ParallelNode(Node):
                 self.failure = child.failure
                 self._stop_all("a sibling branch failed")
                 return status
+            else:
+                self._rest(child)
             if self.run.halted:
                 return NodeStatus.RUNNING
         return NodeStatus.RUNNING if self.running else NodeStatus.SUCCESS
 
+    def _rest(self, child: Node) -> None:
+        """Note what a branch still running waits for (nothing it can sleep on: none)."""
+        waker = Waker()
+        child.wake(waker)
+        reads = waker.reads
+        if reads is None or not (reads or waker.vehicles):
+            self._asleep.pop(child, None)
+            return
+        pilots = self.run.pilots
+        self._asleep[child] = _Asleep(waker, [
+            (pilots[vid], pilots[vid].stirs, pilots[vid].state,
+             COMPARED_FIELDS if names is None else names)
+            for vid in waker.vehicles | reads.keys() for names in [reads.get(vid, ())]])
+
     def end(self, status: NodeStatus, why: str) -> None:
         self._stop_all(why)
 
+    def wake(self, waker: Waker) -> None:
+        if not self.running:
+            waker.anything()
+        for child in self.running:
+            asleep = self._asleep.get(child)
+            if asleep is not None and asleep.still():
+                asleep.told.tell(waker)  # what it said at its last tick still holds
+            else:
+                child.wake(waker)
+            if waker.reads is None:
+                return  # anything: nothing more to learn
+
     def _stop_all(self, why: str) -> None:
         running, self.running = self.running, []
+        self._asleep = {}
         for child in running:
             child.stop(why)
+
+
+class _Asleep:
+    """A branch of a :class:`ParallelNode` that is not ticked until the time it ``told``
+    (the mission's clock), unless one of its vehicles is stirred or shows another value in
+    a field it reads; ``seen``: (pilot, its stirs, its state, the fields read) at its last
+    tick."""
+
+    __slots__ = ("seen", "told")
+
+    def __init__(self, told: Waker,
+                 seen: list[tuple[Pilot, int, VehicleState, Iterable[str]]]) -> None:
+        self.told = told
+        self.seen = seen
+
+    def sleeps(self, run: Run) -> bool:
+        """Whether the branch may stay unticked in this step."""
+        return run.now < self.told.at and not run.halted and self.still()
+
+    def still(self) -> bool:
+        """Whether what it told still holds: nothing stirred its vehicles, and they show
+        the same in the fields it reads."""
+        return all(pilot.stirs == stirs and same_state(state, pilot.state, names)
+                   for pilot, stirs, state, names in self.seen)
 
 
 class ChoiceNode(Node):
@@ -231,6 +309,12 @@ class ChoiceNode(Node):
     def end(self, status: NodeStatus, why: str) -> None:
         if self.chosen is not None:
             self.chosen.stop(why)
+
+    def wake(self, waker: Waker) -> None:
+        if self.chosen is None:  # waiting for a sub-task's conditions to hold
+            waker.anything()
+        else:
+            self.chosen.wake(waker)
 
 
 class RepeatNode(Node):
@@ -293,3 +377,9 @@ class RepeatNode(Node):
 
     def jump(self, path: tuple[str, ...]) -> bool:
         return self.current is not None and self.current.jump(path)
+
+    def wake(self, waker: Waker) -> None:
+        if self.current is None:  # a loop's next round: its conditions are read then
+            waker.anything()
+        else:
+            self.current.wake(waker)

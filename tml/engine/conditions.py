@@ -44,28 +44,36 @@ _FOUND_SETS = {"item": "RECOGNIZED_ITEMS", "bucket": "RECOGNIZED_BUCKETS",
                "visual marker": "RECOGNIZED_VISUAL_MARKERS",
                "marker": "RECOGNIZED_VISUAL_MARKERS", "frame": "RECOGNIZED_FRAMES"}
 
-_STATE_READERS: dict[str, Callable[[VehicleState], object]] = {
-    "BATTERY_CHARGE_PERCENTAGE": lambda s: s.battery,
-    "ALTITUDE": lambda s: s.position[2] if s.position else None,
-    "GROUND_SPEED": lambda s: s.ground_speed if s.position is not None else None,
-    "DISTANCE_TO_HOME": lambda s: math.hypot(s.position[0], s.position[1])
-    if s.position else None,
-    "HEADING": lambda s: s.heading if s.heading_known else None,
-    "FLIGHT_MODE": lambda s: s.mode or None,
-    "ARMED": lambda s: s.armed,
-    "LANDED": lambda s: s.landed,
-    "LINK_STATE": lambda s: s.link,
-    "GPS_FIX": lambda s: s.gps_fix,
+_STATE_READERS: dict[str, tuple[frozenset[str], Callable[[VehicleState], object]]] = {
+    # parameter: (the VehicleState fields it reads, how)
+    "BATTERY_CHARGE_PERCENTAGE": (frozenset({"battery"}), lambda s: s.battery),
+    "ALTITUDE": (frozenset({"position"}), lambda s: s.position[2] if s.position else None),
+    "GROUND_SPEED": (frozenset({"position", "ground_speed"}),
+                     lambda s: s.ground_speed if s.position is not None else None),
+    "DISTANCE_TO_HOME": (frozenset({"position"}),
+                         lambda s: math.hypot(s.position[0], s.position[1])
+                         if s.position else None),
+    "HEADING": (frozenset({"heading", "heading_known"}),
+                lambda s: s.heading if s.heading_known else None),
+    "FLIGHT_MODE": (frozenset({"mode"}), lambda s: s.mode or None),
+    "ARMED": (frozenset({"armed"}), lambda s: s.armed),
+    "LANDED": (frozenset({"landed"}), lambda s: s.landed),
+    "LINK_STATE": (frozenset({"link"}), lambda s: s.link),
+    "GPS_FIX": (frozenset({"gps_fix"}), lambda s: s.gps_fix),
 }
+STATE_FIELDS: dict[str, frozenset[str]] = {name: fields
+                                           for name, (fields, _) in _STATE_READERS.items()}
+"""The fields of :class:`~tml.vehicle.VehicleState` each built-in parameter read from the
+vehicle's state depends on (set parameters read ``detections``)."""
 
 
 def read_parameter(name: str, state: VehicleState, memory: Memory) -> object:
     """The current value of a parameter (None when unknown)."""
     spec = parameters.lookup(name)
     if spec is not None:
-        reader = _STATE_READERS.get(spec.name)
-        if reader is not None:
-            return reader(state)
+        known = _STATE_READERS.get(spec.name)
+        if known is not None:
+            return known[1](state)
         if spec.type is ParamType.SET:
             return _as_set(state.detections.get(spec.name))
         return {

@@ -172,9 +172,9 @@ class Work(Protocol):
         fired one), while the handler's termination is awaited; None otherwise."""
         ...
 
-    @property
-    def progress(self) -> float | None:
-        """How far the action is, 0 to 1, when it can tell."""
+    def progress(self, clock: float) -> float | None:
+        """How far the action is at ``clock`` (the mission's clock), 0 to 1, when it can
+        tell."""
         ...
 
     @property
@@ -225,7 +225,11 @@ class Log:
     @property
     def clock(self) -> float:
         """The mission's clock: the time of the step less the time spent paused."""
-        return (self.now if self.paused_at is None else self.paused_at) - self.paused
+        return self.clock_at(self.now)
+
+    def clock_at(self, now: float) -> float:
+        """The mission's clock at the runner's time ``now`` (not before the last step)."""
+        return (now if self.paused_at is None else self.paused_at) - self.paused
 
     @property
     def mission_time(self) -> float:
@@ -286,6 +290,7 @@ class Pilot:
     events: list[tuple[float, str]] = field(default_factory=list)  # (mission time, event)
     states: dict[str, TaskState] = field(default_factory=dict)  # tasks it flew
     changes: list[Change] = field(default_factory=list)
+    stirs: int = 0  # counts stir()
 
     @property
     def now(self) -> float:
@@ -303,7 +308,13 @@ class Pilot:
 
     def become(self, duty: Duty) -> None:
         """Change duty, as :data:`DUTY_MOVES` allows."""
+        self.stir()
         self.duty = moved(DUTY_MOVES, self.duty, duty, f"vehicle {self.vehicle_id}")
+
+    def stir(self) -> None:
+        """Something was done to its work from outside the tree's tick (a result, an event
+        handler, a lost link): the nodes doing it are stepped next (tml.engine.wake)."""
+        self.stirs += 1
 
     def flying_a_task(self) -> bool:
         """Whether it flies a task now (its event handlers are checked then)."""
@@ -441,13 +452,15 @@ class Run:
         for skill in self.mission.skills:
             self.skill(pilot, skill.name, on)
 
-    def view(self, pilot: Pilot) -> View:
-        """The display's snapshot of one vehicle."""
+    def view(self, pilot: Pilot, now: float) -> View:
+        """The display's snapshot of one vehicle at the runner's time ``now``."""
         current, last = pilot.current(), (pilot.work[-1] if pilot.work else None)
+        log = self.log
         return View(self.status, {**self.pending, **self.shared, **pilot.states},
                     "/".join(current.task_path) if current else "",
-                    last.action_name if last else "", last.progress if last else None,
-                    dict(pilot.labels), tuple(pilot.events), self.log.stamp,
+                    last.action_name if last else "",
+                    last.progress(log.clock_at(now)) if last else None,
+                    dict(pilot.labels), tuple(pilot.events), log.stamp_of(now),
                     self.reason or pilot.lost, pilot.role or "", tuple(pilot.changes),
                     self.started)
 

@@ -36,9 +36,10 @@ from tml.engine.context import Duty, Pilot, Run, TaskOwner, Verdict, Work, WorkM
 from tml.engine.leaves import ActionLeaf
 from tml.engine.records import Status
 from tml.engine.scripts import SCRIPTS, ActionFailed
+from tml.engine.wake import Waker, condition_fields
 from tml.language.actions import Category, bind
 from tml.language.model import ConditionKind, Event, EventTrigger, TerminationMode
-from tml.vehicle import Hold, VehicleState
+from tml.vehicle import COMPARED_FIELDS, Hold, VehicleState, same_state
 
 
 class Handler(SequenceNode):
@@ -57,13 +58,18 @@ class Events:
         self.run = run
         self.handlers: dict[int, Handler] = {}  # the handler running on each vehicle
         # Per vehicle: the state (and role) in which its last check fired nothing, when all
-        # its handlers' conditions read only that vehicle. Checked again in the same state
-        # they read the same values and fire nothing again (an edge needs a change; a level
+        # its handlers' conditions read only that vehicle. Checked again in a state that
+        # shows the same in the fields they read (tml.engine.wake.condition_fields), they
+        # read the same values and fire nothing again (an edge needs a change; a level
         # event that held would have fired), so the check is skipped: in a fleet most
-        # vehicles' states do not change between two steps. (A handling begins only where a
-        # check fired, which forgets the mark.)
+        # vehicles' positions change at every step, their batteries seldom. (A handling
+        # begins only where a check fired, which forgets the mark.)
         self._quiet: dict[int, tuple[VehicleState, str | None]] = {}
         self._vehicle_only: dict[str | None, bool] = {}  # per role: see _reads_vehicle_only
+        self._read: dict[str | None, frozenset[str]] = {}  # per role: see _fields
+        # Per vehicle handling an event: the state its edges were last looked at in (see
+        # _rearm), while every condition that re-arms them reads that vehicle alone.
+        self._rearmed: dict[int, tuple[VehicleState, str | None]] = {}
         run.react = self.react
 
     def watch(self, pilot: Pilot) -> None:
@@ -75,8 +81,26 @@ class Events:
             self._drive(pilot, handler)
         elif pilot.duty is Duty.WATCHING and pilot.flying_a_task():
             quiet = self._quiet.get(pilot.vehicle_id)
-            if quiet is None or quiet[0] is not pilot.state or quiet[1] != pilot.role:
+            if quiet is None or quiet[1] != pilot.role or not same_state(
+                    quiet[0], pilot.state, self._fields(pilot.role)):
                 self._check(pilot)
+
+    def wake(self, waker: Waker) -> None:
+        """Tell ``waker`` what the event handling waits for (:mod:`tml.engine.wake`): the
+        fields each watching vehicle's handlers read, the running handlers' work, and any
+        field of a vehicle whose handling re-arms its edges."""
+        run = self.run
+        for pilot in run.pilots.values():
+            handler = self.handlers.get(pilot.vehicle_id)
+            if handler is not None:
+                handler.wake(waker)
+                waker.state(pilot.vehicle_id)
+            elif pilot.duty is Duty.WATCHING and pilot.flying_a_task():
+                role = pilot.role
+                if not self._reads_vehicle_only(role) or self._level(role):
+                    waker.anything()  # another's state, the interpreter's, or every check
+                    return
+                waker.state(pilot.vehicle_id, self._fields(role))
 
     def react(self, pilot: Pilot) -> bool:
         """An action failed on the vehicle: True when a handler fired and decides what
@@ -96,6 +120,7 @@ class Events:
             handler.stop(why)
 
     def _drop(self, pilot: Pilot) -> Handler | None:
+        self._rearmed.pop(pilot.vehicle_id, None)
         handler = self.handlers.pop(pilot.vehicle_id, None)
         if handler is not None and pilot.duty is Duty.HANDLING:
             pilot.become(Duty.WATCHING)
@@ -106,6 +131,7 @@ class Events:
     def _check(self, pilot: Pilot) -> bool:
         """Evaluate the vehicle's handlers; fire the first that triggers. True if one fired."""
         run, vid = self.run, pilot.vehicle_id
+        self._rearmed.pop(vid, None)  # it sets what each event's conditions held
         memory = pilot.memory(run.now, run.log.mission_time)
         roles = {pilot.role: vid}
         fired: Event | None = None
@@ -145,12 +171,33 @@ class Events:
                 for condition in event.conditions)
         return known
 
+    def _level(self, role: str | None) -> bool:
+        """Whether a handler of a vehicle in ``role`` is level-triggered (fires at every
+        check while its conditions hold)."""
+        return any(event.trigger is EventTrigger.LEVEL for event in self.run.mission.events
+                   if event.role in (None, role))
+
+    def _fields(self, role: str | None) -> frozenset[str]:
+        """The state fields the conditions of the handlers of a vehicle in ``role`` read
+        (asked only where they read that vehicle alone)."""
+        known = self._read.get(role)
+        if known is None:
+            known = self._read[role] = frozenset().union(*(
+                condition_fields(condition) or COMPARED_FIELDS
+                for event in self.run.mission.events if event.role in (None, role)
+                for condition in event.conditions))
+        return known
+
     def _rearm(self, pilot: Pilot) -> None:
         """During a handling: arm again each edge-triggered event one of whose conditions
         on the vehicle is false (see the module docstring)."""
-        run = self.run
+        run, vid = self.run, pilot.vehicle_id
+        seen = self._rearmed.get(vid)
+        if seen is not None and seen[1] == pilot.role and same_state(
+                seen[0], pilot.state, self._fields(pilot.role)):
+            return  # the same readings: no condition fell since the last look
         memory = pilot.memory(run.now, run.log.mission_time)
-        roles = {pilot.role: pilot.vehicle_id}
+        roles = {pilot.role: vid}
         for event in run.mission.events:
             if (event.trigger is EventTrigger.LEVEL or not pilot.holding.get(event.name)
                     or (event.role is not None and event.role != pilot.role)):
@@ -158,6 +205,8 @@ class Events:
             if any(not run.reading(c, pilot, memory, roles)[0]
                    for c in event.conditions if reads_vehicle(c)):
                 pilot.holding[event.name] = False
+        if self._reads_vehicle_only(pilot.role):
+            self._rearmed[vid] = (pilot.state, pilot.role)
 
     def _fire(self, pilot: Pilot, event: Event) -> None:
         run = self.run

@@ -64,6 +64,7 @@ vehicles, and a lost vehicle is sent the safe state in case its link comes back.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping, Sequence
 
 from tml.engine.composites import NodeStatus, TasksNode
@@ -73,6 +74,7 @@ from tml.engine.failures import Failure
 from tml.engine.records import Output, Status, View
 from tml.engine.resume import Progress, Restoring
 from tml.engine.tasks import TaskNode
+from tml.engine.wake import ANYTHING, Wake, Waker
 from tml.errors import ControlRefused, EngineError
 from tml.language.actions import CAPABILITIES, lookup
 from tml.language.check import check_jump
@@ -219,6 +221,21 @@ class Interpreter:
             self._end(Status.ABORTED, reason)
         return self.run.log.take()
 
+    def wake(self) -> Wake:
+        """When the interpreter must be stepped again, besides results, lost vehicles and
+        controls (:mod:`tml.engine.wake`): asked after any call."""
+        run = self.run
+        if run.status is not Status.RUNNING:
+            return Wake(math.inf, {})
+        if (not self._started or run.paused or run.halted or run.jump_to is not None
+                or run.restoring is not None or self._results):
+            return ANYTHING
+        waker = Waker()
+        self.events.wake(waker)
+        if waker.reads is not None:
+            self.root.wake(waker)
+        return waker.wake(run.log.now - run.now)
+
     # --- the operator's controls --------------------------------------------------------------
 
     @property
@@ -307,9 +324,13 @@ class Interpreter:
         return bool(pilot.work) or pilot.vehicle_id in {
             vid for bound in self.run.bound.values() for vid in bound}
 
-    def views(self) -> dict[int, View]:
-        """A snapshot per vehicle for the display."""
-        return {vid: self.run.view(pilot) for vid, pilot in self.run.pilots.items()}
+    def views(self, now: float | None = None) -> dict[int, View]:
+        """A snapshot per vehicle for the display, at the runner's time ``now`` (default:
+        the last call's): times and waits move on between steps."""
+        run = self.run
+        at = run.log.now if now is None or self.status is not Status.RUNNING \
+            else max(now, run.log.now)
+        return {vid: run.view(pilot, at) for vid, pilot in run.pilots.items()}
 
     # --- a step ------------------------------------------------------------------------------
 

@@ -36,6 +36,7 @@ from tml.engine.context import (
 from tml.engine.failures import Failure
 from tml.engine.records import TaskState
 from tml.engine.scripts import ActionFailed, Script, Send, Sleep, Until, script_for
+from tml.engine.wake import Waker
 from tml.language.actions import BoundAction, Category, bind
 from tml.language.failures import FailureReason
 from tml.language.model import Action, Task
@@ -99,9 +100,9 @@ class Leaf(Node):
         """When the task flown now began (TASK_ELAPSED_TIME)."""
         raise NotImplementedError
 
-    @property
-    def progress(self) -> float | None:
-        """How far the work is, 0 to 1, when it can tell."""
+    def progress(self, clock: float) -> float | None:
+        """How far the work is at ``clock`` (the mission's clock), 0 to 1, when it can
+        tell."""
         raise NotImplementedError
 
     @property
@@ -118,16 +119,19 @@ class Leaf(Node):
         """Stop for an event handler; True when it was flying."""
         if self._mode is not WorkMode.ACTIVE:
             return False
+        self.pilot.stir()
         self.become(WorkMode.HELD)
         return True
 
     def decide(self, verdict: Verdict, failure: Failure | None = None) -> None:
         """What follows, applied at the next step."""
+        self.pilot.stir()
         self.verdict = (verdict, failure)
 
     def carry_on(self) -> None:
         """Go on after a pause of the run (the vehicle held): only active work has
         anything to send again."""
+        self.pilot.stir()
         if self._mode is WorkMode.ACTIVE and self.verdict is None:
             self.resume(fresh=False)
 
@@ -266,9 +270,29 @@ class ActionLeaf(Leaf):
     def task_since(self) -> float:
         return self._owner.since if self._owner is not None else self.began
 
-    @property
-    def progress(self) -> float | None:
+    def progress(self, clock: float) -> float | None:
+        wait = self.wait
+        if isinstance(wait, Sleep) and self._mode is WorkMode.ACTIVE:
+            # Time alone moves it: from the clock, not from the last step (a WAIT is
+            # not stepped until it ends: tml.engine.wake).
+            return max(0.0, min(1.0, (clock - self.since) / max(wait.seconds, 1e-9)))
         return self._progress
+
+    def wake(self, waker: Waker) -> None:
+        mode, wait = self._mode, self.wait
+        waker.vehicle(self.vehicle_id)
+        if self.verdict is not None or mode is WorkMode.READY:
+            waker.anything()
+        elif mode is WorkMode.ACTIVE:
+            if isinstance(wait, Sleep):
+                waker.by(self.since + wait.seconds)
+            elif not isinstance(wait, Send):  # only its answer moves a request on
+                # An Until reads its vehicle's state, and whether that is current (which
+                # no compared field tells): at every step, and on every change.
+                waker.by(-math.inf)
+                waker.state(self.vehicle_id)
+        # HELD, AWAITING: the event handler that took it over decides (its own nodes say
+        # what they wait for); ENDED: nothing.
 
     def _data(self) -> dict[str, object]:
         return {"action": self.bound.name,
@@ -306,10 +330,8 @@ class ActionLeaf(Leaf):
                         self._failed(FailureReason.TIMEOUT,
                                      f"did not {wait.what} within {wait.limit:.0f} s")
                     return
-            elif isinstance(wait, Sleep):
-                self._progress = min(1.0, (run.now - self.since) / max(wait.seconds, 1e-9))
-                if run.now - self.since < wait.seconds:
-                    return
+            elif isinstance(wait, Sleep) and run.now - self.since < wait.seconds:
+                return
             try:
                 self.wait = next(self.script)
             except StopIteration:
@@ -332,6 +354,7 @@ class ActionLeaf(Leaf):
         if self.mode is not WorkMode.ACTIVE or not isinstance(wait, Send) \
                 or result.request_id != self.request_id:
             return False
+        self.pilot.stir()
         self.run.note("result", f"{wait.request.name} {'done' if result.ok else 'failed'}",
                       self.vehicle_id, request_id=result.request_id, ok=result.ok,
                       reason=result.reason, detail=result.detail)
@@ -415,8 +438,7 @@ class PlanLeaf(Leaf):
     def _started(self) -> float:
         return self._owner.since if self._owner is not None else self.since
 
-    @property
-    def progress(self) -> float | None:
+    def progress(self, clock: float) -> float | None:
         # By the vehicle's items when it tells them (a survey is one action of many items).
         said = self.pilot.state.mission
         if said is not None and said.plan_id == self.plan_id and said.items > 0:

@@ -33,6 +33,7 @@ from tml.engine.context import Pilot, Roles, Run
 from tml.engine.failures import Failure
 from tml.engine.leaves import ActionLeaf, PlanLeaf
 from tml.engine.records import TaskState
+from tml.engine.wake import Waker
 from tml.language.model import Composition, Dispatch, Task
 from tml.vehicle import Hold
 
@@ -90,6 +91,9 @@ class TaskNode(Node):
     def abandon(self, why: str) -> None:
         """End the task unfinished (ABORTED) at its next step; the mission goes on after it."""
         self.abandoned = why
+        for pilot in ([self.run.pilots[self.vehicle_id]] if self.vehicle_id is not None
+                      else self.run.pilots.values()):
+            pilot.stir()
 
     def build(self, task: Task, entry: tuple[str, ...] | None) -> Node:
         """The node of a sub-task (or an on_error task)."""
@@ -130,6 +134,20 @@ class TaskNode(Node):
 
     def jump(self, path: tuple[str, ...]) -> bool:
         return self.phase is Phase.BODY and self.inner is not None and self.inner.jump(path)
+
+    def wake(self, waker: Waker) -> None:
+        inner, task = self.inner, self.task
+        if self.abandoned is not None or inner is None or self.phase in (Phase.PICK,
+                                                                        Phase.WAIT):
+            waker.anything()
+        elif self.phase is not Phase.BODY:  # TEAM, RECOVER
+            inner.wake(waker)
+        elif task.until:  # conditions read at every step
+            waker.anything()
+        else:
+            if task.time_limit is not None:
+                waker.by(self.since + task.time_limit)
+            inner.wake(waker)
 
     # --- the phases ------------------------------------------------------------------------
 

@@ -92,19 +92,21 @@ import time
 import traceback
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from functools import partial
 from typing import Any
 
 from tml.engine import Interpreter, Options, Output, Status, View
 from tml.engine.resume import Progress
 from tml.engine.safety import safe_state_request, safe_state_shown
+from tml.engine.wake import ANYTHING
 from tml.errors import ControlRefused, ExitCode
 from tml.language.model import Mission
 from tml.language.skills import mission_vehicle_skills
 from tml.run.journal import Journal, autopilot_fields, telemetry_fields
 from tml.timebase import SYSTEM, Flag, Timebase
 from tml.vehicle import (
+    COMPARED_FIELDS,
     SEVERITIES,
     WARNING,
     AutopilotMessage,
@@ -114,6 +116,7 @@ from tml.vehicle import (
     Vehicle,
     VehicleState,
     awaiting,
+    same_state,
     unprovided,
 )
 
@@ -227,7 +230,8 @@ class _Crew:
         self.flights = flights
         self.broken = False  # the engine raised: it is not asked anything again
         self.step_at = -math.inf  # when the engine is stepped even if nothing changed
-        self.changed = False  # a vehicle's state changed since the last step
+        self.wake = ANYTHING  # what the engine waits for (asked after each call)
+        self.changed = False  # a field the engine waits for changed since the last step
         self.rest_until = -math.inf  # a change alone steps the engine from then on (STEP_REST)
         self.rest_for = 0.0  # the same rest in seconds of the time base (to sleep it)
 
@@ -373,7 +377,7 @@ class Runner:
         """The display's view of each vehicle: the engine's view and the last state."""
         views: list[tuple[View, VehicleState | None]] = []
         for crew in self.crews:
-            found = crew.engine.views()
+            found = crew.engine.views(self.clock())
             views.extend((found[f.vehicle.vehicle_id], f.state) for f in crew.flights)
         return views
 
@@ -575,6 +579,7 @@ class Runner:
         lost: list[_Flight] = []
         taken: list[_Flight] = []
         changed = False
+        reads = crew.wake.reads
         for flight in crew.flights:
             vehicle = flight.vehicle
             found = vehicle.poll()
@@ -587,8 +592,9 @@ class Runner:
                 before, state = flight.state, vehicle.state()
                 flight.state, flight.revision = state, revision
                 flight.refresh_at = now + self.options.refresh
-                changed = changed or revision is None or before is None \
-                    or not _same_state(before, state)
+                if not changed and state is not before:
+                    changed = before is None or not same_state(
+                        before, state, _watched(reads, vehicle.vehicle_id))
                 self._tell_messages(flight, now)
             else:
                 state = flight.state
@@ -624,9 +630,11 @@ class Runner:
         crew.changed = crew.changed or changed
         if crew.running and (results or lost or taken or now >= crew.step_at
                              or (crew.changed and now >= crew.rest_until)):
-            crew.step_at = now + 1.0 / self.options.rate
             crew.changed = False
             self._guarded(crew, now, lambda: crew.engine.step(now, crew.states(), results))
+            # Time alone steps it at the rate, or later when the engine says nothing can
+            # happen before then (a WAIT, a request's answer: tml.engine.wake).
+            crew.step_at = max(now + 1.0 / self.options.rate, crew.wake.at)
             ended = self.clock()
             crew.rest_until = ended + STEP_REST * (ended - now)
             crew.rest_for = STEP_REST * (self.timebase.now() - began)
@@ -686,6 +694,7 @@ class Runner:
         """Run an engine call; an exception aborts every vehicle."""
         try:
             output = call()
+            crew.wake = crew.engine.wake()
         except Exception as error:  # any engine bug must end in the safe state
             crew.broken = True
             for flight in crew.flights:
@@ -860,13 +869,13 @@ def _revision(vehicle: Any) -> object:
     return None if revision is None else revision()
 
 
-_COMPARED = tuple(f.name for f in fields(VehicleState) if f.name != "time" and f.compare)
-
-
-def _same_state(a: VehicleState, b: VehicleState) -> bool:
-    """Whether two states of a vehicle show the same, whatever their time and what only an
-    operator reads (the fields of VehicleState left out of its comparison)."""
-    return all(getattr(a, name) == getattr(b, name) for name in _COMPARED)
+def _watched(reads: Mapping[int, frozenset[str] | None] | None,
+             vehicle_id: int) -> Iterable[str]:
+    """The fields of a vehicle's state whose change calls for a step (see Wake.reads)."""
+    if reads is None:
+        return COMPARED_FIELDS
+    names = reads.get(vehicle_id, ())
+    return COMPARED_FIELDS if names is None else names
 
 
 def _idle(vehicle: Any) -> bool:

@@ -236,12 +236,13 @@ def fly(vehicles: int, speedup: float, seconds: float) -> Result:
     from tml.mavlink.adapter import MavlinkVehicle
     from tml.mavlink.link import Link
     from tml.run.runner import Runner, RunOptions
+    from tml.timebase import Flag
 
     source = MISSION.format(count=vehicles, altitude=ALTITUDE, low=LOW).encode()
     mission = validate_file("fleet.xml", source).mission
     assert mission is not None, "the generated mission is invalid"
     probe = Probe()
-    wake = threading.Event()
+    wake = Flag()  # as tml run's (tml.run.session)
     threads = [0]
     with ExitStack() as stack:
         at, sim_cpu = stack.enter_context(simulators(vehicles, speedup))

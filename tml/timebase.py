@@ -397,6 +397,10 @@ class Flag:
         self._set = False
 
     def set(self) -> None:
+        if self._set:
+            # A waiter sees it set, or has been woken already: a link sets it on every
+            # message that changes a vehicle, and the lock and notify cost each of them.
+            return
         with self._cond:
             self._set = True
             self.timebase.notify_all(self._cond)

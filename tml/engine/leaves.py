@@ -41,7 +41,12 @@ from tml.language.actions import BoundAction, Category, bind
 from tml.language.failures import FailureReason
 from tml.language.model import Action, Task
 from tml.patterns import survey
-from tml.vehicle import FlyMission, Hold, Request, RequestResult
+from tml.vehicle import COMPARED_FIELDS, FlyMission, Hold, Request, RequestResult
+
+UNTIL_READS = frozenset(COMPARED_FIELDS) | {"current"}
+"""What an :class:`~tml.engine.scripts.Until` reads of its vehicle's state: any field that
+says what the vehicle shows, and whether the picture is newer than the latest request
+(``current``, which no compared field tells)."""
 
 
 class Leaf(Node):
@@ -286,11 +291,12 @@ class ActionLeaf(Leaf):
         elif mode is WorkMode.ACTIVE:
             if isinstance(wait, Sleep):
                 waker.by(self.since + wait.seconds)
-            elif not isinstance(wait, Send):  # only its answer moves a request on
-                # An Until reads its vehicle's state, and whether that is current (which
-                # no compared field tells): at every step, and on every change.
-                waker.by(-math.inf)
-                waker.state(self.vehicle_id)
+            elif isinstance(wait, Until):
+                waker.by(self.since + wait.limit)
+                waker.state(self.vehicle_id, UNTIL_READS)
+            elif wait is None:
+                waker.anything()
+            # Send: only its answer moves a request on.
         # HELD, AWAITING: the event handler that took it over decides (its own nodes say
         # what they wait for); ENDED: nothing.
 

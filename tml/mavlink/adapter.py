@@ -523,13 +523,14 @@ class MavlinkVehicle:
             self._companion_seen = True
             self._changes += 1  # its skills can be switched from now on
         if component == self.mav.component_id:
-            self.health.heard(self.link_clock(), kind == "HEARTBEAT", snapshot.boot_time,
+            at = self.link_clock()
+            self.health.heard(at, kind == "HEARTBEAT", snapshot.boot_time,
                               snapshot.received, snapshot.lost)
             boot_ms = getattr(msg, "time_boot_ms", None)
             if boot_ms is not None:
-                self._stamped_at = self.link_clock()
+                self._stamped_at = at
                 with self._lock:
-                    if self._reboots.seen(boot_ms / 1000, self.link_clock()):
+                    if self._reboots.seen(boot_ms / 1000, at):
                         self._changes += 1
         if kind == "HEARTBEAT" and component == self.mav.component_id:
             with self._lock:

@@ -272,8 +272,10 @@ class _Asleep:
     def still(self) -> bool:
         """Whether what it told still holds: nothing stirred its vehicles, and they show
         the same in the fields it reads."""
-        return all(pilot.stirs == stirs and same_state(state, pilot.state, names)
-                   for pilot, stirs, state, names in self.seen)
+        for pilot, stirs, state, names in self.seen:  # a loop: asked of every branch
+            if pilot.stirs != stirs or not same_state(state, pilot.state, names):
+                return False
+        return True
 
 
 class ChoiceNode(Node):

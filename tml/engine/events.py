@@ -67,6 +67,7 @@ class Events:
         self._quiet: dict[int, tuple[VehicleState, str | None]] = {}
         self._vehicle_only: dict[str | None, bool] = {}  # per role: see _reads_vehicle_only
         self._read: dict[str | None, frozenset[str]] = {}  # per role: see _fields
+        self._waiting: dict[str | None, frozenset[str] | None] = {}  # per role: see _waits
         # Per vehicle handling an event: the state its edges were last looked at in (see
         # _rearm), while every condition that re-arms them reads that vehicle alone.
         self._rearmed: dict[int, tuple[VehicleState, str | None]] = {}
@@ -96,11 +97,11 @@ class Events:
                 handler.wake(waker)
                 waker.state(pilot.vehicle_id)
             elif pilot.duty is Duty.WATCHING and pilot.flying_a_task():
-                role = pilot.role
-                if not self._reads_vehicle_only(role) or self._level(role):
+                fields = self._waits(pilot.role)
+                if fields is None:
                     waker.anything()  # another's state, the interpreter's, or every check
                     return
-                waker.state(pilot.vehicle_id, self._fields(role))
+                waker.state(pilot.vehicle_id, fields)
 
     def react(self, pilot: Pilot) -> bool:
         """An action failed on the vehicle: True when a handler fired and decides what
@@ -171,11 +172,16 @@ class Events:
                 for condition in event.conditions)
         return known
 
-    def _level(self, role: str | None) -> bool:
-        """Whether a handler of a vehicle in ``role`` is level-triggered (fires at every
-        check while its conditions hold)."""
-        return any(event.trigger is EventTrigger.LEVEL for event in self.run.mission.events
-                   if event.role in (None, role))
+    def _waits(self, role: str | None) -> frozenset[str] | None:
+        """What the handlers of a watching vehicle in ``role`` wait for: the fields they
+        read of its state; None when that is not all (they read the interpreter's state or
+        another vehicle's, or one is level-triggered: it fires at every check)."""
+        if role not in self._waiting:
+            level = any(event.trigger is EventTrigger.LEVEL
+                        for event in self.run.mission.events if event.role in (None, role))
+            self._waiting[role] = None if level or not self._reads_vehicle_only(role) \
+                else self._fields(role)
+        return self._waiting[role]
 
     def _fields(self, role: str | None) -> frozenset[str]:
         """The state fields the conditions of the handlers of a vehicle in ``role`` read

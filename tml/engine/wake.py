@@ -77,11 +77,15 @@ class Waker:
         """A change of these ``fields`` of a vehicle's state calls for a step (None: any)."""
         if self.reads is None:
             return
-        known = self.reads.get(vehicle_id, frozenset())
+        reads = self.reads
+        if vehicle_id not in reads:
+            reads[vehicle_id] = fields
+            return
+        known = reads[vehicle_id]
         if fields is None or known is None:
-            self.reads[vehicle_id] = None
-        else:
-            self.reads[vehicle_id] = known | fields
+            reads[vehicle_id] = None
+        elif not fields <= known:
+            reads[vehicle_id] = known | fields
 
     def tell(self, other: Waker) -> None:
         """Add what this one collected to ``other``."""

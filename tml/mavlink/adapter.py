@@ -499,6 +499,8 @@ class MavlinkVehicle:
         return messages
 
     def _detections(self, now: float) -> Mapping[str, object]:
+        if not self._seen and not self._values:
+            return _NO_DETECTIONS  # most vehicles, at every state built
         sets: dict[str, set[str]] = {}
         for (tag, number), when in self._seen.items():
             if now - when > self.detection_hold:
@@ -1077,6 +1079,9 @@ _HANDLERS: dict[type, Callable[[MavlinkVehicle, Any], str | None]] = {
 }
 
 
+
+
+_NO_DETECTIONS: Mapping[str, object] = MappingProxyType({})
 
 
 def _messages(t: Telemetry) -> tuple[AutopilotMessage, ...]:

@@ -642,3 +642,53 @@ def test_every_address_form_of_docs_connections_is_flown_by_the_tests_it_names()
         for path, test in named:
             source = (root / path).read_text(encoding="utf-8") if path else source
             assert f"def {test}(" in source, f"{path or 'the file before'}::{test}"
+
+
+class _Socket:
+    """A connection's ``recv`` and parser, reading from a list of chunks and counting the
+    reads that reached the socket."""
+
+    def __init__(self, *chunks: bytes) -> None:
+        self.chunks = list(chunks)
+        self.reads = 0
+        self.mav = mavlink.MAVLink(None)
+        self.mav.robust_parsing = True
+        self.first_byte = False
+
+    def recv(self, n: int | None = None) -> bytes:
+        self.reads += 1
+        return self.chunks.pop(0) if self.chunks else b""
+
+
+def _frames(count: int) -> bytes:
+    mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    return b"".join(mavlink.MAVLink_heartbeat_message(2, 3, 0, 0, 4, 3).pack(mav)
+                    for _ in range(count))
+
+
+def test_a_socket_is_read_once_a_turn_unless_the_read_filled_the_buffer() -> None:
+    from tml.mavlink.link import READ_AHEAD, _ReadAhead, _receive
+
+    conn = _Socket(_frames(3), _frames(2))
+    reader = _ReadAhead(conn)
+    reader.turn()
+    got = []
+    while (msg := _receive(conn)) is not None:
+        got.append(msg)
+    # One read for the three messages that waited; the second chunk (arrived since) waits
+    # for the next turn, which the reactor's poll announces.
+    assert [m.get_type() for m in got] == ["HEARTBEAT"] * 3 and conn.reads == 1
+    assert all(isinstance(m._timestamp, float) for m in got)
+    reader.turn()
+    assert len([m for m in iter(lambda: _receive(conn), None)]) == 2 and conn.reads == 2
+    # A read that filled the buffer may have left more in the socket: the parser's last,
+    # cut frame is read on (in the next turn, as the socket is still readable).
+    frame = len(_frames(1))
+    full = _frames(READ_AHEAD // frame + 1)
+    conn = _Socket(full[:READ_AHEAD], full[READ_AHEAD:])
+    reader = _ReadAhead(conn)
+    taken = 0
+    for _ in range(2):
+        reader.turn()
+        taken += len(list(iter(lambda: _receive(conn), None)))
+    assert taken == len(full) // frame and conn.reads == 2

@@ -82,7 +82,11 @@ def test_the_current_drawn_is_the_simulators(ardupilot) -> None:
 # imitate, ArduCopter's own lag behind its position target (a 20 m move overshoots by half
 # a metre and creeps back over 3 s), is left out: the times to settle within 0.2 m, the end
 # of a change of velocity target (0 to 9 m/s: 4.4 s against 3.9 s) and the return after
-# braking (see docs/simulator.md).
+# braking (see docs/simulator.md). The braking distance from 10 m/s has that lag in it too:
+# ArduCopter ran on 24.4 to 25.0 m in five flights, the simulator 22.3 or 22.8 m, so it may
+# be shorter by as far as the vehicle flies in the lag (BRAKE_LAG), and no longer than 10 %.
+BRAKE_SPEED = 10.0  # m/s: the speed the braking manoeuvre starts from
+BRAKE_LAG = 0.3  # s: ArduCopter's lag behind its target, twice ATC_INPUT_TC
 COMPARED_TIMES = (
     "takeoff_leaves_ground", "takeoff_5m", "takeoff_10m",
     "guided_20_half", "guided_20_within_half_m", "guided_100_half", "guided_100_within_half_m",
@@ -93,7 +97,7 @@ COMPARED_TIMES = (
     "auto_reached_6", "auto_down",
 )
 COMPARED_SPEEDS = (
-    "takeoff_peak_climb", "guided_20_peak_speed", "guided_100_peak_speed", "brake_distance",
+    "takeoff_peak_climb", "guided_20_peak_speed", "guided_100_peak_speed",
     "climb_30_peak", "land_10_final_descent", "land_30_peak_descent", "land_30_final_descent",
     "rtl_peak_speed", "auto_corner_speed",
 )
@@ -111,4 +115,7 @@ def test_the_simulator_flies_every_manoeuvre_in_arducopters_time(ardupilot) -> N
         0.1 * arducopter[name], 0.5)]
     wrong += [name for name in COMPARED_SPEEDS
               if simulator[name] != pytest.approx(arducopter[name], rel=0.1)]
+    braked, stopped = arducopter["brake_distance"], simulator["brake_distance"]
+    if not braked - BRAKE_SPEED * BRAKE_LAG <= stopped <= 1.1 * braked:
+        wrong.append("brake_distance")
     assert not wrong, {name: (arducopter[name], simulator[name]) for name in wrong}

@@ -15,11 +15,13 @@ requests that come out, and write everything to the journal; then refresh the di
 MavlinkVehicle`: it changes with every message that changes what the vehicle shows) has its
 state rebuilt only when that changed, when it has results, when its telemetry line is due,
 or ``refresh`` seconds after the last time (what time alone changes: the link's health,
-detections held for a while). An interpreter is stepped when one of its vehicles' states
-changed (the time aside), results came, a vehicle was lost, or ``1 / rate`` seconds after
-its last step (its own timers: waits, time limits); a vehicle that cannot tell its revision
-has its state read, and its interpreter stepped, on every wake. So a fleet hovering in place
-costs the interpreter ``rate`` steps a second, not one for every message of every vehicle.
+detections held for a while). An interpreter is stepped when results came, a vehicle was
+lost, a field of a vehicle's state it reads changed, or at the time it waits for -- after
+each call it says what it waits for (:meth:`tml.engine.Interpreter.wake`, see
+:mod:`tml.engine.wake`), and it is stepped no sooner than ``1 / rate`` seconds after its
+last step for time alone. A fleet hovering in a WAIT whose events read its batteries costs
+the interpreter a step when a battery changes, not one for every message of every vehicle
+nor ``rate`` a second; an interpreter that cannot say more waits for anything, as before.
 A change alone does not step an interpreter again sooner than :data:`STEP_REST` times its
 last step's duration after it: in a large fleet some vehicle changes at every wake, and the
 steps take at most half of the process's time, the rest left to reading the links.

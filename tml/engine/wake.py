@@ -16,7 +16,9 @@ A node that does not say what it waits for -- the default of
 is stepped at the runner's rate, and on any change of any vehicle, as before the wake
 existed. Only nodes whose next move is certain say more: an action waiting for its
 request's answer waits for nothing else, a WAIT for its time, a task's time limit for
-that time. So the common case of a large fleet -- most vehicles flying a long wait or a
+that time, an ``Until`` (a climb, a GO_TO, a landing) for its vehicle to show something
+new or its picture to become current, the event handlers for the fields their conditions
+read. So the common case of a large fleet -- most vehicles flying a long wait or a
 request, while their positions change with every message -- costs a step only when a
 field an event reads changes (a battery's percentage), not on every message.
 """

@@ -31,9 +31,9 @@ from enum import Enum
 from tml.engine.context import Pilot, Roles, Run
 from tml.engine.failures import Failure
 from tml.engine.records import TaskState
-from tml.engine.wake import Waker
+from tml.engine.wake import Waker, fields_read
 from tml.language.model import Task
-from tml.vehicle import COMPARED_FIELDS, VehicleState, same_state
+from tml.vehicle import VehicleState, same_state
 
 
 class NodeStatus(Enum):
@@ -226,9 +226,8 @@ class ParallelNode(Node):
             return
         pilots = self.run.pilots
         self._asleep[child] = _Asleep(waker, [
-            (pilots[vid], pilots[vid].stirs, pilots[vid].state,
-             COMPARED_FIELDS if names is None else names)
-            for vid in waker.vehicles | reads.keys() for names in [reads.get(vid, ())]])
+            (pilots[vid], pilots[vid].stirs, pilots[vid].state, fields_read(reads, vid))
+            for vid in waker.vehicles | reads.keys()])
 
     def end(self, status: NodeStatus, why: str) -> None:
         self._stop_all(why)

@@ -39,7 +39,7 @@ from tml.engine.scripts import SCRIPTS, ActionFailed
 from tml.engine.wake import Waker, condition_fields
 from tml.language.actions import Category, bind
 from tml.language.model import ConditionKind, Event, EventTrigger, TerminationMode
-from tml.vehicle import COMPARED_FIELDS, Hold, VehicleState, same_state
+from tml.vehicle import Hold, VehicleState, same_state
 
 
 class Handler(SequenceNode):
@@ -65,8 +65,7 @@ class Events:
         # vehicles' positions change at every step, their batteries seldom. (A handling
         # begins only where a check fired, which forgets the mark.)
         self._quiet: dict[int, tuple[VehicleState, str | None]] = {}
-        self._vehicle_only: dict[str | None, bool] = {}  # per role: see _reads_vehicle_only
-        self._read: dict[str | None, frozenset[str]] = {}  # per role: see _fields
+        self._read: dict[str | None, frozenset[str] | None] = {}  # per role: see _fields
         self._waiting: dict[str | None, frozenset[str] | None] = {}  # per role: see _waits
         # Per vehicle handling an event: the state its edges were last looked at in (see
         # _rearm), while every condition that re-arms them reads that vehicle alone.
@@ -82,8 +81,9 @@ class Events:
             self._drive(pilot, handler)
         elif pilot.duty is Duty.WATCHING and pilot.flying_a_task():
             quiet = self._quiet.get(pilot.vehicle_id)
-            if quiet is None or quiet[1] != pilot.role or not same_state(
-                    quiet[0], pilot.state, self._fields(pilot.role)):
+            fields = self._fields(pilot.role)
+            if quiet is None or fields is None or quiet[1] != pilot.role or not same_state(
+                    quiet[0], pilot.state, fields):
                 self._check(pilot)
 
     def wake(self, waker: Waker) -> None:
@@ -153,24 +153,13 @@ class Events:
             elif not triggers or not holds:
                 pilot.holding[event.name] = holds  # a rising edge left pending fires next
         if fired is None:
-            if self._reads_vehicle_only(pilot.role):
+            if self._fields(pilot.role) is not None:
                 self._quiet[vid] = (pilot.state, pilot.role)
             return False
         self._quiet.pop(vid, None)
         pilot.events.append((run.log.stamp, fired.name))
         self._fire(pilot, fired)
         return True
-
-    def _reads_vehicle_only(self, role: str | None) -> bool:
-        """Whether every condition of the handlers of a vehicle in ``role`` reads that
-        vehicle's state alone (not the interpreter's, not another vehicle's)."""
-        known = self._vehicle_only.get(role)
-        if known is None:
-            known = self._vehicle_only[role] = all(
-                condition.role is None and reads_vehicle(condition)
-                for event in self.run.mission.events if event.role in (None, role)
-                for condition in event.conditions)
-        return known
 
     def _waits(self, role: str | None) -> frozenset[str] | None:
         """What the handlers of a watching vehicle in ``role`` wait for: the fields they
@@ -179,28 +168,27 @@ class Events:
         if role not in self._waiting:
             level = any(event.trigger is EventTrigger.LEVEL
                         for event in self.run.mission.events if event.role in (None, role))
-            self._waiting[role] = None if level or not self._reads_vehicle_only(role) \
-                else self._fields(role)
+            self._waiting[role] = None if level else self._fields(role)
         return self._waiting[role]
 
-    def _fields(self, role: str | None) -> frozenset[str]:
+    def _fields(self, role: str | None) -> frozenset[str] | None:
         """The state fields the conditions of the handlers of a vehicle in ``role`` read
-        (asked only where they read that vehicle alone)."""
-        known = self._read.get(role)
-        if known is None:
-            known = self._read[role] = frozenset().union(*(
-                condition_fields(condition) or COMPARED_FIELDS
-                for event in self.run.mission.events if event.role in (None, role)
-                for condition in event.conditions))
-        return known
+        (:func:`~tml.engine.wake.condition_fields`); None when one reads more than that
+        vehicle's state (the interpreter's, another vehicle's)."""
+        if role not in self._read:
+            read = [condition_fields(condition) for event in self.run.mission.events
+                    if event.role in (None, role) for condition in event.conditions]
+            self._read[role] = frozenset().union(*(f for f in read if f is not None)) \
+                if None not in read else None
+        return self._read[role]
 
     def _rearm(self, pilot: Pilot) -> None:
         """During a handling: arm again each edge-triggered event one of whose conditions
         on the vehicle is false (see the module docstring)."""
         run, vid = self.run, pilot.vehicle_id
-        seen = self._rearmed.get(vid)
-        if seen is not None and seen[1] == pilot.role and same_state(
-                seen[0], pilot.state, self._fields(pilot.role)):
+        seen, fields = self._rearmed.get(vid), self._fields(pilot.role)
+        if seen is not None and fields is not None and seen[1] == pilot.role and same_state(
+                seen[0], pilot.state, fields):
             return  # the same readings: no condition fell since the last look
         memory = pilot.memory(run.now, run.log.mission_time)
         roles = {pilot.role: vid}
@@ -211,7 +199,7 @@ class Events:
             if any(not run.reading(c, pilot, memory, roles)[0]
                    for c in event.conditions if reads_vehicle(c)):
                 pilot.holding[event.name] = False
-        if self._reads_vehicle_only(pilot.role):
+        if fields is not None:
             self._rearmed[vid] = (pilot.state, pilot.role)
 
     def _fire(self, pilot: Pilot, event: Event) -> None:

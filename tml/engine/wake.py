@@ -26,12 +26,13 @@ field an event reads changes (a battery's percentage), not on every message.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from tml.engine.conditions import ENGINE_PARAMETERS, STATE_FIELDS
 from tml.language import parameters
 from tml.language.model import Condition, ConditionKind
+from tml.vehicle import COMPARED_FIELDS
 
 
 @dataclass(frozen=True)
@@ -103,6 +104,16 @@ class Waker:
         """The sum, with times moved from the mission's clock to the runner's by
         ``offset`` (the time the run spent paused)."""
         return Wake(self.at + offset, self.reads)
+
+
+def fields_read(reads: Mapping[int, frozenset[str] | None] | None,
+                vehicle_id: int) -> Iterable[str]:
+    """The fields of a vehicle's state whose change calls for a step, by :attr:`Wake.reads`
+    (or a :class:`Waker`'s ``reads``)."""
+    if reads is None:
+        return COMPARED_FIELDS
+    names = reads.get(vehicle_id, ())
+    return COMPARED_FIELDS if names is None else names
 
 
 def condition_fields(condition: Condition) -> frozenset[str] | None:

@@ -1079,8 +1079,6 @@ _HANDLERS: dict[type, Callable[[MavlinkVehicle, Any], str | None]] = {
 }
 
 
-
-
 _NO_DETECTIONS: Mapping[str, object] = MappingProxyType({})
 
 

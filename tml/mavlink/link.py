@@ -226,7 +226,7 @@ class Link:
         # recv_msg remembers whom to answer).
         self._receive: Callable[[Any], Any] = (
             _receive if type(self._conn).recv_msg is mavutil.mavfile.recv_msg
-            else _recv_msg)
+            else type(self._conn).recv_msg)
         self._reader: _ReadAhead | None = None
         if parse_address(address, baud).scheme in ("tcp", "tcpin"):
             self._reader = _ReadAhead(self._conn)
@@ -667,10 +667,6 @@ def _receive(conn: Any) -> Any:
             return msg
         if not data:
             return None
-
-
-def _recv_msg(conn: Any) -> Any:
-    return conn.recv_msg()
 
 
 class _ReadAhead:

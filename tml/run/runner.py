@@ -101,14 +101,13 @@ from typing import Any
 from tml.engine import Interpreter, Options, Output, Status, View
 from tml.engine.resume import Progress
 from tml.engine.safety import safe_state_request, safe_state_shown
-from tml.engine.wake import ANYTHING
+from tml.engine.wake import ANYTHING, fields_read
 from tml.errors import ControlRefused, ExitCode
 from tml.language.model import Mission
 from tml.language.skills import mission_vehicle_skills
 from tml.run.journal import Journal, autopilot_fields, telemetry_fields
 from tml.timebase import SYSTEM, Flag, Timebase
 from tml.vehicle import (
-    COMPARED_FIELDS,
     SEVERITIES,
     WARNING,
     AutopilotMessage,
@@ -596,7 +595,7 @@ class Runner:
                 flight.refresh_at = now + self.options.refresh
                 if not changed and state is not before:
                     changed = before is None or not same_state(
-                        before, state, _watched(reads, vehicle.vehicle_id))
+                        before, state, fields_read(reads, vehicle.vehicle_id))
                 self._tell_messages(flight, now)
             else:
                 state = flight.state
@@ -869,15 +868,6 @@ def _revision(vehicle: Any) -> object:
     """The vehicle's revision (see the module docstring), None if it cannot tell."""
     revision = getattr(vehicle, "revision", None)
     return None if revision is None else revision()
-
-
-def _watched(reads: Mapping[int, frozenset[str] | None] | None,
-             vehicle_id: int) -> Iterable[str]:
-    """The fields of a vehicle's state whose change calls for a step (see Wake.reads)."""
-    if reads is None:
-        return COMPARED_FIELDS
-    names = reads.get(vehicle_id, ())
-    return COMPARED_FIELDS if names is None else names
 
 
 def _idle(vehicle: Any) -> bool:

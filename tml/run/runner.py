@@ -15,7 +15,9 @@ requests that come out, and write everything to the journal; then refresh the di
 MavlinkVehicle`: it changes with every message that changes what the vehicle shows) has its
 state rebuilt only when that changed, when it has results, when its telemetry line is due,
 or ``refresh`` seconds after the last time (what time alone changes: the link's health,
-detections held for a while). An interpreter is stepped when results came, a vehicle was
+detections held for a while); a vehicle with none of these, whose last look left nothing to
+follow (no lost link being timed, no take-over to handle), is passed over at once. An
+interpreter is stepped when results came, a vehicle was
 lost, a field of a vehicle's state it reads changed, or at the time it waits for -- after
 each call it says what it waits for (:meth:`tml.engine.Interpreter.wake`, see
 :mod:`tml.engine.wake`), and it is stepped no sooner than ``1 / rate`` seconds after its
@@ -25,6 +27,10 @@ nor ``rate`` a second; an interpreter that cannot say more waits for anything, a
 A change alone does not step an interpreter again sooner than :data:`STEP_REST` times its
 last step's duration after it: in a large fleet some vehicle changes at every wake, and the
 steps take at most half of the process's time, the rest left to reading the links.
+
+*The heap.* From the first task to the end, what existed before is kept out of the garbage
+collector's passes (:mod:`tml.run.heap`): a full pass over a large fleet's objects held
+every thread up for tens of milliseconds.
 
 *Time.* The interpreter sees the runner's ``clock``. For a real vehicle that is the
 monotonic clock; for the embedded simulator it is the simulator's own vehicle time, so a
@@ -105,6 +111,7 @@ from tml.engine.wake import ANYTHING, fields_read
 from tml.errors import ControlRefused, ExitCode
 from tml.language.model import Mission
 from tml.language.skills import mission_vehicle_skills
+from tml.run.heap import frozen
 from tml.run.journal import Journal, autopilot_fields, telemetry_fields
 from tml.timebase import SYSTEM, Flag, Timebase
 from tml.vehicle import (
@@ -216,7 +223,13 @@ class _Flight:
         self.unheard = False
         self.safe_request = ""  # the name of the last safe-state request sent to it
         self.revision: object = None  # the vehicle's revision when its state was built
+        self.revision_of: Callable[[], object] | None = getattr(vehicle, "revision", None)
         self.refresh_at = -math.inf  # when the state is rebuilt however the revision stands
+        # When its next look is due whatever the vehicle says (the earlier of refresh_at and
+        # next_telemetry), while the last look left nothing to follow up: no lost link to
+        # time, no take-over to handle. Until then a wake with no result and the same
+        # revision changes nothing of it (see Runner._tick), and it is passed over.
+        self.settled_until = -math.inf
         self.link = "ok"  # the link's health last journaled
         # The mission's fence and rally points on the vehicle: None not asked yet, the
         # request's id while asked, "done", or why they could not be put there.
@@ -402,6 +415,11 @@ class Runner:
         unready = self._wait_ready()
         if unready is not None:
             return self._end(unready)
+        with frozen():  # what exists now lives as long as the flight (tml.run.heap)
+            return self._fly()
+
+    def _fly(self) -> Outcome:
+        """From the first task to the end of the run."""
         now = self.clock()
         for flight in self.flights:
             flight.state = flight.vehicle.state()
@@ -584,9 +602,11 @@ class Runner:
         for flight in crew.flights:
             vehicle = flight.vehicle
             found = vehicle.poll()
+            revision = None if flight.revision_of is None else flight.revision_of()
+            if not found and now < flight.settled_until and revision == flight.revision:
+                continue  # in a fleet, most vehicles at most wakes: nothing below would act
             if found:
                 results[vehicle.vehicle_id] = found
-            revision = _revision(vehicle)
             if (revision is None or revision != flight.revision or found
                     or now >= flight.refresh_at or now >= flight.next_telemetry
                     or flight.state is None):
@@ -619,6 +639,11 @@ class Runner:
                 self._heard_again(flight, state, now)
             if (state.taken or state.reboots > flight.boots) and not flight.taken:
                 taken.append(flight)
+                flight.settled_until = -math.inf
+            elif revision is None or flight.lost or flight.lost_since is not None:
+                flight.settled_until = -math.inf
+            else:
+                flight.settled_until = min(flight.refresh_at, flight.next_telemetry)
         for flight in taken:
             self._taken(crew, flight, now)
         for flight in lost:
@@ -863,11 +888,6 @@ class Runner:
         if self.on_safety is not None:
             self.on_safety(message)
 
-
-def _revision(vehicle: Any) -> object:
-    """The vehicle's revision (see the module docstring), None if it cannot tell."""
-    revision = getattr(vehicle, "revision", None)
-    return None if revision is None else revision()
 
 
 def _idle(vehicle: Any) -> bool:

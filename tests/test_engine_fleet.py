@@ -917,9 +917,17 @@ class LaggingVehicle(FakeVehicle):
         return replace(super().state(), heard=self.time - 0.5, asked=self.asked_at)
 
 
+HOPS_WHEN_SEEN = ('<event name="Seen" role="all">' + condition("seen", "equal", "yes")
+                  + '<action name="GO_TO_POINT"><argument name="coordinates" '
+                    'value="(20, 0, 5)"/></action>'
+                  + '<action name="GO_TO_POINT"><argument name="coordinates" '
+                    'value="(0, 0, 5)"/></action><termination mode="CONTINUE"/></event>')
+
+
 @pytest.mark.parametrize("scenario", ["waits", "low battery", "time limit", "lost",
                                       "requests between waits", "seen during a wait",
-                                      "a picture older than the request"])
+                                      "a picture older than the request",
+                                      "an event's hops, each picture older than its request"])
 def test_a_team_member_that_waits_is_not_ticked_and_nothing_differs(
         scenario: str, monkeypatch: pytest.MonkeyPatch) -> None:
     # A team's branches that wait (a WAIT, a request's answer) are not ticked until their
@@ -945,6 +953,11 @@ def test_a_team_member_that_waits_is_not_ticked_and_nothing_differs(
         "a picture older than the request": (_team(take_off() + goto("Go", "(20, 0, 5)")
                                                    + goto("Back", "(0, 0, 5)") + land()),
                                              "", None),
+        # The same in an event's handler, driven only when its vehicle shows more: seen
+        # for one step, then nothing changes but whether the picture is current.
+        "an event's hops, each picture older than its request": (
+            _team(take_off() + hover("Hover", 20) + land()), HOPS_WHEN_SEEN,
+            lambda f: f.vehicles[2].detections.__setitem__("seen", abs(f.time - 9.0) < 1e-6)),
     }[scenario]
     ticks: list[int] = []
     step = ActionLeaf.step
@@ -958,14 +971,15 @@ def test_a_team_member_that_waits_is_not_ticked_and_nothing_differs(
         ticks.clear()
         with monkeypatch.context() as patch:
             if not asleep:
-                patch.setattr(composites._Asleep, "sleeps", lambda *_: False)
+                patch.setattr(composites.Asleep, "sleeps", lambda *_: False)
             make = LaggingVehicle if "older" in scenario else FakeVehicle
             vehicles = [make(vehicle_id=i, drain_per_second=0.0 if "older" in scenario
                              else 0.2 * i, speed=500.0 if "older" in scenario else 5.0)
                         for i in range(1, 5)]
             flight = FleetFlight(body, vehicles, events=events,
                                  extra=roles('<role name="all" count="4"/>')
-                                 + (SEEN if "seen" in scenario else ""))
+                                 + (SEEN if "seen" in scenario or "event" in scenario
+                                    else ""))
             flight.run(each=each)
         assert flight.fleet.status is not Status.RUNNING
         return flight.records, flight.sent, len(ticks)
@@ -975,6 +989,9 @@ def test_a_team_member_that_waits_is_not_ticked_and_nothing_differs(
     assert records_asleep == records
     assert sent_asleep == sent
     assert not [r for r in records if r.data.get("reason") == "timeout"]
+    if "event" in scenario:  # the vehicle seen hopped there and back, and went on
+        assert [r.vehicle_id for r in records if r.kind == "decision"
+                and r.data.get("termination") == "CONTINUE"] == [2]
     # Most steps find every branch waiting; a flight of quick hops has fewer such steps.
     assert fewer < every * (1.0 if "older" in scenario else 0.6)
 

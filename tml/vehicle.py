@@ -188,6 +188,13 @@ COMPARED_FIELDS = tuple(f.name for f in fields(VehicleState) if f.name != "time"
 reads (the fields of VehicleState left out of its comparison)."""
 
 
+SHOWN_FIELDS = (*COMPARED_FIELDS, "current")
+"""What a reader waiting for any change of a vehicle watches: the compared fields, and
+whether its picture is :attr:`~VehicleState.current`, which moves with ``heard`` and
+``asked`` (left out of the comparison) while nothing it shows changes: a landed vehicle's
+next HEARTBEAT, the same as the one before, is what makes its LAND done."""
+
+
 def same_state(a: VehicleState, b: VehicleState,
                names: Iterable[str] = COMPARED_FIELDS) -> bool:
     """Whether two states of a vehicle show the same in the fields ``names`` (by default

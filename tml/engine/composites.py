@@ -188,7 +188,7 @@ class ParallelNode(Node):
         self.children = children
         self.first = first
         self.running: list[Node] = []
-        self._asleep: dict[Node, _Asleep] = {}
+        self._asleep: dict[Node, Asleep] = {}
 
     def start(self) -> None:
         self.running = self.children()
@@ -220,14 +220,11 @@ class ParallelNode(Node):
         """Note what a branch still running waits for (nothing it can sleep on: none)."""
         waker = Waker()
         child.wake(waker)
-        reads = waker.reads
-        if reads is None or not (reads or waker.vehicles):
+        asleep = Asleep.after(self.run, waker)
+        if asleep is None:
             self._asleep.pop(child, None)
-            return
-        pilots = self.run.pilots
-        self._asleep[child] = _Asleep(waker, [
-            (pilots[vid], pilots[vid].stirs, pilots[vid].state, fields_read(reads, vid))
-            for vid in waker.vehicles | reads.keys()])
+        else:
+            self._asleep[child] = asleep
 
     def end(self, status: NodeStatus, why: str) -> None:
         self._stop_all(why)
@@ -251,11 +248,11 @@ class ParallelNode(Node):
             child.stop(why)
 
 
-class _Asleep:
-    """A branch of a :class:`ParallelNode` that is not ticked until the time it ``told``
-    (the mission's clock), unless one of its vehicles is stirred or shows another value in
-    a field it reads; ``seen``: (pilot, its stirs, its state, the fields read) at its last
-    tick."""
+class Asleep:
+    """A node that is not ticked until the time it ``told`` (the mission's clock), unless
+    one of its vehicles is stirred or shows another value in a field it reads (a branch of
+    a :class:`ParallelNode`, an event's handler: :class:`tml.engine.events.Events`);
+    ``seen``: (pilot, its stirs, its state, the fields read) at its last tick."""
 
     __slots__ = ("seen", "told")
 
@@ -263,6 +260,18 @@ class _Asleep:
                  seen: list[tuple[Pilot, int, VehicleState, Iterable[str]]]) -> None:
         self.told = told
         self.seen = seen
+
+    @classmethod
+    def after(cls, run: Run, waker: Waker) -> Asleep | None:
+        """What a node that has just told ``waker`` what it waits for sleeps on; None when
+        it cannot sleep: it waits for anything, or for nothing any vehicle does."""
+        reads = waker.reads
+        if reads is None or not (reads or waker.vehicles):
+            return None
+        pilots = run.pilots
+        return cls(waker, [
+            (pilots[vid], pilots[vid].stirs, pilots[vid].state, fields_read(reads, vid))
+            for vid in waker.vehicles | reads.keys()])
 
     def sleeps(self, run: Run) -> bool:
         """Whether the branch may stay unticked in this step."""

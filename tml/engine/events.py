@@ -30,7 +30,7 @@ other handlers react; if none does, the held work fails with it.
 
 from __future__ import annotations
 
-from tml.engine.composites import NodeStatus, SequenceNode
+from tml.engine.composites import Asleep, NodeStatus, SequenceNode
 from tml.engine.conditions import names_task, reads_vehicle
 from tml.engine.context import Duty, Pilot, Run, TaskOwner, Verdict, Work, WorkMode
 from tml.engine.leaves import ActionLeaf
@@ -70,6 +70,11 @@ class Events:
         # Per vehicle handling an event: the state its edges were last looked at in (see
         # _rearm), while every condition that re-arms them reads that vehicle alone.
         self._rearmed: dict[int, tuple[VehicleState, str | None]] = {}
+        # Per vehicle handling an event: what its handler waits for, after its last drive.
+        # Until then, with nothing new in what it reads, driving it and re-arming its edges
+        # would do nothing (tml.engine.wake): of a fleet landing on low batteries, a step
+        # drives the handlers of the vehicles that moved, not of all that land.
+        self._asleep: dict[int, Asleep] = {}
         run.react = self.react
 
     def watch(self, pilot: Pilot) -> None:
@@ -77,14 +82,25 @@ class Events:
         handlers are checked."""
         handler = self.handlers.get(pilot.vehicle_id)
         if handler is not None:
+            asleep = self._asleep.get(pilot.vehicle_id)
+            if asleep is not None and asleep.sleeps(self.run):
+                return  # a landing in a fleet: driven again when its vehicle shows more
             self._rearm(pilot)
             self._drive(pilot, handler)
-        elif pilot.duty is Duty.WATCHING and pilot.flying_a_task():
+            self._rest(pilot)
+        elif pilot.duty is Duty.WATCHING:
             quiet = self._quiet.get(pilot.vehicle_id)
+            if quiet is not None and quiet[0] is pilot.state and quiet[1] == pilot.role \
+                    and self._fields(pilot.role) is not None:
+                return  # the very state of its last quiet check (most vehicles, most steps)
+            if not pilot.flying_a_task():
+                return
             fields = self._fields(pilot.role)
             if quiet is None or fields is None or quiet[1] != pilot.role or not same_state(
                     quiet[0], pilot.state, fields):
                 self._check(pilot)
+            else:  # the same readings: this state is as quiet, and known at once next time
+                self._quiet[pilot.vehicle_id] = (pilot.state, pilot.role)
 
     def wake(self, waker: Waker) -> None:
         """Tell ``waker`` what the event handling waits for (:mod:`tml.engine.wake`): the
@@ -94,14 +110,39 @@ class Events:
         for pilot in run.pilots.values():
             handler = self.handlers.get(pilot.vehicle_id)
             if handler is not None:
-                handler.wake(waker)
-                waker.state(pilot.vehicle_id)
+                asleep = self._asleep.get(pilot.vehicle_id)
+                if asleep is not None and asleep.still():
+                    asleep.told.tell(waker)  # what it said after its last drive still holds
+                else:
+                    self._waits_handling(pilot, handler, waker)
             elif pilot.duty is Duty.WATCHING and pilot.flying_a_task():
                 fields = self._waits(pilot.role)
                 if fields is None:
                     waker.anything()  # another's state, the interpreter's, or every check
                     return
                 waker.state(pilot.vehicle_id, fields)
+
+    def _waits_handling(self, pilot: Pilot, handler: Handler, waker: Waker) -> None:
+        """What a vehicle handling an event waits for: its handler's work, and any field of
+        its state (its edges are re-armed on what it shows: see _rearm)."""
+        handler.wake(waker)
+        waker.state(pilot.vehicle_id)
+        if self._fields(pilot.role) is None:
+            waker.anything()  # re-arming reads more than the vehicle: at every step
+
+    def _rest(self, pilot: Pilot) -> None:
+        """After a handler's drive: note what it waits for, so that it is not driven (nor
+        its vehicle's edges re-armed) again before that; nothing if it ended."""
+        handler = self.handlers.get(pilot.vehicle_id)
+        asleep = None
+        if handler is not None:
+            waker = Waker()
+            self._waits_handling(pilot, handler, waker)
+            asleep = Asleep.after(self.run, waker)
+        if asleep is None:
+            self._asleep.pop(pilot.vehicle_id, None)
+        else:
+            self._asleep[pilot.vehicle_id] = asleep
 
     def react(self, pilot: Pilot) -> bool:
         """An action failed on the vehicle: True when a handler fired and decides what
@@ -122,6 +163,7 @@ class Events:
 
     def _drop(self, pilot: Pilot) -> Handler | None:
         self._rearmed.pop(pilot.vehicle_id, None)
+        self._asleep.pop(pilot.vehicle_id, None)
         handler = self.handlers.pop(pilot.vehicle_id, None)
         if handler is not None and pilot.duty is Duty.HANDLING:
             pilot.become(Duty.WATCHING)

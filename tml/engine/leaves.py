@@ -41,9 +41,9 @@ from tml.language.actions import BoundAction, Category, bind
 from tml.language.failures import FailureReason
 from tml.language.model import Action, Task
 from tml.patterns import survey
-from tml.vehicle import COMPARED_FIELDS, FlyMission, Hold, Request, RequestResult
+from tml.vehicle import SHOWN_FIELDS, FlyMission, Hold, Request, RequestResult
 
-UNTIL_READS = frozenset(COMPARED_FIELDS) | {"current"}
+UNTIL_READS = frozenset(SHOWN_FIELDS)
 """What an :class:`~tml.engine.scripts.Until` reads of its vehicle's state: any field that
 says what the vehicle shows, and whether the picture is newer than the latest request
 (``current``, which no compared field tells)."""

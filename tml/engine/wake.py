@@ -32,7 +32,7 @@ from dataclasses import dataclass
 from tml.engine.conditions import ENGINE_PARAMETERS, STATE_FIELDS
 from tml.language import parameters
 from tml.language.model import Condition, ConditionKind
-from tml.vehicle import COMPARED_FIELDS
+from tml.vehicle import SHOWN_FIELDS
 
 
 @dataclass(frozen=True)
@@ -111,9 +111,9 @@ def fields_read(reads: Mapping[int, frozenset[str] | None] | None,
     """The fields of a vehicle's state whose change calls for a step, by :attr:`Wake.reads`
     (or a :class:`Waker`'s ``reads``)."""
     if reads is None:
-        return COMPARED_FIELDS
+        return SHOWN_FIELDS
     names = reads.get(vehicle_id, ())
-    return COMPARED_FIELDS if names is None else names
+    return SHOWN_FIELDS if names is None else names
 
 
 def condition_fields(condition: Condition) -> frozenset[str] | None:

@@ -257,7 +257,10 @@ class VehicleModel:
         """Replies to one decoded MAVLink message."""
         kind = msg.get_type()
         if kind == "HEARTBEAT":
-            if msg.type == M.MAV_TYPE_GCS:
+            # As ArduPilot (GCS_MAVLINK::handle_heartbeat): the GCS failsafe hears the
+            # ground station of MAV_GCS_SYSID, by its system id alone: another system's
+            # HEARTBEAT, a GCS's too, neither arms it nor keeps it quiet.
+            if msg.get_srcSystem() == round(self.params["MAV_GCS_SYSID"]):
                 self._gcs_seen = self.time
             return []
         if getattr(msg, "target_component", 0) == COMPANION:
@@ -1036,9 +1039,9 @@ class VehicleModel:
         return frozenset(self._rc_override)
 
     def _override_sticks(self, msg: Any) -> None:
-        # As ArduPilot: only the ground station named by SYSID_MYGCS may hold the sticks.
+        # As ArduPilot: only the ground station named by MAV_GCS_SYSID may hold the sticks.
         # Channels 1-8: UINT16_MAX leaves a channel as it is, 0 gives it back to the radio.
-        if msg.get_srcSystem() != round(self.params["SYSID_MYGCS"]):
+        if msg.get_srcSystem() != round(self.params["MAV_GCS_SYSID"]):
             return
         for channel in range(1, 9):
             value = getattr(msg, f"chan{channel}_raw")

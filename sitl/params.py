@@ -33,7 +33,7 @@ INT8, INT16, INT32, REAL32 = 2, 4, 6, 9
 AUTOPILOT_DEFAULTS: tuple[tuple[str, float, int], ...] = (
     ("MAV_SYSID", 1, INT16),
     ("SYSID_THISMAV", 1, INT16),
-    ("SYSID_MYGCS", 255, INT16),
+    ("MAV_GCS_SYSID", 255, INT16),
     ("FRAME_CLASS", 1, INT8),
     ("FRAME_TYPE", 1, INT8),
     ("ARMING_CHECK", 1, INT32),

@@ -39,7 +39,10 @@ RUNS = 10
 PER_RUN = 3
 VEHICLES = RUNS * PER_RUN + PER_RUN  # and one run with roles, which is not continued
 INSTANCES = ("alpha", "bravo", "charlie")
-SOURCE = {"alpha": 251, "bravo": 252, "charlie": 253}  # each instance's MAVLink system id
+# Every instance sends as system 255, the ground station the vehicles' GCS failsafe
+# hears; each has its own MAVLink component id, which tells them apart.
+SOURCE_SYSTEM = 255
+COMPONENT = {"alpha": 25, "bravo": 26, "charlie": 27}
 VICTIM = "alpha"
 SPEEDUP = 4.0
 LEASE = 3.0
@@ -173,9 +176,10 @@ def test_a_killed_instance_has_its_runs_continued_and_no_vehicle_hears_two(
                  if line.startswith("vehicle ")]
         services: dict[str, Process] = {}
         for name in INSTANCES:
+            assert setting(serve_args, "--source-system", SOURCE_SYSTEM) == serve_args
             args = setting(setting(setting(setting(
                 serve_args, "--database", database), "--instance", name),
-                "--source-system", SOURCE[name]), "--port", 0)
+                "--source-component", COMPONENT[name]), "--port", 0)
             argv = [sys.executable, "-m", "tml", "serve", *args, "--data",
                     str(tmp_path / name), "--ready-timeout", "60"]
             argv += [arg for port in ports for arg in ("--connect", f"tcp:127.0.0.1:{port}")]
@@ -332,13 +336,14 @@ def _heard(path: Path, killed: float, victims: list[str],
            runs: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
     """Check who spoke to each vehicle, from the start (the instances open their links
     without a word to the vehicles); the takeover table."""
-    name_of = {source: name for name, source in SOURCE.items()}
+    name_of = {component: name for name, component in COMPONENT.items()}
     senders: dict[int, list[tuple[str, float, float]]] = {}
     for line in path.read_text().splitlines():
         record = json.loads(line)
-        assert record["src"] in name_of, record  # only the instances speak to the vehicles
+        # Only the instances speak to the vehicles.
+        assert record["src"] == SOURCE_SYSTEM and record["comp"] in name_of, record
         senders.setdefault(record["v"], []).append(
-            (name_of[record["src"]], record["wall"], record["t"]))
+            (name_of[record["comp"]], record["wall"], record["t"]))
     victim_vehicles = {v for run_id in victims for v in runs[run_id]["vehicles"]}
     table: list[dict[str, Any]] = []
     for vehicle in range(1, VEHICLES + 1):

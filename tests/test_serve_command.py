@@ -275,3 +275,16 @@ def test_a_database_that_cannot_be_opened_is_one_clear_error(
     err = capsys.readouterr().err
     assert err.startswith("tml serve: cannot open the database postgresql+psycopg://nobody@")
     assert "Traceback" not in err
+
+
+@pytest.mark.parametrize(("option", "value", "said"), [
+    ("--source-system", "0", "expected a MAVLink system id from 1 to 255, got '0'"),
+    ("--source-component", "256", "expected a MAVLink component id from 1 to 255, got '256'"),
+    ("--source-component", "gcs", "expected a MAVLink component id from 1 to 255, got 'gcs'"),
+])
+def test_a_mavlink_id_out_of_range_is_refused_with_why(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path, option: str, value: str,
+        said: str) -> None:
+    assert main(["serve", "--sim", option, value, "--data", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert f"argument {option}: {said}" in err and "Traceback" not in err

@@ -499,13 +499,48 @@ def test_no_charge_while_armed_flying_without_a_charger_or_with_a_failed_battery
     assert not falling.armed and not falling.landed and falling.battery.consumed_mah == 2000.0
 
 
+def heartbeat(v: VehicleModel, source: int = 255, kind: int = M.MAV_TYPE_GCS) -> None:
+    """A HEARTBEAT from system ``source`` (a ground station's, by default)."""
+    sender = M.MAVLink(None, srcSystem=source, srcComponent=190)
+    msg = M.MAVLink_heartbeat_message(kind, M.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3)
+    (parsed,) = M.MAVLink(None).parse_buffer(msg.pack(sender))
+    v.handle(parsed)
+
+
 def test_gcs_link_loss_failsafe():
     v = flying(10.0, params={"FS_GCS_ENABLE": 1})
-    v.handle(M.MAVLink_heartbeat_message(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
+    heartbeat(v)
     out = v.step(4.9)
     assert v.mode == "GUIDED"
     out = v.step(0.5)
     assert v.mode == "RTL" and "GCS Failsafe" in texts(out)
+
+
+def test_the_gcs_failsafe_hears_the_ground_station_of_mav_gcs_sysid_alone() -> None:
+    # As ArduCopter 4.7 (tests/interop/test_gcs_failsafe_arducopter.py): a station of
+    # another system id neither arms the failsafe nor keeps it quiet, whatever its type;
+    # one of MAV_GCS_SYSID does, whatever its type: two stations that share 255 hand over.
+    unseen = flying(10.0, params={"FS_GCS_ENABLE": 1})
+    for _ in range(20):
+        heartbeat(unseen, source=251)
+        unseen.step(0.5)
+    assert unseen.mode == "GUIDED"  # 255 never heard: the failsafe never armed
+    lost = flying(10.0, params={"FS_GCS_ENABLE": 1})
+    heartbeat(lost)
+    for _ in range(12):
+        lost.step(0.5)
+        heartbeat(lost, source=251)
+    assert lost.mode == "RTL"
+    handed = flying(10.0, params={"FS_GCS_ENABLE": 1})
+    heartbeat(handed)
+    for _ in range(20):
+        handed.step(0.5)
+        heartbeat(handed, kind=M.MAV_TYPE_ONBOARD_CONTROLLER)
+    assert handed.mode == "GUIDED"
+    other = flying(10.0, params={"FS_GCS_ENABLE": 1, "MAV_GCS_SYSID": 251})
+    heartbeat(other, source=251)
+    other.step(5.4)
+    assert other.mode == "RTL"
 
 
 def test_gps_loss_lands():
@@ -673,7 +708,7 @@ def test_alt_hold_climbs_and_sinks_with_the_throttle_stick_and_holds_it_mid_stic
     sticks(v, throttle=1500)
     v.step(3.5)  # the override is older than RC_OVERRIDE_TIME (3 s): the radio again
     assert v.rc(3) == 1000
-    sticks(v, throttle=2000, source=200)  # not the ground station of SYSID_MYGCS
+    sticks(v, throttle=2000, source=200)  # not the ground station of MAV_GCS_SYSID
     assert v.rc(3) == 1000
 
 
@@ -784,14 +819,14 @@ def test_gcs_failsafe_actions_are_arducopters(action: int, mode: str) -> None:
     # ArduCopter's failsafe_gcs_on_event: 1 RTL, 3 SmartRTL or RTL, 4 SmartRTL or LAND,
     # 5 LAND, 6 DO_LAND_START or RTL, any other value RTL; never a disarm in the air.
     v = flying(10.0, params={"FS_GCS_ENABLE": action})
-    v.handle(M.MAVLink_heartbeat_message(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
+    heartbeat(v)
     v.step(5.4)
     assert v.armed and v.mode == mode
 
 
 def test_gcs_failsafe_continues_an_auto_mission_with_action_2() -> None:
     v = flying(10.0, params={"FS_GCS_ENABLE": 2})
-    v.handle(M.MAVLink_heartbeat_message(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
+    heartbeat(v)
     v.step(5.4)
     assert v.mode == "RTL"  # not in AUTO: RTL
 

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 from tml.commands.signals import on_stop_signals
 from tml.commands.vehicles import (
     add_vehicle_arguments,
+    component_id,
     positive,
     session_options,
     system_id,
@@ -83,9 +84,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                               "(default 3, renewed every third of it; keep it well inside "
                               "the vehicles' FS_GCS_TIMEOUT)")
     cluster.add_argument("--source-system", type=system_id, default=255, metavar="N",
-                         help="the MAVLink system id this instance sends as (default 255; "
-                              "instances of a cluster may share it, or each have their own "
-                              "to be told apart)")
+                         help="the MAVLink system id this instance sends as (default 255, "
+                              "the one ArduPilot's GCS failsafe hears: the instances of a "
+                              "cluster share it)")
+    cluster.add_argument("--source-component", type=component_id, default=190, metavar="N",
+                         help="the MAVLink component id this instance sends as (default "
+                              "190; each instance of a cluster may have its own, to be told "
+                              "apart in what the vehicles heard)")
 
 
 def is_loopback(host: str) -> bool:
@@ -215,7 +220,7 @@ def _serve(args: argparse.Namespace, token: str | None, listening: socket.socket
     # A cluster's instance opens its vehicles without a word to them: it speaks to each
     # once it leases it (tml.serve.cluster), the FS_GCS_ENABLE check included.
     options = replace(session_options(args, "tml serve"), source_system=args.source_system,
-                      fenced=args.cluster)
+                      source_component=args.source_component, fenced=args.cluster)
     try:
         with open_session(options, World(), output_console(stderr=True),
                           notify=notify) as session, contextlib.ExitStack() as stack:
@@ -289,7 +294,8 @@ def _joined(args: argparse.Namespace, service: Service, hangar: Hangar) -> Itera
             print(f"tml serve: run {old} was flying when the service stopped: continued "
                   f"as run {new}", file=sys.stderr)
         print(f"tml serve: instance {args.instance} joined the cluster (lease "
-              f"{args.lease:g} s, MAVLink system {args.source_system})", file=sys.stderr)
+              f"{args.lease:g} s, MAVLink system {args.source_system} component "
+              f"{args.source_component})", file=sys.stderr)
         yield
 
 

@@ -8,6 +8,7 @@ through :mod:`tml.simulator`.
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -54,12 +55,18 @@ def positive(text: str) -> float:
     return check(text)
 
 
-def system_id(text: str) -> int:
-    """A MAVLink system id, 1 to 255 (an argparse type)."""
-    if not text.strip().isdigit() or not 1 <= int(text) <= 255:
-        raise argparse.ArgumentTypeError(f"expected a MAVLink system id from 1 to 255, "
-                                         f"got {text!r}")
-    return int(text)
+def _mavlink_id(what: str) -> Callable[[str], int]:
+    """An argparse type: a MAVLink ``what`` id ("system", "component"), 1 to 255."""
+    def parse(text: str) -> int:
+        if not text.strip().isdigit() or not 1 <= int(text) <= 255:
+            raise argparse.ArgumentTypeError(f"expected a MAVLink {what} id from 1 to 255, "
+                                             f"got {text!r}")
+        return int(text)
+    return parse
+
+
+system_id = _mavlink_id("system")
+component_id = _mavlink_id("component")
 
 
 def non_negative(text: str) -> float:

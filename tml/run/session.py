@@ -167,8 +167,11 @@ class SessionOptions:
     program: str = "tml run"
     """The name lines said begin with."""
     source_system: int = 255
-    """The MAVLink system id this ground station sends as (ArduPilot's default GCS id;
-    each instance of a ``tml serve`` cluster has its own)."""
+    """The MAVLink system id this ground station sends as (ArduPilot's default GCS id, the
+    one its GCS failsafe hears: the instances of a ``tml serve`` cluster share it)."""
+    source_component: int = 190
+    """The MAVLink component id it sends as (MAV_COMP_ID_MISSIONPLANNER; the instances of a
+    cluster may each have their own, to be told apart in what the vehicles heard)."""
     fenced: bool = False
     """Open the vehicles without a word to them: every link's gate closed from its start
     (its HEARTBEAT included), no telemetry rates asked, no parameter read. The caller
@@ -367,7 +370,8 @@ def open_session(options: SessionOptions, world: World, errors: Console | None =
         vehicle_clock: VehicleClock | None = None
         for address, system_id in addresses:
             link = Link(address, outputs=options.outputs, signing_key=key,
-                        timebase=timebase, source_system=options.source_system)
+                        timebase=timebase, source_system=options.source_system,
+                        source_component=options.source_component)
             if options.fenced:
                 link.gate = lambda _target: False
             stack.enter_context(link)

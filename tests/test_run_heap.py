@@ -4,9 +4,25 @@ kept out of the garbage collector's passes until the last run ends, and nothing 
 from __future__ import annotations
 
 import gc
+import time
 import weakref
+from collections.abc import Iterator
 
+import pytest
+
+from tml.run import heap
 from tml.run.heap import frozen
+
+
+@pytest.fixture(autouse=True)
+def no_other_run() -> Iterator[None]:
+    """These tests read the process's frozen heap: a run another test left flying in this
+    process (a service's thread winding down) is waited for first."""
+    end = time.monotonic() + 60.0  # a hang guard
+    while heap._flying:
+        assert time.monotonic() < end, "a run of another test still flies"
+        time.sleep(0.01)
+    yield
 
 
 class _Node:

@@ -44,10 +44,11 @@ def test_objects_are_frozen_while_any_run_flies_and_given_back_after_the_last() 
         assert first > 0
         later = _cycle()
         with frozen():  # a second run (tml serve): it freezes nothing more
-            assert gc.get_freeze_count() == first
+            # (frozen objects may still be freed by their reference counts: fewer, never more)
+            assert gc.get_freeze_count() <= first
             gc.collect()
             assert later() is None
-        assert gc.get_freeze_count() == first  # the first still flies
+        assert 0 < gc.get_freeze_count() <= first  # the first still flies
     assert gc.get_freeze_count() == 0
 
 

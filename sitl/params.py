@@ -23,6 +23,7 @@ and ArduPilot answers with the value rounded to the parameter's type.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from types import MappingProxyType
 from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
@@ -30,10 +31,17 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 # MAV_PARAM_TYPE values used here.
 INT8, INT16, INT32, REAL32 = 2, 4, 6, 9
 
+SAME_AS: Mapping[str, str] = MappingProxyType({
+    # ArduPilot 4.7's name and the one before it, of one setting: setting either sets both
+    # (a ground station of either age reads and writes the value the model uses).
+    "MAV_GCS_SYSID": "SYSID_MYGCS", "SYSID_MYGCS": "MAV_GCS_SYSID",
+})
+
 AUTOPILOT_DEFAULTS: tuple[tuple[str, float, int], ...] = (
     ("MAV_SYSID", 1, INT16),
     ("SYSID_THISMAV", 1, INT16),
     ("MAV_GCS_SYSID", 255, INT16),
+    ("SYSID_MYGCS", 255, INT16),
     ("FRAME_CLASS", 1, INT8),
     ("FRAME_TYPE", 1, INT8),
     ("ARMING_CHECK", 1, INT32),
@@ -223,6 +231,9 @@ class Params(dict[str, float]):
             raise UnknownParameter(name)
         stored = float(value) if self._types[name] == REAL32 else float(round(value))
         super().__setitem__(name, stored)
+        other = SAME_AS.get(name)
+        if other is not None and other in self:
+            super().__setitem__(other, stored)
         return stored
 
 

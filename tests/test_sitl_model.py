@@ -537,10 +537,12 @@ def test_the_gcs_failsafe_hears_the_ground_station_of_mav_gcs_sysid_alone() -> N
         handed.step(0.5)
         heartbeat(handed, kind=M.MAV_TYPE_ONBOARD_CONTROLLER)
     assert handed.mode == "GUIDED"
-    other = flying(10.0, params={"FS_GCS_ENABLE": 1, "MAV_GCS_SYSID": 251})
-    heartbeat(other, source=251)
-    other.step(5.4)
-    assert other.mode == "RTL"
+    for name in ("MAV_GCS_SYSID", "SYSID_MYGCS"):  # 4.7's name, and the one before it
+        other = flying(10.0, params={"FS_GCS_ENABLE": 1, name: 251})
+        assert other.params["MAV_GCS_SYSID"] == other.params["SYSID_MYGCS"] == 251
+        heartbeat(other, source=251)
+        other.step(5.4)
+        assert other.mode == "RTL"
 
 
 def test_gps_loss_lands():

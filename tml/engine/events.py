@@ -89,18 +89,13 @@ class Events:
             self._drive(pilot, handler)
             self._rest(pilot)
         elif pilot.duty is Duty.WATCHING:
-            quiet = self._quiet.get(pilot.vehicle_id)
-            if quiet is not None and quiet[0] is pilot.state and quiet[1] == pilot.role \
-                    and self._fields(pilot.role) is not None:
-                return  # the very state of its last quiet check (most vehicles, most steps)
-            if not pilot.flying_a_task():
-                return
-            fields = self._fields(pilot.role)
-            if quiet is None or fields is None or quiet[1] != pilot.role or not same_state(
-                    quiet[0], pilot.state, fields):
+            quiet, fields = self._quiet.get(pilot.vehicle_id), self._fields(pilot.role)
+            if quiet is not None and fields is not None and quiet[1] == pilot.role \
+                    and same_state(quiet[0], pilot.state, fields):
+                if quiet[0] is not pilot.state:  # as quiet: known at once next time
+                    self._quiet[pilot.vehicle_id] = (pilot.state, pilot.role)
+            elif pilot.flying_a_task():
                 self._check(pilot)
-            else:  # the same readings: this state is as quiet, and known at once next time
-                self._quiet[pilot.vehicle_id] = (pilot.state, pilot.role)
 
     def wake(self, waker: Waker) -> None:
         """Tell ``waker`` what the event handling waits for (:mod:`tml.engine.wake`): the

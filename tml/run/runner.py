@@ -225,11 +225,10 @@ class _Flight:
         self.revision: object = None  # the vehicle's revision when its state was built
         self.revision_of: Callable[[], object] | None = getattr(vehicle, "revision", None)
         self.refresh_at = -math.inf  # when the state is rebuilt however the revision stands
-        # When its next look is due whatever the vehicle says (the earlier of refresh_at and
-        # next_telemetry), while the last look left nothing to follow up: no lost link to
-        # time, no take-over to handle. Until then a wake with no result and the same
-        # revision changes nothing of it (see Runner._tick), and it is passed over.
-        self.settled_until = -math.inf
+        # The last look left nothing to follow up (no lost link to time, no take-over to
+        # handle): until its refresh or telemetry line is due, a wake with no result and
+        # the same revision changes nothing of it (see Runner._tick), and it is passed over.
+        self.settled = False
         self.link = "ok"  # the link's health last journaled
         # The mission's fence and rally points on the vehicle: None not asked yet, the
         # request's id while asked, "done", or why they could not be put there.
@@ -603,7 +602,8 @@ class Runner:
             vehicle = flight.vehicle
             found = vehicle.poll()
             revision = None if flight.revision_of is None else flight.revision_of()
-            if not found and now < flight.settled_until and revision == flight.revision:
+            if (flight.settled and not found and revision == flight.revision
+                    and now < flight.refresh_at and now < flight.next_telemetry):
                 continue  # in a fleet, most vehicles at most wakes: nothing below would act
             if found:
                 results[vehicle.vehicle_id] = found
@@ -637,13 +637,11 @@ class Runner:
                 flight.lost_since = None
             if flight.lost:  # given up on: back, it is told its safe state at once
                 self._heard_again(flight, state, now)
-            if (state.taken or state.reboots > flight.boots) and not flight.taken:
+            pending = (state.taken or state.reboots > flight.boots) and not flight.taken
+            if pending:
                 taken.append(flight)
-                flight.settled_until = -math.inf
-            elif revision is None or flight.lost or flight.lost_since is not None:
-                flight.settled_until = -math.inf
-            else:
-                flight.settled_until = min(flight.refresh_at, flight.next_telemetry)
+            flight.settled = not (pending or revision is None or flight.lost
+                                  or flight.lost_since is not None)
         for flight in taken:
             self._taken(crew, flight, now)
         for flight in lost:

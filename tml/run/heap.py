@@ -8,10 +8,11 @@ the parsers' message classes, the mission) that was 37 ms of CPU (83 ms of wall 
 *Fewer looks, a quiet collector*). What exists when the first run starts to fly lives as
 long as the runs, so :func:`frozen` moves it out of the collector's reach (:func:`gc.freeze`)
 while any run flies, and gives it back (:func:`gc.unfreeze`) when the last one ends: cycles
-that were garbage already are collected then, nothing is lost. A run that begins while another flies freezes nothing more, so a
-service whose runs overlap for days keeps no more out of reach than there was at the first:
-what came since is collected as ever. Freezing and thawing move lists, not objects: they
-cost nothing at any size, and nothing is collected on the way.
+that were garbage already are collected then, nothing is lost. A run that begins while
+another flies freezes nothing more, so a service whose runs overlap for days keeps no more
+out of reach than there was at the first: what came since is collected as ever. Freezing
+and thawing move lists, not objects: they cost nothing at any size, and nothing is
+collected on the way.
 """
 
 from __future__ import annotations

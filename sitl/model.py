@@ -80,7 +80,7 @@ RC_RADIO = (1500, 1500, 1000, 1500)  # SITL radio, nobody at the sticks: centred
 STICK_DEADZONE = 20  # microseconds around 1500 where roll and pitch read 0 (RCn_DZ)
 THROTTLE_DEADZONE = 30  # microseconds above 1000 where the throttle reads 0 (RC3_DZ)
 # m/s², ArduCopter's BRAKE_MODE_DECEL_RATE; reached at PSC_JERK_XY, so that from 10 m/s
-# BRAKE stops in about 21 m as ArduCopter SITL does, no shorter than GUIDED's stop.
+# BRAKE stops in about 20 m as ArduCopter SITL does, no shorter than GUIDED's stop.
 BRAKE_DECEL = 7.5
 FORCE_ARM = (2989, 21196)  # param2 magic numbers that skip the checks
 FORCE_REBOOT = 20190226  # PREFLIGHT_REBOOT_SHUTDOWN param4 that reboots even when armed
@@ -494,7 +494,9 @@ class VehicleModel:
             self.body.stop()
         elif name == "BRAKE" and flying:
             # ArduCopter's BRAKE shapes the velocity to zero at BRAKE_MODE_DECEL_RATE
-            # (jerk-limited) and holds where that ends.
+            # (jerk-limited), from no acceleration (init_xy_controller), and holds where
+            # that ends.
+            self.body.restart_shaping()
             self._velocity = ((0.0, 0.0, 0.0), math.inf)
         elif name in ("GUIDED", "LOITER") and flying:
             self._target = self._stopping_point()
@@ -649,6 +651,12 @@ class VehicleModel:
         if not mask & 0b111:
             self._go(position)
         elif not mask & 0b111000:
+            if self._velocity is None:
+                # ArduCopter's velocity controller starts (velaccel_control_start) from the
+                # velocity the vehicle has and no acceleration: told to stop while still
+                # speeding up, it brakes at once (from 8.6 m/s: 18 m, not the 24 m it
+                # would need from full acceleration).
+                self.body.restart_shaping()
             self._stop_motion()
             self._velocity = (velocity, self.time + GUIDED_VELOCITY_TIMEOUT)
         if not mask & 1024:

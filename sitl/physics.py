@@ -170,6 +170,11 @@ class Body:
         error = (heading - self.heading + 180.0) % 360.0 - 180.0
         self.heading = wrap_degrees(self.heading + max(-rate * dt, min(rate * dt, error)))
 
+    def restart_shaping(self) -> None:
+        """Start shaping afresh from the velocity it has: ArduCopter's ``init_xy_controller``
+        sets the desired horizontal acceleration to zero (the measured one is too noisy)."""
+        self.accel = (0.0, 0.0, self.accel[2])
+
     def stop(self) -> None:
         """Zero velocity and acceleration (touchdown, collision)."""
         self.velocity = ZERO

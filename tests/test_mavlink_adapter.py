@@ -151,6 +151,28 @@ def test_take_off_go_to_yaw_and_hold(rig: Rig) -> None:
     assert stopped.position[0] < 39.0
 
 
+def test_a_hold_at_speed_brakes_where_it_can_and_does_not_fly_back(rig: Rig) -> None:
+    # A position target at the point where the hold was told would be flown past by some
+    # 24 m (ArduCopter 4.7 SITL from 8.6 m/s) and back to; a velocity target of zero stops
+    # the vehicle in 18 m and keeps it there.
+    rig.fly(10.0)
+    assert rig.do(GoTo(1, (400.0, 0.0, 10.0))).ok
+    told = rig.until(lambda s: s.ground_speed > 8.5, "at speed").position
+    assert rig.do(Hold(1)).ok
+    furthest = told[0]
+    end = time.monotonic() + WALL_LIMIT
+    while (state := rig.vehicle.state()).ground_speed > 0.1 or state.position[0] < told[0] + 5:
+        assert time.monotonic() < end, "not stopped"
+        furthest = max(furthest, state.position[0])
+        time.sleep(0.01)
+    stopped = state.position
+    assert 10.0 < stopped[0] - told[0] < 20.0
+    rig.until(lambda s: s.time > state.time + 5.0, "5 s later")
+    after = rig.vehicle.state()
+    assert math.dist(after.position, stopped) < 0.5 and furthest < stopped[0] + 0.5
+    assert after.mode == "GUIDED" and after.flying
+
+
 def test_a_flip_goes_through_alt_hold_with_the_sticks_held_and_back_to_guided(
         rig: Rig) -> None:
     rig.fly(12.0)

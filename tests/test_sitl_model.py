@@ -613,6 +613,31 @@ def test_brake_stops_a_fast_vehicle_and_holds_it_there():
     assert beat.custom_mode == 17
 
 
+@pytest.mark.parametrize("how", ["BRAKE", "zero velocity"])
+def test_told_to_stop_while_speeding_up_it_brakes_from_no_acceleration(how):
+    # ArduCopter's init_xy_controller zeroes the desired acceleration when BRAKE or a GUIDED
+    # velocity target takes over. ArduCopter 4.7 SITL, told at 8.6 m/s on its way to
+    # 10 m/s (WPNAV_SPEED): BRAKE stopped 17.0 m and a velocity of zero 18.4 m past its
+    # last position report before the command (up to 0.9 m earlier). Braking from the
+    # full acceleration it had would take 22 to 24 m.
+    v = flying(10.0)
+    v.fly_to((500.0, 0.0, 10.0))
+    run_until(v, lambda: v.body.velocity[0] > 8.6, 30)
+    assert v.body.accel[0] > 1.0  # still speeding up
+    if how == "BRAKE":
+        assert command(v, M.MAV_CMD_DO_SET_MODE, 1, 17)[0] == M.MAV_RESULT_ACCEPTED
+    else:
+        v.handle(M.MAVLink_set_position_target_local_ned_message(
+            0, 1, 1, M.MAV_FRAME_LOCAL_NED, 0b010111000111, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0))
+    told_at = v.position[0]
+    run_until(v, lambda: math.hypot(*v.body.velocity[:2]) < 0.01, 20)
+    stopped = v.position
+    assert 15.5 < stopped[0] - told_at < 18.5
+    v.step(5)
+    assert math.dist(v.position, stopped) < 0.2
+    assert v.mode == ("BRAKE" if how == "BRAKE" else "GUIDED")
+
+
 def test_set_home_here_or_elsewhere_moves_where_rtl_lands():
     v = flying(5.0)
     v.fly_to((30.0, 0.0, 5.0))

@@ -2,7 +2,8 @@
 
 The same manoeuvres fly ArduCopter SITL and ``python -m sitl``, so their timings compare:
 take-off to 10 m, GUIDED position targets 20 m and 100 m away, braking from 10 m/s to a
-position target at the vehicle's own position (what tml's HOLD sends), a climb to 30 m,
+position target at the vehicle's own position, stopping with a velocity target of zero (what
+tml's HOLD sends) from 10 m/s and while still speeding up, a climb to 30 m,
 LAND from 10 m and from 30 m, RTL from 50 m away at 10 m (it climbs to RTL_ALT first), and
 an AUTO mission of four waypoints with corners. Every time is vehicle time, read from
 GLOBAL_POSITION_INT's ``time_boot_ms`` (requested at 10 Hz), counted from the first sample
@@ -133,7 +134,7 @@ class Flyer(GroundStation):
         return round(lat * 1e7), round(lon * 1e7)
 
     def velocity(self, north: float) -> None:
-        """SET_POSITION_TARGET_LOCAL_NED with a velocity north only."""
+        """SET_POSITION_TARGET_LOCAL_NED with a velocity north only (0: stop there)."""
         self.conn.mav.set_position_target_local_ned_send(
             0, self.target, 1, M.MAV_FRAME_LOCAL_NED, 0b110111000111,
             0, 0, 0, north, 0, 0, 0, 0, 0, 0, 0)
@@ -216,6 +217,23 @@ def fly_all(address: str) -> dict[str, Any]:
         profiles["brake"] = flyer.record(
             lambda s: abs(s.north - here.north) < 0.3 and s.speed < 0.2, "braking", 60,
             send=lambda: flyer.go(here.north, here.east, 10.0))
+        # tml's HOLD: a velocity target of zero, from 10 m/s steady, and at 8.5 m/s while
+        # speeding up toward a position target 300 m away.
+        flyer.record(lambda s: s.speed >= 9.9, "10 m/s", 30, every=lambda: flyer.velocity(-10.0),
+                     send=lambda: flyer.velocity(-10.0))
+        steady = flyer.drain().t + 2.0
+        flyer.record(lambda s: s.t >= steady, "10 m/s steady", 10,
+                     every=lambda: flyer.velocity(-10.0))
+        profiles["stop"] = flyer.record(lambda s: s.speed < 0.2, "stopping", 60,
+                                        send=lambda: flyer.velocity(0.0))
+        flyer.settle(2.0)
+        start = flyer.drain()
+        flyer.record(lambda s: s.speed >= 8.5, "8.5 m/s", 60,
+                     send=lambda: flyer.go(start.north + 300.0, start.east, 10.0))
+        profiles["stop_speeding_up"] = flyer.record(lambda s: s.speed < 0.2, "stopping", 60,
+                                                    send=lambda: flyer.velocity(0.0))
+        profiles["stopped"] = flyer.record(lambda s: s.t >= profiles["stop_speeding_up"][-1].t
+                                           + 3.0, "stopped", 20)
         profiles["land_10"] = flyer.landing(LAND)
         # RTL from 50 m north at 10 m: climb to RTL_ALT, return, loiter, land.
         flyer.take_off(10.0)
@@ -266,6 +284,15 @@ def timings(flown: dict[str, Any]) -> dict[str, float]:
     out["brake_below_1"] = first(brake, lambda s: s.speed < 1.0)
     out["brake_distance"] = max(abs(s.north - brake[0].north) for s in brake)
     out["brake_back"] = brake[-1].t - brake[0].t
+    for name in ("stop", "stop_speeding_up"):
+        stop = p[name]
+        out[f"{name}_from"] = stop[0].speed
+        out[f"{name}_below_1"] = first(stop, lambda s: s.speed < 1.0)
+        out[f"{name}_distance"] = math.dist((stop[0].north, stop[0].east),
+                                            (stop[-1].north, stop[-1].east))
+    last = p["stop_speeding_up"][-1]
+    out["stopped_drift"] = max(math.dist((s.north, s.east), (last.north, last.east))
+                               for s in p["stopped"])
     out["climb_30_time"] = first(p["climb_30"], lambda s: s.up >= 29.9)
     out["climb_30_peak"] = max(s.climb for s in p["climb_30"])
     for name in ("land_10", "land_30"):

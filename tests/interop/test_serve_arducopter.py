@@ -84,9 +84,9 @@ def test_the_service_flies_two_arducopters(ardupilot, tmp_path: Path) -> None:
         until("vehicle 1 on its way out", lambda: out_beyond(client, 1, 15))
         assert post(client, f"/runs/{one}/pause")["status"] == "paused"
         post(client, f"/runs/{two}/abort")
-        # Told to hold, ArduCopter stops and stays. Told at 8 to 10 m/s, it stops beyond
-        # the point (at its own deceleration limits) and comes back to it: how far depends
-        # on its speed when the pause lands, so the test waits for the state, stopped for
+        # Told to hold (a velocity target of zero), ArduCopter brakes at its own limits,
+        # some 18 to 25 m at 8 to 10 m/s, and stays where it stopped: how far depends on
+        # its speed when the pause lands, so the test waits for the state, stopped for
         # 2 s of its time, not for a time (vehicle seconds, from its telemetry).
         readings: list[dict[str, Any]] = []
 
@@ -101,6 +101,8 @@ def test_the_service_flies_two_arducopters(ardupilot, tmp_path: Path) -> None:
         held = until("vehicle 1 stopped", stopped)
         now = until("vehicle 1 held", lambda: after(client, 1, held["time"] + 5))
         assert moved(held, now) < 1.0, (held, now)
+        furthest = max(r["position"][0] for r in readings)
+        assert furthest < held["position"][0] + 1.0, (furthest, held)  # did not fly back
         assert post(client, f"/runs/{one}/resume")["status"] == "running"
         assert post(client, f"/runs/{one}/jump", task="Down")["tasks"]["1"]["Out"] == "aborted"
 

@@ -36,8 +36,10 @@ and come from a listener on the link that sees every message of this vehicle:
 - *mission progress* of the last :class:`~tml.vehicle.FlyMission`: MISSION_CURRENT and
   MISSION_ITEM_REACHED seqs are mapped back to action indices with the item map of
   :mod:`tml.mavlink.compile`;
-- *the GUIDED target kept*: a position target (GoTo, Hold) is a message nobody acknowledges,
-  and one lost on a poor link would leave the vehicle where it was; so the last one is sent
+- *the GUIDED target kept*: a position target (GoTo) or a velocity target of zero (Hold: the
+  vehicle brakes within its limits and holds where it stopped, rather than fly past the
+  point where it was told and back) is a message nobody acknowledges, and one lost on a
+  poor link would leave the vehicle doing what it did; so the last one is sent
   again at each HEARTBEAT (at most every ``TARGET_PERIOD`` s) while the vehicle is in GUIDED,
   until another request takes its place. After a SetYaw the kept target carries that
   heading: a target without a yaw hands the heading back to the autopilot (ArduCopter's
@@ -185,9 +187,19 @@ seven in a row must be lost for that."""
 TAKEOFF_ATTEMPTS = 3
 """Take-offs tried, arming again in between, when the vehicle disarmed by itself meanwhile."""
 TARGET_PERIOD = 0.5
-"""Seconds at least between two copies of the GUIDED position target kept."""
+"""Seconds at least between two copies of the GUIDED target kept."""
 FLIP_WAIT = 10.0
 """Seconds to wait for a flip to be over (ArduCopter abandons one after 2.5 s)."""
+
+
+@dataclass(frozen=True)
+class _Aim:
+    """The GUIDED target kept: a point (latitude, longitude, metres above home), or a stop
+    where the vehicle can (no point); ``yaw`` in degrees from north, None: the autopilot's
+    choice."""
+
+    point: tuple[float, float, float] | None
+    yaw: float | None = None
 
 
 @dataclass(frozen=True)
@@ -327,8 +339,7 @@ class MavlinkVehicle:
         # (status_texts, their count, the messages built of them): see _latest_messages
         self._said: tuple[object, int, tuple[AutopilotMessage, ...]] = (None, -1, ())
         self._companion_seen = False
-        # lat, lon, alt and yaw (degrees, None: the autopilot's choice) kept in GUIDED
-        self._target: tuple[float, float, float, float | None] | None = None
+        self._target: _Aim | None = None  # kept in GUIDED
         self._target_sent = 0.0
         self._ground_speed: float | None = None  # a rover's speed, sent with each target
         # Tells a mode change nobody here asked for (a fixed-wing ends its mission in RTL).
@@ -584,13 +595,22 @@ class MavlinkVehicle:
             return
         self._target_sent = now
         with contextlib.suppress(OSError):
-            self.mav.position_target(*target)
+            self._send_target(target)
 
     def _aim(self, latitude: float, longitude: float, altitude: float) -> None:
         """Send a GUIDED position target, and keep it (see the module docstring)."""
-        self._target = (latitude, longitude, altitude, None)
+        self._keep_aim(_Aim((latitude, longitude, altitude)))
+
+    def _keep_aim(self, aim: _Aim) -> None:
+        self._target = aim
         self._target_sent = self.timebase.now()
-        self.mav.position_target(latitude, longitude, altitude)
+        self._send_target(aim)
+
+    def _send_target(self, aim: _Aim) -> None:
+        if aim.point is None:
+            self.mav.stop_target(aim.yaw)
+        else:
+            self.mav.position_target(*aim.point, aim.yaw)
 
     # --- the worker thread (while requests wait) --------------------------------------
 
@@ -817,7 +837,7 @@ class MavlinkVehicle:
             # A position target without a yaw hands the heading back to the autopilot
             # (ArduCopter: WP_YAW_BEHAVIOR), which would undo the turn when the kept
             # target is sent again: from now on it carries the heading asked for.
-            self._target = (*target[:3], request.heading % 360.0)
+            self._target = replace(target, yaw=request.heading % 360.0)
 
     def _hold(self, request: Hold) -> None:
         t = self.link.telemetry(self.system_id)
@@ -839,10 +859,9 @@ class MavlinkVehicle:
         if t.mode != "GUIDED":
             self._guided()  # ArduCopter stops at its stopping point on entering GUIDED
             return
-        home, state = self._require_home(), self.state()
-        if state.position is not None:
-            latitude, longitude, _ = _global(state.position, home)
-            self._aim(latitude, longitude, state.position[2])
+        # Braked to a stop where it can: a position target at the point where it was would
+        # be flown past (at 10 m/s ArduCopter needs some 20 m to stop) and back to.
+        self._keep_aim(_Aim(None))
 
     def _land(self, request: Land) -> None:
         kind = self._kind()

@@ -254,6 +254,12 @@ class Autopilot:
             self.system_id, self.component_id, round(latitude * 1e7), round(longitude * 1e7),
             altitude, None if yaw is None else math.radians(yaw)))
 
+    def stop_target(self, yaw: float | None = None) -> None:
+        """Stream a GUIDED velocity target of zero: brake and hold where that ends
+        (SET_POSITION_TARGET_LOCAL_NED; not acknowledged). ``yaw`` as for position_target."""
+        self.link.send(codec.stop_target(self.system_id, self.component_id,
+                                         None if yaw is None else math.radians(yaw)))
+
     def set_home(self, latitude: float | None = None, longitude: float | None = None,
                  altitude: float = 0.0) -> None:
         """Set home to a point (altitude above mean sea level), or to here if none given."""

@@ -165,18 +165,42 @@ def request_data_stream(target_system: int, target_component: int, rate_hz: int
 def position_target(target_system: int, target_component: int, lat_e7: int, lon_e7: int,
                     alt: float, yaw: float | None = None) -> mavlink.MAVLink_message:
     """SET_POSITION_TARGET_GLOBAL_INT for a position (relative altitude), GUIDED mode."""
-    ignore = (mavlink.POSITION_TARGET_TYPEMASK_VX_IGNORE
-              | mavlink.POSITION_TARGET_TYPEMASK_VY_IGNORE
-              | mavlink.POSITION_TARGET_TYPEMASK_VZ_IGNORE
-              | mavlink.POSITION_TARGET_TYPEMASK_AX_IGNORE
-              | mavlink.POSITION_TARGET_TYPEMASK_AY_IGNORE
-              | mavlink.POSITION_TARGET_TYPEMASK_AZ_IGNORE
-              | mavlink.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE)
-    if yaw is None:
-        ignore |= mavlink.POSITION_TARGET_TYPEMASK_YAW_IGNORE
     return _BUILD.set_position_target_global_int_encode(
-        0, target_system, target_component, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, ignore,
+        0, target_system, target_component, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+        _target_mask(_IGNORE_VELOCITY, yaw),
         lat_e7, lon_e7, alt, 0, 0, 0, 0, 0, 0, yaw or 0.0, 0)
+
+
+def stop_target(target_system: int, target_component: int, yaw: float | None = None
+                ) -> mavlink.MAVLink_message:
+    """SET_POSITION_TARGET_LOCAL_NED for a velocity of zero, GUIDED mode: brake and hold.
+
+    ArduCopter starts its velocity controller from the velocity the vehicle has and shapes
+    it to zero within its acceleration and jerk limits, then holds where that ends (a
+    position target at the point where it was would be flown past and back to)."""
+    return _BUILD.set_position_target_local_ned_encode(
+        0, target_system, target_component, mavlink.MAV_FRAME_LOCAL_NED,
+        _target_mask(_IGNORE_POSITION, yaw), 0, 0, 0, 0, 0, 0, 0, 0, 0, yaw or 0.0, 0)
+
+
+_IGNORE_POSITION = (mavlink.POSITION_TARGET_TYPEMASK_X_IGNORE
+                    | mavlink.POSITION_TARGET_TYPEMASK_Y_IGNORE
+                    | mavlink.POSITION_TARGET_TYPEMASK_Z_IGNORE)
+_IGNORE_VELOCITY = (mavlink.POSITION_TARGET_TYPEMASK_VX_IGNORE
+                    | mavlink.POSITION_TARGET_TYPEMASK_VY_IGNORE
+                    | mavlink.POSITION_TARGET_TYPEMASK_VZ_IGNORE)
+
+
+def _target_mask(ignored: int, yaw: float | None) -> int:
+    """A position target's type mask: ``ignored`` besides the acceleration and the yaw
+    rate, and the yaw when there is none."""
+    mask: int = (ignored | mavlink.POSITION_TARGET_TYPEMASK_AX_IGNORE
+            | mavlink.POSITION_TARGET_TYPEMASK_AY_IGNORE
+            | mavlink.POSITION_TARGET_TYPEMASK_AZ_IGNORE
+            | mavlink.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE)
+    if yaw is None:
+        mask |= mavlink.POSITION_TARGET_TYPEMASK_YAW_IGNORE
+    return mask
 
 
 RC_IGNORE = 65535

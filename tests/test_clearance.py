@@ -4,10 +4,11 @@ its findings as data, said by tml run as it always said them."""
 from __future__ import annotations
 
 import io
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import pytest
 from fake_vehicle import FakeVehicle
 from rich.console import Console
 
@@ -42,9 +43,14 @@ class Reporting(FakeVehicle):
     """A fake vehicle that reports parameters, as a MAVLink vehicle does."""
 
     parameters: Mapping[str, float] | None = None
+    source_system: int = 255
 
     def read_parameters(self, names: Iterable[str]) -> Mapping[str, float]:
         return {n: v for n, v in (self.parameters or {}).items() if n in set(names)}
+
+    def read_first(self, names: Sequence[str]) -> tuple[str, float] | None:
+        return next(((n, (self.parameters or {})[n]) for n in names
+                     if n in (self.parameters or {})), None)
 
 
 def _mission(tmp_path: Path, text: str = UP):
@@ -106,6 +112,35 @@ def test_a_vehicle_without_a_gcs_failsafe_is_warned_about_or_refused(tmp_path: P
     assert _said(refused)[-1] == "tml run: not flown (--require-gcs-failsafe)"
     unread = clear(mission, [silent], quad, options=ClearanceOptions(gcs_failsafe=False))
     assert unread == Cleared(quad, ())
+
+
+@pytest.mark.parametrize(("parameters", "source", "problem"), [
+    ({"MAV_GCS_SYSID": 255}, 255, None),
+    ({"SYSID_MYGCS": 255}, 255, None),
+    ({}, 255, None),  # neither name: nothing to compare
+    ({"MAV_GCS_SYSID": 250}, 255, "MAV_GCS_SYSID is 250 and tml sends as system 255"),
+    ({"SYSID_MYGCS": 250}, 255, "SYSID_MYGCS is 250 and tml sends as system 255"),
+    ({"MAV_GCS_SYSID": 255}, 251, "MAV_GCS_SYSID is 255 and tml sends as system 251"),
+    # ArduPilot 4.7.1's range: MAV_GCS_SYSID up to MAV_GCS_SYSID_HI
+    ({"MAV_GCS_SYSID": 250, "MAV_GCS_SYSID_HI": 255}, 255, None),
+    ({"MAV_GCS_SYSID": 250, "MAV_GCS_SYSID_HI": 254}, 255,
+     "MAV_GCS_SYSID is 250 and tml sends as system 255"),
+    ({"MAV_GCS_SYSID": 250, "MAV_GCS_SYSID_HI": 0}, 255,
+     "MAV_GCS_SYSID is 250 and tml sends as system 255"),
+])
+def test_a_vehicle_whose_failsafe_hears_another_ground_station_is_warned_about(
+        tmp_path: Path, parameters: dict[str, float], source: int, problem: str | None) -> None:
+    vehicle = Reporting(parameters={GCS_FAILSAFE: 1, **parameters}, source_system=source)
+    found = clear(_mission(tmp_path), [vehicle], load_profile("quadcopter"), verified=True)
+    assert isinstance(found, Cleared)
+    if problem is None:
+        assert found.findings == ()
+        return
+    [missing] = found.findings
+    assert isinstance(missing, FailsafeMissing)
+    [said] = missing.problems
+    assert said.startswith(f"vehicle 1: {problem}: the vehicle's GCS failsafe hears only ")
+    assert said.endswith(f"(set {problem.split()[0]} to {source})")
 
 
 def test_without_a_profile_it_is_read_from_the_first_vehicle(tmp_path: Path) -> None:

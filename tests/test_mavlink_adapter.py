@@ -485,3 +485,15 @@ def test_a_flight_request_not_yet_carried_out_keeps_the_vehicle_possibly_flying(
         assert pending.possibly_flying and not pending.current  # ... decides nothing yet
         rig.until(lambda s: rig.vehicle.idle(), "the Arm carried out")
         rig.until(lambda s: s.current and s.armed, "armed, seen after the Arm was answered")
+
+
+def test_a_parameter_known_by_several_names_is_read_by_the_one_the_firmware_answers(
+        rig: Rig) -> None:
+    rig.until(lambda s: s.heard is not None, "heard")
+    # ArduPilot 4.7's name and the one before it: the simulator keeps both; a name no
+    # firmware has is asked for too, and answered by none.
+    assert rig.vehicle.read_first(("NO_SUCH_NAME", "SYSID_MYGCS")) == ("SYSID_MYGCS", 255.0)
+    found = rig.vehicle.read_first(("MAV_GCS_SYSID", "SYSID_MYGCS"))
+    assert found is not None and found[1] == 255.0
+    assert rig.vehicle.read_first(("NO_SUCH_NAME", "NOR_THIS")) is None
+    assert rig.vehicle.source_system == 255

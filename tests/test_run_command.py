@@ -457,7 +457,23 @@ def test_a_vehicle_with_a_gcs_failsafe_flies_when_one_is_required(
                  "--sim-param", "FS_GCS_TIMEOUT=100"])
     out = capsys.readouterr()
     assert code == 0, out
-    assert "FS_GCS_ENABLE" not in out.err
+    assert "FS_GCS_ENABLE" not in out.err and "MAV_GCS_SYSID" not in out.err
+
+
+@pytest.mark.parametrize("name", ["MAV_GCS_SYSID", "SYSID_MYGCS"])
+def test_a_vehicle_whose_failsafe_hears_another_ground_station_is_refused_when_one_is_required(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], name: str) -> None:
+    # ArduPilot counts only its MAV_GCS_SYSID's HEARTBEATs (SYSID_MYGCS before 4.7): with
+    # 250 there, tml (255) falling silent triggers nothing. The simulator keeps both names.
+    code = main(["run", write(tmp_path, SHORT), "--sim", *FAST, "-q",
+                 "--require-gcs-failsafe", "--sim-param", "FS_GCS_ENABLE=1",
+                 "--sim-param", f"{name}=250"])
+    err = capsys.readouterr().err
+    assert code == 4, err
+    assert ("vehicle 1: MAV_GCS_SYSID is 250 and tml sends as system 255: the vehicle's GCS "
+            "failsafe hears only system 250's HEARTBEATs, so it does nothing by itself when "
+            "this ground station falls silent (set MAV_GCS_SYSID to 255)") in err
+    assert "not flown (--require-gcs-failsafe)" in err and "Traceback" not in err
 
 
 def test_a_signed_run_on_the_simulator_flies_and_logs_what_signing_dropped(

@@ -181,6 +181,12 @@ class _Vehicle:
         self.spoken.append(f"read {' '.join(names)}")
         return {} if self.failsafe is None else {name: self.failsafe for name in names}
 
+    def read_first(self, names: list[str]) -> tuple[str, float] | None:
+        self.spoken.append(f"read first {' '.join(names)}")
+        return names[0], 255.0
+
+    source_system = 255
+
     def state(self) -> Any:
         return type("State", (), {"armed": False})()
 
@@ -217,9 +223,10 @@ def test_the_fence_opens_only_for_owned_vehicles_within_the_proven_lease(
     assert not alone.gate(1)
     # Spoken to once it was first leased (the session opened it without a word), and only
     # then: taken again, it is not prepared again.
-    assert vehicles[2].spoken == ["prepare open", "read FS_GCS_ENABLE"]
+    read = ["read FS_GCS_ENABLE", "read first MAV_GCS_SYSID SYSID_MYGCS"]
+    assert vehicles[2].spoken == ["prepare open", *read]
     hangar.claim([3], "run3")
-    assert vehicles[2].spoken == ["prepare open", "read FS_GCS_ENABLE"]
+    assert vehicles[2].spoken == ["prepare open", *read]
 
 
 def test_a_vehicle_without_its_own_failsafe_is_not_leased_when_one_is_required(
@@ -231,9 +238,9 @@ def test_a_vehicle_without_its_own_failsafe_is_not_leased_when_one_is_required(
                            require_gcs_failsafe=True)
     assert leases.join()
     hangar.renewed(time.monotonic())
-    with pytest.raises(FailsafeMissing, match="vehicle 1: FS_GCS_ENABLE is 0: the vehicle "
-                       "does nothing by itself when it loses its ground station: not "
-                       "flown"):
+    with pytest.raises(FailsafeMissing, match=r"vehicle 1: FS_GCS_ENABLE is 0: the vehicle "
+                       r"does nothing by itself when it loses this ground station \(1 "
+                       r"returns home, 5 lands\): not flown"):
         hangar.claim([1], "run")
     assert hangar.holder(1) is None and hangar.owned == {} and leases.owners([1]) == {}
 

@@ -9,16 +9,23 @@ first went silent for the timeout. A copter flown up by a station sending as 251
 start never arms its failsafe at all. An independent pymavlink observer on the copter's
 second port (system 250, which sends no HEARTBEAT) reads its mode and its clock. Vehicle
 time is the copter's own ``time_boot_ms``; the runs wait for states, with hang guards.
+
+So ``tml run --require-gcs-failsafe`` refuses a copter whose ``MAV_GCS_SYSID`` is not the
+system tml sends as, and flies one whose is.
 """
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import time
+from pathlib import Path
 from typing import Any
 
 import pytest
 from ardupilot_sitl import SitlVehicle
 from ground_station import GUIDED, GroundStation
+from hop_flight import HOP
 from pymavlink import mavutil
 
 from tml.mavlink.link import Link
@@ -131,3 +138,27 @@ def test_a_copter_that_never_heard_system_255_has_no_gcs_failsafe(ardupilot: Any
         assert mode == "GUIDED", (after, observer.modes)
     finally:
         observer.close()
+
+
+@pytest.mark.timeout(600)
+@pytest.mark.parametrize("station", [250, 255])
+def test_tml_run_refuses_a_copter_whose_failsafe_hears_another_station(
+        ardupilot: Any, tmp_path: Path, station: int) -> None:
+    # At speed-up 10 tml's 1 Hz HEARTBEAT is 10 s of the copter's time apart: a timeout
+    # of 30 s lets it fly.
+    (sitl,) = ardupilot(params={**PARAMS, "FS_GCS_TIMEOUT": 30, "MAV_GCS_SYSID": station})
+    mission = tmp_path / "hop.xml"
+    mission.write_text(HOP)
+    run = subprocess.run([sys.executable, "-m", "tml", "run", str(mission), "--connect",
+                          sitl.address, "--clock", "vehicle", "--timeout", "120",
+                          "--require-gcs-failsafe"], capture_output=True, text=True,
+                         timeout=500)
+    said = run.stdout + run.stderr
+    assert "Traceback" not in said
+    if station == 255:
+        assert run.returncode == 0 and "MAV_GCS_SYSID" not in said, said
+        return
+    assert run.returncode == 4, said
+    assert ("vehicle 1: MAV_GCS_SYSID is 250 and tml sends as system 255: the vehicle's "
+            "GCS failsafe hears only system 250's HEARTBEATs") in said
+    assert "not flown (--require-gcs-failsafe)" in said

@@ -86,7 +86,7 @@ import contextlib
 import math
 import threading
 import time
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from functools import partial
 from types import MappingProxyType
@@ -1003,6 +1003,36 @@ class MavlinkVehicle:
         """The autopilot's values of ``names`` (those it has), read one by one."""
         values = {name: self._read_param(name) for name in names}
         return {name: value for name, value in values.items() if value is not None}
+
+    def read_first(self, names: Sequence[str]) -> tuple[str, float] | None:
+        """One parameter known by several names (each firmware version has one of them):
+        the first name the autopilot answers for, and its value; None when it answers for
+        none. All are asked at once, so a name the firmware lacks costs no time-out."""
+        component = self._component(AUTOPILOT)
+        keys = [(component, name) for name in names]
+        for _ in range(PARAM_RETRIES):
+            with self._param_arrived:
+                for key in keys:
+                    self._params.pop(key, None)
+            for name in names:
+                self.link.send(mavlink.MAVLink_param_request_read_message(
+                    self.system_id, component, name.encode(), -1))
+            end = self.timebase.now() + PARAM_TIMEOUT
+            with self._param_arrived:
+                while True:
+                    found = next((key for key in keys if key in self._params), None)
+                    if found is not None:
+                        return found[1], self._params[found]
+                    left = end - self.timebase.now()
+                    if left <= 0:
+                        break
+                    self.timebase.wait(self._param_arrived, left)
+        return None
+
+    @property
+    def source_system(self) -> int:
+        """The MAVLink system id tml sends to this vehicle as."""
+        return self.link.source_system
 
     def _read_param(self, name: str, which: str = AUTOPILOT) -> float | None:
         component = self._component(which)

@@ -210,6 +210,8 @@ class Link:
                  source_component: int = codec.GCS_COMPONENT_ID, baud: int = 57600,
                  lost_after: float = LOST_AFTER, timebase: Timebase = SYSTEM) -> None:
         self.address = address
+        self.source_system = source_system
+        """The MAVLink system id this ground station sends as."""
         self.timebase = timebase
         self.lost_after = lost_after
         self.stats = LinkStats()

@@ -46,6 +46,13 @@ if TYPE_CHECKING:
 GCS_FAILSAFE = "FS_GCS_ENABLE"
 """ArduPilot's parameter for what a vehicle does by itself when its ground station falls
 silent (0: nothing; 1 RTL, 5 LAND ...; see docs/run.md)."""
+GCS_SYSTEM = ("MAV_GCS_SYSID", "SYSID_MYGCS")
+"""ArduPilot's parameter for the system id of its ground station, under ArduPilot 4.7's name
+and the one before it: its GCS failsafe counts only that system's HEARTBEATs, and one never
+heard arms no failsafe (docs/run.md)."""
+GCS_SYSTEM_HIGH = "MAV_GCS_SYSID_HI"
+"""ArduPilot 4.7.1's upper end of a range of ground-station system ids (from MAV_GCS_SYSID;
+no range unless above it)."""
 
 
 class Refusal(enum.Enum):
@@ -76,6 +83,11 @@ class ReadsParameters(Protocol):
     """A vehicle whose parameters can be read (a MAVLink vehicle; not a test's fake)."""
 
     def read_parameters(self, names: Iterable[str]) -> Mapping[str, float]: ...
+
+    def read_first(self, names: Sequence[str]) -> tuple[str, float] | None: ...
+
+    @property
+    def source_system(self) -> int: ...
 
 
 @dataclass(frozen=True)
@@ -188,21 +200,45 @@ def clear(mission: Mission, vehicles: Sequence[Vehicle], profile: VehicleProfile
 
 
 def failsafe_missing(vehicles: Sequence[Vehicle], required: bool) -> FailsafeMissing | None:
-    """Each vehicle's ``FS_GCS_ENABLE`` read: without a reaction of its own, a vehicle whose
-    link dies hovers until its battery runs out. The vehicles without one (``required``:
-    refused), or None."""
-    problems = []
-    for vehicle in vehicles:
-        value = vehicle.read_parameters([GCS_FAILSAFE]).get(GCS_FAILSAFE) \
-            if isinstance(vehicle, ReadsParameters) else None
-        if value is None:
-            problems.append(f"vehicle {vehicle.vehicle_id}: {GCS_FAILSAFE} not reported: what "
-                            "the vehicle does when it loses this ground station is unknown")
-        elif value == 0:
-            problems.append(f"vehicle {vehicle.vehicle_id}: {GCS_FAILSAFE} is 0: the vehicle "
-                            "does nothing by itself when it loses this ground station (1 "
-                            "returns home, 5 lands)")
+    """The vehicles that would do nothing by themselves when tml falls silent
+    (:func:`failsafe_problem`), one line each (``required``: refused), or None."""
+    problems = [f"vehicle {vehicle.vehicle_id}: {problem}" for vehicle in vehicles
+                if (problem := failsafe_problem(vehicle)) is not None]
     return FailsafeMissing(tuple(problems), required) if problems else None
+
+
+def failsafe_problem(vehicle: Vehicle) -> str | None:
+    """Why ``vehicle`` would do nothing by itself when tml falls silent, or None: without a
+    reaction of its own, a vehicle whose link dies hovers until its battery runs out.
+
+    Read: ``FS_GCS_ENABLE``; then the system id of its ground station (:data:`GCS_SYSTEM`),
+    which must be the one tml sends as, or the failsafe never hears tml: ArduPilot arms it
+    on its ground station's first HEARTBEAT and counts only that station's (and the range
+    up to :data:`GCS_SYSTEM_HIGH`, read only when the id differs)."""
+    if not isinstance(vehicle, ReadsParameters):
+        return f"{GCS_FAILSAFE} not reported: what the vehicle does when it loses this " \
+               "ground station is unknown"
+    value = vehicle.read_parameters([GCS_FAILSAFE]).get(GCS_FAILSAFE)
+    if value is None:
+        return f"{GCS_FAILSAFE} not reported: what the vehicle does when it loses this " \
+               "ground station is unknown"
+    if value == 0:
+        return f"{GCS_FAILSAFE} is 0: the vehicle does nothing by itself when it loses this " \
+               "ground station (1 returns home, 5 lands)"
+    station = vehicle.read_first(GCS_SYSTEM)
+    if station is None:
+        return None  # neither name: nothing to compare
+    name, low = station[0], round(station[1])
+    ours = vehicle.source_system
+    if low == ours:
+        return None
+    high = vehicle.read_parameters([GCS_SYSTEM_HIGH]).get(GCS_SYSTEM_HIGH) \
+        if name == GCS_SYSTEM[0] else None
+    if high is not None and low <= ours <= round(high):
+        return None
+    return (f"{name} is {low} and tml sends as system {ours}: the vehicle's GCS failsafe "
+            f"hears only system {low}'s HEARTBEATs, so it does nothing by itself when this "
+            f"ground station falls silent (set {name} to {ours})")
 
 
 def _verify(mission: Mission, profile: VehicleProfile, extra: World | None,

@@ -216,25 +216,22 @@ class ClusterHangar(Hangar):
     def _prepare(self, vehicle_id: int) -> None:
         """What opening a vehicle does, done once it is first leased (the session opened it
         without a word: ``SessionOptions.fenced``): its telemetry rates asked, what it can
-        do read; and a warning when its own failsafe does nothing on a lost ground
-        station, as ``tml serve`` says of every vehicle it opens (FailsafeMissing with
-        ``require_gcs_failsafe``)."""
-        from tml.run.session import GCS_FAILSAFE
+        do read; and a warning when its own failsafe would do nothing on a lost ground
+        station (:func:`tml.run.clearance.failsafe_problem`), as ``tml serve`` says of every
+        vehicle it opens (FailsafeMissing with ``require_gcs_failsafe``)."""
+        from tml.run.clearance import failsafe_problem
 
         vehicle = self.vehicles[vehicle_id]
         prepare = getattr(vehicle, "prepare", None)
-        read = getattr(vehicle, "read_parameters", None)
-        if prepare is None or read is None:
+        if prepare is None:
             return
         try:
             prepare()
-            value = read([GCS_FAILSAFE]).get(GCS_FAILSAFE)
+            problem = failsafe_problem(vehicle)
         except TmlError as error:  # asked again the next time it is leased
             log.warning("vehicle %d: telemetry not asked for: %s", vehicle_id, error)
             return
-        if not value:
-            problem = f"{GCS_FAILSAFE} is {'not reported' if value is None else '0'}: " \
-                      "the vehicle does nothing by itself when it loses its ground station"
+        if problem is not None:
             if self.require_gcs_failsafe:
                 raise FailsafeMissing(vehicle_id, problem)
             log.warning("vehicle %d: %s", vehicle_id, problem)

@@ -176,8 +176,9 @@ def stop_target(target_system: int, target_component: int, yaw: float | None = N
     """SET_POSITION_TARGET_LOCAL_NED for a velocity of zero, GUIDED mode: brake and hold.
 
     ArduCopter starts its velocity controller from the velocity the vehicle has and shapes
-    it to zero within its acceleration and jerk limits, then holds where that ends (a
-    position target at the point where it was would be flown past and back to)."""
+    it to zero within its acceleration and jerk limits, then holds where that ends, as its
+    own ``ModeGuided::hold_position`` does (a position target at the point where it was
+    would be flown past and back to)."""
     return _BUILD.set_position_target_local_ned_encode(
         0, target_system, target_component, mavlink.MAV_FRAME_LOCAL_NED,
         _target_mask(_IGNORE_POSITION, yaw), 0, 0, 0, 0, 0, 0, 0, 0, 0, yaw or 0.0, 0)

@@ -1,6 +1,6 @@
 """Reaction time: from the telemetry message that makes an event true to the command it causes.
 
-Run by hand: ``python benchmarks/reaction.py [--trials 1000]``.
+Run by hand: ``python benchmarks/reaction.py [--trials 1000] [--breakdown]``.
 
 A TCP proxy sits between the ground side and the embedded simulator (1x). It injects, as
 the vehicle's companion computer (component 191), NAMED_VALUE_FLOAT ``TRIGGER`` = 1 and
@@ -15,7 +15,10 @@ Two ground sides are measured in the same run:
 - the peer: a bare pymavlink loop that blocks on ``recv_match`` and answers the trigger with
   the same command -- the least any Python ground station can do.
 
-It prints p50 and p99 of both and their ratio.
+It prints p50 and p99 of both and their ratio. With ``--breakdown`` (which costs tml a
+little: every stamp is a wrapped call) it also prints where tml's time goes, hop by hop:
+the link's handling of the trigger, the runner's wake, its look before the interpreter's
+step, the step, the hand-over to the vehicle's worker thread, and the command's sending.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 os.environ.setdefault("MAVLINK20", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
@@ -128,6 +132,82 @@ def trials(proxy: Proxy, count: int, settle: float) -> list[float]:
     return times
 
 
+HOPS = ("trigger handled by the link", "runner woken", "interpreter stepped from",
+        "interpreter's step done", "request submitted", "worker takes it", "command sent")
+"""The stamps of ``--breakdown``, in order; the first is timed from the trigger written."""
+
+
+class Breakdown:
+    """Stamps each trial's way through tml (see HOPS) by wrapping the calls on it."""
+
+    def __init__(self, proxy_class: type) -> None:
+        from tml.engine.interpreter import Interpreter
+        from tml.mavlink.adapter import MavlinkVehicle
+        from tml.mavlink.link import Link
+        from tml.run.runner import Runner
+
+        self.trial = 0
+        self.stamps: dict[tuple[int, int], float] = {}
+        hop = self.hop
+
+        def handle(original: Any, link: Any, msg: Any, now: float) -> Any:
+            if msg.get_type() == "NAMED_VALUE_FLOAT" and msg.value == 1.0:
+                hop(1)
+            return original(link, msg, now)
+
+        def tick(original: Any, runner: Any, *args: Any) -> Any:
+            if (self.trial, 1) in self.stamps:
+                hop(2)
+            return original(runner, *args)
+
+        def step(original: Any, engine: Any, *args: Any, **kwargs: Any) -> Any:
+            if (self.trial, 2) in self.stamps:
+                hop(3)
+            output = original(engine, *args, **kwargs)
+            if (self.trial, 3) in self.stamps:
+                hop(4)
+            return output
+
+        def send(original: Any, link: Any, msg: Any, *args: Any, **kwargs: Any) -> Any:
+            if getattr(msg, "command", None) == COMMAND:
+                hop(7)
+            return original(link, msg, *args, **kwargs)
+
+        def inject(original: Any, proxy: Any, value: float) -> float:
+            stamp: float = original(proxy, value)
+            if value == 1.0:
+                self.trial += 1
+                self.stamps[(self.trial, 0)] = stamp
+            return stamp
+
+        for owner, name, wrapper in (
+                (Link, "_handle", handle), (Runner, "_tick", tick), (Interpreter, "step", step),
+                (MavlinkVehicle, "submit", lambda o, v, r: (hop(5), o(v, r))[1]),
+                (MavlinkVehicle, "_carry_out", lambda o, v, r: (hop(6), o(v, r))[1]),
+                (Link, "send", send), (proxy_class, "inject", inject)):
+            setattr(owner, name, self._wrap(getattr(owner, name), wrapper))
+
+    @staticmethod
+    def _wrap(original: Any, wrapper: Any) -> Any:
+        def wrapped(*args: Any, **kwargs: Any) -> Any:
+            return wrapper(original, *args, **kwargs)
+        return wrapped
+
+    def hop(self, index: int) -> None:
+        self.stamps.setdefault((self.trial, index), time.perf_counter())
+
+    def print(self) -> None:
+        """Each hop's p50 and p99, in ms, over the trials that passed every stamp."""
+        whole = [t for t in range(1, self.trial + 1)
+                 if all((t, i) in self.stamps for i in range(len(HOPS) + 1))]
+        print(f"  where tml's time goes ({len(whole)} trials stamped at every hop), ms:")
+        for index, name in enumerate(HOPS, start=1):
+            spans = [(self.stamps[(t, index)] - self.stamps[(t, index - 1)]) * 1000
+                     for t in whole]
+            print(f"    {name:30s} p50 {percentile(spans, 0.5):7.3f}  p99 "
+                  f"{percentile(spans, 0.99):7.3f}")
+
+
 def tml_side(port: int, stop: threading.Event) -> None:
     from tml.engine import Options
     from tml.language.validation import validate_file
@@ -191,7 +271,10 @@ def main() -> None:
     parser.add_argument("--trials", type=int, default=1000)
     parser.add_argument("--settle", type=float, default=0.1,
                         help="seconds between a trial's end and the next trigger")
+    parser.add_argument("--breakdown", action="store_true",
+                        help="also stamp tml's hops and print where its time goes")
     args = parser.parse_args()
+    breakdown = Breakdown(Proxy) if args.breakdown else None
     results = {"tml": measure(tml_side, args.trials, args.settle),
                "pymavlink loop": measure(peer_side, args.trials, args.settle)}
     print(f"reaction time, {args.trials} trials each (ms): trigger written -> first byte "
@@ -203,6 +286,8 @@ def main() -> None:
     tml, peer = results["tml"], results["pymavlink loop"]
     print(f"  ratio tml / peer: p50 {percentile(tml, 0.5) / percentile(peer, 0.5):.2f}x, "
           f"p99 {percentile(tml, 0.99) / percentile(peer, 0.99):.2f}x")
+    if breakdown is not None:
+        breakdown.print()
 
 
 if __name__ == "__main__":

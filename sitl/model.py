@@ -177,7 +177,8 @@ class VehicleModel:
         self._lift_off_at: float | None = None  # end of the take-off run-up
         self._velocity: tuple[Vector, float] | None = None  # (velocity, expiry time)
         self._landing: tuple[float, float] | None = None
-        self._yaw: tuple[float, float] | None = None  # (heading, rate)
+        # (heading, rate, direction: 1 clockwise, -1 anticlockwise, 0 the shorter way)
+        self._yaw: tuple[float, float, int] | None = None
         self._rtl_phase = ""
         self._rtl_to: Vector = (0.0, 0.0, 0.0)  # where the RTL in progress lands
         self._rtl_since = 0.0
@@ -368,8 +369,15 @@ class VehicleModel:
         if command == M.MAV_CMD_CONDITION_YAW:
             if not 0 <= p[0] <= 360 or p[3] not in (0, 1):
                 return failed
-            heading = self.heading + (-p[0] if p[2] < 0 else p[0]) if p[3] else p[0]
-            self.set_yaw(heading % 360.0, p[1] or 60.0)
+            # As ArduCopter's AutoYaw::set_fixed_yaw: a turn by an angle goes clockwise
+            # unless param3 is negative; a heading from north goes the shorter way unless
+            # param3 gives a direction, which it keeps however far that is.
+            if p[3]:
+                direction = -1 if p[2] < 0 else 1
+                heading = self.heading + direction * p[0]
+            else:
+                direction, heading = (p[2] > 0) - (p[2] < 0), p[0]
+            self.set_yaw(heading % 360.0, p[1] or 60.0, int(direction))
             return ok
         if command == M.MAV_CMD_DO_REPOSITION:
             return self._reposition(p)
@@ -661,9 +669,10 @@ class VehicleModel:
             self._velocity = (velocity, self.time + GUIDED_VELOCITY_TIMEOUT)
         if not mask & 1024:
             self.set_yaw(math.degrees(yaw) % 360.0, self.params["ATC_RATE_Y_MAX"])
-        elif not mask & 0b111:
+        elif mask & 2048 and (not mask & 0b111 or not mask & 0b111000):
             # ArduCopter hands the heading back to its default yaw behaviour on a position
-            # target without a yaw: a CONDITION_YAW turn in progress stops where it is.
+            # or velocity target without a yaw or a yaw rate (ModeGuided::set_yaw_state): a
+            # CONDITION_YAW turn in progress stops where it is.
             self._yaw = None
 
     def _go(self, target: Vector) -> None:
@@ -781,9 +790,10 @@ class VehicleModel:
         if self._track is not None:
             self._track.replan(self._limits(), self._shape(), self.time)
 
-    def set_yaw(self, heading: float, rate: float) -> None:
-        """Turn to ``heading`` degrees at ``rate`` degrees per second, and keep it."""
-        self._yaw = (heading, min(rate, self.params["ATC_RATE_Y_MAX"]))
+    def set_yaw(self, heading: float, rate: float, direction: int = 0) -> None:
+        """Turn to ``heading`` degrees at ``rate`` degrees per second, and keep it: the
+        shorter way, or clockwise (``direction`` 1) or anticlockwise (-1)."""
+        self._yaw = (heading, min(rate, self.params["ATC_RATE_Y_MAX"]), direction)
 
     def yaw_settled(self) -> bool:
         """True when the heading has reached the yaw target."""
@@ -956,7 +966,10 @@ class VehicleModel:
 
     def _turn(self, before: Vector) -> None:
         if self._yaw is not None:
-            self.body.turn(self._yaw[0], self._yaw[1], TICK)
+            heading, rate, direction = self._yaw
+            self.body.turn(heading, rate, TICK, direction)
+            if direction and self.yaw_settled():
+                self._yaw = (heading, rate, 0)  # there: held, not turned round again
             return
         dn, de = self.position[0] - before[0], self.position[1] - before[1]
         if self.mode in ("AUTO", "GUIDED", "RTL") and math.hypot(dn, de) > 1.0 * TICK:

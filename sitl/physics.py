@@ -165,9 +165,14 @@ class Body:
         self.velocity = (vn + an * dt, ve + ae * dt, vu + au * dt)
         self.accel = (an, ae, au)
 
-    def turn(self, heading: float, rate: float, dt: float) -> None:
-        """Turn toward ``heading`` (degrees) at most ``rate`` degrees per second."""
+    def turn(self, heading: float, rate: float, dt: float, direction: int = 0) -> None:
+        """Turn toward ``heading`` (degrees) at most ``rate`` degrees per second: the
+        shorter way, or clockwise (``direction`` 1) or anticlockwise (-1) however far."""
         error = (heading - self.heading + 180.0) % 360.0 - 180.0
+        if direction > 0 and error < 0.0:
+            error += 360.0
+        elif direction < 0 and error > 0.0:
+            error -= 360.0
         self.heading = wrap_degrees(self.heading + max(-rate * dt, min(rate * dt, error)))
 
     def restart_shaping(self) -> None:

@@ -272,7 +272,7 @@ class PlaneModel(VehicleModel):
         leg = (target[0] - goal.start[0], target[1] - goal.start[1])
         return math.hypot(*leg) > 1.0 and dn * leg[0] + de * leg[1] > 0
 
-    def set_yaw(self, heading: float, rate: float) -> None:
+    def set_yaw(self, heading: float, rate: float, direction: int = 0) -> None:
         """A plane's heading is its course: nothing to turn to."""
 
     # ------------------------------------------------------------ flight

@@ -156,7 +156,7 @@ class RoverModel(VehicleModel):
         return math.hypot(self.position[0] - target[0],
                           self.position[1] - target[1]) <= max(radius, STOPPED_WITHIN)
 
-    def set_yaw(self, heading: float, rate: float) -> None:
+    def set_yaw(self, heading: float, rate: float, direction: int = 0) -> None:
         """A rover turns only while it drives."""
 
     # ------------------------------------------------------------ driving

@@ -173,6 +173,20 @@ def test_a_hold_at_speed_brakes_where_it_can_and_does_not_fly_back(rig: Rig) -> 
     assert after.mode == "GUIDED" and after.flying
 
 
+def test_a_turn_after_a_hold_is_kept_with_the_stop() -> None:
+    # The kept stop target carries the heading asked after it, as a kept position target
+    # does: without a yaw, each copy would hand the heading back and stop the turn.
+    with make_rig(speedup=2.0) as slow:
+        slow.fly(5.0)
+        assert slow.do(Hold(1)).ok
+        here = slow.vehicle.state()
+        heading = (here.heading + 180.0) % 360.0
+        assert slow.do(SetYaw(1, heading)).ok
+        turned = slow.until(lambda s: abs((s.heading - heading + 180) % 360 - 180) < 2,
+                            "turned")
+        assert math.dist(turned.position, here.position) < 0.5
+
+
 def test_a_flip_goes_through_alt_hold_with_the_sticks_held_and_back_to_guided(
         rig: Rig) -> None:
     rig.fly(12.0)

@@ -132,6 +132,20 @@ def test_more_turns_than_ardupilot_keeps_in_an_item_are_several_items() -> None:
     assert plan.action_index == (0, 0, 0, 1)
 
 
+@pytest.mark.parametrize(("arguments", "params"), [
+    ({"angle": "-45"}, (45, -1, 1)),  # by an angle: its sign's way
+    ({"angle": "270"}, (270, 1, 1)),
+    ({"orientation_angle": "315"}, (315, 0, 0)),  # a heading: the shorter way
+])
+def test_a_yaw_item_turns_by_an_angle_its_way_and_to_a_heading_the_shorter_way(
+        arguments: dict[str, str], params: tuple[float, float, float]) -> None:
+    # ArduCopter keeps to param3's direction even for a heading (AutoYaw::set_fixed_yaw):
+    # clockwise to a heading 45 degrees anticlockwise would turn 315 degrees.
+    (yaw,) = compiled(act("ROTATE_YAW", **arguments)).items
+    assert yaw.command == M.MAV_CMD_CONDITION_YAW
+    assert (yaw.param1, yaw.param3, yaw.param4) == params
+
+
 def test_landing_point_with_yaw_and_precision() -> None:
     items = compiled(act("LANDING_POINT", coordinates="(8, 2, 5)", yaw="90",
                          precision_mode="opportunistic")).items

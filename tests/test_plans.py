@@ -178,7 +178,7 @@ def test_a_do_jump_into_the_middle_of_an_action_stays_a_mission_item(tmp_path: P
     # Items 2-3 are one LANDING_POINT with a yaw (CONDITION_YAW, then NAV_LAND): a jump to
     # item 3 lands in the middle of it.
     text = WPL_HOME + ("1\t0\t3\t22\t0\t0\t0\t0\t0\t0\t20\t1\n"
-                       "2\t0\t2\t115\t90\t0\t1\t0\t0\t0\t0\t1\n"
+                       "2\t0\t2\t115\t90\t0\t0\t0\t0\t0\t0\t1\n"
                        "3\t0\t3\t21\t0\t0\t0\t90\t-35.3622\t149.1652\t20\t1\n"
                        "4\t0\t0\t177\t3\t1\t0\t0\t0\t0\t0\t1\n")
     imported = import_plan(read_wpl(text), "middle")

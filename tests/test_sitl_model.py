@@ -823,21 +823,64 @@ def hold_here(v: VehicleModel, yaw: float | None) -> None:
         v.position[2], 0, 0, 0, 0, 0, 0, math.radians(yaw or 0.0), 0))
 
 
-def test_a_position_target_without_yaw_stops_a_turn_as_on_arducopter():
-    # ArduCopter hands the heading to WP_YAW_BEHAVIOR on a position target without a yaw:
-    # a CONDITION_YAW turn in progress stops where it is (seen on ArduCopter SITL).
+def stop_here(v: VehicleModel, yaw: float | None) -> None:
+    """A GUIDED velocity target of zero, with a yaw or leaving it out."""
+    mask = 0b110111000111 if yaw is None else 0b100111000111
+    v.handle(M.MAVLink_set_position_target_local_ned_message(
+        0, 1, 1, M.MAV_FRAME_LOCAL_NED, mask, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+        math.radians(yaw or 0.0), 0))
+
+
+@pytest.mark.parametrize("target", [hold_here, stop_here])
+def test_a_target_without_yaw_stops_a_turn_as_on_arducopter(target):
+    # ArduCopter hands the heading to WP_YAW_BEHAVIOR on a position or velocity target
+    # without a yaw (ModeGuided::set_yaw_state): a CONDITION_YAW turn in progress stops
+    # where it is. Seen on ArduCopter 4.7 SITL for both: turning from 352.8 to 172.8
+    # degrees, a velocity target of zero at 29.4 left it at 43.8.
     v = flying()
     start = v.heading
     assert command(v, M.MAV_CMD_CONDITION_YAW, (start + 180) % 360, 20)[0] == \
         M.MAV_RESULT_ACCEPTED
     v.step(2.0)
-    hold_here(v, None)
+    target(v, None)
     stopped_at = v.heading
     v.step(10.0)
     assert abs((v.heading - stopped_at + 180) % 360 - 180) < 1.0
     assert abs((v.heading - (start + 180) + 180) % 360 - 180) > 90
-    hold_here(v, (start + 180) % 360)  # the same target carrying the heading turns it
+    target(v, (start + 180) % 360)  # the same target carrying the heading turns it
     run_until(v, v.yaw_settled, 30)
+
+
+@pytest.mark.parametrize(("heading", "direction", "relative", "turned"), [
+    (45, 1, 0, 315),  # from 90 clockwise to 45: the long way, as it was told
+    (45, 0, 0, -45),  # the shorter way
+    (45, -1, 0, -45),
+    (135, -1, 0, -315),
+    (135, 0, 0, 45),
+    (270, 1, 1, 270),  # by an angle: as far as it says
+    (270, -1, 1, -270),
+    (30, 0, 1, 30),  # by an angle without a direction: clockwise
+])
+def test_condition_yaw_keeps_to_its_direction_as_arducopter(heading, direction, relative,
+                                                            turned):
+    # ArduCopter's AutoYaw::set_fixed_yaw: a heading from north is turned to the shorter
+    # way unless param3 gives a direction, which it keeps however far; an angle is turned
+    # clockwise unless param3 is negative.
+    v = flying()
+    hold_here(v, 90.0)
+    run_until(v, v.yaw_settled, 30)
+    assert command(v, M.MAV_CMD_CONDITION_YAW, heading, 90, direction, relative)[0] == \
+        M.MAV_RESULT_ACCEPTED
+    swept, last = 0.0, v.heading
+    while not v.yaw_settled() or swept == 0.0:
+        assert abs(swept) < 400
+        v.step(TICK)
+        swept += (v.heading - last + 180) % 360 - 180
+        last = v.heading
+    assert swept == pytest.approx(turned, abs=1.5)
+    v.step(5.0)  # there, it stays: not turned round again
+    assert abs((v.heading - (90 + turned)) % 360) < 1.5 or \
+        abs((v.heading - (90 + turned)) % 360) > 358.5
 
 
 @pytest.mark.parametrize(("action", "mode"), [(1, "RTL"), (3, "RTL"), (4, "LAND"), (5, "LAND"),

@@ -9,9 +9,9 @@ zone; and the whole mission flies with them in place.
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable
 from pathlib import Path
+
+from vehicle_steps import do, until
 
 from tml.commands.cli import main
 from tml.errors import Location
@@ -22,38 +22,16 @@ from tml.mavlink.adapter import MavlinkVehicle
 from tml.mavlink.link import Link
 from tml.mavlink.mission import MissionType
 from tml.run.journal import read
-from tml.vehicle import FlyMission, Request, RequestResult, Safeguard, VehicleState
+from tml.vehicle import FlyMission, Safeguard
 
 ROOT = Path(__file__).resolve().parents[2]
 PATROL = ROOT / "missions" / "fenced_patrol.xml"
 HERE = Location("test.xml", 1)
-WALL_LIMIT = 120.0
 
 
 def act(name: str, **values: str) -> BoundAction:
     return bind(Action(name, tuple(Argument(k, v, None, HERE) for k, v in values.items()),
                        HERE))
-
-
-def until(vehicle: MavlinkVehicle, what: Callable[[VehicleState], bool], label: str
-          ) -> VehicleState:
-    end = time.monotonic() + WALL_LIMIT
-    while time.monotonic() < end:
-        state = vehicle.state()
-        if what(state):
-            return state
-        time.sleep(0.05)
-    raise AssertionError(f"never: {label}; last state {vehicle.state()}")
-
-
-def do(vehicle: MavlinkVehicle, request: Request) -> RequestResult:
-    vehicle.submit(request)
-    end = time.monotonic() + WALL_LIMIT
-    while time.monotonic() < end:
-        for result in vehicle.poll():
-            return result
-        time.sleep(0.02)
-    raise AssertionError(f"no result for {request}")
 
 
 def test_arducopter_takes_the_missions_fence_and_stops_a_flight_that_strays(

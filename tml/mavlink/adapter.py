@@ -829,9 +829,10 @@ class MavlinkVehicle:
         self._reposition(latitude, longitude, request.centre[2], radius=request.radius)
 
     def _set_yaw(self, request: SetYaw) -> None:
-        self.mav.yaw(abs(request.heading) if request.relative else request.heading % 360.0,
-                     relative=request.relative,
-                     clockwise=not (request.relative and request.heading < 0))
+        if request.relative:
+            self.mav.yaw(abs(request.heading), relative=True, clockwise=request.heading >= 0)
+        else:
+            self.mav.yaw(request.heading % 360.0)  # the shorter way
         target = self._target
         if target is not None and not request.relative:
             # A position target without a yaw hands the heading back to the autopilot

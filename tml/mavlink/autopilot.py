@@ -227,10 +227,15 @@ class Autopilot:
         self.command(CommandLong(mavlink.MAV_CMD_DO_CHANGE_SPEED, 1 if ground else 0, speed, -1))
 
     def yaw(self, heading: float, rate: float = 0.0, relative: bool = False,
-            clockwise: bool = True) -> None:
-        """Turn to ``heading`` degrees (from north, or by that much with ``relative``)."""
-        self.command(CommandLong(mavlink.MAV_CMD_CONDITION_YAW, heading, rate,
-                                 1 if clockwise else -1, 1 if relative else 0))
+            clockwise: bool | None = None) -> None:
+        """Turn to ``heading`` degrees (from north, or by that much with ``relative``):
+        ``clockwise`` or not, or the shorter way (None).
+
+        ArduCopter keeps to a direction given even for a heading from north: told
+        clockwise from 90 to 45 degrees, it turns 315 degrees (AutoYaw::set_fixed_yaw)."""
+        direction = 0 if clockwise is None else 1 if clockwise else -1
+        self.command(CommandLong(mavlink.MAV_CMD_CONDITION_YAW, heading, rate, direction,
+                                 1 if relative else 0))
 
     def reposition(self, latitude: float, longitude: float, altitude: float,
                    speed: float = -1, radius: float = 0.0) -> None:

@@ -376,7 +376,10 @@ def _stabilize(b: _Builder, action: BoundAction) -> None:
 
 
 def _yaw_item(b: _Builder, angle: float, relative: bool) -> None:
-    direction = -1.0 if angle < 0 else 1.0
+    # A turn by an angle goes its sign's way; a heading from north the shorter way
+    # (param3 0): ArduCopter keeps to a direction given even then (AutoYaw::set_fixed_yaw),
+    # and would turn 315 degrees clockwise for a heading 45 degrees anticlockwise.
+    direction = (-1.0 if angle < 0 else 1.0) if relative else 0.0
     b.add(mavlink.MAV_CMD_CONDITION_YAW,
           params=(abs(angle), 0.0, direction, 1.0 if relative else 0.0))
     b.cursor.heading = (b.cursor.heading + angle if relative else angle) % 360.0

@@ -835,9 +835,9 @@ class MavlinkVehicle:
             self.mav.yaw(request.heading % 360.0)  # the shorter way
         target = self._target
         if target is not None and not request.relative:
-            # A position target without a yaw hands the heading back to the autopilot
-            # (ArduCopter: WP_YAW_BEHAVIOR), which would undo the turn when the kept
-            # target is sent again: from now on it carries the heading asked for.
+            # A position or velocity target without a yaw hands the heading back to the
+            # autopilot (ArduCopter: WP_YAW_BEHAVIOR), which would undo the turn when the
+            # kept target is sent again: from now on it carries the heading asked for.
             self._target = replace(target, yaw=request.heading % 360.0)
 
     def _hold(self, request: Hold) -> None:

@@ -177,6 +177,7 @@ class VehicleModel:
         self._lift_off_at: float | None = None  # end of the take-off run-up
         self._velocity: tuple[Vector, float] | None = None  # (velocity, expiry time)
         self._landing: tuple[float, float] | None = None
+        self._paused = False  # GUIDED paused by DO_PAUSE_CONTINUE (see _pause)
         # (heading, rate, direction: 1 clockwise, -1 anticlockwise, 0 the shorter way)
         self._yaw: tuple[float, float, int] | None = None
         self._rtl_phase = ""
@@ -366,6 +367,8 @@ class VehicleModel:
             return ok if self.set_mode("RTL") else failed
         if command == M.MAV_CMD_DO_CHANGE_SPEED:
             return self._change_speed(p[0], p[1])
+        if command == M.MAV_CMD_DO_PAUSE_CONTINUE:
+            return self._pause(p[0] < 0.5)
         if command == M.MAV_CMD_CONDITION_YAW:
             if not 0 <= p[0] <= 360 or p[3] not in (0, 1):
                 return failed
@@ -487,6 +490,7 @@ class VehicleModel:
         previous, self.mode = self.mode, name
         if not self.armed:
             self._prearm.bring_forward(self.time)
+        self._paused = False  # ArduCopter's ModeGuided::init clears it
         self._stop_motion()
         self.auto = None
         self._rtl_phase = ""
@@ -623,6 +627,20 @@ class VehicleModel:
         if p[0] > 0:
             self._speed = p[0]
         return north, east, here[2] if math.isnan(p[6]) else p[6]
+
+    def _pause(self, pause: bool) -> Result:
+        """DO_PAUSE_CONTINUE as ArduCopter's GUIDED takes it (ModeGuided::pause, resume):
+        paused, it shapes its velocity to zero from the acceleration it has -- its velocity
+        controller is not started afresh, so from 8.5 m/s it stops about 24 m on, against
+        18 m for a velocity target of zero -- and holds there, flying no target it is given
+        meanwhile; continued, it flies its latest target. Any other mode refuses (FAILED);
+        AUTO's pause (along the leg) is not imitated (UNSUPPORTED)."""
+        if self.mode == "AUTO":
+            return Result.UNSUPPORTED
+        if self.mode != "GUIDED":
+            return Result.FAILED
+        self._paused = pause
+        return Result.ACCEPTED
 
     def _guided_ready(self) -> bool:
         return self.mode == "GUIDED" and self.armed and not self.landed
@@ -907,7 +925,8 @@ class VehicleModel:
                 return
             body.shape_velocity((0.0, 0.0, -3.0), FALLING, TICK)
             return
-        if self.landed and not (self._wants_climb() and self._lifting_off()):
+        paused = self._paused and self.mode == "GUIDED"
+        if self.landed and (paused or not (self._wants_climb() and self._lifting_off())):
             body.stop()
             return
         limits = self._limits()
@@ -917,6 +936,8 @@ class VehicleModel:
             sink = FLIP_ALTITUDE_LOSS * FLIP_RATE / 360.0
             north, east, up = body.position
             body.position, body.velocity = (north, east, up - sink * TICK), (0.0, 0.0, -sink)
+        elif paused:
+            body.shape_velocity((0.0, 0.0, 0.0), limits, TICK)
         elif self._landing is not None:
             speed = self._land_speed()
             north, east = self._landing

@@ -184,7 +184,8 @@ class PlaneModel(VehicleModel):
     def _execute(self, command: int, p: list[float], extra: list[Any]) -> Result:
         if command == M.MAV_CMD_NAV_TAKEOFF:
             return Result.FAILED  # only a quadplane takes off on command
-        if command in (M.MAV_CMD_NAV_LAND, M.MAV_CMD_CONDITION_YAW):
+        if command in (M.MAV_CMD_NAV_LAND, M.MAV_CMD_CONDITION_YAW,
+                       M.MAV_CMD_DO_PAUSE_CONTINUE):  # a plane's pause is not imitated
             return Result.UNSUPPORTED
         return super()._execute(command, p, extra)
 

@@ -101,7 +101,8 @@ class RoverModel(VehicleModel):
 
     # ------------------------------------------------------------ commands
     def _execute(self, command: int, p: list[float], extra: list[Any]) -> Result:
-        if command in (M.MAV_CMD_NAV_TAKEOFF, M.MAV_CMD_NAV_LAND, M.MAV_CMD_CONDITION_YAW):
+        if command in (M.MAV_CMD_NAV_TAKEOFF, M.MAV_CMD_NAV_LAND, M.MAV_CMD_CONDITION_YAW,
+                       M.MAV_CMD_DO_PAUSE_CONTINUE):  # a rover's pause is not imitated
             return Result.UNSUPPORTED
         return super()._execute(command, p, extra)
 

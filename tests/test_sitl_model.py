@@ -638,6 +638,31 @@ def test_told_to_stop_while_speeding_up_it_brakes_from_no_acceleration(how):
     assert v.mode == ("BRAKE" if how == "BRAKE" else "GUIDED")
 
 
+def test_a_guided_pause_brakes_from_its_acceleration_and_holds_until_it_continues():
+    # ArduCopter 4.7 SITL, told DO_PAUSE_CONTINUE 0 at 8.5 m/s while speeding up: it stopped
+    # 24.3 m on (its velocity controller is not started afresh: ModeGuided::pause_control_run),
+    # flew no target sent meanwhile, and flew the latest once continued; LOITER refused.
+    v = flying(10.0)
+    v.fly_to((500.0, 0.0, 10.0))
+    run_until(v, lambda: v.body.velocity[0] > 8.5, 30)
+    assert command(v, M.MAV_CMD_DO_PAUSE_CONTINUE, 0)[0] == M.MAV_RESULT_ACCEPTED
+    told_at = v.position[0]
+    run_until(v, lambda: math.hypot(*v.body.velocity[:2]) < 0.01, 20)
+    stopped = v.position
+    assert 22.0 < stopped[0] - told_at < 26.0
+    lat, lon, _ = v._global((100.0, 0.0, 10.0))
+    v.handle(M.MAVLink_set_position_target_global_int_message(
+        0, 1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, 0b110111111000, round(lat * 1e7),
+        round(lon * 1e7), 10, 0, 0, 0, 0, 0, 0, 0, 0))
+    v.step(5.0)
+    assert math.dist(v.position, stopped) < 0.2  # paused: the new target waits
+    assert command(v, M.MAV_CMD_DO_PAUSE_CONTINUE, 1)[0] == M.MAV_RESULT_ACCEPTED
+    run_until(v, lambda: v.arrived((100.0, 0.0, 10.0), 0.5), 60)
+    assert command(v, M.MAV_CMD_DO_PAUSE_CONTINUE, 1)[0] == M.MAV_RESULT_ACCEPTED
+    assert v.set_mode("LOITER")
+    assert command(v, M.MAV_CMD_DO_PAUSE_CONTINUE, 0)[0] == M.MAV_RESULT_FAILED
+
+
 def test_set_home_here_or_elsewhere_moves_where_rtl_lands():
     v = flying(5.0)
     v.fly_to((30.0, 0.0, 5.0))

@@ -270,3 +270,15 @@ def python_sitl(speedup: float = 20.0) -> Iterator[str]:
     finally:
         os.kill(process.pid, signal.SIGTERM)
         process.communicate(timeout=10)
+
+
+def on_both(ardupilot: Callable[..., Any], fly: Callable[[str], Any],
+            speedup: float = 2.0) -> tuple[Any, Any]:
+    """What ``fly(address)`` returns flown on an ArduCopter SITL (the ``ardupilot``
+    fixture's) and then on ``python -m sitl``, both at ``speedup``, printed side by side."""
+    (sitl,) = ardupilot(speedup=speedup)
+    arducopter = fly(sitl.address)
+    with python_sitl(speedup=speedup) as address:
+        simulator = fly(address)
+    print("ArduCopter", arducopter, "simulator", simulator)
+    return arducopter, simulator

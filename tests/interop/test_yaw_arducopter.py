@@ -15,7 +15,7 @@ import time
 from typing import Any
 
 import pytest
-from ground_station import GUIDED, GroundStation, M, python_sitl
+from ground_station import GUIDED, GroundStation, M, on_both
 from vehicle_steps import do, until
 
 from tml.mavlink.adapter import MavlinkVehicle
@@ -75,11 +75,7 @@ def _station_sweeps(address: str) -> dict[int, float]:
 @pytest.mark.timeout(600)
 def test_condition_yaw_keeps_to_its_direction_on_arducopter_and_the_simulator(
         ardupilot: Any) -> None:
-    (sitl,) = ardupilot(speedup=2)
-    arducopter = _station_sweeps(sitl.address)
-    with python_sitl(speedup=2) as address:
-        simulator = _station_sweeps(address)
-    print("swept, degrees: ArduCopter", arducopter, "simulator", simulator)
+    arducopter, simulator = on_both(ardupilot, _station_sweeps)  # degrees swept
     for swept in (arducopter, simulator):
         assert swept[1] == pytest.approx(315, abs=10)  # clockwise, the long way
         assert swept[0] == pytest.approx(-45, abs=10)  # the shorter way

@@ -380,7 +380,7 @@ class VehicleModel:
                 heading = self.heading + direction * p[0]
             else:
                 direction, heading = (p[2] > 0) - (p[2] < 0), p[0]
-            self.set_yaw(heading % 360.0, p[1] or 60.0, int(direction))
+            self.set_yaw(heading % 360.0, p[1] or 60.0, direction)
             return ok
         if command == M.MAV_CMD_DO_REPOSITION:
             return self._reposition(p)

@@ -1010,25 +1010,12 @@ class MavlinkVehicle:
         the first name the autopilot answers for, and its value; None when it answers for
         none. All are asked at once, so a name the firmware lacks costs no time-out."""
         component = self._component(AUTOPILOT)
-        keys = [(component, name) for name in names]
-        for _ in range(PARAM_RETRIES):
-            with self._param_arrived:
-                for key in keys:
-                    self._params.pop(key, None)
-            for name in names:
-                self.link.send(mavlink.MAVLink_param_request_read_message(
-                    self.system_id, component, name.encode(), -1))
-            end = self.timebase.now() + PARAM_TIMEOUT
-            with self._param_arrived:
-                while True:
-                    found = next((key for key in keys if key in self._params), None)
-                    if found is not None:
-                        return found[1], self._params[found]
-                    left = end - self.timebase.now()
-                    if left <= 0:
-                        break
-                    self.timebase.wait(self._param_arrived, left)
-        return None
+        asked = {name: mavlink.MAVLink_param_request_read_message(
+            self.system_id, component, name.encode(), -1) for name in names}
+        try:
+            return self._param_exchange(asked, component)
+        except VehicleTimeout:
+            return None
 
     @property
     def source_system(self) -> int:
@@ -1040,7 +1027,7 @@ class MavlinkVehicle:
         msg = mavlink.MAVLink_param_request_read_message(self.system_id, component,
                                                          name.encode(), -1)
         try:
-            return self._param_exchange(msg, component, name)
+            return self._param_exchange({name: msg}, component)[1]
         except VehicleTimeout:
             return None
 
@@ -1048,26 +1035,34 @@ class MavlinkVehicle:
         component = self._component(which)
         msg = mavlink.MAVLink_param_set_message(self.system_id, component, name.encode(),
                                                 value, mavlink.MAV_PARAM_TYPE_REAL32)
-        stored = self._param_exchange(msg, component, name, PARAM_SET_RETRIES)
+        stored = self._param_exchange({name: msg}, component, PARAM_SET_RETRIES)[1]
         if not math.isclose(stored, value, abs_tol=1e-6):
             raise CommandRejected(f"PARAM_SET {name}", f"stored {stored:g}", self.system_id)
 
-    def _param_exchange(self, msg: Any, component: int, name: str,
-                        tries: int = PARAM_RETRIES) -> float:
-        """Send a PARAM_SET/PARAM_REQUEST_READ until its PARAM_VALUE comes back."""
-        key = (component, name)
+    def _param_exchange(self, asked: Mapping[str, Any], component: int,
+                        tries: int = PARAM_RETRIES) -> tuple[str, float]:
+        """Send each parameter's PARAM_SET/PARAM_REQUEST_READ of ``asked`` (by name) until
+        a PARAM_VALUE of one of them comes back: its name (the first of ``asked`` answered)
+        and value."""
+        keys = [(component, name) for name in asked]
         for _ in range(tries):
             with self._param_arrived:
-                self._params.pop(key, None)
-            self.link.send(msg)
+                for key in keys:
+                    self._params.pop(key, None)
+            for msg in asked.values():
+                self.link.send(msg)
             end = self.timebase.now() + PARAM_TIMEOUT
             with self._param_arrived:
-                while key not in self._params and self.timebase.now() < end:
-                    self.timebase.wait(self._param_arrived, end - self.timebase.now())
-                if key in self._params:
-                    return self._params[key]
-        raise VehicleTimeout(f"no PARAM_VALUE for {name} from component {component}",
-                             self.system_id)
+                while True:
+                    found = next((key for key in keys if key in self._params), None)
+                    if found is not None:
+                        return found[1], self._params[found]
+                    left = end - self.timebase.now()
+                    if left <= 0:
+                        break
+                    self.timebase.wait(self._param_arrived, left)
+        raise VehicleTimeout(f"no PARAM_VALUE for {' or '.join(asked)} from component "
+                             f"{component}", self.system_id)
 
 
 class _Unsupported(VehicleError):

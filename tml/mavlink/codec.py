@@ -196,9 +196,9 @@ def _target_mask(ignored: int, yaw: float | None) -> int:
     """A position target's type mask: ``ignored`` besides the acceleration and the yaw
     rate, and the yaw when there is none."""
     mask: int = (ignored | mavlink.POSITION_TARGET_TYPEMASK_AX_IGNORE
-            | mavlink.POSITION_TARGET_TYPEMASK_AY_IGNORE
-            | mavlink.POSITION_TARGET_TYPEMASK_AZ_IGNORE
-            | mavlink.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE)
+                 | mavlink.POSITION_TARGET_TYPEMASK_AY_IGNORE
+                 | mavlink.POSITION_TARGET_TYPEMASK_AZ_IGNORE
+                 | mavlink.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE)
     if yaw is None:
         mask |= mavlink.POSITION_TARGET_TYPEMASK_YAW_IGNORE
     return mask

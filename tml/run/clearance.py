@@ -215,13 +215,13 @@ def failsafe_problem(vehicle: Vehicle) -> str | None:
     which must be the one tml sends as, or the failsafe never hears tml: ArduPilot arms it
     on its ground station's first HEARTBEAT and counts only that station's (and the range
     up to :data:`GCS_SYSTEM_HIGH`, read only when the id differs)."""
+    unknown = f"{GCS_FAILSAFE} not reported: what the vehicle does when it loses this " \
+              "ground station is unknown"
     if not isinstance(vehicle, ReadsParameters):
-        return f"{GCS_FAILSAFE} not reported: what the vehicle does when it loses this " \
-               "ground station is unknown"
+        return unknown
     value = vehicle.read_parameters([GCS_FAILSAFE]).get(GCS_FAILSAFE)
     if value is None:
-        return f"{GCS_FAILSAFE} not reported: what the vehicle does when it loses this " \
-               "ground station is unknown"
+        return unknown
     if value == 0:
         return f"{GCS_FAILSAFE} is 0: the vehicle does nothing by itself when it loses this " \
                "ground station (1 returns home, 5 lands)"

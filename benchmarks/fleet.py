@@ -1,8 +1,7 @@
 """Fleet: one interpreter flying 10, 100, 500 or 1,000 simulated vehicles -- CPU, event delay,
 memory and threads.
 
-Run by hand: ``python benchmarks/fleet.py [--vehicles 10,100,500] [--speedup 1] [--seconds 30]
-[--no-wake-for KINDS]``.
+Run by hand: ``python benchmarks/fleet.py [--vehicles 10,100,500] [--speedup 1] [--seconds 30]``.
 
 For each fleet size N the simulator runs in its own processes (``python -m sitl --vehicles M
 --speedup K --tcp-base-port 0``, ports read from what it prints, all on 127.0.0.1; at most
@@ -31,8 +30,9 @@ vehicles of one run.
 
 CPU: ``time.process_time`` of this process while ``Runner.run`` flies (take-off, hover,
 landing; the set-up before it is not counted), divided by the vehicle time flown (vehicle
-1's ``time_boot_ms``) and by N. The runner's wakes (loop rounds) are counted too: the link
-wakes the runner on each message that changes what a vehicle shows, as ``tml run`` does.
+1's ``time_boot_ms``) and by N. The runner's wakes (loop rounds) are counted too: each
+vehicle wakes the runner on a change of a field the mission reads (and on a result), as in
+``tml run`` (:meth:`tml.mavlink.adapter.MavlinkVehicle.watch`).
 The simulators' CPU comes from ``getrusage(RUSAGE_CHILDREN)`` after their processes have
 exited, over their whole life. Memory per vehicle: how much this process's resident set grew
 from before the links were opened to the end of the flight, divided by N; threads: the most
@@ -230,14 +230,8 @@ def param_set(system_id: int, name: str, value: float) -> Any:
                                              mavlink.MAV_PARAM_TYPE_REAL32)
 
 
-def fly(vehicles: int, speedup: float, seconds: float,
-        no_wake_for: frozenset[str] = frozenset()) -> Result:
-    """Fly the generated mission on ``vehicles`` simulated vehicles; measure it.
-
-    ``no_wake_for``: message kinds (GLOBAL_POSITION_INT ...) whose changes do not wake the
-    runner, an experiment: what a runner woken only by the changes of fields something
-    reads could save at most (it still looks at its rate, and builds every changed state
-    when it looks)."""
+def fly(vehicles: int, speedup: float, seconds: float) -> Result:
+    """Fly the generated mission on ``vehicles`` simulated vehicles; measure it."""
     from tml.engine import Options
     from tml.language.validation import validate_file
     from tml.mavlink.adapter import MavlinkVehicle
@@ -259,14 +253,6 @@ def fly(vehicles: int, speedup: float, seconds: float,
             link = stack.enter_context(Link(f"tcp:127.0.0.1:{port}"))
             # The probe listens first: it sees each message before the runner is woken.
             link.listen(partial(_probe_message, probe, number))
-            if no_wake_for:
-                last = [""]  # the kind of the message the link handles (its thread)
-                link.listen(lambda _sid, _snapshot, msg, last=last: last.__setitem__(
-                    0, msg.get_type()))
-                link.on_change(lambda _sid, last=last: None if last[0] in no_wake_for
-                               else wake.set())
-            else:
-                link.on_change(lambda _sid: wake.set())  # as tml run wakes its runner
             link.send = _stamped(link.send, number, probe.on_send)  # type: ignore[method-assign]
             links.append(link)
         for link, (_, system_id) in zip(links, at, strict=True):
@@ -492,11 +478,7 @@ def main() -> None:
                         help="simulated time this many times faster than real (default 1)")
     parser.add_argument("--seconds", type=float, default=30.0,
                         help="vehicle seconds over which the triggers are spread (default 30)")
-    parser.add_argument("--no-wake-for", default="", metavar="KINDS",
-                        help="an experiment: comma-separated message kinds whose changes "
-                             "do not wake tml's runner (e.g. GLOBAL_POSITION_INT,ATTITUDE)")
     args = parser.parse_args()
-    quiet = frozenset(k.strip().upper() for k in args.no_wake_for.split(",") if k.strip())
     try:
         sizes = [int(n) for n in args.vehicles.split(",")]
     except ValueError:
@@ -509,7 +491,7 @@ def main() -> None:
     rows: list[tuple[Result, Result]] = []
     for n in sizes:
         try:
-            tml = fly(n, args.speedup, args.seconds, quiet)
+            tml = fly(n, args.speedup, args.seconds)
             bare = peer(n, args.speedup, args.seconds)
         except TmlError as error:  # e.g. a simulator too slow to keep its vehicles' links
             print(f"  {n} vehicles: not measured: {error}", flush=True)
@@ -532,9 +514,7 @@ def main() -> None:
     print(f"\nfleet: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}, speedup "
           f"{args.speedup:g}, triggers over {args.seconds:g} vehicle s; delay = trigger "
           f"telemetry parsed -> NAV_LAND written; peer = a bare pymavlink loop reading the "
-          f"same streams of the same number of vehicles"
-          + (f"; the runner not woken by {', '.join(sorted(quiet))} (an experiment)"
-             if quiet else ""))
+          f"same streams of the same number of vehicles")
     print(f"{'vehicles':>8} {'who':>4} {'core %':>6} {'ms/veh/s':>8} {'wakes/s':>7} "
           f"{'p50 ms':>7} {'p99 ms':>7} {'max ms':>7} {'kB/veh':>6} {'threads':>7}")
     for pair in rows:

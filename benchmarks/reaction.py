@@ -217,8 +217,7 @@ def tml_side(port: int, stop: threading.Event) -> None:
 
     mission = validate_file("reaction.xml", MISSION).mission
     wake = threading.Event()
-    with Link(f"tcp:127.0.0.1:{port}") as link:
-        link.listen(lambda *_: wake.set())
+    with Link(f"tcp:127.0.0.1:{port}") as link:  # the vehicle wakes the runner (its watch)
         vehicle = MavlinkVehicle(link, 1, on_result=wake.set)
         vehicle.prepare()
         runner = Runner(mission, [vehicle], options=RunOptions(engine=Options()), wake=wake)

@@ -12,6 +12,7 @@ from fake_vehicle import FakeVehicle
 
 from tml.engine import Interpreter, Options, Status, TaskState, View
 from tml.engine.context import Duty
+from tml.engine.scripts import LANDED_READS
 from tml.errors import EngineError
 from tml.language.validation import validate_file
 from tml.vehicle import (
@@ -570,6 +571,22 @@ def test_view_reports_current_action_and_progress() -> None:
     assert 0.0 < view.progress < 1.0
     assert view.task_states["Take off"] is TaskState.DONE
     assert view.task_states["Far"] is TaskState.RUNNING
+
+
+def test_a_landing_waits_for_what_its_end_reads_and_shows_its_progress_meanwhile() -> None:
+    low = '<condition parameter="BATTERY_CHARGE_PERCENTAGE" comparison="less than" value="5"/>'
+    flight = Flight(TAKE_OFF + LAND, event("NEXT_TASK", conditions=low))
+    flight.run(seconds=2.5)  # up, and the descent begun
+    assert flight.view().current_action == "LAND" and flight.vehicle.armed
+    reads = flight.interp.wake().reads
+    assert reads is not None
+    # Stepped again when it shows landed or disarmed (or the event's battery), not at
+    # every position of the descent: those only move the progress the display reads.
+    assert reads[flight.vid] == LANDED_READS | {"battery"}
+    first = flight.view().progress
+    flight.run(seconds=0.5)
+    assert flight.view().current_action == "LAND"
+    assert first is not None and 0.0 < first < flight.view().progress < 1.0
 
 
 def test_mission_progress_type_is_shared_with_vehicles() -> None:

@@ -16,7 +16,7 @@ from sitl.server import Simulator
 from tml.errors import Location
 from tml.language.actions import BoundAction, bind
 from tml.language.model import Action, Argument
-from tml.mavlink.adapter import MavlinkVehicle, detection_names
+from tml.mavlink.adapter import SHOWN_BY, MavlinkVehicle, detection_names
 from tml.mavlink.link import Link
 from tml.vehicle import (
     Arm,
@@ -280,6 +280,29 @@ def test_skills_switch_companion_parameters_and_feed_detections(rig: Rig) -> Non
     rig.until(lambda s: "RECOGNIZED_ITEMS" not in s.detections, "detection expired")
     result = rig.do(SetSkill(1, "SAY_OUT_LOUD_CURRENT_TASK", True))
     assert (result.ok, result.reason) == (False, "unsupported")
+
+
+def test_a_watcher_is_told_which_fields_each_change_may_show(rig: Rig) -> None:
+    told: list[frozenset[str] | None] = []
+    unwatch = rig.vehicle.watch(told.append)
+    rig.fly(5.0)  # the take-off's requests and their results: changes of any field (None)
+    assert None in told
+    shown = set().union(*(fields for fields in told if fields is not None))
+    assert {"battery", "position", "armed", "landed"} <= shown
+    # A message's fields never include what it cannot change: a position's message no
+    # battery, and the link's health only when it changes (told as any field).
+    assert frozenset(SHOWN_BY["GLOBAL_POSITION_INT"]) in told
+    assert all(fields is None or "link" not in fields for fields in told)
+    told.clear()
+    assert rig.do(SetSkill(1, "RECOGNIZE_ITEMS", True)).ok
+    assert rig.do(GoTo(1, (20.0, 0.0, 5.0))).ok
+    rig.until(lambda s: "A" in s.detections.get("RECOGNIZED_ITEMS", ()), "item A")
+    assert None in told  # the companion's detections: any field
+    unwatch()
+    told.clear()
+    since = rig.sim.time
+    rig.until(lambda s: s.time > since + 1.0, "a second")  # its messages: told nobody
+    assert told == []
 
 
 def test_detection_names_follow_the_companion_numbering() -> None:

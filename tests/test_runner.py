@@ -17,7 +17,15 @@ from tml.language.failures import FailureReason
 from tml.language.validation import validate_file
 from tml.run.journal import Journal
 from tml.run.runner import Runner, RunOptions
-from tml.vehicle import Disarm, Hold, Land, RequestResult, ReturnToLaunch, VehicleState
+from tml.vehicle import (
+    SHOWN_FIELDS,
+    Disarm,
+    Hold,
+    Land,
+    RequestResult,
+    ReturnToLaunch,
+    VehicleState,
+)
 
 TAKE_OFF = ('<task name="Take off"><action name="TAKE_OFF"><argument name="altitude" '
             'value="5"/></action></task>')
@@ -590,6 +598,84 @@ def test_a_vehicle_that_says_nothing_changed_is_not_read_on_every_wake() -> None
     wakes = sim.time / 0.1
     # Read on results and the telemetry line, else every ``refresh`` s: not on each wake.
     assert vehicle.reads < wakes / 2
+
+
+class Watched(Revised):
+    """A fake that tells its changes as MavlinkVehicle.watch does: after each move, the
+    fields of its state that changed."""
+
+    def __init__(self, **kwargs) -> None:  # type: ignore[no-untyped-def]
+        super().__init__(**kwargs)
+        self.watchers: list = []
+
+    def watch(self, watcher):  # type: ignore[no-untyped-def]
+        self.watchers.append(watcher)
+        return lambda: self.watchers.remove(watcher)
+
+    def tell(self, fields: frozenset[str] | None) -> None:
+        self.number += 1
+        for watcher in list(self.watchers):
+            watcher(fields)
+
+    def advance(self, dt: float) -> None:
+        before = FakeVehicle.state(self)
+        super().advance(dt)
+        after = FakeVehicle.state(self)
+        changed = frozenset(n for n in SHOWN_FIELDS if getattr(before, n) != getattr(after, n))
+        if changed:
+            self.tell(changed)
+
+
+QUIET = RunOptions(refresh=1000.0, telemetry_period=1000.0)  # looked at on changes alone
+
+
+def test_a_change_of_a_field_nothing_reads_is_not_looked_at_and_one_read_is_at_once(
+        ) -> None:
+    vehicle = Watched(drain_per_second=0.0)
+    sim = Sim(vehicle)
+    reads: dict[float, int] = {}
+
+    def script(sim: Sim) -> None:
+        if sim.time == 8.0:  # pushed aside: a hover reads no position, its event a battery
+            vehicle.position = (3.0, 0.0, vehicle.position[2])
+            vehicle.tell(frozenset({"position"}))
+        if sim.time in (8.0, 9.9):
+            reads[sim.time] = vehicle.reads
+        if sim.time == 10.0:
+            vehicle.battery = 10.0
+            vehicle.tell(frozenset({"battery"}))
+    sim.hooks.append(script)
+    log = io.StringIO()
+    Runner(mission(TAKE_OFF + HOVER, LOW_BATTERY), [vehicle], clock=sim.clock, options=QUIET,
+           journal=Journal(log), wait=sim.wait).run()
+    lines = [json.loads(line) for line in log.getvalue().splitlines()]
+    assert reads[9.9] == reads[8.0]  # the moves back to the hover point: not looked at
+    (event,) = [line for line in lines if line["kind"] == "event"][:1]
+    assert event["t"] == pytest.approx(10.0)
+
+
+def test_in_a_fleet_a_wake_looks_only_at_the_vehicles_that_changed() -> None:
+    fleet = [Watched(vehicle_id=n, drain_per_second=0.0) for n in range(1, 11)]
+    sim = Sim(*fleet)
+    reads: dict[float, list[int]] = {}
+
+    def script(sim: Sim) -> None:
+        if sim.time in (9.0, 9.9, 10.1):
+            reads[sim.time] = [v.reads for v in fleet]
+        if sim.time == 10.0:
+            fleet[3].battery = 10.0
+            fleet[3].tell(frozenset({"battery"}))
+    sim.hooks.append(script)
+    body = ('<roles><role name="fleet" count="10" type="quadcopter"/></roles>'
+            '<task name="Patrol" role="fleet">' + TAKE_OFF + HOVER + '</task>')
+    low = LOW_BATTERY.replace('<event name="Low"', '<event name="Low" role="fleet"')
+    outcome = Runner(mission(body, low), fleet, clock=sim.clock, options=QUIET,
+                     journal=Journal(io.StringIO()), wait=sim.wait).run()
+    assert reads[9.9] == reads[9.0]  # hovering, unchanged: nobody looked at
+    looked = [after - before for before, after in zip(reads[9.9], reads[10.1], strict=True)]
+    assert looked[3] >= 1 and looked[:3] + looked[4:] == [0] * 9
+    assert isinstance(fleet[3].submitted[-1], Land)  # its event fired
+    assert outcome.exit_code is ExitCode.OK
 
 
 def test_each_change_of_the_link_is_journaled_when_a_wake_sees_it() -> None:

@@ -118,12 +118,15 @@ class Events:
                 waker.state(pilot.vehicle_id, fields)
 
     def _waits_handling(self, pilot: Pilot, handler: Handler, waker: Waker) -> None:
-        """What a vehicle handling an event waits for: its handler's work, and any field of
-        its state (its edges are re-armed on what it shows: see _rearm)."""
+        """What a vehicle handling an event waits for: its handler's work, and the fields of
+        its state its handlers' conditions read (its edges are re-armed on what they show:
+        see _rearm)."""
         handler.wake(waker)
-        waker.state(pilot.vehicle_id)
-        if self._fields(pilot.role) is None:
+        fields = self._fields(pilot.role)
+        if fields is None:
             waker.anything()  # re-arming reads more than the vehicle: at every step
+        else:  # re-arming reads what the conditions read (see _rearm)
+            waker.state(pilot.vehicle_id, fields)
 
     def _rest(self, pilot: Pilot) -> None:
         """After a handler's drive: note what it waits for, so that it is not driven (nor

@@ -44,9 +44,9 @@ from tml.patterns import survey
 from tml.vehicle import SHOWN_FIELDS, FlyMission, Hold, Request, RequestResult
 
 UNTIL_READS = frozenset(SHOWN_FIELDS)
-"""What an :class:`~tml.engine.scripts.Until` reads of its vehicle's state: any field that
-says what the vehicle shows, and whether the picture is newer than the latest request
-(``current``, which no compared field tells)."""
+"""What an :class:`~tml.engine.scripts.Until` that does not say (its ``reads`` None) reads of
+its vehicle's state: any field that says what the vehicle shows, and whether the picture is
+newer than the latest request (``current``, which no compared field tells)."""
 
 
 class Leaf(Node):
@@ -281,6 +281,11 @@ class ActionLeaf(Leaf):
             # Time alone moves it: from the clock, not from the last step (a WAIT is
             # not stepped until it ends: tml.engine.wake).
             return max(0.0, min(1.0, (clock - self.since) / max(wait.seconds, 1e-9)))
+        if isinstance(wait, Until) and wait.progress is not None \
+                and self._mode is WorkMode.ACTIVE:
+            # From the latest state, when asked (the display): an Until is stepped only
+            # when a field its condition reads changes, not as the progress moves.
+            self._progress = wait.progress(self.pilot.state)
         return self._progress
 
     def wake(self, waker: Waker) -> None:
@@ -293,7 +298,8 @@ class ActionLeaf(Leaf):
                 waker.by(self.since + wait.seconds)
             elif isinstance(wait, Until):
                 waker.by(self.since + wait.limit)
-                waker.state(self.vehicle_id, UNTIL_READS)
+                waker.state(self.vehicle_id, UNTIL_READS if wait.reads is None
+                            else wait.reads)
             elif wait is None:
                 waker.anything()
             # Send: only its answer moves a request on.
@@ -328,8 +334,6 @@ class ActionLeaf(Leaf):
             if isinstance(wait, Send):
                 return  # waiting for the request's result
             if isinstance(wait, Until):
-                if wait.progress is not None:
-                    self._progress = wait.progress(state)
                 # Judged only on telemetry that arrived after the latest request.
                 if not (state.current and wait.predicate(state)):
                     if run.now - self.since > wait.limit:

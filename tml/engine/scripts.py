@@ -85,12 +85,16 @@ class Send:
 
 @dataclass(frozen=True)
 class Until:
-    """Wait until ``predicate(state)`` holds; fail with ``timeout`` after ``limit`` s."""
+    """Wait until ``predicate(state)`` holds; fail with ``timeout`` after ``limit`` s.
+    ``reads``: the fields of the state the predicate reads (``current`` is judged too);
+    None: any (:data:`tml.engine.leaves.UNTIL_READS`). The wait is looked at again only
+    when one of them changes, or at its limit (:mod:`tml.engine.wake`)."""
 
     predicate: Callable[[VehicleState], bool]
     limit: float
     what: str
     progress: Callable[[VehicleState], float] | None = None
+    reads: frozenset[str] | None = None
 
 
 @dataclass(frozen=True)
@@ -267,6 +271,10 @@ def _landed_and_disarmed(state: VehicleState) -> bool:
     return state.landed and not state.armed
 
 
+LANDED_READS = frozenset(("landed", "armed", "current"))
+"""What :func:`_landed_and_disarmed` reads (and whether the picture is current)."""
+
+
 def _local(ctx: Context, bound: BoundAction, altitude_key: str = "altitude") -> Point:
     """The local point of an action's latitude/longitude/altitude arguments."""
     home = ctx.state.home
@@ -407,7 +415,8 @@ def take_off(ctx: Context, bound: BoundAction) -> Script:
     tolerance = _tolerances(ctx)[1]
     yield Until(lambda s: s.altitude >= altitude - tolerance,
                 ctx.limits.factor * altitude / ctx.limits.climb_rate + ctx.limits.slack,
-                f"climb to {altitude:g} m", lambda s: max(0.0, min(1.0, s.altitude / altitude)))
+                f"climb to {altitude:g} m", lambda s: max(0.0, min(1.0, s.altitude / altitude)),
+                frozenset(("position", "current")))
 
 
 def land(ctx: Context, bound: BoundAction) -> Script:
@@ -423,7 +432,8 @@ def land(ctx: Context, bound: BoundAction) -> Script:
     yield Send(Land(ctx.vehicle_id))
     yield Until(_landed_and_disarmed,
                 ctx.limits.factor * start / ctx.limits.land_rate + ctx.limits.slack,
-                "land and disarm", lambda s: max(0.0, min(1.0, 1 - s.altitude / max(start, 1))))
+                "land and disarm", lambda s: max(0.0, min(1.0, 1 - s.altitude / max(start, 1))),
+                LANDED_READS)
 
 
 LAND_DISARM_DELAY = 30.0
@@ -442,7 +452,7 @@ def _glide(ctx: Context, touchdown: Point | None, what: str) -> Script:
     limit = ctx.limits.factor * (way / ctx.limits.speed + here[2] / ctx.limits.descent_rate) \
         + ctx.limits.slack + LAND_DISARM_DELAY
     yield Until(_landed_and_disarmed, limit, f"{what}: land and disarm",
-                lambda s: max(0.0, min(1.0, 1 - s.altitude / max(here[2], 1))))
+                lambda s: max(0.0, min(1.0, 1 - s.altitude / max(here[2], 1))), LANDED_READS)
 
 
 def go_to_point(ctx: Context, bound: BoundAction) -> Script:
@@ -688,7 +698,7 @@ def return_home_and_land(ctx: Context, bound: BoundAction) -> Script:
         here[2], 15.0) / ctx.limits.land_rate
     yield Until(_landed_and_disarmed, limit, "return home and land",
                 lambda s: 1.0 - min(1.0, math.dist(s.position or here, (0, 0, 0))
-                                    / max(math.dist(here, (0, 0, 0)), 1.0)))
+                                    / max(math.dist(here, (0, 0, 0)), 1.0)), LANDED_READS)
 
 
 def set_speed(ctx: Context, bound: BoundAction) -> Script:

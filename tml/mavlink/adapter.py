@@ -146,6 +146,26 @@ from tml.world import Home, World
 
 Clock = Callable[[], float]
 
+SHOWN_BY: Mapping[str, frozenset[str]] = MappingProxyType({
+    kind: frozenset(names) for kind, names in {
+        "HEARTBEAT": ("armed", "mode", "landed", "prearm", "taken", "vehicle_type"),
+        "GLOBAL_POSITION_INT": ("position", "ground_speed", "climb"),
+        "HOME_POSITION": ("home", "position"),
+        "ATTITUDE": ("heading", "heading_known"),
+        "SYS_STATUS": ("battery", "voltage", "armable"),
+        "EXTENDED_SYS_STATE": ("landed",),
+        "GPS_RAW_INT": ("gps_fix", "satellites"),
+        "EKF_STATUS_REPORT": ("ready",),
+        "STATUSTEXT": ("status_text", "messages", "prearm"),
+    }.items()})
+"""The fields of a :class:`~tml.vehicle.VehicleState` (as :meth:`MavlinkVehicle.state` builds
+them from the link's snapshot) that a message of each kind from the autopilot may change: a
+watcher told only these (:meth:`MavlinkVehicle.watch`) need not look at the vehicle when it
+reads none of them. A kind not here may change any field. (``current`` turns true with one
+of :data:`VITAL`, once after each request, and ``link`` turns back to ``ok`` with a message
+after a silence: each is told as a change of any field.)"""
+Watcher = Callable[[frozenset[str] | None], None]
+"""What :meth:`MavlinkVehicle.watch` calls: with the fields that may have changed (None: any)."""
 VITAL = ("HEARTBEAT", "EXTENDED_SYS_STATE", "GLOBAL_POSITION_INT")
 """The messages of the readings the rules judge by: armed and mode, landed, position."""
 STREAM_CHECK_PERIOD = 2.0
@@ -352,7 +372,12 @@ class MavlinkVehicle:
         self._flight_asked: float | None = None  # ... the latest of FLIGHT_REQUESTS
         self._flights_pending = 0  # FLIGHT_REQUESTS submitted and not yet carried out
         self._vital_at: dict[str, float] = {}  # when each VITAL message last came (clock)
+        self._watchers: tuple[Watcher, ...] = ()  # see watch
+        self._handled: str | None = None  # the kind of the autopilot's message being handled
+        self._current = False  # the state has shown current since the latest request
+        self._link_shown = "ok"  # the link's health when last judged (see _fold)
         link.listen(self._on_message)
+        link.on_change(self._link_changed)
 
     # --- set-up ---------------------------------------------------------------------------
 
@@ -372,6 +397,7 @@ class MavlinkVehicle:
             capabilities.add("flip")
         self.capabilities = frozenset(capabilities)
         self._changes += 1
+        self._stir()
 
     # --- the Vehicle protocol ---------------------------------------------------------------
 
@@ -394,8 +420,9 @@ class MavlinkVehicle:
             if plan is not None and plan.finished and plan.ends_landed:
                 landed = True  # EXTENDED_SYS_STATE may lag the final MISSION_ITEM_REACHED
             progress = plan.progress() if plan is not None else self._progress
+        link = self._link_shown = self.health.state(self.link_clock())
         return VehicleState(
-            vehicle_id=self.vehicle_id, time=now, link=self.health.state(self.link_clock()),
+            vehicle_id=self.vehicle_id, time=now, link=link,
             ready=t.position_ready, armable=t.prearm_ok, prearm=t.prearm_text if not t.armed
             else "", armed=t.armed, landed=landed, mode=t.mode,
             position=position,
@@ -432,11 +459,39 @@ class MavlinkVehicle:
         times = [self._vital_at[name] for name in VITAL if name in self._vital_at]
         return min(times) if times else -math.inf
 
+    def _shows_current(self, now: float) -> bool:
+        """Whether :meth:`state` shows ``current`` at ``now``."""
+        asked = now if self._queue.unfinished_tasks else self._asked
+        return asked is None or self._heard(now) > asked
+
     def revision(self) -> tuple[int, int]:
         """Changes when :meth:`state` may show something new, apart from what time alone
         changes (the link's health, detections held past ``detection_hold``): equal
         revisions, equal state. A runner reads this to rebuild only the states that changed."""
         return self.link.revision(self.system_id), self._changes
+
+    def watch(self, watcher: Watcher) -> Callable[[], None]:
+        """Call ``watcher(fields)`` whenever :meth:`revision` may have changed, or a result
+        is ready -- from the thread that saw it (the link's reactor, the worker; not for a
+        :meth:`submit`, whose caller knows) -- with the names of the state's fields that
+        may show something new (:data:`SHOWN_BY`; None: any). It must return quickly.
+        Returns the function that stops the calls."""
+        self._watchers = (*self._watchers, watcher)
+
+        def unwatch() -> None:
+            self._watchers = tuple(w for w in self._watchers if w is not watcher)
+        return unwatch
+
+    def _stir(self, fields: frozenset[str] | None = None) -> None:
+        for watcher in self._watchers:
+            watcher(fields)
+
+    def _link_changed(self, system_id: int) -> None:
+        if system_id == self.system_id:
+            # The link tells a change after its listeners saw the message (_on_message);
+            # one told with no message before it (the link found lost) may change anything.
+            kind, self._handled = self._handled, None
+            self._stir(None if kind is None else SHOWN_BY.get(kind))
 
     def submit(self, request: Request) -> None:
         """Queue a request for the worker thread; never blocks.
@@ -451,6 +506,7 @@ class MavlinkVehicle:
         now = self.clock()  # read outside the lock: a vehicle clock reads the link's
         with self._lock:
             self._asked = now
+            self._current = False
             if isinstance(request, FLIGHT_REQUESTS):
                 self._flight_asked = now
                 self._flights_pending += 1
@@ -527,18 +583,37 @@ class MavlinkVehicle:
     def _on_message(self, system_id: int, snapshot: Telemetry, msg: Any) -> None:
         if system_id != self.system_id:
             return
+        changes = self._changes
+        self._fold(snapshot, msg)
+        if self._changes != changes:
+            self._handled = None
+            self._stir()
+
+    def _fold(self, snapshot: Telemetry, msg: Any) -> None:
+        """Take in what a message of this vehicle's says beyond the link's snapshot."""
         kind = msg.get_type()
         component = msg.get_srcComponent()
+        self._handled = kind if component == self.mav.component_id else None
         now = self.clock()
         if kind in VITAL and component == self.mav.component_id:
             self._vital_at[kind] = now
+            if not self._current and self._shows_current(now):
+                self._current = True
+                self._changes += 1  # a change a watcher cannot tell from the kind
         if component == COMPANION_COMPONENT and not self._companion_seen:
             self._companion_seen = True
             self._changes += 1  # its skills can be switched from now on
         if component == self.mav.component_id:
             at = self.link_clock()
-            self.health.heard(at, kind == "HEARTBEAT", snapshot.boot_time,
-                              snapshot.received, snapshot.lost)
+            beat = kind == "HEARTBEAT"
+            self.health.heard(at, beat, snapshot.boot_time, snapshot.received, snapshot.lost)
+            # A message changes the link's health only after a silence, or by the losses a
+            # HEARTBEAT counts: judged again then, not at every message.
+            if beat or self._link_shown != "ok":
+                link = self.health.state(at)
+                if link != self._link_shown:
+                    self._link_shown = link
+                    self._changes += 1
             boot_ms = getattr(msg, "time_boot_ms", None)
             if boot_ms is not None:
                 self._stamped_at = at
@@ -638,6 +713,7 @@ class MavlinkVehicle:
                     self._results.append(result)
                 if self.on_result is not None:
                     self.on_result()
+                self._stir()
 
     def _carried_out(self, request: Request) -> None:
         """A request has gone out and been answered (or given up): what the vehicle shows
@@ -648,6 +724,7 @@ class MavlinkVehicle:
         now = self.clock()
         with self._lock:
             self._asked = now
+            self._current = False
             if isinstance(request, FLIGHT_REQUESTS):
                 self._flight_asked = now
                 self._flights_pending -= 1
@@ -725,6 +802,7 @@ class MavlinkVehicle:
                 self._progress = self._plan.progress()
                 self._plan = None
                 self._changes += 1
+        self._stir()
 
     def _set_mode(self, request: SetMode) -> None:
         if request.mode.upper() != "AUTO":
@@ -974,6 +1052,7 @@ class MavlinkVehicle:
         with self._lock:
             self._plan = plan
             self._changes += 1
+        self._stir()
         if not state.armed:
             # A mission that starts on the ground: arm in GUIDED, then AUTO takes off.
             self._switch("GUIDED")
@@ -987,6 +1066,7 @@ class MavlinkVehicle:
             plan.started = True
             plan.finished = plan.last_nav is None  # DO items only: done on starting
             self._changes += 1
+        self._stir()
 
     def _require_home(self) -> Home:
         home = _home(self.link.telemetry(self.system_id))

@@ -113,6 +113,7 @@ from tml.language.model import Mission
 from tml.language.skills import mission_vehicle_skills
 from tml.run.heap import frozen
 from tml.run.journal import Journal, autopilot_fields, telemetry_fields
+from tml.run.lookout import Lookout
 from tml.timebase import SYSTEM, Flag, Timebase
 from tml.vehicle import (
     SEVERITIES,
@@ -128,6 +129,8 @@ from tml.vehicle import (
     unprovided,
 )
 
+LOOKED_AT = frozenset(("link", "taken", "messages", "rejected", "reboots"))
+"""The fields of a vehicle's state the runner itself reads at each look (:meth:`Runner._tick`)."""
 SAID_WITHIN = 5.0
 """Seconds (the run's clock) before a take-over within which the autopilot's messages are
 taken for its words about it: the switch is believed about a second after it is shown."""
@@ -209,7 +212,8 @@ class _Flight:
         self.state: VehicleState | None = None
         self.lost_since: float | None = None
         self.lost = False  # reported to the engine
-        self.next_telemetry = 0.0
+        self.next_telemetry = -math.inf  # when its next telemetry line is due
+        self.spread = 0.0  # its share of a period by which its lines come after the first
         self.cause = ""
         self.messages_told = 0  # the number of the last autopilot message journaled
         self.rejected_told = 0  # absurd telemetry messages journaled so far
@@ -224,6 +228,10 @@ class _Flight:
         self.safe_request = ""  # the name of the last safe-state request sent to it
         self.revision: object = None  # the vehicle's revision when its state was built
         self.revision_of: Callable[[], object] | None = getattr(vehicle, "revision", None)
+        # Tells the runner when the vehicle changed, and which fields (tml.run.lookout;
+        # MavlinkVehicle.watch); None: it cannot.
+        self.watch: Callable[[Callable[[frozenset[str] | None], None]],
+                             Callable[[], None]] | None = getattr(vehicle, "watch", None)
         self.refresh_at = -math.inf  # when the state is rebuilt however the revision stands
         # The last look left nothing to follow up (no lost link to time, no take-over to
         # handle): until its refresh or telemetry line is due, a wake with no result and
@@ -247,6 +255,13 @@ class _Crew:
         self.changed = False  # a field the engine waits for changed since the last step
         self.rest_until = -math.inf  # a change alone steps the engine from then on (STEP_REST)
         self.rest_for = 0.0  # the same rest in seconds of the time base (to sleep it)
+        # Which vehicles a wake looks at, when every one of them tells its changes (else a
+        # wake walks them all).
+        self.lookout = Lookout(len(flights)) if all(f.watch is not None for f in flights) \
+            else None
+        self.numbers = {f.vehicle.vehicle_id: n for n, f in enumerate(flights)}
+        for number, flight in enumerate(flights):
+            flight.spread = number / len(flights)
 
     @property
     def running(self) -> bool:
@@ -398,8 +413,17 @@ class Runner:
 
     def run(self) -> Outcome:
         """Fly until every interpreter has ended; return how it went."""
-        with self.timebase.taking_part():
-            return self._run()
+        # A vehicle that tells its changes wakes the loop itself (see _stirred), from the
+        # first look at it to the last.
+        unwatch = [flight.watch(partial(self._stirred, crew, number))
+                   for crew in self.crews
+                   for number, flight in enumerate(crew.flights) if flight.watch is not None]
+        try:
+            with self.timebase.taking_part():
+                return self._run()
+        finally:
+            for stop_watching in unwatch:
+                stop_watching()
 
     def _run(self) -> Outcome:
         now = self.clock()
@@ -427,6 +451,30 @@ class Runner:
                                              self._progress(crew)))
         with self._control_lock:
             self._flying = True
+        self._fly_on()
+        self._close_controls()
+        self._settle()
+        return self._end(Outcome(tuple(
+            VehicleOutcome(f.vehicle.vehicle_id, c.engine.status, c.engine.reason, f.cause)
+            for c in self.crews for f in c.flights)))
+
+    def _stirred(self, crew: _Crew, number: int, fields: frozenset[str] | None) -> None:
+        """A vehicle of ``crew`` changed, in ``fields`` (None: any; told from the thread
+        that saw it). A change of fields neither the interpreter nor the runner reads
+        waits for the vehicle's own time (its state's refresh, its telemetry line): in a
+        fleet, most messages change a position or an attitude that nothing reads."""
+        if fields is not None and fields.isdisjoint(LOOKED_AT):
+            reads = crew.wake.reads  # (after the run: nothing, and the loop polls)
+            if reads is not None:
+                names = reads.get(crew.flights[number].vehicle.vehicle_id, ())
+                if names is not None and fields.isdisjoint(names):
+                    return
+        if crew.lookout is not None:
+            crew.lookout.stir(number)
+        self.wake.set()
+
+    def _fly_on(self) -> None:
+        """Wake after wake until every interpreter has ended, or the run is stopped."""
         while any(c.running for c in self.crews):
             running, at = [c for c in self.crews if c.running], self.clock()
             if all(c.rest_until > at for c in running):
@@ -445,11 +493,6 @@ class Runner:
                     self._tick(crew, now)
             if self.on_update is not None:
                 self.on_update(self)
-        self._close_controls()
-        self._settle()
-        return self._end(Outcome(tuple(
-            VehicleOutcome(f.vehicle.vehicle_id, c.engine.status, c.engine.reason, f.cause)
-            for c in self.crews for f in c.flights)))
 
     def _progress(self, crew: _Crew) -> Progress | None:
         """Where the interrupted run left the mission of ``crew`` (one vehicle), if resumed."""
@@ -598,7 +641,10 @@ class Runner:
         taken: list[_Flight] = []
         changed = False
         reads = crew.wake.reads
-        for flight in crew.flights:
+        lookout = crew.lookout
+        flights = crew.flights if lookout is None else [crew.flights[n]
+                                                         for n in lookout.due(now)]
+        for flight in flights:
             vehicle = flight.vehicle
             found = vehicle.poll()
             revision = None if flight.revision_of is None else flight.revision_of()
@@ -624,7 +670,10 @@ class Runner:
                                    request_id=result.request_id, ok=result.ok,
                                    reason=result.reason, detail=result.detail)
             if now >= flight.next_telemetry:
-                flight.next_telemetry = now + self.options.telemetry_period
+                # Every line of a fleet due at the same wake made one wake look at every
+                # vehicle once a period: the second line of each comes its share later.
+                flight.next_telemetry = now + self.options.telemetry_period * (
+                    1.0 + (flight.spread if flight.next_telemetry == -math.inf else 0.0))
                 self.journal.write(now, "telemetry", vehicle.vehicle_id,
                                    **telemetry_fields(state))
                 self._tell_rejected(flight, now)
@@ -642,6 +691,10 @@ class Runner:
                 taken.append(flight)
             flight.settled = not (pending or revision is None or flight.lost
                                   or flight.lost_since is not None)
+            if lookout is not None:
+                lookout.looked(crew.numbers[vehicle.vehicle_id],
+                               min(flight.refresh_at, flight.next_telemetry),
+                               not flight.settled)
         for flight in taken:
             self._taken(crew, flight, now)
         for flight in lost:
@@ -748,6 +801,8 @@ class Runner:
                             flight.state is not None and flight.state.link == "lost")
         for request in output.requests:
             vehicles[request.vehicle_id].submit(request)
+            if crew.lookout is not None:  # what it asked shows in its next state
+                crew.lookout.stir(crew.numbers[request.vehicle_id])
 
     def _abort_all(self, now: float, reason: str, cause: str) -> None:
         for crew in self.crews:

@@ -11,9 +11,11 @@ line parser goes below ``tml/commands``) and opens a :class:`Session` with
    per ``--connect`` address, each waited for (``timeout``) and its vehicle found: the
    one it hears, or those named by system id (``--sysid``); a link that hears several
    vehicles when none is named is :class:`SeveralVehicles`, never a guess;
-2. wakes whoever flies them on every message that changes what a vehicle shows and on
-   every request result: its own :attr:`Session.wake` flag (one runner), or ``notify``
-   (a service whose runs each have their own);
+2. wakes whoever waits for a request's result when it comes: its own
+   :attr:`Session.wake` flag (one runner), or ``notify`` (a service whose runs each have
+   their own). A runner is woken by its vehicles' changes itself, only by those of the
+   fields something reads (:meth:`tml.mavlink.adapter.MavlinkVehicle.watch`,
+   :mod:`tml.run.lookout`);
 3. clears a mission for flight before anything is sent (:meth:`Session.clear`, by the
    rules of :mod:`tml.run.clearance`, which ``tml serve`` clears its runs with too): the
    actions the vehicles cannot do at all, the vehicles' own reaction to a lost ground
@@ -375,7 +377,6 @@ def open_session(options: SessionOptions, world: World, errors: Console | None =
             if options.fenced:
                 link.gate = lambda _target: False
             stack.enter_context(link)
-            link.on_change(lambda _system_id: news())
             if not system_id and errors is not None and not options.quiet:
                 # Said once: pymavlink's own retry messages are kept from the terminal.
                 errors.print(f"{options.program}: waiting up to {options.timeout:g} s for a "

@@ -9,10 +9,11 @@ run asks for, or none of them when one is already held (:class:`VehicleTaken`, w
 API answers with 409), and :meth:`Hangar.release` frees them when the run has ended and
 its vehicles are safe.
 
-Each run's loop sleeps on its own event between steps. The links call :meth:`Hangar.notify`
-on every message that changes what a vehicle shows and on every request result, which
-wakes every run at once (the runner's ``wake``), so an event still reacts to the message
-that made it true.
+Each run's loop sleeps on its own event between steps. The vehicles call
+:meth:`Hangar.notify` on every request result, which wakes every run at once (the runner's
+``wake``, and an operator's command waiting for its answer); a run's own vehicles wake it
+on every change of a field it reads (:meth:`tml.mavlink.adapter.MavlinkVehicle.watch`), so
+an event still reacts to the message that made it true.
 :meth:`Hangar.wait` is how a run's loop waits; a hangar of fake vehicles for the tests
 moves its vehicles there instead, with its own clock.
 """

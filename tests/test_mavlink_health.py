@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 
+import pytest
+
 from tml.mavlink.health import DEGRADED_LOSS, LinkHealth
 
 
@@ -47,6 +49,19 @@ def test_a_vehicle_that_falls_silent_degrades_then_is_lost() -> None:
     assert health.state(11.0) == "ok"
     assert health.state(13.0) == "degraded"  # 3 s since the HEARTBEAT at 10 s
     assert health.state(15.5) == "lost"
+
+
+def test_calm_says_when_silence_alone_changes_the_health() -> None:
+    health = LinkHealth()
+    stream(health, 0.0, 10.0)  # the last HEARTBEAT at 10 s
+    for now in (10.5, 12.0, 13.0, 14.9, 16.0):
+        calm = health.calm(now)
+        # Nothing changes before now + calm, and something does just after it.
+        assert health.state(now + calm - 1e-6) == health.state(now)
+        assert health.state(now + calm + 1e-6) != health.state(now) or calm == math.inf
+    assert health.calm(11.0) == pytest.approx(1.5)  # degraded 2.5 s after the HEARTBEAT
+    assert health.calm(13.0) == pytest.approx(2.0)  # then lost 5 s after it
+    assert health.calm(16.0) == math.inf  # lost: only a message changes it
 
 
 def test_heartbeats_missing_from_a_stream_that_goes_on_degrade_the_link() -> None:

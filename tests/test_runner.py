@@ -678,6 +678,52 @@ def test_in_a_fleet_a_wake_looks_only_at_the_vehicles_that_changed() -> None:
     assert outcome.exit_code is ExitCode.OK
 
 
+class Calm(Watched):
+    """A watched fake that also says how long time alone changes nothing of its state."""
+
+    quiet = 3.0
+
+    def calm(self) -> float:
+        return self.quiet
+
+
+def test_a_vehicle_whose_time_changes_nothing_is_not_refreshed_before_it_says() -> None:
+    vehicle = Calm(drain_per_second=0.0)
+    sim = Sim(vehicle)
+    reads: dict[float, int] = {}
+
+    def count(sim: Sim) -> None:
+        if sim.time in (8.0, 9.9, 14.0):
+            reads[sim.time] = vehicle.reads
+    sim.hooks.append(count)
+    Runner(mission(TAKE_OFF + HOVER, LOW_BATTERY), [vehicle], clock=sim.clock,
+           options=RunOptions(refresh=0.25, telemetry_period=1000.0), journal=Journal(None),
+           wait=sim.wait).run()
+    assert reads[9.9] - reads[8.0] <= 1  # not every 0.25 s: at most once in 3 s
+    assert reads[14.0] - reads[8.0] >= 1  # but once its calm is over
+
+
+def test_the_display_shows_what_the_vehicle_shows_even_when_no_look_needed_it() -> None:
+    vehicle = Calm(drain_per_second=0.0)
+    sim = Sim(vehicle)
+    shown: dict[float, object] = {}
+
+    def push(sim: Sim) -> None:
+        if sim.time == 8.0:  # nothing reads a hovering vehicle's position
+            vehicle.position = (3.0, 0.0, vehicle.position[2])
+            vehicle.tell(frozenset({"position"}))
+
+    def update(runner: Runner) -> None:
+        if sim.time in (7.9, 8.0):
+            (_, state), = runner.views()
+            shown[sim.time] = state.position if state is not None else None
+    sim.hooks.append(push)
+    runner = Runner(mission(TAKE_OFF + HOVER), [vehicle], clock=sim.clock, options=QUIET,
+                    journal=Journal(None), wait=sim.wait, on_update=update)
+    runner.run()
+    assert shown[7.9][0] < 0.5 and shown[8.0][0] > 2.0  # type: ignore[index]
+
+
 def test_each_change_of_the_link_is_journaled_when_a_wake_sees_it() -> None:
     class Flaky(FakeVehicle):
         """Silent from 2.2 s: degraded, then lost from 3 s, back at 4 s."""

@@ -148,7 +148,9 @@ Clock = Callable[[], float]
 
 SHOWN_BY: Mapping[str, frozenset[str]] = MappingProxyType({
     kind: frozenset(names) for kind, names in {
-        "HEARTBEAT": ("armed", "mode", "landed", "prearm", "taken", "vehicle_type"),
+        # (A mission's progress ends when the vehicle is seen disarmed: see state.)
+        "HEARTBEAT": ("armed", "mode", "landed", "prearm", "taken", "vehicle_type",
+                      "mission"),
         "GLOBAL_POSITION_INT": ("position", "ground_speed", "climb"),
         "HOME_POSITION": ("home", "position"),
         "ATTITUDE": ("heading", "heading_known"),
@@ -458,6 +460,20 @@ class MavlinkVehicle:
         # the vehicle climbing, judged disarmed on the ground.
         times = [self._vital_at[name] for name in VITAL if name in self._vital_at]
         return min(times) if times else -math.inf
+
+    def calm(self) -> float:
+        """Seconds from now in which time alone changes nothing :meth:`state` shows (the
+        link's health while nothing arrives, a detection's hold running out): whatever
+        else changes it is told to the watchers (:meth:`watch`)."""
+        quiet = self.health.calm(self.link_clock())
+        if self._seen:
+            now = self.clock()
+            with self._lock:
+                for when in self._seen.values():
+                    left = when + self.detection_hold - now
+                    if left >= 0.0:
+                        quiet = min(quiet, left)
+        return quiet
 
     def _shows_current(self, now: float) -> bool:
         """Whether :meth:`state` shows ``current`` at ``now``."""

@@ -81,6 +81,16 @@ class LinkHealth:
         latest = self._latest_stamp + max(0.0, self._arrived_at - self._stamp_arrived_at)
         return max(0.0, latest - self._heartbeat_stamp) + max(0.0, now - self._arrived_at)
 
+    def calm(self, now: float) -> float:
+        """Seconds from ``now`` in which :meth:`state` stays as it is if nothing arrives:
+        until the silence passes ``degraded_after``, then ``lost_after``; infinite once
+        lost (only a message changes it then)."""
+        age = self.silence(now)
+        for limit in (self.degraded_after, self.lost_after):
+            if age <= limit:
+                return limit - age
+        return math.inf
+
     def state(self, now: float) -> str:
         """``ok``, ``degraded`` or ``lost`` at ``now``."""
         age = self.silence(now)

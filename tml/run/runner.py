@@ -16,7 +16,16 @@ MavlinkVehicle`: it changes with every message that changes what the vehicle sho
 state rebuilt only when that changed, when it has results, when its telemetry line is due,
 or ``refresh`` seconds after the last time (what time alone changes: the link's health,
 detections held for a while); a vehicle with none of these, whose last look left nothing to
-follow (no lost link being timed, no take-over to handle), is passed over at once. An
+follow (no lost link being timed, no take-over to handle), is passed over at once. A vehicle
+that also tells *when* it changes, and which fields (``watch``, as MavlinkVehicle does), is
+not even visited then: it wakes the loop itself, from the thread that saw the change, only
+for a change of a field its interpreter reads (or the runner: its link, a take-over, its
+messages, a reboot), and a wake looks at those vehicles and at those whose own time came
+(:mod:`tml.run.lookout`); one that says how long time alone changes nothing of its state
+(``calm``) is refreshed then rather than every ``refresh`` seconds. A fleet's positions
+change with every message, and nothing but the display reads them while it hovers: the
+display is given the state each vehicle shows now (:meth:`Runner.views`), built apart from
+the looks, whose changes the interpreter must see. An
 interpreter is stepped when results came, a vehicle was
 lost, a field of a vehicle's state it reads changed, or at the time it waits for -- after
 each call it says what it waits for (:meth:`tml.engine.Interpreter.wake`, see
@@ -232,6 +241,11 @@ class _Flight:
         # MavlinkVehicle.watch); None: it cannot.
         self.watch: Callable[[Callable[[frozenset[str] | None], None]],
                              Callable[[], None]] | None = getattr(vehicle, "watch", None)
+        # How long time alone changes nothing of its state (MavlinkVehicle.calm): a vehicle
+        # that tells every other change is looked at again then, not every ``refresh`` s.
+        self.calm: Callable[[], float] | None = getattr(vehicle, "calm", None) \
+            if self.watch is not None else None
+        self.shown: tuple[object, VehicleState] | None = None  # (revision, state) displayed
         self.refresh_at = -math.inf  # when the state is rebuilt however the revision stands
         # The last look left nothing to follow up (no lost link to time, no take-over to
         # handle): until its refresh or telemetry line is due, a wake with no result and
@@ -406,7 +420,7 @@ class Runner:
         views: list[tuple[View, VehicleState | None]] = []
         for crew in self.crews:
             found = crew.engine.views(self.clock())
-            views.extend((found[f.vehicle.vehicle_id], f.state) for f in crew.flights)
+            views.extend((found[f.vehicle.vehicle_id], _shown(f)) for f in crew.flights)
         return views
 
     # --- the loop ----------------------------------------------------------------------------
@@ -658,7 +672,8 @@ class Runner:
                     or flight.state is None):
                 before, state = flight.state, vehicle.state()
                 flight.state, flight.revision = state, revision
-                flight.refresh_at = now + self.options.refresh
+                flight.refresh_at = now + (self.options.refresh if flight.calm is None
+                                           else max(self.options.refresh, flight.calm()))
                 if not changed and state is not before:
                     changed = before is None or not same_state(
                         before, state, fields_read(reads, vehicle.vehicle_id))
@@ -941,6 +956,20 @@ class Runner:
         if self.on_safety is not None:
             self.on_safety(message)
 
+
+
+def _shown(flight: _Flight) -> VehicleState | None:
+    """A vehicle's latest state for the display. A look waits for a change of a field
+    something reads (or the vehicle's own time): the display gets the state the vehicle
+    shows now, built apart from the looks' (whose changes the interpreter must see)."""
+    if flight.state is None or flight.calm is None or flight.revision_of is None:
+        return flight.state
+    revision = flight.revision_of()
+    if revision == flight.revision:
+        return flight.state
+    if flight.shown is None or flight.shown[0] != revision:
+        flight.shown = (revision, flight.vehicle.state())
+    return flight.shown[1]
 
 
 def _idle(vehicle: Any) -> bool:

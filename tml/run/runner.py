@@ -460,6 +460,9 @@ class Runner:
         now = self.clock()
         for flight in self.flights:
             flight.state = flight.vehicle.state()
+            # The state the mission starts from: a look later in this instant may already
+            # show what its first requests did, or not, as the threads happen to run.
+            self._telemetry(flight, flight.state, now)
         for crew in self.crews:
             self._guarded(crew, now, partial(crew.engine.start, now, crew.states(),
                                              self._progress(crew)))
@@ -685,13 +688,7 @@ class Runner:
                                    request_id=result.request_id, ok=result.ok,
                                    reason=result.reason, detail=result.detail)
             if now >= flight.next_telemetry:
-                # Every line of a fleet due at the same wake made one wake look at every
-                # vehicle once a period: the second line of each comes its share later.
-                flight.next_telemetry = now + self.options.telemetry_period * (
-                    1.0 + (flight.spread if flight.next_telemetry == -math.inf else 0.0))
-                self.journal.write(now, "telemetry", vehicle.vehicle_id,
-                                   **telemetry_fields(state))
-                self._tell_rejected(flight, now)
+                self._telemetry(flight, state, now)
             self._tell_link(flight, state, now)
             if state.link == "lost":
                 flight.lost_since = now if flight.lost_since is None else flight.lost_since
@@ -730,6 +727,16 @@ class Runner:
             ended = self.clock()
             crew.rest_until = ended + STEP_REST * (ended - now)
             crew.rest_for = STEP_REST * (self.timebase.now() - began)
+
+    def _telemetry(self, flight: _Flight, state: VehicleState, now: float) -> None:
+        """The vehicle's telemetry line, and when its next is due."""
+        # Every line of a fleet due at the same wake made one wake look at every vehicle
+        # once a period: the second line of each comes its share of a period later.
+        flight.next_telemetry = now + self.options.telemetry_period * (
+            1.0 + (flight.spread if flight.next_telemetry == -math.inf else 0.0))
+        self.journal.write(now, "telemetry", flight.vehicle.vehicle_id,
+                           **telemetry_fields(state))
+        self._tell_rejected(flight, now)
 
     def _taken(self, crew: _Crew, flight: _Flight, now: float) -> None:
         """Someone else switched the vehicle's mode (see tml.mavlink.modes.ModeWatch): its

@@ -148,9 +148,10 @@ Clock = Callable[[], float]
 
 SHOWN_BY: Mapping[str, frozenset[str]] = MappingProxyType({
     kind: frozenset(names) for kind, names in {
-        # (A mission's progress ends when the vehicle is seen disarmed: see state.)
+        # (A mission's progress ends when the vehicle is seen disarmed, and a ground
+        # vehicle's position has no altitude: see state.)
         "HEARTBEAT": ("armed", "mode", "landed", "prearm", "taken", "vehicle_type",
-                      "mission"),
+                      "mission", "position"),
         "GLOBAL_POSITION_INT": ("position", "ground_speed", "climb"),
         "HOME_POSITION": ("home", "position"),
         "ATTITUDE": ("heading", "heading_known"),

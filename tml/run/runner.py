@@ -969,8 +969,8 @@ def _shown(flight: _Flight) -> VehicleState | None:
     """A vehicle's latest state for the display. A look waits for a change of a field
     something reads (or the vehicle's own time): the display gets the state the vehicle
     shows now, built apart from the looks' (whose changes the interpreter must see)."""
-    if flight.state is None or flight.calm is None or flight.revision_of is None:
-        return flight.state
+    if flight.state is None or flight.watch is None or flight.revision_of is None:
+        return flight.state  # (a vehicle that tells nothing is looked at at every change)
     revision = flight.revision_of()
     if revision == flight.revision:
         return flight.state

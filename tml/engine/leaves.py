@@ -41,12 +41,7 @@ from tml.language.actions import BoundAction, Category, bind
 from tml.language.failures import FailureReason
 from tml.language.model import Action, Task
 from tml.patterns import survey
-from tml.vehicle import SHOWN_FIELDS, FlyMission, Hold, Request, RequestResult
-
-UNTIL_READS = frozenset(SHOWN_FIELDS)
-"""What an :class:`~tml.engine.scripts.Until` that does not say (its ``reads`` None) reads of
-its vehicle's state: any field that says what the vehicle shows, and whether the picture is
-newer than the latest request (``current``, which no compared field tells)."""
+from tml.vehicle import FlyMission, Hold, Request, RequestResult
 
 
 class Leaf(Node):
@@ -298,8 +293,7 @@ class ActionLeaf(Leaf):
                 waker.by(self.since + wait.seconds)
             elif isinstance(wait, Until):
                 waker.by(self.since + wait.limit)
-                waker.state(self.vehicle_id, UNTIL_READS if wait.reads is None
-                            else wait.reads)
+                waker.state(self.vehicle_id, wait.reads)
             elif wait is None:
                 waker.anything()
             # Send: only its answer moves a request on.

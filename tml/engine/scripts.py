@@ -46,6 +46,7 @@ from tml.patterns import (
     survey,
 )
 from tml.vehicle import (
+    SHOWN_FIELDS,
     Arm,
     Camera,
     Circle,
@@ -83,18 +84,24 @@ class Send:
     request: Request
 
 
+UNTIL_READS = frozenset(SHOWN_FIELDS)
+"""What an :class:`Until` that does not say reads of its vehicle's state: any field that
+says what the vehicle shows, and whether the picture is newer than the latest request
+(``current``, which no compared field tells)."""
+
+
 @dataclass(frozen=True)
 class Until:
     """Wait until ``predicate(state)`` holds; fail with ``timeout`` after ``limit`` s.
-    ``reads``: the fields of the state the predicate reads (``current`` is judged too);
-    None: any (:data:`tml.engine.leaves.UNTIL_READS`). The wait is looked at again only
-    when one of them changes, or at its limit (:mod:`tml.engine.wake`)."""
+    ``reads``: the fields of the state the predicate reads (``current`` is judged too;
+    by default :data:`UNTIL_READS`). The wait is looked at again only when one of them
+    changes, or at its limit (:mod:`tml.engine.wake`)."""
 
     predicate: Callable[[VehicleState], bool]
     limit: float
     what: str
     progress: Callable[[VehicleState], float] | None = None
-    reads: frozenset[str] | None = None
+    reads: frozenset[str] = UNTIL_READS
 
 
 @dataclass(frozen=True)

@@ -223,6 +223,7 @@ class _Flight:
         self.lost = False  # reported to the engine
         self.next_telemetry = -math.inf  # when its next telemetry line is due
         self.spread = 0.0  # its share of a period by which its lines come after the first
+        self.number = 0  # its place in its crew (tml.run.lookout numbers them so)
         self.cause = ""
         self.messages_told = 0  # the number of the last autopilot message journaled
         self.rejected_told = 0  # absurd telemetry messages journaled so far
@@ -273,9 +274,9 @@ class _Crew:
         # wake walks them all).
         self.lookout = Lookout(len(flights)) if all(f.watch is not None for f in flights) \
             else None
-        self.numbers = {f.vehicle.vehicle_id: n for n, f in enumerate(flights)}
+        self.by_id = {f.vehicle.vehicle_id: f for f in flights}
         for number, flight in enumerate(flights):
-            flight.spread = number / len(flights)
+            flight.number, flight.spread = number, number / len(flights)
 
     @property
     def running(self) -> bool:
@@ -429,9 +430,9 @@ class Runner:
         """Fly until every interpreter has ended; return how it went."""
         # A vehicle that tells its changes wakes the loop itself (see _stirred), from the
         # first look at it to the last.
-        unwatch = [flight.watch(partial(self._stirred, crew, number))
-                   for crew in self.crews
-                   for number, flight in enumerate(crew.flights) if flight.watch is not None]
+        unwatch = [flight.watch(partial(self._stirred, crew, flight))
+                   for crew in self.crews for flight in crew.flights
+                   if flight.watch is not None]
         try:
             with self.timebase.taking_part():
                 return self._run()
@@ -475,7 +476,7 @@ class Runner:
             VehicleOutcome(f.vehicle.vehicle_id, c.engine.status, c.engine.reason, f.cause)
             for c in self.crews for f in c.flights)))
 
-    def _stirred(self, crew: _Crew, number: int, fields: frozenset[str] | None) -> None:
+    def _stirred(self, crew: _Crew, flight: _Flight, fields: frozenset[str] | None) -> None:
         """A vehicle of ``crew`` changed, in ``fields`` (None: any; told from the thread
         that saw it). A change of fields neither the interpreter nor the runner reads
         waits for the vehicle's own time (its state's refresh, its telemetry line): in a
@@ -483,11 +484,11 @@ class Runner:
         if fields is not None and fields.isdisjoint(LOOKED_AT):
             reads = crew.wake.reads  # (after the run: nothing, and the loop polls)
             if reads is not None:
-                names = reads.get(crew.flights[number].vehicle.vehicle_id, ())
+                names = reads.get(flight.vehicle.vehicle_id, ())
                 if names is not None and fields.isdisjoint(names):
                     return
         if crew.lookout is not None:
-            crew.lookout.stir(number)
+            crew.lookout.stir(flight.number)
         self.wake.set()
 
     def _fly_on(self) -> None:
@@ -704,8 +705,7 @@ class Runner:
             flight.settled = not (pending or revision is None or flight.lost
                                   or flight.lost_since is not None)
             if lookout is not None:
-                lookout.looked(crew.numbers[vehicle.vehicle_id],
-                               min(flight.refresh_at, flight.next_telemetry),
+                lookout.looked(flight.number, min(flight.refresh_at, flight.next_telemetry),
                                not flight.settled)
         for flight in taken:
             self._taken(crew, flight, now)
@@ -807,24 +807,23 @@ class Runner:
         self._dispatch(crew, output)
 
     def _dispatch(self, crew: _Crew, output: Output) -> None:
-        vehicles = {f.vehicle.vehicle_id: f.vehicle for f in crew.flights}
         for record in output.records:
             self.journal.write(record.time, record.kind, record.vehicle_id, record.data)
             if record.kind == "safety":
                 self._said(f"vehicle {record.vehicle_id}: {record.data['message']}")
         for record in output.records:
-            if record.kind == "safety" and record.vehicle_id is not None:
-                for flight in crew.flights:
-                    if flight.vehicle.vehicle_id == record.vehicle_id:
-                        flight.safe_asked = True
-                        flight.safe_request = str(record.data.get("request", ""))
-                        # Sent into a dead link: again once the vehicle is heard.
-                        flight.unheard = flight.unheard or (
-                            flight.state is not None and flight.state.link == "lost")
+            if record.kind == "safety" and record.vehicle_id in crew.by_id:
+                flight = crew.by_id[record.vehicle_id]
+                flight.safe_asked = True
+                flight.safe_request = str(record.data.get("request", ""))
+                # Sent into a dead link: again once the vehicle is heard.
+                flight.unheard = flight.unheard or (
+                    flight.state is not None and flight.state.link == "lost")
         for request in output.requests:
-            vehicles[request.vehicle_id].submit(request)
+            flight = crew.by_id[request.vehicle_id]
+            flight.vehicle.submit(request)
             if crew.lookout is not None:  # what it asked shows in its next state
-                crew.lookout.stir(crew.numbers[request.vehicle_id])
+                crew.lookout.stir(flight.number)
 
     def _abort_all(self, now: float, reason: str, cause: str) -> None:
         for crew in self.crews:

@@ -350,7 +350,6 @@ def open_session(options: SessionOptions, world: World, errors: Console | None =
     timebase: Timebase = Lockstep() if options.sim and options.lockstep else SYSTEM
     wake = Flag(timebase)
     key = signing_key(options.signing_key_file)
-    news = notify or wake.set
     # In lock-step the opening, the pre-flight checks and the run take part in the
     # simulator's time (tml.timebase): it moves on only while this thread waits for it.
     # Closing (the stack, left after) does not: the workers finish with time moving.
@@ -394,7 +393,8 @@ def open_session(options: SessionOptions, world: World, errors: Console | None =
                 vehicle = MavlinkVehicle(
                     link, sid, clock=clock, world=world,
                     vehicle_id=len(vehicles) + 1 if not options.sim else sid,
-                    connect_timeout=options.timeout, on_result=news, link_clock=link_clock)
+                    connect_timeout=options.timeout, on_result=notify or wake.set,
+                    link_clock=link_clock)
                 stack.callback(vehicle.close)
                 if not options.fenced:
                     vehicle.prepare()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import socket
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -90,6 +91,51 @@ def test_a_connection_let_go_of_is_not_touched_again() -> None:
     reactor.unserve(kept, loop)
     for p in (kept, dropped):
         p.close()
+
+
+def test_the_reactor_gives_way_between_turns_to_a_thread_with_the_right_of_way(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr("tml.timebase.GIVE_WAY_LIMIT", 600.0)
+    timebase = Timebase()
+    first, second = Pipe(period=60.0), Pipe(period=60.0)
+    loop = reactor.serve(first, timebase)
+    reactor.serve(second, timebase)
+    until(lambda: first.duties_done >= 1 and second.duties_done >= 1)  # then none for 60 s
+    release, holding = threading.Event(), threading.Event()
+
+    def go_first() -> None:
+        with timebase.right_of_way():
+            holding.set()
+            release.wait(60)
+
+    holder = threading.Thread(target=go_first)
+    holder.start()
+    assert holding.wait(30)
+    first.far.sendall(b"1")
+    until(lambda: first.read == [b"1"])
+    second.far.sendall(b"2")
+    time.sleep(0.05)  # the loop's next rounds, had it not given way after the first's turn
+    assert second.read == []
+    release.set()
+    until(lambda: second.read == [b"2"])
+    holder.join(30)
+    for p in (first, second):
+        reactor.unserve(p, loop)
+        p.close()
+
+
+def test_the_interpreter_lock_is_handed_over_sooner_while_a_reactor_runs() -> None:
+    before = sys.getswitchinterval()
+    pipe = Pipe()
+    loop = reactor.serve(pipe, Timebase())
+    thread = loop.thread
+    assert thread is not None
+    assert sys.getswitchinterval() == min(before, reactor.SWITCH_INTERVAL)
+    reactor.unserve(pipe, loop)
+    pipe.close()
+    thread.join(30)
+    assert not thread.is_alive()
+    assert sys.getswitchinterval() == before  # (another reactor still running: its value)
 
 
 def test_a_connection_with_much_to_read_lets_the_others_have_their_turn() -> None:

@@ -909,6 +909,55 @@ def test_a_change_alone_steps_again_only_after_the_rest_a_long_step_earns() -> N
     assert slept and max(slept) <= 0.02 + 1e-9
 
 
+def test_the_runner_looks_steps_and_asks_with_the_right_of_way() -> None:
+    # Its turn is done in one piece: the thread reading the links gives way meanwhile
+    # (tml.timebase.Timebase.right_of_way), from the look to the requests it submits.
+    import contextlib
+    from collections.abc import Iterator
+
+    from tml.timebase import Timebase
+
+    sim = Sim(FakeVehicle())
+    holding = [False]
+    seen: list[tuple[str, bool]] = []
+
+    class Watched(Timebase):
+        @contextlib.contextmanager
+        def right_of_way(self) -> Iterator[None]:
+            holding[0] = True
+            try:
+                yield
+            finally:
+                holding[0] = False
+
+    vehicle = sim.vehicles[0]
+    state, submit = vehicle.state, vehicle.submit
+
+    def looked():  # type: ignore[no-untyped-def]
+        seen.append(("look", holding[0]))
+        return state()
+
+    def asked(request):  # type: ignore[no-untyped-def]
+        seen.append(("ask", holding[0]))
+        submit(request)
+    vehicle.state = looked  # type: ignore[method-assign]
+    vehicle.submit = asked  # type: ignore[method-assign]
+    runner = Runner(mission(TAKE_OFF + LAND), sim.vehicles, clock=sim.clock,
+                    wait=sim.wait, timebase=Watched())
+    engine = runner.crews[0].engine
+    step = engine.step
+
+    def stepped(now, states, results):  # type: ignore[no-untyped-def]
+        seen.append(("step", holding[0]))
+        return step(now, states, results)
+    engine.step = stepped  # type: ignore[method-assign]
+    assert runner.run().exit_code == ExitCode.OK
+    flying = seen[seen.index(("step", True)):]  # the start is stepped before the loop
+    assert {kind for kind, _ in flying} == {"look", "step", "ask"}
+    assert all(held for kind, held in flying if kind in ("step", "ask"))
+    assert sum(held for kind, held in flying if kind == "look") > 1
+
+
 def test_a_wait_is_stepped_at_its_end_and_when_what_an_event_reads_changes() -> None:
     # During a 30 s WAIT the battery falls at every wake, which no rule of this mission
     # reads: the interpreter is not stepped for it (tml.engine.wake). A detection an

@@ -69,11 +69,28 @@ it, but a thread told to stop (a link closed) notices within that time."""
 SIGNAL_SLICE = 0.2
 """Wall seconds the main thread waits at most at once (see :meth:`Timebase.wait`)."""
 
+GIVE_WAY_LIMIT = 0.1
+"""Wall seconds a thread giving way (:meth:`Timebase.give_way`) waits at most for one
+stretch of right of way: a slow turn (a disk that takes its time to sync) delays it no more."""
+
+
+class _RightOfWay:
+    """Threads that have the right of way, and a condition to wait for them to be done."""
+
+    def __init__(self) -> None:
+        self.cond = threading.Condition(threading.Lock())
+        self.holders = 0
+        self.stretch = 0  # counts the stretches with a holder
+        self.outlasted = 0  # the last stretch that outlasted GIVE_WAY_LIMIT: no more waits
+
 
 class Timebase:
     """The system's time: :func:`time.monotonic` and ordinary waits."""
 
     lockstep = False
+
+    def __init__(self) -> None:
+        self._way = _RightOfWay()
 
     def now(self) -> float:
         """Seconds of this time base."""
@@ -128,6 +145,49 @@ class Timebase:
         """Count the calling thread among those whose work comes before time moves on."""
         yield
 
+    @contextlib.contextmanager
+    def right_of_way(self) -> Iterator[None]:
+        """Let the calling thread's work go first: a thread that calls :meth:`give_way`
+        meanwhile waits until it is done.
+
+        Two busy threads of one process take Python's interpreter lock in turn, each for
+        a few milliseconds at a time (:func:`sys.setswitchinterval`). The runner's turn
+        after a vehicle's event (its look, its step, its requests) would be spread over
+        the link thread's reading of a whole burst of telemetry; with the right of way it
+        is done in one piece, and the reading goes on after it.
+        """
+        way = self._way
+        with way.cond:
+            if not way.holders:
+                way.stretch += 1
+            way.holders += 1
+        try:
+            yield
+        finally:
+            with way.cond:
+                way.holders -= 1
+                if not way.holders:
+                    way.cond.notify_all()
+
+    def give_way(self) -> None:
+        """Wait while a thread has the right of way (:meth:`right_of_way`), at most
+        :data:`GIVE_WAY_LIMIT` wall seconds in one stretch of it; return at once otherwise.
+
+        A thread that gives way holds no lock the one with the right of way could need.
+        The wait is on the wall clock, outside this time base: in lock-step, time does not
+        move on meanwhile, as for any thread taking part that has work."""
+        way = self._way
+        if not way.holders:  # nearly always: read without the lock, a stretch missed is harmless
+            return
+        with way.cond:
+            stretch, deadline = way.stretch, time.monotonic() + GIVE_WAY_LIMIT
+            while way.holders and way.stretch == stretch and way.outlasted != stretch:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    way.outlasted = stretch
+                    return
+                way.cond.wait(left)
+
 
 SYSTEM = Timebase()
 """The time of real vehicles."""
@@ -167,6 +227,7 @@ class Lockstep(Timebase):
     lockstep = True
 
     def __init__(self, stall_after: float = 5.0) -> None:
+        super().__init__()
         self.stall_after = stall_after
         self.stalls = 0
         """Times time moved on before every thread taking part waited (0 when all is well)."""

@@ -12,6 +12,17 @@ reads it carries out each owner's *duties* when they are due (heartbeats, the lo
 the redial of a TCP vehicle gone away): an owner says when its next duty is, and the loop
 keeps the owners in a heap by that time.
 
+*Right of way.* Between two owners' turns the loop gives way to a thread that asked to go
+first (:meth:`tml.timebase.Timebase.right_of_way`: the runner, for its turn after a change):
+its turn is then done in one piece instead of in slices between the loop's.
+
+*Hand-overs.* The loop's thread is busy whenever telemetry comes in bursts, and a thread
+woken meanwhile (a vehicle's worker with a request to send) waits for the interpreter lock
+until the loop's thread has held it for Python's switch interval. While a reactor runs, that
+interval is :data:`SWITCH_INTERVAL` (1 ms instead of 5; restored after the last reactor):
+a request goes out within milliseconds of its step even in a fleet's busiest second, for a
+few more hand-overs of the lock (docs/performance.md measures both).
+
 *Fairness.* An owner handles at most :data:`MESSAGES_AT_ONCE` messages in one turn; one that
 may have more (its parser holds whole messages already read from the socket, which the
 socket no longer shows) is served again in the next round without waiting, after every other
@@ -51,6 +62,9 @@ IDLE_WAIT = 1.0
 """Seconds the loop waits at most when no duty is due sooner."""
 LET_GO_TIMEOUT = 2.0
 """Wall seconds :func:`unserve` waits for the loop to let go of an owner."""
+SWITCH_INTERVAL = 0.001
+"""Seconds a busy thread keeps Python's interpreter lock from one that waits for it, while a
+reactor runs (instead of the default 0.005; see the module docstring)."""
 THREAD_NAME = "mavlink reactor"
 """The name of the loop's thread (profiles and benchmarks find it by it)."""
 
@@ -121,6 +135,7 @@ class Reactor:
                 self._fail(owner)
                 continue
             self._watch(owner)
+            timebase.give_way()
         wait = IDLE_WAIT if not due else min(due[0][0] - now, IDLE_WAIT)
         if self._more:
             wait = 0.0  # their messages are read already: no waiting for the socket
@@ -144,6 +159,7 @@ class Reactor:
                 self._fail(owner)
                 continue
             self._watch(owner)
+            timebase.give_way()  # a runner woken by this turn's messages goes first
 
     def _take_in(self) -> bool:
         """Take the owners added and let go of those removed; False once none is left
@@ -156,6 +172,7 @@ class Reactor:
             if not adding and not removing and not self._files:
                 _REACTORS.pop(self.timebase, None)
                 self.thread = None
+                _switch_back()
                 self._close()
                 return False
         for owner in adding:
@@ -219,6 +236,23 @@ class Reactor:
 
 _REACTORS: dict[Timebase, Reactor] = {}
 _REGISTRY_LOCK = threading.Lock()
+_running: list[float] = []  # the switch interval before the first of the reactors running
+
+
+def _switch_faster() -> None:
+    """A reactor starts (with _REGISTRY_LOCK held): hand the lock over sooner."""
+    if not _running:
+        _running.append(sys.getswitchinterval())
+        sys.setswitchinterval(min(_running[0], SWITCH_INTERVAL))
+    else:
+        _running.append(_running[0])
+
+
+def _switch_back() -> None:
+    """A reactor ended (with _REGISTRY_LOCK held): the last one restores the interval."""
+    before = _running.pop()
+    if not _running:
+        sys.setswitchinterval(before)
 
 
 def serve(owner: Served, timebase: Timebase) -> Reactor:
@@ -231,6 +265,7 @@ def serve(owner: Served, timebase: Timebase) -> Reactor:
         timebase.announce()  # time waits until the loop has taken the owner in
         if reactor.thread is None:
             timebase.announce()
+            _switch_faster()
             reactor.thread = threading.Thread(target=reactor.run, name=THREAD_NAME,
                                               daemon=True)
             reactor.thread.start()

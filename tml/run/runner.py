@@ -505,10 +505,13 @@ class Runner:
             if self._stop_reason:
                 self._abort_all(now, self._stop_reason, "stop")
                 break
-            self._apply_controls(now)
-            for crew in self.crews:
-                if crew.running:
-                    self._tick(crew, now)
+            # The look, the step and the requests in one piece, not in slices between the
+            # link thread's reading (tml.timebase.Timebase.right_of_way).
+            with self.timebase.right_of_way():
+                self._apply_controls(now)
+                for crew in self.crews:
+                    if crew.running:
+                        self._tick(crew, now)
             if self.on_update is not None:
                 self.on_update(self)
 

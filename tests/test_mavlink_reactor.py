@@ -11,6 +11,7 @@ from typing import Any
 
 import pytest
 
+from tests.right_of_way import held_elsewhere
 from tml.mavlink import reactor
 from tml.timebase import SYSTEM, Lockstep, Timebase
 
@@ -101,24 +102,13 @@ def test_the_reactor_gives_way_between_turns_to_a_thread_with_the_right_of_way(
     loop = reactor.serve(first, timebase)
     reactor.serve(second, timebase)
     until(lambda: first.duties_done >= 1 and second.duties_done >= 1)  # then none for 60 s
-    release, holding = threading.Event(), threading.Event()
-
-    def go_first() -> None:
-        with timebase.right_of_way():
-            holding.set()
-            release.wait(60)
-
-    holder = threading.Thread(target=go_first)
-    holder.start()
-    assert holding.wait(30)
-    first.far.sendall(b"1")
-    until(lambda: first.read == [b"1"])
-    second.far.sendall(b"2")
-    time.sleep(0.05)  # the loop's next rounds, had it not given way after the first's turn
-    assert second.read == []
-    release.set()
+    with held_elsewhere(timebase):
+        first.far.sendall(b"1")
+        until(lambda: first.read == [b"1"])
+        second.far.sendall(b"2")
+        time.sleep(0.05)  # the loop's next rounds, had it not given way after the first's turn
+        assert second.read == []
     until(lambda: second.read == [b"2"])
-    holder.join(30)
     for p in (first, second):
         reactor.unserve(p, loop)
         p.close()

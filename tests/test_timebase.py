@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.right_of_way import held_elsewhere
 from tml import timebase as timebase_module
 from tml.commands.cli import main
 from tml.run.journal import read
@@ -77,47 +78,25 @@ def test_a_thread_giving_way_waits_for_the_one_with_the_right_of_way(
     monkeypatch.setattr(timebase_module, "GIVE_WAY_LIMIT", 600.0)
     for timebase in (Timebase(), Lockstep()):
         timebase.give_way()  # nobody has the right of way: at once
-        holding, release = threading.Event(), threading.Event()
-
-        def first(tb: Timebase, holding: threading.Event, release: threading.Event) -> None:
-            with tb.right_of_way(), tb.right_of_way():  # nested: one stretch
-                holding.set()
-                release.wait(60)
-
-        holder = threading.Thread(target=first, args=(timebase, holding, release))
-        holder.start()
-        assert holding.wait(30)
         giver = threading.Thread(target=timebase.give_way)
-        giver.start()
-        giver.join(0.05)
-        assert giver.is_alive()  # it waits ...
-        release.set()
+        with held_elsewhere(timebase, nested=True):  # nested: one stretch
+            giver.start()
+            giver.join(0.05)
+            assert giver.is_alive()  # it waits ...
         giver.join(30)
         assert not giver.is_alive()  # ... until the right of way is let go of
-        holder.join(30)
 
 
 def test_giving_way_waits_so_long_once_in_a_stretch(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(timebase_module, "GIVE_WAY_LIMIT", 0.01)
-    timebase, release = Timebase(), threading.Event()
-    holding = threading.Event()
-
-    def first() -> None:
-        with timebase.right_of_way():
-            holding.set()
-            release.wait(60)
-
-    holder = threading.Thread(target=first)
-    holder.start()
-    assert holding.wait(30)
-    timebase.give_way()  # the limit: it goes on while the right of way is held
-    monkeypatch.setattr(timebase_module, "GIVE_WAY_LIMIT", 600.0)
-    giver = threading.Thread(target=timebase.give_way)
-    giver.start()
-    giver.join(30)
-    assert not giver.is_alive()  # this stretch outlasted a wait already: no second one
-    release.set()
-    holder.join(30)
+    timebase = Timebase()
+    with held_elsewhere(timebase):
+        timebase.give_way()  # the limit: it goes on while the right of way is held
+        monkeypatch.setattr(timebase_module, "GIVE_WAY_LIMIT", 600.0)
+        giver = threading.Thread(target=timebase.give_way)
+        giver.start()
+        giver.join(30)
+        assert not giver.is_alive()  # this stretch outlasted a wait already: no second one
 
 
 def test_time_waits_for_an_announced_thread_until_it_waits() -> None:

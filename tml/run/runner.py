@@ -37,6 +37,12 @@ A change alone does not step an interpreter again sooner than :data:`STEP_REST` 
 last step's duration after it: in a large fleet some vehicle changes at every wake, and the
 steps take at most half of the process's time, the rest left to reading the links.
 
+*Right of way.* Each turn of the loop after a wake (the controls, the looks, the step, the
+requests) is taken with the time base's right of way
+(:meth:`tml.timebase.Timebase.right_of_way`): the thread reading the links gives way
+between two connections' turns, so that a turn after a vehicle's event is done in one
+piece, not in slices between the reading of a fleet's burst of telemetry.
+
 *The heap.* From the first task to the end, what existed before is kept out of the garbage
 collector's passes (:mod:`tml.run.heap`): a full pass over a large fleet's objects held
 every thread up for tens of milliseconds.

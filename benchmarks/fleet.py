@@ -1,13 +1,15 @@
 """Fleet: one interpreter flying 10, 100, 500 or 1,000 simulated vehicles -- CPU, event delay,
 memory and threads.
 
-Run by hand: ``python benchmarks/fleet.py [--vehicles 10,100,500] [--speedup 1] [--seconds 30]``.
+Run by hand: ``python benchmarks/fleet.py [--vehicles 10,100,500] [--speedup 1] [--seconds 30]
+[--log FILE]``.
 
 For each fleet size N the simulator runs in its own processes (``python -m sitl --vehicles M
 --speedup K --tcp-base-port 0``, ports read from what it prints, all on 127.0.0.1; at most
 250 vehicles in one, since MAVLink numbers a system with one byte), and this process flies
 them as ``tml run --connect`` would: one Link and one MavlinkVehicle per vehicle (numbered
-1..N whatever its system id), and one Runner whose single Interpreter drives them all. The
+1..N whatever its system id), and one Runner whose single Interpreter drives them all
+(with ``--log``, writing its flight log there, every decision synced to the disk). The
 mission, generated below, declares one role with ``count=N`` (every vehicle) flying two
 tasks: take off to 5 m, then hover until an event. The event,
 ``BATTERY_CHARGE_PERCENTAGE < 25``, lands the vehicle.
@@ -48,6 +50,7 @@ and tml's growth from the smallest fleet.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import re
@@ -230,12 +233,14 @@ def param_set(system_id: int, name: str, value: float) -> Any:
                                              mavlink.MAV_PARAM_TYPE_REAL32)
 
 
-def fly(vehicles: int, speedup: float, seconds: float) -> Result:
-    """Fly the generated mission on ``vehicles`` simulated vehicles; measure it."""
+def fly(vehicles: int, speedup: float, seconds: float, log: str | None = None) -> Result:
+    """Fly the generated mission on ``vehicles`` simulated vehicles; measure it (with a
+    flight log written to ``log``, as ``tml run --log`` writes it, if given)."""
     from tml.engine import Options
     from tml.language.validation import validate_file
     from tml.mavlink.adapter import MavlinkVehicle
     from tml.mavlink.link import Link
+    from tml.run.journal import Journal
     from tml.run.runner import Runner, RunOptions
     from tml.timebase import Flag
 
@@ -279,8 +284,9 @@ def fly(vehicles: int, speedup: float, seconds: float) -> Result:
             wakes[0] += 1
             threads[0] = max(threads[0], threading.active_count())
 
+        journal = stack.enter_context(contextlib.closing(Journal.open(log)))
         runner = Runner(mission, fleet, options=RunOptions(engine=Options()), wake=wake,
-                        wait=wait)
+                        wait=wait, journal=journal)
         limit = 120 + 3 * (seconds + 60) / speedup  # wall s: a stuck run is stopped
         trigger = threading.Thread(target=_trigger, daemon=True,
                                    args=([(link, sid) for link, (_, sid) in zip(links, at,
@@ -478,6 +484,9 @@ def main() -> None:
                         help="simulated time this many times faster than real (default 1)")
     parser.add_argument("--seconds", type=float, default=30.0,
                         help="vehicle seconds over which the triggers are spread (default 30)")
+    parser.add_argument("--log", metavar="FILE",
+                        help="write tml's flight log here, as tml run --log does (default: "
+                             "none; each decision of it is synced to the disk)")
     args = parser.parse_args()
     try:
         sizes = [int(n) for n in args.vehicles.split(",")]
@@ -491,7 +500,7 @@ def main() -> None:
     rows: list[tuple[Result, Result]] = []
     for n in sizes:
         try:
-            tml = fly(n, args.speedup, args.seconds)
+            tml = fly(n, args.speedup, args.seconds, args.log)
             bare = peer(n, args.speedup, args.seconds)
         except TmlError as error:  # e.g. a simulator too slow to keep its vehicles' links
             print(f"  {n} vehicles: not measured: {error}", flush=True)

@@ -193,3 +193,42 @@ def test_a_device_is_no_log_to_lock_two_runs_may_share_dev_null() -> None:
     assert (first.lines, second.lines) == (1, 1)
     first.close()
     second.close()
+
+
+def test_decisions_are_synced_line_by_line_or_once_for_a_group(tmp_path, monkeypatch) -> None:
+    synced: list[int] = []  # the lines written at each sync
+    journal = Journal.open(str(tmp_path / "flight.jsonl"))
+    monkeypatch.setattr("tml.run.journal.os.fsync", lambda fd: synced.append(journal.lines))
+    journal.write(1.0, "decision", 1, message="one")
+    journal.write(1.0, "telemetry", 1, battery=50)  # not a decision: flushed, not synced
+    assert synced == [0]  # (counted after the sync)
+    with journal.grouped():
+        journal.write(2.0, "event", 1, event="Low battery")
+        with journal.grouped():  # nested: the outer group syncs
+            journal.write(2.0, "decision", 1, message="land")
+        journal.write(2.0, "request", 1, request="Land")
+        assert synced == [0]  # nothing yet: the caller acts after the group
+    assert synced == [0, 5]  # one sync, with every line of the group written
+    with journal.grouped():
+        journal.write(3.0, "telemetry", 1, battery=40)
+    assert synced == [0, 5]  # no decision in it: no sync
+    journal.close()
+    assert [line["kind"] for line in read(str(tmp_path / "flight.jsonl"))] == [
+        "decision", "telemetry", "event", "decision", "request", "telemetry"]
+
+
+def test_another_threads_decision_is_synced_at_once_during_a_group(tmp_path,
+                                                                   monkeypatch) -> None:
+    import threading
+    synced: list[int] = []
+    journal = Journal.open(str(tmp_path / "flight.jsonl"))
+    monkeypatch.setattr("tml.run.journal.os.fsync", lambda fd: synced.append(journal.lines))
+    with journal.grouped():
+        journal.write(1.0, "decision", 1, message="grouped")
+        other = threading.Thread(target=journal.write, args=(1.0, "control", None),
+                                 kwargs={"message": "paused"})
+        other.start()
+        other.join(30)
+        assert synced == [1]  # the other thread's line, synced as it was written
+    assert synced == [1, 2]
+    journal.close()

@@ -15,7 +15,7 @@ from tml.engine import Status
 from tml.errors import ControlRefused, ExitCode
 from tml.language.failures import FailureReason
 from tml.language.validation import validate_file
-from tml.run.journal import Journal
+from tml.run.journal import DECISIONS, Journal, read
 from tml.run.runner import Runner, RunOptions
 from tml.vehicle import (
     SHOWN_FIELDS,
@@ -956,6 +956,35 @@ def test_the_runner_looks_steps_and_asks_with_the_right_of_way() -> None:
     assert {kind for kind, _ in flying} == {"look", "step", "ask"}
     assert all(held for kind, held in flying if kind in ("step", "ask"))
     assert sum(held for kind, held in flying if kind == "look") > 1
+
+
+def test_a_request_goes_out_after_its_decisions_are_on_the_disk_in_one_sync(
+        tmp_path, monkeypatch) -> None:
+    # A log read back after the machine went down holds every decision the vehicles were
+    # commanded on (tml run --resume); the decisions of one engine call share one sync.
+    sim = Sim(FakeVehicle(vehicle_id=1), FakeVehicle(vehicle_id=2))
+    journal = Journal.open(str(tmp_path / "flight.jsonl"))
+    order: list[tuple[str, int]] = []  # ("sync" | "submit", lines written by then)
+    monkeypatch.setattr("tml.run.journal.os.fsync",
+                        lambda fd: order.append(("sync", journal.lines)))
+    for vehicle in sim.vehicles:
+        submit = vehicle.submit
+
+        def submitted(request, submit=submit):  # type: ignore[no-untyped-def]
+            order.append(("submit", journal.lines))
+            submit(request)
+        vehicle.submit = submitted  # type: ignore[method-assign]
+    runner = Runner(mission(TAKE_OFF + LAND), sim.vehicles, clock=sim.clock,
+                    journal=journal, wait=sim.wait)
+    assert runner.run().exit_code == ExitCode.OK
+    journal.close()
+    submits = [i for i, (what, _) in enumerate(order) if what == "submit"]
+    assert len(submits) >= 4  # take-off and landing of both
+    for i in submits:
+        last_sync = max(j for j in range(i) if order[j][0] == "sync")
+        assert order[last_sync][1] == order[i][1]  # nothing written after it, unsynced
+    decided = sum(line["kind"] in DECISIONS for line in read(str(tmp_path / "flight.jsonl")))
+    assert sum(what == "sync" for what, _ in order) < decided  # grouped, not line by line
 
 
 def test_a_wait_is_stepped_at_its_end_and_when_what_an_event_reads_changes() -> None:

@@ -22,7 +22,8 @@ changes) and ``safety`` (what it did to leave the vehicles safe). docs/run.md li
 fields. Lines are flushed at once, so that a log survives a crash of the run up to its last
 event, and every decision (:data:`DECISIONS`) is synced to the disk too (fsync), so that a
 log read back after the machine itself went down holds every decision taken: ``tml run
---resume`` goes on from it (:mod:`tml.run.resume`).
+--resume`` goes on from it (:mod:`tml.run.resume`). The decisions of one engine call are
+synced together (:meth:`Journal.grouped`), before the requests they lead to are sent.
 
 A log that cannot be written (a full disk, a directory removed under it) never stops the
 flight: the first failure is kept (:attr:`Journal.failure`) and told to ``on_failure``, the
@@ -46,7 +47,8 @@ import json
 import math
 import os
 import stat
-from collections.abc import Callable, Mapping
+import threading
+from collections.abc import Callable, Iterator, Mapping
 from datetime import datetime
 from typing import Any, Protocol
 
@@ -168,6 +170,8 @@ class Journal:
         self.mission_start: float | None = None
         """Where mission time 0 is on the run's clock (``t``); None before the mission
         started."""
+        self._grouping: int | None = None  # the thread whose decisions are synced together
+        self._unsynced = False  # a decision of the group is not on the disk yet
 
     @classmethod
     def open(cls, path: str | None, append: bool = False) -> Journal:
@@ -233,8 +237,29 @@ class Journal:
             self._failed(error)
             return
         if kind in DECISIONS:
-            self._sync()
+            if self._grouping == threading.get_ident():
+                self._unsynced = True
+            else:
+                self._sync()
         self.lines += 1
+
+    @contextlib.contextmanager
+    def grouped(self) -> Iterator[None]:
+        """Sync the decisions the calling thread writes meanwhile once, at the end, instead
+        of one by one: the caller acts on them only after it (the runner sends an engine
+        call's requests after the call's decisions are on the disk). A burst of events in
+        a fleet is one sync, not one per line (docs/performance.md, *A flight log*)."""
+        if self._grouping is not None:  # nested, or another thread's group: line by line
+            yield
+            return
+        self._grouping = threading.get_ident()
+        try:
+            yield
+        finally:
+            self._grouping = None
+            if self._unsynced:
+                self._unsynced = False
+                self._sync()
 
     def _failed(self, error: Exception) -> None:
         reason = error.strerror if isinstance(error, OSError) and error.strerror else error

@@ -816,10 +816,12 @@ class Runner:
         self._dispatch(crew, output)
 
     def _dispatch(self, crew: _Crew, output: Output) -> None:
-        for record in output.records:
-            self.journal.write(record.time, record.kind, record.vehicle_id, record.data)
-            if record.kind == "safety":
-                self._said(f"vehicle {record.vehicle_id}: {record.data['message']}")
+        # The call's decisions are on the disk before its requests go out, in one sync.
+        with self.journal.grouped():
+            for record in output.records:
+                self.journal.write(record.time, record.kind, record.vehicle_id, record.data)
+                if record.kind == "safety":
+                    self._said(f"vehicle {record.vehicle_id}: {record.data['message']}")
         for record in output.records:
             if record.kind == "safety" and record.vehicle_id in crew.by_id:
                 flight = crew.by_id[record.vehicle_id]

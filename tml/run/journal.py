@@ -249,7 +249,9 @@ class Journal:
         of one by one: the caller acts on them only after it (the runner sends an engine
         call's requests after the call's decisions are on the disk). A burst of events in
         a fleet is one sync, not one per line (docs/performance.md, *A flight log*)."""
-        if self._grouping is not None:  # nested, or another thread's group: line by line
+        # Nested in this thread's group: the outer one syncs; in another thread's group:
+        # this thread's decisions are synced line by line (see write).
+        if self._grouping is not None:
             yield
             return
         self._grouping = threading.get_ident()

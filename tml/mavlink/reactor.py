@@ -172,7 +172,7 @@ class Reactor:
             if not adding and not removing and not self._files:
                 _REACTORS.pop(self.timebase, None)
                 self.thread = None
-                _switch_back()
+                _hand_over_as_before()
                 self._close()
                 return False
         for owner in adding:
@@ -236,23 +236,22 @@ class Reactor:
 
 _REACTORS: dict[Timebase, Reactor] = {}
 _REGISTRY_LOCK = threading.Lock()
-_running: list[float] = []  # the switch interval before the first of the reactors running
+_interval_before = sys.getswitchinterval()  # the switch interval while no reactor runs
 
 
-def _switch_faster() -> None:
-    """A reactor starts (with _REGISTRY_LOCK held): hand the lock over sooner."""
-    if not _running:
-        _running.append(sys.getswitchinterval())
-        sys.setswitchinterval(min(_running[0], SWITCH_INTERVAL))
-    else:
-        _running.append(_running[0])
+def _hand_over_sooner() -> None:
+    """A reactor's thread is about to start (with _REGISTRY_LOCK held): the first of those
+    running sets the shorter switch interval."""
+    global _interval_before
+    if not any(r.thread is not None for r in _REACTORS.values()):
+        _interval_before = sys.getswitchinterval()
+        sys.setswitchinterval(min(_interval_before, SWITCH_INTERVAL))
 
 
-def _switch_back() -> None:
-    """A reactor ended (with _REGISTRY_LOCK held): the last one restores the interval."""
-    before = _running.pop()
-    if not _running:
-        sys.setswitchinterval(before)
+def _hand_over_as_before() -> None:
+    """A reactor's thread ends (with _REGISTRY_LOCK held): the last one restores it."""
+    if not any(r.thread is not None for r in _REACTORS.values()):
+        sys.setswitchinterval(_interval_before)
 
 
 def serve(owner: Served, timebase: Timebase) -> Reactor:
@@ -265,7 +264,7 @@ def serve(owner: Served, timebase: Timebase) -> Reactor:
         timebase.announce()  # time waits until the loop has taken the owner in
         if reactor.thread is None:
             timebase.announce()
-            _switch_faster()
+            _hand_over_sooner()
             reactor.thread = threading.Thread(target=reactor.run, name=THREAD_NAME,
                                               daemon=True)
             reactor.thread.start()

@@ -743,8 +743,9 @@ class Runner:
         # once a period: the second line of each comes its share of a period later.
         flight.next_telemetry = now + self.options.telemetry_period * (
             1.0 + (flight.spread if flight.next_telemetry == -math.inf else 0.0))
-        self.journal.write(now, "telemetry", flight.vehicle.vehicle_id,
-                           **telemetry_fields(state))
+        if self.journal.stream is not None:  # (a fleet's thousand lines a second: not for nothing)
+            self.journal.write(now, "telemetry", flight.vehicle.vehicle_id,
+                               **telemetry_fields(state))
         self._tell_rejected(flight, now)
 
     def _taken(self, crew: _Crew, flight: _Flight, now: float) -> None:

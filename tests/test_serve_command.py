@@ -25,6 +25,7 @@ from serving import FAST_SIM, ROOT, SHORT, free_port
 
 from tests.process_lines import simulator
 from tml.commands.cli import main
+from tml.serve.storage import ACTIVE
 
 DOC = (ROOT / "docs" / "serve.md").read_text(encoding="utf-8")
 FAST = ["--speedup", "10", *[f for name, value in FAST_SIM.items()
@@ -158,8 +159,9 @@ def test_a_run_flying_when_the_service_was_killed_is_interrupted_after_a_restart
     with Server(["--sim", *FAST], data) as first, \
             httpx.Client(base_url=first.url, timeout=30) as client:
         run = start_a_run(client)
-        while client.get(f"/runs/{run}").json()["status"] != "running":
+        while (status := client.get(f"/runs/{run}").json()["status"]) == "waiting":
             pass
+        assert status == "running", "the run is killed in flight, not after it"
         with contextlib.closing(sqlite3.connect(data / "tml.sqlite")) as db:
             while not db.execute("SELECT count(*) FROM log_lines WHERE run_id = ?",
                                  (run,)).fetchone()[0]:
@@ -188,7 +190,8 @@ def test_a_vehicle_at_a_connection_address_flies_a_run_of_the_api(data: Path) ->
         assert "tml serve: warning: vehicle 1: FS_GCS_ENABLE is 0" in server.said
         assert client.get("/vehicles").json()[0]["id"] == 1
         run = start_a_run(client)
-        while (found := client.get(f"/runs/{run}").json())["status"] in ("queued", "running"):
+        # A run is "waiting" until its vehicle is ready, then "running": wait for its end.
+        while (found := client.get(f"/runs/{run}").json())["status"] in ACTIVE:
             pass
         assert (found["status"], found["exit_code"]) == ("completed", 0), found
         code, out = server.stop()

@@ -133,7 +133,7 @@ def trials(proxy: Proxy, count: int, settle: float) -> list[float]:
 
 
 HOPS = ("trigger handled by the link", "runner woken", "interpreter stepped from",
-        "interpreter's step done", "request submitted", "worker takes it", "command sent")
+        "interpreter's step done", "request submitted", "reactor takes it up", "command sent")
 """The stamps of ``--breakdown``, in order; the first is timed from the trigger written."""
 
 
@@ -183,7 +183,7 @@ class Breakdown:
         for owner, name, wrapper in (
                 (Link, "_handle", handle), (Runner, "_tick", tick), (Interpreter, "step", step),
                 (MavlinkVehicle, "submit", lambda o, v, r: (hop(5), o(v, r))[1]),
-                (MavlinkVehicle, "_carry_out", lambda o, v, r: (hop(6), o(v, r))[1]),
+                (Link, "_advance", lambda o, k, p, e: (hop(6), o(k, p, e))[1]),
                 (Link, "send", send), (proxy_class, "inject", inject)):
             setattr(owner, name, self._wrap(getattr(owner, name), wrapper))
 

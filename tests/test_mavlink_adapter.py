@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import threading
 import time
 from collections.abc import Callable, Iterator
 
@@ -149,6 +150,17 @@ def test_take_off_go_to_yaw_and_hold(rig: Rig) -> None:
     assert rig.do(Hold(1)).ok
     stopped = rig.until(lambda s: s.ground_speed < 0.1, "stopped")
     assert stopped.position[0] < 39.0
+
+
+def test_requests_are_carried_out_by_the_links_reactor_not_a_thread_per_vehicle(
+        rig: Rig) -> None:
+    threads = {t.ident for t in threading.enumerate()}
+    rig.fly(5.0)
+    assert rig.do(GoTo(1, (10.0, 0.0, 5.0))).ok
+    assert rig.do(SetYaw(1, 90.0)).ok
+    assert rig.vehicle.idle()
+    # (Before, each vehicle with requests had a worker thread, kept for 10 s after them.)
+    assert {t.ident for t in threading.enumerate()} <= threads
 
 
 def test_a_hold_at_speed_brakes_where_it_can_and_does_not_fly_back(rig: Rig) -> None:

@@ -86,6 +86,7 @@ import contextlib
 import math
 import threading
 import time
+from collections import deque
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from functools import partial
@@ -97,7 +98,23 @@ from tml.geo import to_global, to_local
 from tml.language.failures import FailureReason
 from tml.language.kinds import HANDLING, Kind, kind_of
 from tml.mavlink import codec
-from tml.mavlink.autopilot import DEFAULT_RATES, Autopilot
+from tml.mavlink.autopilot import (
+    DEFAULT_RATES,
+    LAND,
+    PHOTO,
+    RETURN_TO_LAUNCH,
+    Autopilot,
+    arm_command,
+    current_command,
+    disarm_command,
+    gripper_command,
+    reposition_command,
+    set_home_command,
+    speed_command,
+    start_command,
+    takeoff_command,
+    yaw_command,
+)
 from tml.mavlink.codec import mavlink
 from tml.mavlink.command import CommandLong
 from tml.mavlink.compile import (
@@ -113,8 +130,9 @@ from tml.mavlink.mission import MissionType
 from tml.mavlink.modes import ModeWatch, mode_names
 from tml.mavlink.reboot import RebootWatch
 from tml.mavlink.safeguards import fence_action, safeguards
+from tml.mavlink.steps import Steps, Until
 from tml.mavlink.telemetry import COMPANION_COMPONENT, Telemetry
-from tml.timebase import Empty, Flag, Mailbox
+from tml.timebase import Flag
 from tml.vehicle import (
     FLIGHT_REQUESTS,
     MESSAGES_KEPT,
@@ -173,9 +191,8 @@ VITAL = ("HEARTBEAT", "EXTENDED_SYS_STATE", "GLOBAL_POSITION_INT")
 """The messages of the readings the rules judge by: armed and mode, landed, position."""
 STREAM_CHECK_PERIOD = 2.0
 """Seconds at least between two checks (at a HEARTBEAT) that the streams asked for arrive."""
-WORKER_KEPT = 10.0
-"""Seconds a worker thread waits for the next request before it ends: requests in a burst
-(a take-off's, or an event's answer) do not start a thread each."""
+CLOSE_WAIT = 10.0
+"""Wall seconds :meth:`MavlinkVehicle.close` waits for the requests submitted to be carried out."""
 STAMP_SILENCE = 1.5
 """Seconds (the link's clock) without a ``time_boot_ms`` stamp from the autopilot after which
 its HEARTBEAT brings a new request for the streams: a rebooted autopilot has forgotten
@@ -347,12 +364,14 @@ class MavlinkVehicle:
         self._names = detection_names(world)
         self._lock = threading.Lock()
         self._results: list[RequestResult] = []
-        self._queue: Mailbox[Request | None] = Mailbox(self.timebase)  # None: close
-        self._worker: threading.Thread | None = None  # only while requests wait (submit)
-        self._worker_lock = threading.Lock()
+        # Requests submitted and not yet carried out: the one being carried out (by the
+        # link's reactor, see submit) and those queued behind it (guarded by _requests).
+        self._requests = threading.Condition(threading.Lock())
+        self._queued: deque[Request] = deque()
+        self._pending = 0
         self._streams_checked = self.timebase.now()  # when _keep_streams last looked
-        self._params: dict[tuple[int, str], float] = {}
-        self._param_arrived = threading.Condition()
+        self._params: dict[tuple[int, str], float] = {}  # PARAM_VALUEs awaited (_fold)
+        self._params_lock = threading.Lock()
         self._seen: dict[tuple[str, int], float] = {}
         self._values: dict[str, float] = {}
         self._plan: _Plan | None = None
@@ -392,7 +411,7 @@ class MavlinkVehicle:
         """
         self.mav.request_rates()
         capabilities = {"camera"}
-        grip = self._read_param("GRIP_ENABLE")
+        grip = self.mav.do(self._read_param("GRIP_ENABLE"))
         if grip is not None and grip > 0:
             capabilities.add("gripper")
         info = self.mav.info
@@ -440,7 +459,7 @@ class MavlinkVehicle:
             messages=self._latest_messages(t), rejected=t.rejected, rejected_last=t.rejected_last,
             taken=self._modes.taken, heard=self._heard(now),
             # A request not yet carried out is asked for now: no reading is newer than it.
-            asked=now if self._queue.unfinished_tasks else self._asked,
+            asked=now if self._pending else self._asked,
             rebooted="" if self._reboots.reboot is None else str(self._reboots.reboot),
             reboots=self._reboots.count,
             flight_asked=now if self._flights_pending else self._flight_asked)
@@ -478,7 +497,7 @@ class MavlinkVehicle:
 
     def _shows_current(self, now: float) -> bool:
         """Whether :meth:`state` shows ``current`` at ``now``."""
-        asked = now if self._queue.unfinished_tasks else self._asked
+        asked = now if self._pending else self._asked
         return asked is None or self._heard(now) > asked
 
     def revision(self) -> tuple[int, int]:
@@ -511,11 +530,13 @@ class MavlinkVehicle:
             self._stir(None if kind is None else SHOWN_BY.get(kind))
 
     def submit(self, request: Request) -> None:
-        """Queue a request for the worker thread; never blocks.
+        """Have the request carried out after those submitted before it; never blocks.
 
-        A relative SetYaw is made absolute here, against the heading the interpreter has
-        just seen: by the time the worker sends it the vehicle may have turned further,
-        and the interpreter waits for the heading it computed.
+        A request is a procedure (:mod:`tml.mavlink.steps`): the link's reactor carries it
+        out, resuming it as the vehicle answers, and the next one after it -- no thread of
+        its own. A relative SetYaw is made absolute here, against the heading the
+        interpreter has just seen: by the time it is sent the vehicle may have turned
+        further, and the interpreter waits for the heading it computed.
         """
         if isinstance(request, SetYaw) and request.relative:
             heading = (self.state().heading + request.heading) % 360.0
@@ -528,13 +549,36 @@ class MavlinkVehicle:
                 self._flight_asked = now
                 self._flights_pending += 1
             self._changes += 1
-        with self._worker_lock:
-            self._queue.put(request)
-            if self._worker is None:
-                self.timebase.announce()  # time waits for the request to be taken up
-                self._worker = threading.Thread(target=self._work, daemon=True,
-                                                name=f"vehicle {self.system_id}")
-                self._worker.start()
+        with self._requests:
+            self._pending += 1
+            if self._pending > 1:
+                self._queued.append(request)
+                return
+        self._begin(request)
+
+    def _begin(self, request: Request) -> None:
+        self.link.begin(self._carry_out(request), self.system_id, self.mav.component_id,
+                        partial(self._ended, request))
+
+    def _ended(self, request: Request, result: RequestResult | None,
+               error: BaseException | None) -> None:
+        """A request's procedure is over (on the reactor's thread): its result is ready,
+        and the next request begins."""
+        if result is None:  # ended by what _carry_out does not expect (a link closed)
+            result = RequestResult(self.vehicle_id, request.request_id, False,
+                                   FailureReason.GENERAL, f"{type(error).__name__}: {error}")
+        self._carried_out(request)
+        with self._lock:
+            self._results.append(result)
+        with self._requests:
+            self._pending -= 1
+            following = self._queued.popleft() if self._queued else None
+            self._requests.notify_all()
+        if self.on_result is not None:
+            self.on_result()
+        self._stir()
+        if following is not None:
+            self._begin(following)
 
     def poll(self) -> list[RequestResult]:
         """Results finished since the last poll."""
@@ -545,17 +589,16 @@ class MavlinkVehicle:
         return results
 
     def close(self) -> None:
-        """Return once the requests submitted so far are carried out (waits up to 10 s)."""
-        with self._worker_lock:
-            worker = self._worker
-            if worker is not None:
-                self._queue.put(None)  # ends it after them, without waiting out WORKER_KEPT
-        if worker is not None:
-            worker.join(timeout=10.0)
+        """Return once the requests submitted so far are carried out (waits up to
+        :data:`CLOSE_WAIT` wall seconds)."""
+        end = time.monotonic() + CLOSE_WAIT
+        with self._requests:
+            while self._pending and (left := end - time.monotonic()) > 0:
+                self._requests.wait(left)
 
     def idle(self) -> bool:
         """True when every submitted request has been carried out."""
-        return self._queue.unfinished_tasks == 0
+        return self._pending == 0
 
     # --- state pieces -------------------------------------------------------------------
 
@@ -648,9 +691,8 @@ class MavlinkVehicle:
                 with contextlib.suppress(OSError):
                     self._keep_streams()
         elif kind == "PARAM_VALUE":
-            with self._param_arrived:
+            with self._params_lock:  # an Until of _param_exchange sees it (no notify)
                 self._params[(component, _text(msg.param_id))] = msg.param_value
-                self.timebase.notify_all(self._param_arrived)
         elif kind in ("MISSION_CURRENT", "MISSION_ITEM_REACHED"):
             with self._lock:
                 if self._plan is not None:
@@ -704,33 +746,7 @@ class MavlinkVehicle:
         else:
             self.mav.position_target(*aim.point, aim.yaw)
 
-    # --- the worker thread (while requests wait) --------------------------------------
-
-    def _work(self) -> None:
-        with self.timebase.taking_part(announced=True):
-            while True:
-                try:
-                    request = self._queue.get(timeout=WORKER_KEPT)
-                except Empty:
-                    with self._worker_lock:  # none left: submit starts another from now on
-                        if not self._queue.unfinished_tasks:
-                            self._worker = None
-                            return
-                    continue
-                if request is None:
-                    with self._worker_lock:
-                        self._worker = None
-                    self._queue.task_done()
-                    return
-                try:
-                    result = self._carry_out(request)
-                finally:
-                    self._carried_out(request)
-                with self._lock:
-                    self._results.append(result)
-                if self.on_result is not None:
-                    self.on_result()
-                self._stir()
+    # --- carrying requests out -----------------------------------------------------------
 
     def _carried_out(self, request: Request) -> None:
         """A request has gone out and been answered (or given up): what the vehicle shows
@@ -746,7 +762,6 @@ class MavlinkVehicle:
                 self._flight_asked = now
                 self._flights_pending -= 1
             self._changes += 1
-        self._queue.task_done()
 
     def _keep_streams(self) -> None:
         """Ask again for each stream that stays away (the request or its answer was lost,
@@ -761,7 +776,8 @@ class MavlinkVehicle:
         if "HOME_POSITION" not in arrived:
             self.mav.request_message("HOME_POSITION")
 
-    def _carry_out(self, request: Request) -> RequestResult:
+    def _carry_out(self, request: Request) -> Steps[RequestResult]:
+        """The procedure of ``request``: its handler's steps, and its result."""
         def fail(reason: FailureReason, detail: str) -> RequestResult:
             return RequestResult(self.vehicle_id, request.request_id, False, reason, detail)
 
@@ -769,7 +785,7 @@ class MavlinkVehicle:
             handler = _HANDLERS[type(request)]
             if not isinstance(request, (SetYaw, SetSpeed, Camera, Gripper, SetSkill, Safeguard)):
                 self._target = None  # the request takes the kept target's place
-            detail = handler(self, request)
+            detail = yield from handler(self, request)
         except CommandRejected as error:
             return fail(FailureReason.REJECTED, f"{error.command}: {error.result}")
         except MissionTransferError as error:
@@ -785,33 +801,30 @@ class MavlinkVehicle:
             return fail(FailureReason.GENERAL, str(error))
         return RequestResult(self.vehicle_id, request.request_id, True, detail=detail or "")
 
-    # --- one method per request ----------------------------------------------------------
+    # --- one procedure per request --------------------------------------------------------
 
-    def _switch(self, mode: str, send: Callable[[], None] | None = None) -> None:
-        """Change to ``mode`` (by DO_SET_MODE, or by ``send``ing the command that enters
-        it), told to the mode watch first: a switch asked here is not taken."""
+    def _switching(self, mode: str, steps: Steps[None] | None = None) -> Steps[None]:
+        """Change to ``mode`` (by DO_SET_MODE, or by the ``steps`` of the command that
+        enters it), told to the mode watch first: a switch asked here is not taken."""
         with self._lock:
             self._modes.ask(mode)
         try:
-            if send is None:
-                self.mav.set_mode(mode)
-            else:
-                send()
+            yield from self.mav.switching(mode) if steps is None else steps
         except BaseException:
             with self._lock:
                 self._modes.refused()
             raise
 
-    def _reposition(self, latitude: float, longitude: float, altitude: float,
-                    radius: float = 0.0) -> None:
+    def _repositioning(self, latitude: float, longitude: float, altitude: float,
+                       radius: float = 0.0) -> Steps[None]:
         """DO_REPOSITION, which enters GUIDED by itself (ArduPlane, Rover): asked here."""
-        self._switch("GUIDED", partial(self.mav.reposition, latitude, longitude, altitude,
-                                       radius=radius))
+        yield from self._switching("GUIDED", self.mav.commanding(
+            reposition_command(latitude, longitude, altitude, radius=radius)))
 
-    def _guided(self) -> None:
+    def _guided(self) -> Steps[None]:
         if self.link.telemetry(self.system_id).mode != "GUIDED":
             self._end_plan()
-            self._switch("GUIDED")
+            yield from self._switching("GUIDED")
 
     def _end_plan(self) -> None:
         with self._lock:
@@ -821,33 +834,36 @@ class MavlinkVehicle:
                 self._changes += 1
         self._stir()
 
-    def _set_mode(self, request: SetMode) -> None:
+    def _set_mode(self, request: SetMode) -> Steps[None]:
         if request.mode.upper() != "AUTO":
             self._end_plan()
-        self._switch(request.mode)  # transient modes (FLIP) are confirmed by their ACK
+        yield from self._switching(request.mode)  # transient modes (FLIP): by their ACK
 
-    def _flip(self, request: Flip) -> str:
+    def _flip(self, request: Flip) -> Steps[str]:
         """A flip as a pilot makes it (see the module docstring); returns the modes seen."""
         began = self.timebase.now()
         sticks = _Sticks(self.link, self.system_id, self.mav.component_id)
         try:
-            self._switch("ALT_HOLD")
+            yield from self._switching("ALT_HOLD")
             sticks.hold(*FLIP_STICKS.get(request.direction, FLIP_STICKS["right"]))
             asked = self.timebase.now()
             try:
-                self._switch("FLIP")
+                yield from self._switching("FLIP")
             finally:
                 sticks.hold()
+
+            def over() -> bool:
+                t = self.link.telemetry(self.system_id)
+                return t.mode != "FLIP" and (
+                    t.mode_shown_since("FLIP", asked) or (t.tilted_at or 0.0) > asked)
             # Accepted, so flown; if its telemetry was all lost, it is over by the time limit.
             with contextlib.suppress(VehicleTimeout):
-                self.link.wait_telemetry(self.system_id, lambda t: t.mode != "FLIP" and (
-                    t.mode_shown_since("FLIP", asked) or (t.tilted_at or 0.0) > asked),
-                    FLIP_WAIT)
-            self._switch("GUIDED")
+                yield Until(over, FLIP_WAIT, "the flip's end")
+            yield from self._switching("GUIDED")
         finally:
             try:
                 if self.link.telemetry(self.system_id).mode != "GUIDED":
-                    self._switch("GUIDED")
+                    yield from self._switching("GUIDED")
             except VehicleError:
                 pass  # the error that brought us here is the one to report
             finally:
@@ -856,25 +872,25 @@ class MavlinkVehicle:
                 if when >= began]
         return "modes: " + " > ".join(seen)
 
-    def _arm(self, request: Arm) -> None:
-        self.mav.arm()
+    def _arm(self, request: Arm) -> Steps[None]:
+        yield from self.mav.commanding(arm_command())
 
-    def _disarm(self, request: Disarm) -> None:
-        self.mav.disarm()
+    def _disarm(self, request: Disarm) -> Steps[None]:
+        yield from self.mav.commanding(disarm_command())
 
     def _kind(self) -> Kind:
         return kind_of(self.link.telemetry(self.system_id).airframe)
 
-    def _take_off(self, request: TakeOff) -> None:
+    def _take_off(self, request: TakeOff) -> Steps[None]:
         kind = self._kind()
         if kind is Kind.GROUND:
             raise _Unsupported("a ground vehicle does not take off")
         if kind is Kind.FIXED_WING:
-            self._write_param("TKOFF_ALT", request.altitude, AUTOPILOT)
+            yield from self._write_param("TKOFF_ALT", request.altitude, AUTOPILOT)
             self._end_plan()
-            self._switch("TAKEOFF")
+            yield from self._switching("TAKEOFF")
             if not self.link.telemetry(self.system_id).armed:
-                self.mav.arm()
+                yield from self.mav.commanding(arm_command())
             return
         t = self.link.telemetry(self.system_id)
         if t.armed and t.mode == "GUIDED" and t.position is not None \
@@ -886,7 +902,7 @@ class MavlinkVehicle:
             return
         for attempt in range(TAKEOFF_ATTEMPTS):
             try:
-                self.mav.takeoff(request.altitude)
+                yield from self.mav.commanding(takeoff_command(request.altitude))
                 return
             except CommandRejected:
                 t = self.link.telemetry(self.system_id)
@@ -894,40 +910,42 @@ class MavlinkVehicle:
                     raise
             # Armed on the ground, ArduCopter disarms by itself after DISARM_DELAY (10 s);
             # a take-off lost on the way for that long finds it disarmed, and is refused.
-            self.mav.arm()
+            yield from self.mav.commanding(arm_command())
 
-    def _go_to(self, request: GoTo) -> None:
+    def _go_to(self, request: GoTo) -> Steps[None]:
         home = self._require_home()
         latitude, longitude, _ = _global(request.target, home)
         kind = self._kind()
         if kind is Kind.FIXED_WING:
             self._end_plan()
-            self._reposition(latitude, longitude, request.target[2],
-                             radius=HANDLING[kind].loiter_radius)
+            yield from self._repositioning(latitude, longitude, request.target[2],
+                                           radius=HANDLING[kind].loiter_radius)
             if request.speed:
-                self.mav.change_speed(request.speed, ground=False)
+                yield from self.mav.commanding(speed_command(request.speed, ground=False))
             return
-        self._guided()
+        yield from self._guided()
         if request.speed and kind is not Kind.GROUND:
-            self.mav.change_speed(request.speed)
+            yield from self.mav.commanding(speed_command(request.speed))
         self._aim(latitude, longitude, request.target[2])
         speed = request.speed or self._ground_speed
         if speed and kind is Kind.GROUND:
-            self.mav.change_speed(speed)
+            yield from self.mav.commanding(speed_command(speed))
 
-    def _circle(self, request: Circle) -> None:
+    def _circle(self, request: Circle) -> Steps[None]:
         if self._kind() is not Kind.FIXED_WING:
             raise _Unsupported("only a fixed-wing circles on its own; a multicopter or a "
                                "ground vehicle is sent round the circle point by point")
         self._end_plan()
         latitude, longitude, _ = _global(request.centre, self._require_home())
-        self._reposition(latitude, longitude, request.centre[2], radius=request.radius)
+        yield from self._repositioning(latitude, longitude, request.centre[2],
+                                       radius=request.radius)
 
-    def _set_yaw(self, request: SetYaw) -> None:
+    def _set_yaw(self, request: SetYaw) -> Steps[None]:
         if request.relative:
-            self.mav.yaw(abs(request.heading), relative=True, clockwise=request.heading >= 0)
+            yield from self.mav.commanding(yaw_command(
+                abs(request.heading), relative=True, clockwise=request.heading >= 0))
         else:
-            self.mav.yaw(request.heading % 360.0)  # the shorter way
+            yield from self.mav.commanding(yaw_command(request.heading % 360.0))  # shorter way
         target = self._target
         if target is not None and not request.relative:
             # A position or velocity target without a yaw hands the heading back to the
@@ -935,87 +953,88 @@ class MavlinkVehicle:
             # kept target is sent again: from now on it carries the heading asked for.
             self._target = replace(target, yaw=request.heading % 360.0)
 
-    def _hold(self, request: Hold) -> None:
+    def _hold(self, request: Hold) -> Steps[None]:
         t = self.link.telemetry(self.system_id)
         if not t.armed or t.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND:
             return
         kind = self._kind()
         if kind is Kind.GROUND:
             self._end_plan()
-            self._switch("HOLD")
+            yield from self._switching("HOLD")
             return
         if kind is Kind.FIXED_WING:  # circle where it is
             state = self.state()
             if state.position is not None:
                 self._end_plan()
                 latitude, longitude, _ = _global(state.position, self._require_home())
-                self._reposition(latitude, longitude, state.position[2],
-                                 radius=HANDLING[kind].loiter_radius)
+                yield from self._repositioning(latitude, longitude, state.position[2],
+                                               radius=HANDLING[kind].loiter_radius)
             return
         if t.mode != "GUIDED":
-            self._guided()  # ArduCopter stops at its stopping point on entering GUIDED
+            yield from self._guided()  # ArduCopter stops at its stopping point in GUIDED
             return
         # Braked to a stop where it can: a position target at the point where it was would
         # be flown past (at 10 m/s ArduCopter needs some 20 m to stop) and back to.
         self._keep_aim(_Aim(None))
 
-    def _land(self, request: Land) -> None:
+    def _land(self, request: Land) -> Steps[None]:
         kind = self._kind()
         if kind is Kind.GROUND:
             raise _Unsupported("a ground vehicle does not land")
         if kind is Kind.FIXED_WING:
-            self._glide(request.touchdown)
+            yield from self._glide(request.touchdown)
             return
         self._end_plan()
         # Where it is: the scripts fly a multicopter over its touchdown.
-        self._switch("LAND", self.mav.land)
+        yield from self._switching("LAND", self.mav.commanding(LAND))
 
-    def _glide(self, touchdown: tuple[float, float, float] | None) -> None:
+    def _glide(self, touchdown: tuple[float, float, float] | None) -> Steps[None]:
         """A fixed-wing's landing: the approach and NAV_LAND uploaded and flown in AUTO."""
         home, state = self._require_home(), self.state()
         if state.position is None:
             raise VehicleError("the vehicle's position is not known yet", self.system_id)
         items = glide_items(home, state.position, state.heading, touchdown)
         self._end_plan()
-        self.mav.upload(items)
+        yield from self.mav.uploading(items)
         # From its first item: made current, then AUTO and MISSION_START without items.
-        self.mav.set_current(1 if self.mav.keeps_home_in_item_zero else 0)
-        self._switch("AUTO")
-        self.mav.start_mission()
+        yield from self.mav.commanding(current_command(
+            1 if self.mav.keeps_home_in_item_zero else 0))
+        yield from self._switching("AUTO")
+        yield from self.mav.commanding(start_command())
 
-    def _return_to_launch(self, request: ReturnToLaunch) -> None:
+    def _return_to_launch(self, request: ReturnToLaunch) -> Steps[None]:
         self._end_plan()
-        self._switch("RTL", self.mav.return_to_launch)
+        yield from self._switching("RTL", self.mav.commanding(RETURN_TO_LAUNCH))
 
-    def _set_speed(self, request: SetSpeed) -> None:
+    def _set_speed(self, request: SetSpeed) -> Steps[None]:
         if self._kind() is Kind.GROUND and request.kind in ("airspeed", "ground"):
             self._ground_speed = request.speed  # sent with the next position target
             return
-        self.mav.command(CommandLong(mavlink.MAV_CMD_DO_CHANGE_SPEED,
-                                     SPEED_TYPES.get(request.kind, 1), request.speed, -1))
+        yield from self.mav.commanding(CommandLong(
+            mavlink.MAV_CMD_DO_CHANGE_SPEED, SPEED_TYPES.get(request.kind, 1), request.speed, -1))
 
-    def _camera(self, request: Camera) -> None:
+    def _camera(self, request: Camera) -> Steps[None]:
         if request.operation == "stop":
-            self.mav.command(CommandLong(mavlink.MAV_CMD_IMAGE_STOP_CAPTURE))
+            yield from self.mav.commanding(CommandLong(mavlink.MAV_CMD_IMAGE_STOP_CAPTURE))
         elif request.operation == "photo" and request.count <= 1:
-            self.mav.take_photo()
+            yield from self.mav.commanding(PHOTO)
         else:
             count = 0 if request.operation == "start" else request.count
-            self.mav.command(CommandLong(mavlink.MAV_CMD_IMAGE_START_CAPTURE, 0,
-                                         request.interval, count))
+            yield from self.mav.commanding(CommandLong(
+                mavlink.MAV_CMD_IMAGE_START_CAPTURE, 0, request.interval, count))
 
-    def _gripper(self, request: Gripper) -> None:
+    def _gripper(self, request: Gripper) -> Steps[None]:
         if "gripper" not in self.capabilities:
             raise _Unsupported("this vehicle has no gripper (GRIP_ENABLE is 0)")
-        self.mav.gripper(request.grab)
+        yield from self.mav.commanding(gripper_command(request.grab))
 
-    def _set_home(self, request: SetHome) -> None:
+    def _set_home(self, request: SetHome) -> Steps[None]:
         if request.position is None:
-            self.mav.set_home()
+            yield from self.mav.commanding(set_home_command())
         else:
-            self.mav.set_home(*request.position)
+            yield from self.mav.commanding(set_home_command(*request.position))
 
-    def _set_skill(self, request: SetSkill) -> None:
+    def _set_skill(self, request: SetSkill) -> Steps[None]:
         binding = SKILL_BINDINGS.get(request.skill)
         if binding is None:
             raise _Unsupported(f"skill {request.skill} has nothing to switch on this vehicle")
@@ -1024,32 +1043,35 @@ class MavlinkVehicle:
                                f"(component {COMPANION_COMPONENT}), and none was heard")
         value = 1.0 if request.enabled else 0.0
         for name in binding.parameters:
-            self._write_param(name, value, binding.component)
+            yield from self._write_param(name, value, binding.component)
         if request.enabled:
             for name, setting in binding.autopilot_on:
-                self._write_param(name, setting, AUTOPILOT)
+                yield from self._write_param(name, setting, AUTOPILOT)
 
-    def _safeguard(self, request: Safeguard) -> str:
+    def _safeguard(self, request: Safeguard) -> Steps[str]:
         """Upload the mission's fence and rally points, read them back and compare, then set
         the fence parameters and read them back (:mod:`tml.mavlink.safeguards`)."""
         home = self._require_home()
         put = safeguards(request.world, home, fence=request.fence)
         if request.fence and put.fence:
-            self.mav.upload(put.fence, MissionType.FENCE)
+            yield from self.mav.uploading(put.fence, MissionType.FENCE)
         if put.rally:
-            self.mav.upload(put.rally, MissionType.RALLY)
+            yield from self.mav.uploading(put.rally, MissionType.RALLY)
         for name, value in put.parameters.items():
-            self._write_param(name, value, AUTOPILOT)
+            yield from self._write_param(name, value, AUTOPILOT)
         kept = "" if request.fence else "the vehicle's fence kept; "
-        action = f"; {fence_action(self._read_param('FENCE_ACTION'))}" if put.has_fence else ""
+        action = ""
+        if put.has_fence:
+            action = f"; {fence_action((yield from self._read_param('FENCE_ACTION')))}"
         return f"{kept}{put.summary or 'nothing to upload'}{action}; read back matched"
 
-    def _fly_mission(self, request: FlyMission) -> None:
+    def _fly_mission(self, request: FlyMission) -> Steps[None]:
         # A mission may be the first thing asked: wait for home (and for a position good
         # enough to arm with, when the mission starts on the ground).
-        self.link.wait_telemetry(
-            self.system_id, lambda t: t.home is not None and (t.armed or t.position_ready),
-            self.ready_timeout)
+        def ready() -> bool:
+            t = self.link.telemetry(self.system_id)
+            return t.home is not None and (t.armed or t.position_ready)
+        yield Until(ready, self.ready_timeout, "home and a position to arm with")
         home = self._require_home()
         state = self.state()
         compiled = compile_mission(request.actions, home, request.start, state.heading,
@@ -1065,20 +1087,20 @@ class MavlinkVehicle:
                 self._plan = plan
                 plan.started = True
             return
-        self.mav.upload(list(compiled.items))
+        yield from self.mav.uploading(list(compiled.items))
         with self._lock:
             self._plan = plan
             self._changes += 1
         self._stir()
         if not state.armed:
             # A mission that starts on the ground: arm in GUIDED, then AUTO takes off.
-            self._switch("GUIDED")
-            self.mav.arm()
+            yield from self._switching("GUIDED")
+            yield from self.mav.commanding(arm_command())
         # The first item is made current before AUTO, which starts (or resumes) the mission
         # there; MISSION_START then names no items: ArduPilot DENIES a first or last item.
-        self.mav.set_current(plan.offset)
-        self._switch("AUTO")
-        self.mav.start_mission()
+        yield from self.mav.commanding(current_command(plan.offset))
+        yield from self._switching("AUTO")
+        yield from self.mav.commanding(start_command())
         with self._lock:
             plan.started = True
             plan.finished = plan.last_nav is None  # DO items only: done on starting
@@ -1098,8 +1120,8 @@ class MavlinkVehicle:
         return COMPANION_COMPONENT if which == COMPANION else self.mav.component_id
 
     def read_parameters(self, names: Iterable[str]) -> dict[str, float]:
-        """The autopilot's values of ``names`` (those it has), read one by one."""
-        values = {name: self._read_param(name) for name in names}
+        """The autopilot's values of ``names`` (those it has), read one by one (waits)."""
+        values = {name: self.mav.do(self._read_param(name)) for name in names}
         return {name: value for name, value in values.items() if value is not None}
 
     def read_first(self, names: Sequence[str]) -> tuple[str, float] | None:
@@ -1110,7 +1132,7 @@ class MavlinkVehicle:
         asked = {name: mavlink.MAVLink_param_request_read_message(
             self.system_id, component, name.encode(), -1) for name in names}
         try:
-            return self._param_exchange(asked, component)
+            return self.mav.do(self._param_exchange(asked, component))
         except VehicleTimeout:
             return None
 
@@ -1119,45 +1141,46 @@ class MavlinkVehicle:
         """The MAVLink system id tml sends to this vehicle as."""
         return self.link.source_system
 
-    def _read_param(self, name: str, which: str = AUTOPILOT) -> float | None:
+    def _read_param(self, name: str, which: str = AUTOPILOT) -> Steps[float | None]:
         component = self._component(which)
         msg = mavlink.MAVLink_param_request_read_message(self.system_id, component,
                                                          name.encode(), -1)
         try:
-            return self._param_exchange({name: msg}, component)[1]
+            return (yield from self._param_exchange({name: msg}, component))[1]
         except VehicleTimeout:
             return None
 
-    def _write_param(self, name: str, value: float, which: str) -> None:
+    def _write_param(self, name: str, value: float, which: str) -> Steps[None]:
         component = self._component(which)
         msg = mavlink.MAVLink_param_set_message(self.system_id, component, name.encode(),
                                                 value, mavlink.MAV_PARAM_TYPE_REAL32)
-        stored = self._param_exchange({name: msg}, component, PARAM_SET_RETRIES)[1]
+        stored = (yield from self._param_exchange({name: msg}, component,
+                                                  PARAM_SET_RETRIES))[1]
         if not math.isclose(stored, value, abs_tol=1e-6):
             raise CommandRejected(f"PARAM_SET {name}", f"stored {stored:g}", self.system_id)
 
     def _param_exchange(self, asked: Mapping[str, Any], component: int,
-                        tries: int = PARAM_RETRIES) -> tuple[str, float]:
+                        tries: int = PARAM_RETRIES) -> Steps[tuple[str, float]]:
         """Send each parameter's PARAM_SET/PARAM_REQUEST_READ of ``asked`` (by name) until
         a PARAM_VALUE of one of them comes back: its name (the first of ``asked`` answered)
         and value."""
         keys = [(component, name) for name in asked]
+
+        def answered() -> bool:
+            return any(key in self._params for key in keys)
         for _ in range(tries):
-            with self._param_arrived:
+            with self._params_lock:
                 for key in keys:
                     self._params.pop(key, None)
             for msg in asked.values():
                 self.link.send(msg)
-            end = self.timebase.now() + PARAM_TIMEOUT
-            with self._param_arrived:
-                while True:
-                    found = next((key for key in keys if key in self._params), None)
-                    if found is not None:
-                        return found[1], self._params[found]
-                    left = end - self.timebase.now()
-                    if left <= 0:
-                        break
-                    self.timebase.wait(self._param_arrived, left)
+            # A lost vehicle is waited out as silence: an absent parameter looks the same.
+            with contextlib.suppress(VehicleTimeout):
+                yield Until(answered, PARAM_TIMEOUT, "PARAM_VALUE", lost_ok=True)
+            with self._params_lock:
+                found = next((key for key in keys if key in self._params), None)
+                if found is not None:
+                    return found[1], self._params[found]
         raise VehicleTimeout(f"no PARAM_VALUE for {' or '.join(asked)} from component "
                              f"{component}", self.system_id)
 
@@ -1207,7 +1230,7 @@ class _Sticks:
                 self._send()
 
 
-_HANDLERS: dict[type, Callable[[MavlinkVehicle, Any], str | None]] = {
+_HANDLERS: dict[type, Callable[[MavlinkVehicle, Any], Steps[str | None]]] = {
     SetMode: MavlinkVehicle._set_mode, Arm: MavlinkVehicle._arm,
     Disarm: MavlinkVehicle._disarm, TakeOff: MavlinkVehicle._take_off,
     GoTo: MavlinkVehicle._go_to, SetYaw: MavlinkVehicle._set_yaw,

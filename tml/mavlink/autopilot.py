@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import TypeVar
 
 from tml.errors import CommandRejected, MissionTransferError, VehicleTimeout
 from tml.mavlink import codec
@@ -47,7 +48,10 @@ from tml.mavlink.modes import (
     commanded_mode,
     set_mode_command,
 )
+from tml.mavlink.steps import Exchange, Steps
 from tml.mavlink.telemetry import Telemetry
+
+T = TypeVar("T")
 
 DEFAULT_RATES = {
     "HEARTBEAT": 1.0, "GLOBAL_POSITION_INT": 10.0,
@@ -168,14 +172,25 @@ class Autopilot:
 
     # -- commands ---------------------------------------------------------------------
 
-    def command(self, command: Command) -> None:
+    def do(self, steps: Steps[T]) -> T:
+        """Carry out ``steps`` (one of the ``*ing`` methods) on this thread, waiting."""
+        return self.link.drive(steps, self.system_id, self.component_id)
+
+    def commanding(self, command: Command) -> Steps[None]:
         """Send ``command`` until acknowledged (or, ACK lost, seen taken: :data:`TAKEN`).
 
         Raises CommandRejected, VehicleTimeout, or LinkLost when the vehicle is lost.
         """
-        self._run(CommandSender(command, codec.command_name(command.command),
-                                system_id=self.system_id, timeout=self.command_timeout,
-                                retries=self.command_retries, taken=self._taken(command)))
+        sender = CommandSender(command, codec.command_name(command.command),
+                               system_id=self.system_id, timeout=self.command_timeout,
+                               retries=self.command_retries, taken=self._taken(command))
+        yield Exchange(sender)
+        if sender.error is not None:
+            raise sender.error
+
+    def command(self, command: Command) -> None:
+        """:meth:`commanding`, waited for."""
+        self.do(self.commanding(command))
 
     def _taken(self, command: Command) -> Callable[[], bool] | None:
         """The judgement of :data:`TAKEN` for ``command``, from the snapshot as it is now."""
@@ -185,69 +200,58 @@ class Autopilot:
         before = self.telemetry
         return lambda: rule(command, before, self.telemetry)
 
-    def set_mode(self, name: str) -> None:
+    def switching(self, name: str) -> Steps[None]:
         """Switch to flight mode ``name`` (e.g. GUIDED, AUTO, LAND, RTL for ArduCopter).
 
-        Returns once the ACK and then the next HEARTBEAT confirm it; a HEARTBEAT showing
+        Over once the ACK and then the next HEARTBEAT confirm it; a HEARTBEAT showing
         another mode is CommandRejected, none within ``mode_timeout`` VehicleTimeout.
         """
         command = set_mode_command(self.info.vehicle_type, self.info.autopilot, name,
                                    self.system_id)
-        self._run(ModeChange(command, name, system_id=self.system_id,
-                             timeout=self.command_timeout, retries=self.command_retries,
-                             confirm_timeout=self.mode_timeout, taken=self._taken(command)))
+        change = ModeChange(command, name, system_id=self.system_id,
+                            timeout=self.command_timeout, retries=self.command_retries,
+                            confirm_timeout=self.mode_timeout, taken=self._taken(command))
+        yield Exchange(change)
+        if change.error is not None:
+            raise change.error
 
-    def _run(self, machine: CommandSender | ModeChange) -> None:
-        self.link.run(machine, self.system_id, self.component_id)
-        if machine.error is not None:
-            raise machine.error
+    def set_mode(self, name: str) -> None:
+        """:meth:`switching`, waited for."""
+        self.do(self.switching(name))
 
     def arm(self, force: bool = False) -> None:
         """Arm the motors (``force`` skips the pre-arm checks)."""
-        self.command(CommandLong(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, FORCE if force else 0))
+        self.command(arm_command(force))
 
     def disarm(self, force: bool = False) -> None:
         """Disarm the motors (``force`` also in flight)."""
-        self.command(CommandLong(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, FORCE if force else 0))
+        self.command(disarm_command(force))
 
     def takeoff(self, altitude: float) -> None:
         """Take off to ``altitude`` metres above home (GUIDED, armed)."""
-        self.command(CommandLong(mavlink.MAV_CMD_NAV_TAKEOFF, param7=altitude))
+        self.command(takeoff_command(altitude))
 
     def land(self) -> None:
         """Land where the vehicle is."""
-        self.command(CommandLong(mavlink.MAV_CMD_NAV_LAND))
+        self.command(LAND)
 
     def return_to_launch(self) -> None:
         """Fly home and land (RTL)."""
-        self.command(CommandLong(mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH))
+        self.command(RETURN_TO_LAUNCH)
 
     def change_speed(self, speed: float, ground: bool = True) -> None:
         """Set the horizontal speed in m/s (ground speed, or airspeed with ground=False)."""
-        self.command(CommandLong(mavlink.MAV_CMD_DO_CHANGE_SPEED, 1 if ground else 0, speed, -1))
+        self.command(speed_command(speed, ground))
 
     def yaw(self, heading: float, rate: float = 0.0, relative: bool = False,
             clockwise: bool | None = None) -> None:
-        """Turn to ``heading`` degrees (from north, or by that much with ``relative``):
-        ``clockwise`` or not, or the shorter way (None).
-
-        ArduCopter keeps to a direction given even for a heading from north: told
-        clockwise from 90 to 45 degrees, it turns 315 degrees (AutoYaw::set_fixed_yaw)."""
-        direction = 0 if clockwise is None else 1 if clockwise else -1
-        self.command(CommandLong(mavlink.MAV_CMD_CONDITION_YAW, heading, rate, direction,
-                                 1 if relative else 0))
+        """Turn as :func:`yaw_command` says."""
+        self.command(yaw_command(heading, rate, relative, clockwise))
 
     def reposition(self, latitude: float, longitude: float, altitude: float,
                    speed: float = -1, radius: float = 0.0) -> None:
-        """Fly to a point (altitude above home) in GUIDED with DO_REPOSITION, acknowledged.
-
-        ``radius`` (m, 0: the vehicle's default) is the circle ArduPlane loiters on there,
-        clockwise (param4, the yaw, left NaN: ArduPlane reads it as clockwise).
-        """
-        self.command(CommandInt(mavlink.MAV_CMD_DO_REPOSITION,
-                                mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, speed,
-                                mavlink.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE, radius, math.nan,
-                                round(latitude * 1e7), round(longitude * 1e7), altitude))
+        """Fly to a point in GUIDED with DO_REPOSITION (:func:`reposition_command`)."""
+        self.command(reposition_command(latitude, longitude, altitude, speed, radius))
 
     def position_target(self, latitude: float, longitude: float, altitude: float,
                         yaw: float | None = None) -> None:
@@ -268,30 +272,24 @@ class Autopilot:
     def set_home(self, latitude: float | None = None, longitude: float | None = None,
                  altitude: float = 0.0) -> None:
         """Set home to a point (altitude above mean sea level), or to here if none given."""
-        if latitude is None or longitude is None:
-            self.command(CommandLong(mavlink.MAV_CMD_DO_SET_HOME, 1))
-        else:
-            self.command(CommandInt(mavlink.MAV_CMD_DO_SET_HOME, mavlink.MAV_FRAME_GLOBAL_INT,
-                                    0, x=round(latitude * 1e7), y=round(longitude * 1e7),
-                                    z=altitude))
+        self.command(set_home_command(latitude, longitude, altitude))
 
     def start_mission(self, first: int = 0, last: int = 0) -> None:
         """Start the uploaded mission (MISSION_START; ArduPilot needs AUTO and arming, and
         DENIES any ``first`` or ``last`` but 0: make the first item current instead)."""
-        self.command(CommandLong(mavlink.MAV_CMD_MISSION_START, first, last))
+        self.command(start_command(first, last))
 
     def set_current(self, seq: int) -> None:
         """Make mission item ``seq`` the one flown next."""
-        self.command(CommandLong(mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, seq))
+        self.command(current_command(seq))
 
     def take_photo(self) -> None:
         """Trigger the camera once (DO_DIGICAM_CONTROL shoot)."""
-        self.command(CommandLong(mavlink.MAV_CMD_DO_DIGICAM_CONTROL, param5=1))
+        self.command(PHOTO)
 
     def gripper(self, grab: bool, instance: int = 1) -> None:
         """Close (``grab``) or open the gripper."""
-        action = mavlink.GRIPPER_ACTION_GRAB if grab else mavlink.GRIPPER_ACTION_RELEASE
-        self.command(CommandLong(mavlink.MAV_CMD_DO_GRIPPER, instance, action))
+        self.command(gripper_command(grab, instance))
 
     def request_rates(self, rates: dict[str, float] | None = None) -> bool:
         """Ask for messages at rates (Hz) with SET_MESSAGE_INTERVAL.
@@ -338,9 +336,9 @@ class Autopilot:
         """How this vehicle reads items back: ArduPilot's storage rules, else as sent."""
         return ardupilot_form if self.keeps_home_in_item_zero else exact_form
 
-    def upload(self, items: list[MissionItem], mission_type: int = MissionType.MISSION, *,
-               verify: bool = True, on_progress: Callable[[Progress], None] | None = None
-               ) -> list[MissionItem]:
+    def uploading(self, items: list[MissionItem], mission_type: int = MissionType.MISSION, *,
+                  verify: bool = True, on_progress: Callable[[Progress], None] | None = None
+                  ) -> Steps[list[MissionItem]]:
         """Upload ``items`` (seq 0..N-1) and, with ``verify``, read them back and compare.
 
         On ArduPilot a mission's items go to seq 1..N behind a home placeholder, and the
@@ -353,17 +351,24 @@ class Autopilot:
         skip_home = mission_type == MissionType.MISSION and self.keeps_home_in_item_zero
         sent = with_home_placeholder(items) if skip_home else list(items)
         upload = Upload(sent, mission_type, system_id=self.system_id)
-        self._transfer(upload, on_progress, raise_error=_lost_for_good)
+        yield from self._transferring(upload, on_progress, raise_error=_lost_for_good)
         if verify or upload.unconfirmed:
-            self.check_read_back(sent, mission_type)
+            yield from self.reading_back(sent, mission_type)
         return sent
 
-    def check_read_back(self, sent: list[MissionItem],
-                        mission_type: int = MissionType.MISSION) -> None:
+    def upload(self, items: list[MissionItem], mission_type: int = MissionType.MISSION, *,
+               verify: bool = True, on_progress: Callable[[Progress], None] | None = None
+               ) -> list[MissionItem]:
+        """:meth:`uploading`, waited for."""
+        return self.do(self.uploading(items, mission_type, verify=verify,
+                                      on_progress=on_progress))
+
+    def reading_back(self, sent: list[MissionItem],
+                     mission_type: int = MissionType.MISSION) -> Steps[None]:
         """Read the vehicle's items back and compare them with ``sent`` (as :meth:`upload`
         returned them) by this vehicle's storage rules; a difference is a
         MissionTransferError (result ``MISMATCH``) naming the items, fields and values."""
-        read_back = self.download(mission_type)
+        read_back = yield from self.downloading(mission_type)
         skip_home = mission_type == MissionType.MISSION and self.keeps_home_in_item_zero
         differences = read_back_differences(sent, read_back, self.stored_form,
                                             skip_home=skip_home)
@@ -372,24 +377,114 @@ class Autopilot:
                 f"{MissionType(mission_type).name.lower()} read back differs from the "
                 f"upload: {_describe(differences)}", "MISMATCH", self.system_id)
 
-    def download(self, mission_type: int = MissionType.MISSION) -> list[MissionItem]:
+    def check_read_back(self, sent: list[MissionItem],
+                        mission_type: int = MissionType.MISSION) -> None:
+        """:meth:`reading_back`, waited for."""
+        self.do(self.reading_back(sent, mission_type))
+
+    def downloading(self, mission_type: int = MissionType.MISSION
+                    ) -> Steps[list[MissionItem]]:
         """The vehicle's items of ``mission_type`` (ArduPilot's home included as item 0)."""
         download = Download(mission_type, system_id=self.system_id)
-        self._transfer(download)
+        yield from self._transferring(download)
         return download.items
+
+    def download(self, mission_type: int = MissionType.MISSION) -> list[MissionItem]:
+        """:meth:`downloading`, waited for."""
+        return self.do(self.downloading(mission_type))
 
     def clear(self, mission_type: int = MissionType.MISSION) -> None:
         """Delete the vehicle's items of ``mission_type``."""
-        self._transfer(Clear(mission_type, system_id=self.system_id))
+        self.do(self._transferring(Clear(mission_type, system_id=self.system_id)))
 
-    def _transfer(self, transfer: Transfer,
-                  on_progress: Callable[[Progress], None] | None = None, *,
-                  raise_error: Callable[[Transfer], bool] = lambda _: True) -> None:
-        report = None if on_progress is None else (lambda m: on_progress(m.progress))
-        self.link.run(transfer, self.system_id, self.component_id, report)
+    def _transferring(self, transfer: Transfer,
+                      on_progress: Callable[[Progress], None] | None = None, *,
+                      raise_error: Callable[[Transfer], bool] = lambda _: True
+                      ) -> Steps[None]:
+        report = None if on_progress is None else (
+            lambda machine: on_progress(transfer.progress))
+        yield Exchange(transfer, report)
         if transfer.error is not None and raise_error(transfer):
             raise transfer.error
 
+
+# -- the commands, built (Autopilot's methods send them; a procedure yields them) ----------
+
+def arm_command(force: bool = False) -> CommandLong:
+    """COMPONENT_ARM_DISARM arming (``force`` skips the pre-arm checks)."""
+    return CommandLong(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, FORCE if force else 0)
+
+
+def disarm_command(force: bool = False) -> CommandLong:
+    """COMPONENT_ARM_DISARM disarming (``force`` also in flight)."""
+    return CommandLong(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, FORCE if force else 0)
+
+
+def takeoff_command(altitude: float) -> CommandLong:
+    """NAV_TAKEOFF to ``altitude`` metres above home (GUIDED, armed)."""
+    return CommandLong(mavlink.MAV_CMD_NAV_TAKEOFF, param7=altitude)
+
+
+LAND = CommandLong(mavlink.MAV_CMD_NAV_LAND)
+"""NAV_LAND where the vehicle is."""
+RETURN_TO_LAUNCH = CommandLong(mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH)
+"""NAV_RETURN_TO_LAUNCH: fly home and land (RTL)."""
+PHOTO = CommandLong(mavlink.MAV_CMD_DO_DIGICAM_CONTROL, param5=1)
+"""DO_DIGICAM_CONTROL shoot: the camera triggered once."""
+
+
+def speed_command(speed: float, ground: bool = True) -> CommandLong:
+    """DO_CHANGE_SPEED, m/s: ground speed, or airspeed with ``ground`` False."""
+    return CommandLong(mavlink.MAV_CMD_DO_CHANGE_SPEED, 1 if ground else 0, speed, -1)
+
+
+def yaw_command(heading: float, rate: float = 0.0, relative: bool = False,
+                clockwise: bool | None = None) -> CommandLong:
+    """CONDITION_YAW to ``heading`` degrees (from north, or by that much with
+    ``relative``): ``clockwise`` or not, or the shorter way (None).
+
+    ArduCopter keeps to a direction given even for a heading from north: told clockwise
+    from 90 to 45 degrees, it turns 315 degrees (AutoYaw::set_fixed_yaw)."""
+    direction = 0 if clockwise is None else 1 if clockwise else -1
+    return CommandLong(mavlink.MAV_CMD_CONDITION_YAW, heading, rate, direction,
+                       1 if relative else 0)
+
+
+def reposition_command(latitude: float, longitude: float, altitude: float,
+                       speed: float = -1, radius: float = 0.0) -> CommandInt:
+    """DO_REPOSITION to a point (altitude above home), entering GUIDED.
+
+    ``radius`` (m, 0: the vehicle's default) is the circle ArduPlane loiters on there,
+    clockwise (param4, the yaw, left NaN: ArduPlane reads it as clockwise).
+    """
+    return CommandInt(mavlink.MAV_CMD_DO_REPOSITION, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                      speed, mavlink.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE, radius, math.nan,
+                      round(latitude * 1e7), round(longitude * 1e7), altitude)
+
+
+def set_home_command(latitude: float | None = None, longitude: float | None = None,
+                     altitude: float = 0.0) -> Command:
+    """DO_SET_HOME to a point (altitude above mean sea level), or to here if none given."""
+    if latitude is None or longitude is None:
+        return CommandLong(mavlink.MAV_CMD_DO_SET_HOME, 1)
+    return CommandInt(mavlink.MAV_CMD_DO_SET_HOME, mavlink.MAV_FRAME_GLOBAL_INT, 0,
+                      x=round(latitude * 1e7), y=round(longitude * 1e7), z=altitude)
+
+
+def start_command(first: int = 0, last: int = 0) -> CommandLong:
+    """MISSION_START (ArduPilot DENIES any ``first`` or ``last`` but 0)."""
+    return CommandLong(mavlink.MAV_CMD_MISSION_START, first, last)
+
+
+def current_command(seq: int) -> CommandLong:
+    """DO_SET_MISSION_CURRENT: mission item ``seq`` flown next."""
+    return CommandLong(mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, seq)
+
+
+def gripper_command(grab: bool, instance: int = 1) -> CommandLong:
+    """DO_GRIPPER: close (``grab``) or open."""
+    action = mavlink.GRIPPER_ACTION_GRAB if grab else mavlink.GRIPPER_ACTION_RELEASE
+    return CommandLong(mavlink.MAV_CMD_DO_GRIPPER, instance, action)
 
 def _describe(differences: list[ItemDifference]) -> str:
     """The first differences in words, and how many more there are."""

@@ -61,11 +61,12 @@ import threading
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, TypeVar
 
 from tml.errors import LinkLost, VehicleError, VehicleTimeout
 from tml.mavlink import codec, reactor
 from tml.mavlink.codec import mavlink, mavutil
+from tml.mavlink.steps import Exchange, Machine, Step, Steps, Until
 from tml.mavlink.telemetry import Telemetry, TelemetryTracker
 from tml.signing import signature_first, timestamp_now
 from tml.timebase import SYSTEM, Timebase
@@ -146,25 +147,6 @@ def parse_address(text: str, baud: int = 57600) -> Address:
     return Address("serial", device=device, baud=int(speed) if comma else baud)
 
 
-class Machine(Protocol):
-    """What :meth:`Link.run` drives: a transfer, a command sender, a mode change."""
-
-    inputs: Any
-    """The plain message type(s) (a type or a union) the machine is fed."""
-
-    @property
-    def deadline(self) -> float: ...
-
-    @property
-    def done(self) -> bool: ...
-
-    def start(self, now: float) -> list[Any]: ...
-
-    def receive(self, msg: Any, now: float) -> list[Any]: ...
-
-    def tick(self, now: float) -> list[Any]: ...
-
-
 @dataclass(frozen=True)
 class VehicleInfo:
     """A vehicle seen on the link: its ids and what its HEARTBEAT says it is."""
@@ -191,6 +173,22 @@ class LinkStats:
 
 
 Listener = Callable[[int, Telemetry, Any], None]
+Ended = Callable[[Any, "BaseException | None"], None]
+"""What :meth:`Link.begin` calls when a procedure is over: with its outcome, or with what it
+raised (then the outcome is None)."""
+T = TypeVar("T")
+
+
+@dataclass(eq=False)
+class _Procedure:
+    """A procedure begun on the link (:meth:`Link.begin`), and the step it waits on."""
+
+    steps: Steps[Any]
+    system_id: int
+    component_id: int
+    on_end: Ended
+    step: Step | None = None
+    deadline: float = math.inf  # when the step's time is up (a machine's: when it is ticked)
 
 
 class Link:
@@ -253,6 +251,11 @@ class Link:
         self._vehicles: dict[int, VehicleInfo] = {}
         self._trackers: dict[int, TelemetryTracker] = {}
         self._machines: dict[int, list[Machine]] = {}
+        # Procedures of begin, by vehicle, while they wait on a step (guarded by _lock);
+        # handed to the reactor in _beginning. Only the reactor's thread advances them.
+        self._procedures: dict[int, list[_Procedure]] = {}
+        self._beginning: list[_Procedure] = []
+        self._duty_at = math.inf  # when the reactor carries out duties next (duties said)
         self._listeners: list[Listener] = []
         self._changes: list[Callable[[int], None]] = []
         self._running = False
@@ -279,6 +282,7 @@ class Link:
         if self._reactor is not None:
             reactor.unserve(self, self._reactor)
             self._reactor = None
+        self._end_procedures()
         for conn in (self._conn, *self._outputs):
             if getattr(conn, "port", True) is not None:  # a TCP link down has no socket
                 with contextlib.suppress(OSError):
@@ -444,6 +448,7 @@ class Link:
         sends its first message (the way up may work when the way down does not), but
         its retries are not waited out.
         """
+        self._not_on_the_reactor(type(machine).__name__)
         with self._lock:
             self._machines.setdefault(system_id, []).append(machine)
             self._send_all(machine.start(self.timebase.now()), system_id, component_id)
@@ -470,12 +475,225 @@ class Link:
         for msg in msgs:
             self.send(msg, system_id, component_id)
 
+    # -- procedures (tml.mavlink.steps) ---------------------------------------------------
+
+    def drive(self, steps: Steps[T], system_id: int, component_id: int) -> T:
+        """Carry out a procedure on the calling thread, which waits through each of its
+        steps (:meth:`run` for an Exchange); returns its outcome, raises what it raises."""
+        error: BaseException | None = None
+        while True:
+            try:
+                step = steps.send(None) if error is None else steps.throw(error)
+            except StopIteration as stop:
+                outcome: T = stop.value
+                return outcome
+            error = None
+            try:
+                if isinstance(step, Exchange):
+                    self.run(step.machine, system_id, component_id, step.on_progress)
+                else:
+                    self._wait_until(system_id, step)
+            except VehicleError as caught:
+                error = caught
+
+    def _wait_until(self, system_id: int, step: Until) -> None:
+        self._not_on_the_reactor(f"waiting for {step.what}")
+        end = self.timebase.now() + step.timeout
+        with self._lock:
+            while not step.holds():
+                if not step.lost_ok:
+                    self._raise_if_lost(self.telemetry(system_id), f"waiting for {step.what}")
+                left = end - self.timebase.now()
+                if left <= 0:
+                    raise _timed_out(step, system_id)
+                self._wait_for_news(left)
+
+    def begin(self, steps: Steps[Any], system_id: int, component_id: int,
+              on_end: Ended) -> None:
+        """Carry out a procedure from the reactor's thread, without waiting: the reactor
+        takes it up at once, feeds each Exchange's machine the vehicle's answers, asks each
+        Until again after each message from the vehicle, resumes the procedure when its
+        step is over, and ticks or ends a step whose time is up. ``on_end(outcome, error)``
+        is called from the reactor's thread when the procedure is over. The procedure's
+        own code runs on that thread too: between its steps it must be quick, and never
+        wait (a wait there is refused, see :meth:`run`)."""
+        procedure = _Procedure(steps, system_id, component_id, on_end)
+        with self._lock:
+            running = self._running
+            if running:
+                self._beginning.append(procedure)
+                self.timebase.announce()  # time waits for the reactor to take it up
+        if running:
+            self._hurry()
+        else:  # closed: over at once, as every step would be
+            self._advance(procedure, LinkLost(f"the link to {self.address} is closed",
+                                              system_id))
+
+    def _end_procedures(self) -> None:
+        """The link closed: each procedure begun and not over ends with LinkLost."""
+        with self._lock:
+            beginning, self._beginning = self._beginning, []
+            waiting = [p for ps in self._procedures.values() for p in ps]
+        for _ in beginning:
+            self.timebase.arrived()
+        for procedure in [*beginning, *waiting]:
+            self._release(procedure)
+            self._advance(procedure, LinkLost(f"the link to {self.address} is closed",
+                                              procedure.system_id))
+
+    def _hurry(self) -> None:
+        served = self._reactor
+        if served is not None:
+            served.hurry(self)
+
+    def _due_by(self, when: float) -> None:
+        """A step's time is up at ``when``: the reactor comes by then."""
+        if when < self._duty_at:
+            self._duty_at = when
+            self._hurry()
+
+    def _advance(self, procedure: _Procedure, error: BaseException | None) -> None:
+        """Resume ``procedure`` (throwing ``error`` into it) up to its next step that
+        waits, or to its end."""
+        while True:
+            try:
+                step = procedure.steps.send(None) if error is None \
+                    else procedure.steps.throw(error)
+            except StopIteration as stop:
+                procedure.on_end(stop.value, None)
+                return
+            except Exception as failed:  # its result says so (on_end), not the reactor
+                procedure.on_end(None, failed)
+                return
+            error = self._wait_on(procedure, step)
+            if error is None and procedure.step is not None:
+                return  # waits
+
+    def _wait_on(self, procedure: _Procedure, step: Step) -> BaseException | None:
+        """Start ``step`` and register the procedure as waiting on it, unless it is over at
+        once (then ``procedure.step`` is None, and the error it ends with is returned)."""
+        system_id = procedure.system_id
+        now = self.timebase.now()
+        procedure.step = None
+        if not self._running:
+            return LinkLost(f"the link to {self.address} is closed", system_id)
+        if isinstance(step, Until):
+            if step.holds():
+                return None
+            lost = None if step.lost_ok else self._lost(self.telemetry(system_id),
+                                                        f"waiting for {step.what}")
+            if lost is not None:
+                return lost
+            if step.timeout <= 0:
+                return _timed_out(step, system_id)
+            deadline = now + step.timeout
+        with self._lock:
+            if isinstance(step, Exchange):
+                machine = step.machine
+                self._machines.setdefault(system_id, []).append(machine)
+                self._send_all(machine.start(now), system_id, procedure.component_id)
+                # Its first message goes even to a vehicle lost: the way up may work when
+                # the way down does not; its retries are not waited out (as run).
+                lost = None if machine.done else self._lost(
+                    self.telemetry(system_id), f"during {type(machine).__name__}")
+                if machine.done or lost is not None:
+                    self._machines[system_id].remove(machine)
+                    return lost
+                deadline = machine.deadline
+            procedure.step, procedure.deadline = step, deadline
+            self._procedures.setdefault(system_id, []).append(procedure)
+        self._due_by(deadline)
+        return None
+
+    def _release(self, procedure: _Procedure) -> None:
+        """The procedure's step is over: no longer waited on (nor its machine fed)."""
+        step, procedure.step = procedure.step, None
+        with self._lock:
+            waiting = self._procedures.get(procedure.system_id, [])
+            if procedure in waiting:
+                waiting.remove(procedure)
+            if isinstance(step, Exchange):
+                machines = self._machines.get(procedure.system_id, [])
+                if step.machine in machines:
+                    machines.remove(step.machine)
+
+    def _resume(self, system_id: int) -> None:
+        """After a message from the vehicle: resume each of its procedures whose step is
+        over (a machine done, an Until that holds)."""
+        with self._lock:
+            waiting = list(self._procedures.get(system_id, ()))
+        for procedure in waiting:
+            step = procedure.step
+            if isinstance(step, Exchange):
+                machine = step.machine
+                if step.on_progress is not None:
+                    step.on_progress(machine)
+                if machine.done:
+                    self._release(procedure)
+                    self._advance(procedure, None)
+                elif machine.deadline < procedure.deadline:
+                    procedure.deadline = machine.deadline
+                    self._due_by(machine.deadline)
+            elif step is not None and step.holds():
+                self._release(procedure)
+                self._advance(procedure, None)
+
+    def _procedures_due(self, now: float) -> float:
+        """Take up the procedures begun; tick or end the steps whose time is up, or whose
+        vehicle is lost; returns when the next step's time is up."""
+        with self._lock:
+            beginning, self._beginning = self._beginning, []
+            waiting = [p for ps in self._procedures.values() for p in ps]
+        for procedure in beginning:
+            self._advance(procedure, None)
+            self.timebase.arrived()
+        for procedure in waiting:
+            step = procedure.step
+            if step is None:
+                continue  # over meanwhile (a message resumed it)
+            snapshot = self.telemetry(procedure.system_id)
+            if isinstance(step, Exchange):
+                machine = step.machine
+                if procedure.deadline <= now:
+                    with self._lock:
+                        self._send_all(machine.tick(now), procedure.system_id,
+                                       procedure.component_id)
+                    procedure.deadline = machine.deadline
+                lost = self._lost(snapshot, f"during {type(machine).__name__}")
+                if machine.done or lost is not None:
+                    self._release(procedure)
+                    self._advance(procedure, None if machine.done else lost)
+            elif step.holds():
+                self._release(procedure)
+                self._advance(procedure, None)
+            elif not step.lost_ok and snapshot.link_lost:
+                self._release(procedure)
+                self._advance(procedure, self._lost(snapshot, f"waiting for {step.what}"))
+            elif procedure.deadline <= now:
+                self._release(procedure)
+                self._advance(procedure, _timed_out(step, procedure.system_id))
+        with self._lock:
+            return min((p.deadline for ps in self._procedures.values() for p in ps),
+                       default=math.inf)
+
     def _raise_if_lost(self, snapshot: Telemetry, doing: str) -> None:
-        if snapshot.link_lost:
-            age = snapshot.heartbeat_age(self.timebase.now())
-            raise LinkLost(f"link lost {doing}: no HEARTBEAT for {age:.1f} s "
-                           f"(limit {self.lost_after:g} s) on {self.address}",
-                           snapshot.system_id)
+        lost = self._lost(snapshot, doing)
+        if lost is not None:
+            raise lost
+
+    def _lost(self, snapshot: Telemetry, doing: str) -> LinkLost | None:
+        if not snapshot.link_lost:
+            return None
+        age = snapshot.heartbeat_age(self.timebase.now())
+        return LinkLost(f"link lost {doing}: no HEARTBEAT for {age:.1f} s "
+                        f"(limit {self.lost_after:g} s) on {self.address}", snapshot.system_id)
+
+    def _not_on_the_reactor(self, doing: str) -> None:
+        """A wait on the reactor's own thread would wait for itself: a procedure yields its
+        steps instead (:meth:`begin`)."""
+        served = self._reactor
+        if served is not None and served.thread is threading.current_thread():
+            raise VehicleError(f"{doing} would wait on the MAVLink reactor's own thread")
 
     # -- served by the reactor (its thread) ----------------------------------------------
 
@@ -524,9 +742,13 @@ class Link:
                 self.readable(DRAIN_LIMIT)  # dials again (_Redial), at most as often as it may
         except (OSError, ValueError) as error:
             self._went_down(error)
+        steps_due = self._procedures_due(self.timebase.now())
         if not self._conn_up():
-            return min(self._next_heartbeat, now + LOST_CHECK_PERIOD)
-        return min(self._next_heartbeat, self._next_check)
+            due = min(self._next_heartbeat, now + LOST_CHECK_PERIOD, steps_due)
+        else:
+            due = min(self._next_heartbeat, self._next_check, steps_due)
+        self._duty_at = due
+        return due
 
     def _first_loss(self, now: float) -> float:
         """When the first vehicle not lost yet would be, without another HEARTBEAT: the
@@ -615,6 +837,11 @@ class Link:
         if snapshot is not None:
             for listener in self._listeners:
                 listener(sysid, snapshot, msg)
+            with self._lock:  # what a listener kept (a parameter's value) may end a wait
+                if self._waiting:
+                    self.timebase.notify_all(self._lock)
+        if self._procedures.get(sysid):
+            self._resume(sysid)
         if changed:
             for change in self._changes:
                 change(sysid)
@@ -832,3 +1059,7 @@ class _Redial:
         self.why = error
         self.on_down(error)
         raise error
+
+
+def _timed_out(step: Until, system_id: int) -> VehicleTimeout:
+    return VehicleTimeout(f"{step.what} not reached within {step.timeout:g} s", system_id)

@@ -101,11 +101,20 @@ class Reactor:
         self._due: list[tuple[float, int, Served]] = []  # heap; stale entries are skipped
         self._order = itertools.count()
         self._more: list[Served] = []  # owners with messages left after their turn
+        self._hurried: list[Served] = []  # owners whose duties are due now (guarded as _adding)
 
     @property
     def served(self) -> int:
         """How many owners the loop serves."""
         return len(self._files)
+
+    def hurry(self, owner: Served) -> None:
+        """Carry out ``owner``'s duties in the loop's next round, not when it said they were
+        due (a duty of its own came sooner: a request's step). Any thread."""
+        with _REGISTRY_LOCK:
+            if self.thread is not None:
+                self._hurried.append(owner)
+                self.wake()
 
     def wake(self) -> None:
         """Make the loop look at its owners now (one added or removed). Called with
@@ -141,6 +150,13 @@ class Reactor:
             wait = 0.0  # their messages are read already: no waiting for the socket
         ready = timebase.wait_ready(self._selector, wait)
         turn, self._more = self._more, []
+        if self._hurried:
+            with _REGISTRY_LOCK:
+                hurried, self._hurried = self._hurried, []
+            now = timebase.now()
+            for owner in hurried:
+                if owner in self._files:
+                    self._schedule(owner, now)
         for key, _ in ready:
             if key.data is None:
                 with contextlib.suppress(BlockingIOError):

@@ -17,7 +17,7 @@ from tests.right_of_way import held_elsewhere
 from tml import timebase as timebase_module
 from tml.commands.cli import main
 from tml.run.journal import read
-from tml.timebase import SYSTEM, Empty, Flag, Lockstep, Mailbox, Timebase
+from tml.timebase import SYSTEM, Flag, Lockstep, Timebase
 
 # A guard against a hang, not a time limit: a flight in lock-step with the simulator is
 # slower, never different, on a busy machine (tests/test_timebase.py), and one of a fleet
@@ -37,21 +37,13 @@ def until(condition: Callable[[], bool], timeout: float = 30.0) -> None:
 
 # --- the system's time ------------------------------------------------------------------------
 
-def test_the_systems_flag_and_mailbox_behave_as_event_and_queue() -> None:
+def test_the_systems_flag_behaves_as_an_event() -> None:
     flag: Flag = Flag(SYSTEM)
     assert not flag.wait(0.01)
     threading.Timer(0.01, flag.set).start()
     assert flag.wait(30.0) and flag.is_set()
     flag.clear()
     assert not flag.is_set()
-    box: Mailbox[int] = Mailbox(SYSTEM)
-    with pytest.raises(Empty):
-        box.get(timeout=0.01)
-    box.put(1)
-    box.put(2)
-    assert (box.get(0), box.get(0), box.unfinished_tasks) == (1, 2, 2)
-    box.task_done()
-    assert box.unfinished_tasks == 1
 
 
 # --- lock-step ----------------------------------------------------------------------------------
@@ -122,13 +114,13 @@ def test_a_wait_ends_at_its_deadline_only_once_fired() -> None:
 
 def test_a_notify_counts_the_woken_thread_as_running_before_it_runs() -> None:
     timebase = Lockstep()
-    box: Mailbox[str] = Mailbox(timebase)
-    part = Part(timebase, lambda: box.get(timeout=10.0))
+    flag = Flag(timebase)
+    part = Part(timebase, lambda: flag.wait(10.0))
     until(timebase.settled)
-    box.put("request")
+    flag.set()
     # Whether or not the thread has been scheduled yet, time must not move on without it.
     assert not timebase.settled()
-    assert part.done.wait(30.0) and part.result == "request"
+    assert part.done.wait(30.0) and part.result is True
     until(timebase.settled)  # it left: nobody takes part any more
 
 

@@ -41,8 +41,8 @@ the time base too; what they send is handled at the next tick. A thread that tak
 blocks outside the time base (a bug) would stop time for good: after ``stall_after`` wall
 seconds without settling, time moves on anyway and :attr:`Lockstep.stalls` counts it.
 
-:class:`Flag` and :class:`Mailbox` are an event and a queue whose waits go through a time
-base; with :data:`SYSTEM` they behave as :class:`threading.Event` and :class:`queue.Queue`.
+:class:`Flag` is an event whose waits go through a time base; with :data:`SYSTEM` it behaves
+as :class:`threading.Event`.
 """
 
 from __future__ import annotations
@@ -54,12 +54,8 @@ import select
 import selectors
 import threading
 import time
-from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Generic, TypeVar
-
-T = TypeVar("T")
 
 GUARD = 0.1
 """Wall seconds a lock-step wait sleeps at most before looking again: nothing is missed by
@@ -479,37 +475,3 @@ class Flag:
             if not self._set:
                 self.timebase.wait(self._cond, timeout)
             return self._set
-
-
-class Empty(Exception):
-    """:meth:`Mailbox.get` found nothing within its time."""
-
-
-class Mailbox(Generic[T]):
-    """A first-in first-out queue (:class:`queue.Queue`'s put, get, task_done and
-    unfinished_tasks) whose get waits through a time base."""
-
-    def __init__(self, timebase: Timebase = SYSTEM) -> None:
-        self.timebase = timebase
-        self._cond = threading.Condition()
-        self._items: deque[T] = deque()
-        self.unfinished_tasks = 0
-
-    def put(self, item: T) -> None:
-        with self._cond:
-            self._items.append(item)
-            self.unfinished_tasks += 1
-            self.timebase.notify_all(self._cond)
-
-    def get(self, timeout: float | None = None) -> T:
-        """The first item; waits up to ``timeout`` seconds of the time base, else Empty."""
-        with self._cond:
-            if not self._items:
-                self.timebase.wait(self._cond, timeout)
-            if not self._items:
-                raise Empty
-            return self._items.popleft()
-
-    def task_done(self) -> None:
-        with self._cond:
-            self.unfinished_tasks -= 1

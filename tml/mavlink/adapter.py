@@ -4,16 +4,19 @@ Theory of operation
 -------------------
 The interpreter reads :class:`~tml.vehicle.VehicleState` and submits requests without ever
 waiting; a MAVLink vehicle answers commands in round trips of tens of milliseconds (and
-seconds when the link is poor). So a :class:`MavlinkVehicle` with requests to carry out has
-a worker thread that takes them in order and carries each out with the link's command
-sender (:class:`tml.mavlink.autopilot.Autopilot`): ``submit`` only queues (and starts the
-worker if there is none), ``poll`` returns the :class:`~tml.vehicle.RequestResult` of the
-requests finished since the last poll. The worker ends when no request has come for
-:data:`WORKER_KEPT` seconds: a fleet hovering, or waiting for an event, has no thread per
-vehicle (the link's reactor reads its messages, tml.mavlink.reactor); what must be done
+seconds when the link is poor). So each request is carried out as a *procedure*
+(:mod:`tml.mavlink.steps`): a generator that yields each exchange with the vehicle (a
+command, a mode change, a mission transfer, a parameter read) and each wait for the
+telemetry to show something, and is resumed when that step is over. The link's reactor
+drives the procedures (:meth:`~tml.mavlink.link.Link.begin`): ``submit`` only queues the
+request, the reactor begins it after the one before it and resumes it as the vehicle
+answers, and ``poll`` returns the :class:`~tml.vehicle.RequestResult` of the requests
+finished since the last poll. A fleet of any size has no thread per vehicle: the one
+thread that reads every link also carries out every request. What must be done
 periodically besides -- the streams asked again when they stay away
 (:data:`STREAM_CHECK_PERIOD`), the GUIDED target kept -- is done by the link listener at the
-vehicle's HEARTBEAT.
+vehicle's HEARTBEAT. (A FLIP holds the pilot's sticks from a thread of its own while it
+lasts: :class:`_Sticks`.)
 
 ``state`` is built on demand from the link's latest :class:`~tml.mavlink.telemetry.Telemetry`
 snapshot: local position from GLOBAL_POSITION_INT relative to HOME_POSITION (via

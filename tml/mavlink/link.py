@@ -17,10 +17,11 @@ so a message is handled as soon as it arrives, and for each message the link
    machines running for that vehicle (:meth:`run`; each takes the plain messages of its
    ``inputs``) and sends their answers at once, from the reactor's thread: the time from
    an item request to the item on the wire is one Python call;
-5. calls the listeners (:meth:`listen`) with the new snapshot, and, when the message
-   changed what the vehicle shows (:attr:`~tml.mavlink.telemetry.Telemetry.revision`), the
-   change listeners (:meth:`on_change`): a runner woken only then does not step its
-   interpreter for messages that repeat what it already knows.
+5. calls the listeners (:meth:`listen`) with the new snapshot, resumes the vehicle's
+   procedures whose step is over (:meth:`begin`), and, when the message changed what the
+   vehicle shows (:attr:`~tml.mavlink.telemetry.Telemetry.revision`), the change listeners
+   (:meth:`on_change`): a runner woken only then does not step its interpreter for
+   messages that repeat what it already knows.
 
 *A TCP vehicle that goes away* (a simulator killed, a server that hangs up) is dialled
 again, once every ``REDIAL_PERIOD`` seconds, each attempt bounded by ``REDIAL_TIMEOUT`` and
@@ -37,7 +38,11 @@ and the redial are the link's :meth:`~Link.duties`, carried out by the reactor w
 the lost check comes when the first vehicle of the link could be lost, not on a fixed beat.
 The calling thread uses the link through snapshots (:meth:`telemetry`), :meth:`send`, and
 :meth:`run`, which starts a state machine, then sleeps on a condition until an answer or
-the machine's deadline and ticks it.
+the machine's deadline and ticks it. A *procedure* (:mod:`tml.mavlink.steps`: a request's
+exchanges and waits, one after the other) is carried out either by the calling thread,
+waiting through each step (:meth:`drive`), or by the reactor without any thread waiting
+(:meth:`begin`): the reactor resumes it when its step's answer arrives, when what it waits
+for shows, or when its time is up -- a step's deadline is one of the link's duties.
 The reactor rather than the caller reads the sockets because the link must answer the
 vehicle (mission item requests, heartbeats) while the interpreter is busy; the interpreter
 itself stays I/O-free and reads snapshots.

@@ -5,20 +5,27 @@ test_mavlink_link over loopback UDP."""
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Iterator
+from dataclasses import replace
 from typing import Any
 
 import pytest
 from test_mavlink_link import FakeAutopilot, eventually
 
 from tml.errors import CommandRejected, LinkLost, VehicleError, VehicleTimeout
+from tml.mavlink import codec
+from tml.mavlink.adapter import MavlinkVehicle
 from tml.mavlink.autopilot import Autopilot, arm_command, takeoff_command
 from tml.mavlink.codec import mavlink
 from tml.mavlink.command import CommandAck, CommandLong, CommandResult, CommandSender
 from tml.mavlink.link import Link, VehicleInfo
+from tml.mavlink.modes import ModeChange
 from tml.mavlink.reactor import THREAD_NAME
 from tml.mavlink.steps import Exchange, Steps, Until
 from tml.mavlink.telemetry import Telemetry
+from tml.timebase import SYSTEM
+from tml.vehicle import Flip, RequestResult, TakeOff
 
 GRIPPER = mavlink.MAV_CMD_DO_GRIPPER
 COPTER = VehicleInfo(1, 1, mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
@@ -216,3 +223,134 @@ def test_a_wait_on_the_reactors_own_thread_is_refused(
     link.begin(blocking(), 1, 1, ended)
     _outcome, error, _ = ended.wait()
     assert isinstance(error, VehicleError) and "reactor's own thread" in str(error)
+
+
+def test_a_repeated_message_goes_from_the_reactor_until_stopped(
+        rig: tuple[FakeAutopilot, Link, Autopilot]) -> None:
+    _fake, link, _autopilot = rig
+    calls: list[str] = []
+    stop = link.repeat(lambda: calls.append(threading.current_thread().name), 0.02)
+    assert eventually(lambda: len(calls) >= 3), "repeated"
+    stop()
+    stopped_at = len(calls)
+    time.sleep(0.2)  # ten periods: a repeat not stopped would have gone on
+    assert len(calls) <= stopped_at + 1  # (one may have been under way)
+    assert set(calls) == {THREAD_NAME}
+
+
+# -- a request's procedure, by hand: MavlinkVehicle without a link -------------------------------
+
+
+class ScriptedLink:
+    """What MavlinkVehicle reads of a link, with a snapshot the test sets and nothing on
+    the wire: the request's procedure is driven by the test alone."""
+
+    timebase = SYSTEM
+    source_system = 255
+
+    def __init__(self) -> None:
+        self.snapshot = Telemetry(system_id=1, vehicle_type=mavlink.MAV_TYPE_QUADROTOR,
+                                  autopilot=mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                                  mode="GUIDED")
+        self.sent: list[Any] = []
+
+    def wait_vehicle(self, system_id: int | None, timeout: float) -> VehicleInfo:
+        return COPTER
+
+    def telemetry(self, system_id: int) -> Telemetry:
+        return self.snapshot
+
+    def listen(self, listener: Any) -> None:
+        pass
+
+    def on_change(self, listener: Any) -> None:
+        pass
+
+    def send(self, msg: Any, system_id: int = 0, component_id: int = 0) -> None:
+        self.sent.append(msg)
+
+    def repeat(self, send: Any, period: float) -> Any:
+        self.repeating = True
+
+        def stop() -> None:
+            self.repeating = False
+        return stop
+
+
+def answer(step: object, result: CommandResult, now: float = 0.0) -> int:
+    """Start the Exchange ``step`` and answer its command with ``result``; the command."""
+    assert isinstance(step, Exchange) and isinstance(step.machine, CommandSender)
+    [sent] = step.machine.start(now)
+    step.machine.receive(CommandAck(sent.command, result), now + 0.05)
+    command: int = sent.command
+    return command
+
+
+def test_a_take_off_refused_because_the_vehicle_disarmed_meanwhile_arms_and_tries_again() -> None:
+    link = ScriptedLink()
+    vehicle = MavlinkVehicle(link, 1)  # type: ignore[arg-type]
+    steps = vehicle._carry_out(TakeOff(1, 5.0))
+    # ArduCopter disarms on the ground DISARM_DELAY after arming: the take-off is refused.
+    assert answer(next(steps), CommandResult.MAV_RESULT_FAILED) == mavlink.MAV_CMD_NAV_TAKEOFF
+    assert answer(steps.send(None), CommandResult.MAV_RESULT_ACCEPTED) \
+        == mavlink.MAV_CMD_COMPONENT_ARM_DISARM
+    assert answer(steps.send(None), CommandResult.MAV_RESULT_ACCEPTED) \
+        == mavlink.MAV_CMD_NAV_TAKEOFF
+    with pytest.raises(StopIteration) as over:
+        steps.send(None)
+    assert over.value.value == RequestResult(1, 0, True)
+
+
+def test_a_take_off_refused_while_armed_is_the_refusal() -> None:
+    link = ScriptedLink()
+    link.snapshot = replace(link.snapshot, armed=True)
+    steps = MavlinkVehicle(link, 1)._carry_out(TakeOff(1, 5.0))  # type: ignore[arg-type]
+    answer(next(steps), CommandResult.MAV_RESULT_FAILED)
+    with pytest.raises(StopIteration) as over:
+        steps.send(None)
+    result = over.value.value
+    assert (result.ok, result.reason, result.detail) == (
+        False, "rejected", "MAV_CMD_NAV_TAKEOFF: MAV_RESULT_FAILED")
+
+
+def test_a_flip_that_fails_midway_puts_the_vehicle_back_in_guided_before_the_sticks_go() -> None:
+    link = ScriptedLink()
+    steps = MavlinkVehicle(link, 1)._carry_out(Flip(1, "left"))  # type: ignore[arg-type]
+    hold = next(steps)  # ALT_HOLD asked, with the sticks held (every STICK_PERIOD after)
+    assert isinstance(hold, Exchange) and isinstance(hold.machine, ModeChange)
+    assert hold.machine.mode == "ALT_HOLD" and link.repeating
+    hold.machine.start(0.0)
+    link.snapshot = replace(link.snapshot, mode="ALT_HOLD", mode_changes=((0.1, "ALT_HOLD"),))
+    while not hold.machine.done:  # its ACK lost, the HEARTBEAT shows it taken
+        hold.machine.tick(hold.machine.deadline)
+    flip = steps.send(None)
+    assert isinstance(flip, Exchange) and isinstance(flip.machine, ModeChange)
+    assert flip.machine.mode == "FLIP"
+    flip.machine.start(1.0)
+    while not flip.machine.done:  # never answered, never seen
+        flip.machine.tick(flip.machine.deadline)
+    # The flip is given up: the vehicle is put back in GUIDED before the sticks are let go
+    # (in ALT_HOLD a released throttle stick is a throttle at zero).
+    back = steps.send(None)
+    assert isinstance(back, Exchange) and isinstance(back.machine, ModeChange)
+    assert back.machine.mode == "GUIDED"
+    assert link.repeating
+    assert not [m for m in link.sent if getattr(m, "chan1_raw", None) == codec.RC_RELEASE]
+    back.machine.start(20.0)
+    while not back.machine.done:
+        back.machine.tick(back.machine.deadline)
+    with pytest.raises(StopIteration) as over:
+        steps.send(None)
+    assert over.value.value.reason == "timeout"
+    assert not link.repeating
+    assert [m.chan1_raw for m in link.sent[-3:]] == [codec.RC_RELEASE] * 3
+
+
+def test_a_flip_abandoned_unfinished_lets_go_of_the_sticks_and_asks_nothing_more() -> None:
+    link = ScriptedLink()
+    link.snapshot = replace(link.snapshot, mode="ALT_HOLD")
+    steps = MavlinkVehicle(link, 1)._carry_out(Flip(1, "left"))  # type: ignore[arg-type]
+    next(steps)
+    steps.close()  # as the garbage collector closes a generator nobody resumes
+    assert not link.repeating
+    assert [m.chan1_raw for m in link.sent[-3:]] == [codec.RC_RELEASE] * 3

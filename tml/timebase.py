@@ -2,9 +2,9 @@
 
 Theory of operation
 -------------------
-Every thread of tml that waits for a vehicle -- the runner between two steps, a vehicle's
-worker for an answer or a telemetry value, a link's receive thread for the next message or
-its next heartbeat -- waits through one :class:`Timebase`. The system's (:data:`SYSTEM`) is
+Every thread of tml that waits for a vehicle -- the runner between two steps, the reactor
+for the next message, heartbeat or request's deadline of any link, a command-line tool for
+an answer -- waits through one :class:`Timebase`. The system's (:data:`SYSTEM`) is
 the monotonic clock with ordinary waits: a real vehicle does not wait for us.
 
 :class:`Lockstep` is the time of an embedded simulator that the simulator advances itself,
@@ -14,13 +14,14 @@ never on how busy the machine is: a flight on an idle machine and on a saturated
 the same flight log (up to the order of things done at one instant).
 
 *Taking part.* The threads whose work must be done before time moves on say so
-(:meth:`Timebase.taking_part`): the runner, each vehicle's worker, each link's receive
-thread. A thread taking part is *running* unless it is inside one of the waits below:
+(:meth:`Timebase.taking_part`): the runner and the reactor that reads every link and
+carries out every request. A thread taking part is *running* unless it is inside one of
+the waits below:
 
 - :meth:`Timebase.wait` on a condition: it ends at the condition's :meth:`Timebase.notify_all`
   or at its deadline in this time base's seconds. A notify made through the time base counts
   the woken threads as running at once, before they even get the processor, so a message
-  handled by a receive thread and the worker it wakes both finish before time moves on;
+  handled by the reactor and the runner it wakes both finish before time moves on;
 - :meth:`Timebase.wait_readable` on a socket, or :meth:`Timebase.wait_ready` on the
   sockets of a selector (tml.mavlink.reactor: one thread for every link), for the next
   bytes or a deadline.

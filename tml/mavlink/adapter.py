@@ -15,8 +15,8 @@ finished since the last poll. A fleet of any size has no thread per vehicle: the
 thread that reads every link also carries out every request. What must be done
 periodically besides -- the streams asked again when they stay away
 (:data:`STREAM_CHECK_PERIOD`), the GUIDED target kept -- is done by the link listener at the
-vehicle's HEARTBEAT. (A FLIP holds the pilot's sticks from a thread of its own while it
-lasts: :class:`_Sticks`.)
+vehicle's HEARTBEAT, and the pilot's sticks a FLIP holds (:class:`_Sticks`) are sent
+again by the reactor as one of the link's duties.
 
 ``state`` is built on demand from the link's latest :class:`~tml.mavlink.telemetry.Telemetry`
 snapshot: local position from GLOBAL_POSITION_INT relative to HOME_POSITION (via
@@ -135,7 +135,6 @@ from tml.mavlink.reboot import RebootWatch
 from tml.mavlink.safeguards import fence_action, safeguards
 from tml.mavlink.steps import Steps, Until
 from tml.mavlink.telemetry import COMPANION_COMPONENT, Telemetry
-from tml.timebase import Flag
 from tml.vehicle import (
     FLIGHT_REQUESTS,
     MESSAGES_KEPT,
@@ -846,6 +845,7 @@ class MavlinkVehicle:
         """A flip as a pilot makes it (see the module docstring); returns the modes seen."""
         began = self.timebase.now()
         sticks = _Sticks(self.link, self.system_id, self.mav.component_id)
+        closed = False  # abandoned unfinished (garbage): nobody would resume a step now
         try:
             yield from self._switching("ALT_HOLD")
             sticks.hold(*FLIP_STICKS.get(request.direction, FLIP_STICKS["right"]))
@@ -863,9 +863,12 @@ class MavlinkVehicle:
             with contextlib.suppress(VehicleTimeout):
                 yield Until(over, FLIP_WAIT, "the flip's end")
             yield from self._switching("GUIDED")
+        except GeneratorExit:
+            closed = True
+            raise
         finally:
             try:
-                if self.link.telemetry(self.system_id).mode != "GUIDED":
+                if not closed and self.link.telemetry(self.system_id).mode != "GUIDED":
                     yield from self._switching("GUIDED")
             except VehicleError:
                 pass  # the error that brought us here is the one to report
@@ -1193,7 +1196,7 @@ class _Unsupported(VehicleError):
 
 
 class _Sticks:
-    """The pilot's sticks held by RC_CHANNELS_OVERRIDE from a thread of its own, every
+    """The pilot's sticks held by RC_CHANNELS_OVERRIDE, sent by the link's reactor every
     STICK_PERIOD seconds from the start until :meth:`release`: throttle mid-stick, roll,
     pitch and yaw as :meth:`hold` sets them."""
 
@@ -1201,12 +1204,8 @@ class _Sticks:
         self.link = link
         self.target = (system_id, component_id)
         self.sticks = (MID_STICK, MID_STICK, MID_STICK, MID_STICK)
-        self._stop = Flag(link.timebase)
         self._send()
-        link.timebase.announce()
-        self._thread = threading.Thread(target=self._keep, daemon=True,
-                                        name=f"sticks {system_id}")
-        self._thread.start()
+        self._stop = link.repeat(self._send, STICK_PERIOD)
 
     def hold(self, roll: int = MID_STICK, pitch: int = MID_STICK) -> None:
         """Hold roll and pitch there (centred by default), from now on."""
@@ -1216,8 +1215,7 @@ class _Sticks:
 
     def release(self) -> None:
         """Stop holding and give channels 1-4 back to the radio."""
-        self._stop.set()
-        self._thread.join(timeout=1.0)
+        self._stop()
         self.sticks = (codec.RC_RELEASE,) * 4
         for _ in range(3):  # if all are lost, RC_OVERRIDE_TIME releases them anyway
             self._send()
@@ -1226,11 +1224,6 @@ class _Sticks:
         # A link gone: the vehicle drops the override after RC_OVERRIDE_TIME by itself.
         with contextlib.suppress(OSError):
             self.link.send(codec.rc_override(*self.target, self.sticks))
-
-    def _keep(self) -> None:
-        with self.link.timebase.taking_part(announced=True):
-            while not self._stop.wait(STICK_PERIOD):
-                self._send()
 
 
 _HANDLERS: dict[type, Callable[[MavlinkVehicle, Any], Steps[str | None]]] = {

@@ -185,6 +185,15 @@ T = TypeVar("T")
 
 
 @dataclass(eq=False)
+class _Repeat:
+    """A message sent again and again by the reactor (:meth:`Link.repeat`)."""
+
+    send: Callable[[], None]
+    period: float
+    due: float
+
+
+@dataclass(eq=False)
 class _Procedure:
     """A procedure begun on the link (:meth:`Link.begin`), and the step it waits on."""
 
@@ -260,6 +269,7 @@ class Link:
         # handed to the reactor in _beginning. Only the reactor's thread advances them.
         self._procedures: dict[int, list[_Procedure]] = {}
         self._beginning: list[_Procedure] = []
+        self._repeats: list[_Repeat] = []  # guarded by _lock
         self._duty_at = math.inf  # when the reactor carries out duties next (duties said)
         self._listeners: list[Listener] = []
         self._changes: list[Callable[[int], None]] = []
@@ -546,6 +556,31 @@ class Link:
             self._advance(procedure, LinkLost(f"the link to {self.address} is closed",
                                               procedure.system_id))
 
+    def repeat(self, send: Callable[[], None], period: float) -> Callable[[], None]:
+        """Call ``send`` every ``period`` seconds of the time base from the reactor's thread
+        (the first time one period from now), until the function returned is called."""
+        repeat = _Repeat(send, period, self.timebase.now() + period)
+        with self._lock:
+            self._repeats.append(repeat)
+
+        def stop() -> None:
+            with self._lock:
+                if repeat in self._repeats:
+                    self._repeats.remove(repeat)
+        self._due_by(repeat.due)
+        return stop
+
+    def _repeats_due(self, now: float) -> float:
+        """Send the repeated messages that are due; returns when the next is."""
+        with self._lock:
+            due = [r for r in self._repeats if r.due <= now]
+        for repeat in due:
+            with contextlib.suppress(OSError):  # a link gone: the vehicle's own time-out
+                repeat.send()
+            repeat.due = now + repeat.period
+        with self._lock:
+            return min((r.due for r in self._repeats), default=math.inf)
+
     def _hurry(self) -> None:
         served = self._reactor
         if served is not None:
@@ -747,7 +782,8 @@ class Link:
                 self.readable(DRAIN_LIMIT)  # dials again (_Redial), at most as often as it may
         except (OSError, ValueError) as error:
             self._went_down(error)
-        steps_due = self._procedures_due(self.timebase.now())
+        steps_due = min(self._procedures_due(self.timebase.now()),
+                        self._repeats_due(self.timebase.now()))
         if not self._conn_up():
             due = min(self._next_heartbeat, now + LOST_CHECK_PERIOD, steps_due)
         else:

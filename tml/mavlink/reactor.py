@@ -17,11 +17,12 @@ first (:meth:`tml.timebase.Timebase.right_of_way`: the runner, for its turn afte
 its turn is then done in one piece instead of in slices between the loop's.
 
 *Hand-overs.* The loop's thread is busy whenever telemetry comes in bursts, and a thread
-woken meanwhile (a vehicle's worker with a request to send) waits for the interpreter lock
+woken meanwhile (the runner with a step to take) waits for the interpreter lock
 until the loop's thread has held it for Python's switch interval. While a reactor runs, that
 interval is :data:`SWITCH_INTERVAL` (1 ms instead of 5; restored after the last reactor):
-a request goes out within milliseconds of its step even in a fleet's busiest second, for a
-few more hand-overs of the lock (docs/performance.md measures both).
+a step is taken within milliseconds of its change even in a fleet's busiest second, for a
+few more hand-overs of the lock (docs/performance.md measures both). The requests a step
+submits are carried out on the loop's own thread (:meth:`tml.mavlink.link.Link.begin`).
 
 *Fairness.* An owner handles at most :data:`MESSAGES_AT_ONCE` messages in one turn; one that
 may have more (its parser holds whole messages already read from the socket, which the

@@ -1,8 +1,8 @@
 """Which of a crew's vehicles a wake of the runner must look at.
 
 A vehicle that can say when it changed (:meth:`tml.mavlink.adapter.MavlinkVehicle.watch`)
-is *stirred* from the thread that saw the change -- the link's reactor on a message, the
-vehicle's worker on a result -- and a wake looks at the stirred vehicles, at those whose
+is *stirred* from the thread that saw the change -- the link's reactor, on a message or on a
+request's result -- and a wake looks at the stirred vehicles, at those whose
 own time is due (the state's refresh, the telemetry line), and at those whose last look
 left something to follow (a lost link being timed). The others are not touched: in a fleet
 of hundreds, most vehicles at most wakes. Without it, every wake walked every vehicle to

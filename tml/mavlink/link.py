@@ -265,10 +265,9 @@ class Link:
         self._vehicles: dict[int, VehicleInfo] = {}
         self._trackers: dict[int, TelemetryTracker] = {}
         self._machines: dict[int, list[Machine]] = {}
-        # Procedures of begin, by vehicle, while they wait on a step (guarded by _lock);
-        # handed to the reactor in _beginning. Only the reactor's thread advances them.
+        # Procedures of begin, by vehicle, while they wait on a step (guarded by _lock):
+        # from then on only the reactor's thread advances them.
         self._procedures: dict[int, list[_Procedure]] = {}
-        self._beginning: list[_Procedure] = []
         self._repeats: list[_Repeat] = []  # guarded by _lock
         self._duty_at = math.inf  # when the reactor carries out duties next (duties said)
         self._listeners: list[Listener] = []
@@ -525,33 +524,23 @@ class Link:
 
     def begin(self, steps: Steps[Any], system_id: int, component_id: int,
               on_end: Ended) -> None:
-        """Carry out a procedure from the reactor's thread, without waiting: the reactor
-        takes it up at once, feeds each Exchange's machine the vehicle's answers, asks each
-        Until again after each message from the vehicle, resumes the procedure when its
-        step is over, and ticks or ends a step whose time is up. ``on_end(outcome, error)``
-        is called from the reactor's thread when the procedure is over. The procedure's
-        own code runs on that thread too: between its steps it must be quick, and never
-        wait (a wait there is refused, see :meth:`run`)."""
+        """Carry out a procedure without waiting: it runs on the calling thread up to its
+        first step (so that its first message goes out at once), then the reactor drives
+        it -- feeds each Exchange's machine the vehicle's answers, asks each Until again
+        after each message from the vehicle, resumes the procedure when its step is over,
+        and ticks or ends a step whose time is up. ``on_end(outcome, error)`` is called
+        when the procedure is over, from the thread that resumed it last. Between its steps
+        a procedure's code must be quick and never wait (a wait on the reactor's thread is
+        refused, see :meth:`run`)."""
         procedure = _Procedure(steps, system_id, component_id, on_end)
-        with self._lock:
-            running = self._running
-            if running:
-                self._beginning.append(procedure)
-                self.timebase.announce()  # time waits for the reactor to take it up
-        if running:
-            self._hurry()
-        else:  # closed: over at once, as every step would be
-            self._advance(procedure, LinkLost(f"the link to {self.address} is closed",
-                                              system_id))
+        self._advance(procedure, None if self._running else LinkLost(
+            f"the link to {self.address} is closed", system_id))
 
     def _end_procedures(self) -> None:
-        """The link closed: each procedure begun and not over ends with LinkLost."""
+        """The link closed: each procedure not over ends with LinkLost."""
         with self._lock:
-            beginning, self._beginning = self._beginning, []
             waiting = [p for ps in self._procedures.values() for p in ps]
-        for _ in beginning:
-            self.timebase.arrived()
-        for procedure in [*beginning, *waiting]:
+        for procedure in waiting:
             self._release(procedure)
             self._advance(procedure, LinkLost(f"the link to {self.address} is closed",
                                               procedure.system_id))
@@ -605,27 +594,27 @@ class Link:
             except Exception as failed:  # its result says so (on_end), not the reactor
                 procedure.on_end(None, failed)
                 return
-            error = self._wait_on(procedure, step)
-            if error is None and procedure.step is not None:
-                return  # waits
+            waits, error = self._wait_on(procedure, step)
+            if waits:
+                return  # the reactor's from now on: not touched here again
 
-    def _wait_on(self, procedure: _Procedure, step: Step) -> BaseException | None:
-        """Start ``step`` and register the procedure as waiting on it, unless it is over at
-        once (then ``procedure.step`` is None, and the error it ends with is returned)."""
+    def _wait_on(self, procedure: _Procedure, step: Step
+                 ) -> tuple[bool, BaseException | None]:
+        """Start ``step``; unless it is over at once (False, and the error it ends with),
+        hand the procedure to the reactor, waiting on it (True)."""
         system_id = procedure.system_id
         now = self.timebase.now()
-        procedure.step = None
         if not self._running:
-            return LinkLost(f"the link to {self.address} is closed", system_id)
+            return False, LinkLost(f"the link to {self.address} is closed", system_id)
         if isinstance(step, Until):
             if step.holds():
-                return None
+                return False, None
             lost = None if step.lost_ok else self._lost(self.telemetry(system_id),
                                                         f"waiting for {step.what}")
             if lost is not None:
-                return lost
+                return False, lost
             if step.timeout <= 0:
-                return _timed_out(step, system_id)
+                return False, _timed_out(step, system_id)
             deadline = now + step.timeout
         with self._lock:
             if isinstance(step, Exchange):
@@ -638,12 +627,12 @@ class Link:
                     self.telemetry(system_id), f"during {type(machine).__name__}")
                 if machine.done or lost is not None:
                     self._machines[system_id].remove(machine)
-                    return lost
+                    return False, lost
                 deadline = machine.deadline
             procedure.step, procedure.deadline = step, deadline
             self._procedures.setdefault(system_id, []).append(procedure)
         self._due_by(deadline)
-        return None
+        return True, None
 
     def _release(self, procedure: _Procedure) -> None:
         """The procedure's step is over: no longer waited on (nor its machine fed)."""
@@ -679,14 +668,10 @@ class Link:
                 self._advance(procedure, None)
 
     def _procedures_due(self, now: float) -> float:
-        """Take up the procedures begun; tick or end the steps whose time is up, or whose
-        vehicle is lost; returns when the next step's time is up."""
+        """Tick or end the steps whose time is up, or whose vehicle is lost; returns when
+        the next step's time is up."""
         with self._lock:
-            beginning, self._beginning = self._beginning, []
             waiting = [p for ps in self._procedures.values() for p in ps]
-        for procedure in beginning:
-            self._advance(procedure, None)
-            self.timebase.arrived()
         for procedure in waiting:
             step = procedure.step
             if step is None:

@@ -26,8 +26,8 @@ this process:
   (``Link.send`` is wrapped to note it).
 
 Their difference is the event delay: the reactor's hand-off (tml.mavlink.reactor: one thread
-reads every link), the runner's wake, one engine step, the vehicle's worker and the command's
-encoding. p50/p99 are over the N
+reads every link), the runner's wake, one engine step, the Land's procedure begun (on the
+runner's thread, up to its first command) and the command's encoding. p50/p99 are over the N
 vehicles of one run.
 
 CPU: ``time.process_time`` of this process while ``Runner.run`` flies (take-off, hover,

@@ -18,7 +18,8 @@ Two ground sides are measured in the same run:
 It prints p50 and p99 of both and their ratio. With ``--breakdown`` (which costs tml a
 little: every stamp is a wrapped call) it also prints where tml's time goes, hop by hop:
 the link's handling of the trigger, the runner's wake, its look before the interpreter's
-step, the step, the hand-over to the vehicle's worker thread, and the command's sending.
+step, the step, the request's procedure begun (on the runner's thread, up to its first
+step: tml.mavlink.link.Link.begin), and the command's sending.
 """
 
 from __future__ import annotations
@@ -133,7 +134,7 @@ def trials(proxy: Proxy, count: int, settle: float) -> list[float]:
 
 
 HOPS = ("trigger handled by the link", "runner woken", "interpreter stepped from",
-        "interpreter's step done", "request submitted", "reactor takes it up", "command sent")
+        "interpreter's step done", "request submitted", "procedure begun", "command sent")
 """The stamps of ``--breakdown``, in order; the first is timed from the trigger written."""
 
 

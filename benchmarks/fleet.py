@@ -265,9 +265,15 @@ def fly(vehicles: int, speedup: float, seconds: float, log: str | None = None) -
             for name, value in FAST_FIX.items():
                 link.send(param_set(system_id, name, value))
 
+        # The mission's time limits (a take-off's climb) are in vehicle seconds: below 1x
+        # the wall clock would run out before the vehicle could (the simulators keep the
+        # speed-up asked for; a flight that starves them fails whatever the clock).
+        def clock() -> float:
+            return time.monotonic() * speedup
+
         def connect(number: int) -> MavlinkVehicle:
             vehicle = MavlinkVehicle(links[number - 1], at[number - 1][1], vehicle_id=number,
-                                     on_result=wake.set,
+                                     on_result=wake.set, clock=clock,
                                      connect_timeout=30)
             vehicle.prepare()
             return vehicle
@@ -286,7 +292,7 @@ def fly(vehicles: int, speedup: float, seconds: float, log: str | None = None) -
 
         journal = stack.enter_context(contextlib.closing(Journal.open(log)))
         runner = Runner(mission, fleet, options=RunOptions(engine=Options()), wake=wake,
-                        wait=wait, journal=journal)
+                        wait=wait, journal=journal, clock=clock)
         limit = 120 + 3 * (seconds + 60) / speedup  # wall s: a stuck run is stopped
         trigger = threading.Thread(target=_trigger, daemon=True,
                                    args=([(link, sid) for link, (_, sid) in zip(links, at,

@@ -361,3 +361,21 @@ def test_a_flip_abandoned_unfinished_lets_go_of_the_sticks_and_asks_nothing_more
     steps.close()  # as the garbage collector closes a generator nobody resumes
     assert not link.repeating
     assert [m.chan1_raw for m in link.sent[-3:]] == [codec.RC_RELEASE] * 3
+
+
+def test_a_failure_of_whoever_is_told_the_end_is_reported_and_the_link_goes_on(
+        rig: tuple[FakeAutopilot, Link, Autopilot],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    _fake, link, autopilot = rig
+    reported: list[Any] = []
+    monkeypatch.setattr(threading, "excepthook", reported.append)
+
+    def told(outcome: Any, error: BaseException | None) -> None:
+        raise RuntimeError("a bug in the one told")
+
+    link.begin(autopilot.commanding(arm_command()), 1, 1, told)
+    assert eventually(lambda: bool(reported)), "reported"
+    assert isinstance(reported[0].exc_value, RuntimeError)
+    ended = Ended()
+    link.begin(two_commands(autopilot, []), 1, 1, ended)
+    assert ended.wait()[:2] == (2, None), "the reactor still serves the link"

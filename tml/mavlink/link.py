@@ -62,6 +62,7 @@ import math
 import os
 import select
 import socket
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterable
@@ -559,16 +560,14 @@ class Link:
         self._due_by(repeat.due)
         return stop
 
-    def _repeats_due(self, now: float) -> float:
-        """Send the repeated messages that are due; returns when the next is."""
+    def _repeats_due(self, now: float) -> None:
+        """Send the repeated messages that are due."""
         with self._lock:
             due = [r for r in self._repeats if r.due <= now]
         for repeat in due:
             with contextlib.suppress(OSError):  # a link gone: the vehicle's own time-out
                 repeat.send()
             repeat.due = now + repeat.period
-        with self._lock:
-            return min((r.due for r in self._repeats), default=math.inf)
 
     def _hurry(self) -> None:
         served = self._reactor
@@ -576,9 +575,14 @@ class Link:
             served.hurry(self)
 
     def _due_by(self, when: float) -> None:
-        """A step's time is up at ``when``: the reactor comes by then."""
-        if when < self._duty_at:
-            self._duty_at = when
+        """A step's time is up at ``when``: the reactor comes by then. (Compared under the
+        lock with what duties last said, which they work out under it: a step registered
+        while they ran is either in their answer or hurries them.)"""
+        with self._lock:
+            sooner = when < self._duty_at
+            if sooner:
+                self._duty_at = when
+        if sooner:
             self._hurry()
 
     def _advance(self, procedure: _Procedure, error: BaseException | None) -> None:
@@ -589,10 +593,10 @@ class Link:
                 step = procedure.steps.send(None) if error is None \
                     else procedure.steps.throw(error)
             except StopIteration as stop:
-                procedure.on_end(stop.value, None)
+                _end(procedure, stop.value, None)
                 return
             except Exception as failed:  # its result says so (on_end), not the reactor
-                procedure.on_end(None, failed)
+                _end(procedure, None, failed)
                 return
             waits, error = self._wait_on(procedure, step)
             if waits:
@@ -667,9 +671,8 @@ class Link:
                 self._release(procedure)
                 self._advance(procedure, None)
 
-    def _procedures_due(self, now: float) -> float:
-        """Tick or end the steps whose time is up, or whose vehicle is lost; returns when
-        the next step's time is up."""
+    def _procedures_due(self, now: float) -> None:
+        """Tick or end the steps whose time is up, or whose vehicle is lost."""
         with self._lock:
             waiting = [p for ps in self._procedures.values() for p in ps]
         for procedure in waiting:
@@ -697,9 +700,12 @@ class Link:
             elif procedure.deadline <= now:
                 self._release(procedure)
                 self._advance(procedure, _timed_out(step, procedure.system_id))
-        with self._lock:
-            return min((p.deadline for ps in self._procedures.values() for p in ps),
-                       default=math.inf)
+
+    def _steps_due(self) -> float:
+        """When the next procedure's step or repeated message is due (_lock held)."""
+        return min(min((p.deadline for ps in self._procedures.values() for p in ps),
+                       default=math.inf),
+                   min((r.due for r in self._repeats), default=math.inf))
 
     def _raise_if_lost(self, snapshot: Telemetry, doing: str) -> None:
         lost = self._lost(snapshot, doing)
@@ -767,13 +773,12 @@ class Link:
                 self.readable(DRAIN_LIMIT)  # dials again (_Redial), at most as often as it may
         except (OSError, ValueError) as error:
             self._went_down(error)
-        steps_due = min(self._procedures_due(self.timebase.now()),
-                        self._repeats_due(self.timebase.now()))
-        if not self._conn_up():
-            due = min(self._next_heartbeat, now + LOST_CHECK_PERIOD, steps_due)
-        else:
-            due = min(self._next_heartbeat, self._next_check, steps_due)
-        self._duty_at = due
+        self._procedures_due(self.timebase.now())
+        self._repeats_due(self.timebase.now())
+        with self._lock:
+            due = min(self._next_heartbeat, self._steps_due(),
+                      self._next_check if self._conn_up() else now + LOST_CHECK_PERIOD)
+            self._duty_at = due
         return due
 
     def _first_loss(self, now: float) -> float:
@@ -1085,6 +1090,18 @@ class _Redial:
         self.why = error
         self.on_down(error)
         raise error
+
+
+def _end(procedure: _Procedure, outcome: Any, error: BaseException | None) -> None:
+    """Tell the procedure's end; a failure of the one told is reported as a thread's would
+    be, and goes no further: the reactor serves every other vehicle of the process."""
+    try:
+        procedure.on_end(outcome, error)
+    except Exception:
+        exc_type, exc_value, traceback = sys.exc_info()
+        assert exc_type is not None
+        threading.excepthook(threading.ExceptHookArgs(
+            (exc_type, exc_value, traceback, threading.current_thread())))
 
 
 def _timed_out(step: Until, system_id: int) -> VehicleTimeout:

@@ -532,11 +532,13 @@ class MavlinkVehicle:
             self._stir(None if kind is None else SHOWN_BY.get(kind))
 
     def submit(self, request: Request) -> None:
-        """Have the request carried out after those submitted before it; never blocks.
+        """Have the request carried out after those submitted before it; never waits for
+        the vehicle.
 
-        A request is a procedure (:mod:`tml.mavlink.steps`): the link's reactor carries it
-        out, resuming it as the vehicle answers, and the next one after it -- no thread of
-        its own. A relative SetYaw is made absolute here, against the heading the
+        A request is a procedure (:mod:`tml.mavlink.steps`), begun here when none is under
+        way -- its first message goes out before this returns -- and carried on by the
+        link's reactor, which resumes it as the vehicle answers and then begins the next:
+        no thread of its own. A relative SetYaw is made absolute here, against the heading the
         interpreter has just seen: by the time it is sent the vehicle may have turned
         further, and the interpreter waits for the heading it computed.
         """

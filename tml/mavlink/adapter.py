@@ -351,7 +351,7 @@ class MavlinkVehicle:
                  on_result: Callable[[], None] | None = None,
                  link_clock: Clock | None = None) -> None:
         self.link = link
-        self.timebase = link.timebase  # every wait and period of the worker (tml.timebase)
+        self.timebase = link.timebase  # every wait and period of the vehicle (tml.timebase)
         self.mav = Autopilot(link, link.wait_vehicle(system_id, connect_timeout),
                            command_timeout=command_timeout)
         self.system_id = system_id
@@ -510,8 +510,8 @@ class MavlinkVehicle:
 
     def watch(self, watcher: Watcher) -> Callable[[], None]:
         """Call ``watcher(fields)`` whenever :meth:`revision` may have changed, or a result
-        is ready -- from the thread that saw it (the link's reactor, the worker; not for a
-        :meth:`submit`, whose caller knows) -- with the names of the state's fields that
+        is ready -- from the thread that saw it (the link's reactor; :meth:`submit`'s caller
+        for a request over before its first step) -- with the names of the state's fields that
         may show something new (:data:`SHOWN_BY`; None: any). It must return quickly.
         Returns the function that stops the calls."""
         self._watchers = (*self._watchers, watcher)
@@ -566,8 +566,8 @@ class MavlinkVehicle:
 
     def _ended(self, request: Request, result: RequestResult | None,
                error: BaseException | None) -> None:
-        """A request's procedure is over (on the reactor's thread): its result is ready,
-        and the next request begins."""
+        """A request's procedure is over (told by the thread that resumed it last, the
+        reactor's as a rule): its result is ready, and the next request begins."""
         if result is None:  # ended by what _carry_out does not expect (a link closed)
             result = RequestResult(self.vehicle_id, request.request_id, False,
                                    FailureReason.GENERAL, f"{type(error).__name__}: {error}")

@@ -181,12 +181,10 @@ class Autopilot:
 
         Raises CommandRejected, VehicleTimeout, or LinkLost when the vehicle is lost.
         """
-        sender = CommandSender(command, codec.command_name(command.command),
-                               system_id=self.system_id, timeout=self.command_timeout,
-                               retries=self.command_retries, taken=self._taken(command))
-        yield Exchange(sender)
-        if sender.error is not None:
-            raise sender.error
+        yield from _exchanging(CommandSender(
+            command, codec.command_name(command.command), system_id=self.system_id,
+            timeout=self.command_timeout, retries=self.command_retries,
+            taken=self._taken(command)))
 
     def command(self, command: Command) -> None:
         """:meth:`commanding`, waited for."""
@@ -208,12 +206,10 @@ class Autopilot:
         """
         command = set_mode_command(self.info.vehicle_type, self.info.autopilot, name,
                                    self.system_id)
-        change = ModeChange(command, name, system_id=self.system_id,
-                            timeout=self.command_timeout, retries=self.command_retries,
-                            confirm_timeout=self.mode_timeout, taken=self._taken(command))
-        yield Exchange(change)
-        if change.error is not None:
-            raise change.error
+        yield from _exchanging(ModeChange(
+            command, name, system_id=self.system_id, timeout=self.command_timeout,
+            retries=self.command_retries, confirm_timeout=self.mode_timeout,
+            taken=self._taken(command)))
 
     def set_mode(self, name: str) -> None:
         """:meth:`switching`, waited for."""
@@ -485,6 +481,13 @@ def gripper_command(grab: bool, instance: int = 1) -> CommandLong:
     """DO_GRIPPER: close (``grab``) or open."""
     action = mavlink.GRIPPER_ACTION_GRAB if grab else mavlink.GRIPPER_ACTION_RELEASE
     return CommandLong(mavlink.MAV_CMD_DO_GRIPPER, instance, action)
+
+def _exchanging(machine: CommandSender | ModeChange) -> Steps[None]:
+    """Run ``machine`` (one Exchange); what ended it in failure is raised."""
+    yield Exchange(machine)
+    if machine.error is not None:
+        raise machine.error
+
 
 def _describe(differences: list[ItemDifference]) -> str:
     """The first differences in words, and how many more there are."""

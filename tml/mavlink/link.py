@@ -403,19 +403,15 @@ class Link:
         Raises VehicleTimeout after ``timeout``, and LinkLost as soon as the vehicle is
         lost unless ``lost_ok`` (to wait for a lost vehicle to come back).
         """
-        end = self.timebase.now() + timeout
-        with self._lock:
-            while True:
-                snapshot = self.telemetry(system_id)
-                if until(snapshot):
-                    return snapshot
-                if not lost_ok:
-                    self._raise_if_lost(snapshot, "while waiting for telemetry")
-                left = end - self.timebase.now()
-                if left <= 0:
-                    raise VehicleTimeout(f"condition not reached within {timeout:g} s",
-                                         system_id)
-                self._wait_for_news(left)
+        found: list[Telemetry] = []
+
+        def holds() -> bool:
+            snapshot = self.telemetry(system_id)
+            if until(snapshot):
+                found.append(snapshot)
+            return bool(found)
+        self._wait_until(system_id, Until(holds, timeout, "condition", lost_ok))
+        return found[0]
 
     def listen(self, listener: Listener) -> None:
         """Call ``listener(system_id, snapshot, msg)`` from the reactor on each message.
@@ -517,7 +513,7 @@ class Link:
         with self._lock:
             while not step.holds():
                 if not step.lost_ok:
-                    self._raise_if_lost(self.telemetry(system_id), f"waiting for {step.what}")
+                    self._raise_if_lost(self.telemetry(system_id), f"while waiting for {step.what}")
                 left = end - self.timebase.now()
                 if left <= 0:
                     raise _timed_out(step, system_id)
@@ -534,8 +530,7 @@ class Link:
         a procedure's code must be quick and never wait (a wait on the reactor's thread is
         refused, see :meth:`run`)."""
         procedure = _Procedure(steps, system_id, component_id, on_end)
-        self._advance(procedure, None if self._running else LinkLost(
-            f"the link to {self.address} is closed", system_id))
+        self._advance(procedure, None if self._running else self._closed(system_id))
 
     def _end_procedures(self) -> None:
         """The link closed: each procedure not over ends with LinkLost."""
@@ -543,8 +538,7 @@ class Link:
             waiting = [p for ps in self._procedures.values() for p in ps]
         for procedure in waiting:
             self._release(procedure)
-            self._advance(procedure, LinkLost(f"the link to {self.address} is closed",
-                                              procedure.system_id))
+            self._advance(procedure, self._closed(procedure.system_id))
 
     def repeat(self, send: Callable[[], None], period: float) -> Callable[[], None]:
         """Call ``send`` every ``period`` seconds of the time base from the reactor's thread
@@ -609,12 +603,12 @@ class Link:
         system_id = procedure.system_id
         now = self.timebase.now()
         if not self._running:
-            return False, LinkLost(f"the link to {self.address} is closed", system_id)
+            return False, self._closed(system_id)
         if isinstance(step, Until):
             if step.holds():
                 return False, None
             lost = None if step.lost_ok else self._lost(self.telemetry(system_id),
-                                                        f"waiting for {step.what}")
+                                                        f"while waiting for {step.what}")
             if lost is not None:
                 return False, lost
             if step.timeout <= 0:
@@ -696,7 +690,7 @@ class Link:
                 self._advance(procedure, None)
             elif not step.lost_ok and snapshot.link_lost:
                 self._release(procedure)
-                self._advance(procedure, self._lost(snapshot, f"waiting for {step.what}"))
+                self._advance(procedure, self._lost(snapshot, f"while waiting for {step.what}"))
             elif procedure.deadline <= now:
                 self._release(procedure)
                 self._advance(procedure, _timed_out(step, procedure.system_id))
@@ -718,6 +712,9 @@ class Link:
         age = snapshot.heartbeat_age(self.timebase.now())
         return LinkLost(f"link lost {doing}: no HEARTBEAT for {age:.1f} s "
                         f"(limit {self.lost_after:g} s) on {self.address}", snapshot.system_id)
+
+    def _closed(self, system_id: int) -> LinkLost:
+        return LinkLost(f"the link to {self.address} is closed", system_id)
 
     def _not_on_the_reactor(self, doing: str) -> None:
         """A wait on the reactor's own thread would wait for itself: a procedure yields its
@@ -773,8 +770,9 @@ class Link:
                 self.readable(DRAIN_LIMIT)  # dials again (_Redial), at most as often as it may
         except (OSError, ValueError) as error:
             self._went_down(error)
-        self._procedures_due(self.timebase.now())
-        self._repeats_due(self.timebase.now())
+        later = self.timebase.now()  # (the duties above may have read the sockets)
+        self._procedures_due(later)
+        self._repeats_due(later)
         with self._lock:
             due = min(self._next_heartbeat, self._steps_due(),
                       self._next_check if self._conn_up() else now + LOST_CHECK_PERIOD)

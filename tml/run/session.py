@@ -352,7 +352,8 @@ def open_session(options: SessionOptions, world: World, errors: Console | None =
     key = signing_key(options.signing_key_file)
     # In lock-step the opening, the pre-flight checks and the run take part in the
     # simulator's time (tml.timebase): it moves on only while this thread waits for it.
-    # Closing (the stack, left after) does not: the workers finish with time moving.
+    # Closing (the stack, left after) does not: the requests under way finish with time
+    # moving.
     with contextlib.ExitStack() as stack, timebase.taking_part():
         clock: Callable[[], float]
         addresses: list[tuple[str, int | None]]

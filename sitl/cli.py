@@ -2,23 +2,28 @@
 
 Prints one line per vehicle saying where it listens, then serves until SIGINT or SIGTERM
 and exits 0. Bad arguments or an unusable world file give one clear line on stderr and
-exit status 2; a port already in use gives exit status 1.
+exit status 2; a port that cannot be opened gives one line naming the vehicle and the port
+(and, for one in use, ``--tcp-base-port``) and exit status 1.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import math
 import signal
 import sys
 import threading
 from collections.abc import Sequence
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from sitl import MAX_VEHICLES
 from sitl.faults import Faults
 from tml.errors import TmlError
 from tml.world import Home, World
+
+if TYPE_CHECKING:
+    from sitl.server import PortUnavailable
 
 
 def _home(text: str) -> Home:
@@ -80,6 +85,13 @@ def vehicle_count(text: str) -> int:
         raise argparse.ArgumentTypeError(
             f"at most {MAX_VEHICLES} vehicles (a MAVLink system id is one byte), got {text}")
     return number
+
+
+def _port(text: str) -> int:
+    """A TCP port number, 0 to 65535 (0: any free port)."""
+    if not text.isdigit() or int(text) > 65535:
+        raise argparse.ArgumentTypeError(f"expected a port number from 0 to 65535, got {text!r}")
+    return int(text)
 
 
 def _window(text: str) -> tuple[float, float]:
@@ -177,29 +189,41 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser(prog: str = "python -m sitl") -> argparse.ArgumentParser:
-    """The argument parser of ``python -m sitl`` (``tml sim`` gives its own name)."""
+    """The argument parser of ``python -m sitl`` (``tml sim`` gives its own name).
+
+    Each option's help says its default in its own words (argparse's formatter would add
+    "(default: None)" to the options that have none)."""
     parser = _Parser(
-        prog=prog, formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        prog=prog,
         description="Simulated ArduPilot vehicles (Copter, Plane, Rover) speaking MAVLink 2 "
-                    "over TCP and UDP.",
+                    "over TCP and UDP, until SIGINT or SIGTERM. Exit 0 when stopped, 1 when "
+                    "a vehicle's port cannot be opened (one in use: choose others with "
+                    "--tcp-base-port), 2 on bad arguments or a file it cannot use (--world, "
+                    "--signing-key-file, --heard).",
     )
-    parser.add_argument("--vehicles", type=vehicle_count, default=1,
-                        help="number of vehicles (ids 1..N, at most 255)")
+    parser.add_argument("--vehicles", type=vehicle_count, default=1, metavar="N",
+                        help="number of vehicles, system ids 1..N (at most 255; default 1)")
     parser.add_argument("--frame", type=_frames, default=["copter"], metavar="FRAME[,FRAME...]",
                         help="copter (default), plane or rover; a list gives vehicle 1, 2 ... "
                              "theirs, the last repeating (e.g. copter,rover)")
-    parser.add_argument("--home", type=_home, help="lat,lon,alt[,heading] of vehicle 1")
-    parser.add_argument("--speedup", type=positive, default=1.0, help="times faster than real")
+    parser.add_argument("--home", type=_home, metavar="LAT,LON,ALT[,HEADING]",
+                        help="where vehicle 1 boots (default: the world's home, else "
+                             "ArduPilot SITL's CMAC); vehicle i boots 5 m east of vehicle i-1")
+    parser.add_argument("--speedup", type=positive, default=1.0, metavar="K",
+                        help="vehicle time runs K times faster than real time (default 1)")
     parser.add_argument("--world", metavar="FILE",
                         help="world file (obstacles, geofence, objects, home), or a mission "
-                             "file, whose <environment> is taken")
-    parser.add_argument("--seed", type=int, default=0, help="seed of every random choice")
-    parser.add_argument("--tcp-base-port", type=int, default=5760,
-                        help="TCP port of vehicle 1; vehicle i listens on base + 10*(i-1); "
-                             "0 = any free port")
-    parser.add_argument("--bind", default="127.0.0.1", help="address to listen on")
-    parser.add_argument("--out", action="append", type=_udp, default=[],
-                        metavar="udp:HOST:PORT", help="also stream to a ground station (repeat)")
+                             "file, whose <environment> is taken (default: an empty world)")
+    parser.add_argument("--seed", type=int, default=0, metavar="S",
+                        help="seed of every random choice (default 0)")
+    parser.add_argument("--tcp-base-port", type=_port, default=5760, metavar="P",
+                        help="TCP port of vehicle 1; vehicle i listens on P + 10*(i-1), as "
+                             "ArduPilot SITL's instances do (default 5760); 0 = any free port")
+    parser.add_argument("--bind", default="127.0.0.1", metavar="HOST",
+                        help="the address to listen on (default 127.0.0.1)")
+    parser.add_argument("--out", action="append", type=_udp, default=[], metavar="ADDRESS",
+                        help="also stream to a ground station at this MAVLink address, "
+                             "udp:HOST:PORT; repeatable")
     parser.add_argument("--param", type=param_setting, action="append", default=[],
                         metavar="NAME=VALUE",
                         help="set a parameter of every vehicle (e.g. SIM_COMPANION=0: no "
@@ -215,32 +239,54 @@ def build_parser(prog: str = "python -m sitl") -> argparse.ArgumentParser:
     parser.add_argument("--signing-key-file", metavar="FILE",
                         help="MAVLink 2 signing: sign what the vehicles send and refuse what "
                              "is unsigned or wrongly signed; the file holds 64 hex digits or "
-                             "a passphrase (else the key of TML_SIGNING_KEY, if set)")
+                             "a passphrase (else the key of TML_SIGNING_KEY, if set; without "
+                             "either, nothing is signed)")
     parser.add_argument("--heard", metavar="FILE",
                         help="write every message a vehicle receives to FILE, one JSON line "
                              "each: vehicle, vehicle and wall time, sender system and "
                              "component, type (who commanded which vehicle when)")
-    faults = parser.add_argument_group("faults")
-    faults.add_argument("--loss-in", type=_probability, default=0.0,
+    faults = parser.add_argument_group("faults (none by default)")
+    faults.add_argument("--loss-in", type=_probability, default=0.0, metavar="P",
                         help="probability a message to the vehicle is lost")
-    faults.add_argument("--loss-out", type=_probability, default=0.0,
+    faults.add_argument("--loss-out", type=_probability, default=0.0, metavar="P",
                         help="probability a message from the vehicle is lost")
-    faults.add_argument("--latency", type=non_negative, default=0.0, help="seconds of delay")
-    faults.add_argument("--jitter", type=non_negative, default=0.0, help="extra random delay")
-    faults.add_argument("--duplicate", type=_probability, default=0.0,
+    faults.add_argument("--latency", type=non_negative, default=0.0, metavar="S",
+                        help="seconds of delay")
+    faults.add_argument("--jitter", type=non_negative, default=0.0, metavar="S",
+                        help="extra random delay, up to S seconds")
+    faults.add_argument("--duplicate", type=_probability, default=0.0, metavar="P",
                         help="probability a message is delivered twice")
-    faults.add_argument("--reorder", type=_probability, default=0.0,
+    faults.add_argument("--reorder", type=_probability, default=0.0, metavar="P",
                         help="probability a message is overtaken by later ones")
     faults.add_argument("--outage", type=_window, action="append", default=[],
-                        metavar="START:END", help="no link between these vehicle times (s)")
+                        metavar="START:END", help="no link between these vehicle times (s); "
+                                                  "repeatable")
     faults.add_argument("--reject", type=_rejection, action="append", default=[],
-                        metavar="CMD[:RESULT]", help="answer command CMD with RESULT (4 FAILED)")
-    faults.add_argument("--gps-loss-at", type=non_negative, help="vehicle time the GPS fails")
-    faults.add_argument("--battery-failure-at", type=non_negative,
-                        help="vehicle time the battery fails")
-    faults.add_argument("--reboot-at", type=non_negative,
-                        help="vehicle time the autopilot reboots")
+                        metavar="CMD[:RESULT]",
+                        help="answer MAV_CMD CMD with MAV_RESULT RESULT (default 4, FAILED); "
+                             "repeatable")
+    faults.add_argument("--gps-loss-at", type=non_negative, metavar="T",
+                        help="vehicle time (s) the GPS loses its fix")
+    faults.add_argument("--battery-failure-at", type=non_negative, metavar="T",
+                        help="vehicle time (s) the battery collapses")
+    faults.add_argument("--reboot-at", type=non_negative, metavar="T",
+                        help="vehicle time (s) the autopilot reboots")
     return parser
+
+
+def _unavailable(error: PortUnavailable) -> str:
+    """What a port that cannot be opened means, and the option that changes it."""
+    if error.errno == errno.EADDRINUSE:
+        return (f"vehicle {error.system_id} cannot listen on TCP port {error.port} of "
+                f"{error.host}: it is in use (another simulator or autopilot?); choose other "
+                "ports with --tcp-base-port P (vehicle i listens on P + 10*(i-1); 0 takes "
+                "free ones)")
+    where = f"port {error.port} of {error.host}" if error.port else error.host
+    if error.errno == errno.EACCES:
+        return (f"vehicle {error.system_id} cannot listen on {where}: {error.strerror} "
+                "(choose other ports with --tcp-base-port P)")
+    return (f"vehicle {error.system_id} cannot listen on {where}: {error.strerror} (--bind "
+            f"{error.host}: is it an address of this machine?)")
 
 
 def _load_world(path: str) -> World:
@@ -261,6 +307,12 @@ def main(argv: Sequence[str] | None = None, prog: str = "python -m sitl") -> int
         args = parser.parse_args(argv)
     except SystemExit as exit_:
         return int(exit_.code or 0)
+    last = args.tcp_base_port + 10 * (args.vehicles - 1)
+    if args.tcp_base_port and last > 65535:
+        print(f"{prog}: error: --tcp-base-port {args.tcp_base_port} with {args.vehicles} "
+              f"vehicles puts vehicle {args.vehicles} on port {last}, past 65535 (see {prog} "
+              "--help)", file=sys.stderr)
+        return 2
     try:
         world = _load_world(args.world) if args.world else None
     except TmlError as error:
@@ -288,7 +340,7 @@ def main(argv: Sequence[str] | None = None, prog: str = "python -m sitl") -> int
         reboot_at=args.reboot_at,
     )
     from sitl.frames import frame_of
-    from sitl.server import Simulator
+    from sitl.server import PortUnavailable, Simulator
 
     try:
         heard = open(args.heard, "a", encoding="utf-8") if args.heard else None  # noqa: SIM115
@@ -303,8 +355,8 @@ def main(argv: Sequence[str] | None = None, prog: str = "python -m sitl") -> int
     )
     try:
         simulator.start()
-    except OSError as error:
-        print(f"{prog}: cannot open the vehicle ports: {error}", file=sys.stderr)
+    except PortUnavailable as error:
+        print(f"{prog}: {_unavailable(error)}", file=sys.stderr)
         return 1
     stop = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop.set())

@@ -183,6 +183,20 @@ class _Endpoint:
         return self.tcp_peers + self.udp_peers
 
 
+class PortUnavailable(OSError):
+    """A vehicle's socket could not be bound: the system's reason (``errno``, ``strerror``),
+    and which vehicle, on which address and port (0: a free one was asked for)."""
+
+    def __init__(self, error: OSError, system_id: int, host: str, port: int) -> None:
+        super().__init__(error.errno, error.strerror)
+        self.system_id = system_id
+        self.host = host
+        self.port = port
+
+    def __str__(self) -> str:
+        return f"vehicle {self.system_id}: {self.host}:{self.port}: {self.strerror}"
+
+
 class Simulator:
     """N simulated vehicles served on loopback (see the module docstring).
 
@@ -318,20 +332,26 @@ class Simulator:
         if self.tcp_base_port is not None:
             port = self.tcp_base_port + 10 * index if self.tcp_base_port else 0
             listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            endpoint.listener = listener  # closed by _close() should the bind fail
             listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-            listener.bind((self.bind, port))
+            self._bind(listener, port, index)
             listener.listen(4)
             listener.setblocking(False)
-            endpoint.listener = listener
             self._selector.register(listener, selectors.EVENT_READ, (endpoint, None))
         if self.udp_out:
             udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-            udp.bind((self.bind, 0))
-            udp.setblocking(False)
             endpoint.udp = udp
+            self._bind(udp, 0, index)
+            udp.setblocking(False)
             endpoint.udp_peers = [_Peer(udp, address, self.signing_key)
                                   for address in self.udp_out]
             self._selector.register(udp, selectors.EVENT_READ, (endpoint, "udp"))
+
+    def _bind(self, sock: socket.socket, port: int, index: int) -> None:
+        try:
+            sock.bind((self.bind, port))
+        except OSError as error:
+            raise PortUnavailable(error, index + 1, self.bind, port) from error
 
     def _close(self) -> None:
         for endpoint in self._endpoints:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import signal
+import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -31,6 +32,10 @@ ROOT = Path(__file__).resolve().parent.parent
     (["--battery", "-5"], "argument --battery: expected a percentage from 0 to 100, got -5"),
     (["--battery", "nan"], "argument --battery: expected a percentage from 0 to 100, got nan"),
     (["--battery", "full"], "argument --battery: expected a number, got 'full'"),
+    (["--tcp-base-port", "70000"], "expected a port number from 0 to 65535, got '70000'"),
+    (["--tcp-base-port", "-1"], "expected a port number from 0 to 65535, got '-1'"),
+    (["--tcp-base-port", "65530", "--vehicles", "2"],
+     "--tcp-base-port 65530 with 2 vehicles puts vehicle 2 on port 65540, past 65535"),
 ])
 def test_bad_arguments_exit_2_with_a_reason(argv, message, capsys):
     assert main(argv) == 2
@@ -91,7 +96,9 @@ def test_tml_sim_help_shows_defaults_and_its_name():
                           text=True, timeout=30)
     assert done.returncode == 0 and done.stdout.startswith("usage: tml sim ")
     assert "python -m sitl" not in done.stdout
-    assert "(default: 1.0)" in done.stdout and "(default: 5760)" in done.stdout
+    text = " ".join(done.stdout.split())
+    assert "K times faster than real time (default 1)" in text
+    assert "(default 5760)" in text and "default: None" not in text
 
 
 def test_tml_sim_takes_the_world_of_a_mission(tmp_path):
@@ -124,3 +131,28 @@ def test_a_signing_key_file_that_cannot_be_read_exits_2_saying_so(
     assert main(["--signing-key-file", str(missing), "--tcp-base-port", "0"]) == 2
     assert capsys.readouterr().err.strip() == (
         f"python -m sitl: --signing-key-file {missing}: No such file or directory")
+
+
+def test_a_port_in_use_is_named_with_the_option_that_chooses_another() -> None:
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        done = subprocess.run([sys.executable, "-m", "tml", "sim", "--tcp-base-port",
+                               str(port)], capture_output=True, text=True, timeout=30)
+    assert done.returncode == 1 and done.stdout == ""
+    assert done.stderr == (
+        f"tml sim: vehicle 1 cannot listen on TCP port {port} of 127.0.0.1: it is in use "
+        "(another simulator or autopilot?); choose other ports with --tcp-base-port P "
+        "(vehicle i listens on P + 10*(i-1); 0 takes free ones)\n")
+
+
+def test_an_address_not_of_this_machine_is_named_with_bind() -> None:
+    # 192.0.2.0/24 is TEST-NET-1: documentation only, never an address of this machine.
+    done = subprocess.run([sys.executable, "-m", "sitl", "--bind", "192.0.2.1",
+                           "--tcp-base-port", "5760"], capture_output=True, text=True,
+                          timeout=30)
+    assert done.returncode == 1 and "Traceback" not in done.stderr
+    assert done.stderr.startswith(
+        "python -m sitl: vehicle 1 cannot listen on port 5760 of 192.0.2.1: ")
+    assert done.stderr.endswith("(--bind 192.0.2.1: is it an address of this machine?)\n")

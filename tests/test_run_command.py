@@ -269,6 +269,9 @@ def test_numbers_that_cannot_be_flown_are_usage_errors(
 
 @pytest.mark.parametrize("argv, message", [
     (["nowhere.xml", "--sim"], "tml run: nowhere.xml: No such file or directory"),
+    (["missions/paper_example1.xml", "--sim", "--profile", "helicopter"],
+     "tml run: profile 'helicopter': no such profile or file; the profiles are quadcopter, "
+     "fixed-wing, rover, vehicle"),
     (["missions", "--sim"], "tml run: missions: is a directory, not a mission file"),
     (["missions/paper_example1.xml", "--connect", "tcp:127.0.0.1:99999"],
      "tml run: --connect tcp:127.0.0.1:99999: expected tcp:HOST:PORT with a port from 0 to "

@@ -118,6 +118,16 @@ def test_usage_and_io_errors_exit_2(arguments: list[str],
     assert "Traceback" not in out + err
 
 
+def test_an_unknown_profile_exits_2_listing_the_profiles(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["verify", str(FEASIBLE), "--profile", "helicopter"]) == 2
+    assert capsys.readouterr().err == (
+        "tml verify: profile 'helicopter': no such profile or file; the profiles are "
+        "quadcopter, fixed-wing, rover, vehicle (filled in from the vehicle's own parameters) "
+        "or a TOML file\n")
+    assert main(["verify", str(FEASIBLE), "--profile", "rover"]) in (0, 1)  # one of them
+
+
 def test_bad_profile_exits_2_naming_file_and_key(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     profile = tmp_path / "p.toml"

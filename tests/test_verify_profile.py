@@ -31,6 +31,19 @@ def test_shipped_profiles_load(name: str) -> None:
     assert profile.min_altitude < profile.max_altitude
 
 
+def test_a_name_that_is_no_profile_and_no_file_is_told_the_profiles(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(TmlError) as raised:
+        load_profile("helicopter")
+    message = str(raised.value)
+    assert message.startswith("profile 'helicopter': no such profile or file; the profiles ")
+    assert all(name in message for name in SHIPPED)
+    (tmp_path / "helicopter").mkdir()  # there, but not a file: the system's reason
+    with pytest.raises(IsADirectoryError):
+        load_profile("helicopter")
+
+
 @pytest.mark.parametrize(("name", "kind"), [("quadcopter", Kind.MULTICOPTER),
                                             ("fixed-wing", Kind.FIXED_WING),
                                             ("rover", Kind.GROUND)])

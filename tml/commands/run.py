@@ -87,8 +87,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="fly even when the verifier finds the mission infeasible")
     parser.add_argument("--profile", default="quadcopter", metavar="P",
                         help="vehicle profile for the verifier: quadcopter (default), "
-                             "fixed-wing, a TOML file, or 'vehicle' to fill the quadcopter "
-                             "profile from the connected vehicle's parameters")
+                             "fixed-wing, rover, a TOML file, or vehicle to fill the profile "
+                             "of the vehicle's kind from the connected vehicle's parameters")
 
 
 def run(args: argparse.Namespace) -> ExitCode:

@@ -25,9 +25,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("missions", nargs="+", metavar="FILE",
                         help="mission files (each verified with the same profile and world)")
     parser.add_argument("--profile", default="quadcopter", metavar="P",
-                        help="vehicle profile: 'quadcopter', 'fixed-wing', a TOML file, or "
-                             "'vehicle' to fill the quadcopter profile from the parameters "
-                             "of the vehicle at --connect (default: quadcopter)")
+                        help="vehicle profile: quadcopter (default), fixed-wing, rover, a "
+                             "TOML file, or vehicle to fill the profile of the vehicle's kind "
+                             "from the parameters of the vehicle at --connect")
     parser.add_argument("--connect", metavar="ADDRESS",
                         help="--profile vehicle: the vehicle's MAVLink address "
                              "(tcp:127.0.0.1:5760 ...)")

@@ -143,7 +143,8 @@ def profile_from_mapping(data: Mapping[str, object], file: str,
 def load_profile(source: str | Path) -> VehicleProfile:
     """A shipped profile by name (``quadcopter``, ``fixed-wing``, ``rover``) or a file.
 
-    Raises :class:`TmlError` on bad TOML or bad keys (naming the file and the key), and
+    Raises :class:`TmlError` on bad TOML or bad keys (naming the file and the key), or on a
+    bare name that is neither a shipped profile nor a file (listing the profiles), and
     OSError when the file cannot be read.
     """
     text_source = str(source)
@@ -151,6 +152,11 @@ def load_profile(source: str | Path) -> VehicleProfile:
         shipped = resources.files("tml.verify").joinpath(f"profiles/{text_source}.toml")
         return profile_from_mapping(tomllib.loads(shipped.read_text("utf-8")), text_source)
     path = Path(source)
+    if len(path.parts) == 1 and not path.suffix and not path.exists():
+        # A bare word is a profile's name mistyped more likely than a file gone: the names.
+        raise TmlError(f"profile {text_source!r}: no such profile or file; the profiles are "
+                       f"{', '.join(SHIPPED)}, vehicle (filled in from the vehicle's own "
+                       "parameters) or a TOML file")
     try:
         data = tomllib.loads(path.read_text("utf-8"))
     except tomllib.TOMLDecodeError as exc:

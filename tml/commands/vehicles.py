@@ -93,7 +93,7 @@ def add_vehicle_arguments(parser: argparse.ArgumentParser) -> None:
     where = parser.add_mutually_exclusive_group(required=True)
     where.add_argument("--sim", action="store_true",
                        help="fly on the embedded simulator (loopback, free ports)")
-    where.add_argument("--connect", action="append", metavar="URL",
+    where.add_argument("--connect", action="append", metavar="ADDRESS",
                        help="fly the vehicle at this MAVLink address (tcp:HOST:PORT, "
                             "udpin:0.0.0.0:14550, /dev/ttyACM0 ...); repeatable")
     parser.add_argument("--sysid", type=system_id, action="append", default=[], metavar="N",

@@ -65,6 +65,34 @@ def test_usage_errors_exit_2_naming_the_value(argv: list[str], message: str, cap
     assert message in err and "Traceback" not in err
 
 
+def test_import_of_a_file_it_cannot_read_or_write_exits_2(tmp_path: Path, capsys) -> None:
+    # As `tml import --help` says: 2 for a file that cannot be read or is not UTF-8 text
+    # and for an output that cannot be written; 1 is for what the file holds.
+    binary = tmp_path / "photo.plan"
+    binary.write_bytes(b"\xff\xfe{\x00")
+    assert main(["import", str(binary)]) == 2
+    assert capsys.readouterr().err == f"tml import: {binary}: not UTF-8 text\n"
+    assert main(["import", str(tmp_path)]) == 2
+    assert f"tml import: {tmp_path}: Is a directory" in capsys.readouterr().err
+    plan = tmp_path / "m.plan"
+    assert main(["export", DISPATCH, "-o", str(plan)]) == 0
+    capsys.readouterr()
+    assert main(["import", str(plan), "-o", str(tmp_path / "no" / "m.xml")]) == 2
+    assert f"-o {tmp_path / 'no' / 'm.xml'}: cannot write" in capsys.readouterr().err
+
+
+def test_import_help_gives_each_exit_code_its_causes(capsys) -> None:
+    assert main(["import", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    ones = text.split(" 1 ", 1)[1].split(" 2 ", 1)[0]
+    twos = text.split(" 2 usage or I/O error ", 1)[1]
+    for cause in ("not a plan or waypoint file", "holds nothing to fly",
+                  "cannot carry exactly (without --allow-loss)", "makes an invalid mission"):
+        assert cause in ones, cause
+    for cause in ("cannot be read", "not UTF-8 text", "output that cannot be written"):
+        assert cause in twos, cause
+
+
 def test_an_invalid_mission_is_not_exported(tmp_path: Path, capsys) -> None:
     bad = tmp_path / "bad.xml"
     bad.write_text('<mission name="m"><task name="t"><action name="GO_TO_PIONT"/></task>'

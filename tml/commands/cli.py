@@ -317,8 +317,12 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         description="Turn a QGroundControl .plan or a QGC WPL waypoint file (MAVProxy, "
                     "Mission Planner) into a TML mission: a task per item in a task flown "
                     "as an autopilot mission (dispatch=\"mission\"), home and geofence in "
-                    "its <environment>. Exit 0 written, 1 a file that cannot be read as a "
-                    "plan, 2 usage or I/O error.")
+                    "its <environment>. Exit 0 written (a mission, or a world file when the "
+                    "file holds only a fence or rally points), 1 a file that is not a plan or "
+                    "waypoint file, holds nothing to fly, holds what a mission cannot carry "
+                    "exactly (without --allow-loss) or makes an invalid mission, 2 usage or "
+                    "I/O error (a file that cannot be read or is not UTF-8 text, an output "
+                    "that cannot be written).")
     if wanted("import"):
         from tml.commands.plans import add_import_arguments
 

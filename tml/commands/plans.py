@@ -1,9 +1,10 @@
 """``tml export`` and ``tml import``: a mission as other tools' plans, and back.
 
 Exit codes: 0 written (actions with no mission item are named on standard error, and the
-plan is written without them), 1 an invalid mission, a plan file that cannot be read, or
-one that holds what a mission cannot carry exactly (unless ``--allow-loss``), 2 usage or
-I/O error (a missing file, an unwritable output, a role to choose).
+plan is written without them), 1 an invalid mission, a plan file that cannot be read as
+one or holds nothing to fly, one that holds what a mission cannot carry exactly (unless
+``--allow-loss``) or that makes an invalid mission, 2 usage or I/O error (a missing or
+non-UTF-8 file, an unwritable output, a role to choose).
 """
 
 from __future__ import annotations

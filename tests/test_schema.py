@@ -27,7 +27,7 @@ def test_installed_package_ships_the_schemas(tmp_path) -> None:
     # Run from an empty directory so the import comes from the installed distribution.
     code = ("import json, importlib.metadata as m, importlib.resources as r\n"
             "from tml.language.schema import schema_path\n"
-            "url = m.distribution('tml').read_text('direct_url.json') or '{}'\n"
+            "url = m.distribution('tml-flight').read_text('direct_url.json') or '{}'\n"
             "editable = json.loads(url).get('dir_info', {}).get('editable', False)\n"
             "shipped = [] if editable else sorted(\n"
             "    p.name for p in r.files('tml.schemas').iterdir() if p.name.endswith('.xsd'))\n"

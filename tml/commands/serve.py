@@ -134,8 +134,10 @@ def run(args: argparse.Namespace) -> ExitCode:
 
         from tml.serve.api import create_app  # noqa: F401
     except ImportError as error:
+        # tml is installed as tml-flight: "tml" on the package index is another project.
         print(f"tml serve: {error.name or error} is missing: install tml with its serve extra "
-              "(pip install 'tml[serve]')", file=sys.stderr)
+              "(pip install 'tml-flight[serve]'; in a checkout, pip install '.[serve]')",
+              file=sys.stderr)
         return ExitCode.USAGE
     try:
         token = _token(args)

@@ -135,8 +135,12 @@ class Storage:
                                {"key": SCHEMA_LOCK})
                 _meta.create_all(db)
         except (sa.exc.SQLAlchemyError, ImportError) as error:
+            missing = isinstance(error, ImportError) and error.name == "psycopg"
+            hint = (" (PostgreSQL needs tml's postgresql extra: pip install "
+                    "'tml-flight[postgresql]'; in a checkout, pip install '.[postgresql]')"
+                    if missing else "")
             raise StorageError(f"cannot open the database {_safe(url)}: "
-                               f"{_first_line(error)}") from None
+                               f"{_first_line(error)}{hint}") from None
 
     @property
     def backend(self) -> str:

@@ -55,14 +55,26 @@ def test_quick_start_works_in_the_shell_of_the_first_command() -> None:
     assert _quick_start()[0].split("#")[0].strip() == ". .venv/bin/activate"
 
 
-def test_quick_start_commands_are_tml_commands_with_options_it_has() -> None:
+def _quick_start_commands() -> list[list[str]]:
+    """The Quick start's commands after the activation, as argument lists: one started in
+    the background keeps its ``&`` as its last word; ``kill %1`` stops it."""
     import shlex
 
+    return [shlex.split(c, comments=True) for line in _quick_start()[1:]
+            for c in line.split(" && ")]
+
+
+def test_quick_start_commands_are_tml_commands_with_options_it_has() -> None:
     from sitl.cli import build_parser as sim_parser
     from tml.commands.cli import build_parser
 
-    commands = [shlex.split(c, comments=True) for line in _quick_start()[1:]
-                for c in line.split(" && ")]
+    commands = _quick_start_commands()
+    background = [argv for argv in commands if argv[-1] == "&"]
+    # What runs in the background is the simulator, and it is stopped again.
+    assert [argv[:2] for argv in background] == [["tml", "sim"]]
+    assert ["kill", "%1"] in commands
+    commands = [argv[:-1] if argv[-1] == "&" else argv for argv in commands
+                if argv != ["kill", "%1"]]
     assert len(commands) >= 10 and all(argv[0] == "tml" for argv in commands)
     for argv in commands:
         argv = argv[1:]
@@ -73,3 +85,31 @@ def test_quick_start_commands_are_tml_commands_with_options_it_has() -> None:
         for word in argv:
             if word.startswith("missions/"):
                 assert (ROOT / word).exists(), word
+
+
+def test_every_flight_of_the_quick_start_is_sped_up() -> None:
+    # A flight at real time takes minutes (dolphin_uav_surface.xml: 2 min 16 s): each
+    # --sim flight, the service's simulator and the simulator a --connect flight flies on
+    # say how much faster.
+    commands = _quick_start_commands()
+    sims = [argv for argv in commands if argv[:2] == ["tml", "sim"]]
+    assert sims and all("--speedup" in argv for argv in sims)
+    base = 5760
+    for argv in sims:
+        if "--tcp-base-port" in argv:
+            base = int(argv[argv.index("--tcp-base-port") + 1])
+    flights = [argv for argv in commands if argv[:2] in (["tml", "run"], ["tml", "serve"])]
+    assert len(flights) >= 7
+    for argv in flights:
+        if "--sim" in argv:
+            assert "--speedup" in argv, argv
+        else:  # on the simulator started above
+            address = argv[argv.index("--connect") + 1]
+            assert address == f"tcp:127.0.0.1:{base}", argv
+
+
+def test_the_quick_start_says_the_simulator_and_the_service_need_a_terminal() -> None:
+    after = README.split("## Quick start", 1)[1].split("```", 2)[2].split("\n## ", 1)[0]
+    words = " ".join(after.split())
+    assert "`tml sim` and `tml serve` run until stopped" in words
+    assert "a terminal of its own" in words and "`kill %1` stops it" in words

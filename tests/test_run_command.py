@@ -258,6 +258,8 @@ def test_off_a_terminal_lines_are_not_wrapped(tmp_path: Path) -> None:
     ("--timeout", "inf", "argument --timeout: expected a finite number"),
     ("--vehicles", "1000", "argument --vehicles: at most 250 simulated vehicles"),
     ("--sim-param", "FOO=1", "argument --sim-param: unknown simulator parameter 'FOO'"),
+    ("--sim-battery", "101",
+     "argument --sim-battery: expected a percentage from 0 to 100, got 101"),
 ])
 def test_numbers_that_cannot_be_flown_are_usage_errors(
         option: str, value: str, message: str, capsys: pytest.CaptureFixture[str]) -> None:

@@ -56,6 +56,13 @@ def test_missing_file_is_a_usage_error(files: Path, capsys: pytest.CaptureFixtur
     assert "nope.xml: no such file or directory" in capsys.readouterr().err
 
 
+def test_a_directory_without_xml_files_is_a_usage_error(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "notes.txt").write_text("not a mission")
+    assert main(["validate", str(tmp_path)]) == 2
+    assert f"{tmp_path}: no .xml files in this directory" in capsys.readouterr().err
+
+
 def test_unreadable_file_is_an_io_error(files: Path, capsys: pytest.CaptureFixture[str]) -> None:
     target = files / "dir.xml"
     target.mkdir()

@@ -209,6 +209,18 @@ def test_the_handlers_own_action_does_not_arm_its_event_again() -> None:
     assert flight.fired() == ["E"]
 
 
+def test_one_handler_fires_at_a_time_in_document_order() -> None:
+    # Both become true at 8 s: the first written fires; the second, armed all along, fires
+    # only once the first's handling (a 3 s WAIT) is over, not while it runs.
+    first = event("CONTINUE", WAIT_3).replace('name="E"', 'name="First"')
+    second = event("CONTINUE", WAIT_3).replace('name="E"', 'name="Second"')
+    flight = Flight(TAKE_OFF + hover() + LAND, first + second, SEEN)
+    flight.run(each=see_at(8.0))
+    fired = [(r.data["event"], r.time) for r in flight.records if r.kind == "event"]
+    assert [name for name, _ in fired] == ["First", "Second"], fired
+    assert 8 <= fired[0][1] < 8.5 and fired[1][1] >= fired[0][1] + 3, fired
+
+
 def test_level_triggered_event_fires_on_every_step_while_true() -> None:
     flight = Flight(TAKE_OFF + hover() + LAND, event("CONTINUE", '<action name="MEMORIZE_POINT">'
                     '<argument name="coordinates" label="p"/></action>', trigger="level"), SEEN)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterator
+from types import SimpleNamespace
 from typing import Any
 
 import pytest
@@ -15,6 +16,7 @@ from sitl.server import Simulator
 from tml.commands.cli import main
 from tml.mavlink.autopilot import Autopilot
 from tml.mavlink.link import Link
+from tml.vehicle import RequestResult, VehicleState
 
 # Armable at once; an armed vehicle left on the ground does not disarm by itself.
 PARAMS = {"SIM_GPS_LOCKTIME": 0.5, "SIM_EKF_GPS_TIME": 1.0, "DISARM_DELAY": 0}
@@ -155,3 +157,41 @@ def test_a_rover_is_refused_a_landing_and_holds(capsys: pytest.CaptureFixture[st
         assert main(command(sim, "hold")) == 0
         assert "vehicle 1: hold done: mode HOLD, armed" in capsys.readouterr().out
         assert sim.vehicle(1).mode == "HOLD"
+
+
+class SwitchedBack:
+    """A flying copter that accepts every command, but whose telemetry keeps showing GUIDED
+    (another ground station switched it back): the interface of MavlinkVehicle that
+    ``tml command`` uses, and nothing more."""
+
+    vehicle_id = system_id = 1
+
+    def __init__(self) -> None:
+        arrived = {"HEARTBEAT": 1.0, "GLOBAL_POSITION_INT": 1.0, "EXTENDED_SYS_STATE": 1.0}
+        self.mav = SimpleNamespace(request_rates=lambda: None)
+        self.link = SimpleNamespace(arrivals=lambda _system_id: arrived)
+        self.submitted: list[Any] = []
+        self.now = 1.0
+
+    def state(self) -> VehicleState:
+        self.now += 1.0  # every picture newer than the request
+        return VehicleState(1, self.now, armed=True, landed=False, mode="GUIDED",
+                            position=(0.0, 0.0, 10.0), heard=self.now,
+                            asked=1.0 if self.submitted else None)
+
+    def submit(self, request: Any) -> None:
+        self.submitted.append(request)
+
+    def poll(self) -> list[RequestResult]:
+        return [RequestResult(1, r.request_id, True) for r in self.submitted]
+
+
+def test_a_command_accepted_but_never_shown_is_a_failure_naming_the_mode_seen(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    from tml.commands.command import _carry_out
+
+    vehicle = SwitchedBack()
+    assert _carry_out(vehicle, "rtl", timeout=0.3) == 4  # type: ignore[arg-type]
+    assert [r.name for r in vehicle.submitted] == ["ReturnToLaunch"]
+    assert capsys.readouterr().err == ("tml command: vehicle 1: rtl accepted, but not shown "
+                                       "within 0.3 s (mode GUIDED, armed, 10.0 m up)\n")

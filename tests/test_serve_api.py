@@ -239,7 +239,8 @@ def test_a_command_to_a_vehicle_in_a_run_ends_the_run_into_that_safe_state(
     assert answer.status_code in (200, 202), answer.text
     assert answer.json()["run"] == run["id"]
     ended = served.finish(run["id"])
-    assert (ended["status"], ended["exit_code"]) == ("aborted", 3)
+    # The operator took the vehicle over through the run (docs/run.md, How a run ends).
+    assert (ended["status"], ended["exit_code"]) == ("taken", 4)
     assert "operator command: land" in ended["reason"]
     assert fake.mode == "LAND"
     assert any("Land" in said for said in ended["safety"])

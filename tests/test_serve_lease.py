@@ -333,12 +333,14 @@ def test_an_instance_whose_lease_expired_shuts_its_fence_aborts_its_runs_and_joi
     class Service:
         def __init__(self) -> None:
             self.aborted: list[str] = []
+            self.reasons: list[str] = []
 
         def status(self) -> dict[str, Any]:
             return {"live_runs": ["r1"]}
 
-        def abort(self, run_id: str) -> None:
+        def abort(self, run_id: str, reason: str) -> None:
             self.aborted.append(run_id)
+            self.reasons.append(reason)
 
     link = _Link()
     leases = Leases(engine, "a", lease=3.0)
@@ -358,6 +360,8 @@ def test_an_instance_whose_lease_expired_shuts_its_fence_aborts_its_runs_and_joi
     cluster._renew()
     assert not link.gate(1) and hangar.owned == {}
     assert service.aborted == ["r1"]
+    # Said as it was: not the operator's abort (docs/run.md, How a run ends: STOPPED).
+    assert service.reasons == ["the lease of service instance a expired"]
     assert leases.session != first and leases.renew()  # a new session, its lease running
     assert leases.owners([1]) == {}  # what the old session owned is not the new one's
 

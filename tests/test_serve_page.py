@@ -247,7 +247,7 @@ def test_rtl_from_a_vehicle_card_asks_then_brings_the_vehicle_home(browser: Any,
     wait(driver, "the card showing it landed", lambda d: field(d, "armed") in (
         "disarmed", "armed, on the ground"), timeout=180)
     ended = httpx.get(f"{page}runs/{run}").json()
-    assert ended["status"] == "aborted" and "operator command: rtl" in ended["reason"]
+    assert ended["status"] == "taken" and "operator command: rtl" in ended["reason"]
     wait(driver, "the card saying the command done", lambda d: field(d, "command").startswith(
         "RTL: done (shown: mode RTL"))
     ARTIFACTS.mkdir(parents=True, exist_ok=True)

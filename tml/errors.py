@@ -13,7 +13,8 @@ from typing import NamedTuple
 
 
 class ExitCode(IntEnum):
-    """The exit codes of the ``tml`` commands (one number, one meaning, for all of them)."""
+    """The exit codes of the ``tml`` commands (one number, one meaning, for all of them;
+    how a run ends is one table, :class:`tml.run.endings.Ending`)."""
 
     OK = 0
     """Every file valid, the mission feasible, completed on every vehicle, or stopped."""
@@ -22,9 +23,11 @@ class ExitCode(IntEnum):
     USAGE = 2
     """A usage or I/O error: bad arguments, a file that cannot be read."""
     ABORTED = 3
-    """The mission was aborted (ABORT_MISSION, an infeasible action, Ctrl-C, SIGTERM)."""
+    """The mission was aborted (ABORT_MISSION, an infeasible action, Ctrl-C, SIGTERM, an
+    abort through the service)."""
     FAILURE = 4
-    """A vehicle or link failed: a failed action no event handled, no answer, a lost link."""
+    """A vehicle was taken over (an operator's command, a failsafe, another ground station),
+    or a vehicle or link failed: a failed action no event handled, no answer, a lost link."""
 
 
 class Location(NamedTuple):

@@ -1,11 +1,13 @@
 """``tml run``: validate, verify and fly a mission on the simulator or MAVLink vehicles.
 
-Exit codes: 0 the mission completed on every vehicle, 1 invalid (or infeasible, without
-``--force``) mission, 2 usage error (a bad option or value, a missing file, a malformed
-address, a log that cannot be written: said in one line before anything starts), 3 the
-mission was aborted (ABORT_MISSION, an infeasible action, Ctrl-C), 4 a vehicle or link
-failure (an action failed and nothing handled it, no vehicle answered, the link was lost,
-the interpreter broke).
+Exit codes: those of the one table of endings, :class:`tml.run.endings.Ending` (docs/run.md,
+"How a run ends"): 0 completed, 1 invalid (or infeasible, without ``--force``) mission, 2
+usage error (a bad option or value, a missing file, a malformed address, a log that cannot
+be written, a resume refused: said in one line before anything starts), 3 aborted (by the
+mission, Ctrl-C, SIGTERM), 4 taken over or failed (an operator's command through the run,
+a mode switched outside tml, an action failed and nothing handled it, no vehicle answered,
+the link was lost, the interpreter broke). The run's last line says its status word, exit
+code and what it means.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from tml.commands.vehicles import (
     vehicle_problem,
 )
 from tml.errors import ExitCode
+from tml.run.endings import Ending
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -101,7 +104,7 @@ def run(args: argparse.Namespace) -> ExitCode:
     problem = _usage_problem(args)
     if problem is not None:
         errors.print(f"tml run: {problem}", markup=False)
-        return ExitCode.USAGE
+        return Ending.USAGE.code
     options = session_options(args, "tml run", lockstep=True, quiet=args.quiet,
                               force=args.force, safe_state=args.safe_state,
                               safe_state_timeout=args.safe_state_timeout)
@@ -111,10 +114,10 @@ def run(args: argparse.Namespace) -> ExitCode:
     except OSError as error:
         errors.print(f"tml run: {error.filename or ''}: {error.strerror or error}",
                      markup=False, soft_wrap=True)
-        return ExitCode.USAGE
+        return Ending.USAGE.code
     except TmlError as error:
         errors.print(f"tml run: {error}", markup=False)
-        return ExitCode.USAGE
+        return Ending.USAGE.code
     if not isinstance(loaded, tuple):
         return _exit_code(loaded)
     mission, world, extra, profile = loaded
@@ -128,13 +131,13 @@ def run(args: argparse.Namespace) -> ExitCode:
     except JournalBusy as error:
         errors.print(f"tml run: {'cannot resume: ' if args.resume else '--log '}{error}",
                      markup=False)
-        return ExitCode.USAGE
+        return Ending.USAGE.code
     except OSError as error:
         errors.print(f"tml run: --resume {args.resume}: cannot read: "
                      f"{error.strerror or error}" if args.resume is not None else
                      f"tml run: --log {args.log}: cannot write: {error.strerror or error}",
                      markup=False)
-        return ExitCode.USAGE
+        return Ending.USAGE.code
     try:
         try:
             digest = file_digest(args.mission)
@@ -143,10 +146,10 @@ def run(args: argparse.Namespace) -> ExitCode:
         except OSError as error:
             errors.print(f"tml run: --resume {args.resume}: cannot read: "
                          f"{error.strerror or error}", markup=False)
-            return ExitCode.USAGE
+            return Ending.USAGE.code
         except ResumeRefused as error:
             errors.print(f"tml run: cannot resume: {error}", markup=False)
-            return ExitCode.USAGE
+            return Ending.USAGE.code
         return _run(args, options, mission, world, extra, profile, journal, console, errors,
                     Resumed(digest, point))
     finally:
@@ -156,7 +159,7 @@ def run(args: argparse.Namespace) -> ExitCode:
 def _exit_code(refusal: Refusal) -> ExitCode:
     from tml.run.session import Refusal
 
-    return ExitCode.INVALID if refusal is Refusal.MISSION else ExitCode.FAILURE
+    return (Ending.INVALID if refusal is Refusal.MISSION else Ending.NOT_CLEARED).code
 
 
 def _usage_problem(args: argparse.Namespace) -> str | None:
@@ -198,19 +201,19 @@ def _run(args: argparse.Namespace, options: SessionOptions, mission: Mission, wo
             return _fly(args, session, mission, world, cleared, console, journal, resumed)
     except Stopped as error:
         errors.print(f"tml run: {error} before the mission started", markup=False)
-        return ExitCode.ABORTED
+        return Ending.STOPPED.code
     except SeveralVehicles as error:
         errors.print(f"tml run: {error}", markup=False)
-        return ExitCode.USAGE
+        return Ending.USAGE.code
     except ResumeRefused as error:
         errors.print(f"tml run: cannot resume: {error}", markup=False)
-        return ExitCode.USAGE
+        return Ending.USAGE.code
     except TmlError as error:
         errors.print(f"tml run: {error}", markup=False)
-        return ExitCode.FAILURE
+        return Ending.NOT_CLEARED.code
     except OSError as error:
         errors.print(f"tml run: cannot open the vehicle link: {error}")
-        return ExitCode.FAILURE
+        return Ending.NOT_CLEARED.code
 
 
 def _load(args: argparse.Namespace, options: SessionOptions, errors: Console,
@@ -288,7 +291,10 @@ def _fly(args: argparse.Namespace, session: Session, mission: Mission, world: Wo
         console.print(f"flight log: {args.log} ({journal.lines} lines"
                       + (f"; {journal.failure}, {journal.unwritten} lines not written)"
                          if journal.failure else ")"), markup=False)
-    return outcome.exit_code
+    ending = outcome.ending
+    console.print(f"run {ending.status} (exit {int(ending.code)}): {ending.meaning}",
+                  markup=False, highlight=False)
+    return ending.code
 
 
 def _tell_signing(session: Session, journal: Journal, said: list[str], now: float) -> None:

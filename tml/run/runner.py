@@ -126,6 +126,7 @@ from tml.engine.wake import ANYTHING, fields_read
 from tml.errors import ControlRefused, ExitCode
 from tml.language.model import Mission
 from tml.language.skills import mission_vehicle_skills
+from tml.run.endings import Ending
 from tml.run.heap import frozen
 from tml.run.journal import Journal, autopilot_fields, telemetry_fields
 from tml.run.lookout import Lookout
@@ -197,7 +198,8 @@ class VehicleOutcome:
     vehicle_id: int
     status: Status
     reason: str
-    # "link", "error", "stop", "ready", "taken", "rebooted" when the runner ended it
+    # What ended its work when the runner did (the cause of an Ending of tml.run.endings:
+    # "link", "error", "stop", "operator", "ready", "taken", "rebooted"); "" otherwise.
     cause: str = ""
 
 
@@ -208,15 +210,14 @@ class Outcome:
     vehicles: tuple[VehicleOutcome, ...]
 
     @property
+    def ending(self) -> Ending:
+        """Its row of the one table of endings (tml.run.endings): the worst vehicle's."""
+        return Ending.of((v.status.value, v.cause) for v in self.vehicles)
+
+    @property
     def exit_code(self) -> ExitCode:
-        """0 all completed, 4 a vehicle or link failed (or the engine broke), 3 aborted."""
-        if any(v.status is Status.FAILED
-               or v.cause in ("link", "error", "ready", "taken", "rebooted")
-               for v in self.vehicles):
-            return ExitCode.FAILURE
-        if any(v.status is not Status.COMPLETED for v in self.vehicles):
-            return ExitCode.ABORTED
-        return ExitCode.OK
+        """The exit code of its ending: 0 completed, 3 aborted, 4 taken or failed."""
+        return self.ending.code
 
 
 class _Flight:
@@ -336,6 +337,7 @@ class Runner:
         self.resume = resume
         self.about = dict(about or {})  # more for the run's first line (the file's digest)
         self._stop_reason = ""
+        self._stop_cause = Ending.STOPPED.cause
         self.safety_actions: list[str] = []
         self._controls: queue.SimpleQueue[_Control] = queue.SimpleQueue()
         self._flying = False  # between the first task and the end: controls are taken
@@ -343,12 +345,17 @@ class Runner:
 
     # --- control -------------------------------------------------------------------------
 
-    def stop(self, reason: str, safe_state: str | None = None) -> None:
+    def stop(self, reason: str, safe_state: str | None = None,
+             ending: Ending = Ending.STOPPED) -> None:
         """Ask the loop to abort the run (safe to call from a signal handler or a thread);
         with ``safe_state`` (rtl, land, hold: an operator's command), into that one instead
-        of the run's own, unless the run is stopping already."""
-        if safe_state is not None and not self._stop_reason:
-            self.options.safe_state = self.options.engine.safe_state = safe_state
+        of the run's own, unless the run is stopping already. ``ending`` is how the run
+        ends (:mod:`tml.run.endings`): ``STOPPED`` (Ctrl-C, an abort), or ``OPERATOR``
+        for an operator's command that goes through the run (a take-over)."""
+        if not self._stop_reason:
+            if safe_state is not None:
+                self.options.safe_state = self.options.engine.safe_state = safe_state
+            self._stop_cause = ending.cause
         self._stop_reason = self._stop_reason or reason
         self.wake.set()
 
@@ -509,7 +516,7 @@ class Runner:
             self._wait(1.0 / self.options.rate)
             now = self.clock()
             if self._stop_reason:
-                self._abort_all(now, self._stop_reason, "stop")
+                self._abort_all(now, self._stop_reason, self._stop_cause)
                 break
             # The look, the step and the requests in one piece, not in slices between the
             # link thread's reading (tml.timebase.Timebase.right_of_way).
@@ -533,7 +540,8 @@ class Runner:
             self._tell_messages(flight, self.clock())
             self.journal.write(self.clock(), "telemetry", flight.vehicle.vehicle_id,
                                **telemetry_fields(flight.state))
-        self.journal.write(self.clock(), "run", message="run ended",
+        ending = outcome.ending
+        self.journal.write(self.clock(), "run", message="run ended", status=ending.status,
                            exit_code=int(outcome.exit_code),
                            outcomes=[{"vehicle": v.vehicle_id, "status": v.status.value,
                                       "reason": v.reason} for v in outcome.vehicles])
@@ -592,7 +600,7 @@ class Runner:
                         status = Status.FAILED
                     else:
                         reason, status = "another vehicle was not ready", Status.ABORTED
-                    flight.cause = "stop" if stopped else "ready"
+                    flight.cause = self._stop_cause if stopped else Ending.NOT_READY.cause
                     outcomes.append(VehicleOutcome(vid, status, reason, flight.cause))
                     if status is Status.FAILED:
                         self._said(f"vehicle {vid}: {reason}")
@@ -720,7 +728,7 @@ class Runner:
             self._taken(crew, flight, now)
         for flight in lost:
             flight.lost = True
-            flight.cause = "link"
+            flight.cause = Ending.LINK_LOST.cause
             reason = f"link lost for more than {self.options.link_lost_limit:g} s"
             self._said(f"vehicle {flight.vehicle.vehicle_id}: {reason}")
             self._guarded(crew, now, partial(crew.engine.lost, now, flight.vehicle.vehicle_id,
@@ -757,7 +765,7 @@ class Runner:
             self._rebooted(crew, flight, now)
             return
         vid, mode = flight.vehicle.vehicle_id, flight.state.taken
-        flight.taken, flight.cause = True, "taken"
+        flight.taken, flight.cause = True, Ending.TAKEN.cause
         # Nothing in the telemetry says who: the autopilot's failsafe, the pilot's RC
         # switch and another ground station's command look alike (the journal's line keeps
         # the autopilot's last message, which may tell a reader).
@@ -790,7 +798,7 @@ class Runner:
         to decide, on what the vehicle shows."""
         assert flight.state is not None
         vid, state = flight.vehicle.vehicle_id, flight.state
-        flight.taken, flight.cause = True, "rebooted"
+        flight.taken, flight.cause = True, Ending.REBOOTED.cause
         reason = state.rebooted  # "rebooted while armed (its clock went from ...)"
         self.journal.write(now, "taken", vid, message=f"vehicle {vid} {reason}",
                            mode=state.mode, reboot=True, status_text=state.status_text)
@@ -807,12 +815,12 @@ class Runner:
         except Exception as error:  # any engine bug must end in the safe state
             crew.broken = True
             for flight in crew.flights:
-                flight.cause = flight.cause or "error"
+                flight.cause = flight.cause or Ending.ERROR.cause
             self.journal.write(now, "error", None, message=f"interpreter error: {error!r}",
                                traceback=traceback.format_exc())
             for flight in crew.flights:
                 self._fallback_safe_state(flight, now, f"interpreter error: {error}")
-            self._abort_all(now, f"interpreter error: {error}", "error")
+            self._abort_all(now, f"interpreter error: {error}", Ending.ERROR.cause)
             return
         self._dispatch(crew, output)
 

@@ -156,11 +156,13 @@ class RunView(BaseModel):
     id: str
     mission: MissionRef
     vehicles: list[int]
-    status: Literal["waiting", "running", "paused", "completed", "aborted", "failed",
-                    "interrupted"]
+    status: Literal["waiting", "running", "paused", "completed", "aborted", "taken",
+                    "failed", "interrupted"] = Field(
+        description="how the run stands, then how it ended (docs/run.md, How a run ends)")
     reason: str
     outcomes: list[dict[str, Any]] = Field(description="per vehicle: status, reason, cause")
-    exit_code: int | None = Field(description="the exit code tml run would give (0, 3, 4)")
+    exit_code: int | None = Field(description="the exit code tml run gives for the same "
+                                              "ending (0, 3, 4)")
     instance: str
     options: dict[str, Any]
     created: float
@@ -505,8 +507,8 @@ def _vehicles(api: APIRouter, service: Service) -> None:
         vehicle accepted it (its mode then shows in GET /vehicles). 409 with the reason when
         it would be unsafe or cannot be done (a disarm in the air, a ground vehicle told to
         land), when the vehicle refuses it or does not answer. A vehicle held by a run: the
-        run is aborted into that safe state (every vehicle of the run); 202 while it is
-        still ending."""
+        operator takes it over through the run, which is aborted into that safe state
+        (every vehicle of the run) and ends ``taken``; 202 while it is still ending."""
         answer, done = service.command(vehicle_id, request.command)
         if not done:
             response.status_code = 202

@@ -350,7 +350,8 @@ class Cluster:
 
         for run_id in self.service.status()["live_runs"]:
             with contextlib.suppress(RequestError):  # ended meanwhile
-                self.service.abort(run_id)
+                self.service.abort(run_id, f"the lease of service instance "
+                                           f"{self.leases.name} expired")
         sent = self.hangar.monotonic()
         if self.leases.join():
             self.hangar.renewed(sent)

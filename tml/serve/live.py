@@ -12,16 +12,18 @@ API's event streams). The log is read as it is written: a ``mission`` line means
 vehicles were ready and the mission started (status ``running``), and every ``task``
 line updates the :class:`TaskBoard`, the state of every task per vehicle.
 
-When the runner returns, the run's outcome is stored (``completed``, ``aborted`` or
-``failed`` from its exit code), then the log is closed (the streams end), and only then
-are its vehicles released: a client that saw the stream end finds the run ended, and a
-vehicle is never given to a second run while the first still commands it.
+When the runner returns, the run's outcome is stored (its status and exit code are those
+of its ending, :mod:`tml.run.endings`: ``completed``, ``aborted``, ``taken`` or ``failed``),
+then the log is closed (the streams end), and only then are its vehicles released: a client
+that saw the stream end finds the run ended, and a vehicle is never given to a second run
+while the first still commands it.
 
 *A database that fails* (full, gone) during the flight ends the run as any exception of
-the runner does: ``failed``, its vehicles sent to their safe state. Its lines not stored
-are kept, and so is its outcome when that cannot be stored either (:attr:`LiveRun.saved`
-is False): the run still ends -- its streams end, its vehicles are released -- and the
-service stores it later (:meth:`LiveRun.save`), once the database takes writes again.
+the runner does: ``failed`` (``Ending.ERROR``), its vehicles sent to their safe state. Its
+lines not stored are kept, and so is its outcome when that cannot be stored either
+(:attr:`LiveRun.saved` is False): the run still ends -- its streams end, its vehicles are
+released -- and the service stores it later (:meth:`LiveRun.save`), once the database
+takes writes again.
 """
 
 from __future__ import annotations
@@ -36,8 +38,8 @@ from typing import Any
 
 from tml.engine.resume import Progress
 from tml.engine.safety import safe_state_request
-from tml.errors import ExitCode
 from tml.language.model import Mission
+from tml.run.endings import Ending
 from tml.run.journal import Journal
 from tml.run.runner import Outcome, Runner, RunOptions
 from tml.serve.hangar import Hangar
@@ -45,8 +47,6 @@ from tml.serve.storage import Storage, StoredRun, failure
 from tml.vehicle import IdSource
 
 STORE_PERIOD = 0.5  # s between two writes of a run's new log lines to the database
-STATUS_OF_EXIT = {ExitCode.OK: "completed", ExitCode.ABORTED: "aborted",
-                  ExitCode.FAILURE: "failed", ExitCode.INVALID: "failed"}
 FLEET = ""  # the task board's key for tasks no vehicle flies (orchestration only)
 
 Listener = Callable[[int, str | None], None]  # (seq, line); line None: the log has ended
@@ -207,10 +207,12 @@ class LiveRun:
         if kind in ("pause", "resume") and not self.ended:
             self._set_status("paused" if self.runner.paused else "running")
 
-    def abort(self, reason: str, safe_state: str | None = None) -> None:
+    def abort(self, reason: str, safe_state: str | None = None,
+              ending: Ending = Ending.STOPPED) -> None:
         """End the run now: every vehicle to its safe state (as Ctrl-C does to tml run), or
-        to ``safe_state`` (an operator's command: rtl, land or hold)."""
-        self.runner.stop(reason, safe_state)
+        to ``safe_state`` (an operator's command: rtl, land or hold, with ``ending``
+        ``OPERATOR``)."""
+        self.runner.stop(reason, safe_state, ending)
 
     def join(self, timeout: float | None = None) -> bool:
         """Wait for the run's thread to end; whether it has."""
@@ -248,8 +250,7 @@ class LiveRun:
         try:
             outcome = self.runner.run()
             self.outcomes = _outcomes(outcome)
-            status = STATUS_OF_EXIT[outcome.exit_code]
-            exit_code = int(outcome.exit_code)
+            ending = outcome.ending
             self.reason = _reason(outcome)
         except Exception as error:  # a broken vehicle adapter, a failed database write
             self.reason = f"service error: {failure(error)}"
@@ -258,12 +259,13 @@ class LiveRun:
                                           message=self.reason,
                                           traceback=traceback.format_exc())
             self._safe_state(self.reason)
-            status, exit_code = "failed", int(ExitCode.FAILURE)
+            ending = Ending.ERROR
+        assert ending.status is not None  # (a run that flew has a status)
         self.ended_at = time.time()
-        self.status = status
+        self.status = ending.status
         # Whatever the database says, the run is over: its streams end, its vehicles are
         # free (an outcome not stored is stored later: save).
-        self.exit_code = exit_code
+        self.exit_code = int(ending.code)
         self.save()
         with contextlib.suppress(Exception):
             self.log.close()

@@ -60,6 +60,7 @@ from tml.run.clearance import (
     NotCleared,
     clear,
 )
+from tml.run.endings import Ending
 from tml.run.journal import jsonable, telemetry_fields
 from tml.run.resume import ResumeRefused, progress_point
 from tml.run.session import VEHICLE_PROFILE
@@ -295,7 +296,7 @@ class Service:
         when a vehicle is held."""
         self.save_ended()
         stored = self._stored_run(run_id)
-        if stored.status != "interrupted":
+        if stored.status != Ending.INTERRUPTED.status:
             raise Refused(f"run {run_id} is {stored.status}: only an interrupted run can be "
                           "continued")
         later = next((r.id for r in self.storage.runs()
@@ -407,12 +408,12 @@ class Service:
                 with self._lock:
                     self._unsaved.pop(run.id, None)
 
-    def abort(self, run_id: str) -> dict[str, Any]:
-        """Abort a live run: every vehicle to its safe state."""
+    def abort(self, run_id: str, reason: str = "aborted by the operator") -> dict[str, Any]:
+        """Abort a live run: every vehicle to its safe state (``Ending.STOPPED``)."""
         if self._elsewhere(run_id, {"op": "abort"}):
             return self.run(run_id)
         live = self._live_run(run_id)
-        live.abort("aborted by the operator")
+        live.abort(reason)
         return self.run(run_id)
 
     def control(self, run_id: str, kind: str, target: str = "") -> dict[str, Any]:
@@ -541,8 +542,9 @@ class Service:
 
         Refused (409) with the reason when the rule of
         :func:`tml.engine.safety.operator_request` refuses it (a disarm in the air ...).
-        A vehicle held by a run: the run is aborted into that safe state (a disarm, on the
-        ground: into its own, which disarms a vehicle on the ground), and once it has
+        A vehicle held by a run: the operator takes it over through the run, which is
+        aborted into that safe state (a disarm, on the ground: into its own, which disarms
+        a vehicle on the ground) and ends ``taken`` (``Ending.OPERATOR``); once it has
         ended, the command is sent again should the vehicle not show it. A free vehicle is
         held for the command (no run takes it meanwhile), sent the request, and answered
         once the vehicle accepted it; refused by the vehicle or unanswered: 409.
@@ -566,7 +568,8 @@ class Service:
         if live is not None and not live.ended:
             answer["run"] = live.id
             reason = f"operator command: {command}"
-            live.abort(reason, safe_state=None if command == "disarm" else command)
+            live.abort(reason, safe_state=None if command == "disarm" else command,
+                       ending=Ending.OPERATOR)
             self._tell(vehicle_id, command, "sent", f"run {live.id} aborted into {command}")
             if not live.join(self.options.command_timeout):
                 return ({**answer, "message": f"run {live.id} is ending: it sends vehicle "

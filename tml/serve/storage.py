@@ -35,6 +35,7 @@ import sqlalchemy as sa
 from sqlalchemy.engine import Engine
 
 from tml.errors import TmlError
+from tml.run.endings import Ending
 
 ACTIVE = ("waiting", "running", "paused")  # a run in one of these is flying (or about to)
 SCHEMA_LOCK = 0x746D6C  # PostgreSQL advisory lock held while tables are created ("tml")
@@ -209,7 +210,8 @@ class Storage:
             values["ended"] = ended
         with self.engine.begin() as db:
             db.execute(_runs.update().where(_runs.c.id == run_id,
-                                            _runs.c.status != "interrupted").values(**values))
+                                            _runs.c.status != Ending.INTERRUPTED.status
+                                            ).values(**values))
 
     def runs(self) -> list[StoredRun]:
         """Every run, the oldest first."""
@@ -232,7 +234,7 @@ class Storage:
                                             _runs.c.status.in_(ACTIVE)))]
             if ids:
                 db.execute(_runs.update().where(_runs.c.id.in_(ids)).values(
-                    status="interrupted", ended=time.time(),
+                    status=Ending.INTERRUPTED.status, ended=time.time(),
                     reason="the service stopped while the run was flying"))
             return ids
 

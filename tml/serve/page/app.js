@@ -287,7 +287,8 @@ function defaultRun() {
 }
 
 function stateClass(status) {
-  return {completed: "done", waiting: "pending", interrupted: "aborted"}[status] || status;
+  return {completed: "done", waiting: "pending", interrupted: "aborted", taken: "aborted"}[status]
+    || status;
 }
 
 async function showRun(runId) {

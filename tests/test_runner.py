@@ -309,6 +309,25 @@ def test_a_vehicle_never_ready_fails_the_run_with_the_autopilots_reason() -> Non
     assert 5.0 < sim.time < 5.3
 
 
+def test_an_operator_s_command_through_the_run_ends_it_taken_into_that_state() -> None:
+    # The run's own safe state is RTL; the operator's LAND wins, on every vehicle, and the
+    # run ends taken by the operator (docs/run.md, How a run ends: OPERATOR).
+    from tml.run.endings import Ending
+
+    sim = Sim(FakeVehicle(), FakeVehicle(vehicle_id=2))
+    log = io.StringIO()
+    runner = Runner(mission(TAKE_OFF + GO + LAND), sim.vehicles, clock=sim.clock,
+                    journal=Journal(log), wait=sim.wait)
+    sim.hooks.append(lambda s: runner.take_over("land") if s.time == 4.0 else None)
+    outcome = runner.run()
+    assert (outcome.ending, outcome.exit_code) == (Ending.OPERATOR, ExitCode.FAILURE)
+    assert [(v.status, v.reason, v.cause) for v in outcome.vehicles] == [
+        (Status.ABORTED, "operator command: land", "operator")] * 2
+    assert all(isinstance(v.submitted[-1], Land) for v in sim.vehicles)
+    end = json.loads(log.getvalue().splitlines()[-1])
+    assert (end["status"], end["exit_code"]) == ("taken", 4)
+
+
 def test_a_stop_while_waiting_aborts_without_commanding_anything() -> None:
     sim = Sim(Booting(), FakeVehicle(vehicle_id=2))
     runner = Runner(mission(TAKE_OFF + LAND), sim.vehicles, clock=sim.clock, wait=sim.wait)

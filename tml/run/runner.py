@@ -359,6 +359,14 @@ class Runner:
         self._stop_reason = self._stop_reason or reason
         self.wake.set()
 
+    def take_over(self, command: str) -> None:
+        """An operator's command (rtl, land, hold, disarm) to a vehicle of the run, carried
+        out through it: the run is stopped into that state -- a disarm, allowed only on the
+        ground, into the run's own, which disarms a vehicle on the ground -- every vehicle
+        of it, and ends taken by the operator (``Ending.OPERATOR``)."""
+        self.stop(f"operator command: {command}", None if command == "disarm" else command,
+                  Ending.OPERATOR)
+
     @property
     def paused(self) -> bool:
         """Whether the run is paused (:meth:`control`)."""

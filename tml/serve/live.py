@@ -207,12 +207,14 @@ class LiveRun:
         if kind in ("pause", "resume") and not self.ended:
             self._set_status("paused" if self.runner.paused else "running")
 
-    def abort(self, reason: str, safe_state: str | None = None,
-              ending: Ending = Ending.STOPPED) -> None:
-        """End the run now: every vehicle to its safe state (as Ctrl-C does to tml run), or
-        to ``safe_state`` (an operator's command: rtl, land or hold, with ``ending``
-        ``OPERATOR``)."""
-        self.runner.stop(reason, safe_state, ending)
+    def abort(self, reason: str) -> None:
+        """End the run now: every vehicle to its safe state (as Ctrl-C does to tml run)."""
+        self.runner.stop(reason)
+
+    def take_over(self, command: str) -> None:
+        """An operator's command to a vehicle of the run, through the run
+        (:meth:`~tml.run.runner.Runner.take_over`)."""
+        self.runner.take_over(command)
 
     def join(self, timeout: float | None = None) -> bool:
         """Wait for the run's thread to end; whether it has."""

@@ -567,9 +567,7 @@ class Service:
         live = self.live(holder) if holder is not None else None
         if live is not None and not live.ended:
             answer["run"] = live.id
-            reason = f"operator command: {command}"
-            live.abort(reason, safe_state=None if command == "disarm" else command,
-                       ending=Ending.OPERATOR)
+            live.take_over(command)
             self._tell(vehicle_id, command, "sent", f"run {live.id} aborted into {command}")
             if not live.join(self.options.command_timeout):
                 return ({**answer, "message": f"run {live.id} is ending: it sends vehicle "

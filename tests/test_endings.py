@@ -55,6 +55,12 @@ def test_the_documented_table_is_the_code_s_table() -> None:
         assert meaning == ending.meaning, name
 
 
+def test_the_documented_order_of_the_worst_is_the_code_s() -> None:
+    doc = (ROOT / "docs" / "run.md").read_text(encoding="utf-8")
+    said = doc.split("the worst decides, in this order", 1)[1].split("(only when", 1)[0]
+    assert re.findall(r"`([A-Z_]+)`", said) == [ending.name for ending in WORST_FIRST]
+
+
 def test_every_row_names_tests_that_exist() -> None:
     # The last cell names the tests that show the row (``::name`` alone is in the file
     # named before it).
@@ -80,6 +86,9 @@ def test_the_worst_vehicle_decides_and_a_cause_before_the_mission_s_status() -> 
     assert Ending.of([]) is Ending.COMPLETED
     assert Ending.of([(completed, ""), (completed, "")]) is Ending.COMPLETED
     assert Ending.of([(completed, ""), (aborted, "")]) is Ending.ABORTED
+    # Never "completed" unless every vehicle completed.
+    assert Ending.of([(completed, ""), (Status.RUNNING.value, "")]) is Ending.ABORTED
+    assert Ending.of([(completed, ""), (completed, "lost in thought")]) is Ending.ABORTED
     assert Ending.of([(aborted, "stop"), (completed, "")]) is Ending.STOPPED
     # A vehicle taken over fails its work: the cause says why.
     assert Ending.of([(failed, "taken")]) is Ending.TAKEN

@@ -73,13 +73,16 @@ class Ending(Enum):
         """The ending of a run whose vehicles ended with these (mission status, cause):
         the first in :data:`WORST_FIRST` that one of them had (with several vehicles the
         worst decides; a vehicle whose work a cause ended is judged by the cause, one the
-        mission ended by its status)."""
+        mission ended by its status). ``COMPLETED`` only when every vehicle completed;
+        anything else the table does not know (a mission still running) is ``ABORTED``."""
         ended = list(ended)
-        causes = {cause for _, cause in ended}
+        causes = {cause for _, cause in ended if cause}
         statuses = {status for status, cause in ended if not cause}
-        for ending in WORST_FIRST:
+        for ending in WORST_FIRST[:-1]:
             if ending.cause in causes if ending.cause else ending.status in statuses:
                 return ending
+        if causes or statuses - {cls.COMPLETED.status}:
+            return cls.ABORTED
         return cls.COMPLETED
 
 

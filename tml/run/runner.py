@@ -94,7 +94,8 @@ on stepping: the telemetry is logged, a lost link still aborts the run, and the
 interpreters keep every result for when they resume.
 
 *Safety.* The run stops early on an interpreter exception, on a link that stays ``lost``
-longer than ``link_lost_limit`` seconds, or on :meth:`Runner.stop` (Ctrl-C, SIGTERM). Then
+longer than ``link_lost_limit`` seconds, on :meth:`Runner.stop` (Ctrl-C, SIGTERM), or on
+:meth:`Runner.take_over` (an operator's command through the run, into its state). Then
 every vehicle still running is handed to its interpreter's :meth:`abort`, which commands
 the safe state (``rtl``, ``land`` or ``hold`` when flying, disarm when armed on the
 ground); if the interpreter itself is broken, the runner sends the same request itself
@@ -104,6 +105,10 @@ the interpreters have ended, the runner waits (up to ``settle_timeout`` seconds 
 base) until the vehicles have carried out what was asked, and if one is still flying an uploaded
 mission in AUTO that nobody watches any more, commands the safe state to it as well. Every
 such step is written to the journal and to ``on_safety`` so that the run says what it did.
+
+*The end.* How the run ended is one row of :mod:`tml.run.endings` (:attr:`Outcome.ending`,
+from each vehicle's status and the cause the runner gave it): its status and exit code are
+in the journal's last line, and are what ``tml run`` and ``tml serve`` say.
 """
 
 from __future__ import annotations

@@ -105,8 +105,9 @@ def test_the_worst_vehicle_decides_and_a_cause_before_the_mission_s_status() -> 
 
 CAUSES_FLOWN = {
     "completed": Ending.COMPLETED,
-    # tml command beside a tml run switches the mode outside the run (TAKEN); the service's
-    # command goes through its run (OPERATOR): the same status and exit code.
+    # The service's command goes through its run (OPERATOR); tml command at a tml run's
+    # address switches the mode beside the run (TAKEN), or goes through the run where it
+    # can (Runner.take_over: OPERATOR): the same status and exit code either way.
     "operator rtl": Ending.OPERATOR,
     "another ground station": Ending.TAKEN,
     "interrupted": Ending.STOPPED,
@@ -171,8 +172,9 @@ def run_ending(cause: str, tmp_path: Path) -> tuple[str, int, str, int]:
         try:
             wait_for_task(process, log, "Out", "running", 120)
             if cause == "operator rtl":
+                # At the run's own address: the way an operator reaches the vehicle it flies.
                 done = subprocess.run([sys.executable, "-m", "tml", "command", "rtl",
-                                       "--connect", f"tcp:127.0.0.1:{port}"],
+                                       "--connect", proxy.address],
                                       capture_output=True, text=True, timeout=120)
                 assert done.returncode == 0, done.stdout + done.stderr
             elif cause == "another ground station":

@@ -56,6 +56,8 @@ from typing import Any
 from lossy_proxy import LossyProxy
 from pymavlink import mavutil
 
+from tml.run.endings import Ending
+
 ROOT = Path(__file__).resolve().parent.parent
 ARTIFACTS = Path(os.environ.get("TML_TEST_ARTIFACTS") or ROOT / "test-artifacts")
 HANG = 240.0
@@ -556,7 +558,9 @@ class Served:
         return dict(self.client.get(f"/runs/{run_id}").json())
 
     def ended(self, run_id: str) -> bool:
-        return self.run(run_id)["status"] in ("completed", "aborted", "failed")
+        # Every status a run that ended in the service has (docs/run.md, How a run ends).
+        return self.run(run_id)["status"] in {e.status for e in Ending
+                                              if e.status and e.exit_code is not None}
 
     def close(self) -> str:
         with contextlib.suppress(Exception):

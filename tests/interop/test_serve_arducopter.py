@@ -107,12 +107,12 @@ def test_the_service_flies_two_arducopters(ardupilot, tmp_path: Path) -> None:
         assert post(client, f"/runs/{one}/jump", task="Down")["tasks"]["1"]["Out"] == "aborted"
 
         ended = until("run 1 ended", lambda: status(client, one, "completed", "failed",
-                                                   "aborted"))
+                                                   "aborted", "taken"))
         assert (ended["status"], ended["tasks"]["1"]["Down"]) == ("completed", "done"), ended
         controls = [r["control"] for r in records(client, one) if r["kind"] == "control"]
         assert controls == ["pause", "resume", "jump"]
         aborted = until("run 2 aborted", lambda: status(client, two, "aborted", "completed",
-                                                       "failed"))
+                                                       "failed", "taken"))
         assert (aborted["status"], aborted["exit_code"]) == ("aborted", 3), aborted
         safety = [r for r in records(client, two) if r["kind"] == "safety"]
         assert safety and safety[0]["request"] == "ReturnToLaunch"
@@ -131,7 +131,7 @@ def test_the_service_flies_two_arducopters(ardupilot, tmp_path: Path) -> None:
         going_on = post(client, f"/runs/{third}/continue")
         assert going_on["options"]["continues"] == third
         ended = until("the continued run ended", lambda: status(
-            client, going_on["id"], "completed", "failed", "aborted"))
+            client, going_on["id"], "completed", "failed", "aborted", "taken"))
         assert ended["status"] == "completed", ended
         assert ended["tasks"]["1"] == dict.fromkeys(("Up", "Out", "Down"), "done")
         requests = [r["message"] for r in records(client, going_on["id"])

@@ -61,16 +61,10 @@ def test_the_documented_order_of_the_worst_is_the_code_s() -> None:
     assert re.findall(r"`([A-Z_]+)`", said) == [ending.name for ending in WORST_FIRST]
 
 
-def test_every_row_names_tests_that_exist() -> None:
-    # The last cell names the tests that show the row (``::name`` alone is in the file
-    # named before it).
+def test_every_row_names_the_tests_that_show_it() -> None:
+    # (That each named test exists is tests/test_docs_tests.py's to check.)
     for row in documented_rows():
-        named = re.findall(r"(tests/[\w/]+\.py)?::(\w+)", row[-1])
-        assert named, row
-        source = ""
-        for path, test in named:
-            source = (ROOT / path).read_text(encoding="utf-8") if path else source
-            assert f"def {test}(" in source, f"{path or 'the file before'}::{test}"
+        assert re.search(r"tests/[\w/]+\.py::\w+", row[-1]), row
 
 
 def test_every_status_of_the_table_is_one_the_api_may_answer() -> None:

@@ -43,6 +43,8 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from sitl.server import Simulator
 
 MISSION = b"""<mission name="Reaction">
+  <parameter name="TRIGGER" type="number"
+             description="NAMED_VALUE_FLOAT TRIGGER from the companion computer"/>
   <task name="Wait"><action name="WAIT"><argument name="duration" value="86400"/></action>
   </task>
   <event_handling>

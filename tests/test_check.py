@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from tml.language.validation import validate_file
 
 
@@ -488,3 +490,139 @@ def test_a_raw_mission_item_in_an_event_is_refused() -> None:
              f'comparison="less than" value="20"/>{jump}<termination mode="ABORT_MISSION"/>'
              '</event></event_handling>\n')
     assert codes(run(TAKE_OFF + event)) == ["E262"]
+
+
+# --- a condition on a parameter nothing provides (E227) ----------------------------------
+
+LOW_BATTERY = ('<event_handling><event name="low">{condition}<action name="LAND"/>'
+               '<termination mode="ABORT_MISSION"/></event></event_handling>\n')
+
+
+def event_on(parameter: str, comparison: str = "less than", value: str = "30") -> str:
+    return LOW_BATTERY.format(condition=f'<condition parameter="{parameter}" '
+                                        f'comparison="{comparison}" value="{value}"/>')
+
+
+def test_an_event_on_a_parameter_nothing_provides_is_an_error() -> None:
+    # BATTERY_LEVEL is no built-in (BATTERY_CHARGE_PERCENTAGE is): the event never fires.
+    result = run(TAKE_OFF + event_on("BATTERY_LEVEL"))
+    assert [(d.code, d.location.line, d.location.column) for d in result.diagnostics] \
+        == [("E227", 3, 35)]
+    assert result.diagnostics[0].hint == "did you mean 'BATTERY_CHARGE_PERCENTAGE'?"
+    assert not result.valid()
+
+
+@pytest.mark.parametrize(("comparison", "value", "declared"), [
+    ("less than", "30", "number"), ("greater than or equal to", "1", "number"),
+    ("equal", "4.5", "number"), ("includes", "red", "set"), ("equal", "yes", "boolean"),
+    ("not equal to", "north", "string"), ("known", "yes", "string")])
+def test_the_hint_declares_a_type_that_fits_the_comparison(
+        comparison: str, value: str, declared: str) -> None:
+    body = TAKE_OFF + event_on("zorblax", comparison, value)
+    found = run(body).diagnostics
+    assert [d.code for d in found] == ["E227"]
+    declaration = f'<parameter name="zorblax" type="{declared}"/>'
+    assert found[0].hint == f"declare it if a companion computer reports it: {declaration}"
+    assert run(body, declaration + "\n").diagnostics == []  # the hint, followed, works
+
+
+def test_a_found_name_is_provided_by_the_skill_that_feeds_its_set() -> None:
+    seen = event_on("Item A found", "equal", "yes")
+    without = run(TAKE_OFF + seen).diagnostics
+    assert [d.code for d in without] == ["E227"]
+    assert "RECOGNIZED_ITEMS" in without[0].message
+    assert without[0].hint.startswith('switch on RECOGNIZE_ITEMS with '
+                                      '<skill name="RECOGNIZE_ITEMS"/>, or declare it')
+    # Switched on anywhere (here on a task, not on the mission), the skill provides it,
+    # as a yes/no.
+    searching = ('<task name="Search"><skill name="RECOGNIZE_ITEMS"/><action name="WAIT">'
+                 '<argument name="duration" value="5"/></action></task>\n')
+    assert run(TAKE_OFF + searching + seen).diagnostics == []
+    ordered = run(TAKE_OFF + searching + event_on("Item A found", "less than", "3"))
+    assert [d.code for d in ordered.diagnostics] == ["E223"]
+
+
+@pytest.mark.parametrize("where", ["wait_for", "until"])
+def test_a_gate_on_a_parameter_nothing_provides_is_an_error(where: str) -> None:
+    body = (TAKE_OFF + f'<task name="Hover"><{where}><condition parameter="observed color" '
+            f'comparison="equal" value="green"/></{where}><action name="WAIT">'
+            '<argument name="duration" value="5"/></action></task>\n')
+    assert codes(run(body)) == ["E227"]
+
+
+def test_only_the_papers_guard_stays_a_warning() -> None:
+    # Example 2 of the paper, as written: a guard comparing a word. Compared as a number, or
+    # near a declared name (a misspelling), it is an error.
+    guard = ('<task name="Move if green"><condition parameter="{name}" comparison="{how}" '
+             'value="{value}"/><action name="LAND"/></task>\n')
+    paper = guard.format(name="observed color", how="equal", value="green")
+    assert codes(run(TAKE_OFF + paper)) == ["W301"]
+    assert run(TAKE_OFF + paper).diagnostics[0].hint == \
+        ('declare it if something on the vehicle reports it: '
+         '<parameter name="observed color" type="string"/>')
+    number = guard.format(name="observed color", how="less than", value="3")
+    assert codes(run(TAKE_OFF + number)) == ["E227"]
+    misspelt = guard.format(name="observed colr", how="equal", value="green")
+    declared = '<parameter name="observed color" type="string"/>\n'
+    found = run(TAKE_OFF + misspelt, declared).diagnostics
+    assert [(d.code, d.hint) for d in found] == [("E227", "did you mean 'observed color'?")]
+
+
+MISSIONS = sorted((Path(__file__).parent.parent / "missions").glob("*.xml"))
+
+
+def _parameter_conditions(path: Path) -> list[tuple[str, int, int]]:
+    """Each parameter a mission's conditions read, with the line and column of the first
+    condition that reads it."""
+    from tml.language.model import ConditionKind
+
+    mission = validate_file(path).mission
+    assert mission is not None
+    conditions = [c for task in mission.walk() for c in (
+        *task.conditions, *task.wait_for, *task.until,
+        *(task.loop.conditions if task.loop else ()))] + [
+        c for event in mission.events for c in event.conditions]
+    first: dict[str, tuple[str, int, int]] = {}
+    for c in sorted((c for c in conditions if c.kind is ConditionKind.PARAMETER),
+                    key=lambda c: (c.location.line, c.location.column or 0)):
+        first.setdefault(c.subject, (c.subject, c.location.line, c.location.column or 0))
+    return list(first.values())
+
+
+def _misspelt(name: str) -> str:
+    """``name`` with one letter near its middle left out."""
+    middle = len(name) // 2
+    while not name[middle].isalpha():
+        middle += 1
+    return name[:middle] + name[middle + 1:]
+
+
+MISSPELT = [(path, *read) for path in MISSIONS for read in _parameter_conditions(path)]
+
+
+def test_most_example_missions_read_parameters() -> None:
+    assert len({path for path, *_ in MISSPELT}) >= 15
+    assert len(MISSPELT) >= 40
+
+
+@pytest.mark.parametrize(("path", "name", "line", "column"), MISSPELT,
+                         ids=[f"{p.name}:{n}" for p, n, *_ in MISSPELT])
+def test_a_misspelt_parameter_in_every_example_mission_is_an_error(
+        path: Path, name: str, line: int, column: int, tmp_path: Path) -> None:
+    from tml.language import parameters
+
+    wrong = _misspelt(name)
+    lines = path.read_text(encoding="utf-8").splitlines(keepends=True)
+    written = f'parameter="{name}"'
+    at = next(i for i in range(line - 1, len(lines)) if written in lines[i])
+    lines[at] = lines[at].replace(written, f'parameter="{wrong}"', 1)
+    copy = tmp_path / path.name
+    copy.write_text("".join(lines), encoding="utf-8")
+    result = validate_file(copy)
+    built_in = parameters.lookup(name)
+    # A built-in misspelt is E225 (as before); any other name nothing provides, E227.
+    expected = "E225" if built_in is not None else "E227"
+    meant = built_in.name if built_in is not None else name
+    assert [(d.code, d.location.file, d.location.line, d.location.column, d.hint)
+            for d in result.errors] == [
+        (expected, str(copy), line, column, f"did you mean {meant!r}?")]

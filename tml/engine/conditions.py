@@ -14,7 +14,6 @@ not. Comparisons on an unknown value are false, except ``known`` with value ``no
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -36,13 +35,6 @@ class Memory:
     action_failure: str | None
     running_paths: frozenset[tuple[str, ...]]  # the running task and all its ancestors
 
-
-_FOUND = re.compile(r"^\s*(item|bucket|aruco marker|aruco|visual marker|marker|frame)s?\s+"
-                    r"(.+?)\s+(?:found|seen|recognized|recognised)\s*$", re.I)
-_FOUND_SETS = {"item": "RECOGNIZED_ITEMS", "bucket": "RECOGNIZED_BUCKETS",
-               "aruco marker": "RECOGNIZED_ARUCO_MARKERS", "aruco": "RECOGNIZED_ARUCO_MARKERS",
-               "visual marker": "RECOGNIZED_VISUAL_MARKERS",
-               "marker": "RECOGNIZED_VISUAL_MARKERS", "frame": "RECOGNIZED_FRAMES"}
 
 _STATE_READERS: dict[str, tuple[frozenset[str], Callable[[VehicleState], object]]] = {
     # parameter: (the VehicleState fields it reads, how)
@@ -85,10 +77,10 @@ def read_parameter(name: str, state: VehicleState, memory: Memory) -> object:
         }.get(spec.name)
     if name in state.detections:
         return state.detections[name]
-    found = _FOUND.match(name)
-    if found:
-        seen = _as_set(state.detections.get(_FOUND_SETS[found.group(1).lower()]))
-        return found.group(2).strip().lower() in {str(v).lower() for v in seen}
+    found = parameters.found_in(name)
+    if found is not None:
+        seen = _as_set(state.detections.get(found[0]))
+        return found[1].lower() in {str(v).lower() for v in seen}
     return None
 
 

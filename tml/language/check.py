@@ -84,6 +84,8 @@ class _Checker:
             self.by_name[task.name].append(task)
         self.handlers = {id(h) for t in self.tasks for h in t.on_error}  # <on_error> tasks
         self.declared = {p.name: p for p in mission.parameters}
+        self.switched = skills.switched(mission)
+        self.unprovided: set[int] = set()  # ids of the conditions E225/E227/W301 was said of
 
     def run(self) -> list[Diagnostic]:
         self.check_declarations()
@@ -166,7 +168,7 @@ class _Checker:
             self.check_skills(task.skills)
             inner = self.check_repeat(task, rounds)
             for condition in task.conditions:
-                self.check_condition(condition)
+                self.check_condition(condition, guard=True)
             if task.action is not None:
                 self.check_action(task.action, task.dispatch)
             self.check_orchestration(task)
@@ -344,14 +346,15 @@ class _Checker:
 
     # --- conditions ------------------------------------------------------------------------
 
-    def check_condition(self, condition: Condition) -> None:
+    def check_condition(self, condition: Condition, guard: bool = False) -> None:
+        """Check a condition; ``guard``: it is a task's own ``<condition>``."""
         if not condition.subject:
             return  # the builder already reported the missing subject
         if condition.kind is ConditionKind.CURRENT_TASK:
             self.resolve_task(condition.subject, condition, "current_task")
             return
         # An unknown parameter is said whatever else is wrong with the condition.
-        param_type = self.parameter_type(condition) \
+        param_type = self.parameter_type(condition, guard) \
             if condition.kind is ConditionKind.PARAMETER else None
         if condition.comparison is None:
             self.found.append(error(
@@ -385,24 +388,60 @@ class _Checker:
             return
         self.check_value(condition, param_type)
 
-    def parameter_type(self, condition: Condition) -> ParamType | None:
+    def parameter_type(self, condition: Condition, guard: bool = False) -> ParamType | None:
+        """The type of the parameter ``condition`` reads, or None (said why) when nothing
+        provides it; ``guard``: the condition is a task's own ``<condition>``."""
         spec = parameters.lookup(condition.subject)
         if spec is not None:
             return spec.type
         declared = self.declared.get(condition.subject)
         if declared is not None:
             return ParamType(declared.type)
+        found = parameters.found_in(condition.subject)
+        feeders = skills.feeders(found[0]) if found is not None else ()
+        if self.switched & set(feeders):
+            return ParamType.BOOLEAN  # true while the id is in the set
+        self.unprovided.add(id(condition))  # nothing else is said of what it reads
         guess = parameters.suggest(condition.subject)
         if guess is not None:
             self.found.append(error(
                 condition.location, "E225",
                 f"unknown parameter {condition.subject!r}", f"did you mean {guess!r}?"))
-        else:
+            return None
+        needed = parameters.type_for(condition.comparison, condition.value)
+        declare = f'<parameter name="{condition.subject}" type="{needed.value}"/>'
+        if found is not None:
+            self.found.append(error(
+                condition.location, "E227",
+                f"nothing provides parameter {condition.subject!r}: it reads {found[0]}, "
+                "which no skill the mission switches on fills",
+                f'switch on {" or ".join(feeders)} with <skill name="{feeders[0]}"/>, or '
+                f"declare it: {declare}"))
+            return None
+        meant = parameters.closest(condition.subject, self.declared)
+        if meant is None and guard and condition.comparison in (
+                Comparison.EQUAL, Comparison.NOT_EQUAL) and condition.value is not None \
+                and parameters.parse_number(condition.value) is None:
+            # The paper's Example 2 ("observed color" equal "green"): TML as published has
+            # no <parameter>, so its guard stays valid; a guard never true skips its task,
+            # which the flight shows.
             self.found.append(warning(
                 condition.location, "W301",
-                f"{condition.subject!r} is not a built-in parameter; it is taken as a "
-                "detection parameter fed by a skill or a companion computer",
-                f'declare it: <parameter name="{condition.subject}" type="string"/>'))
+                f"nothing provides parameter {condition.subject!r} (not built in, not "
+                "declared, fed by no skill): the condition is never true, so the task is "
+                "always skipped", f"declare it if something on the vehicle reports it: "
+                f"{declare}"))
+            return None
+        # A comparison with an unknown value is false, except known="no".
+        always = condition.comparison is Comparison.KNOWN and condition.value is not None \
+            and parameters.parse_boolean(condition.value) is False
+        self.found.append(error(
+            condition.location, "E227",
+            f"nothing provides parameter {condition.subject!r}: it is not built in, not "
+            "declared with <parameter>, and no skill the mission switches on feeds it, so "
+            f"the condition is {'always' if always else 'never'} true",
+            f"did you mean {meant!r}?" if meant is not None
+            else f"declare it if a companion computer reports it: {declare}"))
         return None
 
     def check_known_value(self, condition: Condition) -> None:
@@ -649,6 +688,7 @@ class _Checker:
             self.check_written_role(condition.role, condition.location)
             if (self.mission.roles and task.role is None and condition.role is None
                     and condition.kind is ConditionKind.PARAMETER and condition.subject
+                    and id(condition) not in self.unprovided
                     and self.reads_vehicle(condition.subject)):
                 self.found.append(error(
                     condition.location, "E275",

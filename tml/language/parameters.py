@@ -2,9 +2,11 @@
 
 Built-in parameters come from the vehicle's telemetry and the interpreter's own state. Any
 other name is a *detection* parameter, fed by a skill or a companion computer (the paper's
-"observed color" or "Item A found"); a mission may declare those with ``<parameter>``.
-A name close to a built-in one but not equal to it is almost certainly a typo, and is
-reported with a did-you-mean hint. A built-in number parameter names the quantity it
+"observed color" or "Item A found"); a mission declares those with ``<parameter>``. A name
+of the form ``"<kind> <id> found"`` (``"Item A found"``) reads a built-in recognition set
+(:func:`found_in`), and is fed by the skill that fills that set. A name close to a built-in
+one but not equal to it is almost certainly a typo, and is reported with a did-you-mean
+hint. A built-in number parameter names the quantity it
 measures, whose range (:mod:`tml.language.quantities`) bounds the numbers a condition may
 compare it with.
 """
@@ -13,6 +15,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -106,6 +109,51 @@ _BY_KEY = {normalize_name(n): p for p in BUILT_IN for n in (p.name, *p.aliases)}
 def lookup(name: str) -> ParameterSpec | None:
     """The built-in parameter a written name denotes (case and separators ignored), or None."""
     return _BY_KEY.get(normalize_name(name))
+
+
+_FOUND = re.compile(r"^\s*(item|bucket|aruco marker|aruco|visual marker|marker|frame)s?\s+"
+                    r"(.+?)\s+(?:found|seen|recognized|recognised)\s*$", re.I)
+_FOUND_SETS = {"item": "RECOGNIZED_ITEMS", "bucket": "RECOGNIZED_BUCKETS",
+               "aruco marker": "RECOGNIZED_ARUCO_MARKERS", "aruco": "RECOGNIZED_ARUCO_MARKERS",
+               "visual marker": "RECOGNIZED_VISUAL_MARKERS",
+               "marker": "RECOGNIZED_VISUAL_MARKERS", "frame": "RECOGNIZED_FRAMES"}
+
+
+def found_in(name: str) -> tuple[str, str] | None:
+    """For a name of the form ``"<kind> <id> found"`` (the IMAV 2016 mission's ``"Item A
+    found"``; also ``seen``, ``recognized``): the built-in set it reads and the id it looks
+    for there (``("RECOGNIZED_ITEMS", "A")``); None for any other name."""
+    found = _FOUND.match(name)
+    if found is None:
+        return None
+    return _FOUND_SETS[found.group(1).lower()], found.group(2).strip()
+
+
+def closest(name: str, others: Iterable[str]) -> str | None:
+    """The one of ``others`` (or of the built-in names and aliases, reported by the
+    built-in name) that ``name`` most likely meant, ignoring case and separators; None if
+    nothing is close. Looser than :func:`suggest`: for a did-you-mean on a name already
+    known to be wrong."""
+    import difflib  # here: a valid mission never needs it, so start-up does without
+
+    keys = {normalize_name(other): other for other in others}
+    keys.update({key: spec.name for key, spec in _BY_KEY.items() if key not in keys})
+    close = difflib.get_close_matches(normalize_name(name), list(keys), n=1, cutoff=0.6)
+    return keys[close[0]] if close else None
+
+
+def type_for(comparison: Comparison | None, value: str | None) -> ParamType:
+    """The type a ``<parameter>`` declaration needs so that a condition with this
+    comparison and value fits it (for a hint that works as written)."""
+    if comparison is Comparison.INCLUDES:
+        return ParamType.SET
+    if comparison in ORDERINGS or (value is not None and parse_number(value) is not None
+                                   and comparison is not Comparison.KNOWN):
+        return ParamType.NUMBER
+    if comparison is not Comparison.KNOWN and value is not None \
+            and parse_boolean(value) is not None:
+        return ParamType.BOOLEAN
+    return ParamType.STRING
 
 
 def suggest(name: str) -> str | None:

@@ -43,7 +43,7 @@ CATALOGUE: tuple[SkillSpec, ...] = (
     SkillSpec("RECOGNIZE_FRAMES", "Recognise coloured frames (doors and windows).",
               ("RECOGNIZED_FRAMES",)),
     SkillSpec("DETECT_OBSTACLES_BY_ARUCO_MARKERS",
-              "Treat ArUco markers as obstacles (Aerostack)."),
+              "Treat ArUco markers as obstacles (Aerostack).", ("RECOGNIZED_ARUCO_MARKERS",)),
     SkillSpec("SAY_OUT_LOUD_CURRENT_TASK",
               "Announce each task as it starts (Aerostack): tml says it in the flight log and "
               "the live view.", ground=True),
@@ -67,6 +67,20 @@ def vehicle_skills(names: Iterable[str]) -> frozenset[str]:
     by their catalogue names."""
     found = (lookup(name) for name in names)
     return frozenset(spec.name for spec in found if spec is not None and not spec.ground)
+
+
+def switched(mission: Mission) -> frozenset[str]:
+    """Every known skill ``mission`` switches on anywhere (on itself or on any task), by
+    its catalogue name."""
+    found = (lookup(skill.name) for skill in (
+        *mission.skills, *(s for task in mission.walk() for s in task.skills)))
+    return frozenset(spec.name for spec in found if spec is not None)
+
+
+def feeders(parameter: str) -> tuple[str, ...]:
+    """The skills that feed the built-in ``parameter`` (a catalogue name), in catalogue
+    order."""
+    return tuple(spec.name for spec in CATALOGUE if parameter in spec.feeds)
 
 
 def mission_vehicle_skills(mission: Mission) -> frozenset[str]:

@@ -85,7 +85,7 @@ def validate_file(path: str | Path, data: bytes | None = None,
 
 
 READS_THE_WHOLE = frozenset({
-    "E225", "W301", "E254",  # parameters, as the declarations say
+    "E225", "E227", "W301", "E254",  # parameters, as the declarations and skills say
     "E230", "E231", "E232",  # labels, as the MEMORIZE_POINTs store them
     "E240", "E244", "W310",  # tasks named, as the tasks are
     "E253",  # latitude and longitude, from the <home>
@@ -95,8 +95,8 @@ READS_THE_WHOLE = frozenset({
 """Codes of the semantic findings that read other parts of the mission than the element
 they are reported on: kept beside schema findings only when those parts were built whole."""
 
-_CONDITION_READ = frozenset({"E220", "E221", "E222", "E223", "E224", "E225", "W301", "E230",
-                             "E232", "E240", "E244", "E275", "E281"})
+_CONDITION_READ = frozenset({"E220", "E221", "E222", "E223", "E224", "E225", "E227", "W301",
+                             "E230", "E232", "E240", "E244", "E275", "E281"})
 ECHOES: dict[str, frozenset[str]] = {
     "comparison": frozenset({"E221", "E223", "E224"}),
     "value": frozenset({"E212", "E213", "E214", "E222", "E224"}),

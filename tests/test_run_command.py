@@ -83,6 +83,32 @@ def test_invalid_mission_exits_1_before_flying(tmp_path: Path,
     assert "unknown action" in err and "invalid mission, not flown" in err
 
 
+def test_the_warnings_of_validation_are_printed_before_the_flight(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    guarded = write(tmp_path, SHORT.replace(
+        '<task name="Over">', '<task name="Over">\n    <condition parameter="observed color" '
+        'comparison="equal" value="green"/>\n    '))
+    assert main(["run", guarded, "--sim", "-q", *FAST]) == 0
+    out, err = capsys.readouterr()
+    assert f"{guarded}:4:5: warning W301: nothing provides parameter 'observed color'" in err
+    assert "hint: declare it if something on the vehicle reports it" in err
+    assert "vehicle 1: mission completed" in out
+
+
+def test_an_event_nothing_can_fire_is_refused_before_flying(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # BATTERY_LEVEL is no built-in: the low-battery landing would never happen.
+    low = write(tmp_path, SHORT.replace("</mission>", '<event_handling><event name="Low">'
+                '<condition parameter="BATTERY_LEVEL" comparison="less than" value="30"/>'
+                '<action name="LAND"/><termination mode="ABORT_MISSION"/></event>'
+                '</event_handling></mission>'))
+    assert main(["run", low, "--sim", "-q", "--sim-battery", "40"]) == 1
+    err = capsys.readouterr().err
+    assert f"{low}:5:35: error E227: nothing provides parameter 'BATTERY_LEVEL'" in err
+    assert "did you mean 'BATTERY_CHARGE_PERCENTAGE'?" in err
+    assert "invalid mission, not flown" in err
+
+
 def test_infeasible_mission_is_refused_unless_forced(tmp_path: Path,
                                                      capsys: pytest.CaptureFixture[str]) -> None:
     far = write(tmp_path, SHORT.replace("(8, 0, 4)", "(40000, 0, 4)"))

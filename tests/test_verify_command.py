@@ -210,6 +210,53 @@ def test_a_mission_that_ends_in_the_air_gets_a_warning(
     assert json.loads(capsys.readouterr().out)["warnings"] == []
 
 
+def test_a_rover_is_not_told_it_ends_in_the_air(tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    # The rover delivery without its last task: it ends 25 m from where it started, on the
+    # ground, where LAND (refused to a rover) would do nothing.
+    delivery = (ROOT / "missions" / "rover_delivery.xml").read_text()
+    start = delivery.index('  <task name="Home">')
+    path = tmp_path / "stops_out.xml"
+    path.write_text(delivery[:start] + delivery[delivery.index("</task>", start) + 8:])
+    assert main(["verify", "--profile", "rover", "--format", "json", str(path)]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["feasible"] and report["warnings"] == []
+    assert report["actions"][-1]["action"] == "MOVE"
+    assert main(["verify", "--profile", "rover", str(path)]) == 0
+    assert "in the air" not in capsys.readouterr().out
+    # A copter that ends there is still told, and how to land.
+    hovers = tmp_path / "hovers.xml"
+    hovers.write_text(HOVERS)
+    assert main(["verify", "--profile", "quadcopter", str(hovers)]) == 0
+    assert "end with LAND or RETURN_HOME_AND_LAND" in capsys.readouterr().out
+
+
+GUARDED = ('<mission name="Guarded">\n'
+           '  <task name="Up"><action name="TAKE_OFF"/></task>\n'
+           '  <task name="Move if green">\n'
+           '    <condition parameter="observed color" comparison="equal" value="green"/>\n'
+           '    <action name="LAND"/>\n  </task>\n'
+           '  <task name="Down"><action name="LAND"/></task>\n</mission>\n')
+
+
+@pytest.mark.parametrize("form", ["table", "json"])
+def test_the_warnings_of_validation_are_printed_to_stderr(
+        form: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "guarded.xml"
+    path.write_text(GUARDED)
+    assert main(["verify", "--format", form, str(path)]) == 0
+    out, err = capsys.readouterr()
+    assert f"{path}:4:5: warning W301: nothing provides parameter 'observed color'" in err
+    assert 'hint: declare it if something on the vehicle reports it: <parameter ' \
+           'name="observed color" type="string"/>' in err
+    assert "W301" not in out
+    if form == "json":
+        assert json.loads(out)["feasible"] is True  # stdout stays one JSON document
+    # Without warnings, nothing on stderr.
+    assert main(["verify", "--format", form, str(FEASIBLE)]) == 0
+    assert capsys.readouterr().err == ""
+
+
 def test_the_shipped_world_file_adds_obstacles_the_legs_go_around(
         capsys: pytest.CaptureFixture[str]) -> None:
     root = Path(__file__).resolve().parent.parent

@@ -233,6 +233,8 @@ def _load(args: argparse.Namespace, options: SessionOptions, errors: Console,
         errors.print(f"tml run: {result.file}: invalid mission, not flown")
         return Refusal.MISSION
     mission = result.mission
+    for text in format_human_all(result.diagnostics, {result.file: result.source}):
+        errors.print(text, markup=False)  # a valid mission's warnings
     extra = load_world(args.world) if args.world else None
     world = (mission.world or World()).merged(extra)
     from tml.verify.profile import load_profile

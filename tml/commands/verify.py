@@ -104,6 +104,8 @@ def _verify_one(path: str, args: argparse.Namespace, profile: VehicleProfile,
         print(f"{result.file}: invalid mission, not verified")
         return ExitCode.INVALID, None
     mission = result.mission
+    for text in format_human_all(result.diagnostics, {result.file: result.source}):
+        print(text, file=sys.stderr)  # a valid mission's warnings
     home = (mission.world or World()).merged(world).home_or_default
     start = PredictedState(battery=args.battery, heading=home.heading)
     report = verify_mission(mission, profile, world, start)

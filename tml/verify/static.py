@@ -438,7 +438,10 @@ def verify_mission(mission: Mission, profile: VehicleProfile, world: World | Non
     warnings: list[str] = []
     for walker in walkers:
         finals = walker.tasks(mission.tasks, [_alternative(start, {})])
-        aloft = [a.state for a in finals if a.state.flying]
+        # A ground vehicle is never in the air, and LAND is refused to it: where its mission
+        # ends, the run's safe state stops it (disarm, tml.engine.safety).
+        aloft = [a.state for a in finals if a.state.flying] \
+            if walker.model.profile.kind is not Kind.GROUND else []
         if aloft and (walker.role is None or walker.rows) and not _lands_by_event(mission,
                                                                                    walker):
             whose = f"role {walker.role_name}: " if walker.role is not None else ""

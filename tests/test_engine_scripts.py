@@ -8,7 +8,7 @@ import pytest
 from fake_vehicle import FakeVehicle
 from test_engine_interpreter import Flight
 
-from tml.engine import Options, Status
+from tml.engine import Limits, Options, Status
 from tml.errors import Location
 from tml.vehicle import Circle, Disarm, GoTo, Land, ReturnToLaunch
 
@@ -109,3 +109,37 @@ def test_a_rover_returns_home_stops_and_disarms() -> None:
     assert flight.interp.status is Status.COMPLETED
     assert _kinds_of(flight)[-2:] == ["ReturnToLaunch", "Disarm"]
     assert math.dist(flight.vehicle.position, (0, 0, 0)) < 3.0
+
+
+# --- time limits at the speed in force ----------------------------------------------------
+
+GO_FAR = ('<task name="Up"><action name="TAKE_OFF"><argument name="altitude" value="10"/>'
+          '</action></task><task name="Far"><action name="GO_TO_POINT"><argument '
+          'name="coordinates" value="(100, 0, 10)"/></action></task>')
+
+
+def _cruising(speed: float) -> Options:
+    return Options(limits=Limits(cruise_speed=lambda vehicle_type: speed))
+
+
+def _said(flight: Flight) -> str:
+    return " ".join(str(r.data.get("message", "")) for r in flight.records)
+
+
+def test_a_move_s_time_limit_is_twice_its_time_at_the_cruise_speed_plus_15_s() -> None:
+    # 100 m at 2 m/s take 50 s; at a cruise speed of 10 m/s the limit is 2 x 10 + 15 = 35 s.
+    fast = Flight(GO_FAR, vehicle=FakeVehicle(speed=2.0), options=_cruising(10.0)).run(300)
+    assert fast.interp.status is not Status.COMPLETED
+    assert "within 35 s" in _said(fast)
+    # At a cruise speed of 2 m/s: 2 x 50 + 15 = 115 s, time enough.
+    slow = Flight(GO_FAR, vehicle=FakeVehicle(speed=2.0), options=_cruising(2.0)).run(300)
+    assert slow.interp.status is Status.COMPLETED
+
+
+def test_set_speed_puts_its_speed_in_force_for_the_time_limit() -> None:
+    slowly = GO_FAR.replace('<task name="Far">', '<task name="Slowly"><action name="SET_SPEED">'
+                            '<argument name="speed" value="2"/></action></task>'
+                            '<task name="Far">')
+    flight = Flight(slowly, vehicle=FakeVehicle(speed=10.0), options=_cruising(10.0)).run(300)
+    assert flight.interp.status is Status.COMPLETED, _said(flight)
+    assert flight.vehicle.speed == 2.0

@@ -603,20 +603,21 @@ def item_limit(bound: BoundAction, pilot: Pilot, stall: float) -> float:
     slack; an endless loiter has no limit (an event ends it). ``stall`` when the action
     gives no time of its own."""
     limits, here = pilot.limits, pilot.state.position or (0.0, 0.0, 0.0)
+    speed = limits.move_speed(pilot.state.vehicle_type)
     turns, duration = _number(bound, "turns"), _number(bound, "duration")
     if bound.name in ("LOITER", "RETURN_HOME_AND_LOITER") and turns is None \
             and duration is None:
         return math.inf
     seconds = duration or 0.0
     if turns is not None:
-        seconds += 2 * math.pi * (_number(bound, "radius") or 0.0) * turns / limits.speed
+        seconds += 2 * math.pi * (_number(bound, "radius") or 0.0) * turns / speed
     point = bound.point("coordinates", None) if bound.takes("coordinates") else None
     if point is not None:
-        seconds += math.dist(here, point) / limits.speed
+        seconds += math.dist(here, point) / speed
     if bound.name == "SURVEY_AREA":  # the lawnmower flown (tml.patterns), from its base
         passes = survey((0.0, 0.0, 0.0), bound.number("length"), bound.number("width"),
                         bound.number("spacing"), bound.choice("direction"))
-        seconds += sum(math.dist(a, b) for a, b in pairwise(passes)) / limits.speed
+        seconds += sum(math.dist(a, b) for a, b in pairwise(passes)) / speed
     if bound.name == "TAKE_OFF":
         seconds += (_number(bound, "altitude") or 0.0) / limits.climb_rate
     if bound.spec.category is Category.TAKE_OFF_LANDING and bound.name != "TAKE_OFF":
@@ -624,7 +625,7 @@ def item_limit(bound: BoundAction, pilot: Pilot, stall: float) -> float:
         over = point or (0.0, 0.0, 0.0)
         if "latitude" in bound.values or bound.name == "LAND":
             over = here
-        seconds += math.hypot(here[0] - over[0], here[1] - over[1]) / limits.speed \
+        seconds += math.hypot(here[0] - over[0], here[1] - over[1]) / speed \
             + max(here[2], 15.0) / limits.land_rate
     if seconds == 0.0:
         return stall

@@ -115,11 +115,22 @@ Step = Send | Until | Sleep
 Script = Generator[Step, None, None]
 
 
+DEFAULT_SPEED = 5.0
+"""m/s of a move when nothing says the vehicle's speed (no vehicle profile, no SET_SPEED)."""
+
+
+def _no_profile(vehicle_type: str) -> float:
+    return DEFAULT_SPEED
+
+
 @dataclass
 class Limits:
     """What the scripts assume of the vehicle when they set time limits and tolerances."""
 
-    speed: float = 5.0  # m/s horizontal, changed by SET_SPEED
+    speed: float | None = None  # m/s horizontal set by SET_SPEED; None: the cruise speed
+    # m/s of moves until SET_SPEED, for a vehicle of a type ("" while not known): its
+    # profile's cruise speed (tml.verify.inflight.cruise_speed).
+    cruise_speed: Callable[[str], float] = _no_profile
     climb_rate: float = 2.5  # m/s
     descent_rate: float = 1.5  # m/s
     land_rate: float = 0.5  # m/s: ArduCopter lands at LAND_SPEED (50 cm/s) near the ground
@@ -130,6 +141,11 @@ class Limits:
     flip_altitude: float = 10.0  # m above home a flip starts from: one costs ArduCopter ~4 m
     slack: float = 15.0  # s added to every time limit
     factor: float = 2.0  # time limits are this many times the nominal time
+
+    def move_speed(self, vehicle_type: str) -> float:
+        """m/s a vehicle of ``vehicle_type`` moves at now: the speed SET_SPEED put in
+        force, else its profile's cruise speed."""
+        return self.speed if self.speed is not None else self.cruise_speed(vehicle_type)
 
 
 class Context(Protocol):
@@ -214,7 +230,8 @@ def _start_driving(ctx: Context) -> Script:
 
 def _travel_time(ctx: Context, start: Point, end: Point) -> float:
     limits = ctx.limits
-    horizontal = math.hypot(end[0] - start[0], end[1] - start[1]) / limits.speed
+    horizontal = math.hypot(end[0] - start[0], end[1] - start[1]) \
+        / limits.move_speed(ctx.state.vehicle_type)
     rate = limits.climb_rate if end[2] >= start[2] else limits.descent_rate
     vertical = abs(end[2] - start[2]) / rate
     return limits.factor * max(horizontal, vertical) + limits.slack
@@ -363,7 +380,8 @@ def _orbit(ctx: Context, centre: Point, radius: float, turns: float | None,
             swept[1] = bearing
             return abs(swept[0]) >= 360.0 * turns
 
-        yield Until(around, ctx.limits.factor * 2 * math.pi * radius * turns / ctx.limits.speed
+        speed = ctx.limits.move_speed(ctx.state.vehicle_type)
+        yield Until(around, ctx.limits.factor * 2 * math.pi * radius * turns / speed
                     + ctx.limits.slack, f"circle {turns:g} times",
                     lambda s: min(1.0, abs(swept[0]) / (360.0 * turns)))
     else:
@@ -456,7 +474,8 @@ def _glide(ctx: Context, touchdown: Point | None, what: str) -> Script:
     way = final_length(here[2])
     if touchdown is not None:
         way += math.hypot(here[0] - touchdown[0], here[1] - touchdown[1])
-    limit = ctx.limits.factor * (way / ctx.limits.speed + here[2] / ctx.limits.descent_rate) \
+    speed = ctx.limits.move_speed(ctx.state.vehicle_type)
+    limit = ctx.limits.factor * (way / speed + here[2] / ctx.limits.descent_rate) \
         + ctx.limits.slack + LAND_DISARM_DELAY
     yield Until(_landed_and_disarmed, limit, f"{what}: land and disarm",
                 lambda s: max(0.0, min(1.0, 1 - s.altitude / max(here[2], 1))), LANDED_READS)

@@ -2,15 +2,17 @@
 ``tml serve``.
 
 In flight, each action is checked again against live telemetry before it starts
-(:func:`tml.verify.inflight.pre_check`), and moves follow the planner's paths around the
-obstacles the verifier planned around (:func:`tml.verify.inflight.router`).
+(:func:`tml.verify.inflight.pre_check`), its time limit is set at the profile's cruise
+speed until SET_SPEED changes it (:func:`tml.verify.inflight.cruise_speed`), and moves
+follow the planner's paths around the obstacles the verifier planned around
+(:func:`tml.verify.inflight.router`).
 """
 
 from __future__ import annotations
 
-from tml.engine import Options
+from tml.engine import Limits, Options
 from tml.run.runner import RunOptions
-from tml.verify.inflight import pre_check, router
+from tml.verify.inflight import cruise_speed, pre_check, router
 from tml.verify.profile import VehicleProfile
 from tml.world import World
 
@@ -22,7 +24,8 @@ def checked_options(profile: VehicleProfile, world: World, *, safe_state: str = 
     """The runner's options for a flight checked against ``profile`` and ``world``
     (``vehicle_fence`` False: the vehicles keep their own fence, see RunOptions)."""
     engine = Options(world=world, pre_check=pre_check(profile, world),
-                     route=router(profile, world))
+                     route=router(profile, world),
+                     limits=Limits(cruise_speed=cruise_speed(profile)))
     return RunOptions(safe_state=safe_state, link_lost_limit=link_lost_limit,
                       ready_timeout=ready_timeout, safe_state_timeout=safe_state_timeout,
                       vehicle_fence=vehicle_fence, engine=engine)

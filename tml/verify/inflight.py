@@ -63,6 +63,16 @@ def profile_for(profile: VehicleProfile, vehicle_type: str) -> VehicleProfile:
     return _shipped(SHIPPED_FOR_KIND[kind])
 
 
+def cruise_speed(profile: VehicleProfile) -> Callable[[str], float]:
+    """The interpreter's hook: m/s a vehicle of a type moves at until SET_SPEED, the
+    cruise speed of its profile (:func:`profile_for`), on which its time limits are set."""
+
+    def speed(vehicle_type: str) -> float:
+        return profile_for(profile, vehicle_type).cruise_speed
+
+    return speed
+
+
 def pre_check(profile: VehicleProfile, world: World | None = None) -> PreCheck:
     """The interpreter's hook: the constraints an action would break if started now."""
 

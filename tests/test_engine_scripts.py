@@ -118,8 +118,8 @@ GO_FAR = ('<task name="Up"><action name="TAKE_OFF"><argument name="altitude" val
           'name="coordinates" value="(100, 0, 10)"/></action></task>')
 
 
-def _cruising(speed: float) -> Options:
-    return Options(limits=Limits(cruise_speed=lambda vehicle_type: speed))
+def _cruising(speed: float, acceleration: float = 0.0) -> Options:
+    return Options(limits=Limits(cruise=lambda vehicle_type: (speed, acceleration)))
 
 
 def _said(flight: Flight) -> str:
@@ -134,6 +134,11 @@ def test_a_move_s_time_limit_is_twice_its_time_at_the_cruise_speed_plus_15_s() -
     # At a cruise speed of 2 m/s: 2 x 50 + 15 = 115 s, time enough.
     slow = Flight(GO_FAR, vehicle=FakeVehicle(speed=2.0), options=_cruising(2.0)).run(300)
     assert slow.interp.status is Status.COMPLETED
+    # Speeding up and braking at 0.5 m/s², a 100 m leg never reaches 10 m/s (that takes
+    # 200 m): 2 x sqrt(100 / 0.5) = 28.3 s, so the limit is 2 x 28.3 + 15 = 72 s, enough.
+    braking = Flight(GO_FAR, vehicle=FakeVehicle(speed=2.0), options=_cruising(10.0, 0.5))
+    assert braking.run(300).interp.status is Status.COMPLETED
+    assert "within" not in _said(braking)
 
 
 def test_set_speed_puts_its_speed_in_force_for_the_time_limit() -> None:

@@ -11,11 +11,10 @@ from tml import geo
 from tml.errors import Location
 from tml.language.actions import BoundAction, bind
 from tml.language.model import Action, Argument
-from tml.patterns import circle_chord
+from tml.patterns import circle_chord, stop_to_stop
 from tml.verify.motion import (
     FlightModel,
     PredictedState,
-    stop_to_stop,
 )
 from tml.verify.profile import load_profile
 from tml.world import DEFAULT_HOME, World

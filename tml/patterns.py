@@ -20,6 +20,8 @@ they are flown. Headings and bearings are clockwise from north.
 - :func:`expanding_square`: EXPLORE_SPACE's expanding square, back to its centre.
 - :func:`circle`, :func:`circle_point`, :func:`circle_entry`: LOITER and
   RETURN_HOME_AND_LOITER flown as a polygon of GUIDED targets.
+- :func:`stop_to_stop`: how long a leg between two points where the vehicle stops takes
+  (the verifier's prediction and the interpreter's time limits alike).
 """
 
 from __future__ import annotations
@@ -171,3 +173,14 @@ def circle(centre: Point3, radius: float, start: float, turns: int = 1) -> list[
 def circle_chord(radius: float) -> float:
     """Metres between two consecutive targets of a circle of ``radius``."""
     return 2 * radius * math.sin(math.pi / CIRCLE_POINTS_PER_TURN)
+
+
+def stop_to_stop(metres: float, speed: float, acceleration: float) -> float:
+    """Seconds to fly ``metres`` from a stop to a stop: speeding up and braking at
+    ``acceleration`` (m/s²; 0: at once) around a cruise at ``speed``, or, when the distance
+    is too short to reach ``speed``, speeding up half way and braking the other half."""
+    if acceleration <= 0:
+        return metres / speed
+    if metres >= speed * speed / acceleration:
+        return metres / speed + speed / acceleration
+    return 2 * math.sqrt(metres / acceleration)

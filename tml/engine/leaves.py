@@ -603,7 +603,8 @@ def item_limit(bound: BoundAction, pilot: Pilot, stall: float) -> float:
     slack; an endless loiter has no limit (an event ends it). ``stall`` when the action
     gives no time of its own."""
     limits, here = pilot.limits, pilot.state.position or (0.0, 0.0, 0.0)
-    speed = limits.move_speed(pilot.state.vehicle_type)
+    vehicle_type = pilot.state.vehicle_type
+    speed = limits.move_speed(vehicle_type)
     turns, duration = _number(bound, "turns"), _number(bound, "duration")
     if bound.name in ("LOITER", "RETURN_HOME_AND_LOITER") and turns is None \
             and duration is None:
@@ -613,11 +614,12 @@ def item_limit(bound: BoundAction, pilot: Pilot, stall: float) -> float:
         seconds += 2 * math.pi * (_number(bound, "radius") or 0.0) * turns / speed
     point = bound.point("coordinates", None) if bound.takes("coordinates") else None
     if point is not None:
-        seconds += math.dist(here, point) / speed
+        seconds += limits.leg_seconds(vehicle_type, math.dist(here, point))
     if bound.name == "SURVEY_AREA":  # the lawnmower flown (tml.patterns), from its base
         passes = survey((0.0, 0.0, 0.0), bound.number("length"), bound.number("width"),
                         bound.number("spacing"), bound.choice("direction"))
-        seconds += sum(math.dist(a, b) for a, b in pairwise(passes)) / speed
+        seconds += sum(limits.leg_seconds(vehicle_type, math.dist(a, b))
+                       for a, b in pairwise(passes))
     if bound.name == "TAKE_OFF":
         seconds += (_number(bound, "altitude") or 0.0) / limits.climb_rate
     if bound.spec.category is Category.TAKE_OFF_LANDING and bound.name != "TAKE_OFF":
@@ -625,7 +627,8 @@ def item_limit(bound: BoundAction, pilot: Pilot, stall: float) -> float:
         over = point or (0.0, 0.0, 0.0)
         if "latitude" in bound.values or bound.name == "LAND":
             over = here
-        seconds += math.hypot(here[0] - over[0], here[1] - over[1]) / speed \
+        seconds += limits.leg_seconds(vehicle_type, math.hypot(here[0] - over[0],
+                                                               here[1] - over[1])) \
             + max(here[2], 15.0) / limits.land_rate
     if seconds == 0.0:
         return stall

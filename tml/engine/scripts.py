@@ -43,6 +43,7 @@ from tml.patterns import (
     circle_point,
     displaced,
     expanding_square,
+    stop_to_stop,
     survey,
 )
 from tml.vehicle import (
@@ -115,12 +116,17 @@ Step = Send | Until | Sleep
 Script = Generator[Step, None, None]
 
 
-DEFAULT_SPEED = 5.0
-"""m/s of a move when nothing says the vehicle's speed (no vehicle profile, no SET_SPEED)."""
+Cruise = tuple[float, float]
+"""How a vehicle moves from point to point, as its profile says: its speed until SET_SPEED
+changes it (m/s) and its acceleration speeding up and braking at each point (m/s²; 0: at
+once)."""
+
+NO_PROFILE: Cruise = (5.0, 0.0)
+"""How a vehicle is taken to move when no profile says (engine tests)."""
 
 
-def _no_profile(vehicle_type: str) -> float:
-    return DEFAULT_SPEED
+def _no_profile(vehicle_type: str) -> Cruise:
+    return NO_PROFILE
 
 
 @dataclass
@@ -128,9 +134,9 @@ class Limits:
     """What the scripts assume of the vehicle when they set time limits and tolerances."""
 
     speed: float | None = None  # m/s horizontal set by SET_SPEED; None: the cruise speed
-    # m/s of moves until SET_SPEED, for a vehicle of a type ("" while not known): its
-    # profile's cruise speed (tml.verify.inflight.cruise_speed).
-    cruise_speed: Callable[[str], float] = _no_profile
+    # How a vehicle of a type ("" while not known) moves until SET_SPEED: its profile's
+    # cruise speed and acceleration (tml.verify.inflight.cruise, read with a profile).
+    cruise: Callable[[str], Cruise] = _no_profile
     climb_rate: float = 2.5  # m/s
     descent_rate: float = 1.5  # m/s
     land_rate: float = 0.5  # m/s: ArduCopter lands at LAND_SPEED (50 cm/s) near the ground
@@ -145,7 +151,12 @@ class Limits:
     def move_speed(self, vehicle_type: str) -> float:
         """m/s a vehicle of ``vehicle_type`` moves at now: the speed SET_SPEED put in
         force, else its profile's cruise speed."""
-        return self.speed if self.speed is not None else self.cruise_speed(vehicle_type)
+        return self.speed if self.speed is not None else self.cruise(vehicle_type)[0]
+
+    def leg_seconds(self, vehicle_type: str, metres: float) -> float:
+        """Seconds a vehicle of ``vehicle_type`` takes to move ``metres`` from a stop to a
+        stop, at the speed in force (:meth:`move_speed`) and its profile's acceleration."""
+        return stop_to_stop(metres, self.move_speed(vehicle_type), self.cruise(vehicle_type)[1])
 
 
 class Context(Protocol):
@@ -230,8 +241,8 @@ def _start_driving(ctx: Context) -> Script:
 
 def _travel_time(ctx: Context, start: Point, end: Point) -> float:
     limits = ctx.limits
-    horizontal = math.hypot(end[0] - start[0], end[1] - start[1]) \
-        / limits.move_speed(ctx.state.vehicle_type)
+    horizontal = limits.leg_seconds(ctx.state.vehicle_type,
+                                    math.hypot(end[0] - start[0], end[1] - start[1]))
     rate = limits.climb_rate if end[2] >= start[2] else limits.descent_rate
     vertical = abs(end[2] - start[2]) / rate
     return limits.factor * max(horizontal, vertical) + limits.slack

@@ -3,7 +3,7 @@
 
 In flight, each action is checked again against live telemetry before it starts
 (:func:`tml.verify.inflight.pre_check`), its time limit is set at the profile's cruise
-speed until SET_SPEED changes it (:func:`tml.verify.inflight.cruise_speed`), and moves
+speed until SET_SPEED changes it (:func:`tml.verify.inflight.cruise`), and moves
 follow the planner's paths around the obstacles the verifier planned around
 (:func:`tml.verify.inflight.router`).
 """
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from tml.engine import Limits, Options
 from tml.run.runner import RunOptions
-from tml.verify.inflight import cruise_speed, pre_check, router
+from tml.verify.inflight import cruise, pre_check, router
 from tml.verify.profile import VehicleProfile
 from tml.world import World
 
@@ -25,7 +25,7 @@ def checked_options(profile: VehicleProfile, world: World, *, safe_state: str = 
     (``vehicle_fence`` False: the vehicles keep their own fence, see RunOptions)."""
     engine = Options(world=world, pre_check=pre_check(profile, world),
                      route=router(profile, world),
-                     limits=Limits(cruise_speed=cruise_speed(profile)))
+                     limits=Limits(cruise=cruise(profile)))
     return RunOptions(safe_state=safe_state, link_lost_limit=link_lost_limit,
                       ready_timeout=ready_timeout, safe_state_timeout=safe_state_timeout,
                       vehicle_fence=vehicle_fence, engine=engine)

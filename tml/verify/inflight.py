@@ -63,14 +63,16 @@ def profile_for(profile: VehicleProfile, vehicle_type: str) -> VehicleProfile:
     return _shipped(SHIPPED_FOR_KIND[kind])
 
 
-def cruise_speed(profile: VehicleProfile) -> Callable[[str], float]:
-    """The interpreter's hook: m/s a vehicle of a type moves at until SET_SPEED, the
-    cruise speed of its profile (:func:`profile_for`), on which its time limits are set."""
+def cruise(profile: VehicleProfile) -> Callable[[str], tuple[float, float]]:
+    """The interpreter's hook (:class:`tml.engine.Limits`): how a vehicle of a type moves
+    until SET_SPEED, as its profile (:func:`profile_for`) says: its cruise speed (m/s) and
+    acceleration (m/s²). Its time limits are set on them."""
 
-    def speed(vehicle_type: str) -> float:
-        return profile_for(profile, vehicle_type).cruise_speed
+    def of(vehicle_type: str) -> tuple[float, float]:
+        mine = profile_for(profile, vehicle_type)
+        return mine.cruise_speed, mine.acceleration
 
-    return speed
+    return of
 
 
 def pre_check(profile: VehicleProfile, world: World | None = None) -> PreCheck:

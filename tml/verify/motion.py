@@ -45,6 +45,7 @@ from tml.patterns import (
     circle_point,
     displaced,
     expanding_square,
+    stop_to_stop,
     survey,
 )
 from tml.verify.planner import Planner, Point3, Trajectory, straight
@@ -548,17 +549,6 @@ class FlightModel:
             home = self.local(bound.number("latitude"), bound.number("longitude"),
                               bound.number("altitude"), "amsl")
         return Step(state, replace(state, home=home), labels=labels)
-
-
-def stop_to_stop(metres: float, speed: float, acceleration: float) -> float:
-    """Seconds to fly ``metres`` from a stop to a stop: speeding up and braking at
-    ``acceleration`` (m/s²; 0: at once) around a cruise at ``speed``, or, when the distance
-    is too short to reach ``speed``, speeding up half way and braking the other half."""
-    if acceleration <= 0:
-        return metres / speed
-    if metres >= speed * speed / acceleration:
-        return metres / speed + speed / acceleration
-    return 2 * math.sqrt(metres / acceleration)
 
 
 def _add(a: Point3, b: tuple[float, ...]) -> Point3:

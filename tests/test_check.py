@@ -542,6 +542,22 @@ def test_a_found_name_is_provided_by_the_skill_that_feeds_its_set() -> None:
     assert [d.code for d in ordered.diagnostics] == ["E223"]
 
 
+def test_the_papers_imav_mission_needs_no_declaration_for_what_its_skills_feed() -> None:
+    # The paper's Appendix A reads "Item A found" and "Bucket A found" in events, with no
+    # <parameter> (TML as published has none): RECOGNIZE_ITEMS and RECOGNIZE_BUCKETS,
+    # switched on by its tasks, feed them.
+    import re
+
+    text = (Path(__file__).parent.parent / "missions" / "imav2016.xml").read_text()
+    undeclared = re.sub(r"<parameter name=[^>]*/>", "", text)
+    assert "<parameter" not in undeclared and 'parameter="Item A found"' in undeclared
+    assert validate_file("imav2016.xml", undeclared.encode()).diagnostics == []
+    without_skill = undeclared.replace('<skill name="RECOGNIZE_BUCKETS"/>', "")
+    found = validate_file("imav2016.xml", without_skill.encode()).diagnostics
+    assert [(d.code, d.message.split(":")[0]) for d in found] == [
+        ("E227", "nothing provides parameter 'Bucket A found'")]
+
+
 @pytest.mark.parametrize("where", ["wait_for", "until"])
 def test_a_gate_on_a_parameter_nothing_provides_is_an_error(where: str) -> None:
     body = (TAKE_OFF + f'<task name="Hover"><{where}><condition parameter="observed color" '

@@ -10,12 +10,14 @@ import gpxpy
 import pytest
 from fake_vehicle import FakeVehicle
 from lxml import etree
+from report_checks import boxes_apart, texts_fit
 
 from tml.commands.cli import main
 from tml.language.validation import load_mission
 from tml.report.figures import figure, png
 from tml.report.flight import read_flight
 from tml.report.pages import page
+from tml.report.scene import scene
 from tml.report.tracks import gpx, kml
 from tml.run.journal import Journal
 from tml.run.runner import Runner
@@ -182,7 +184,7 @@ def test_times_are_mission_time_from_the_first_task_not_the_run(tmp_path: Path) 
     root = etree.fromstring(page(flight).encode(), etree.HTMLParser())
     tasks, marks = ([[c.text for c in row.findall("td")] for row in table.findall("tr")[1:]]
                     for table in root.findall(".//table"))
-    assert tasks == [["A", "1", "0.0", "10.0", "10.0", "done"]]
+    assert tasks == [["A", None, "1", "0.0", "10.0", "10.0", "done"]]
     assert marks[0][0] == "-39.0"  # said before the mission started: negative
 
 
@@ -260,3 +262,39 @@ def test_gpx_times_are_when_it_flew_at_the_vehicles_pace(tmp_path: Path) -> None
     first, second = track.segments[0].points
     assert first.time.isoformat() == "2026-05-01T12:00:00+00:00"
     assert (second.time - first.time).total_seconds() == 20.0  # the vehicle's 20 s
+
+
+def test_event_labels_never_overlap(tmp_path: Path) -> None:
+    # Ten events half a second apart, one fired on two vehicles at once, one at the end.
+    lines = [{"t": 0.0, "kind": "run", "mission": "m", "file": ""},
+             _task(0.0, "Patrol", "running", 1), _task(0.0, "Patrol", "running", 2),
+             _telemetry(0.0, 1, 0.0, True), _telemetry(100.0, 1, 0.0, True)]
+    lines += [{"t": 10.0 + k / 2, "kind": "event", "vehicle": 1,
+               "event": f"Obstacle number {k} ahead"} for k in range(10)]
+    lines += [{"t": 50.0, "kind": "event", "vehicle": v, "event": "Low battery"}
+              for v in (2, 1)]
+    lines += [{"t": 99.9, "kind": "event", "vehicle": 1, "event": "Geofence breached"},
+              _task(100.0, "Patrol", "done", 1), _task(100.0, "Patrol", "done", 2)]
+    flight = read_flight(str(_log(tmp_path, lines)))
+    drawn = scene(flight)
+    boxes_apart(drawn)
+    assert {label.lane for label in drawn.labels} == {0, 1, 2}  # at most three lanes
+    assert len(drawn.labels) + drawn.labels_left_out == 12  # the two at 50 s are one
+    said = {label.text: label for label in drawn.labels}
+    assert "Low battery (vehicles 1, 2)" in said
+    assert said["Geofence breached"].right  # at the right edge: it ends at its event
+    assert said["Geofence breached"].box[1] == pytest.approx(99.9)
+    texts_fit(figure(flight, drawn))
+    title = figure(flight, drawn).axes[-1].get_title(loc="left")
+    assert f"{drawn.labels_left_out} event label(s) left out" in title
+
+
+def test_a_log_without_positions_on_the_globe_keeps_each_vehicle_from_its_home(
+        tmp_path: Path) -> None:
+    path = _log(tmp_path, [{"t": 0.0, "kind": "run", "mission": "m", "file": ""},
+                           _telemetry(1.0, 2, 5.0, True), _telemetry(1.0, 1, 5.0, True)])
+    drawn = scene(read_flight(str(path)))
+    assert not drawn.frame.shared and drawn.vehicles == (1, 2)
+    assert [track.vehicle for track in drawn.tracks] == [1, 2]
+    assert figure(read_flight(str(path))).axes[0].get_xlabel() == \
+        "east (m from each vehicle's own home)"

@@ -17,6 +17,23 @@ task it flew them in -- whatever order they started in: in a fleet, the sorties 
 vehicles start side by side, and sorting them by start put one's sub-tasks under the
 other.
 
+*Event handlers' actions* are spans too (:attr:`TaskSpan.event` names the event whose handler
+flew them), from the ``action`` lines of no task: a landing an event commands is on the
+timeline and in the table beside the task it cut short, and sorted after the mission's
+tasks.
+
+*Rounds.* A task run again under the same run of its parent (a repeat's or a loop's next
+round) is numbered (:attr:`TaskSpan.round`): the second "North-west corner" of a patrol is
+round 2 of the repeat, and what it did explains a task done right after an aborted one.
+Siblings are listed round by round, each round's tasks in the order they first started,
+and the vehicles of a fleet by number: whichever vehicle began a task first, vehicle 1's
+run of it comes before vehicle 2's.
+
+*Photos and detections* (:attr:`Flight.spots`): where a vehicle took a photo (an action
+line of CAPTURE_PHOTO, CAPTURE_PHOTOS or START_CAPTURING; in an autopilot plan, the task
+of such an action of the mission file when it ran) and where a detection appeared in its
+telemetry (a name of ``detections`` with a new value).
+
 *Autopilot messages* keep their severity, except a reason not to arm, which ArduPilot says
 only while disarmed (ArduCopter's ``PreArm: Mode not armable`` after every landing):
 shown as info (:func:`tml.vehicle.shown_severity`) with the severity it was said with.
@@ -25,6 +42,8 @@ shown as info (:func:`tml.vehicle.shown_severity`) with the severity it was said
 from __future__ import annotations
 
 import json
+import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -64,6 +83,28 @@ class TaskSpan:
     start: float
     end: float | None = None
     state: str = "running"
+    event: str = ""
+    """For an event handler's action: the event (``task`` is then the action's name)."""
+    round: int = 0
+    """Which run of the task under the same run of its parent this is, from 1, when its
+    parent ran some of its tasks more than once (a repeat, a loop); 0 otherwise."""
+    rounds: int | None = None
+    """The rounds its parent was to fly (a repeat's ``times``), when the log says."""
+
+
+PHOTO_ACTIONS = frozenset({"CAPTURE_PHOTO", "CAPTURE_PHOTOS", "START_CAPTURING"})
+"""The actions that take photos: each is a photo spot where it started."""
+
+
+@dataclass(frozen=True)
+class Spot:
+    """Something seen or taken at ``t`` where a vehicle was: ``kind`` "photo" (the action's
+    name as ``text``) or "detection" (``name: value``)."""
+
+    t: float
+    vehicle: int
+    kind: str
+    text: str
 
 
 @dataclass(frozen=True)
@@ -102,6 +143,14 @@ class Flight:
     """Where the mission started on the log's clock ``t``; None if it never did."""
     walls: tuple[str, str] = ("", "")
     """The wall-clock times of the first and last lines (ISO 8601), "" in an older log."""
+    spots: list[Spot] = field(default_factory=list)
+    picked: dict[str, list[int]] = field(default_factory=dict)
+    """The vehicles each role was flown by, in the order they were picked."""
+    world_home: tuple[float, float, float] | None = None
+    """The home the mission file declares (latitude, longitude, altitude AMSL): where its
+    planned path, obstacles and geofence are, in metres from it."""
+    photo_tasks: set[str] = field(default_factory=set)
+    """The tasks of the mission file that take photos (their paths)."""
 
     @property
     def origin(self) -> float:
@@ -122,18 +171,28 @@ class Flight:
 
     @property
     def outcome(self) -> str:
-        """One line: how the run ended on each vehicle."""
+        """One line: how the run ended on each vehicle, each outcome once, the vehicles it
+        is theirs named together, by number."""
         if not self.outcomes:
             return "the log ends before the run did"
-        return "; ".join(f"vehicle {o.get('vehicle')}: {o.get('status')} ({o.get('reason')})"
-                         for o in self.outcomes)
+        said: dict[str, list[str]] = {}
+        for o in sorted(self.outcomes, key=_by_vehicle):
+            said.setdefault(f"{o.get('status')} ({o.get('reason')})", []).append(
+                str(o.get("vehicle")))
+        return "; ".join(f"vehicle{'s' if len(ids) > 1 else ''} {', '.join(ids)}: {what}"
+                         for what, ids in said.items())
+
+
+def _by_vehicle(outcome: dict[str, Any]) -> tuple[float, str]:
+    vehicle = outcome.get("vehicle")
+    return (vehicle, "") if isinstance(vehicle, int) else (math.inf, str(vehicle))
 
 
 def read_flight(path: str) -> Flight:
     """The flight of the log at ``path``; OSError when it cannot be opened, LogError when a
     line is not JSON or the file is no flight log."""
     flight = Flight(path)
-    open_tasks: dict[tuple[str, int | None], TaskSpan] = {}
+    reading = _Reading()
     with open(path, encoding="utf-8") as stream:
         for number, text in enumerate(stream, start=1):
             if not text.strip():
@@ -144,22 +203,48 @@ def read_flight(path: str) -> Flight:
                 raise LogError(f"{path}:{number}: not a JSON line: {error.msg}") from None
             if not isinstance(line, dict) or "kind" not in line or "t" not in line:
                 raise LogError(f"{path}:{number}: not a flight log line (no 't' and 'kind')")
-            _take(flight, line, open_tasks)
+            _take(flight, line, reading)
     if not flight.tracks and not flight.tasks and not flight.mission:
         raise LogError(f"{path}: no run in this log (not a tml flight log?)")
-    flight.tasks = tree_order(flight.tasks)
+    flight.tracks = dict(sorted(flight.tracks.items()))
+    flight.outcomes.sort(key=_by_vehicle)
     _plan(flight)
+    _photo_tasks(flight)
+    flight.tasks = tree_order(flight.tasks)
+    for span in flight.tasks:
+        if span.round:
+            span.rounds = reading.repeats.get(span.task.rsplit("/", 1)[0])
+    flight.spots.sort(key=lambda spot: (spot.t, spot.vehicle))
     return flight
 
 
+@dataclass
+class _Reading:
+    """What the reading of a log keeps between its lines."""
+
+    open_tasks: dict[tuple[str, int | None], TaskSpan] = field(default_factory=dict)
+    open_actions: dict[int | None, TaskSpan] = field(default_factory=dict)  # a handler's
+    fired: dict[int | None, str] = field(default_factory=dict)  # each vehicle's last event
+    seen: dict[tuple[int, str], object] = field(default_factory=dict)  # detections
+    repeats: dict[str, int] = field(default_factory=dict)  # a repeat's times, by task
+
+
+ROUND = re.compile(r": repeat \d+ of (\d+)$")
+"""A repeat's decision to fly another round says how many it flies in all."""
+
+
 def tree_order(spans: list[TaskSpan]) -> list[TaskSpan]:
-    """The spans in tree order: each task, then the tasks it ran (in the order they
-    started), a vehicle's under the run of the task it flew them in (its own, else the
-    fleet's), whatever order they started in."""
+    """The spans in tree order: each task, then the tasks it ran, a vehicle's under the
+    run of the task it flew them in (its own, else the fleet's); the tasks under one run
+    of a task round by round (a task run again there begins the next round), each round's
+    in the order the tasks first started and each task's vehicles by number; the event
+    handlers' actions after the mission's tasks, by vehicle, each's in the order they
+    started. Numbers the
+    rounds (:attr:`TaskSpan.round`)."""
     children: dict[int, list[TaskSpan]] = {}
     roots: list[TaskSpan] = []
     for index, span in enumerate(spans):
-        parent = _parent(spans[:index], span)
+        parent = None if span.event else _parent(spans[:index], span)
         if parent is None:
             roots.append(span)
         else:
@@ -167,12 +252,37 @@ def tree_order(spans: list[TaskSpan]) -> list[TaskSpan]:
     ordered: list[TaskSpan] = []
 
     def walk(found: list[TaskSpan]) -> None:
-        for span in found:
+        for span in _rounds(found):
             ordered.append(span)
             walk(children.get(id(span), []))
 
     walk(roots)
     return ordered
+
+
+def _rounds(siblings: list[TaskSpan]) -> list[TaskSpan]:
+    """Siblings (in the order they started) sorted as :func:`tree_order` says, their
+    rounds numbered when there are several."""
+    first: dict[str, int] = {}  # each task's place: the order they first started in
+    runs: dict[tuple[str, int | None], int] = {}
+    keyed: list[tuple[tuple[float, ...], TaskSpan]] = []
+    for order, span in enumerate(siblings):
+        if span.event:
+            keyed.append(((math.inf, _number(span.vehicle), span.start, order), span))
+            continue
+        place = first.setdefault(span.task, len(first))
+        done = runs[span.task, span.vehicle] = runs.get((span.task, span.vehicle), 0) + 1
+        span.round = done
+        keyed.append(((done, place, _number(span.vehicle), order), span))
+    if max(runs.values(), default=0) < 2:
+        for span in siblings:
+            span.round = 0
+    return [span for _, span in sorted(keyed, key=lambda found: found[0])]
+
+
+def _number(vehicle: int | None) -> float:
+    """A vehicle's place in a list: by number, tasks no vehicle flies first."""
+    return -1.0 if vehicle is None else float(vehicle)
 
 
 def _parent(before: list[TaskSpan], span: TaskSpan) -> TaskSpan | None:
@@ -183,7 +293,7 @@ def _parent(before: list[TaskSpan], span: TaskSpan) -> TaskSpan | None:
     path = span.task.rsplit("/", 1)[0]
     found: TaskSpan | None = None
     for candidate in reversed(before):
-        if candidate.task != path or candidate.start > span.start:
+        if candidate.event or candidate.task != path or candidate.start > span.start:
             continue
         if candidate.vehicle == span.vehicle:
             return candidate
@@ -192,8 +302,7 @@ def _parent(before: list[TaskSpan], span: TaskSpan) -> TaskSpan | None:
     return found
 
 
-def _take(flight: Flight, line: dict[str, Any],
-          open_tasks: dict[tuple[str, int | None], TaskSpan]) -> None:
+def _take(flight: Flight, line: dict[str, Any], reading: _Reading) -> None:
     kind, t, vehicle = line["kind"], float(line["t"]), line.get("vehicle")
     flight.end = max(flight.end, t)
     wall = str(line.get("wall") or "")
@@ -213,15 +322,10 @@ def _take(flight: Flight, line: dict[str, Any],
         flight.exit_code = int(line["exit_code"])
         flight.outcomes = list(line.get("outcomes") or [])
     elif kind == "telemetry" and line.get("position") and vehicle is not None:
-        north, east, up = (float(v) for v in line["position"])
-        where = line.get("global") or (None, None, None)
-        battery = line.get("battery")
-        flight.tracks.setdefault(int(vehicle), []).append(Sample(
-            t, north, east, up, where[0], where[1], where[2],
-            None if battery is None else float(battery), str(line.get("mode", "")),
-            bool(line.get("armed")), wall))
+        _sample(flight, line, int(vehicle), t, wall, reading)
     elif kind == "task":
         key = (str(line["task"]), vehicle)
+        open_tasks = reading.open_tasks
         if line["state"] == "running":
             open_tasks[key] = span = TaskSpan(key[0], vehicle, t)
             flight.tasks.append(span)
@@ -230,7 +334,17 @@ def _take(flight: Flight, line: dict[str, Any],
             span.end, span.state = t, str(line["state"])
         else:  # ended without running (skipped)
             flight.tasks.append(TaskSpan(key[0], vehicle, t, t, str(line["state"])))
+    elif kind == "action":
+        _action(flight, line, vehicle, t, reading)
+    elif kind == "decision" and isinstance(line.get("iteration"), int):
+        found = ROUND.search(str(line.get("message", "")))
+        if found:
+            reading.repeats[str(line.get("task"))] = int(found.group(1))
+    elif kind == "pick":
+        picked = flight.picked.setdefault(str(line.get("role")), [])
+        picked.extend(v for v in line.get("vehicles") or [] if v not in picked)
     elif kind == "event":
+        reading.fired[vehicle] = str(line.get("event", ""))
         flight.marks.append(Mark(t, vehicle, "event", str(line.get("event", "")), wall=wall))
     elif kind == "autopilot":
         text, said = str(line.get("text", "")), str(line.get("severity", ""))
@@ -244,12 +358,70 @@ def _take(flight: Flight, line: dict[str, Any],
         flight.marks.append(Mark(t, vehicle, kind, str(line.get("message", "")), wall=wall))
 
 
+def _sample(flight: Flight, line: dict[str, Any], vehicle: int, t: float, wall: str,
+            reading: _Reading) -> None:
+    """A telemetry line: a sample of the vehicle's track, and the detections new in it."""
+    north, east, up = (float(v) for v in line["position"])
+    where = line.get("global") or (None, None, None)
+    battery = line.get("battery")
+    flight.tracks.setdefault(vehicle, []).append(Sample(
+        t, north, east, up, where[0], where[1], where[2],
+        None if battery is None else float(battery), str(line.get("mode", "")),
+        bool(line.get("armed")), wall))
+    detections = line.get("detections")
+    if not isinstance(detections, dict):
+        return
+    for name, value in detections.items():
+        before = reading.seen.get((vehicle, name))
+        reading.seen[vehicle, name] = value
+        if value not in (None, "", [], {}) and value != before:
+            shown = ", ".join(map(str, value)) if isinstance(value, list) else str(value)
+            flight.spots.append(Spot(t, vehicle, "detection", f"{name}: {shown}"))
+    for name in [n for v, n in reading.seen if v == vehicle and n not in detections]:
+        del reading.seen[vehicle, name]
+
+
+def _action(flight: Flight, line: dict[str, Any], vehicle: Any, t: float,
+            reading: _Reading) -> None:
+    """An action line: a photo taken, or an event handler's action begun or ended."""
+    name, started = str(line.get("action", "")), "arguments" in line
+    if started and name in PHOTO_ACTIONS and isinstance(vehicle, int):
+        flight.spots.append(Spot(t, vehicle, "photo", name))
+    if line.get("task") is not None:
+        return
+    if started:  # a handler's action (a task's names its task)
+        begun = TaskSpan(name, vehicle, t, event=reading.fired.get(vehicle, "?"))
+        reading.open_actions[vehicle] = begun
+        flight.tasks.append(begun)
+        return
+    span = reading.open_actions.get(vehicle)
+    if span is None or span.task != name:
+        return
+    message = str(line.get("message", ""))
+    state = "done" if message == f"{name} done" else "failed" if "reason" in line \
+        else "aborted" if "why" in line else ""
+    if state:
+        span.end, span.state = t, state
+        del reading.open_actions[vehicle]
+
+
+def _photo_tasks(flight: Flight) -> None:
+    """The photos of an autopilot plan: a task of the mission file that takes photos, run
+    with no action line of its own (a plan's tasks are told by the items flown)."""
+    said = {(s.vehicle, round(s.t, 3)) for s in flight.spots if s.kind == "photo"}
+    for span in flight.tasks:
+        if span.task in flight.photo_tasks and isinstance(span.vehicle, int) \
+                and span.state == "done" and (span.vehicle, round(span.start, 3)) not in said:
+            flight.spots.append(Spot(span.start, span.vehicle, "photo",
+                                     span.task.rsplit("/", 1)[-1]))
+
 
 def _plan(flight: Flight) -> None:
     """The planned paths, obstacles and geofence of the mission file the log names."""
     if not flight.mission_file or not Path(flight.mission_file).is_file():
         return
     from tml.geo import to_local
+    from tml.language.actions import lookup
     from tml.language.validation import validate_file
     from tml.plans.maps import outline
     from tml.plans.planned import PlanError, plan_mission
@@ -261,6 +433,10 @@ def _plan(flight: Flight) -> None:
     mission = result.mission
     if mission is None or result.errors:
         return
+    for task in mission.walk():
+        spec = lookup(task.action.name) if task.action is not None else None
+        if spec is not None and spec.name in PHOTO_ACTIONS:
+            flight.photo_tasks.add(task.path_name)
     roles: list[str | None] = [r.name for r in mission.roles] or [None]
     for role in roles:
         try:
@@ -274,6 +450,8 @@ def _plan(flight: Flight) -> None:
     world = mission.world
     if world is None:
         return
+    if world.home is not None:
+        flight.world_home = (world.home.latitude, world.home.longitude, world.home.altitude)
     for obstacle in world.obstacles:
         corners = outline(obstacle)
         flight.obstacles.append([*corners, corners[0]])

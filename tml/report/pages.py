@@ -1,7 +1,9 @@
 """The report as one HTML page: the figure embedded, the outcome, and tables of the tasks (in
-tree order) and of what happened (events, autopilot messages, safety steps: their mission
-time and wall-clock time), with nothing fetched from anywhere: the page opens offline and
-can be mailed as it is."""
+tree order, each with its round, and the event handlers' actions with the event that ran
+them), of the photos and detections (where each vehicle was, in the map's frame), and of
+what happened (events, autopilot messages, safety steps: their mission time and wall-clock
+time), all drawn from the report's data (:class:`~tml.report.scene.Scene`), with nothing
+fetched from anywhere: the page opens offline and can be mailed as it is."""
 
 from __future__ import annotations
 
@@ -10,6 +12,7 @@ import html
 
 from tml.report.figures import STATE_COLOURS, png
 from tml.report.flight import Flight, Mark
+from tml.report.scene import Scene, scene
 
 STYLE = """
 body { font-family: system-ui, sans-serif; margin: 2em; color: #212121; }
@@ -60,20 +63,41 @@ def _counted(flight: Flight) -> str:
             "after the run did (earlier, negative).")
 
 
+def _task_rows(drawn: Scene) -> str:
+    rows = []
+    for row in drawn.rows:
+        duration = "" if row.end is None else f"{row.end - row.start:.1f}"
+        colour = STATE_COLOURS.get(row.state, "#9e9e9e")
+        what = f"event {row.event!r}: {row.task}" if row.event else row.task
+        rows.append("<tr>" + _cell(what) + _cell(row.when) + _cell(row.vehicle, True)
+                    + _cell(f"{row.start:.1f}", True)
+                    + _cell("" if row.end is None else f"{row.end:.1f}", True)
+                    + _cell(duration, True)
+                    + f'<td style="color:{colour}">{html.escape(row.state)}</td></tr>')
+    return "".join(rows)
+
+
+def _spots(drawn: Scene) -> str:
+    """The table of photos and detections, "" when there were none."""
+    if not drawn.markers:
+        return ""
+    rows = "".join("<tr>" + _cell(f"{m.t:.1f}", True) + _cell(m.vehicle, True)
+                   + _cell(m.kind) + _cell(m.text) + _cell(f"{m.north:.1f}", True)
+                   + _cell(f"{m.east:.1f}", True) + "</tr>" for m in drawn.markers)
+    frame = drawn.frame
+    where = (f"metres from vehicle {frame.origin_vehicle}'s home, as on the map"
+             if frame.shared else "metres from the vehicle's home")
+    return (f"<h2>Photos and detections</h2>\n<p>Where each vehicle was ({where}).</p>\n"
+            "<table><tr><th>mission time, s</th><th>vehicle</th><th>what</th><th>text</th>"
+            f"<th>north (m)</th><th>east (m)</th></tr>\n{rows}</table>")
+
+
 def page(flight: Flight) -> str:
     """The HTML text of the report."""
-    image = base64.b64encode(png(flight)).decode("ascii")
+    drawn = scene(flight)
+    image = base64.b64encode(png(flight, drawn=drawn)).decode("ascii")
     title = html.escape(flight.mission or flight.file)
     origin = flight.origin
-    rows = []
-    for span in flight.tasks:
-        end = span.end
-        duration = "" if end is None else f"{end - span.start:.1f}"
-        colour = STATE_COLOURS.get(span.state, "#9e9e9e")
-        rows.append("<tr>" + _cell(span.task) + _cell(span.vehicle, True)
-                    + _cell(_seconds(span.start, origin), True)
-                    + _cell(_seconds(end, origin), True) + _cell(duration, True)
-                    + f'<td style="color:{colour}">{html.escape(span.state)}</td></tr>')
     marks = ["<tr>" + _cell(_seconds(m.t, origin), True) + _cell(_clock(m.wall), True)
              + _cell(m.vehicle, True) + _cell(m.kind + _severity(m)) + _cell(m.text)
              + "</tr>" for m in flight.marks]
@@ -95,9 +119,10 @@ def page(flight: Flight) -> str:
 <img alt="planned path and flown track, altitude, battery and task timeline"
  src="data:image/png;base64,{image}">
 <h2>Tasks</h2>
-<table><tr><th>task</th><th>vehicle</th><th>start ({unit})</th><th>end ({unit})</th>
-<th>duration (s)</th><th>state</th></tr>
-{"".join(rows)}</table>
+<table><tr><th>task</th><th>round</th><th>vehicle</th><th>start ({unit})</th>
+<th>end ({unit})</th><th>duration (s)</th><th>state</th></tr>
+{_task_rows(drawn)}</table>
+{_spots(drawn)}
 <h2>Events, autopilot messages and safety steps</h2>
 <table><tr><th>{unit}</th><th>wall clock</th><th>vehicle</th><th>what</th><th>text</th></tr>
 {"".join(marks)}</table>

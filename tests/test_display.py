@@ -12,7 +12,7 @@ from rich.console import Console
 
 from tml.engine import Change, Interpreter, Status, TaskState
 from tml.language.validation import load_mission, validate_file
-from tml.run.display import LineDisplay, render_text
+from tml.run.display import LineDisplay, render_text, rounds
 from tml.run.fold import fold
 from tml.vehicle import AutopilotMessage
 
@@ -387,3 +387,90 @@ def test_the_line_display_escapes_what_it_prints() -> None:
         assert bad not in printed
     assert "Leg[/x]\\u202egel: running" in printed
     assert printed.endswith("vehicle 1: switched to LAND\\x1b]0;PWNED\\x07 [/oops]\n")
+
+
+ROUNDS = b"""<mission name="Rounds">
+  <task name="Take off"><action name="TAKE_OFF"><argument name="altitude" value="5"/></action>
+  </task>
+  <task name="Patrol"><repeat times="3"/>
+    <task name="Out"><action name="GO_TO_POINT"><argument name="coordinates" value="(9, 0, 5)"/>
+    </action></task>
+    <task name="Back"><action name="GO_TO_POINT"><argument name="coordinates" value="(0, 0, 5)"/>
+    </action></task>
+  </task>
+</mission>"""
+
+
+def _in_round_two(vehicle: int = 1) -> list[Change]:
+    """Take off; round 1 of Patrol (Out, Back), and round 2's Out begun and aborted."""
+    steps = [("Take off", TaskState.RUNNING), ("Take off", TaskState.DONE),
+             ("Patrol", TaskState.RUNNING), ("Patrol/Out", TaskState.RUNNING),
+             ("Patrol/Out", TaskState.DONE), ("Patrol/Back", TaskState.RUNNING),
+             ("Patrol/Back", TaskState.DONE), ("Patrol/Out", TaskState.RUNNING),
+             ("Patrol/Out", TaskState.ABORTED), ("Patrol", TaskState.ABORTED)]
+    return [Change(float(n), task, state, vehicle, n + 1) for n, (task, state) in enumerate(steps)]
+
+
+def test_rounds_are_read_from_the_changes() -> None:
+    found = rounds(_in_round_two(), {"Patrol"})
+    assert found.now == {"Patrol": 2}
+    assert found.earlier == {"Patrol/Back": 1}  # done in round 1, not yet run in round 2
+    assert rounds(_in_round_two(), set()).now == {}  # a task run again, but no repeat
+    # A task begun again begins its sub-tasks anew: the sub-tasks' states are from before.
+    again = [*_in_round_two(), Change(20.0, "Patrol", TaskState.RUNNING, 1, 11)]
+    assert rounds(again, {"Patrol"}).earlier == {"Patrol/Out": 0, "Patrol/Back": 0}
+
+
+def test_a_task_done_after_an_aborted_one_says_its_round() -> None:
+    mission, views = flown(0.5, ROUNDS)
+    view, state = views[0]
+    changes = _in_round_two()
+    states = {c.task: c.state for c in changes}
+    shown = render_text(mission, [(replace(view, changes=tuple(changes), task_states=states,
+                                           status=Status.ABORTED), state)], 80, 24)
+    lines = shown.splitlines()
+    assert lines[2] == "■ └─ Patrol  round 2 of 3"
+    assert lines[3] == "■    ├─ Out  GO_TO_POINT"  # this round's
+    assert lines[4] == "✓    └─ Back  GO_TO_POINT  (round 1)"
+
+
+def test_a_task_an_event_holds_is_interrupted_not_running() -> None:
+    mission, views = flown(1.0)  # the take-off runs
+    view, state = views[0]
+    held = replace(view, held=("Take off",), current_action="LAND",
+                   events=((1.0, "Far"),))
+    text = render_text(mission, [(held, state)], 80, 24)
+    lines = text.splitlines()
+    assert lines[1].startswith("‖ ├─ Take off  TAKE_OFF")
+    assert "‖ interrupted" in text
+    assert any(line.strip().endswith("LAND (event 'Far')") for line in lines)
+    assert "LAND (Take off)" not in text
+
+
+def test_events_none_once_the_mission_ended() -> None:
+    mission, views = flown(0.5)
+    view, state = views[0]
+    assert "events: none yet" in render_text(mission, [(view, state)], 80, 24)
+    ended = render_text(mission, [(replace(view, status=Status.COMPLETED), state)], 80, 24)
+    assert "events: none" in ended.splitlines() and "none yet" not in ended
+
+
+def test_after_the_end_the_tree_shows_the_levels_that_fit() -> None:
+    mission = load_mission(ROOT / "missions/dolphin_fleet_relay.xml")
+    assert [line.task.name for line in fold(mission.tasks, [], 1) if line.task] == ["Relay"]
+    lines = fold(mission.tasks, [], 4)  # Relay, Round, the two sorties, folded
+    assert [(line.task.name, line.folded) for line in lines if line.task] == [
+        ("Relay", 0), ("Round", 0), ("Sortie north", 5), ("Sortie south", 5)]
+
+
+def test_the_legend_fits_80_columns_and_explains_every_mark_shown() -> None:
+    vehicle = FakeVehicle(capabilities=frozenset({"camera", "gripper", "flip"}))
+    mission, views = fly("missions/catalogue_tour.xml", 120.0, [vehicle])
+    lines = render_text(mission, views, 80, 24).splitlines()
+    legend = next(line for line in lines if "(+n) folded" in line)
+    assert len(legend) <= 80
+    tree = "".join(lines[1:lines.index(legend)])
+    for mark, word in (("·", "pending"), ("▶", "running"), ("✓", "done"), ("↷", "skipped")):
+        assert mark in tree and f"{mark} {word}" in legend
+    wide = render_text(mission, views, 100, 24).splitlines()  # room for every mark
+    assert any("‖ interrupted  ✓ done" in line and "■ aborted" in line for line in wide)

@@ -466,7 +466,8 @@ class Run:
                     last.progress(log.clock_at(now)) if last else None,
                     dict(pilot.labels), tuple(pilot.events), log.stamp_of(now),
                     self.reason or pilot.lost, pilot.role or "", tuple(pilot.changes),
-                    self.started)
+                    self.started, tuple("/".join(w.task_path) for w in pilot.work
+                                        if w.owner is not None and w.held_at is not None))
 
     # --- conditions ----------------------------------------------------------------------------
 

@@ -77,6 +77,7 @@ class View:
     role: str = ""  # the role the vehicle flies, in a fleet
     changes: tuple[Change, ...] = ()  # the vehicle's task changes and the fleet's, in order
     started: bool = False  # the mission has started (before: mission_time means nothing)
+    held: tuple[str, ...] = ()  # the tasks whose work an event handler holds (their paths)
 
 
 def request_fields(request: Request) -> dict[str, object]:

@@ -17,20 +17,30 @@ action and its task). A wide terminal puts the first two on one line; on a narro
 figures that do not fit their line are left out, the least needed (written last) first.
 Its autopilot's latest messages are kept per vehicle, so that one vehicle's ``Mission: N
 WP`` never pushes another's out.
+
+*What the tree says of a task is what happened to it last, and when.* A task whose work an
+event handler holds is marked interrupted (``‖``), with the tasks running above it, while
+the handler's actions fly (the work line names the event): it is not flying, and what
+becomes of it is the handler's termination's to say. A task whose sub-tasks ran more than
+once in its current run (a repeat, a loop) says its round (``round 2 of 5``); a sub-task
+whose state is from an earlier round, or from an earlier run of its parent, is drawn dim
+and says so (``(round 1)``), so that a task done after an aborted one is read as what it
+is: last round's. The rounds are read from the vehicle's task changes (:func:`rounds`).
 """
 
 from __future__ import annotations
 
 import io
 import time
-from collections.abc import Sequence
+from collections.abc import Sequence, Set
+from dataclasses import dataclass
 from datetime import datetime
 
 from rich.console import Console, Group, RenderableType
 from rich.live import Live
 from rich.text import Text
 
-from tml.engine import Change, TaskState, View
+from tml.engine import Change, Status, TaskState, View
 from tml.language.diagnostics import printable
 from tml.language.model import Dispatch, Mission, Task
 from tml.run.fold import fold
@@ -62,7 +72,67 @@ MARKS = {
     TaskState.DONE: ("✓", "green"), TaskState.SKIPPED: ("↷", "cyan"),
     TaskState.FAILED: ("✗", "bold red"), TaskState.ABORTED: ("■", "red"),
 }
+HELD = ("‖", "bold magenta")
+"""The mark of a task an event handler interrupted on a vehicle (its work held), and of
+the tasks running above it."""
 EVENTS_SHOWN = 6
+
+
+@dataclass(frozen=True)
+class Rounds:
+    """What a vehicle's task changes tell of the rounds of its tasks."""
+
+    now: dict[str, int]
+    """Each task whose sub-tasks ran more than once in its current run: its round (the
+    most runs of one of its sub-tasks)."""
+    earlier: dict[str, int]
+    """Each task whose state is from an earlier round of its parent, or from an earlier
+    run of it: the round of its parent it is from (0: an earlier run, a round unsaid)."""
+
+
+def rounds(changes: Sequence[Change], repeating: Set[str]) -> Rounds:
+    """The rounds the ``changes`` of a vehicle's view tell, of the tasks in ``repeating``
+    (those with a repeat or a loop): a sub-task begun again (running, or skipped without
+    running) in the same run of its parent begins the parent's next round; and of every
+    task, that a task begun again begins its sub-tasks anew."""
+    runs: dict[str, int] = {}  # each task's runs begun
+    begun: dict[str, dict[str, int]] = {}  # per task: its sub-tasks' runs in its current run
+    last: dict[str, tuple[int, int]] = {}  # per task: (its parent's run, its round) when
+    state: dict[str, TaskState] = {}  # it changed last, and how
+    for change in changes:
+        path = change.task
+        parent = path.rpartition("/")[0]
+        siblings = begun.setdefault(parent, {})
+        if change.state is TaskState.RUNNING or (
+                change.state is TaskState.SKIPPED and state.get(path) is not TaskState.RUNNING):
+            siblings[path] = siblings.get(path, 0) + 1
+        if change.state is TaskState.RUNNING:
+            runs[path] = runs.get(path, 0) + 1
+            begun[path] = {}
+        last[path] = (runs.get(parent, 0), siblings.get(path, 1))
+        state[path] = change.state
+    now = {task: most for task, found in begun.items() if task in repeating
+           for most in [max(found.values(), default=0)] if most > 1}
+    earlier: dict[str, int] = {}
+    for path in sorted(last, key=lambda found: found.count("/")):  # parents first
+        parent = path.rpartition("/")[0]
+        run, number = last[path]
+        if parent in earlier or run != runs.get(parent, 0):
+            earlier[path] = 0
+        elif number < now.get(parent, 1):
+            earlier[path] = number
+    return Rounds(now, earlier)
+
+
+def _held(view: View) -> set[str]:
+    """The tasks shown interrupted on a vehicle: those whose work an event handler holds,
+    and the tasks running above them."""
+    found: set[str] = set()
+    for path in view.held:
+        names = path.split("/")
+        found.update(way for way in ("/".join(names[:i]) for i in range(1, len(names) + 1))
+                     if view.task_states.get(way) is TaskState.RUNNING)
+    return found
 
 
 def _mark_width(views: Views) -> int:
@@ -77,8 +147,9 @@ def _vehicle_name(index: int, views: Views) -> str:
     return str(state.vehicle_id if state is not None else index + 1)
 
 
-def _tree(mission: Mission, views: Views, budget: int | None) -> Text:
-    """The task tree, each task with its mark per vehicle, folded to ``budget`` lines."""
+def _tree(mission: Mission, views: Views, budget: int | None) -> tuple[Text, bool]:
+    """The task tree, each task with its mark per vehicle, folded to ``budget`` lines; and
+    whether a task is shown folded."""
     width = _mark_width(views)
     marks_width = width * len(views)
     text = Text(no_wrap=True, overflow="ellipsis")
@@ -89,6 +160,9 @@ def _tree(mission: Mission, views: Views, budget: int | None) -> Text:
     focus = [view.current_task for view, _ in views if view.current_task]
     lines = fold(mission.tasks, focus, None if budget is None
                  else max(budget - (len(views) > 1), 1))
+    repeating = {t.path_name for t in mission.walk() if t.repeat > 1 or t.loop is not None}
+    found = [rounds(view.changes, repeating) for view, _ in views]
+    held = [_held(view) for view, _ in views]
     for number, line in enumerate(lines):
         if number or len(views) > 1:
             text.append("\n")
@@ -97,18 +171,53 @@ def _tree(mission: Mission, views: Views, budget: int | None) -> Text:
             text.append(" " * marks_width + " " + line.guide, "dim")
             text.append(f"… {line.hidden} more task{'s' if line.hidden != 1 else ''}", "dim")
             continue
-        for view, _ in views:
-            mark, style = MARKS[view.task_states.get(task.path_name, TaskState.PENDING)]
-            text.append(mark.rjust(width), style)
+        path = task.path_name
+        for index, (view, _) in enumerate(views):
+            mark, style = HELD if path in held[index] else \
+                MARKS[view.task_states.get(path, TaskState.PENDING)]
+            text.append(mark.rjust(width), f"dim {style}" if path in found[index].earlier
+                        else style)
         text.append(" " + line.guide, "dim")
         text.append(_safe(task.name))
         if task.action is not None:
             text.append(f"  {task.action.name}", "dim")
         if _plan_root(mission, task):
             text.append("  [autopilot mission]", "cyan")
+        said = _round_said(task, views, found)
+        if said:
+            text.append(f"  {said}", "bold")
+        earlier = _earlier_said(path, views, found)
+        if earlier:
+            text.append(f"  ({earlier})", "dim")
         if line.folded:
             text.append(f"  (+{line.folded})", "dim")
-    return text
+    return text, any(line.folded for line in lines)
+
+
+def _round_said(task: Task, views: Views, found: list[Rounds]) -> str:
+    """A task's round now (``round 2 of 5``; in a fleet, each vehicle's where they
+    differ), "" when it has flown no second round."""
+    numbers = [r.now.get(task.path_name, 0) for r in found]
+    if max(numbers, default=0) < 2:
+        return ""
+    of = f" of {task.repeat}" if task.loop is None and task.repeat > 1 else ""
+    if len(set(numbers)) == 1:
+        return f"round {numbers[0]}{of}"
+    return "rounds " + ", ".join(f"{_vehicle_name(i, views)}: {n or '-'}"
+                                 for i, n in enumerate(numbers)) + of
+
+
+def _earlier_said(path: str, views: Views, found: list[Rounds]) -> str:
+    """Whose state of a task is from an earlier round (``round 1``; in a fleet, the
+    vehicles), "" when none is."""
+    stale = [i for i, r in enumerate(found) if path in r.earlier
+             and views[i][0].task_states.get(path, TaskState.PENDING) is not TaskState.PENDING]
+    if not stale:
+        return ""
+    if len(views) == 1:
+        number = found[0].earlier[path]
+        return f"round {number}" if number else "an earlier round"
+    return "earlier round: " + ", ".join(_vehicle_name(i, views) for i in stale)
 
 
 def _plan_root(mission: Mission, task: Task) -> bool:
@@ -195,9 +304,12 @@ def _motion(state: VehicleState | None) -> list[tuple[str, str]]:
 
 
 def _work(mission: Mission, view: View, state: VehicleState | None) -> str:
-    """What the vehicle does: the item of an autopilot plan, the action and its task."""
+    """What the vehicle does: the item of an autopilot plan, the action and its task (an
+    event handler's action: the event)."""
     action = view.current_action or "-"
-    if view.current_task:
+    if view.held and view.events:
+        action += f" (event {view.events[-1][1]!r})"
+    elif view.current_task:
         action += f" ({view.current_task.rsplit('/', 1)[-1]})"
         said = state.mission if state is not None else None
         if _in_plan(mission, view.current_task) and said is not None and said.items:
@@ -273,7 +385,8 @@ def _events(views: Views, shown: int) -> Text:
                    for t, name in view.events)
     text = Text("events: ", "bold", no_wrap=True, overflow="ellipsis")
     if not fired:
-        text.append("none yet", "dim")
+        ended = bool(views) and all(view.status is not Status.RUNNING for view, _ in views)
+        text.append("none" if ended else "none yet", "dim")
     for t, index, name in fired[-shown:] if shown > 0 else []:
         who = f": {_who(index, views)}" if len(views) > 1 else ""
         text.append(f"\n  {t:7.1f} s  {_safe(name)}{who}", "magenta")
@@ -320,17 +433,27 @@ def _waiting(views: Views) -> Text | None:
         if lines else None
 
 
-LEGEND = (("·", "pending"), ("▶", "running"), ("✓", "done"), ("↷", "skipped"),
-          ("✗", "failed"), ("■", "aborted"))
+LEGEND = (("·", "pending"), ("▶", "running"), ("‖", "interrupted"), ("✓", "done"),
+          ("↷", "skipped"), ("✗", "failed"), ("■", "aborted"))
 
 
-def _legend() -> Text:
-    """What the marks of the tree say."""
-    text = Text(no_wrap=True, overflow="ellipsis")
-    for mark, state in LEGEND:
-        text.append(mark, MARKS[TaskState(state)][1])
-        text.append(f" {state}  ", "dim")
-    text.append("(+n) folded", "dim")
+def _legend(width: int, folded: bool, shown: set[str]) -> Text:
+    """What the marks of the tree say (and, when a task is ``folded``, what (+n) says):
+    every mark, spaced out if the line has the room, else closer; on a line too narrow for
+    them all, the marks ``shown`` in the tree."""
+    text = Text()
+    for gap, marks in (("  ", LEGEND), (" ", LEGEND),
+                       (" ", tuple(m for m in LEGEND if m[0] in shown))):
+        text = Text(no_wrap=True, overflow="ellipsis")
+        for mark, state in marks:
+            style = HELD[1] if mark == HELD[0] else MARKS[TaskState(state)][1]
+            text.append(mark, style)
+            text.append(f" {state}{gap}", "dim")
+        if folded:
+            text.append("(+n) folded", "dim")
+        text.rstrip()
+        if text.cell_len <= width:
+            break
     return text
 
 
@@ -398,8 +521,9 @@ def render(mission: Mission, views: Views, width: int = 160,
                 fixed -= _said_lines(views, 1)
         budget = max(height - fixed - len(vehicles.plain.splitlines()), 3)
     messages = _messages(views, messages_shown)
+    tree, folded = _tree(mission, views, budget)
     parts: list[RenderableType] = [_header(mission, views, wall),
-                                   _tree(mission, views, budget), _legend(), vehicles,
+                                   tree, _legend(width, folded, set(tree.plain)), vehicles,
                                    *([waiting] if waiting else []),
                                    *([messages] if messages else []),
                                    _events(views, events_shown),
@@ -426,6 +550,7 @@ class LiveDisplay:
         self.period = 1.0 / refresh_per_second
         self._live = Live(console=self.console, auto_refresh=False, transient=False)
         self._last = 0.0
+        self.shown: RenderableType | None = None  # the view drawn last
 
     def __enter__(self) -> LiveDisplay:
         self._live.start()
@@ -442,8 +567,8 @@ class LiveDisplay:
             width, height = self.console.size
             # One line spare: the cursor stays under the view.
             wall = datetime.now().strftime("%H:%M:%S")
-            self._live.update(render(self.mission, views, width, height - 1, wall),
-                              refresh=True)
+            self.shown = render(self.mission, views, width, height - 1, wall)
+            self._live.update(self.shown, refresh=True)
 
     def say(self, message: str) -> None:
         """Print a line above the live view."""

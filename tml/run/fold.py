@@ -5,7 +5,9 @@ tells where the mission is: every task on the way down to a task being flown (it
 ancestors), and the tasks next to each of them, as many as the lines allow (twelve on
 each side, then eleven ... none); each run of tasks left out becomes one line that says
 how many it stands for. A task shown that is not on such a way is shown folded, its
-sub-tasks counted with it. When the whole tree fits, nothing is folded.
+sub-tasks counted with it. When the whole tree fits, nothing is folded; when no task is
+being flown (before the first, after the last), the tree is shown level by level, as
+deep as fits.
 """
 
 from __future__ import annotations
@@ -83,8 +85,8 @@ def fold(tasks: Sequence[Task], focus: Sequence[str], budget: int | None) -> lis
         lines = _lines(tasks, ways, shown)
         if len(lines) <= budget:
             return lines
-    if not ways:  # nothing flown now (before the start, after the end): the top level
-        lines = _lines(tasks, set(), {id(t) for t in tasks})
+    if not ways:  # nothing flown now (before the start, after the end): the levels that fit
+        lines = _levels(tasks, every, budget)
         if len(lines) <= budget:
             return lines
     # Still too long (a deep tree): the lines nearest the deepest task flown.
@@ -96,6 +98,19 @@ def fold(tasks: Sequence[Task], focus: Sequence[str], budget: int | None) -> lis
     cut = len(lines) - len(kept)
     mark = Line("", None, cut)
     return [mark, *kept] if start > 0 else [*kept, mark]
+
+
+def _levels(tasks: Sequence[Task], every: list[Task], budget: int) -> list[Line]:
+    """The tree down to the deepest level that fits in ``budget`` lines, the tasks of that
+    level folded (at least the top level)."""
+    lines = _lines(tasks, set(), {id(t) for t in tasks})
+    for depth in range(2, max((len(t.path) for t in every), default=1) + 1):
+        deeper = _lines(tasks, {t.path for t in every if len(t.path) < depth},
+                        {id(t) for t in every if len(t.path) <= depth})
+        if len(deeper) > budget:
+            break
+        lines = deeper
+    return lines
 
 
 def _near(tasks: Sequence[Task], ways: set[tuple[str, ...]], radius: int,

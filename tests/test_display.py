@@ -421,6 +421,15 @@ def test_rounds_are_read_from_the_changes() -> None:
     assert rounds(again, {"Patrol"}).earlier == {"Patrol/Out": 0, "Patrol/Back": 0}
 
 
+def test_rounds_are_counted_on_as_the_changes_grow() -> None:
+    changes = _in_round_two()
+    for end in range(1, len(changes) + 1):  # a redraw after each change: the new ones read
+        grown = rounds(changes[:end], {"Patrol"})
+        fresh = rounds([replace(c) for c in changes[:end]], {"Patrol"})  # read anew
+        assert grown == fresh
+    assert grown.now == {"Patrol": 2}
+
+
 def test_a_task_done_after_an_aborted_one_says_its_round() -> None:
     mission, views = flown(0.5, ROUNDS)
     view, state = views[0]

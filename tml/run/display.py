@@ -90,38 +90,74 @@ class Rounds:
     run of it: the round of its parent it is from (0: an earlier run, a round unsaid)."""
 
 
+class _Count:
+    """The count of :func:`rounds` over the changes of one vehicle's views so far: a
+    vehicle's changes only grow, so each redraw reads only the new ones."""
+
+    def __init__(self, first: Change) -> None:
+        self.first, self.tail, self.seen = first, first, 0
+        self.runs: dict[str, int] = {}  # each task's runs begun
+        self.begun: dict[str, dict[str, int]] = {}  # per task: its sub-tasks' runs in its run
+        self.last: dict[str, tuple[int, int]] = {}  # per task: (its parent's run, its round)
+        self.state: dict[str, TaskState] = {}  # when it changed last, and how
+
+    def follows(self, changes: Sequence[Change]) -> bool:
+        """Whether ``changes`` are those counted so far and maybe more."""
+        return changes[0] is self.first and len(changes) >= self.seen \
+            and (not self.seen or changes[self.seen - 1] is self.tail)
+
+    def take(self, changes: Sequence[Change]) -> None:
+        for change in changes[self.seen:]:
+            path = change.task
+            parent = path.rpartition("/")[0]
+            siblings = self.begun.setdefault(parent, {})
+            if change.state is TaskState.RUNNING or (
+                    change.state is TaskState.SKIPPED
+                    and self.state.get(path) is not TaskState.RUNNING):
+                siblings[path] = siblings.get(path, 0) + 1
+            if change.state is TaskState.RUNNING:
+                self.runs[path] = self.runs.get(path, 0) + 1
+                self.begun[path] = {}
+            self.last[path] = (self.runs.get(parent, 0), siblings.get(path, 1))
+            self.state[path] = change.state
+            self.tail = change
+        self.seen = len(changes)
+
+    def rounds(self, repeating: Set[str]) -> Rounds:
+        now = {task: most for task, found in self.begun.items() if task in repeating
+               for most in [max(found.values(), default=0)] if most > 1}
+        earlier: dict[str, int] = {}
+        for path in sorted(self.last, key=lambda found: found.count("/")):  # parents first
+            parent = path.rpartition("/")[0]
+            run, number = self.last[path]
+            if parent in earlier or run != self.runs.get(parent, 0):
+                earlier[path] = 0
+            elif number < now.get(parent, 1):
+                earlier[path] = number
+        return Rounds(now, earlier)
+
+
+_COUNTS: dict[int, _Count] = {}
+"""The counts of the vehicles' views drawn, by the id of their first change (which each
+count holds, so that the id stays its own)."""
+COUNTS_KEPT = 4096
+
+
 def rounds(changes: Sequence[Change], repeating: Set[str]) -> Rounds:
     """The rounds the ``changes`` of a vehicle's view tell, of the tasks in ``repeating``
     (those with a repeat or a loop): a sub-task begun again (running, or skipped without
     running) in the same run of its parent begins the parent's next round; and of every
-    task, that a task begun again begins its sub-tasks anew."""
-    runs: dict[str, int] = {}  # each task's runs begun
-    begun: dict[str, dict[str, int]] = {}  # per task: its sub-tasks' runs in its current run
-    last: dict[str, tuple[int, int]] = {}  # per task: (its parent's run, its round) when
-    state: dict[str, TaskState] = {}  # it changed last, and how
-    for change in changes:
-        path = change.task
-        parent = path.rpartition("/")[0]
-        siblings = begun.setdefault(parent, {})
-        if change.state is TaskState.RUNNING or (
-                change.state is TaskState.SKIPPED and state.get(path) is not TaskState.RUNNING):
-            siblings[path] = siblings.get(path, 0) + 1
-        if change.state is TaskState.RUNNING:
-            runs[path] = runs.get(path, 0) + 1
-            begun[path] = {}
-        last[path] = (runs.get(parent, 0), siblings.get(path, 1))
-        state[path] = change.state
-    now = {task: most for task, found in begun.items() if task in repeating
-           for most in [max(found.values(), default=0)] if most > 1}
-    earlier: dict[str, int] = {}
-    for path in sorted(last, key=lambda found: found.count("/")):  # parents first
-        parent = path.rpartition("/")[0]
-        run, number = last[path]
-        if parent in earlier or run != runs.get(parent, 0):
-            earlier[path] = 0
-        elif number < now.get(parent, 1):
-            earlier[path] = number
-    return Rounds(now, earlier)
+    task, that a task begun again begins its sub-tasks anew. Counted on from the last
+    call's changes when these follow them."""
+    if not changes:
+        return Rounds({}, {})
+    count = _COUNTS.get(id(changes[0]))
+    if count is None or not count.follows(changes):
+        if len(_COUNTS) >= COUNTS_KEPT:
+            _COUNTS.clear()
+        count = _COUNTS[id(changes[0])] = _Count(changes[0])
+    count.take(changes)
+    return count.rounds(repeating)
 
 
 def _held(view: View) -> set[str]:

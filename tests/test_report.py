@@ -298,3 +298,26 @@ def test_a_log_without_positions_on_the_globe_keeps_each_vehicle_from_its_home(
     assert [track.vehicle for track in drawn.tracks] == [1, 2]
     assert figure(read_flight(str(path))).axes[0].get_xlabel() == \
         "east (m from each vehicle's own home)"
+
+
+def test_an_event_handlers_actions_are_rows_with_their_event(tmp_path: Path) -> None:
+    name = "Battery below 30 % on the way back from the far field"
+    path = _log(tmp_path, [
+        {"t": 0.0, "kind": "run", "mission": "m", "file": ""},
+        _task(0.0, "Leg", "running", 1),
+        {"t": 5.0, "kind": "event", "vehicle": 1, "event": name},
+        {"t": 5.0, "kind": "action", "vehicle": 1, "action": "MEMORIZE_POINT", "line": 9,
+         "message": f"MEMORIZE_POINT (event {name!r})"},  # at once: no row
+        {"t": 5.0, "kind": "action", "vehicle": 1, "action": "RETURN_HOME_AND_LAND",
+         "task": None, "message": "RETURN_HOME_AND_LAND started", "arguments": {}},
+        {"t": 5.0, "kind": "task", "vehicle": 1, "task": "Leg", "state": "aborted"},
+        {"t": 30.0, "kind": "action", "vehicle": 1, "action": "RETURN_HOME_AND_LAND",
+         "task": None, "message": "RETURN_HOME_AND_LAND failed: timeout: no landing",
+         "reason": "timeout"},
+    ])
+    rows = scene(read_flight(str(path))).rows
+    assert [(r.task, r.event == name, r.start, r.end, r.state) for r in rows] == [
+        ("Leg", False, 0.0, 5.0, "aborted"),
+        ("RETURN_HOME_AND_LAND", True, 5.0, 30.0, "failed")]
+    assert rows[1].label == "event 'Battery below 30 % on…': RETURN_HOME_AND_LAND"
+    assert len(rows[1].label) == 52

@@ -34,7 +34,8 @@ FIGURE_WIDTH = 13.0
 TIMELINE_ROWS_SHOWN = 40
 """Task rows drawn at most; a longer mission shows its first ones and says how many more."""
 ROW_LABEL_CHARS = 44
-"""A row's label is cut to this many characters."""
+"""A task's name on the timeline is cut to this many characters, less two a level down;
+an event handler's row may take eight more, its action whole."""
 LABEL_POINTS = 8.0
 """The size of the timeline's labels (points)."""
 CHAR_WIDTH = 0.7
@@ -209,8 +210,10 @@ def _planned(flight: Flight, frame: Frame) -> tuple[Line, ...]:
 def _label(span: TaskSpan, several: bool) -> str:
     """How the timeline names a row."""
     who = f" [v{span.vehicle}]" if several and span.vehicle is not None else ""
-    if span.event:
-        return f"event {span.event!r}: {span.task}{who}"[:ROW_LABEL_CHARS + len(who)]
+    if span.event:  # the action whole, the event's name cut to make room
+        room = max(ROW_LABEL_CHARS + 8 - len(span.task) - len("event '': "), 4)
+        name = span.event if len(span.event) <= room else span.event[:room - 1] + "…"
+        return f"event '{name}': {span.task}{who}"
     depth = span.task.count("/")
     name = span.task.rsplit("/", 1)[-1]
     when = f" (round {span.round})" if span.round else ""

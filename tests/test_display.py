@@ -430,6 +430,19 @@ def test_rounds_are_counted_on_as_the_changes_grow() -> None:
     assert grown.now == {"Patrol": 2}
 
 
+def test_two_vehicles_changes_that_begin_and_end_alike_are_counted_apart() -> None:
+    # The fleet's changes (a task no vehicle flies) are in both views, the same objects.
+    start, end = (Change(0.0, "Patrol", TaskState.RUNNING, None, 1),
+                  Change(9.0, "Patrol", TaskState.DONE, None, 9))
+    one = (start, *_in_round_two(1)[3:8], end)  # Out, Back and Out again: round 2
+    two = (start, *_in_round_two(2)[3:7], Change(6.5, "Patrol/Back", TaskState.DONE, 2, 8),
+           end)
+    assert len(one) == len(two)
+    assert rounds(one, {"Patrol"}, "1").now == {"Patrol": 2}
+    assert rounds(two, {"Patrol"}, "2").now == {}  # vehicle 2 flew one round
+    assert rounds(one, {"Patrol"}, "1").now == {"Patrol": 2}
+
+
 def test_a_task_done_after_an_aborted_one_says_its_round() -> None:
     mission, views = flown(0.5, ROUNDS)
     view, state = views[0]

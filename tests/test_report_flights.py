@@ -187,7 +187,9 @@ def test_relay_live_view_ends_saying_what_happened(relay: Flown) -> None:
     assert lines[1] == " 1 2 3 4  vehicle"
     # Nothing is flown any more: the tree shows as many levels as fit, not one line.
     assert lines[2].startswith(" ✓ ✓ ✓ ✓ └─ Relay  round 3")
-    assert any("Sortie north" in line for line in lines)
+    # Vehicles 3 and 4 flew the sorties the round before: their marks say so.
+    assert " ✓ · ✓ ·       ├─ Sortie north  (earlier round: 3)  (+5)" in lines
+    assert " · ✓ · ✓       └─ Sortie south  (earlier round: 4)  (+5)" in lines
     assert "events: none" in lines and "events: none yet" not in text
     assert lines[-1] == "ended: vehicles 1, 2, 3, 4: all tasks done"
     assert "critical" not in text  # ArduCopter's PreArm after landing is no alarm

@@ -137,25 +137,28 @@ class _Count:
         return Rounds(now, earlier)
 
 
-_COUNTS: dict[int, _Count] = {}
-"""The counts of the vehicles' views drawn, by the id of their first change (which each
-count holds, so that the id stays its own)."""
+_COUNTS: dict[tuple[object, int], _Count] = {}
+"""The counts of the vehicles' views drawn, by vehicle and the id of their first change
+(which each count holds, so that the id stays its own). By vehicle too: the changes of the
+tasks no vehicle flies are in every vehicle's view, the same objects, so two vehicles'
+changes may begin and end alike."""
 COUNTS_KEPT = 4096
 
 
-def rounds(changes: Sequence[Change], repeating: Set[str]) -> Rounds:
+def rounds(changes: Sequence[Change], repeating: Set[str], vehicle: object = None) -> Rounds:
     """The rounds the ``changes`` of a vehicle's view tell, of the tasks in ``repeating``
     (those with a repeat or a loop): a sub-task begun again (running, or skipped without
     running) in the same run of its parent begins the parent's next round; and of every
     task, that a task begun again begins its sub-tasks anew. Counted on from the last
-    call's changes when these follow them."""
+    call's for the same ``vehicle`` when these follow them."""
     if not changes:
         return Rounds({}, {})
-    count = _COUNTS.get(id(changes[0]))
+    key = (vehicle, id(changes[0]))
+    count = _COUNTS.get(key)
     if count is None or not count.follows(changes):
         if len(_COUNTS) >= COUNTS_KEPT:
             _COUNTS.clear()
-        count = _COUNTS[id(changes[0])] = _Count(changes[0])
+        count = _COUNTS[key] = _Count(changes[0])
     count.take(changes)
     return count.rounds(repeating)
 
@@ -197,7 +200,8 @@ def _tree(mission: Mission, views: Views, budget: int | None) -> tuple[Text, boo
     lines = fold(mission.tasks, focus, None if budget is None
                  else max(budget - (len(views) > 1), 1))
     repeating = {t.path_name for t in mission.walk() if t.repeat > 1 or t.loop is not None}
-    found = [rounds(view.changes, repeating) for view, _ in views]
+    found = [rounds(view.changes, repeating, _vehicle_name(i, views))
+             for i, (view, _) in enumerate(views)]
     held = [_held(view) for view, _ in views]
     for number, line in enumerate(lines):
         if number or len(views) > 1:

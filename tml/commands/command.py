@@ -66,6 +66,7 @@ def run(args: argparse.Namespace) -> ExitCode:
     """Carry out ``tml command``; the exit code (module docstring)."""
     from tml.errors import TmlError
     from tml.mavlink.link import Link, address_problem
+    from tml.run.control import runs_at
     from tml.signing import signing_key
 
     problem = address_problem(args.connect)
@@ -78,35 +79,122 @@ def run(args: argparse.Namespace) -> ExitCode:
                                     f"{error.strerror or error}")
     except TmlError as error:
         return _say(ExitCode.USAGE, f"signing key: {error}")
+    # A run that flies the vehicle takes the command (tml.run.control); the vehicle
+    # itself only when none does.
+    # Without --sysid, the vehicles the address carries are heard first: with several,
+    # which one is the operator's to say.
+    runs = runs_at(args.connect)
+    if args.sysid is not None and args.sysid in runs:
+        through = _through_run(args, args.sysid)
+        if through is not None:
+            return through
     try:
-        link = Link(args.connect, signing_key=key,
+        link = Link(args.connect, signing_key=key, source_component=COMMAND_COMPONENT,
                     system_ids=None if args.sysid is None else [args.sysid])
     except (OSError, TmlError) as error:
-        return _say(ExitCode.FAILURE, f"cannot open {args.connect}: {error}")
+        hint = "" if not runs or args.sysid is not None else (
+            f" (a run flies the vehicle with system id {', '.join(map(str, runs))} there: "
+            "give --sysid to command it through the run)")
+        return _say(ExitCode.FAILURE, f"cannot open {args.connect}: {error}{hint}")
     try:
         with link:
             return _command(link, args)
+    except SeveralVehicles as error:
+        return _say(ExitCode.USAGE, str(error))
     except TmlError as error:
         return _say(ExitCode.FAILURE, str(error))
+
+
+COMMAND_COMPONENT = 91
+"""The MAVLink component id ``tml command`` sends as (system 255, the ground station the
+vehicle's GCS failsafe hears; ``tml run`` is component 190 and ``tml serve`` 90)."""
+
+
+class SeveralVehicles(Exception):
+    """The address carries several vehicles and none was named (exit 2)."""
+
+
+def _through_run(args: argparse.Namespace, system_id: int) -> ExitCode | None:
+    """Send the command through the run flying vehicle ``system_id``; its exit code, or
+    None when no run took it (it ended meanwhile)."""
+    from tml.run.control import ask_run
+
+    answer = ask_run(args.connect, system_id, args.command, args.timeout)
+    if answer is None or answer.outcome == "no run":
+        return None
+    if answer.exit_code == ExitCode.OK:
+        print(f"{answer.message} [through the run]")
+        return ExitCode(answer.exit_code)
+    return _say(ExitCode(answer.exit_code), f"{answer.message} [through the run]")
 
 
 def _command(link: Link, args: argparse.Namespace) -> ExitCode:
     from tml.mavlink.adapter import MavlinkVehicle
 
-    info = link.wait_vehicle(args.sysid, args.timeout)
-    vehicle = MavlinkVehicle(link, info.system_id, connect_timeout=args.timeout)
+    system_id = _vehicle(link, args.sysid, args.timeout)
+    if args.sysid is None and system_id in _runs(args.connect):  # found by listening
+        through = _through_run(args, system_id)
+        if through is not None:
+            return through
+    vehicle = MavlinkVehicle(link, system_id, connect_timeout=args.timeout)
     try:
         return _carry_out(vehicle, args.command, args.timeout)
     finally:
         vehicle.close()
 
 
+def _runs(address: str) -> list[int]:
+    from tml.run.control import runs_at
+
+    return runs_at(address)
+
+
+def _vehicle(link: Link, system_id: int | None, timeout: float) -> int:
+    """The system id of the vehicle to command: ``system_id``, waited for; else the one
+    vehicle heard (others have DISCOVERY_WAIT s after the first to say hello). Raises
+    :class:`SeveralVehicles` when more than one is heard."""
+    from tml.run.session import DISCOVERY_WAIT
+
+    first = link.wait_vehicle(system_id, timeout).system_id
+    if system_id is not None:
+        return first
+    time.sleep(DISCOVERY_WAIT)  # other vehicles on the same link say hello too
+    heard = sorted({first, *link.vehicles()})
+    if len(heard) > 1:
+        raise SeveralVehicles(f"{link.address}: vehicles with system ids "
+                              f"{', '.join(map(str, heard))} heard: say which with --sysid N")
+    return first
+
+
+HOLDING_MODES = {"multicopter": "BRAKE", "fixed-wing": "LOITER", "rover": "HOLD",
+                 "boat": "LOITER"}
+"""The mode that holds by itself, by the vehicle's kind (a vehicle no run flies is told
+this mode for ``hold``, not GUIDED, where nothing would keep its target): ArduCopter BRAKE
+(LOITER follows the sticks, and with SITL's resting throttle a LOITER hold descends),
+ArduPlane LOITER (circles where it is), Rover HOLD, a boat LOITER (holds its position)."""
+
+
+def holding_mode(state: VehicleState) -> str:
+    """The mode of :data:`HOLDING_MODES` for the vehicle's kind."""
+    from tml.language.kinds import Kind, kind_of
+
+    kind = kind_of(state.vehicle_type)
+    if kind is Kind.FIXED_WING:
+        return HOLDING_MODES["fixed-wing"]
+    if kind is Kind.GROUND:
+        return HOLDING_MODES["boat" if state.vehicle_type == "boat" else "rover"]
+    return HOLDING_MODES["multicopter"]
+
+
 def _carry_out(vehicle: MavlinkVehicle, command: str, timeout: float) -> ExitCode:
     """Wait for the telemetry, ask the rule, send, and wait for the answer and the
-    telemetry that shows it."""
+    telemetry that confirms it (tml.engine.confirm)."""
     from dataclasses import replace
 
-    from tml.engine.safety import CommandRefusal, operator_command_shown, operator_request
+    from tml.engine.confirm import Confirmation
+    from tml.engine.safety import CommandRefusal, operator_request
+    from tml.errors import CommandRejected, VehicleError
+    from tml.run.control import own_time
 
     vid = vehicle.vehicle_id
     vehicle.mav.request_rates()
@@ -121,20 +209,32 @@ def _carry_out(vehicle: MavlinkVehicle, command: str, timeout: float) -> ExitCod
     if request is None:
         print(f"vehicle {vid}: nothing to do: {_where(state)}")
         return ExitCode.OK
-    request = replace(request, request_id=1)
-    vehicle.submit(request)
-    result = _answer(vehicle, timeout)
-    if result is None:
-        return _say(ExitCode.FAILURE, f"vehicle {vid}: {command}: no answer within "
-                                      f"{timeout:g} s")
-    if not result.ok:
-        return _say(ExitCode.FAILURE, f"vehicle {vid}: {command} refused by the vehicle: "
-                                      f"{result.reason} {result.detail}".rstrip())
-    shown = _wait(vehicle, lambda s: operator_command_shown(s, command), timeout)
+    if command == "hold":
+        mode = holding_mode(state)
+        try:
+            vehicle.mav.set_mode(mode)
+        except CommandRejected as error:
+            return _say(ExitCode.FAILURE, f"vehicle {vid}: hold ({mode}) refused by the "
+                                          f"vehicle: {error}")
+        except VehicleError as error:
+            return _say(ExitCode.FAILURE, f"vehicle {vid}: hold ({mode}): {error}")
+    else:
+        request = replace(request, request_id=1)
+        vehicle.submit(request)
+        result = _answer(vehicle, timeout)
+        if result is None:
+            return _say(ExitCode.FAILURE, f"vehicle {vid}: {command}: no answer within "
+                                          f"{timeout:g} s")
+        if not result.ok:
+            return _say(ExitCode.FAILURE, f"vehicle {vid}: {command} refused by the "
+                                          f"vehicle: {result.reason} {result.detail}".rstrip())
+    confirmation = Confirmation(command)
+    shown = _wait(vehicle, lambda s: confirmation.see(s, own_time(vehicle, s)), timeout)
     if shown is None:
-        return _say(ExitCode.FAILURE, f"vehicle {vid}: {command} accepted, but not shown "
-                                      f"within {timeout:g} s ({_where(vehicle.state())})")
-    print(f"vehicle {vid}: {command} done: {_where(shown)}")
+        return _say(ExitCode.FAILURE, f"vehicle {vid}: {command} not confirmed within "
+                                      f"{timeout:g} s (wanted {confirmation.criterion()}; "
+                                      f"seen {confirmation.seen()})")
+    print(f"vehicle {vid}: {command} done: {confirmation.seen()}")
     return ExitCode.OK
 
 

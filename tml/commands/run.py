@@ -28,12 +28,15 @@ from tml.errors import ExitCode
 from tml.run.endings import Ending
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from rich.console import Console
 
     from tml.language.model import Mission
     from tml.run.display import LineDisplay, LiveDisplay
     from tml.run.journal import Journal
     from tml.run.resume import ResumePoint
+    from tml.run.runner import Runner
     from tml.run.session import Refusal, Session, SessionOptions
     from tml.verify.profile import VehicleProfile
     from tml.world import World
@@ -273,7 +276,8 @@ def _fly(args: argparse.Namespace, session: Session, mission: Mission, world: Wo
         about={"sha256": resumed.digest})
     try:
         with on_stop_signals(lambda name: runner.stop(f"interrupted ({name})")), \
-                display if display is not None else contextlib.nullcontext():
+                display if display is not None else contextlib.nullcontext(), \
+                _control_sockets(session, runner, on_safety):
             outcome = runner.run()
             if display is not None:
                 display.update(runner.views(), force=True)
@@ -297,6 +301,19 @@ def _fly(args: argparse.Namespace, session: Session, mission: Mission, world: Wo
     console.print(f"run {ending.status} (exit {int(ending.code)}): {ending.meaning}",
                   markup=False, highlight=False)
     return ending.code
+
+
+def _control_sockets(session: Session, runner: Runner,
+                     say: Callable[[str], None]) -> contextlib.AbstractContextManager[object]:
+    """The run's control sockets (tml.run.control), one per vehicle at its ``--connect``
+    address: ``tml command`` goes through them. None for the embedded simulator of
+    ``--sim``, which nothing else reaches."""
+    if session.options.sim:
+        return contextlib.nullcontext()
+    from tml.run.control import listening
+
+    return listening(runner, {(v.link.address, v.system_id): v for v in session.vehicles},
+                     on_problem=say)
 
 
 def _tell_signing(session: Session, journal: Journal, said: list[str], now: float) -> None:

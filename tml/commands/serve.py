@@ -87,9 +87,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                          help="the MAVLink system id this instance sends as (default 255, "
                               "the one ArduPilot's GCS failsafe hears: the instances of a "
                               "cluster share it)")
-    cluster.add_argument("--source-component", type=component_id, default=190, metavar="N",
+    cluster.add_argument("--source-component", type=component_id, default=90, metavar="N",
                          help="the MAVLink component id this instance sends as (default "
-                              "190; each instance of a cluster may have its own, to be told "
+                              "90; each instance of a cluster may have its own, to be told "
                               "apart in what the vehicles heard)")
 
 

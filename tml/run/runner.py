@@ -192,6 +192,7 @@ class _Control:
 
     kind: str
     target: str = ""
+    reason: str = ""  # a pause's reason, for the journal (default: by the operator)
     done: threading.Event = field(default_factory=threading.Event)
     refusal: ControlRefused | None = None
 
@@ -377,14 +378,20 @@ class Runner:
         """Whether the run is paused (:meth:`control`)."""
         return any(crew.engine.paused for crew in self.crews if crew.running)
 
-    def control(self, kind: str, target: str = "", timeout: float = 10.0) -> None:
+    @property
+    def flying(self) -> bool:
+        """Whether the mission is under way: from its first task until the run stops."""
+        return self._flying and not self._stop_reason
+
+    def control(self, kind: str, target: str = "", timeout: float = 10.0,
+                reason: str = "") -> None:
         """Pause, resume or jump to ``target`` (safe to call from any thread); returns once
         the loop has done it, or raises :class:`~tml.errors.ControlRefused` with the reason
         (the run has not started or has ended, the interpreters refused, no answer within
-        ``timeout`` wall seconds)."""
+        ``timeout`` wall seconds). ``reason`` is a pause's, for the journal."""
         if kind not in CONTROLS:
             raise ControlRefused(f"{kind!r} is not a control (controls: {', '.join(CONTROLS)})")
-        ask = _Control(kind, target)
+        ask = _Control(kind, target, reason)
         with self._control_lock:
             if not self._flying:
                 raise ControlRefused(self._not_flying())
@@ -414,6 +421,8 @@ class Runner:
                 for flight in crew.flights:
                     flight.state = flight.vehicle.state()
                 self._guarded(crew, now, partial(self._ask, crew, ask, now))
+            if ask.kind == "pause" and ask.reason and running and ask.refusal is None:
+                self._said(f"mission paused: {ask.reason}")  # (an operator's command)
             ask.done.set()
 
     @staticmethod
@@ -422,7 +431,7 @@ class Runner:
         engine, states = crew.engine, crew.states()
         try:
             if ask.kind == "pause":
-                return engine.pause(now, states)
+                return engine.pause(now, states, *([ask.reason] if ask.reason else []))
             if ask.kind == "resume":
                 return engine.resume(now, states)
             return engine.jump(now, states, ask.target)

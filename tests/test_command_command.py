@@ -4,6 +4,10 @@ pymavlink client on the vehicle's port judges what the vehicle did."""
 
 from __future__ import annotations
 
+import math
+import re
+import socket
+import threading
 import time
 from collections.abc import Callable, Iterator
 from types import SimpleNamespace
@@ -22,6 +26,8 @@ from tml.vehicle import RequestResult, VehicleState
 PARAMS = {"SIM_GPS_LOCKTIME": 0.5, "SIM_EKF_GPS_TIME": 1.0, "DISARM_DELAY": 0}
 LIMIT = 60.0  # wall seconds for each state waited for (a bound, not a timing)
 RTL_MODE = 6
+M = mavutil.mavlink
+BRAKE_MODE = 17
 
 
 class Observer:
@@ -49,9 +55,11 @@ class Observer:
 
 
 @pytest.fixture
-def vehicle() -> Iterator[tuple[Simulator, Autopilot, Observer]]:
-    """A simulated copter, a pilot's client armed on it in GUIDED, and an observer."""
-    with Simulator(vehicles=1, tcp_base_port=0, speedup=20.0, params=PARAMS) as sim, \
+def vehicle(request: pytest.FixtureRequest) -> Iterator[tuple[Simulator, Autopilot, Observer]]:
+    """A simulated copter, a pilot's client armed on it in GUIDED, and an observer (the
+    simulator at 20 times real time, or at the speed-up of the test's parameter)."""
+    speedup = float(getattr(request, "param", 20.0))
+    with Simulator(vehicles=1, tcp_base_port=0, speedup=speedup, params=PARAMS) as sim, \
             Link(f"tcp:127.0.0.1:{sim.tcp_ports[0]}") as link:
         pilot = Autopilot.connect(link, 1, timeout=10)
         pilot.request_rates()
@@ -129,14 +137,31 @@ def test_a_malformed_address_is_a_usage_error(capsys: pytest.CaptureFixture[str]
     assert "--connect 127.0.0.1:5760: not an address" in capsys.readouterr().err
 
 
-def test_hold_then_land_a_flying_vehicle(
+def fly_away(pilot: Autopilot) -> None:
+    """Up, and on its way to a point 300 m north at 8 m/s."""
+    fly_up(pilot)
+    t = pilot.telemetry
+    assert t.position is not None
+    pilot.change_speed(8.0)
+    pilot.position_target(t.position.latitude + 300 / 111_320, t.position.longitude,
+                          t.position.relative_altitude)
+    pilot.link.wait_telemetry(1, lambda t: t.velocity is not None
+                              and math.hypot(*t.velocity[:2]) > 5.0, timeout=LIMIT)
+
+
+def test_hold_brakes_a_vehicle_no_run_flies_and_confirms_the_stop(
         vehicle: tuple[Simulator, Autopilot, Observer], capsys: pytest.CaptureFixture[str]
 ) -> None:
     sim, pilot, observer = vehicle
-    fly_up(pilot)
-    pilot.set_mode("LOITER")  # hold switches it back to GUIDED, where it stops
+    fly_away(pilot)
     assert main(command(sim, "hold")) == 0
-    assert "vehicle 1: hold done: mode GUIDED, armed" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    # BRAKE holds by itself: nothing keeps a GUIDED target once tml command has gone.
+    assert "vehicle 1: hold done: mode BRAKE, armed" in out
+    found = re.search(r"ground speed (\d+\.\d) m/s", out)
+    assert found and float(found.group(1)) < 0.5, out
+    assert observer.until(lambda o: o.modes[-1] == BRAKE_MODE)
+    assert sim.vehicle(1).mode == "BRAKE" and math.hypot(*sim.vehicle(1).velocity[:2]) < 0.5
     assert main(command(sim, "land")) == 0
     assert "vehicle 1: land done: mode LAND, armed" in capsys.readouterr().out
     assert observer.until(lambda o: not o.armed), "never landed and disarmed"
@@ -151,6 +176,11 @@ def test_a_rover_is_refused_a_landing_and_holds(capsys: pytest.CaptureFixture[st
         driver.request_rates()
         link.wait_telemetry(1, lambda t: t.position_ready, timeout=LIMIT)
         driver.set_mode("GUIDED")
+        # Disarmed or armed, a ground vehicle is refused a landing: it is not a command
+        # it can carry out, whatever its state (not "nothing to do").
+        assert main(command(sim, "land")) == 2
+        assert "vehicle 1: land refused: a ground vehicle does not land" in \
+            capsys.readouterr().err
         driver.arm()
         assert main(command(sim, "land")) == 2
         assert "a ground vehicle does not land" in capsys.readouterr().err
@@ -193,5 +223,64 @@ def test_a_command_accepted_but_never_shown_is_a_failure_naming_the_mode_seen(
     vehicle = SwitchedBack()
     assert _carry_out(vehicle, "rtl", timeout=0.3) == 4  # type: ignore[arg-type]
     assert [r.name for r in vehicle.submitted] == ["ReturnToLaunch"]
-    assert capsys.readouterr().err == ("tml command: vehicle 1: rtl accepted, but not shown "
-                                       "within 0.3 s (mode GUIDED, armed, 10.0 m up)\n")
+    assert capsys.readouterr().err == (
+        "tml command: vehicle 1: rtl not confirmed within 0.3 s (wanted an RTL mode and 1 m "
+        "nearer home (or home); seen mode GUIDED, armed, 10.0 m up, ground speed 0.0 m/s, "
+        "climb +0.0 m/s, 0 m from home)\n")
+
+
+@pytest.mark.parametrize("vehicle", [1.0], indirect=True)  # (the other station keeps up)
+def test_a_hold_the_vehicle_does_not_keep_is_not_confirmed(
+        vehicle: tuple[Simulator, Autopilot, Observer], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Another ground station switches the vehicle back to GUIDED the moment it is in
+    BRAKE and sends it on: the mode was shown, the stop never was."""
+    sim, pilot, _observer = vehicle
+    fly_away(pilot)
+    start = pilot.telemetry.position
+    assert start is not None
+    other: Any = mavutil.mavlink_connection(f"tcp:127.0.0.1:{sim.tcp_ports[0]}",
+                                            source_system=255, source_component=50,
+                                            dialect="ardupilotmega")
+    done = threading.Event()
+
+    def fight() -> None:
+        while not done.is_set():
+            if sim.vehicle(1).mode == "BRAKE":
+                other.mav.command_long_send(1, 1, M.MAV_CMD_DO_SET_MODE, 0,
+                                            M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4,
+                                            0, 0, 0, 0, 0)
+                other.mav.set_position_target_global_int_send(
+                    0, 1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, 0b110111111000,
+                    int((start.latitude + 600 / 111_320) * 1e7),
+                    int(start.longitude * 1e7), start.relative_altitude,
+                    0, 0, 0, 0, 0, 0, 0, 0)
+            time.sleep(0.01)
+
+    fighter = threading.Thread(target=fight)
+    fighter.start()
+    try:
+        code = main([*command(sim, "hold")[:-1], "8"])
+    finally:
+        done.set()
+        fighter.join()
+        other.close()
+    err = capsys.readouterr().err
+    assert code == 4, err
+    assert "vehicle 1: hold not confirmed within 8 s" in err
+    assert "wanted ground speed below 0.5 m/s for 3 s in a holding mode" in err
+    assert sim.vehicle(1).mode == "GUIDED"
+
+
+def test_several_vehicles_at_the_address_need_a_sysid(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    address = f"udpin:127.0.0.1:{port}"
+    with Simulator(vehicles=2, speedup=20, tcp_base_port=None, params=PARAMS,
+                   udp_out=[f"udp:127.0.0.1:{port}"]):
+        assert main(["command", "hold", "--connect", address, "--timeout", "30"]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [
+        f"tml command: {address}: vehicles with system ids 1, 2 heard: say which with "
+        "--sysid N"]

@@ -232,9 +232,10 @@ def own_time(vehicle: Vehicle, state: VehicleState) -> float:
     """The vehicle's own time (s since its boot, the ``time_boot_ms`` of its latest
     message) for a vehicle on a MAVLink link; else the state's time."""
     link, system_id = getattr(vehicle, "link", None), getattr(vehicle, "system_id", None)
-    if link is None or system_id is None:
+    telemetry = getattr(link, "telemetry", None)
+    if telemetry is None or system_id is None:
         return state.time
-    boot = link.telemetry(system_id).boot_time
+    boot = telemetry(system_id).boot_time
     return state.time if boot is None else float(boot)
 
 

@@ -150,17 +150,3 @@ def test_rtl_through_the_run_ends_it_into_rtl(
     assert sim.vehicle(1).mode in ("RTL", "LAND") or not sim.vehicle(1).armed
     assert not [line for line in log_lines(log) if line["kind"] == "taken"]
 
-
-def test_a_dead_runs_socket_is_passed_over(runtime_dir: str) -> None:
-    import socket
-
-    from tml.run.control import ask_run, control_path
-
-    path = control_path("tcp:127.0.0.1:1", 1)
-    dead = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-    dead.bind(path)
-    dead.close()  # the file stays, nobody listens
-    assert Path(path).exists()
-    assert runs_at("tcp:127.0.0.1:1") == []
-    assert ask_run("tcp:127.0.0.1:1", 1, "hold", 1.0) is None
-

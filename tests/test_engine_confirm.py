@@ -1,0 +1,84 @@
+"""When an operator's command is done: its mode is not enough, the motion must show it."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from tml.engine.confirm import HOLD_TIME, Confirmation
+from tml.vehicle import VehicleState
+
+FLYING = VehicleState(1, 0.0, armed=True, landed=False, mode="GUIDED",
+                      position=(100.0, 0.0, 10.0), ground_speed=6.0, vehicle_type="quadcopter")
+
+
+def feed(confirmation: Confirmation, states: list[tuple[float, VehicleState]]) -> list[bool]:
+    return [confirmation.see(state, at) for at, state in states]
+
+
+def test_a_hold_is_done_after_its_stop_lasted_the_hold_time() -> None:
+    stopped = replace(FLYING, mode="BRAKE", ground_speed=0.1)
+    seen = feed(Confirmation("hold"), [(0.0, replace(FLYING, mode="BRAKE")), (1.0, stopped),
+                                       (1.0 + HOLD_TIME - 0.1, stopped),
+                                       (1.0 + HOLD_TIME, stopped)])
+    assert seen == [False, False, False, True]
+
+
+def test_a_hold_in_guided_that_flies_on_is_never_done() -> None:
+    # The defect: GUIDED shown, the vehicle slowed, then the run's next target took it on.
+    confirmation = Confirmation("hold")
+    states = [(t, replace(FLYING, ground_speed=speed))
+              for t, speed in [(0.0, 6.0), (1.0, 4.5), (2.0, 4.5), (3.0, 6.0), (9.0, 6.0)]]
+    assert not any(feed(confirmation, states))
+    assert "mode GUIDED" in confirmation.seen() and "ground speed 6.0 m/s" in confirmation.seen()
+
+
+def test_a_stop_broken_starts_the_count_again() -> None:
+    stopped = replace(FLYING, mode="BRAKE", ground_speed=0.0)
+    seen = feed(Confirmation("hold"), [(0.0, stopped), (2.0, stopped),
+                                       (2.5, replace(stopped, ground_speed=1.0)),
+                                       (3.5, stopped), (6.4, stopped), (6.5, stopped)])
+    assert seen == [False, False, False, False, False, True]
+
+
+def test_a_sink_is_no_hold() -> None:
+    sinking = replace(FLYING, mode="LOITER", ground_speed=0.0, climb=-1.0)
+    assert not any(feed(Confirmation("hold"), [(t, sinking) for t in range(10)]))
+
+
+def test_a_fixed_wing_holds_by_circling_in_its_mode() -> None:
+    circling = replace(FLYING, mode="LOITER", ground_speed=20.0, vehicle_type="fixed-wing")
+    assert feed(Confirmation("hold"), [(0.0, circling), (HOLD_TIME, circling)]) == [False, True]
+
+
+def test_rtl_is_done_once_the_vehicle_comes_nearer_home() -> None:
+    returning = replace(FLYING, mode="RTL")
+    seen = feed(Confirmation("rtl"), [(0.0, returning),
+                                      (1.0, replace(returning, position=(99.5, 0.0, 12.0))),
+                                      (2.0, replace(returning, position=(98.9, 0.0, 15.0)))])
+    assert seen == [False, False, True]
+
+
+def test_rtl_shown_by_its_mode_alone_is_not_done() -> None:
+    confirmation = Confirmation("rtl")
+    assert not any(feed(confirmation, [(t, replace(FLYING, mode="RTL")) for t in range(5)]))
+    assert "100 m from home" in confirmation.seen()
+
+
+def test_a_landing_is_done_once_the_vehicle_descends() -> None:
+    landing = replace(FLYING, mode="LAND", ground_speed=0.0)
+    seen = feed(Confirmation("land"), [(0.0, landing),
+                                       (1.0, replace(landing, position=(100.0, 0.0, 9.6))),
+                                       (2.0, replace(landing, position=(100.0, 0.0, 9.4)))])
+    assert seen == [False, False, True]
+
+
+def test_nothing_is_done_from_a_picture_older_than_the_command() -> None:
+    old = replace(FLYING, mode="BRAKE", ground_speed=0.0, heard=1.0, asked=2.0)
+    assert not any(feed(Confirmation("hold"), [(t, old) for t in range(10)]))
+    assert Confirmation("hold").seen() == "no telemetry after the command"
+
+
+def test_disarm_is_done_when_disarmed_on_the_ground() -> None:
+    ground = replace(FLYING, landed=True, ground_speed=0.0, position=(0.0, 0.0, 0.0))
+    assert feed(Confirmation("disarm"), [(0.0, ground), (1.0, replace(ground, armed=False))]) \
+        == [False, True]

@@ -44,7 +44,7 @@ def test_arducopter_refuses_no_disarm_in_the_air_holds_and_returns(ardupilot) ->
         assert gcs.armed() and gcs.local()[2] > 8.0, "it flies on"
 
         code, said = tml_command(sitl.address, "hold")
-        assert code == 0 and "hold done: mode GUIDED, armed" in said, said
+        assert code == 0 and "hold done: mode BRAKE, armed" in said, said
 
         code, said = tml_command(sitl.address, "rtl")
         assert code == 0 and "rtl done: mode RTL, armed" in said, said

@@ -1,23 +1,28 @@
 """``tml command rtl|land|hold|disarm``: tell one vehicle to return, land, hold or disarm,
-now, with no mission, and confirm it from its telemetry.
+now, and confirm it from what the vehicle does.
 
 Theory of operation
 -------------------
-The link is opened (:class:`~tml.mavlink.link.Link`, signed with ``--signing-key-file``),
-the vehicle's HEARTBEAT is waited for, the telemetry the rule judges by is asked for and
-waited for (HEARTBEAT, the landed state, the position), and the rule of
-:func:`tml.engine.safety.operator_request` says what to send -- or refuses, with the
-reason, what would be unsafe (a disarm in the air) or what the vehicle cannot do (a rover
-landing). The request is carried out as a run carries it out
-(:class:`~tml.mavlink.adapter.MavlinkVehicle`: RTL, LAND, a hold as the vehicle's kind
-holds -- a multicopter stopped in GUIDED, a fixed-wing circling, a rover in HOLD --, a
-disarm), and is done only when telemetry that arrived after it shows it
-(:func:`~tml.engine.safety.operator_command_shown`): the mode, or disarmed on the ground.
+A ``tml run`` that flies the vehicle (its control socket for this address and system id,
+:mod:`tml.run.control`) takes the command: the run pauses (hold) or ends into the
+commanded state, and answers once the vehicle's telemetry confirmed it. Else the link is
+opened (:class:`~tml.mavlink.link.Link`, signed with ``--signing-key-file``, component
+:data:`COMMAND_COMPONENT`); without ``--sysid`` the vehicles on it are listened to, and
+several are refused (which one is the operator's to say). The vehicle's HEARTBEAT is
+waited for, the telemetry the rule judges by is asked for and waited for (HEARTBEAT, the
+landed state, the position), and the rule of :func:`tml.engine.safety.operator_request`
+says what to send -- or refuses, with the reason, what would be unsafe (a disarm in the
+air) or what the vehicle cannot do (a rover landing). A hold is a mode that holds by
+itself (:data:`HOLDING_MODES`: nothing keeps a GUIDED target once this command has
+gone); RTL, LAND and disarm are carried out as a run carries them out
+(:class:`~tml.mavlink.adapter.MavlinkVehicle`). The command is done only when the
+vehicle's telemetry confirms it by its motion (:class:`~tml.engine.confirm.Confirmation`).
 
-Exit codes: 0 done and shown (or nothing to do: a vehicle on the ground and disarmed told
-to return, land, hold or disarm); 2 a usage error, or a command refused here as unsafe or
-impossible, with the reason; 4 no vehicle or telemetry within ``--timeout``, the vehicle
-refused the command, or its telemetry did not show it within ``--timeout``.
+Exit codes: 0 done and confirmed (or nothing to do: a vehicle on the ground and disarmed
+told to return, land, hold or disarm); 2 a usage error (several vehicles without
+``--sysid`` too), or a command refused as unsafe or impossible, with the reason; 4 no
+vehicle or telemetry within ``--timeout``, the vehicle refused the command, or its
+telemetry did not confirm it within ``--timeout`` (what was seen is said).
 """
 
 from __future__ import annotations
@@ -52,7 +57,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the vehicle's MAVLink address (tcp:HOST:PORT, "
                              "udpin:0.0.0.0:14550, /dev/ttyACM0 ...)")
     parser.add_argument("--sysid", type=system_id, metavar="N",
-                        help="the vehicle's MAVLink system id (default: the first heard)")
+                        help="the vehicle's MAVLink system id (needed when the address "
+                             "carries several vehicles)")
     parser.add_argument("--signing-key-file", metavar="FILE",
                         help="MAVLink 2 signing: the file holds 64 hex digits or a "
                              "passphrase (else the key of TML_SIGNING_KEY, if set)")

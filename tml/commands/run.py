@@ -28,8 +28,6 @@ from tml.errors import ExitCode
 from tml.run.endings import Ending
 
 if TYPE_CHECKING:
-    from collections.abc import Callable
-
     from rich.console import Console
 
     from tml.language.model import Mission
@@ -277,7 +275,7 @@ def _fly(args: argparse.Namespace, session: Session, mission: Mission, world: Wo
     try:
         with on_stop_signals(lambda name: runner.stop(f"interrupted ({name})")), \
                 display if display is not None else contextlib.nullcontext(), \
-                _control_sockets(session, runner, on_safety):
+                _control_sockets(session, runner):
             outcome = runner.run()
             if display is not None:
                 display.update(runner.views(), force=True)
@@ -303,17 +301,18 @@ def _fly(args: argparse.Namespace, session: Session, mission: Mission, world: Wo
     return ending.code
 
 
-def _control_sockets(session: Session, runner: Runner,
-                     say: Callable[[str], None]) -> contextlib.AbstractContextManager[object]:
+def _control_sockets(session: Session,
+                     runner: Runner) -> contextlib.AbstractContextManager[object]:
     """The run's control sockets (tml.run.control), one per vehicle at its ``--connect``
-    address: ``tml command`` goes through them. None for the embedded simulator of
-    ``--sim``, which nothing else reaches."""
+    address: ``tml command`` goes through them; a socket that cannot be had is said on
+    the error console. None for the embedded simulator of ``--sim``, which nothing else
+    reaches."""
     if session.options.sim:
         return contextlib.nullcontext()
     from tml.run.control import listening
 
     return listening(runner, {(v.link.address, v.system_id): v for v in session.vehicles},
-                     on_problem=say)
+                     on_problem=session.say)
 
 
 def _tell_signing(session: Session, journal: Journal, said: list[str], now: float) -> None:

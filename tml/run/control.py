@@ -310,6 +310,8 @@ class ControlServer:
         (a run ended into RTL by one still has its vehicles' links open: the answer
         says what their telemetry confirmed, within the command's own timeout)."""
         self._stop.set()
+        for path in self.listening:
+            _alive(path)  # wakes its accept() at once
         for thread in self._threads:
             thread.join(2.0)
         for thread in list(self._peers):
@@ -333,6 +335,9 @@ class ControlServer:
             except TimeoutError:
                 continue
             except OSError:
+                return
+            if self._stop.is_set():
+                peer.close()
                 return
             thread = threading.Thread(target=self._serve, args=(peer, system_id),
                                       daemon=True, name="control peer")

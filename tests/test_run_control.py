@@ -192,3 +192,17 @@ def test_a_request_for_another_vehicle_or_not_a_request_is_refused(directory: st
                 peer.connect(path)
                 peer.sendall(line)
                 assert expected.encode() in peer.recv(4096)
+
+
+def test_without_sysid_an_address_that_cannot_be_heard_names_the_run_there(
+        directory: str, capsys: pytest.CaptureFixture[str]) -> None:
+    from tml.commands.cli import main
+
+    address = "tcp:127.0.0.1:9"  # nothing listens (a serial port a run holds, say)
+    vehicle = Vehicle()
+    desk = OperatorDesk(Runner(vehicle), {3: vehicle})  # type: ignore[arg-type]
+    with ControlServer(desk, {control_path(address, 3): 3}):
+        assert main(["command", "hold", "--connect", address, "--timeout", "1"]) == 4
+    assert capsys.readouterr().err.strip().endswith(
+        "(a run flies the vehicle with system id 3 at tcp:127.0.0.1:9: give --sysid to "
+        "command it through the run)")

@@ -98,17 +98,24 @@ def run(args: argparse.Namespace) -> ExitCode:
         link = Link(args.connect, signing_key=key, source_component=COMMAND_COMPONENT,
                     system_ids=None if args.sysid is None else [args.sysid])
     except (OSError, TmlError) as error:
-        hint = "" if not runs or args.sysid is not None else (
-            f" (a run flies the vehicle with system id {', '.join(map(str, runs))} there: "
-            "give --sysid to command it through the run)")
-        return _say(ExitCode.FAILURE, f"cannot open {args.connect}: {error}{hint}")
+        return _say(ExitCode.FAILURE, f"cannot open {args.connect}: {error}"
+                                      f"{_run_hint(args, runs)}")
     try:
         with link:
             return _command(link, args)
     except SeveralVehicles as error:
         return _say(ExitCode.USAGE, str(error))
     except TmlError as error:
-        return _say(ExitCode.FAILURE, str(error))
+        return _say(ExitCode.FAILURE, f"{error}{_run_hint(args, runs)}")
+
+
+def _run_hint(args: argparse.Namespace, runs: list[int]) -> str:
+    """Why the vehicle may not be heard: a run holds the address (a serial port, or a TCP
+    port that takes one client), and --sysid would reach it through its control socket."""
+    if not runs or args.sysid is not None:
+        return ""
+    return (f" (a run flies the vehicle with system id {', '.join(map(str, runs))} at "
+            f"{args.connect}: give --sysid to command it through the run)")
 
 
 COMMAND_COMPONENT = 91

@@ -206,3 +206,12 @@ def test_without_sysid_an_address_that_cannot_be_heard_names_the_run_there(
     assert capsys.readouterr().err.strip().endswith(
         "(a run flies the vehicle with system id 3 at tcp:127.0.0.1:9: give --sysid to "
         "command it through the run)")
+
+
+def test_the_answer_names_the_system_id_where_the_runs_number_differs(directory: str) -> None:
+    vehicle = Vehicle()  # the run's vehicle 1, system id 2 on its link
+    desk = OperatorDesk(Runner(vehicle), {2: vehicle})  # type: ignore[arg-type]
+    with ControlServer(desk, {control_path(ADDRESS, 2): 2}):
+        answer = ask_run(ADDRESS, 2, "hold", 10.0)
+    assert answer is not None and answer.outcome == "done"
+    assert answer.message.startswith("vehicle 1 (system id 2): hold done (the run paused)")

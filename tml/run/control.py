@@ -132,7 +132,9 @@ def ask_run(address: str, system_id: int, command: str, timeout: float) -> Answe
     if not os.path.exists(path):
         return None
     with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as peer:
-        peer.settimeout(timeout + 30.0)  # the run's own waits come first
+        # The run waits up to ``timeout`` for its loop to take a pause, then as long for
+        # the confirmation: its own waits end first.
+        peer.settimeout(2 * timeout + 30.0)
         try:
             peer.connect(path)
         except (ConnectionRefusedError, FileNotFoundError):
@@ -183,15 +185,15 @@ class OperatorDesk:
         if vehicle is None:
             return Answer("no run", f"the run flies no vehicle {system_id}",
                           int(ExitCode.FAILURE))
-        vid = vehicle.vehicle_id
+        who = _who(vehicle, system_id)
         state = vehicle.state()
         try:
             request = operator_request(state, command)
         except CommandRefusal as refusal:
-            return Answer("refused", f"vehicle {vid}: {command} refused: {refusal}",
+            return Answer("refused", f"{who}: {command} refused: {refusal}",
                           int(ExitCode.USAGE))
         if request is None:
-            return Answer("nothing to do", f"vehicle {vid}: nothing to do: {_where(state)}",
+            return Answer("nothing to do", f"{who}: nothing to do: {_where(state)}",
                           int(ExitCode.OK))
         reason = f"operator command: {command}"
         if command == "hold":
@@ -208,21 +210,21 @@ class OperatorDesk:
         else:
             return Answer("no run", "the run is not flying its mission",
                           int(ExitCode.FAILURE))
-        return self.confirm(vehicle, command, timeout, said)
+        return self.confirm(vehicle, command, timeout, said, who)
 
-    def confirm(self, vehicle: Vehicle, command: str, timeout: float, said: str) -> Answer:
+    def confirm(self, vehicle: Vehicle, command: str, timeout: float, said: str,
+                who: str) -> Answer:
         """Wait up to ``timeout`` wall seconds for the telemetry to confirm ``command``."""
-        vid = vehicle.vehicle_id
         confirmation = Confirmation(command)
         end = time.monotonic() + timeout
         while True:
             state = vehicle.state()
             if confirmation.see(state, self.vehicle_time(vehicle, state)):
-                return Answer("done", f"vehicle {vid}: {command} done ({said}): "
+                return Answer("done", f"{who}: {command} done ({said}): "
                                       f"{confirmation.seen()}", int(ExitCode.OK))
             if time.monotonic() >= end:
                 return Answer("not confirmed",
-                              f"vehicle {vid}: {command} not confirmed within {timeout:g} s "
+                              f"{who}: {command} not confirmed within {timeout:g} s "
                               f"({said}; wanted {confirmation.criterion()}; seen "
                               f"{confirmation.seen()})", int(ExitCode.FAILURE))
             time.sleep(POLL_PERIOD)
@@ -237,6 +239,12 @@ def own_time(vehicle: Vehicle, state: VehicleState) -> float:
         return state.time
     boot = telemetry(system_id).boot_time
     return state.time if boot is None else float(boot)
+
+
+def _who(vehicle: Vehicle, system_id: int) -> str:
+    """The run's name of a vehicle, with its system id when that differs."""
+    vid = vehicle.vehicle_id
+    return f"vehicle {vid}" if vid == system_id else f"vehicle {vid} (system id {system_id})"
 
 
 def _where(state: VehicleState) -> str:

@@ -198,8 +198,9 @@ class SwitchedBack:
 
     def __init__(self) -> None:
         arrived = {"HEARTBEAT": 1.0, "GLOBAL_POSITION_INT": 1.0, "EXTENDED_SYS_STATE": 1.0}
-        self.mav = SimpleNamespace(request_rates=lambda: None)
-        self.link = SimpleNamespace(arrivals=lambda _system_id: arrived)
+        self.mav = SimpleNamespace(request_rates=lambda: None, ask_again=lambda *_: None)
+        self.link = SimpleNamespace(arrivals=lambda _system_id: arrived,
+                                    listen=lambda _listener: None)
         self.submitted: list[Any] = []
         self.now = 1.0
 

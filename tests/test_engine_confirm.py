@@ -82,3 +82,15 @@ def test_disarm_is_done_when_disarmed_on_the_ground() -> None:
     ground = replace(FLYING, landed=True, ground_speed=0.0, position=(0.0, 0.0, 0.0))
     assert feed(Confirmation("disarm"), [(0.0, ground), (1.0, replace(ground, armed=False))]) \
         == [False, True]
+
+
+def test_a_stop_in_guided_whose_reported_target_is_elsewhere_is_no_hold() -> None:
+    from tml.mavlink.targets import GuidedTarget
+
+    slow = replace(FLYING, ground_speed=0.2)  # slowed, but told to fly on
+    away, stop = GuidedTarget(1.0, distance=152.0), GuidedTarget(2.0, speed=0.0)
+    confirmation = Confirmation("hold")
+    assert not any(confirmation.see(slow, t, away) for t in range(10))
+    assert confirmation.seen().endswith("GUIDED target 152 m away")
+    assert [confirmation.see(slow, t, stop) for t in (10.0, 13.0)] == [False, True]
+    assert confirmation.seen().endswith("GUIDED target velocity 0.0 m/s")

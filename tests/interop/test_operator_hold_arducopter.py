@@ -4,7 +4,8 @@ vehicle stops and stays.
 ``tml run`` flies a 300 m leg at 6 m/s from a child process on the vehicle's first port;
 mid-leg an operator runs ``tml command hold`` with the same address. It finds the run's
 control socket, the run pauses (its vehicle held where it is), and the command says done
-only once the vehicle's telemetry showed it stopped. A plain pymavlink ground station on
+only once the vehicle's telemetry showed it stopped, and the GUIDED target it reports
+(POSITION_TARGET_LOCAL_NED) is the run's zero velocity. A plain pymavlink ground station on
 the vehicle's second port (SERIAL1) judges it: the vehicle moves less than 1 m in the 10 s
 of its own time after the command, and the run, still paused, is not ended by it.
 """
@@ -102,6 +103,8 @@ def test_hold_during_a_run_stops_the_vehicle_through_the_run(
             said = command.stdout + command.stderr
             assert command.returncode == 0, said
             assert "hold done (the run paused)" in said and "[through the run]" in said
+            # What ArduCopter flies to, by its own word: the run's zero velocity.
+            assert "GUIDED target velocity 0.0 m/s" in said, said
             start = observer.now()
             track = [observer.position()]
             while track[-1][0] - max(start, track[0][0]) < HELD_FOR:

@@ -207,10 +207,13 @@ def _carry_out(vehicle: MavlinkVehicle, command: str, timeout: float) -> ExitCod
     from tml.engine.confirm import Confirmation
     from tml.engine.safety import CommandRefusal, operator_request
     from tml.errors import CommandRejected, VehicleError
+    from tml.mavlink.targets import TargetWatch
     from tml.run.control import own_time
 
     vid = vehicle.vehicle_id
     vehicle.mav.request_rates()
+    targets = TargetWatch(vehicle.link, vehicle.system_id)  # what it flies to in GUIDED
+    targets.ask(vehicle.mav)
     state = _wait(vehicle, lambda s: _telemetry_in(vehicle, s), timeout)
     if state is None:
         return _say(ExitCode.FAILURE, f"vehicle {vid}: no telemetry within {timeout:g} s "
@@ -222,6 +225,7 @@ def _carry_out(vehicle: MavlinkVehicle, command: str, timeout: float) -> ExitCod
     if request is None:
         print(f"vehicle {vid}: nothing to do: {_where(state)}")
         return ExitCode.OK
+    targets.clear()  # those reported after the command
     if command == "hold":
         mode = holding_mode(state)
         try:
@@ -242,7 +246,8 @@ def _carry_out(vehicle: MavlinkVehicle, command: str, timeout: float) -> ExitCod
             return _say(ExitCode.FAILURE, f"vehicle {vid}: {command} refused by the "
                                           f"vehicle: {result.reason} {result.detail}".rstrip())
     confirmation = Confirmation(command)
-    shown = _wait(vehicle, lambda s: confirmation.see(s, own_time(vehicle, s)), timeout)
+    shown = _wait(vehicle, lambda s: confirmation.see(s, own_time(vehicle, s), targets.latest),
+                  timeout)
     if shown is None:
         return _say(ExitCode.FAILURE, f"vehicle {vid}: {command} not confirmed within "
                                       f"{timeout:g} s (wanted {confirmation.criterion()}; "

@@ -47,6 +47,7 @@ from tml.errors import ControlRefused, ExitCode
 from tml.vehicle import Vehicle, VehicleState
 
 if TYPE_CHECKING:
+    from tml.mavlink.targets import TargetWatch
     from tml.run.runner import Runner
 
 ENVIRONMENT = "TML_RUNTIME_DIR"
@@ -179,6 +180,7 @@ class OperatorDesk:
         self.runner = runner
         self.vehicles = dict(vehicles)
         self.vehicle_time = vehicle_time or own_time
+        self._targets: dict[int, TargetWatch | None] = {}  # by system id
 
     def command(self, system_id: int, command: str, timeout: float) -> Answer:
         vehicle = self.vehicles.get(system_id)
@@ -195,6 +197,7 @@ class OperatorDesk:
         if request is None:
             return Answer("nothing to do", f"{who}: nothing to do: {_where(state)}",
                           int(ExitCode.OK))
+        watch = self._target_watch(system_id, vehicle)
         reason = f"operator command: {command}"
         if command == "hold":
             try:
@@ -210,16 +213,36 @@ class OperatorDesk:
         else:
             return Answer("no run", "the run is not flying its mission",
                           int(ExitCode.FAILURE))
-        return self.confirm(vehicle, command, timeout, said, who)
+        return self.confirm(vehicle, command, timeout, said, who, watch)
+
+    def _target_watch(self, system_id: int, vehicle: Vehicle) -> TargetWatch | None:
+        """The GUIDED targets a vehicle on a MAVLink link reports (asked for, and cleared:
+        those from now on); None for another vehicle."""
+        if system_id not in self._targets:
+            link, mav = getattr(vehicle, "link", None), getattr(vehicle, "mav", None)
+            watch = None
+            if link is not None and mav is not None:
+                from tml.mavlink.targets import TargetWatch
+
+                watch = TargetWatch(link, system_id)
+                watch.ask(mav)
+            self._targets[system_id] = watch
+        watch = self._targets[system_id]
+        if watch is not None:
+            watch.clear()
+        return watch
 
     def confirm(self, vehicle: Vehicle, command: str, timeout: float, said: str,
-                who: str) -> Answer:
-        """Wait up to ``timeout`` wall seconds for the telemetry to confirm ``command``."""
+                who: str, targets: TargetWatch | None = None) -> Answer:
+        """Wait up to ``timeout`` wall seconds for the telemetry to confirm ``command``
+        (with the GUIDED targets the vehicle reports since, when ``targets`` watches
+        them)."""
         confirmation = Confirmation(command)
         end = time.monotonic() + timeout
         while True:
             state = vehicle.state()
-            if confirmation.see(state, self.vehicle_time(vehicle, state)):
+            target = None if targets is None else targets.latest
+            if confirmation.see(state, self.vehicle_time(vehicle, state), target):
                 return Answer("done", f"{who}: {command} done ({said}): "
                                       f"{confirmation.seen()}", int(ExitCode.OK))
             if time.monotonic() >= end:

@@ -145,8 +145,10 @@ def test_rtl_through_the_run_ends_it_into_rtl(
         assert code == 0, (out, err)
         assert "vehicle 1: rtl done (the run ends into rtl)" in out
         run_out, _ = process.communicate(timeout=LIMIT)
-    assert process.returncode == 3
+    assert process.returncode == 4, run_out  # taken by the operator (tml.run.endings)
     assert "mission aborted: operator command: rtl" in run_out
+    assert "run taken (exit 4): taken over by an operator's command, carried out through " \
+        "the run" in run_out
     assert sim.vehicle(1).mode in ("RTL", "LAND") or not sim.vehicle(1).armed
     assert not [line for line in log_lines(log) if line["kind"] == "taken"]
 

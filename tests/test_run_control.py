@@ -76,9 +76,9 @@ class Runner:
         self.asked.append((kind, reason))
         self.paused = True
 
-    def stop(self, reason: str, safe_state: str | None = None) -> None:
-        self.asked.append(("stop", reason, str(safe_state)))
-        self.vehicle.current = replace(self.vehicle.current, mode=(safe_state or "").upper())
+    def take_over(self, command: str) -> None:
+        self.asked.append(("take_over", command))
+        self.vehicle.current = replace(self.vehicle.current, mode=command.upper())
 
 
 @pytest.fixture
@@ -132,7 +132,7 @@ def test_rtl_ends_the_run_into_rtl_and_is_done_once_it_heads_home(directory: str
     with serve(runner, vehicle):
         answer = ask_run(ADDRESS, 1, "rtl", 10.0)
     assert answer is not None and answer.outcome == "done", answer
-    assert runner.asked == [("stop", "operator command: rtl", "rtl")]
+    assert runner.asked == [("take_over", "rtl")]
 
 
 def test_a_hold_the_vehicle_does_not_keep_is_not_confirmed(directory: str) -> None:

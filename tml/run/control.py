@@ -22,8 +22,9 @@ The run carries the command out as ``tml serve`` does (:class:`OperatorDesk`): r
 with the reason when :func:`~tml.engine.safety.operator_request` refuses it (a disarm in
 the air); ``hold`` pauses the run (every vehicle of it holds, the journal's ``control``
 line says "mission paused: operator command hold"); ``rtl`` and ``land`` end the run into
-that safe state, ``disarm`` (on the ground) into its own, the reason "operator command:
-..." in the outcome.
+that safe state, ``disarm`` (on the ground) into its own (:meth:`Runner.take_over
+<tml.run.runner.Runner.take_over>`, as the service's command: the run ends taken by the
+operator), the reason "operator command: ..." in the outcome.
 """
 
 from __future__ import annotations
@@ -208,7 +209,7 @@ class OperatorDesk:
                                   int(ExitCode.FAILURE))
             said = "the run paused"
         elif self.runner.flying:
-            self.runner.stop(reason, None if command == "disarm" else command)
+            self.runner.take_over(command)  # as the service's command (tml.run.endings)
             said = f"the run ends into {command}"
         else:
             return Answer("no run", "the run is not flying its mission",

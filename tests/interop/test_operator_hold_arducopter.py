@@ -1,7 +1,8 @@
 """ArduCopter SITL: ``tml command hold`` during a ``tml run`` goes through the run, and the
 vehicle stops and stays.
 
-``tml run`` flies a 300 m leg at 6 m/s from a child process on the vehicle's first port;
+``tml run`` flies a 300 m leg (SET_SPEED 6 first) from a child process on the vehicle's
+first port;
 mid-leg an operator runs ``tml command hold`` with the same address. It finds the run's
 control socket, the run pauses (its vehicle held where it is), and the command says done
 only once the vehicle's telemetry showed it stopped, and the GUIDED target it reports

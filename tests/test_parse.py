@@ -340,3 +340,25 @@ def test_a_required_attribute_missing_outside_the_schema_is_a_syntax_error() -> 
                        "'altitude'") as info:
         builder.build_world(doc)
     assert info.value.location == Location("w.xml", 2, 3) and info.value.code == "E104"
+
+
+def test_nodes_built_have_every_field_and_equal_their_constructors() -> None:
+    # The builder fills the frozen nodes' fields without their __init__ (for speed).
+    import dataclasses
+
+    mission, _ = build()
+    nodes: list[object] = []
+    for task in mission.walk():
+        nodes.append(task)
+        nodes.extend(task.conditions)
+        if task.action is not None:
+            nodes.append(task.action)
+            nodes.extend(task.action.arguments)
+    for event in mission.events:
+        nodes.extend(event.conditions)
+    assert {type(n).__name__ for n in nodes} >= {"Task", "Condition", "Action", "Argument"}
+    for node in nodes:
+        assert dataclasses.is_dataclass(node) and not isinstance(node, type)
+        names = {f.name for f in dataclasses.fields(node)}
+        assert set(vars(node)) == names
+        assert type(node)(**vars(node)) == node

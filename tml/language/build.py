@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, TypeVar
 from lxml import etree
 
 from tml import geo
-from tml.errors import Location, MissionSyntaxError
+from tml.errors import MissionSyntaxError
 from tml.language import schema
 from tml.language.diagnostics import Diagnostic, error
 from tml.language.model import (
@@ -56,6 +56,20 @@ if TYPE_CHECKING:
 
 E = TypeVar("E", bound=StrEnum)
 D = TypeVar("D")
+N = TypeVar("N")
+
+
+def _built(node: type[N], /, **fields: object) -> N:
+    """``node(**fields)`` for a frozen dataclass of the model given every one of its fields.
+
+    Its generated ``__init__`` sets each field through ``object.__setattr__`` (4 us for a
+    task's 20, a sixth of building a mission): here the fields fill the new instance's
+    ``__dict__`` in one step. tests/test_build.py checks that every node so built has all
+    its fields and equals the one its ``__init__`` makes.
+    """
+    built = object.__new__(node)
+    built.__dict__.update(fields)
+    return built
 
 
 class _Builder:
@@ -69,9 +83,8 @@ class _Builder:
         self.left_out = left_out
         self.diagnostics: list[Diagnostic] = []
         self._children: dict[etree._Element, dict[str, list[etree._Element]]] = {}
-
-    def loc(self, element: etree._Element, attribute: str | None = None) -> Location:
-        return self.doc.location(element, attribute)
+        # Where an element (or one of its attributes) is: asked for every node built.
+        self.loc = doc.location
 
     def number(self, element: etree._Element, attribute: str, quantity: Quantity,
                default: str | None = None) -> float:
@@ -262,14 +275,15 @@ class _Builder:
                 "keep <repeat times=...> for a count, or <loop> for while/forever"))
 
         def conditions_of(tag: str) -> tuple[Condition, ...]:
-            found = gates.get(tag)
+            found = gates.get(tag) if gates else None
             return tuple(self.condition(c) for c in self.children(found[0], "condition")) \
                 if found else ()
 
         loops = gates.get("loop")
         release = element.get("release")
         composition = element.get("composition")
-        return Task(
+        return _built(
+            Task,
             name=name,
             path=path,
             location=self.loc(element),
@@ -304,9 +318,11 @@ class _Builder:
                     self.loc(arg), "E213",
                     f"argument {arg.get('name')!r} has {which} of value= and label=",
                     "give value= for a literal, or label= for a memorized point"))
-            arguments.append(Argument(arg.get("name", "").strip(), value,
-                                      label.strip() if label else label, self.loc(arg)))
-        return Action(element.get("name", "").strip(), tuple(arguments), self.loc(element))
+            arguments.append(_built(Argument, name=arg.get("name", "").strip(), value=value,
+                                    label=label.strip() if label else label,
+                                    location=self.loc(arg)))
+        return _built(Action, name=element.get("name", "").strip(), arguments=tuple(arguments),
+                      location=self.loc(element))
 
     def mission_item(self, element: etree._Element) -> Action:
         """``<mission_item command=... frame=... param1=.../>``: the action MISSION_ITEM,
@@ -331,7 +347,8 @@ class _Builder:
         kind = {"parameter": ConditionKind.PARAMETER, "label": ConditionKind.LABEL}.get(
             attribute, ConditionKind.CURRENT_TASK)
         comparison = element.get("comparison")
-        return Condition(
+        return _built(
+            Condition,
             kind=kind,
             subject=subject.strip(),
             comparison=self.word(Comparison, comparison, None),

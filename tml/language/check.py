@@ -674,7 +674,8 @@ class _Checker:
                 "an action and no sub-tasks", "composition says how sub-tasks run; remove it"))
         gated = [(tag, c) for tag, conditions in (
             ("wait_for", task.wait_for), ("until", task.until),
-            ("loop", task.loop.conditions if task.loop else ())) for c in conditions]
+            ("loop", task.loop.conditions if task.loop else ())) for c in conditions] \
+            if task.wait_for or task.until or task.loop is not None else []
         for tag, condition in gated:
             if condition.kind is ConditionKind.CURRENT_TASK:
                 self.found.append(error(

@@ -94,6 +94,8 @@ def out_of_range(quantity: Quantity, value: float) -> str | None:
     """Why ``value`` is not a ``quantity`` a vehicle can fly (not finite, or outside its
     range), or None if it is one."""
     bounds = RANGES[quantity]
+    if bounds.low <= value <= bounds.high:  # the common case: no words to build
+        return None
     if not math.isfinite(value):
         return f"must be a finite number ({bounds.text()})"
     unit = f" {bounds.unit}" if bounds.unit else ""

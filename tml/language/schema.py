@@ -108,8 +108,8 @@ def problems(doc: XmlDocument, expected_root: str = "mission") -> list[SchemaPro
     """All schema violations of ``doc``, each with where it is (empty when valid)."""
     root = doc.root
     name = element_name(root)
-    later = next((e for e in root.iter() if isinstance(e.tag, str)
-                  and element_name(e) in AEROSTACK_LATER), None)
+    # Searched by libxml2 (names in no namespace, in document order), not element by element.
+    later = next(root.iter(*AEROSTACK_LATER), None)
     if expected_root == "mission" and later is not None:
         return [SchemaProblem(error(
             doc.location(later), "E008",

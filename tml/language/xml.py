@@ -18,6 +18,8 @@ from __future__ import annotations
 import bisect
 import errno
 import functools
+import itertools
+import operator
 import os
 import re
 import stat
@@ -66,8 +68,8 @@ class XmlDocument:
     file: str
     text: str
     root: etree._Element
-    # Each element's start tag: character offset, line and column (found in one sweep).
-    _starts: dict[etree._Element, tuple[int, int, int]] = field(repr=False)
+    # Each element's start tag: its character offset and location (found in one sweep).
+    _starts: dict[etree._Element, tuple[int, Location]] = field(repr=False)
 
     @functools.cached_property
     def _line_starts(self) -> list[int]:
@@ -84,12 +86,12 @@ class XmlDocument:
         found = self._starts.get(element)
         if found is None:
             return Location(self.file, element.sourceline or 0, 0)
-        start, line, column = found
+        start, where = found
         if attribute is not None:
             offset = _attribute_offset(self.text, start, attribute)
             if offset is not None:
                 return self.location_of_offset(offset)
-        return Location(self.file, line, column)
+        return where
 
     def required(self, element: etree._Element, attribute: str) -> str:
         """The value of an attribute the schema requires; a missing one (a document built
@@ -174,22 +176,21 @@ def read_xml(source: str | Path, data: bytes | None = None) -> XmlDocument:
         line_start = text.rfind("\n", 0, offset) + 1
         return Location(file, text.count("\n", 0, offset) + 1, offset - line_start + 1)
 
-    tags: list[tuple[int, int, int]] = []  # offset, line, column of each start tag
-    line, previous, line_start = 1, 0, 0
-    for match in _MARKUP.finditer(text):
-        if match.group("tag"):
-            offset = match.start()
-            newlines = text.count("\n", previous, offset)  # counted in C, tag to tag
-            if newlines:
-                line += newlines
-                line_start = text.rfind("\n", previous, offset) + 1
-            previous = offset
-            # Searched from the previous tag only: a file on one line stays linear.
-            tags.append((offset, line, offset - line_start + 1))
-        elif match.group(0) == "<!DOCTYPE":
-            raise MissionSyntaxError(
-                "DOCTYPE declarations are not accepted (no DTDs or entities in mission files)",
-                at(match.start()), "E003")
+    if "<!DOCTYPE" in text:  # refused unless it is inside a comment, CDATA or a PI
+        for match in _MARKUP.finditer(text):
+            if match.group(0) == "<!DOCTYPE":
+                raise MissionSyntaxError(
+                    "DOCTYPE declarations are not accepted (no DTDs or entities in mission "
+                    "files)", at(match.start()), "E003")
+    # The offset of each start tag, then its line and column: the loops run in C (a
+    # regular expression, the lines' lengths summed), Python's work is one step per tag.
+    offsets = [match.start() for match in _MARKUP.finditer(text) if match.lastgroup]
+    lines = text.split("\n")
+    line_starts = [0, *map(operator.add, itertools.accumulate(map(len, lines)),
+                           itertools.count(1))]
+    tags = [(offset, Location(file, line, offset - line_starts[line - 1] + 1))
+            for offset in offsets
+            for line in (bisect.bisect_right(line_starts, offset),)]
     parser = etree.XMLParser(
         resolve_entities=False, no_network=True, load_dtd=False, dtd_validation=False,
         huge_tree=False, remove_blank_text=False, collect_ids=False,
@@ -203,17 +204,21 @@ def read_xml(source: str | Path, data: bytes | None = None) -> XmlDocument:
                                  Location(file, line, column), "E002") from None
     elements = list(root.iter(etree.Element))
     starts = dict(zip(elements, tags, strict=False)) if len(elements) == len(tags) else {}
-    depths = {root: 0}
-    for element in elements:
-        parent = element.getparent()
-        depth = depths[element] = depths[parent] + 1 if parent is not None else 0
-        if depth >= MAX_DEPTH:
-            where = starts.get(element)
-            raise MissionSyntaxError(
-                f"elements nest {depth + 1} deep; the limit is {MAX_DEPTH}",
-                Location(file, where[1], where[2]) if where
-                else Location(file, element.sourceline or 1, 0), "E006")
+    # The first element MAX_DEPTH deep, in document order, as libxml2 finds it.
+    too_deep = _at_depth(MAX_DEPTH)(root)
+    if isinstance(too_deep, list) and too_deep and isinstance(too_deep[0], etree._Element):
+        element = too_deep[0]
+        where = starts.get(element)
+        raise MissionSyntaxError(
+            f"elements nest {MAX_DEPTH + 1} deep; the limit is {MAX_DEPTH}",
+            where[1] if where else Location(file, element.sourceline or 1, 0), "E006")
     return XmlDocument(file, text, root, starts)
+
+
+@functools.cache
+def _at_depth(depth: int) -> etree.XPath:
+    """The XPath of the elements ``depth`` deep (the root's is 0), in document order."""
+    return etree.XPath("/" + "/".join(["*"] * (depth + 1)))
 
 
 def read_bounded(source: str | Path) -> bytes:

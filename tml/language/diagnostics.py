@@ -16,7 +16,6 @@ stays linear in the number of diagnostics.
 from __future__ import annotations
 
 import functools
-import json
 import re
 from collections import Counter
 from collections.abc import Iterable, Iterator, Mapping
@@ -189,6 +188,8 @@ def format_github(diagnostic: Diagnostic) -> str:
 
 def format_json(results: Iterable[tuple[str, bool, list[Diagnostic]]]) -> str:
     """One JSON document: for each file, whether it is valid and its diagnostics."""
+    import json  # here: only this output needs it, so start-up does without
+
     return json.dumps(
         [{"file": file, "valid": valid, "diagnostics": [d.to_dict() for d in diags]}
          for file, valid, diags in results],

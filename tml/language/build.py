@@ -250,29 +250,30 @@ class _Builder:
             elif tag == "on_error":
                 handlers.extend(self.task(t, path, dispatch, role)
                                 for t in self.children(child, "task"))
-        for extra in repeats[1:]:
-            self.diagnostics.append(error(
-                self.loc(extra), "E251", f"task {name!r} has more than one <repeat>",
-                "keep one <repeat times=...>"))
-        for tag, found in gates.items():
-            for extra in found[1:]:
+        if len(repeats) > 1 or gates:  # rare: most tasks have neither
+            for extra in repeats[1:]:
                 self.diagnostics.append(error(
-                    self.loc(extra), "E251", f"task {name!r} has more than one <{tag}>",
-                    f"put all the conditions in one <{tag}>: they must all hold"))
-        for tag in ("wait_for", "until"):
-            found = gates.get(tag, [])
-            if found and not self.children(found[0], "condition"):
+                    self.loc(extra), "E251", f"task {name!r} has more than one <repeat>",
+                    "keep one <repeat times=...>"))
+            for tag, found in gates.items():
+                for extra in found[1:]:
+                    self.diagnostics.append(error(
+                        self.loc(extra), "E251", f"task {name!r} has more than one <{tag}>",
+                        f"put all the conditions in one <{tag}>: they must all hold"))
+            for tag in ("wait_for", "until"):
+                found = gates.get(tag, [])
+                if found and not self.children(found[0], "condition"):
+                    self.diagnostics.append(error(
+                        self.loc(found[0]), "E282",
+                        f"<{tag}> in task {name!r} has no condition",
+                        "it would " + ("wait for nothing" if tag == "wait_for" else
+                                       "stop the task at once") + "; give it a <condition> "
+                        "or remove it"))
+            if repeats and "loop" in gates:
                 self.diagnostics.append(error(
-                    self.loc(found[0]), "E282",
-                    f"<{tag}> in task {name!r} has no condition",
-                    "it would " + ("wait for nothing" if tag == "wait_for" else
-                                   "stop the task at once") + "; give it a <condition> "
-                    "or remove it"))
-        if repeats and "loop" in gates:
-            self.diagnostics.append(error(
-                self.loc(gates["loop"][0]), "E251",
-                f"task {name!r} has both <repeat> and <loop>",
-                "keep <repeat times=...> for a count, or <loop> for while/forever"))
+                    self.loc(gates["loop"][0]), "E251",
+                    f"task {name!r} has both <repeat> and <loop>",
+                    "keep <repeat times=...> for a count, or <loop> for while/forever"))
 
         def conditions_of(tag: str) -> tuple[Condition, ...]:
             found = gates.get(tag) if gates else None

@@ -562,8 +562,9 @@ def parse_value(spec: ArgumentSpec, raw: str) -> ArgumentValue:
         match = _POINT.match(text)
         if not match:
             raise ValueError("expected a point '(north, east, up)' of three numbers in metres")
-        north, east, up = (parse_number(g) for g in match.groups())
-        if north is None or east is None or up is None:
+        # Each group is a number as parse_number reads it: only its size may be refused.
+        north, east, up = map(float, match.groups())
+        if not (math.isfinite(north) and math.isfinite(east) and math.isfinite(up)):
             raise ValueError("expected a point of three finite numbers in metres")
         for axis, component, quantity in (("north", north, Quantity.COORDINATE),
                                           ("east", east, Quantity.COORDINATE),
@@ -609,13 +610,15 @@ def parse_value(spec: ArgumentSpec, raw: str) -> ArgumentValue:
 
 
 def _check_range(spec: ArgumentSpec, value: float) -> None:
-    unit = f" {spec.unit}" if spec.unit else ""
+    def unit() -> str:  # the words only for a value refused
+        return f" {spec.unit}" if spec.unit else ""
+
     if spec.positive and value <= 0:
-        raise ValueError(f"must be greater than 0{unit}")
+        raise ValueError(f"must be greater than 0{unit()}")
     if spec.minimum is not None and value < spec.minimum:
-        raise ValueError(f"must be at least {spec.minimum:g}{unit}")
+        raise ValueError(f"must be at least {spec.minimum:g}{unit()}")
     if spec.maximum is not None and value > spec.maximum:
-        raise ValueError(f"must be at most {spec.maximum:g}{unit}")
+        raise ValueError(f"must be at most {spec.maximum:g}{unit()}")
     why = out_of_range(spec.quantity, value) if spec.quantity is not None else None
     if why is not None:
         raise ValueError(why)

@@ -223,8 +223,15 @@ def _battery(step: Step, model: FlightModel, homeward: bool, fail: _Fail) -> Non
     bounds = sorted((b - model.return_home_energy(p, after.home, planned=False), p, b)
                     for p, b in points)
     worst: tuple[float, Point3] | None = None
+    empty = min(0.0, profile.battery_reserve - 1e-9)
     for bound, point, battery in bounds:
         if worst is not None and bound >= worst[0]:
+            break
+        if len(bounds) == 1 and bound < empty:
+            # The one point: the battery runs out even on the straight way home, so it
+            # does on the planned one, and what is reported (that it runs out, from this
+            # point) does not depend on how much longer that way is.
+            worst = (bound, point)
             break
         left = battery - model.return_home_energy(point, after.home)
         if worst is None or left < worst[0]:

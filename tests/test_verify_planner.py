@@ -142,3 +142,29 @@ def test_tangent_edges_find_the_shortest_path_of_all_visible_edges(
     assert (fast is None) == (reference is None)
     if fast is not None and reference is not None:
         assert fast.length <= reference.length * (1 + 1e-6) + 1e-9
+
+
+@settings(max_examples=40, deadline=None)
+@given(crowded, prisms, st.floats(0, 6), st.lists(point, min_size=2, max_size=12))
+def test_segments_meet_the_polygons_shapely_says_they_meet(
+        round_ones: list[Cylinder], boxes: list[Prism], clearance: float,
+        ends: list[tuple[float, float, float]]) -> None:
+    # Segments decided by the disks inside and around each polygon without asking shapely
+    # are decided as shapely decides them: random ones, and ones between the graph's own
+    # nodes, which run along and close by the polygons.
+    import numpy as np
+    import shapely
+
+    obstacles = [*round_ones, *boxes]
+    assume(obstacles)
+    planner = Planner(obstacles, clearance)
+    everyone = np.arange(len(obstacles))
+    nodes = np.vstack([np.array([p[:2] for p in ends]),
+                       *(planner._node_points(i) for i in everyone)])
+    first, second = np.triu_indices(len(nodes), 1)
+    hit, polygon = planner._crossings(nodes[first], nodes[second], everyone)
+    found = np.zeros((len(first), len(obstacles)), dtype=bool)
+    found[hit, polygon] = True
+    lines = shapely.linestrings(np.stack([nodes[first], nodes[second]], axis=1))
+    expected = shapely.intersects(lines[:, None], planner.inflated[None, :])
+    assert (found == expected).all()

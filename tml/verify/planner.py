@@ -34,6 +34,7 @@ the obstacles an STRtree of their footprints finds near the path, not all of the
 
 from __future__ import annotations
 
+import heapq
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -49,6 +50,9 @@ Point3 = tuple[float, float, float]  # (north, east, up) in metres from home
 QUAD_SEGS = 3
 MARGIN = 0.01  # m between a test polygon and the graph nodes around it
 _COVER = 1.0 / math.cos(math.pi / (4 * QUAD_SEGS))
+# m: a segment this much nearer or farther than a polygon's inner or outer disk certainly
+# meets or misses it (the distances are computed to about 1e-12 m).
+_SURE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -104,6 +108,21 @@ class Planner:
         self.tree = shapely.STRtree(self.inflated)
         self._core_tree = shapely.STRtree(self.cores)
         self._widest = float(np.max(self.radii)) if len(self.radii) else 0.0
+        # A disk around each inflated polygon's centroid that the polygon holds (radius
+        # -inf where the centroid is not inside it) and one that holds the polygon.
+        # (An empty polygon, of a degenerate prism without clearance, has neither: no
+        # segment meets it.)
+        centres = shapely.centroid(self.inflated)
+        self._centres = np.zeros((len(self.obstacles), 2))
+        found, owner = shapely.get_coordinates(centres, return_index=True)
+        self._centres[owner] = found
+        self._inner = np.where(shapely.contains(self.inflated, centres),
+                               shapely.distance(centres, shapely.boundary(self.inflated)),
+                               -math.inf)
+        corners, owner = shapely.get_coordinates(self.inflated, return_index=True)
+        self._outer = np.full(len(self.obstacles), -math.inf)
+        np.maximum.at(self._outer, owner,
+                      np.hypot(*(corners - self._centres[owner]).T))
         self._nodes: dict[int, np.ndarray] = {}
         self._cache: dict[tuple[Point3, Point3], Trajectory | None] = {}
 
@@ -176,9 +195,11 @@ class Planner:
 
     def _shortest(self, a2: tuple[float, float], b2: tuple[float, float],
                   active: list[int], soft: set[int]) -> list[tuple[float, float]] | None:
-        """A* over the visibility graph of the active obstacles, whose edges are found only
-        from the nodes it expands (the straight-line distance to the goal is the heuristic:
-        it never overestimates, so the first time the goal is taken the path is shortest)."""
+        """A* over the visibility graph of the active obstacles (the straight-line distance
+        to the goal is the heuristic: it never overestimates, so the first time the goal is
+        taken the path is shortest). The edges the tangents leave are tested for obstacles
+        all at once, then searched in plain Python: a search expands a dozen nodes, and a
+        numpy call per expansion cost more than the search itself."""
         tree = shapely.STRtree(self.inflated[active])
         # Each node's neighbours on its own polygon, to tell the edges tangent at it.
         candidates, previous_index, next_index = self._rings(active)
@@ -200,53 +221,104 @@ class Planner:
         nodes = np.vstack([np.array([a2, b2]), unique[~ends]])
         before = np.vstack([np.array([a2, b2]), before[keep][first][~ends]])
         after = np.vstack([np.array([a2, b2]), after[keep][first][~ends]])
-        to_goal = np.hypot(*(nodes - nodes[1]).T)
-        cost = np.full(len(nodes), math.inf)
-        cost[0] = 0.0
-        previous = np.zeros(len(nodes), dtype=np.intp)
-        open_ = np.ones(len(nodes), dtype=bool)
         reach = _tangents(nodes, before, after, shared) if self.reduced else \
             np.ones((len(nodes), len(nodes)), dtype=bool)
-        while True:
-            # The open node of least cost plus distance to the goal (the lowest index of
-            # equals), as a heap of (estimate, node) would give it.
-            node = int(np.argmin(np.where(open_, cost + to_goal, math.inf)))
-            if not open_[node] or math.isinf(cost[node]):
-                return None
+        neighbours = self._visible(nodes, reach, np.asarray(active), soft)
+        # The search, as the open node of least cost plus distance to the goal (the lowest
+        # index of equals) taken each time; a node's cost changes only when strictly lower.
+        to_goal = np.hypot(*(nodes - nodes[1]).T).tolist()
+        cost = [math.inf] * len(nodes)
+        cost[0] = 0.0
+        previous = [0] * len(nodes)
+        done = [False] * len(nodes)
+        heap = [(to_goal[0], 0)]
+        while heap:
+            estimate, node = heapq.heappop(heap)
+            if done[node] or estimate > cost[node] + to_goal[node]:
+                continue  # taken already, or an estimate since lowered
             if node == 1:
                 order = [1]
                 while order[-1] != 0:
-                    order.append(int(previous[order[-1]]))
+                    order.append(previous[order[-1]])
                 return [(float(nodes[i][0]), float(nodes[i][1])) for i in reversed(order)]
-            open_[node] = False
-            others = np.flatnonzero(open_ & reach[node])
-            through = cost[node] + np.hypot(*(nodes[others] - nodes[node]).T)
-            # Only an edge that would make a node cheaper is worth testing for obstacles.
-            others, through = others[through < cost[others]], through[through < cost[others]]
-            segments = shapely.linestrings(np.stack(
-                [np.broadcast_to(nodes[node], (len(others), 2)), nodes[others]], axis=1))
-            hit, polygon = tree.query(segments, predicate="intersects")
-            # An (n, 2, 2) array makes n lines, an array; shapely's annotations cannot tell
-            # an array's shape and also allow the single LineString of a 2-D one.
-            hit = hit[self._blocking(hit, polygon, node, others,
-                                     segments, active, soft)]  # type: ignore[arg-type]
-            visible = np.ones(len(others), dtype=bool)
-            visible[hit] = False
-            cost[others[visible]] = through[visible]
-            previous[others[visible]] = node
+            done[node] = True
+            here = cost[node]
+            for other, length in neighbours[node]:
+                through = here + length
+                if through < cost[other] and not done[other]:
+                    cost[other] = through
+                    previous[other] = node
+                    heapq.heappush(heap, (through + to_goal[other], other))
+        return None
 
-    def _blocking(self, hit: np.ndarray, polygon: np.ndarray, node: int, others: np.ndarray,
-                  segments: np.ndarray, active: list[int], soft: set[int]) -> np.ndarray:
+    def _visible(self, nodes: np.ndarray, reach: np.ndarray, active: np.ndarray,
+                 soft: set[int]) -> list[list[tuple[int, float]]]:
+        """Each node's edges that ``reach`` keeps and no active obstacle blocks, with their
+        lengths. Reach is symmetric but for the start's row and the goal's column, so each
+        pair of nodes is tested once; an edge into the start or out of the goal is never
+        searched."""
+        np.fill_diagonal(reach, False)
+        first, second = np.nonzero(np.triu(reach | reach.T))
+        lengths = np.hypot(*(nodes[second] - nodes[first]).T)
+        # Segments at the start or the goal are flown from the start or to the goal.
+        outward = first == 1
+        starts = np.where(outward[:, None], nodes[second], nodes[first])
+        stops = np.where(outward[:, None], nodes[first], nodes[second])
+        hit, polygon = self._crossings(starts, stops, active)
+        blocking = self._blocking(hit, polygon, starts, stops, first <= 1, active, soft)
+        clear = np.ones(len(first), dtype=bool)
+        clear[hit[blocking]] = False
+        first, second, lengths = first[clear], second[clear], lengths[clear]
+        neighbours: list[list[tuple[int, float]]] = [[] for _ in range(len(nodes))]
+        for i, j, length, forward, backward in zip(
+                first.tolist(), second.tolist(), lengths.tolist(),
+                reach[first, second].tolist(), reach[second, first].tolist(), strict=True):
+            if forward:
+                neighbours[i].append((j, length))
+            if backward:
+                neighbours[j].append((i, length))
+        return neighbours
+
+    def _crossings(self, starts: np.ndarray, stops: np.ndarray, active: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+        """The (segment, active obstacle) pairs whose segment meets the obstacle's inflated
+        polygon, as shapely's ``intersects`` says. A segment nearer the polygon's centre than
+        the disk it holds meets it, one farther than the disk that holds it misses it, each
+        by more than ``_SURE`` (far above the rounding of these distances); only the
+        segments in between are asked of shapely."""
+        centres = self._centres[active]
+        along = stops - starts
+        squared = along[:, 0] ** 2 + along[:, 1] ** 2
+        offset_n = centres[None, :, 0] - starts[:, None, 0]
+        offset_e = centres[None, :, 1] - starts[:, None, 1]
+        share = np.clip(np.divide(offset_n * along[:, None, 0] + offset_e * along[:, None, 1],
+                                  squared[:, None], out=np.zeros(offset_n.shape),
+                                  where=squared[:, None] > 0), 0.0, 1.0)
+        distance = np.hypot(offset_n - share * along[:, None, 0],
+                            offset_e - share * along[:, None, 1])
+        meets = distance < self._inner[active] - _SURE
+        segment, polygon = np.nonzero(~meets & (distance <= self._outer[active] + _SURE))
+        if len(segment):
+            lines = shapely.linestrings(np.stack([starts[segment], stops[segment]], axis=1))
+            asked = shapely.intersects(lines, self.inflated[active[polygon]])
+            meets[segment[asked], polygon[asked]] = True
+        hit, polygon = np.nonzero(meets)
+        return hit, polygon
+
+    def _blocking(self, hit: np.ndarray, polygon: np.ndarray, starts: np.ndarray,
+                  stops: np.ndarray, at_end: np.ndarray, active: np.ndarray,
+                  soft: set[int]) -> np.ndarray:
         """Which (segment, polygon) hits block: all, except hits of a soft obstacle's
         polygon by an edge from the start or to the goal that keeps its true clearance."""
         blocking = np.ones(len(hit), dtype=bool)
         if not soft:
             return blocking
-        indices = np.asarray(active)[polygon]
-        at_end = (node == 0) | (others[hit] == 1)
-        check = at_end & np.isin(indices, list(soft))
+        indices = active[polygon]
+        check = at_end[hit] & np.isin(indices, list(soft))
         if check.any():
-            gap = shapely.distance(self.cores[indices[check]], segments[hit[check]]) \
+            segments = shapely.linestrings(np.stack(
+                [starts[hit[check]], stops[hit[check]]], axis=1))
+            gap = shapely.distance(self.cores[indices[check]], segments) \
                 - self.radii[indices[check]]
             blocking[np.flatnonzero(check)] = gap < self.clearance - 1e-9
         return blocking

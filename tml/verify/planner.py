@@ -123,6 +123,13 @@ class Planner:
         self._outer = np.full(len(self.obstacles), -math.inf)
         np.maximum.at(self._outer, owner,
                       np.hypot(*(corners - self._centres[owner]).T))
+        # Each polygon's corners (holes' too), the last repeated to make them as many.
+        count = np.bincount(owner, minlength=len(self.obstacles))
+        most = int(count.max(initial=0))
+        fill = (np.cumsum(count) - count)[:, None] \
+            + np.minimum(np.arange(most)[None, :], np.maximum(count - 1, 0)[:, None])
+        self._corners = corners[np.minimum(fill, len(corners) - 1)] if len(corners) \
+            else np.zeros((len(count), 0, 2))
         self._nodes: dict[int, np.ndarray] = {}
         self._cache: dict[tuple[Point3, Point3], Trajectory | None] = {}
 
@@ -214,8 +221,7 @@ class Planner:
         # Coincident nodes (shared vertices, a vertex on an end) would make zero-length
         # edges, degenerate geometry for the distance and intersection tests; a shared
         # vertex belongs to two polygons, so no edge at it is left out either.
-        unique, first, counts = np.unique(candidates[keep], axis=0, return_index=True,
-                                          return_counts=True)
+        unique, first, counts = _unique_rows(candidates[keep])
         ends = np.all(unique == a2, axis=1) | np.all(unique == b2, axis=1)
         shared = np.concatenate([[True, True], ((counts > 1) | beside[keep][first])[~ends]])
         nodes = np.vstack([np.array([a2, b2]), unique[~ends]])
@@ -223,7 +229,7 @@ class Planner:
         after = np.vstack([np.array([a2, b2]), after[keep][first][~ends]])
         reach = _tangents(nodes, before, after, shared) if self.reduced else \
             np.ones((len(nodes), len(nodes)), dtype=bool)
-        neighbours = self._visible(nodes, reach, np.asarray(active), soft)
+        bounds, heads, lengths = self._visible(nodes, reach, np.asarray(active), soft)
         # The search, as the open node of least cost plus distance to the goal (the lowest
         # index of equals) taken each time; a node's cost changes only when strictly lower.
         to_goal = np.hypot(*(nodes - nodes[1]).T).tolist()
@@ -243,8 +249,9 @@ class Planner:
                 return [(float(nodes[i][0]), float(nodes[i][1])) for i in reversed(order)]
             done[node] = True
             here = cost[node]
-            for other, length in neighbours[node]:
-                through = here + length
+            for edge in range(bounds[node], bounds[node + 1]):
+                other = heads[edge]
+                through = here + lengths[edge]
                 if through < cost[other] and not done[other]:
                     cost[other] = through
                     previous[other] = node
@@ -252,10 +259,11 @@ class Planner:
         return None
 
     def _visible(self, nodes: np.ndarray, reach: np.ndarray, active: np.ndarray,
-                 soft: set[int]) -> list[list[tuple[int, float]]]:
-        """Each node's edges that ``reach`` keeps and no active obstacle blocks, with their
-        lengths. Reach is symmetric but for the start's row and the goal's column, so each
-        pair of nodes is tested once; an edge into the start or out of the goal is never
+                 soft: set[int]) -> tuple[list[int], list[int], list[float]]:
+        """The edges that ``reach`` keeps and no active obstacle blocks, by the node they
+        leave: node i's go to ``heads[bounds[i]:bounds[i + 1]]``, with those lengths.
+        Reach is symmetric but for the start's row and the goal's column, so each pair of
+        nodes is tested once; an edge into the start or out of the goal is never
         searched."""
         np.fill_diagonal(reach, False)
         first, second = np.nonzero(np.triu(reach | reach.T))
@@ -269,15 +277,13 @@ class Planner:
         clear = np.ones(len(first), dtype=bool)
         clear[hit[blocking]] = False
         first, second, lengths = first[clear], second[clear], lengths[clear]
-        neighbours: list[list[tuple[int, float]]] = [[] for _ in range(len(nodes))]
-        for i, j, length, forward, backward in zip(
-                first.tolist(), second.tolist(), lengths.tolist(),
-                reach[first, second].tolist(), reach[second, first].tolist(), strict=True):
-            if forward:
-                neighbours[i].append((j, length))
-            if backward:
-                neighbours[j].append((i, length))
-        return neighbours
+        forward, backward = reach[first, second], reach[second, first]
+        tails = np.concatenate([first[forward], second[backward]])
+        heads = np.concatenate([second[forward], first[backward]])
+        lengths = np.concatenate([lengths[forward], lengths[backward]])
+        order = np.argsort(tails, kind="stable")
+        bounds = np.searchsorted(tails[order], np.arange(len(nodes) + 1)).tolist()
+        return bounds, heads[order].tolist(), lengths[order].tolist()
 
     def _crossings(self, starts: np.ndarray, stops: np.ndarray, active: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray]:
@@ -299,11 +305,35 @@ class Planner:
         meets = distance < self._inner[active] - _SURE
         segment, polygon = np.nonzero(~meets & (distance <= self._outer[active] + _SURE))
         if len(segment):
+            # A polygon whose corners all lie on one side of the segment's line, or all
+            # before its start or all past its end, misses it.
+            apart = self._apart(starts[segment], stops[segment], active[polygon])
+            segment, polygon = segment[~apart], polygon[~apart]
+        if len(segment):
             lines = shapely.linestrings(np.stack([starts[segment], stops[segment]], axis=1))
             asked = shapely.intersects(lines, self.inflated[active[polygon]])
             meets[segment[asked], polygon[asked]] = True
         hit, polygon = np.nonzero(meets)
         return hit, polygon
+
+    def _apart(self, starts: np.ndarray, stops: np.ndarray, obstacles: np.ndarray
+               ) -> np.ndarray:
+        """For each segment and obstacle, whether a line through the segment or square to
+        it at an end has every corner of the obstacle's inflated polygon on its far side
+        by more than ``_SURE``: then the segment misses the polygon."""
+        along = stops - starts
+        length = np.hypot(along[:, 0], along[:, 1])
+        usable = length > _SURE  # tinier ones are left to shapely
+        unit = along / np.where(usable, length, 1.0)[:, None]
+        corners = self._corners[obstacles]  # (pairs, corners, 2)
+        offset_n = corners[..., 0] - starts[:, None, 0]
+        offset_e = corners[..., 1] - starts[:, None, 1]
+        ahead = offset_n * unit[:, None, 0] + offset_e * unit[:, None, 1]
+        aside = offset_e * unit[:, None, 0] - offset_n * unit[:, None, 1]
+        apart: np.ndarray = usable & (
+            (aside.min(axis=1) > _SURE) | (aside.max(axis=1) < -_SURE)
+            | (ahead.max(axis=1) < -_SURE) | (ahead.min(axis=1) > length + _SURE))
+        return apart
 
     def _blocking(self, hit: np.ndarray, polygon: np.ndarray, starts: np.ndarray,
                   stops: np.ndarray, at_end: np.ndarray, active: np.ndarray,
@@ -370,6 +400,17 @@ class Planner:
                          0.0)
         distances: np.ndarray = np.hypot(flat, gap)
         return distances
+
+
+def _unique_rows(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``np.unique(points, axis=0, return_index=True, return_counts=True)`` for points
+    (rows of two): the rows in order, the first index of each, how many of each; a
+    stable sort of the two columns does in one call what numpy does over a record view."""
+    order = np.lexsort((points[:, 1], points[:, 0]))
+    ordered = points[order]
+    starts = np.flatnonzero(np.concatenate([[True], np.any(ordered[1:] != ordered[:-1],
+                                                           axis=1)]))
+    return ordered[starts], order[starts], np.diff(np.append(starts, len(points)))
 
 
 def _tangents(nodes: np.ndarray, before: np.ndarray, after: np.ndarray,

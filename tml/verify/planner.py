@@ -158,7 +158,7 @@ class Planner:
         # a little larger than the true shape): such an obstacle stays, but edges from and
         # to that end are tested against its true shape ("soft").
         soft: set[int] = set()
-        for held in {int(i) for i in self.tree.query([Point(a2), Point(b2)],
+        for held in {int(i) for i in self.tree.query(shapely.points([a2, b2]),
                                                      predicate="intersects")[1]}:
             if min(self._flat_distance(held, a2), self._flat_distance(held, b2)) \
                     >= self.clearance - 1e-9:
@@ -168,7 +168,8 @@ class Planner:
         active: set[int] = set()
         path = [a2, b2]
         while True:
-            crossed = {int(i) for i in self.tree.query(LineString(path), predicate="intersects")
+            crossed = {int(i) for i in self.tree.query(shapely.linestrings(path),
+                                                       predicate="intersects")
                        if usable[i]} - active
             if not crossed:
                 break

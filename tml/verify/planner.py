@@ -34,6 +34,7 @@ the obstacles an STRtree of their footprints finds near the path, not all of the
 
 from __future__ import annotations
 
+import contextlib
 import heapq
 import math
 from collections.abc import Sequence
@@ -116,9 +117,22 @@ class Planner:
         self._centres = np.zeros((len(self.obstacles), 2))
         found, owner = shapely.get_coordinates(centres, return_index=True)
         self._centres[owner] = found
-        self._inner = np.where(shapely.contains(self.inflated, centres),
-                               shapely.distance(centres, shapely.boundary(self.inflated)),
-                               -math.inf)
+        self._inner = np.full(len(self.obstacles), -math.inf)
+        held = np.flatnonzero(shapely.contains(self.inflated, centres))
+
+        def inner(indices: np.ndarray) -> None:
+            with np.errstate(divide="raise", invalid="raise"):
+                self._inner[indices] = shapely.distance(
+                    centres[indices], shapely.boundary(self.inflated[indices]))
+
+        # Where GEOS divides by zero (the outline of a degenerate polygon, its corners
+        # closer than a float can tell) the distance is not trusted: no inner disk.
+        try:
+            inner(held)
+        except FloatingPointError:
+            for index in held:
+                with contextlib.suppress(FloatingPointError):
+                    inner(held[held == index])
         corners, owner = shapely.get_coordinates(self.inflated, return_index=True)
         self._outer = np.full(len(self.obstacles), -math.inf)
         np.maximum.at(self._outer, owner,
@@ -292,23 +306,22 @@ class Planner:
         polygon, as shapely's ``intersects`` says. A segment nearer the polygon's centre than
         the disk it holds meets it, one farther than the disk that holds it misses it, each
         by more than ``_SURE`` (far above the rounding of these distances); only the
-        segments in between are asked of shapely."""
-        centres = self._centres[active]
-        along = stops - starts
-        squared = along[:, 0] ** 2 + along[:, 1] ** 2
-        offset_n = centres[None, :, 0] - starts[:, None, 0]
-        offset_e = centres[None, :, 1] - starts[:, None, 1]
-        share = np.clip(np.divide(offset_n * along[:, None, 0] + offset_e * along[:, None, 1],
-                                  squared[:, None], out=np.zeros(offset_n.shape),
-                                  where=squared[:, None] > 0), 0.0, 1.0)
-        distance = np.hypot(offset_n - share * along[:, None, 0],
-                            offset_e - share * along[:, None, 1])
+        segments in between are asked of shapely. Points are complex numbers here
+        (north + i east): fewer numpy calls for the same arithmetic."""
+        start, stop = _complex(starts), _complex(stops)
+        along = stop - start
+        squared = along.real ** 2 + along.imag ** 2
+        offset = self._centres.view(np.complex128)[active, 0][None, :] - start[:, None]
+        share = np.clip(np.divide((offset * along.conj()[:, None]).real, squared[:, None],
+                                  out=np.zeros(offset.shape), where=squared[:, None] > 0),
+                        0.0, 1.0)
+        distance = np.abs(offset - share * along[:, None])
         meets = distance < self._inner[active] - _SURE
         segment, polygon = np.nonzero(~meets & (distance <= self._outer[active] + _SURE))
         if len(segment):
             # A polygon whose corners all lie on one side of the segment's line, or all
             # before its start or all past its end, misses it.
-            apart = self._apart(starts[segment], stops[segment], active[polygon])
+            apart = self._apart(start[segment], along[segment], active[polygon])
             segment, polygon = segment[~apart], polygon[~apart]
         if len(segment):
             lines = shapely.linestrings(np.stack([starts[segment], stops[segment]], axis=1))
@@ -317,23 +330,20 @@ class Planner:
         hit, polygon = np.nonzero(meets)
         return hit, polygon
 
-    def _apart(self, starts: np.ndarray, stops: np.ndarray, obstacles: np.ndarray
+    def _apart(self, start: np.ndarray, along: np.ndarray, obstacles: np.ndarray
                ) -> np.ndarray:
-        """For each segment and obstacle, whether a line through the segment or square to
-        it at an end has every corner of the obstacle's inflated polygon on its far side
-        by more than ``_SURE``: then the segment misses the polygon."""
-        along = stops - starts
-        length = np.hypot(along[:, 0], along[:, 1])
+        """For each segment (``start`` + ``along``, complex) and obstacle, whether a line
+        through the segment or square to it at an end has every corner of the obstacle's
+        inflated polygon on its far side by more than ``_SURE``: then the segment misses
+        the polygon."""
+        length = np.abs(along)
         usable = length > _SURE  # tinier ones are left to shapely
-        unit = along / np.where(usable, length, 1.0)[:, None]
-        corners = self._corners[obstacles]  # (pairs, corners, 2)
-        offset_n = corners[..., 0] - starts[:, None, 0]
-        offset_e = corners[..., 1] - starts[:, None, 1]
-        ahead = offset_n * unit[:, None, 0] + offset_e * unit[:, None, 1]
-        aside = offset_e * unit[:, None, 0] - offset_n * unit[:, None, 1]
+        # Corners in the segment's frame: real, along it from its start; imaginary, aside.
+        turned = (self._corners.view(np.complex128)[obstacles, :, 0] - start[:, None]) \
+            * (along / np.where(usable, length, 1.0)).conj()[:, None]
         apart: np.ndarray = usable & (
-            (aside.min(axis=1) > _SURE) | (aside.max(axis=1) < -_SURE)
-            | (ahead.max(axis=1) < -_SURE) | (ahead.min(axis=1) > length + _SURE))
+            (turned.imag.min(axis=1) > _SURE) | (turned.imag.max(axis=1) < -_SURE)
+            | (turned.real.max(axis=1) < -_SURE) | (turned.real.min(axis=1) > length + _SURE))
         return apart
 
     def _blocking(self, hit: np.ndarray, polygon: np.ndarray, starts: np.ndarray,
@@ -401,6 +411,12 @@ class Planner:
                          0.0)
         distances: np.ndarray = np.hypot(flat, gap)
         return distances
+
+
+def _complex(points: np.ndarray) -> np.ndarray:
+    """Points (rows of north, east) as complex numbers north + i east."""
+    values: np.ndarray = np.ascontiguousarray(points, dtype=float).view(np.complex128)[:, 0]
+    return values
 
 
 def _unique_rows(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

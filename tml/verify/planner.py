@@ -14,10 +14,9 @@ their vertices (a visibility graph); the vertices used as graph nodes come from 
 polygon grown by a further ``MARGIN``, so that a path along a polygon's edge does not touch
 the polygon it is tested against.
 
-The visibility graph is built lazily, in two ways. A* finds the edges of a node only when
-it expands it. And obstacles are added as needed: first only those the straight line
-crosses, then, while the shortest path found crosses further obstacles, those are added
-and the path planned again. Free space only shrinks as obstacles are added, so when the
+The visibility graph is built lazily: obstacles are added as needed, first only those the
+straight line crosses, then, while the shortest path found crosses further obstacles, those
+are added and the path planned again. Free space only shrinks as obstacles are added, so when the
 graph has no path no path exists; when the path found crosses nothing else it is the
 shortest one.
 
@@ -27,6 +26,12 @@ of its ends is never on it. This leaves a few edges per obstacle instead of one 
 node. The nodes next to a crossing of two overlapping polygons, and shared vertices, keep all
 their edges; so do the start and the goal. Over random crowded and overlapping worlds the
 path found is as long as over every visible edge (a test holds it to within 1e-6).
+
+The edges of a round are tested for obstacles all at once: a segment nearer a polygon's
+centre than a disk the polygon holds meets it; one farther than the disk around it, or with
+all the polygon's corners on one side of its line or beyond one of its ends, misses it (each
+by more than 1e-6 m); only the rest are asked of shapely, so the answers are shapely's (a
+test holds them to it). A* then runs over the visible edges in plain Python with a heap.
 
 Distances to obstacles (:meth:`Planner.clearance_of`, :meth:`Planner.nearest`) measure only
 the obstacles an STRtree of their footprints finds near the path, not all of them.

@@ -13,8 +13,8 @@ waited for, the telemetry the rule judges by is asked for and waited for (HEARTB
 landed state, the position), and the rule of :func:`tml.engine.safety.operator_request`
 says what to send -- or refuses, with the reason, what would be unsafe (a disarm in the
 air) or what the vehicle cannot do (a rover landing). A hold is a mode that holds by
-itself (:data:`HOLDING_MODES`: nothing keeps a GUIDED target once this command has
-gone); RTL, LAND and disarm are carried out as a run carries them out
+itself (:data:`~tml.engine.safety.HOLDING_MODES`: nothing keeps a GUIDED target once
+this command has gone); RTL, LAND and disarm are carried out as a run carries them out
 (:class:`~tml.mavlink.adapter.MavlinkVehicle`). The command is done only when the
 vehicle's telemetry confirms it by its motion (:class:`~tml.engine.confirm.Confirmation`).
 
@@ -179,33 +179,13 @@ def _vehicle(link: Link, system_id: int | None, timeout: float) -> int:
     return first
 
 
-HOLDING_MODES = {"multicopter": "BRAKE", "fixed-wing": "LOITER", "rover": "HOLD",
-                 "boat": "LOITER"}
-"""The mode that holds by itself, by the vehicle's kind (a vehicle no run flies is told
-this mode for ``hold``, not GUIDED, where nothing would keep its target): ArduCopter BRAKE
-(LOITER follows the sticks, and with SITL's resting throttle a LOITER hold descends),
-ArduPlane LOITER (circles where it is), Rover HOLD, a boat LOITER (holds its position)."""
-
-
-def holding_mode(state: VehicleState) -> str:
-    """The mode of :data:`HOLDING_MODES` for the vehicle's kind."""
-    from tml.language.kinds import Kind, kind_of
-
-    kind = kind_of(state.vehicle_type)
-    if kind is Kind.FIXED_WING:
-        return HOLDING_MODES["fixed-wing"]
-    if kind is Kind.GROUND:
-        return HOLDING_MODES["boat" if state.vehicle_type == "boat" else "rover"]
-    return HOLDING_MODES["multicopter"]
-
-
 def _carry_out(vehicle: MavlinkVehicle, command: str, timeout: float) -> ExitCode:
     """Wait for the telemetry, ask the rule, send, and wait for the answer and the
     telemetry that confirms it (tml.engine.confirm)."""
     from dataclasses import replace
 
     from tml.engine.confirm import Confirmation
-    from tml.engine.safety import CommandRefusal, operator_request
+    from tml.engine.safety import CommandRefusal, holding_mode, operator_request
     from tml.errors import CommandRejected, VehicleError
     from tml.mavlink.targets import TargetWatch
     from tml.run.control import own_time

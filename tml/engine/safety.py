@@ -82,6 +82,26 @@ COMMAND_SHOWN: dict[str, frozenset[str]] = {
 stopped in GUIDED, a fixed-wing circling in GUIDED, a rover in HOLD)."""
 
 
+HOLDING_MODES = {"multicopter": "BRAKE", "fixed-wing": "LOITER", "rover": "HOLD",
+                 "boat": "LOITER"}
+"""The mode that holds by itself, by the vehicle's kind (an operator's ``hold`` of a
+vehicle no run flies is this mode, not GUIDED, where nothing would keep its target once
+the command has gone): ArduCopter BRAKE (LOITER follows the sticks, and with SITL's
+resting throttle a LOITER hold descends), ArduPlane LOITER (circles where it is), Rover
+HOLD, a boat LOITER (holds its position)."""
+
+
+def holding_mode(state: VehicleState) -> str:
+    """The mode of :data:`HOLDING_MODES` for the vehicle's kind (``tml command`` and
+    ``tml serve`` hold a vehicle no run flies in it)."""
+    kind = kind_of(state.vehicle_type)
+    if kind is Kind.FIXED_WING:
+        return HOLDING_MODES["fixed-wing"]
+    if kind is Kind.GROUND:
+        return HOLDING_MODES["boat" if state.vehicle_type == "boat" else "rover"]
+    return HOLDING_MODES["multicopter"]
+
+
 class CommandRefusal(ValueError):
     """An operator's command refused before it is sent, saying why (it would be unsafe, or
     the vehicle cannot do it)."""

@@ -217,17 +217,10 @@ class OperatorDesk:
         return self.confirm(vehicle, command, timeout, said, who, watch)
 
     def _target_watch(self, system_id: int, vehicle: Vehicle) -> TargetWatch | None:
-        """The GUIDED targets a vehicle on a MAVLink link reports (asked for, and cleared:
-        those from now on); None for another vehicle."""
+        """The GUIDED targets the vehicle reports (:func:`target_watch`, one per vehicle),
+        cleared: those from now on."""
         if system_id not in self._targets:
-            link, mav = getattr(vehicle, "link", None), getattr(vehicle, "mav", None)
-            watch = None
-            if link is not None and mav is not None:
-                from tml.mavlink.targets import TargetWatch
-
-                watch = TargetWatch(link, system_id)
-                watch.ask(mav)
-            self._targets[system_id] = watch
+            self._targets[system_id] = target_watch(vehicle, system_id)
         watch = self._targets[system_id]
         if watch is not None:
             watch.clear()
@@ -238,12 +231,11 @@ class OperatorDesk:
         """Wait up to ``timeout`` wall seconds for the telemetry to confirm ``command``
         (with the GUIDED targets the vehicle reports since, when ``targets`` watches
         them)."""
-        confirmation = Confirmation(command)
+        check = MotionCheck(vehicle, command, targets, self.vehicle_time)
+        confirmation = check.confirmation
         end = time.monotonic() + timeout
         while True:
-            state = vehicle.state()
-            target = None if targets is None else targets.latest
-            if confirmation.see(state, self.vehicle_time(vehicle, state), target):
+            if check.look():
                 return Answer("done", f"{who}: {command} done ({said}): "
                                       f"{confirmation.seen()}", int(ExitCode.OK))
             if time.monotonic() >= end:
@@ -252,6 +244,43 @@ class OperatorDesk:
                               f"({said}; wanted {confirmation.criterion()}; seen "
                               f"{confirmation.seen()})", int(ExitCode.FAILURE))
             time.sleep(POLL_PERIOD)
+
+
+def target_watch(vehicle: Vehicle, system_id: int) -> TargetWatch | None:
+    """A watch of the GUIDED targets vehicle ``system_id`` reports, asked for (of a
+    vehicle on a MAVLink link; None for another vehicle). One per vehicle: it listens to
+    the link for good."""
+    link, mav = getattr(vehicle, "link", None), getattr(vehicle, "mav", None)
+    if link is None or mav is None:
+        return None
+    from tml.mavlink.targets import TargetWatch
+
+    watch = TargetWatch(link, system_id)
+    watch.ask(mav)
+    return watch
+
+
+class MotionCheck:
+    """Whether a vehicle's telemetry confirms an operator's ``command`` (the
+    :class:`~tml.engine.confirm.Confirmation` of the states :meth:`look` reads, with the
+    GUIDED target ``targets`` saw reported, in the vehicle's own time)."""
+
+    def __init__(self, vehicle: Vehicle, command: str, targets: TargetWatch | None = None,
+                 vehicle_time: Callable[[Vehicle, VehicleState], float] | None = None
+                 ) -> None:
+        self.vehicle = vehicle
+        self.confirmation = Confirmation(command)
+        self.targets = targets
+        self.vehicle_time = vehicle_time or own_time
+        self.confirmed = False  # what the latest look showed
+
+    def look(self) -> bool:
+        """Read the vehicle's state; whether it confirms the command now."""
+        state = self.vehicle.state()
+        target = None if self.targets is None else self.targets.latest
+        self.confirmed = self.confirmation.see(state, self.vehicle_time(self.vehicle, state),
+                                               target)
+        return self.confirmed
 
 
 def own_time(vehicle: Vehicle, state: VehicleState) -> float:

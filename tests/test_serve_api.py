@@ -8,6 +8,7 @@ a run can be caught in flight; with time flowing a short mission flies in a blin
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -189,21 +190,58 @@ def test_a_vehicle_gives_what_an_operator_reads_and_where_its_home_is(served: Se
 
 # --- operator commands -----------------------------------------------------------------------
 
-def test_a_command_to_a_free_vehicle_is_sent_and_answered_once_accepted(
+def test_a_command_to_a_free_vehicle_is_done_once_its_telemetry_confirms_it(
         served: Served) -> None:
     fake = served.hangar.fakes[0]
     fake.armed, fake.mode, fake.position = True, "GUIDED", (20.0, 0.0, 10.0)
+    served.hangar.flowing.set()  # the vehicle moves: its motion confirms the command
     answer = served.client.post("/vehicles/1/command", json={"command": "rtl"})
     assert answer.status_code == 200, answer.text
     body = answer.json()
     assert (body["vehicle"], body["command"], body["run"]) == (1, "rtl", None)
-    assert "rtl accepted (ReturnToLaunch)" in body["message"]
+    assert (body["outcome"], body["confirmed"]) == ("done", True)
+    assert "vehicle 1: rtl done (ReturnToLaunch): mode RTL, armed" in body["message"]
+    assert body["seen"].startswith("mode RTL, armed")
     assert fake.mode == "RTL" and body["vehicle_state"]["mode"] == "RTL"
+    assert math.hypot(*fake.position[:2]) <= 20.0 - 1.0, "nearer home, as confirmed"
     seen = served.client.get("/vehicles/1").json()
     assert (seen["mode"], seen["run"]) == ("RTL", None), "the vehicle is free again"
-    # Accepted, then shown by the telemetry: done.
     assert (seen["command"]["command"], seen["command"]["outcome"]) == ("rtl", "done")
-    assert seen["command"]["detail"] == "shown: mode RTL"
+    assert seen["command"]["detail"] == body["seen"]
+
+
+def test_a_hold_of_a_free_vehicle_is_its_holding_mode_and_done_once_it_stays_still(
+        served: Served) -> None:
+    fake = served.hangar.fakes[0]
+    fake.armed, fake.mode, fake.position = True, "GUIDED", (20.0, 0.0, 10.0)
+    served.hangar.flowing.set()
+    answer = served.client.post("/vehicles/1/command", json={"command": "hold"})
+    assert answer.status_code == 200, answer.text
+    body = answer.json()
+    assert (body["outcome"], body["confirmed"]) == ("done", True)
+    assert [(r.name, getattr(r, "mode", "")) for r in fake.submitted] == [("SetMode", "BRAKE")]
+    assert "vehicle 1: hold done (SetMode BRAKE): mode BRAKE" in body["message"]
+    assert fake.time >= 3.0, "still for 3 s of the vehicle's time"
+
+
+def test_a_command_the_telemetry_does_not_confirm_is_answered_202_with_what_was_seen(
+        served: Served) -> None:
+    fake = served.hangar.fakes[0]
+    fake.armed, fake.mode, fake.position = True, "GUIDED", (20.0, 0.0, 10.0)
+    fake.stuck = True  # accepts, never moves
+    served.service.options.command_timeout = 0.5
+    served.hangar.flowing.set()
+    answer = served.client.post("/vehicles/1/command", json={"command": "rtl"})
+    assert answer.status_code == 202, answer.text
+    body = answer.json()
+    assert (body["outcome"], body["confirmed"]) == ("not confirmed", False)
+    assert body["message"] == (
+        "vehicle 1: rtl not confirmed within 0.5 s (ReturnToLaunch; wanted an RTL mode and "
+        "1 m nearer home (or home); seen mode RTL, armed, 10.0 m up, ground speed 0.0 m/s, "
+        "climb +0.0 m/s, 20 m from home)")
+    seen = served.client.get("/vehicles/1").json()["command"]
+    assert (seen["outcome"], seen["detail"]) == (
+        "not confirmed", body["message"].split("(ReturnToLaunch; ")[1][:-1])
 
 
 def test_a_disarm_in_the_air_is_refused_with_the_reason(served: Served) -> None:
@@ -235,15 +273,41 @@ def test_a_command_to_a_vehicle_in_a_run_ends_the_run_into_that_safe_state(
     run = served.start(mission)  # its safe state is rtl
     fake = served.hangar.fakes[0]
     served.hangar.fly_until(lambda: fake.position[2] > 5)  # the take-off is under way
+    served.hangar.flowing.set()
     answer = served.client.post("/vehicles/1/command", json={"command": "land"})
-    assert answer.status_code in (200, 202), answer.text
-    assert answer.json()["run"] == run["id"]
+    assert answer.status_code == 200, answer.text
+    body = answer.json()
+    assert (body["run"], body["outcome"], body["confirmed"]) == (run["id"], "done", True)
+    assert f"vehicle 1: land done (run {run['id']} ends into land): mode LAND" in \
+        body["message"]
     ended = served.finish(run["id"])
     # The operator took the vehicle over through the run (docs/run.md, How a run ends).
     assert (ended["status"], ended["exit_code"]) == ("taken", 4)
     assert "operator command: land" in ended["reason"]
     assert fake.mode == "LAND"
     assert any("Land" in said for said in ended["safety"])
+
+
+def test_a_hold_of_a_vehicle_in_a_run_pauses_the_run_and_is_done_once_it_stays_still(
+        served: Served) -> None:
+    mission = served.upload()
+    run = served.start(mission)
+    fake = served.hangar.fakes[0]
+    served.hangar.fly_until(lambda: fake.position[0] > 5)  # on the leg out
+    served.hangar.flowing.set()
+    answer = served.client.post("/vehicles/1/command", json={"command": "hold"})
+    assert answer.status_code == 200, answer.text
+    body = answer.json()
+    assert (body["run"], body["outcome"], body["confirmed"]) == (run["id"], "done", True)
+    assert f"vehicle 1: hold done (run {run['id']} paused): mode GUIDED" in body["message"]
+    assert served.client.get(f"/runs/{run['id']}").json()["status"] == "paused"
+    assert isinstance(fake.submitted[-1], Hold), "the run's own hold, not BRAKE"
+    paused = [json.loads(line) for line in served.client.get(
+        f"/runs/{run['id']}/log").text.splitlines()]
+    assert any("mission paused: operator command: hold" in str(r.get("message", ""))
+               for r in paused), paused
+    served.client.post(f"/runs/{run['id']}/abort")
+    served.finish(run["id"])
 
 
 def test_a_command_is_checked_before_anything_is_sent(served: Served) -> None:

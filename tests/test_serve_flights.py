@@ -3,13 +3,25 @@ of the operator's controls -- pause, resume, abort, jump -- on a real MAVLink ve
 
 from __future__ import annotations
 
+import contextlib
 import json
-from collections.abc import Iterator
+import math
+import re
+import threading
+import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
+from fastapi.testclient import TestClient
+from pymavlink import mavutil
 from serving import SHORT, simulated
+from test_command_command import LIMIT, Observer, fly_away
 
+from tml.mavlink.autopilot import Autopilot
+from tml.mavlink.link import Link
+from tml.serve.api import create_app
 from tml.serve.service import Service, ServiceOptions
 from tml.serve.storage import Storage, database_url
 
@@ -158,3 +170,151 @@ def test_each_run_puts_its_fence_and_rally_points_on_the_vehicle_unless_told_to_
     assert "1 rally point" in told["message"]
     assert ("the vehicle's fence kept" in told["message"]) is keep
     assert ("inclusion polygon of 4 corners" in told["message"]) is not keep
+
+
+# --- operator commands through the HTTP API, judged by an independent observer -------------
+
+BRAKE_MODE, GUIDED_MODE = 17, 4
+M = mavutil.mavlink
+
+
+@contextlib.contextmanager
+def flown_by_another_station(service: Service, vehicle: int) -> Iterator[
+        tuple[TestClient, Autopilot, Observer]]:
+    """The service's API, another ground station (a tml Link) that flies ``vehicle`` up and
+    away at 8 m/s while no run holds it, and a plain pymavlink observer on its port."""
+    address = service.hangar.vehicles[vehicle].link.address  # type: ignore[attr-defined]
+    with TestClient(create_app(service), base_url="http://127.0.0.1") as client, \
+            Link(address) as link:
+        pilot = Autopilot.connect(link, vehicle, timeout=10)
+        pilot.request_rates()
+        link.wait_telemetry(vehicle, lambda t: t.position_ready, timeout=LIMIT)
+        pilot.set_mode("GUIDED")
+        pilot.arm()
+        fly_away(pilot)
+        observer = Observer(int(address.rsplit(":", 1)[1]))
+        try:
+            yield client, pilot, observer
+        finally:
+            observer.close()
+
+
+def observed(observer: Observer, vehicle: int, check: Callable[[Any], bool]) -> bool:
+    """Whether the vehicle's GLOBAL_POSITION_INT, as the observer reads it from now on
+    (asked for first; what it had not read yet is older, and left), satisfies ``check``
+    within LIMIT wall seconds."""
+    observer.conn.mav.request_data_stream_send(vehicle, 1, mavutil.mavlink.MAV_DATA_STREAM_ALL,
+                                               10, 1)
+    while observer.conn.recv_match(blocking=False) is not None:
+        pass
+    end = time.monotonic() + LIMIT
+    while time.monotonic() < end:
+        msg = observer.conn.recv_match(type="GLOBAL_POSITION_INT", blocking=True, timeout=1)
+        if msg is not None and msg.get_srcSystem() == vehicle and check(msg):
+            return True
+    return False
+
+
+def stopped(msg: Any) -> bool:
+    return bool(math.hypot(msg.vx, msg.vy) / 100 < 0.5)
+
+
+def confirmed(client: TestClient, vehicle: int, command: str, run: str | None) -> dict:
+    """The answer to ``command``, asserted confirmed (200, done), naming ``run``."""
+    answer = client.post(f"/vehicles/{vehicle}/command", json={"command": command})
+    assert answer.status_code == 200, answer.text
+    body = dict(answer.json())
+    assert (body["outcome"], body["confirmed"], body["run"]) == ("done", True, run)
+    return body
+
+
+def test_hold_of_a_vehicle_no_run_holds_is_brake_and_confirmed_by_its_stop(
+        service: Service) -> None:
+    with flown_by_another_station(service, 1) as (client, _pilot, observer):
+        body = confirmed(client, 1, "hold", None)
+        assert body["message"].startswith("vehicle 1: hold done (SetMode BRAKE): mode BRAKE")
+        assert float(re.search(r"ground speed (\d+\.\d)", body["seen"])[1]) < 0.5  # type: ignore[index]
+        assert "fastest" in body["seen"] and client.get("/vehicles/1").json()["command"][
+            "outcome"] == "done"
+        # The observer, on its own: the vehicle is in BRAKE and stopped.
+        assert observer.until(lambda o: o.modes[-1] == BRAKE_MODE)
+        assert observed(observer, 1, stopped)
+
+
+def test_hold_during_a_run_pauses_it_and_is_confirmed_by_the_stop(service: Service) -> None:
+    mission = service.upload("long.xml", LONG)["id"]
+    run = service.start_run(mission, [1])["id"]
+    until(service, run, lambda r: r["kind"] == "telemetry" and r["position"][0] > 20)
+    address = service.hangar.vehicles[1].link.address  # type: ignore[attr-defined]
+    observer = Observer(int(address.rsplit(":", 1)[1]))
+    try:
+        with TestClient(create_app(service), base_url="http://127.0.0.1") as client:
+            body = confirmed(client, 1, "hold", run)
+            assert body["message"].startswith(f"vehicle 1: hold done (run {run} paused): "
+                                              "mode GUIDED")
+            assert client.get(f"/runs/{run}").json()["status"] == "paused"
+            assert observed(observer, 1, stopped)
+            records = lines(service, run)
+            assert [r["control"] for r in records if r["kind"] == "control"] == ["pause"]
+            assert client.post(f"/runs/{run}/abort").status_code == 200
+    finally:
+        observer.close()
+    assert ended(service, run)["status"] == "aborted"
+
+
+def test_rtl_during_a_run_ends_it_and_is_confirmed_on_its_way_home(service: Service) -> None:
+    mission = service.upload("long.xml", LONG)["id"]
+    run = service.start_run(mission, [2])["id"]
+    vehicle_when(service, run, 2, lambda v: v["position"] and v["position"][0] > 30)
+    address = service.hangar.vehicles[2].link.address  # type: ignore[attr-defined]
+    observer = Observer(int(address.rsplit(":", 1)[1]))
+    try:
+        with TestClient(create_app(service), base_url="http://127.0.0.1") as client:
+            body = confirmed(client, 2, "rtl", run)
+        # The observer, on its own: flying south, home (it flew out north).
+        assert observed(observer, 2, lambda msg: msg.vx < -100)
+    finally:
+        observer.close()
+    assert body["message"].startswith(f"vehicle 2: rtl done (run {run} ends into rtl): "
+                                      "mode RTL")
+    assert re.search(r"\d+ m from home", body["seen"]), body["seen"]
+    assert (ended(service, run)["status"]) == "taken"
+
+
+def test_a_hold_another_station_undoes_is_not_confirmed(service: Service) -> None:
+    """Another ground station switches the vehicle back to GUIDED the moment it shows
+    BRAKE and sends it on: the mode was shown, the stop never was: 202, not confirmed."""
+    service.options.command_timeout = 4.0  # (40 s of the vehicle's: it never gets there)
+    with flown_by_another_station(service, 1) as (client, pilot, observer):
+        start = pilot.telemetry.position
+        assert start is not None
+        done = threading.Event()
+
+        def fight() -> None:
+            conn = observer.conn
+            while not done.is_set():
+                msg = conn.recv_match(type="HEARTBEAT", blocking=True, timeout=0.2)
+                if msg is None or msg.get_srcSystem() != 1 or msg.custom_mode != BRAKE_MODE:
+                    continue
+                conn.mav.command_long_send(1, 1, M.MAV_CMD_DO_SET_MODE, 0,
+                                           M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, GUIDED_MODE,
+                                           0, 0, 0, 0, 0)
+                conn.mav.set_position_target_global_int_send(
+                    0, 1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, 0b110111111000,
+                    int((start.latitude + 5000 / 111_320) * 1e7), int(start.longitude * 1e7),
+                    start.relative_altitude, 0, 0, 0, 0, 0, 0, 0, 0)
+
+        fighter = threading.Thread(target=fight)
+        fighter.start()
+        try:
+            answer = client.post("/vehicles/1/command", json={"command": "hold"})
+        finally:
+            done.set()
+            fighter.join()
+        assert answer.status_code == 202, answer.text
+        body = answer.json()
+        assert (body["outcome"], body["confirmed"]) == ("not confirmed", False)
+        assert body["message"].startswith("vehicle 1: hold not confirmed within 4 s "
+                                          "(SetMode BRAKE; wanted ground speed below 0.5 m/s "
+                                          "for 3 s in a holding mode; seen mode GUIDED")
+        assert client.get("/vehicles/1").json()["command"]["outcome"] == "not confirmed"

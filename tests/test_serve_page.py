@@ -249,7 +249,7 @@ def test_rtl_from_a_vehicle_card_asks_then_brings_the_vehicle_home(browser: Any,
     ended = httpx.get(f"{page}runs/{run}").json()
     assert ended["status"] == "taken" and "operator command: rtl" in ended["reason"]
     wait(driver, "the card saying the command done", lambda d: field(d, "command").startswith(
-        "RTL: done (shown: mode RTL"))
+        "RTL: done (mode RTL"))
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
     driver.save_screenshot(str(ARTIFACTS / "serve-page-rtl.png"))
 

@@ -187,10 +187,13 @@ class OperatorCommandSeen(BaseModel):
     """An operator's last command to a vehicle, as the service saw it through."""
 
     command: Literal["rtl", "land", "hold", "disarm"]
-    outcome: Literal["refused", "sent", "unanswered", "accepted", "done"] = Field(
-        description="refused (by the rule or the vehicle), sent (through the run that "
-                    "held it), unanswered, accepted by the vehicle, done (shown by telemetry "
-                    "that arrived after it, or nothing to do)")
+    outcome: Literal["refused", "sent", "unanswered", "accepted", "done",
+                     "not confirmed"] = Field(
+        description="refused (by the rule or the vehicle), sent (to the vehicle, or "
+                    "through the run that held it), unanswered, accepted by the vehicle "
+                    "(its motion awaited), done (confirmed by the vehicle's telemetry, or "
+                    "nothing to do), not confirmed (within the command's timeout: what "
+                    "was wanted and seen in detail)")
     detail: str
     at: float = Field(description="when (Unix time)")
 
@@ -240,7 +243,16 @@ class CommandAnswer(BaseModel):
 
     vehicle: int
     command: Literal["rtl", "land", "hold", "disarm"]
-    run: str | None = Field(description="the run that held the vehicle, ended by the command")
+    run: str | None = Field(description="the run that held the vehicle, paused (hold) or "
+                                        "ended by the command")
+    outcome: Literal["done", "nothing to do", "not confirmed"] = Field(
+        description="done: the vehicle's telemetry confirmed it (docs/command.md: hold "
+                    "stopped, rtl on its way home, land descending, disarm disarmed); "
+                    "nothing to do: disarmed on the ground; not confirmed: not within the "
+                    "command's timeout (30 s)")
+    confirmed: bool = Field(description="whether the telemetry confirmed it (outcome done "
+                                        "or nothing to do)")
+    seen: str = Field(description="what the vehicle's telemetry showed last")
     message: str = Field(description="what was done, in one sentence")
     vehicle_state: VehicleView = Field(description="the vehicle as it is now")
 
@@ -499,16 +511,19 @@ def _vehicles(api: APIRouter, service: Service) -> None:
     @api.post("/vehicles/{vehicle_id}/command", response_model=CommandAnswer,
               tags=["vehicles"],
               responses={202: {"model": CommandAnswer,
-                               "description": "the run that held the vehicle was aborted "
-                                              "into the command and is still ending"}})
+                               "description": "sent, but not confirmed by the vehicle's "
+                                              "telemetry within the command's timeout "
+                                              "(outcome not confirmed, what was seen)"}})
     def command(request: CommandRequest, response: Response,
                 vehicle_id: int = Path(ge=0, le=2**31)) -> dict[str, Any]:
-        """Tell a vehicle to return to launch, land, hold or disarm, now; answered once the
-        vehicle accepted it (its mode then shows in GET /vehicles). 409 with the reason when
-        it would be unsafe or cannot be done (a disarm in the air, a ground vehicle told to
-        land), when the vehicle refuses it or does not answer. A vehicle held by a run: the
-        operator takes it over through the run, which is aborted into that safe state
-        (every vehicle of the run) and ends ``taken``; 202 while it is still ending."""
+        """Tell a vehicle to return to launch, land, hold or disarm, now; answered 200 once
+        the vehicle's telemetry confirms it by its motion (``confirmed``), 202 when it did
+        not within the command's timeout (what was seen in ``seen``). 409 with the reason
+        when it would be unsafe or cannot be done (a disarm in the air, a ground vehicle
+        told to land), when the vehicle refuses it or does not answer. A vehicle no run
+        holds is held in a mode that holds by itself (BRAKE, LOITER, HOLD). A vehicle held
+        by a run: the operator takes it over through the run: hold pauses it, the others
+        end it into that safe state (every vehicle of the run), ``taken``."""
         answer, done = service.command(vehicle_id, request.command)
         if not done:
             response.status_code = 202

@@ -200,10 +200,10 @@ class LiveRun:
         self.hangar.subscribe(self.wake)
         self.thread.start()
 
-    def control(self, kind: str, target: str = "") -> None:
-        """Pause, resume or jump (:meth:`~tml.run.runner.Runner.control`); raises
-        ControlRefused with the reason."""
-        self.runner.control(kind, target)
+    def control(self, kind: str, target: str = "", reason: str = "") -> None:
+        """Pause, resume or jump (:meth:`~tml.run.runner.Runner.control`; ``reason``: a
+        pause's, for the journal); raises ControlRefused with the reason."""
+        self.runner.control(kind, target, reason=reason)
         if kind in ("pause", "resume") and not self.ended:
             self._set_status("paused" if self.runner.paused else "running")
 

@@ -45,7 +45,7 @@ import time
 from collections import OrderedDict
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, ParamSpec, TypeVar
+from typing import TYPE_CHECKING, Any, ParamSpec, TypeVar
 
 from tml.engine.resume import Progress
 from tml.errors import ControlRefused, TmlError
@@ -60,6 +60,7 @@ from tml.run.clearance import (
     NotCleared,
     clear,
 )
+from tml.run.control import MotionCheck, target_watch
 from tml.run.endings import Ending
 from tml.run.journal import jsonable, telemetry_fields
 from tml.run.resume import ResumeRefused, progress_point
@@ -74,9 +75,13 @@ from tml.verify.report import report_document
 from tml.verify.static import verify_mission
 from tml.world import Cylinder, World
 
+if TYPE_CHECKING:
+    from tml.mavlink.targets import TargetWatch
+
 P = ParamSpec("P")
 T = TypeVar("T")
 SAFE_STATES = ("rtl", "land", "hold")
+CONFIRM_PERIOD = 0.05  # s between two looks at a vehicle while a command is confirmed
 KEPT_SOURCE = 64 * 1024  # characters of the largest mission kept parsed between requests
 KEPT_MISSIONS = 64  # how many are kept
 TRIM_ABOVE = 256 * 1024  # bytes of a mission whose parsing is followed by a heap trim
@@ -174,6 +179,7 @@ class Service:
         self._parsed: OrderedDict[str, Mission] = OrderedDict()  # small ones: _parse
         self._lock = threading.Lock()
         self._commands: dict[int, dict[str, Any]] = {}  # each vehicle's last operator command
+        self._targets: dict[int, TargetWatch | None] = {}  # GUIDED targets, by vehicle id
         # In a cluster (tml.serve.cluster): has the instance named carry out a request
         # about a run it flies, and answers as it did (tml.serve.forward).
         self.forward: Callable[[str, dict[str, Any]], tuple[int, str, dict[str, Any]]] \
@@ -438,7 +444,8 @@ class Service:
         try:
             if request.get("op") == "command":
                 answer, done = self.command(int(request["vehicle"]), str(request["command"]))
-                return 200 if done else 202, str(answer["message"]), {"run": answer["run"]}
+                return 200 if done else 202, str(answer["message"]), {
+                    "run": answer["run"], "outcome": answer["outcome"], "seen": answer["seen"]}
             if request.get("op") == "abort":
                 self.abort(str(request["run"]))
             elif request.get("op") == "control":
@@ -467,6 +474,8 @@ class Service:
             refused.status = status
             raise refused
         return ({"vehicle": vehicle_id, "command": command, "run": detail.get("run"),
+                 "outcome": detail.get("outcome", "done" if status == 200 else "not confirmed"),
+                 "confirmed": status == 200, "seen": str(detail.get("seen", "")),
                  "message": message, "vehicle_state": self.vehicle(vehicle_id)},
                 status == 200)
 
@@ -525,29 +534,26 @@ class Service:
                 "command": self._command_seen(vehicle_id, state)}
 
     def _command_seen(self, vehicle_id: int, state: VehicleState) -> dict[str, Any] | None:
-        """A vehicle's last operator command; one accepted (or sent through a run) becomes
-        ``done`` once telemetry that arrived after it shows it."""
-        from tml.engine.safety import operator_command_shown
-
-        seen = self._commands.get(vehicle_id)
-        if seen is not None and seen["outcome"] in ("accepted", "sent") \
-                and operator_command_shown(state, seen["command"]):
-            seen = self._commands[vehicle_id] = {
-                **seen, "outcome": "done", "detail": _shown(state), "at": time.time()}
-        return seen
+        """A vehicle's last operator command and what came of it (:meth:`command`)."""
+        return self._commands.get(vehicle_id)
 
     def command(self, vehicle_id: int, command: str) -> tuple[dict[str, Any], bool]:
         """An operator's command to a vehicle (rtl, land, hold, disarm), and whether it is
-        done (False: the run that held the vehicle is still ending).
+        confirmed: done only when the vehicle's telemetry shows it carried out, by the
+        rule of ``tml command`` (:class:`~tml.engine.confirm.Confirmation`), within
+        :attr:`ServiceOptions.command_timeout` wall seconds; else not confirmed, with
+        what was seen.
 
         Refused (409) with the reason when the rule of
         :func:`tml.engine.safety.operator_request` refuses it (a disarm in the air ...).
-        A vehicle held by a run: the operator takes it over through the run, which is
-        aborted into that safe state (a disarm, on the ground: into its own, which disarms
-        a vehicle on the ground) and ends ``taken`` (``Ending.OPERATOR``); once it has
-        ended, the command is sent again should the vehicle not show it. A free vehicle is
-        held for the command (no run takes it meanwhile), sent the request, and answered
-        once the vehicle accepted it; refused by the vehicle or unanswered: 409.
+        A vehicle held by a run: the operator takes it over through the run: ``hold``
+        pauses the run (every vehicle of it holds), the others end it into that safe
+        state (a disarm, on the ground: into its own, which disarms a vehicle on the
+        ground), ``taken`` (``Ending.OPERATOR``); once it has ended, the command is sent
+        again should the vehicle not show it. A free vehicle is held for the command (no
+        run takes it meanwhile) until it is confirmed or not, sent the request (``hold``:
+        the mode that holds by itself, :func:`~tml.engine.safety.holding_mode`); refused
+        by the vehicle or unanswered: 409.
         """
         from tml.engine.safety import CommandRefusal, operator_command_shown, operator_request
 
@@ -567,27 +573,89 @@ class Service:
         live = self.live(holder) if holder is not None else None
         if live is not None and not live.ended:
             answer["run"] = live.id
-            live.take_over(command)
-            self._tell(vehicle_id, command, "sent", f"run {live.id} aborted into {command}")
-            if not live.join(self.options.command_timeout):
-                return ({**answer, "message": f"run {live.id} is ending: it sends vehicle "
-                                              f"{vehicle_id} to {command}",
-                         "vehicle_state": self.vehicle(vehicle_id)}, False)
-            shown = found.state()
-            if operator_command_shown(shown, command):
-                self._tell(vehicle_id, command, "done", _shown(shown))
-                return ({**answer, "message": f"run {live.id} ended: vehicle {vehicle_id} "
-                                              f"shows {command}",
-                         "vehicle_state": self.vehicle(vehicle_id)}, True)
-        message = self._send(found, vehicle_id, command)
-        return {**answer, "message": message, "vehicle_state": self.vehicle(vehicle_id)}, True
+            check = MotionCheck(found, command, self._target_watch(vehicle_id, found))
+            said = self._through_run(live, command)
+            self._tell(vehicle_id, command, "sent", said)
+            # Done once the telemetry confirms it and (rtl, land, disarm) the run has ended.
+            ending = None if live.runner.paused and command == "hold" else live
+            self._confirm(check, ending)
+            if check.confirmed or not live.ended \
+                    or operator_command_shown(found.state(), command):
+                return self._answered(answer, vehicle_id, check, said)
+        outcome = self._send(found, vehicle_id, command)
+        if isinstance(outcome, str):
+            return {**answer, "outcome": "nothing to do", "confirmed": True,
+                    "seen": outcome, "message": f"vehicle {vehicle_id}: nothing to do: "
+                                                f"{outcome}",
+                    "vehicle_state": self.vehicle(vehicle_id)}, True
+        return self._answered(answer, vehicle_id, *outcome)
 
-    def _send(self, found: Vehicle, vehicle_id: int, command: str) -> str:
-        """Send an operator's command to a vehicle no run holds, and wait for its answer;
-        what was done."""
+    def _through_run(self, live: LiveRun, command: str) -> str:
+        """Carry out an operator's command through the run that holds the vehicle: a hold
+        pauses it (ended into hold when it cannot pause: not started yet), another command
+        ends it into that state; what was done."""
+        reason = f"operator command: {command}"
+        if command == "hold":
+            try:
+                live.control("pause", reason=reason)
+            except ControlRefused:
+                if not live.runner.paused:
+                    live.take_over(command)
+                    return f"run {live.id} ends into hold (it could not pause)"
+            return f"run {live.id} paused"
+        live.take_over(command)
+        return f"run {live.id} ends into {command}"
+
+    def _target_watch(self, vehicle_id: int, vehicle: Vehicle) -> TargetWatch | None:
+        """The GUIDED targets a vehicle reports (one watch per vehicle), cleared: those
+        from now on."""
+        if vehicle_id not in self._targets:
+            self._targets[vehicle_id] = target_watch(
+                vehicle, int(getattr(vehicle, "system_id", vehicle_id)))
+        watch = self._targets[vehicle_id]
+        if watch is not None:
+            watch.clear()
+        return watch
+
+    def _confirm(self, check: MotionCheck, ending: LiveRun | None = None) -> None:
+        """Look at the vehicle until its telemetry confirms the command (and ``ending``,
+        when given, has ended), for up to the command's timeout."""
+        wake = threading.Event()
+        self.hangar.subscribe(wake)
+        end = time.monotonic() + self.options.command_timeout
+        try:
+            while not (check.look() and (ending is None or ending.ended)) \
+                    and time.monotonic() < end:
+                self.hangar.wait(wake, CONFIRM_PERIOD)
+        finally:
+            self.hangar.unsubscribe(wake)
+
+    def _answered(self, answer: dict[str, Any], vehicle_id: int, check: MotionCheck,
+                  said: str) -> tuple[dict[str, Any], bool]:
+        """The answer to a command sent (``said``: how), confirmed or not."""
+        confirmation, command = check.confirmation, answer["command"]
+        seen = confirmation.seen()
+        if check.confirmed:
+            self._tell(vehicle_id, command, "done", seen)
+            message = f"vehicle {vehicle_id}: {command} done ({said}): {seen}"
+        else:
+            detail = f"wanted {confirmation.criterion()}; seen {seen}"
+            self._tell(vehicle_id, command, "not confirmed", detail)
+            message = (f"vehicle {vehicle_id}: {command} not confirmed within "
+                       f"{self.options.command_timeout:g} s ({said}; {detail})")
+        return ({**answer, "outcome": "done" if check.confirmed else "not confirmed",
+                 "confirmed": check.confirmed, "seen": seen, "message": message,
+                 "vehicle_state": self.vehicle(vehicle_id)}, check.confirmed)
+
+    def _send(self, found: Vehicle, vehicle_id: int,
+              command: str) -> tuple[MotionCheck, str] | str:
+        """Send an operator's command to a vehicle no run holds, wait for its answer and
+        for the telemetry to confirm it (holding the vehicle meanwhile); the confirmation
+        and what was sent, or (nothing to do) where the vehicle is."""
         from dataclasses import replace
 
-        from tml.engine.safety import CommandRefusal, operator_request
+        from tml.engine.safety import CommandRefusal, holding_mode, operator_request
+        from tml.vehicle import SetMode
 
         holder = f"command {secrets.token_hex(3)}"
         try:
@@ -599,18 +667,23 @@ class Service:
         wake = threading.Event()
         self.hangar.subscribe(wake)
         try:
+            state = found.state()
             try:
-                request = operator_request(found.state(), command)
+                request = operator_request(state, command)
             except CommandRefusal as refusal:
                 self._tell(vehicle_id, command, "refused", str(refusal))
                 raise Conflict(f"vehicle {vehicle_id}: {command} refused: {refusal}") from None
             if request is None:
                 self._tell(vehicle_id, command, "done", "nothing to do")
-                return f"vehicle {vehicle_id}: nothing to do: {found.state().mode}, " \
-                       "on the ground, disarmed"
+                return f"{state.mode}, on the ground, disarmed"
+            sent = request.name
+            if command == "hold":  # a mode that holds by itself (nothing keeps a target)
+                request = SetMode(vehicle_id, holding_mode(state))
+                sent = f"{request.name} {request.mode}"
+            check = MotionCheck(found, command, self._target_watch(vehicle_id, found))
             request = replace(request, request_id=self.ids.take())
             found.submit(request)
-            self._tell(vehicle_id, command, "sent", request.name)
+            self._tell(vehicle_id, command, "sent", sent)
             end = time.monotonic() + self.options.command_timeout
             while True:
                 result = next((r for r in found.poll() if r.request_id == request.request_id),
@@ -618,19 +691,21 @@ class Service:
                 if result is not None:
                     break
                 if time.monotonic() >= end:
-                    self._tell(vehicle_id, command, "unanswered", request.name)
+                    self._tell(vehicle_id, command, "unanswered", sent)
                     raise Conflict(f"vehicle {vehicle_id}: {command}: no answer within "
                                    f"{self.options.command_timeout:g} s")
-                self.hangar.wait(wake, 0.05)
+                self.hangar.wait(wake, CONFIRM_PERIOD)
+            if not result.ok:
+                detail = f"{result.reason} {result.detail}".strip()
+                self._tell(vehicle_id, command, "refused", f"by the vehicle: {detail}")
+                raise Conflict(f"vehicle {vehicle_id}: {command} refused by the vehicle: "
+                               f"{detail}")
+            self._tell(vehicle_id, command, "accepted", sent)
+            self._confirm(check)
+            return check, sent
         finally:
             self.hangar.unsubscribe(wake)
             self.hangar.release(holder)
-        if not result.ok:
-            detail = f"{result.reason} {result.detail}".strip()
-            self._tell(vehicle_id, command, "refused", f"by the vehicle: {detail}")
-            raise Conflict(f"vehicle {vehicle_id}: {command} refused by the vehicle: {detail}")
-        self._tell(vehicle_id, command, "accepted", request.name)
-        return f"vehicle {vehicle_id}: {command} accepted ({request.name})"
 
     def _tell(self, vehicle_id: int, command: str, outcome: str, detail: str) -> None:
         """Keep a vehicle's last operator command (GET /vehicles shows it) and log it."""
@@ -743,11 +818,6 @@ def _safety_said(record: Mapping[str, Any]) -> str:
     if vehicle is None or message.startswith(f"vehicle {vehicle} "):
         return message
     return f"vehicle {vehicle}: {message}"
-
-
-def _shown(state: VehicleState) -> str:
-    """How telemetry shows an operator's command done: "shown: mode RTL, disarmed"."""
-    return f"shown: mode {state.mode}" + ("" if state.armed else ", disarmed")
 
 
 def _profile(name: str) -> VehicleProfile:

@@ -751,7 +751,7 @@ const COMMANDS = {
 function commandSeen(seen) {
   if (!seen) return null;
   return {text: `${COMMANDS[seen.command].label}: ${seen.outcome} (${seen.detail})`,
-    error: seen.outcome === "refused" || seen.outcome === "unanswered"};
+    error: ["refused", "unanswered", "not confirmed"].includes(seen.outcome)};
 }
 
 // One handler for every card's buttons: the cards are drawn again every second.
@@ -761,18 +761,20 @@ $("#telemetry").addEventListener("click", async (event) => {
   const command = button.dataset.command;
   const id = Number(button.dataset.vehicle);
   const vehicle = state.vehicles.find((v) => v.id === id);
-  const held = vehicle && vehicle.run ? ` Run ${vehicle.run}, which holds it, ends: every ` +
-    `vehicle of that run goes to ${COMMANDS[command].label}` +
-    (command === "disarm" ? " (its safe state)" : "") + "." : "";
+  const held = !(vehicle && vehicle.run) ? "" : command === "hold" ?
+    ` Run ${vehicle.run}, which holds it, pauses: every vehicle of that run holds.` :
+    ` Run ${vehicle.run}, which holds it, ends: every vehicle of that run goes to ` +
+    `${COMMANDS[command].label}` + (command === "disarm" ? " (its safe state)" : "") + ".";
   if (!await confirmCommand(`${COMMANDS[command].label} vehicle ${id}? It is told to ` +
       `${COMMANDS[command].ask}, now.${held}`, `${COMMANDS[command].label} vehicle ${id}`)) {
     return;
   }
   state.commandSaid[id] = {text: `${COMMANDS[command].label}: sent…`};
   drawTelemetry();
-  // Once answered, the card says what the service saw through (GET /vehicles: accepted,
-  // then done when the telemetry shows it; refused with the reason); what it never saw
-  // (no token, an unreachable service) is said here.
+  // Once answered, the card says what the service saw through (GET /vehicles: sent,
+  // accepted, then done when the vehicle's telemetry confirms it by its motion, or not
+  // confirmed with what was seen; refused with the reason); what it never saw (no token,
+  // an unreachable service) is said here.
   try {
     await api("POST", `/vehicles/${id}/command`, {command: command});
     delete state.commandSaid[id];

@@ -139,3 +139,46 @@ def test_the_service_flies_two_arducopters(ardupilot, tmp_path: Path) -> None:
         assert "TakeOff" not in requests, "the vehicle was in the air: no second take-off"
         code, out = again.stop()
         assert code == 0, out
+
+
+def command(client: httpx.Client, vehicle: int, name: str) -> dict[str, Any]:
+    """The service's answer to an operator's command, asserted confirmed (200, done)."""
+    answer = client.post(f"/vehicles/{vehicle}/command", json={"command": name},
+                         timeout=120)
+    assert answer.status_code == 200, answer.text
+    body = dict(answer.json())
+    assert (body["outcome"], body["confirmed"]) == ("done", True), body
+    return body
+
+
+def test_operator_commands_are_done_once_arducopter_s_motion_confirms_them(
+        ardupilot, tmp_path: Path) -> None:
+    """A hold during a run pauses it and is done once the vehicle is still (and reports a
+    stop as its GUIDED target); once the run is aborted (into hold) and ended, a hold of
+    the vehicle no run holds is BRAKE, done once it is still; a land is done once it
+    descends."""
+    (vehicle,) = ardupilot(count=1)
+    serve = ["--connect", vehicle.address, "--clock", "vehicle", "--timeout", "120"]
+    with Server(serve, tmp_path / "data") as server, \
+            httpx.Client(base_url=server.url, timeout=60) as client:
+        mission = client.post("/missions", content=LONG, params={"filename": "long.xml"},
+                              headers={"Content-Type": "application/xml"}).json()["id"]
+        # Aborted into hold: the vehicle stays in the air, free, for the next hold.
+        run = post(client, "/runs", mission=mission, vehicles=[1], safe_state="hold")["id"]
+        until("vehicle 1 on its way out", lambda: out_beyond(client, 1, 15))
+        held = command(client, 1, "hold")
+        assert held["run"] == run and f"(run {run} paused): mode GUIDED" in held["message"]
+        assert client.get(f"/runs/{run}").json()["status"] == "paused"
+        post(client, f"/runs/{run}/abort")
+        until("the run ended", lambda: status(client, run, "aborted", "completed", "failed",
+                                              "taken"))
+        braked = command(client, 1, "hold")
+        assert braked["run"] is None and braked["message"].startswith(
+            "vehicle 1: hold done (SetMode BRAKE): mode BRAKE"), braked
+        assert client.get("/vehicles/1").json()["mode"] == "BRAKE"
+        landed = command(client, 1, "land")
+        assert landed["message"].startswith("vehicle 1: land done (Land): mode LAND")
+        until("vehicle 1 landed and disarmed", lambda: not client.get(
+            "/vehicles/1").json()["armed"])
+        code, out = server.stop()
+        assert code == 0, out

@@ -609,10 +609,11 @@ class Service:
     def _target_watch(self, vehicle_id: int, vehicle: Vehicle) -> TargetWatch | None:
         """The GUIDED targets a vehicle reports (one watch per vehicle), cleared: those
         from now on."""
-        if vehicle_id not in self._targets:
-            self._targets[vehicle_id] = target_watch(
-                vehicle, int(getattr(vehicle, "system_id", vehicle_id)))
-        watch = self._targets[vehicle_id]
+        with self._lock:  # one watch per vehicle, however many commands come at once
+            if vehicle_id not in self._targets:
+                self._targets[vehicle_id] = target_watch(
+                    vehicle, int(getattr(vehicle, "system_id", vehicle_id)))
+            watch = self._targets[vehicle_id]
         if watch is not None:
             watch.clear()
         return watch

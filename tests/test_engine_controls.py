@@ -199,6 +199,37 @@ def test_abort_while_paused_sends_the_safe_state() -> None:
     assert flight.vehicle.mode == "RTL"
 
 
+@pytest.mark.parametrize("taken", [False, True], ids=["link-lost", "taken"])
+def test_a_vehicle_lost_or_taken_while_paused_ends_the_run_as_it_would_running(
+        taken: bool) -> None:
+    """Paused, nothing would take the failure up until resume (which may never come): the
+    run ends as the unhandled failure ends it running -- a lost vehicle told its safe
+    state for when it is heard again, a taken one commanded no more."""
+    flight = Flight(TAKE_OFF + WAIT_10 + LAND)
+    until(flight, lambda f: f.view().task_states.get("Wait") is TaskState.RUNNING)
+    pause(flight)
+    sent = len(flight.requests)
+    flight._take(flight.interp.lost(flight.time, 1, "link lost for more than 2 s", taken))
+    assert flight.interp.status is Status.FAILED
+    assert flight.interp.reason.startswith("taken: vehicle 1" if taken else "link: vehicle 1")
+    asked = [r.name for r in flight.requests[sent:]]
+    assert asked == ([] if taken else ["ReturnToLaunch"])
+    assert [r["message"] for r in records(flight, "safety")] == (
+        [] if taken else ["vehicle in the air: ReturnToLaunch (link: vehicle 1: link lost for "
+         "more than 2 s)"])
+
+
+def test_an_abort_while_the_vehicle_lands_leaves_it_to_land_and_says_so() -> None:
+    flight = Flight(TAKE_OFF + LAND)
+    until(flight, lambda f: f.vehicle.mode == "LAND" and f.vehicle.position[2] < 4.0)
+    sent = len(flight.requests)
+    flight._take(flight.interp.abort(flight.time, {1: flight.vehicle.state()}, "operator"))
+    assert flight.requests[sent:] == []  # not sent back up to return
+    (said,) = records(flight, "safety")
+    assert (said["message"], said["request"]) == (
+        "vehicle landing (LAND): left to land by itself (operator)", "")
+
+
 def test_a_vehicle_paused_on_the_ground_is_not_asked_again_on_resume() -> None:
     # Paused while its take-off was on its way: the vehicle was on the ground, so it was
     # not told to hold; the answer came during the pause. Sent again, the take-off would be

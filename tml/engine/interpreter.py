@@ -208,7 +208,14 @@ class Interpreter:
                               vehicle_id) if taken else pilot.link_failure()
             for work in list(pilot.work):
                 work.decide(Verdict.FAIL, failure)
-            self._tick()  # its task fails (and is handled) now
+            if run.paused:
+                # Paused, nothing is stepped until resume: no handler could take the
+                # failure up, and the vehicle would be flown by nobody meanwhile (an
+                # operator's resume may never come). The run ends as an unhandled failure
+                # ends it, and every vehicle still bound goes to its safe state.
+                self._end(failure.status, failure.message)
+            else:
+                self._tick()  # its task fails (and is handled) now
         if role is not None and not taken:
             # Nobody flies it any more; if the link comes back, it goes to the safe state.
             run.safe_state(pilot, reason)

@@ -9,6 +9,7 @@ import pytest
 from tml.engine.safety import (
     SAFE_STATES,
     CommandRefusal,
+    left_to_itself,
     operator_command_shown,
     operator_request,
     safe_state_request,
@@ -74,10 +75,17 @@ def test_a_vehicle_landing_or_returning_already_is_left_to_it(mode: str, safe_st
     landing = VehicleState(1, 10.0, armed=True, landed=False, mode=mode, asked=8.0, heard=9.0)
     found = safe_state_request(landing, safe_state)
     assert (found[0].name if found else None) == expected
+    # Left to it is a decision too, and says why (the caller logs it as a safety line).
+    said = left_to_itself(landing, safe_state)
+    assert bool(said) is (expected is None)
+    if said:
+        assert said == (f"vehicle landing ({mode}): left to land by itself" if mode == "LAND"
+                        else f"vehicle returning ({mode}): left to return by itself")
     # ... but only on a picture newer than the latest request, and over a live link.
     for doubt in (replace(landing, heard=7.0), replace(landing, link="lost")):
         found = safe_state_request(doubt, safe_state)
         assert found is not None and found[0].name == SAFE_STATES[safe_state](1).name
+        assert left_to_itself(doubt, safe_state) == ""
 
 
 def test_action_failures_are_the_values_of_the_action_failure_parameter() -> None:

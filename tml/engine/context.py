@@ -22,7 +22,7 @@ from tml.engine.failures import Failure
 from tml.engine.records import Change, Output, Record, Status, TaskState, View, request_fields
 from tml.engine.resume import Restoring
 from tml.engine.roles import Candidate, candidates
-from tml.engine.safety import safe_state_request
+from tml.engine.safety import left_to_itself, safe_state_request
 from tml.engine.scripts import Limits
 from tml.errors import EngineError
 from tml.language import skills
@@ -582,6 +582,10 @@ class Run:
     def safe_state(self, pilot: Pilot, reason: str) -> None:
         """Command the safe state (:func:`~tml.engine.safety.safe_state_request`)."""
         safe = safe_state_request(pilot.state, self.options.safe_state)
+        if safe is None:
+            left = left_to_itself(pilot.state, self.options.safe_state)
+            if left:  # a safe-state decision too: said, and confirmed like the others
+                self.note("safety", f"{left} ({reason})", pilot.vehicle_id, request="")
         if safe is not None:
             request, why = safe
             self.note("safety", f"{why} ({reason})", pilot.vehicle_id, request=request.name)

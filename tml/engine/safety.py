@@ -32,14 +32,26 @@ def safe_state_request(state: VehicleState, safe_state: str) -> tuple[Request, s
             return Disarm(state.vehicle_id), "ground vehicle armed: disarm (it stops)"
         return None
     if state.possibly_flying:
-        if safe_state != "hold" and state.current and state.link != "lost" \
-                and state.mode in SHOWN.get(safe_state, SHOWN["rtl"]):
+        if left_to_itself(state, safe_state):
             return None  # on its way down already (landing, returning): left to it
         request = SAFE_STATES.get(safe_state, ReturnToLaunch)(state.vehicle_id)
         return request, f"vehicle in the air: {request.name}"
     if state.armed:
         return Disarm(state.vehicle_id), "vehicle armed on the ground: disarm"
     return None
+
+
+def left_to_itself(state: VehicleState, safe_state: str) -> str:
+    """Why a vehicle in the air is left to carry on by itself rather than told
+    ``safe_state`` (fresh telemetry shows it landing or returning already, in a mode of
+    :data:`SHOWN`): a decision like any other, which the caller logs; "" when it is not."""
+    if kind_of(state.vehicle_type) is Kind.GROUND or not state.possibly_flying \
+            or safe_state == "hold" or not state.current or state.link == "lost" \
+            or state.mode not in SHOWN.get(safe_state, SHOWN["rtl"]):
+        return ""
+    if state.mode in SHOWN["land"]:
+        return f"vehicle landing ({state.mode}): left to land by itself"
+    return f"vehicle returning ({state.mode}): left to return by itself"
 
 
 SHOWN: dict[str, frozenset[str]] = {

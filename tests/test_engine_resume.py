@@ -11,11 +11,12 @@ import pytest
 from fake_vehicle import FakeVehicle
 
 from tml.engine import Interpreter, Status
+from tml.engine.records import TaskState
 from tml.engine.resume import Progress, progress
 from tml.errors import EngineError
 from tml.language.validation import validate_file
 from tml.run.journal import Journal
-from tml.vehicle import FlyMission, IdSource, TakeOff
+from tml.vehicle import FlyMission, GoTo, IdSource, TakeOff
 
 
 def task(name: str, action: str, argument: str = "", extra: str = "") -> str:
@@ -118,8 +119,36 @@ def test_a_run_killed_anywhere_and_resumed_ends_as_one_left_alone() -> None:
 def test_a_vehicle_in_the_air_is_not_told_to_take_off_again() -> None:
     log, _, second = interrupted(8, downtime=0.2)  # climbing since 0.2 s
     assert not [r for r in second.requests if isinstance(r, TakeOff)]
-    assert any(line["message"] == "TAKE_OFF ignored: the vehicle is already flying"
+    assert any(line["message"].startswith("TAKE_OFF resumed in the air at ")
                for line in lines(log) if line["kind"] == "decision")
+
+
+HIGH = ('<mission name="High">\n'
+        + task("Up", "TAKE_OFF", '<argument name="altitude" value="20"/>')
+        + task("Stay", "WAIT", '<argument name="duration" value="15"/>')
+        + task("Down", "LAND") + "</mission>\n")
+
+
+def test_a_take_off_resumed_mid_climb_climbs_on_to_its_altitude() -> None:
+    """Killed at 4 m of a take-off to 20 m and resumed at once: the take-off is not
+    ignored (the WAIT's hold would stop the climb short), it climbs on and is done only
+    when the vehicle is at 20 m."""
+    vehicle, log = FakeVehicle(), io.StringIO()
+    first = Station(vehicle, log, 0.0, text=HIGH)
+    while vehicle.position[2] < 4.0:
+        first.fly(1)
+    found = progress(lines(log), 1)
+    assert found.running.keys() == {"Up"}
+    second = Station(vehicle, log, first.time, found, found.last_id + 1, text=HIGH)
+    while second.engine.views()[1].task_states.get("Stay") is not TaskState.RUNNING:
+        second.fly(1)
+    assert vehicle.position[2] == pytest.approx(20.0, abs=0.6)  # when the WAIT begins
+    (goto,) = [r for r in second.requests if isinstance(r, GoTo)]
+    assert goto.target[2] == 20.0
+    assert not [r for r in second.requests if isinstance(r, TakeOff)]
+    second.fly()
+    assert second.engine.status is Status.COMPLETED
+    assert [t for t, state in ends(log)] == ["Up", "Stay", "Down"]
 
 
 def test_memorized_points_and_the_repeat_round_are_restored() -> None:

@@ -313,7 +313,9 @@ class ActionLeaf(Leaf):
         run.note("action", f"{bound.name} started", self.vehicle_id, **self._data(),
                  line=self.action.location.line, arguments=dict(bound.values),
                  labels=dict(bound.labels))
-        self.script = script_for(self.pilot, bound)
+        restoring, task = run.restoring, self.task
+        self.script = script_for(self.pilot, bound, restoring is not None and task is not None
+                                 and restoring.reentering(task.path_name))
         if run.options.pre_check is not None:
             violations = run.options.pre_check(bound, self.pilot.state, self.pilot.labels,
                                                run.log.mission_time)

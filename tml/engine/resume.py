@@ -147,6 +147,7 @@ class Restoring:
         self.rounds = dict(progress.rounds)
         self.plans = dict(progress.plans)
         self.recovering = set(progress.recovering)
+        self.reentered: set[str] = set()  # the running tasks taken so far
 
     def take_ended(self, path: str) -> TaskState | None:
         """How the task had ended, if it had (then it is passed over)."""
@@ -154,7 +155,15 @@ class Restoring:
 
     def take_running(self, path: str) -> float | None:
         """When the task had begun running, if it was running (then it is re-entered)."""
-        return self.running.pop(path, None)
+        begun = self.running.pop(path, None)
+        if begun is not None:
+            self.reentered.add(path)
+        return begun
+
+    def reentering(self, path: str) -> bool:
+        """Whether the task was running when the run was interrupted, and is re-entered
+        now (its action goes on with what is left of it: a TAKE_OFF climbs on)."""
+        return path in self.reentered
 
     def take_round(self, path: str) -> int:
         """The round the repeat or loop was in (0: it had not begun)."""

@@ -416,13 +416,16 @@ def _driven(ctx: Context, bound: BoundAction) -> Script:
     yield from SCRIPTS[bound.name](ctx, bound)
 
 
-def script_for(ctx: Context, bound: BoundAction) -> Script:
+def script_for(ctx: Context, bound: BoundAction, resumed: bool = False) -> Script:
     """The script flying ``bound`` on the vehicle of ``ctx``; for an action the vehicle's
-    kind cannot do at all, one that fails with ACTION_FAILURE ``infeasible`` at once."""
+    kind cannot do at all, one that fails with ACTION_FAILURE ``infeasible`` at once.
+    ``resumed``: the action was running when the run was interrupted (tml.engine.resume)."""
     kind = _kind(ctx)
     cannot = refusal(bound, kind, ctx.state.vehicle_type)
     if cannot is not None:
         return _refused(cannot)
+    if resumed and bound.name == "TAKE_OFF" and ctx.state.flying:
+        return _climb_on(ctx, bound)
     if kind is Kind.GROUND and (bound.spec.category is Category.TRANSLATION
                                 or bound.name in ("LOITER", "RETURN_HOME_AND_LOITER")):
         return _driven(ctx, bound)
@@ -452,6 +455,31 @@ def take_off(ctx: Context, bound: BoundAction) -> Script:
     yield Until(lambda s: s.altitude >= altitude - tolerance,
                 ctx.limits.factor * altitude / ctx.limits.climb_rate + ctx.limits.slack,
                 f"climb to {altitude:g} m", lambda s: max(0.0, min(1.0, s.altitude / altitude)),
+                frozenset(("position", "current")))
+
+
+def _climb_on(ctx: Context, bound: BoundAction) -> Script:
+    """A TAKE_OFF the interrupted run began, resumed with the vehicle in the air: it is not
+    ignored as a fresh one would be (the next action's hold would stop the climb short of
+    the altitude it was given), the climb goes on to that altitude -- a position target
+    there, above where the vehicle is (a fixed-wing's TAKEOFF mode climbs on by itself) --
+    and is done when the telemetry shows it."""
+    altitude = bound.number("altitude")
+    here = _position(ctx)
+    tolerance = _tolerances(ctx)[1]
+    if here[2] >= altitude - tolerance:
+        ctx.note(f"TAKE_OFF resumed: the vehicle is at its altitude ({altitude:g} m) already",
+                 altitude=ctx.state.altitude)
+        return
+    ctx.note(f"TAKE_OFF resumed in the air at {here[2]:.1f} m: climbing on to {altitude:g} m",
+             altitude=ctx.state.altitude)
+    if _kind(ctx) is not Kind.FIXED_WING:
+        yield from fly_to(ctx, (here[0], here[1], altitude), "TAKE_OFF")
+        return
+    yield Until(lambda s: s.altitude >= altitude - tolerance,
+                ctx.limits.factor * (altitude - here[2]) / ctx.limits.climb_rate
+                + ctx.limits.slack, f"climb to {altitude:g} m",
+                lambda s: max(0.0, min(1.0, s.altitude / altitude)),
                 frozenset(("position", "current")))
 
 

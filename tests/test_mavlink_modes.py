@@ -168,6 +168,24 @@ def test_one_forged_heartbeat_between_the_real_ones_takes_nothing() -> None:
     assert watch.taken == ""
 
 
+def test_a_mode_adopted_as_the_vehicle_flies_in_it_makes_another_a_take_over() -> None:
+    """A resumed or continued run finds the vehicle flying in GUIDED and asks no switch:
+    GUIDED is adopted, and an operator's RTL after it is told as a take-over."""
+    from tml.mavlink.modes import ModeWatch
+
+    watch = ModeWatch()
+    assert not watch.seen("RTL", armed=True, now=0.0)
+    assert not watch.seen("RTL", armed=True, now=2.0)  # nothing asked: its own mode
+    watch.adopt("GUIDED")
+    assert not watch.seen("GUIDED", armed=True, now=3.0)
+    assert not watch.seen("RTL", armed=True, now=4.0)
+    assert watch.seen("RTL", armed=True, now=5.0) and watch.taken == "RTL"
+    asked = ModeWatch()
+    asked.ask("AUTO")
+    asked.adopt("GUIDED")  # a mode asked already is kept
+    assert asked.asked == "AUTO"
+
+
 def test_a_mode_change_on_the_ground_disarmed_is_not_taken() -> None:
     from tml.mavlink.modes import ModeWatch
 

@@ -829,6 +829,14 @@ class MavlinkVehicle:
         if self.link.telemetry(self.system_id).mode != "GUIDED":
             self._end_plan()
             yield from self._switching("GUIDED")
+        else:
+            self._adopt_guided()
+
+    def _adopt_guided(self) -> None:
+        """Flown in the GUIDED it is in, with no switch asked on this link (a resumed or
+        continued run): the mode watch expects GUIDED from now on."""
+        with self._lock:
+            self._modes.adopt("GUIDED")
 
     def _end_plan(self) -> None:
         with self._lock:
@@ -981,6 +989,7 @@ class MavlinkVehicle:
         if t.mode != "GUIDED":
             yield from self._guided()  # ArduCopter stops at its stopping point in GUIDED
             return
+        self._adopt_guided()
         # Braked to a stop where it can: a position target at the point where it was would
         # be flown past (at 10 m/s ArduCopter needs some 20 m to stop) and back to.
         self._keep_aim(_Aim(None))

@@ -133,6 +133,14 @@ class ModeWatch:
         self._before = (self.asked, self.confirmed)
         self.asked, self.confirmed, self.since = mode.upper(), False, None
 
+    def adopt(self, mode: str) -> None:
+        """The vehicle is flown in ``mode`` as it is, with nothing asked on this link yet:
+        a resumed or continued run takes it up in the GUIDED the interrupted run left it
+        in. That mode is expected from now on, as if asked and shown, so that another's
+        switch is told as a take-over (rather than overridden by the next request)."""
+        if self.asked is None:
+            self.asked, self.confirmed, self.since = mode.upper(), True, None
+
     def refused(self) -> None:
         """The last ask failed: the mode asked before is still the one expected."""
         self.asked, self.confirmed = self._before

@@ -19,11 +19,13 @@ from tml.run.journal import DECISIONS, Journal, read
 from tml.run.runner import Runner, RunOptions
 from tml.vehicle import (
     SHOWN_FIELDS,
+    Arm,
     Disarm,
     Hold,
     Land,
     RequestResult,
     ReturnToLaunch,
+    TakeOff,
     VehicleState,
 )
 
@@ -1043,3 +1045,88 @@ def test_a_wait_is_stepped_at_its_end_and_when_what_an_event_reads_changes() -> 
     # until the engine has said what it waits for); not one step per battery reading.
     during = [t for t in steps if began < t < ended]
     assert len(during) <= 5, during
+
+
+class BootingAndTroubled(Booting):
+    """A vehicle not ready before ``armable_at`` whose link is lost from ``lost_at``, or
+    whose autopilot reboots at ``reboot_at``, while the run waits for it."""
+
+    armable_at = 60.0
+    lost_at: float | None = None
+    reboot_at: float | None = None
+
+    def state(self) -> VehicleState:
+        state = super().state()
+        if self.lost_at is not None and self.time >= self.lost_at:
+            state = replace(state, link="lost")
+        if self.reboot_at is not None and self.time >= self.reboot_at:
+            state = replace(state, reboots=1,
+                            rebooted="rebooted disarmed (its clock went from 3.0 s back to "
+                                     "0.5 s)")
+        return state
+
+
+@pytest.mark.parametrize("trouble", ["link", "rebooted"])
+def test_a_vehicle_lost_or_rebooted_while_waited_for_ends_the_run_as_in_flight(
+        trouble: str) -> None:
+    """Waiting for its vehicles, a run ends on a link lost past the limit and on a reboot
+    as it would in flight, before anything is sent: a rebooted vehicle ready again would
+    otherwise be flown by a mission that let it go at its first step."""
+    vehicle = BootingAndTroubled()
+    vehicle.armable_at = 5.0 if trouble == "rebooted" else 60.0
+    if trouble == "link":
+        vehicle.lost_at = 3.0
+    else:
+        vehicle.reboot_at = 3.0
+    sim = Sim(vehicle)
+    said: list[str] = []
+    log = io.StringIO()
+    runner = Runner(mission(TAKE_OFF + LAND), sim.vehicles, clock=sim.clock, wait=sim.wait,
+                    options=RunOptions(link_lost_limit=2.0), on_safety=said.append,
+                    journal=Journal(log))
+    outcome = runner.run()
+    (ended,) = outcome.vehicles
+    assert (outcome.exit_code, ended.status, ended.cause) == (
+        ExitCode.FAILURE, Status.FAILED, trouble)
+    assert sim.vehicles[0].submitted == []  # nothing sent, before or after
+    if trouble == "link":
+        assert ended.reason == "link lost for more than 2 s" and 5.0 < sim.time < 5.3
+        assert said == ["vehicle 1: link lost for more than 2 s"]
+    else:
+        assert ended.reason.startswith("rebooted disarmed") and sim.time < 3.2
+        assert said == [f"vehicle 1 {ended.reason}: tml commands it no more"]
+        lines = [json.loads(line) for line in log.getvalue().splitlines()]
+        assert [line["reboot"] for line in lines if line["kind"] == "taken"] == [True]
+
+
+def test_a_vehicle_never_heard_is_waited_for_not_given_up_as_lost() -> None:
+    vehicle = BootingAndTroubled()
+    vehicle.lost_at = 0.0
+    sim = Sim(vehicle)
+    runner = Runner(mission(TAKE_OFF + LAND), sim.vehicles, clock=sim.clock, wait=sim.wait,
+                    options=RunOptions(link_lost_limit=2.0, ready_timeout=5.0))
+    (ended,) = runner.run().vehicles
+    assert (ended.cause, ended.reason) == ("ready", "not ready after 5 s: waiting for heartbeat")
+
+
+def test_a_vehicle_in_the_air_is_told_its_safe_state_when_the_run_ends_while_waiting() -> None:
+    """A resumed run waits for its vehicles flying as they are (a skill's companion, a
+    link): a run that ends there leaves none of them hovering without a controller."""
+    flying = FakeVehicle()
+    flying.submit(Arm(1, request_id=1))
+    flying.submit(TakeOff(1, 10.0, request_id=2))
+    while flying.position[2] < 10.0:
+        flying.advance(0.1)
+    flying.poll()
+    vehicle = BootingAndTroubled()
+    vehicle.lost_at = 1.0
+    sim = Sim(flying, vehicle)
+    said: list[str] = []
+    runner = Runner(mission(TAKE_OFF + LAND), sim.vehicles, clock=sim.clock, wait=sim.wait,
+                    options=RunOptions(link_lost_limit=2.0), on_safety=said.append)
+    outcome = runner.run()
+    assert [v.cause for v in outcome.vehicles] == ["ready", "link"]
+    assert [r.name for r in flying.submitted[2:]] == ["ReturnToLaunch"]
+    assert sim.vehicles[1].submitted == []  # on the ground: left as it is
+    assert said[1] == ("vehicle 1: ReturnToLaunch (the run ended before its first task: "
+                       "link lost for more than 2 s)")

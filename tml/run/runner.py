@@ -65,7 +65,10 @@ for that up to ``ready_timeout`` seconds of its clock, writing what each vehicle
 to the journal whenever that changes; a vehicle still not ready then fails the run (exit 4)
 with what it lacked and the autopilot's own reason, before anything is sent to any vehicle.
 A skill nothing on a vehicle switches (:func:`tml.vehicle.unprovided`) fails it at once:
-waiting would not bring it. So the first conditions never read a value that has not arrived
+waiting would not bring it. A vehicle whose autopilot reboots while waited for, or whose
+link, alive once the wait began, stays lost longer than ``link_lost_limit``, fails the run
+as it would in flight; and a run that ends before its first task tells a vehicle that may
+be in the air (a resumed run's) its safe state, and watches for it, as after a flight. So the first conditions never read a value that has not arrived
 as if it were real, and no skill is found missing in flight.
 
 *The vehicle's own safety.* Once a vehicle on the ground is ready, and before the first
@@ -266,6 +269,7 @@ class _Flight:
         # the same revision changes nothing of it (see Runner._tick), and it is passed over.
         self.settled = False
         self.link = "ok"  # the link's health last journaled
+        self.heard = False  # its link was seen alive while the run waited for it
         # The mission's fence and rally points on the vehicle: None not asked yet, the
         # request's id while asked, "done", or why they could not be put there.
         self.safeguard: int | str | None = None
@@ -581,10 +585,15 @@ class Runner:
         while True:
             now = self.clock()
             waiting: dict[int, tuple[str, ...]] = {}
+            # A vehicle lost or rebooted while waited for: the run ends as it would in flight.
+            troubled: dict[int, str] = {}
             for flight in self.flights:
                 state = flight.state = flight.vehicle.state()
                 self._tell_messages(flight, now)
                 vid = flight.vehicle.vehicle_id
+                trouble = self._trouble_waiting(flight, state, now)
+                if trouble:
+                    troubled[vid] = trouble
                 missing = waiting[vid] = awaiting(state, self.skills)
                 if not missing:
                     missing = waiting[vid] = self._safeguard(flight, state, now)
@@ -598,7 +607,7 @@ class Runner:
             absent = {f.vehicle.vehicle_id: unprovided(f.state, self.skills)
                       for f in self.flights if f.state is not None}
             refused = any(isinstance(f.safeguard, str) and f.safeguard != "done"
-                          for f in self.flights) or any(absent.values())
+                          for f in self.flights) or any(absent.values()) or bool(troubled)
             if self._stop_reason or now - start > timeout or refused:
                 stopped = bool(self._stop_reason)
                 outcomes = []
@@ -606,6 +615,8 @@ class Runner:
                     vid = flight.vehicle.vehicle_id
                     if stopped:
                         reason, status = self._stop_reason, Status.ABORTED
+                    elif vid in troubled:
+                        reason, status = troubled[vid], Status.FAILED
                     elif isinstance(flight.safeguard, str) and flight.safeguard != "done":
                         reason, status = flight.safeguard, Status.FAILED
                     elif absent.get(vid):
@@ -622,14 +633,58 @@ class Runner:
                         status = Status.FAILED
                     else:
                         reason, status = "another vehicle was not ready", Status.ABORTED
-                    flight.cause = self._stop_cause if stopped else Ending.NOT_READY.cause
+                    flight.cause = flight.cause or (self._stop_cause if stopped
+                                                    else Ending.NOT_READY.cause)
                     outcomes.append(VehicleOutcome(vid, status, reason, flight.cause))
-                    if status is Status.FAILED:
+                    if status is Status.FAILED and vid not in troubled:
                         self._said(f"vehicle {vid}: {reason}")
+                self._safe_after_waiting(now, outcomes)
                 return Outcome(tuple(outcomes))
             if self.on_update is not None:
                 self.on_update(self)
             self._wait(1.0 / self.options.rate)
+
+    def _trouble_waiting(self, flight: _Flight, state: VehicleState, now: float) -> str:
+        """Why a vehicle waited for ends the run as it would end it in flight ("" if
+        nothing does): its autopilot rebooted (let go, commanded no more: whatever it had
+        been asked is gone, and a mission started on it would be flown on nothing tml set
+        up), or its link, alive since the wait began, lost for longer than
+        ``link_lost_limit`` seconds. A vehicle never heard yet is waited for (its
+        ``heartbeat``) until ``ready_timeout``."""
+        vid = flight.vehicle.vehicle_id
+        if state.reboots > flight.boots and not flight.taken:
+            flight.taken, flight.cause = True, Ending.REBOOTED.cause
+            reason = state.rebooted or "rebooted"
+            self.journal.write(now, "taken", vid, message=f"vehicle {vid} {reason}",
+                               mode=state.mode, reboot=True, status_text=state.status_text)
+            self._said(f"vehicle {vid} {reason}: tml commands it no more")
+            return reason
+        if state.link != "lost":
+            flight.heard, flight.lost_since = True, None
+            return ""
+        if not flight.heard:
+            return ""
+        flight.lost_since = now if flight.lost_since is None else flight.lost_since
+        if now - flight.lost_since <= self.options.link_lost_limit:
+            return ""
+        flight.lost, flight.cause = True, Ending.LINK_LOST.cause
+        reason = f"link lost for more than {self.options.link_lost_limit:g} s"
+        self._said(f"vehicle {vid}: {reason}")
+        return reason
+
+    def _safe_after_waiting(self, now: float, outcomes: Sequence[VehicleOutcome]) -> None:
+        """A run that ends before its first task leaves no vehicle flying without a
+        controller: one that may be in the air (a resumed run's, or a continued one's) is
+        told its safe state and watched until it shows it, as at the end of a flight; one
+        on the ground and disarmed is left as it is (nothing was sent to it)."""
+        reason = next((o.reason for o in outcomes if o.status is Status.FAILED),
+                      outcomes[0].reason if outcomes else "")
+        for flight in self.flights:
+            if flight.state is not None and not flight.taken and (
+                    flight.state.possibly_flying or flight.state.armed):
+                self._fallback_safe_state(flight, now, f"the run ended before its first "
+                                                       f"task: {reason}")
+        self._confirm_safe_states()
 
     def _safeguard(self, flight: _Flight, state: VehicleState, now: float) -> tuple[str, ...]:
         """Put the mission's fence and rally points on a ready vehicle (once, on the ground,

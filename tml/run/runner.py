@@ -65,11 +65,12 @@ for that up to ``ready_timeout`` seconds of its clock, writing what each vehicle
 to the journal whenever that changes; a vehicle still not ready then fails the run (exit 4)
 with what it lacked and the autopilot's own reason, before anything is sent to any vehicle.
 A skill nothing on a vehicle switches (:func:`tml.vehicle.unprovided`) fails it at once:
-waiting would not bring it. A vehicle whose autopilot reboots while waited for, or whose
-link, alive once the wait began, stays lost longer than ``link_lost_limit``, fails the run
-as it would in flight; and a run that ends before its first task tells a vehicle that may
-be in the air (a resumed run's) its safe state, and watches for it, as after a flight. So the first conditions never read a value that has not arrived
-as if it were real, and no skill is found missing in flight.
+waiting would not bring it. So the first conditions never read a value that has not arrived
+as if it were real, and no skill is found missing in flight. A vehicle whose autopilot
+reboots while waited for, or whose link, alive once the wait began, stays lost longer than
+``link_lost_limit``, fails the run as it would in flight; and a run that ends before its
+first task tells a vehicle that may be in the air (a resumed run's) its safe state, and
+watches for it, as after a flight.
 
 *The vehicle's own safety.* Once a vehicle on the ground is ready, and before the first
 task, the runner puts the mission's fence and rally points on it (one

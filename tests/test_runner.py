@@ -1130,3 +1130,32 @@ def test_a_vehicle_in_the_air_is_told_its_safe_state_when_the_run_ends_while_wai
     assert sim.vehicles[1].submitted == []  # on the ground: left as it is
     assert said[1] == ("vehicle 1: ReturnToLaunch (the run ended before its first task: "
                        "link lost for more than 2 s)")
+
+
+def test_a_vehicle_landing_when_the_engine_breaks_is_left_to_land_and_the_runner_says_so(
+        ) -> None:
+    sim = Sim(FakeVehicle())
+    log = io.StringIO()
+    said: list[str] = []
+    runner = Runner(mission(TAKE_OFF + LAND), sim.vehicles, clock=sim.clock, wait=sim.wait,
+                    journal=Journal(log), on_safety=said.append)
+    engine = runner.crews[0].engine
+    step = engine.step
+
+    def explode_while_landing(now, states, results):  # type: ignore[no-untyped-def]
+        vehicle = sim.vehicles[0]
+        if vehicle.mode == "LAND" and vehicle.position[2] > 0.5:
+            raise RuntimeError("boom")
+        return step(now, states, results)
+    engine.step = explode_while_landing  # type: ignore[method-assign]
+    outcome = runner.run()
+    assert outcome.exit_code == ExitCode.FAILURE
+    lines = [json.loads(line) for line in log.getvalue().splitlines()]
+    safety = [(line["message"], line.get("request"), line.get("confirmed"))
+              for line in lines if line["kind"] == "safety"]
+    assert safety[0] == ("vehicle landing (LAND): left to land by itself (interpreter "
+                         "error: boom)", "", None)
+    assert safety[-1][2] is True  # and confirmed
+    assert not [r for r in sim.vehicles[0].submitted if isinstance(r, ReturnToLaunch)]
+    assert "vehicle 1: vehicle landing (LAND): left to land by itself (interpreter error: " \
+           "boom)" in said

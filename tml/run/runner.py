@@ -130,7 +130,7 @@ from typing import Any
 
 from tml.engine import Interpreter, Options, Output, Status, View
 from tml.engine.resume import Progress
-from tml.engine.safety import safe_state_request, safe_state_shown
+from tml.engine.safety import left_to_itself, safe_state_request, safe_state_shown
 from tml.engine.wake import ANYTHING, fields_read
 from tml.errors import ControlRefused, ExitCode
 from tml.language.model import Mission
@@ -942,9 +942,14 @@ class Runner:
         if flight.taken:
             return  # flown by whoever took it
         safe = safe_state_request(state, self.options.safe_state)
+        vid = flight.vehicle.vehicle_id
+        left = "" if safe is not None else left_to_itself(state, self.options.safe_state)
+        if left:  # landing or returning already: a decision, said as the engine says it
+            self.journal.write(now, "safety", vid, message=f"{left} ({reason})", request="")
+            self._said(f"vehicle {vid}: {left} ({reason})")
+            flight.safe_asked, flight.safe_request = True, ""  # confirmed like the others
         if safe is not None:
             request = replace(safe[0], request_id=self.ids.take())
-            vid = flight.vehicle.vehicle_id
             self.journal.write(now, "safety", vid, message=f"{request.name} ({reason})",
                                request=request.name, request_id=request.request_id)
             self._said(f"vehicle {vid}: {request.name} ({reason})")

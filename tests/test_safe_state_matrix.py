@@ -202,8 +202,12 @@ def judge(watch: Watch, cells: dict[str, Cell]) -> None:
     for index, event in enumerate(EVENTS):
         observer: Observer = watch.observers[index]
         cell = cells[event]
-        observer.wait(lambda s: on_ground(s, False), cell.event_at, LIMIT)
-        armed = [s for s in observer.between(cell.event_at, math.inf) if s.armed]
+        down = observer.wait(lambda s: on_ground(s, False), cell.event_at, LIMIT)
+        # A rebooted vehicle comes back on the ground where it booted (the simulator's
+        # reboot; a real copter falls), armed in GUIDED up to that moment: it is judged
+        # from then on -- never armed again (nothing tml sends arms it).
+        since = down.time if event == "reboot" and down is not None else cell.event_at
+        armed = [s for s in observer.between(since, math.inf) if s.armed]
         cell.armed_after = bool(armed)
         cell.last_armed = armed[-1] if armed else None
         cell.landed = observer.wait(lambda s: on_ground(s, False),

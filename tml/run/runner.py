@@ -652,14 +652,8 @@ class Runner:
         up), or its link, alive since the wait began, lost for longer than
         ``link_lost_limit`` seconds. A vehicle never heard yet is waited for (its
         ``heartbeat``) until ``ready_timeout``."""
-        vid = flight.vehicle.vehicle_id
         if state.reboots > flight.boots and not flight.taken:
-            flight.taken, flight.cause = True, Ending.REBOOTED.cause
-            reason = state.rebooted or "rebooted"
-            self.journal.write(now, "taken", vid, message=f"vehicle {vid} {reason}",
-                               mode=state.mode, reboot=True, status_text=state.status_text)
-            self._said(f"vehicle {vid} {reason}: tml commands it no more")
-            return reason
+            return self._let_go(flight, now)
         if state.link != "lost":
             flight.heard, flight.lost_since = True, None
             return ""
@@ -670,7 +664,7 @@ class Runner:
             return ""
         flight.lost, flight.cause = True, Ending.LINK_LOST.cause
         reason = f"link lost for more than {self.options.link_lost_limit:g} s"
-        self._said(f"vehicle {vid}: {reason}")
+        self._said(f"vehicle {flight.vehicle.vehicle_id}: {reason}")
         return reason
 
     def _safe_after_waiting(self, now: float, outcomes: Sequence[VehicleOutcome]) -> None:
@@ -874,16 +868,24 @@ class Runner:
         air the vehicle fell or flies on nothing tml set up. Either way its work fails with
         the reason and nothing is sent to it any more: what it does now is the operator's
         to decide, on what the vehicle shows."""
+        reason = self._let_go(flight, now)
+        if flight.lost:
+            return  # its work failed with the link already
+        self._guarded(crew, now, partial(crew.engine.lost, now, flight.vehicle.vehicle_id,
+                                         reason, True))
+
+    def _let_go(self, flight: _Flight, now: float) -> str:
+        """A rebooted vehicle is commanded no more: logged (a ``taken`` line with
+        ``reboot``) and said; the reason ("rebooted while armed (its clock went from
+        ...)")."""
         assert flight.state is not None
         vid, state = flight.vehicle.vehicle_id, flight.state
         flight.taken, flight.cause = True, Ending.REBOOTED.cause
-        reason = state.rebooted  # "rebooted while armed (its clock went from ...)"
+        reason = state.rebooted or "rebooted"
         self.journal.write(now, "taken", vid, message=f"vehicle {vid} {reason}",
                            mode=state.mode, reboot=True, status_text=state.status_text)
         self._said(f"vehicle {vid} {reason}: tml commands it no more")
-        if flight.lost:
-            return  # its work failed with the link already
-        self._guarded(crew, now, partial(crew.engine.lost, now, vid, reason, True))
+        return reason
 
     def _guarded(self, crew: _Crew, now: float, call: Callable[[], Output]) -> None:
         """Run an engine call; an exception aborts every vehicle."""

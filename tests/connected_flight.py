@@ -4,10 +4,13 @@ the flight log tml flushes at each decision."""
 
 from __future__ import annotations
 
+import contextlib
 import json
+import socket
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -43,3 +46,17 @@ def log_lines(log: Path) -> list[dict[str, Any]]:
     if not log.exists():
         return []
     return [json.loads(text) for text in log.read_text().splitlines() if text.endswith("}")]
+
+
+@contextlib.contextmanager
+def vehicles_on_one_udp_port(count: int, params: dict[str, float]) -> Iterator[str]:
+    """``count`` simulated vehicles all sending to one UDP port, as several autopilots
+    behind one radio or router do: the address (``udpin:``) that hears them all."""
+    from sitl.server import Simulator
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    with Simulator(vehicles=count, speedup=20, tcp_base_port=None, params=params,
+                   udp_out=[f"udp:127.0.0.1:{port}"]):
+        yield f"udpin:127.0.0.1:{port}"

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import math
 import re
-import socket
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -14,6 +13,7 @@ from types import SimpleNamespace
 from typing import Any
 
 import pytest
+from connected_flight import vehicles_on_one_udp_port
 from pymavlink import mavutil
 
 from sitl.server import Simulator
@@ -275,12 +275,7 @@ def test_a_hold_the_vehicle_does_not_keep_is_not_confirmed(
 
 def test_several_vehicles_at_the_address_need_a_sysid(
         capsys: pytest.CaptureFixture[str]) -> None:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
-    address = f"udpin:127.0.0.1:{port}"
-    with Simulator(vehicles=2, speedup=20, tcp_base_port=None, params=PARAMS,
-                   udp_out=[f"udp:127.0.0.1:{port}"]):
+    with vehicles_on_one_udp_port(2, PARAMS) as address:
         assert main(["command", "hold", "--connect", address, "--timeout", "30"]) == 2
     assert capsys.readouterr().err.strip().splitlines() == [
         f"tml command: {address}: vehicles with system ids 1, 2 heard: say which with "

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from connected_flight import vehicles_on_one_udp_port
 from flight_checks import check_imav2016
 
 from sitl.server import Simulator
@@ -73,12 +74,7 @@ def test_the_world_can_be_a_world_file_and_the_system_id_is_kept(tmp_path: Path)
 
 def test_a_link_that_hears_several_autopilots_needs_a_sysid(
         capsys: pytest.CaptureFixture[str]) -> None:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
-    address = f"udpin:127.0.0.1:{port}"
-    with Simulator(vehicles=2, speedup=20, tcp_base_port=None, params=PARAMS,
-                   udp_out=[f"udp:127.0.0.1:{port}"]):
+    with vehicles_on_one_udp_port(2, PARAMS) as address:
         assert main(["companion", "--connect", address, "--world", IMAV]) == 2
         assert capsys.readouterr().err.strip().splitlines() == [
             f"tml companion: {address}: vehicles with system ids 1, 2 heard: say which "

@@ -98,6 +98,8 @@ class Source(Protocol):
     def home_local(self) -> Vector: ...
     def gps_noise(self) -> float: ...  # degrees of receiver noise for this fix
     def mission_status(self) -> tuple[int, int, int]: ...  # seq, total, MISSION_STATE
+    # GUIDED's target: (local position, global position) or (velocity, None), or None.
+    def guided_target(self) -> tuple[Vector, Vector | None] | None: ...
 
 
 class Builder:
@@ -300,6 +302,41 @@ def gps_global_origin(v: Source) -> Arguments | None:
         int(v.time * 1e6))
 
 
+# POSITION_TARGET_* type_masks as ArduCopter sends them (GCS_MAVLINK_Copter): the position
+# alone (global, local) or the velocity alone (local); yaw and yaw rate always ignored.
+TARGET_GLOBAL_POSITION = 65016
+TARGET_LOCAL_POSITION = 3576
+TARGET_LOCAL_VELOCITY = 3079
+
+
+@builds(M.MAVLink_position_target_global_int_message)
+def position_target_global_int(v: Source) -> Arguments | None:
+    """POSITION_TARGET_GLOBAL_INT: GUIDED's point (frame GLOBAL, altitude AMSL), None
+    under a velocity target, without a target or outside GUIDED."""
+    target = v.guided_target()
+    if target is None or target[1] is None:
+        return None
+    lat, lon, alt = target[1]
+    return (int(v.time * 1000), M.MAV_FRAME_GLOBAL, TARGET_GLOBAL_POSITION,
+            round(lat * 1e7), round(lon * 1e7), alt, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+@builds(M.MAVLink_position_target_local_ned_message)
+def position_target_local_ned(v: Source) -> Arguments | None:
+    """POSITION_TARGET_LOCAL_NED: GUIDED's point (NED metres from the EKF origin) or its
+    velocity target, None without a target or outside GUIDED."""
+    target = v.guided_target()
+    if target is None:
+        return None
+    (a, b, c), point = target
+    if point is not None:
+        mask, position, velocity = TARGET_LOCAL_POSITION, (a, b, -c), (0.0, 0.0, 0.0)
+    else:
+        mask, position, velocity = TARGET_LOCAL_VELOCITY, (0.0, 0.0, 0.0), (a, b, -c)
+    return (int(v.time * 1000), M.MAV_FRAME_LOCAL_NED, mask, *position, *velocity,
+            0.0, 0.0, 0.0, 0.0, 0.0)
+
+
 @builds(M.MAVLink_system_time_message)
 def system_time(v: Source) -> Arguments:
     """SYSTEM_TIME: time since boot (no UNIX time: the simulated GPS gives none)."""
@@ -337,6 +374,8 @@ BUILDERS: dict[int, Builder] = {
     M.MAVLINK_MSG_ID_HOME_POSITION: home_position,
     M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN: gps_global_origin,
     M.MAVLINK_MSG_ID_SYSTEM_TIME: system_time,
+    M.MAVLINK_MSG_ID_POSITION_TARGET_GLOBAL_INT: position_target_global_int,
+    M.MAVLINK_MSG_ID_POSITION_TARGET_LOCAL_NED: position_target_local_ned,
     M.MAVLINK_MSG_ID_AUTOPILOT_VERSION: autopilot_version,
 }
 

@@ -1426,6 +1426,20 @@ class VehicleModel:
         """Home in the local frame."""
         return self._home_local()
 
+    def guided_target(self) -> tuple[Vector, Vector | None] | None:
+        """What GUIDED flies to, as ArduCopter reports it: (position in the local frame,
+        its latitude, longitude and altitude AMSL) for a point, (velocity north, east, up,
+        None) under a velocity target, None without a target or in any other mode."""
+        if self.mode != "GUIDED" or not self.armed or self.landed:
+            return None
+        if self._target is not None:
+            o = self.origin
+            return self._target, to_global(*self._target, o.latitude, o.longitude, o.altitude)
+        if self._velocity is not None:
+            velocity, expiry = self._velocity
+            return (velocity if self.time < expiry else (0.0, 0.0, 0.0)), None
+        return None
+
     def gps_noise(self) -> float:
         """A draw of receiver noise in degrees (about 0.3 m), from the vehicle's seed."""
         return 1e-7 * self._rng.uniform(-3.0, 3.0)

@@ -5,7 +5,7 @@ ports' stream rates (ArduPilot's ``SRx_*`` parameters) are zero, so a ground sta
 for what it needs, per message with MAV_CMD_SET_MESSAGE_INTERVAL (interval in
 microseconds; 0 restores the default, i.e. off, -1 stops it) or per group with the older
 REQUEST_DATA_STREAM (groups as ArduCopter maps them; a message that is in no group, such
-as EXTENDED_SYS_STATE or HOME_POSITION, only by interval). HOME_POSITION and
+as EXTENDED_SYS_STATE, HOME_POSITION or POSITION_TARGET_*, only by interval). HOME_POSITION and
 GPS_GLOBAL_ORIGIN are also sent once, unasked, when the EKF origin is set, and
 HOME_POSITION whenever home moves (the model does that, not this schedule).
 
@@ -39,6 +39,8 @@ DEFAULT_RATES = {
     M.MAVLINK_MSG_ID_SYSTEM_TIME: 0.0,
     M.MAVLINK_MSG_ID_HOME_POSITION: 0.0,  # sent when home changes and on request
     M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN: 0.0,  # sent when the origin is set and on request
+    M.MAVLINK_MSG_ID_POSITION_TARGET_GLOBAL_INT: 0.0,  # GUIDED's target, by interval only
+    M.MAVLINK_MSG_ID_POSITION_TARGET_LOCAL_NED: 0.0,
 }
 # REQUEST_DATA_STREAM groups (MAV_DATA_STREAM) as ArduCopter 4.7 fills them (the messages
 # this simulator builds; RAW_SENSORS and RC_CHANNELS hold only messages it does not).

@@ -271,6 +271,10 @@ def test_a_hold_the_vehicle_does_not_keep_is_not_confirmed(
     assert "vehicle 1: hold not confirmed within 8 s" in err
     assert "wanted ground speed below 0.5 m/s for 3 s in a holding mode" in err
     assert sim.vehicle(1).mode == "GUIDED"
+    # The simulator reports the other station's point as ArduCopter does: the line names it.
+    seen = re.search(r"GUIDED target (\d+) m away\)$", err.strip())
+    assert seen is not None, err
+    assert 2 < int(seen[1]) <= 610
 
 
 def test_several_vehicles_at_the_address_need_a_sysid(

@@ -46,6 +46,7 @@ class State:
     landing: bool = False
     in_failsafe: bool = False
     mission: tuple[int, int, int] = (0, 0, M.MISSION_STATE_NO_MISSION)
+    target: tuple | None = None  # what guided_target() gives
 
     def global_position(self) -> tuple[float, float, float]:
         return to_global(*self.position, H.latitude, H.longitude, H.altitude)
@@ -58,6 +59,9 @@ class State:
 
     def mission_status(self) -> tuple[int, int, int]:
         return self.mission
+
+    def guided_target(self) -> tuple | None:
+        return self.target
 
 
 def test_heartbeat_of_a_plane_and_a_rover_has_their_type_and_mode_numbers():
@@ -172,3 +176,19 @@ def test_addressing_helpers():
     for target, expected in (((0, 0), True), ((3, 1), True), ((3, 191), False), ((4, 1), False)):
         msg = M.MAVLink_command_long_message(*target, 400, 0, 0, 0, 0, 0, 0, 0, 0)
         assert messages.targets(msg, 3, 1) is expected
+
+
+def test_position_targets_carry_guideds_point_or_velocity_and_nothing_without_one():
+    none = State(mode="GUIDED")
+    assert messages.position_target_global_int(none) is None
+    assert messages.position_target_local_ned(none) is None
+    point = State(target=((30.0, -20.0, 15.0), (47.5, 8.5, 615.0)))
+    glob = messages.position_target_global_int(point)
+    assert (glob.coordinate_frame, glob.type_mask, glob.lat_int, glob.lon_int, glob.alt) == (
+        M.MAV_FRAME_GLOBAL, 65016, 475_000_000, 85_000_000, 615.0)
+    local = messages.position_target_local_ned(point)
+    assert (local.type_mask, local.x, local.y, local.z) == (3576, 30.0, -20.0, -15.0)
+    moving = State(target=((3.0, 4.0, 1.0), None))
+    assert messages.position_target_global_int(moving) is None
+    local = messages.position_target_local_ned(moving)
+    assert (local.type_mask, local.vx, local.vy, local.vz) == (3079, 3.0, 4.0, -1.0)

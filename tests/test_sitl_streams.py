@@ -5,9 +5,13 @@ from __future__ import annotations
 
 from collections import Counter
 
+import pytest
 from pymavlink.dialects.v20 import ardupilotmega as M
+from test_sitl_model import command, flying
 
 from sitl.streams import Streams
+from tml.geo import to_global
+from tml.world import DEFAULT_HOME
 
 TICK = 0.05
 
@@ -78,3 +82,71 @@ def test_a_stream_asked_for_between_due_times_starts_at_once():
     assert s.due(1.15) == [M.MAVLINK_MSG_ID_VFR_HUD]
     assert s.due(1.35) == [M.MAVLINK_MSG_ID_ATTITUDE]
     assert s.due(1.4) == [M.MAVLINK_MSG_ID_VFR_HUD]
+
+
+# The GUIDED target, through the model: as ArduCopter 4.7 (tml/mavlink/targets.py), asked
+# for by interval, reported in GUIDED only -- a point as both messages (the position
+# alone), a velocity target as POSITION_TARGET_LOCAL_NED alone (the velocity alone).
+GLOBAL = "POSITION_TARGET_GLOBAL_INT"
+LOCAL = "POSITION_TARGET_LOCAL_NED"
+
+
+def asking_for_targets(v) -> None:
+    for msg_id in (M.MAVLINK_MSG_ID_POSITION_TARGET_GLOBAL_INT,
+                   M.MAVLINK_MSG_ID_POSITION_TARGET_LOCAL_NED):
+        command(v, M.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 500_000)
+    v.step(0.25)  # a stream asked for starts at once: count from the next due time
+
+
+def targets_sent(v, seconds: float = 1.0) -> dict[str, list]:
+    sent: dict[str, list] = {GLOBAL: [], LOCAL: []}
+    for m in v.step(seconds):
+        if m.get_type() in sent:
+            sent[m.get_type()].append(m)
+    return sent
+
+
+def test_guided_flying_to_a_point_reports_it_in_both_target_messages():
+    v = flying()
+    asking_for_targets(v)
+    v.handle(M.MAVLink_set_position_target_local_ned_message(
+        0, 1, 1, M.MAV_FRAME_LOCAL_NED, 0b110111111000, 40.0, -25.0, -12.0,
+        0, 0, 0, 0, 0, 0, 0, 0))
+    sent = targets_sent(v)
+    assert len(sent[GLOBAL]) == len(sent[LOCAL]) == 2  # 2 Hz, as asked
+    local, glob = sent[LOCAL][-1], sent[GLOBAL][-1]
+    assert (local.coordinate_frame, local.type_mask) == (M.MAV_FRAME_LOCAL_NED, 3576)
+    assert (local.x, local.y, local.z) == pytest.approx((40.0, -25.0, -12.0), abs=1e-4)
+    assert (glob.coordinate_frame, glob.type_mask) == (M.MAV_FRAME_GLOBAL, 65016)
+    lat, lon, alt = to_global(40.0, -25.0, 12.0, DEFAULT_HOME.latitude,
+                              DEFAULT_HOME.longitude, DEFAULT_HOME.altitude)
+    assert (glob.lat_int, glob.lon_int) == (round(lat * 1e7), round(lon * 1e7))
+    assert glob.alt == pytest.approx(alt, abs=1e-3)  # AMSL (frame GLOBAL)
+
+
+def test_a_guided_velocity_target_is_reported_in_local_ned_alone():
+    v = flying()
+    asking_for_targets(v)
+    v.handle(M.MAVLink_set_position_target_local_ned_message(
+        0, 1, 1, M.MAV_FRAME_LOCAL_NED, 0b110111000111, 0, 0, 0,
+        2.0, -1.0, 0.5, 0, 0, 0, 0, 0))
+    sent = targets_sent(v)
+    assert sent[GLOBAL] == [] and len(sent[LOCAL]) == 2
+    local = sent[LOCAL][-1]
+    assert local.type_mask == 3079
+    assert (local.vx, local.vy, local.vz) == pytest.approx((2.0, -1.0, 0.5))
+
+
+@pytest.mark.parametrize("mode", ["BRAKE", "LOITER"])
+def test_no_target_is_reported_outside_guided(mode):
+    v = flying()
+    asking_for_targets(v)
+    assert targets_sent(v)[LOCAL]  # the take-off's point, in GUIDED
+    assert v.set_mode(mode)
+    assert targets_sent(v, 2.0) == {GLOBAL: [], LOCAL: []}
+
+
+def test_no_target_is_reported_unasked():
+    v = flying()
+    v.handle(M.MAVLink_request_data_stream_message(1, 1, M.MAV_DATA_STREAM_ALL, 10, 1))
+    assert targets_sent(v, 2.0) == {GLOBAL: [], LOCAL: []}  # in no data stream group

@@ -20,6 +20,7 @@ from tml.run.control import (
     ControlServer,
     ControlUnsafe,
     OperatorDesk,
+    address_key,
     ask_run,
     control_path,
     runs_at,
@@ -215,3 +216,24 @@ def test_the_answer_names_the_system_id_where_the_runs_number_differs(directory:
         answer = ask_run(ADDRESS, 2, "hold", 10.0)
     assert answer is not None and answer.outcome == "done"
     assert answer.message.startswith("vehicle 1 (system id 2): hold done (the run paused)")
+
+
+def test_two_spellings_of_one_address_reach_the_same_run(directory: str,
+                                                        tmp_path: Path) -> None:
+    vehicle = Vehicle()
+    runner = Runner(vehicle)
+    with serve(runner, vehicle):  # listening for tcp:127.0.0.1:5860
+        assert runs_at("tcp:localhost:5860") == [1]
+        answer = ask_run("tcp:localhost:5860", 1, "hold", 10.0)
+    assert answer is not None and answer.outcome == "done", answer
+    # Another port or another scheme is another vehicle.
+    assert address_key("tcp:localhost:5861") != address_key(ADDRESS)
+    assert address_key("udpin:127.0.0.1:5860") != address_key(ADDRESS)
+    # A serial device named through a link, at any speed, is the device.
+    device = tmp_path / "ttyUSB0"
+    device.touch()
+    link = tmp_path / "usb-radio-if00"
+    link.symlink_to(device)
+    assert address_key(f"{link},57600") == address_key(str(device)) \
+        == address_key(f"{device},115200")
+    assert address_key(f"{tmp_path / 'ttyUSB1'}") != address_key(str(device))

@@ -8,7 +8,8 @@ vehicle's mode need not change, and the run would not notice). So while a run fl
 listens on a local Unix socket per vehicle (:func:`control_path`): in the per-user runtime
 directory (:func:`runtime_dir`: ``$TML_RUNTIME_DIR``, else ``$XDG_RUNTIME_DIR/tml``, else
 ``/tmp/tml-UID``; the directory is the user's alone, mode 0700, and the socket 0600),
-named after the vehicle's address, as the run was given it, and its MAVLink system id.
+named after the vehicle's address (:func:`address_key`: two spellings of one address are
+one) and its MAVLink system id.
 ``tml command`` with the same address and system id connects there first
 (:func:`ask_run`) and falls back to the vehicle itself only when nothing listens (no run,
 or a socket a dead run left behind, which the next run to listen replaces).
@@ -44,7 +45,7 @@ from typing import TYPE_CHECKING, Any
 
 from tml.engine.confirm import Confirmation
 from tml.engine.safety import CommandRefusal, operator_request
-from tml.errors import ControlRefused, ExitCode
+from tml.errors import ControlRefused, ExitCode, VehicleError
 from tml.vehicle import Vehicle, VehicleState
 
 if TYPE_CHECKING:
@@ -84,7 +85,36 @@ def control_path(address: str, system_id: int, directory: str | None = None) -> 
 
 
 def _prefix(address: str) -> str:
-    return f"run-{hashlib.sha256(address.strip().encode()).hexdigest()[:20]}-"
+    return f"run-{hashlib.sha256(address_key(address).encode()).hexdigest()[:20]}-"
+
+
+def address_key(address: str) -> str:
+    """The vehicle's address as its control socket is named after it: one vehicle reached
+    by two spellings of one address is one key -- a host name is resolved
+    (``tcp:localhost:5760`` is ``tcp:127.0.0.1:5760``; IPv4 first), a serial device is
+    followed through its links (``/dev/serial/by-id/...`` is the ``/dev/ttyUSB0`` it
+    points to) and its speed left out. An address that cannot be taken apart is kept as
+    written (the run refuses it before it listens anyway)."""
+    from tml.mavlink.link import parse_address  # the MAVLink layer: only when one is named
+
+    try:
+        parsed = parse_address(address.strip())
+    except VehicleError:
+        return address.strip()
+    if parsed.scheme == "serial":
+        return f"serial:{os.path.realpath(parsed.device)}"
+    return f"{parsed.scheme}:{_numeric_host(parsed.host, parsed.port)}:{parsed.port}"
+
+
+def _numeric_host(host: str, port: int) -> str:
+    """``host`` as the address the system resolves it to (IPv4 first); as written when it
+    does not resolve (the run could not reach it either)."""
+    try:
+        found = socket.getaddrinfo(host.strip("[]"), port, type=socket.SOCK_STREAM)
+    except (OSError, UnicodeError):
+        return host
+    numbers = [str(info[4][0]) for info in found]
+    return next((n for n in numbers if ":" not in n), numbers[0] if numbers else host)
 
 
 def runs_at(address: str) -> list[int]:

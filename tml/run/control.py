@@ -211,7 +211,7 @@ class OperatorDesk:
         self.runner = runner
         self.vehicles = dict(vehicles)
         self.vehicle_time = vehicle_time or own_time
-        self._targets: dict[int, TargetWatch | None] = {}  # by system id
+        self._targets = TargetWatches()  # by system id
 
     def command(self, system_id: int, command: str, timeout: float) -> Answer:
         vehicle = self.vehicles.get(system_id)
@@ -228,7 +228,7 @@ class OperatorDesk:
         if request is None:
             return Answer("nothing to do", f"{who}: nothing to do: {_where(state)}",
                           int(ExitCode.OK))
-        watch = self._target_watch(system_id, vehicle)
+        watch = self._targets.fresh(system_id, vehicle, system_id)
         reason = f"operator command: {command}"
         if command == "hold":
             try:
@@ -245,16 +245,6 @@ class OperatorDesk:
             return Answer("no run", "the run is not flying its mission",
                           int(ExitCode.FAILURE))
         return self.confirm(vehicle, command, timeout, said, who, watch)
-
-    def _target_watch(self, system_id: int, vehicle: Vehicle) -> TargetWatch | None:
-        """The GUIDED targets the vehicle reports (:func:`target_watch`, one per vehicle),
-        cleared: those from now on."""
-        if system_id not in self._targets:
-            self._targets[system_id] = target_watch(vehicle, system_id)
-        watch = self._targets[system_id]
-        if watch is not None:
-            watch.clear()
-        return watch
 
     def confirm(self, vehicle: Vehicle, command: str, timeout: float, said: str,
                 who: str, targets: TargetWatch | None = None) -> Answer:
@@ -288,6 +278,26 @@ def target_watch(vehicle: Vehicle, system_id: int) -> TargetWatch | None:
     watch = TargetWatch(link, system_id)
     watch.ask(mav)
     return watch
+
+
+class TargetWatches:
+    """One :func:`target_watch` per vehicle (each listens to its link for good), handed out
+    cleared: the GUIDED targets reported from now on. Safe to share between threads."""
+
+    def __init__(self) -> None:
+        self._watches: dict[int, TargetWatch | None] = {}
+        self._lock = threading.Lock()
+
+    def fresh(self, key: int, vehicle: Vehicle, system_id: int) -> TargetWatch | None:
+        """The watch of the vehicle known here as ``key`` (system ``system_id`` on its
+        link), cleared."""
+        with self._lock:  # one watch per vehicle, however many commands come at once
+            if key not in self._watches:
+                self._watches[key] = target_watch(vehicle, system_id)
+            watch = self._watches[key]
+        if watch is not None:
+            watch.clear()
+        return watch
 
 
 class MotionCheck:

@@ -60,7 +60,7 @@ from tml.run.clearance import (
     NotCleared,
     clear,
 )
-from tml.run.control import MotionCheck, target_watch
+from tml.run.control import MotionCheck, TargetWatches
 from tml.run.endings import Ending
 from tml.run.journal import jsonable, telemetry_fields
 from tml.run.resume import ResumeRefused, progress_point
@@ -179,7 +179,7 @@ class Service:
         self._parsed: OrderedDict[str, Mission] = OrderedDict()  # small ones: _parse
         self._lock = threading.Lock()
         self._commands: dict[int, dict[str, Any]] = {}  # each vehicle's last operator command
-        self._targets: dict[int, TargetWatch | None] = {}  # GUIDED targets, by vehicle id
+        self._targets = TargetWatches()  # GUIDED targets, by vehicle id
         # In a cluster (tml.serve.cluster): has the instance named carry out a request
         # about a run it flies, and answers as it did (tml.serve.forward).
         self.forward: Callable[[str, dict[str, Any]], tuple[int, str, dict[str, Any]]] \
@@ -573,7 +573,7 @@ class Service:
         live = self.live(holder) if holder is not None else None
         if live is not None and not live.ended:
             answer["run"] = live.id
-            check = MotionCheck(found, command, self._target_watch(vehicle_id, found))
+            check = MotionCheck(found, command, self._fresh_targets(vehicle_id, found))
             said = self._through_run(live, command)
             self._tell(vehicle_id, command, "sent", said)
             # Done once the telemetry confirms it and (rtl, land, disarm) the run has ended.
@@ -606,17 +606,11 @@ class Service:
         live.take_over(command)
         return f"run {live.id} ends into {command}"
 
-    def _target_watch(self, vehicle_id: int, vehicle: Vehicle) -> TargetWatch | None:
-        """The GUIDED targets a vehicle reports (one watch per vehicle), cleared: those
-        from now on."""
-        with self._lock:  # one watch per vehicle, however many commands come at once
-            if vehicle_id not in self._targets:
-                self._targets[vehicle_id] = target_watch(
-                    vehicle, int(getattr(vehicle, "system_id", vehicle_id)))
-            watch = self._targets[vehicle_id]
-        if watch is not None:
-            watch.clear()
-        return watch
+    def _fresh_targets(self, vehicle_id: int, vehicle: Vehicle) -> TargetWatch | None:
+        """The GUIDED targets the vehicle reports from now on (its system id on its link
+        may differ from the service's vehicle id)."""
+        return self._targets.fresh(vehicle_id, vehicle,
+                                   int(getattr(vehicle, "system_id", vehicle_id)))
 
     def _confirm(self, check: MotionCheck, ending: LiveRun | None = None) -> None:
         """Look at the vehicle until its telemetry confirms the command (and ``ending``,
@@ -681,7 +675,7 @@ class Service:
             if command == "hold":  # a mode that holds by itself (nothing keeps a target)
                 request = SetMode(vehicle_id, holding_mode(state))
                 sent = f"{request.name} {request.mode}"
-            check = MotionCheck(found, command, self._target_watch(vehicle_id, found))
+            check = MotionCheck(found, command, self._fresh_targets(vehicle_id, found))
             request = replace(request, request_id=self.ids.take())
             found.submit(request)
             self._tell(vehicle_id, command, "sent", sent)

@@ -64,6 +64,27 @@ def test_rtl_shown_by_its_mode_alone_is_not_done() -> None:
     assert "100 m from home" in confirmation.seen()
 
 
+def test_rtl_of_a_vehicle_already_landed_elsewhere_is_not_done() -> None:
+    # The defect: a vehicle that had landed 100 m from home (its mission's LAND) was told
+    # "rtl done" since it was on the ground, disarmed; it never went home.
+    landed = replace(FLYING, mode="LAND", armed=False, landed=True, ground_speed=0.0,
+                     position=(100.0, 0.0, 0.0))
+    confirmation = Confirmation("rtl")
+    assert not any(feed(confirmation, [(t, landed) for t in range(5)]))
+    assert "mode LAND, disarmed, on the ground" in confirmation.seen()
+    assert "100 m from home" in confirmation.seen()
+
+
+def test_rtl_is_done_when_its_landing_ends_disarmed_or_at_home() -> None:
+    returning = replace(FLYING, mode="RTL", position=(0.5, 0.0, 3.0))
+    down = replace(returning, armed=False, landed=True, position=(0.5, 0.0, 0.0))
+    assert feed(Confirmation("rtl"), [(0.0, returning), (1.0, down)]) == [True, True]
+    assert feed(Confirmation("rtl"), [(0.0, replace(down, mode="LAND"))]) == [True]
+    far_down = replace(down, position=(40.0, 0.0, 0.0))  # landed at a rally point
+    assert feed(Confirmation("rtl"), [(0.0, replace(returning, position=(41.0, 0.0, 2.0))),
+                                      (1.0, far_down)]) == [False, True]
+
+
 def test_a_landing_is_done_once_the_vehicle_descends() -> None:
     landing = replace(FLYING, mode="LAND", ground_speed=0.0)
     seen = feed(Confirmation("land"), [(0.0, landing),

@@ -263,13 +263,16 @@ def test_hold_during_a_run_pauses_it_and_is_confirmed_by_the_stop(service: Servi
 
 
 def test_rtl_during_a_run_ends_it_and_is_confirmed_on_its_way_home(service: Service) -> None:
-    mission = service.upload("long.xml", LONG)["id"]
-    run = service.start_run(mission, [2])["id"]
-    vehicle_when(service, run, 2, lambda v: v["position"] and v["position"][0] > 30)
+    # Out 400 m, and everything ready before the run starts: the command must come while the
+    # vehicle flies out however slowly this machine runs the test (the simulator keeps its
+    # own pace), not after the mission's landing at the far end.
+    mission = service.upload("far.xml", SHORT.replace(b"(40,0,10)", b"(400,0,10)"))["id"]
     address = service.hangar.vehicles[2].link.address  # type: ignore[attr-defined]
     observer = Observer(int(address.rsplit(":", 1)[1]))
     try:
         with TestClient(create_app(service), base_url="http://127.0.0.1") as client:
+            run = service.start_run(mission, [2])["id"]
+            vehicle_when(service, run, 2, lambda v: v["position"] and v["position"][0] > 30)
             body = confirmed(client, 2, "rtl", run)
         # The observer, on its own: flying south, home (it flew out north).
         assert observed(observer, 2, lambda msg: msg.vx < -100)

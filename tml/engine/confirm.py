@@ -15,7 +15,8 @@ simulator speed-up):
   hold is shown by the mode kept for :data:`HOLD_TIME` s;
 - ``rtl``: an RTL mode, and the vehicle on its way: :data:`HOME_GAIN` m nearer home than it
   was at the command, or within :data:`AT_HOME` m of home (climbing or descending there),
-  or on the ground disarmed;
+  or on the ground disarmed after an RTL mode was shown (its landing) or at home -- a
+  vehicle already on the ground elsewhere did not return;
 - ``land``: a landing mode (a fixed-wing's landing sequence in AUTO), and descending:
   :data:`LAND_DROP` m lower than at the command, or on the ground;
 - ``disarm``: disarmed (on the ground, for an air vehicle).
@@ -69,6 +70,7 @@ class Confirmation:
         self.last: VehicleState | None = None
         self.fastest = 0.0  # the highest ground speed seen since the command
         self.target: Target | None = None  # the GUIDED target reported since the command
+        self.returned = False  # an RTL mode shown since the command
 
     def see(self, state: VehicleState, vehicle_time: float,
             target: Target | None = None) -> bool:
@@ -83,8 +85,11 @@ class Confirmation:
         if target is not None:
             self.target = target
         command = self.command
+        if command == "rtl" and state.armed and operator_command_shown(state, command):
+            self.returned = True
         if command == "disarm" or not state.armed:
-            return operator_command_shown(state, command)
+            return operator_command_shown(state, command) and (
+                command != "rtl" or self.returned or self._home(state))
         if command == "hold":
             return self._held(state, vehicle_time)
         if not operator_command_shown(state, command):
@@ -118,7 +123,11 @@ class Confirmation:
         distance, was = state.home_distance, self.start.home_distance
         if distance is None:
             return False
-        return distance <= AT_HOME or (was is not None and distance <= was - HOME_GAIN)
+        return self._home(state) or (was is not None and distance <= was - HOME_GAIN)
+
+    @staticmethod
+    def _home(state: VehicleState) -> bool:
+        return state.home_distance is not None and state.home_distance <= AT_HOME
 
     def seen(self) -> str:
         """What the telemetry showed last, in a few words (for "not confirmed")."""

@@ -9,11 +9,11 @@ still, so a run the fuzzer starts stays in flight until the module ends.
 
 from __future__ import annotations
 
+import atexit
 import os
 import shutil
 import tempfile
 from collections import Counter
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -40,9 +40,10 @@ fuzzed: set[int] = set()  # the fuzzer's test items (one per operation) run in t
 FUZZER = "test_the_api_answers_any_input_without_a_server_error"
 
 
-@pytest.fixture(scope="module", autouse=True)
-def _stop_the_service() -> Iterator[None]:
-    yield
+@atexit.register
+def _stop_the_service() -> None:
+    # At the process's end, not the module's: pytest-xdist may hand this module's tests to
+    # a worker between other modules' tests, and a module's teardown runs at each switch.
     _SERVICE.stop()
     _STORAGE.close()
     shutil.rmtree(_DATA, ignore_errors=True)

@@ -159,12 +159,12 @@ def test_segments_meet_the_polygons_shapely_says_they_meet(
     assume(obstacles)
     planner = Planner(obstacles, clearance)
     everyone = np.arange(len(obstacles))
-    nodes = np.vstack([np.array([p[:2] for p in ends]),
-                       *(planner._node_points(i) for i in everyone)])
+    nodes = np.concatenate([[complex(*p[:2]) for p in ends], planner._ring_nodes])
     first, second = np.triu_indices(len(nodes), 1)
     hit, polygon = planner._crossings(nodes[first], nodes[second], everyone)
     found = np.zeros((len(first), len(obstacles)), dtype=bool)
     found[hit, polygon] = True
-    lines = shapely.linestrings(np.stack([nodes[first], nodes[second]], axis=1))
+    points = np.stack([nodes.real, nodes.imag], axis=1)
+    lines = shapely.linestrings(np.stack([points[first], points[second]], axis=1))
     expected = shapely.intersects(lines[:, None], planner.inflated[None, :])
     assert (found == expected).all()

@@ -149,7 +149,24 @@ class Planner:
             + np.minimum(np.arange(most)[None, :], np.maximum(count - 1, 0)[:, None])
         self._corners = corners[np.minimum(fill, len(corners) - 1)] if len(corners) \
             else np.zeros((len(count), 0, 2))
-        self._nodes: dict[int, np.ndarray] = {}
+        # The graph's nodes: each inflated polygon's corners grown by MARGIN (as complex
+        # numbers north + i east), obstacle by obstacle, with each one's neighbours on its
+        # own polygon, and which nodes lie in which other polygons.
+        rings, owner = shapely.get_coordinates(shapely.get_exterior_ring(
+            shapely.buffer(self.inflated, MARGIN, join_style="mitre")), return_index=True)
+        closing = np.ones(len(owner), dtype=bool)  # each ring's first, repeated at its end
+        closing[:-1] = owner[1:] != owner[:-1]
+        self._ring_nodes = _complex(rings[~closing])
+        owner = owner[~closing]
+        count = np.bincount(owner, minlength=len(self.obstacles))
+        first = np.cumsum(count) - count
+        self._rings = [np.arange(start, start + size) for start, size in zip(
+            first.tolist(), count.tolist(), strict=True)]
+        position = np.arange(len(owner)) - first[owner]
+        self._ring_before = first[owner] + (position - 1) % count[owner]
+        self._ring_after = first[owner] + (position + 1) % count[owner]
+        self._held_node, self._holder = self.tree.query(shapely.points(rings[~closing]),
+                                                        predicate="intersects")
         self._cache: dict[tuple[Point3, Point3], Trajectory | None] = {}
 
     def band(self, low: float, high: float) -> np.ndarray:
@@ -199,23 +216,6 @@ class Planner:
             path = found
         return _with_altitudes(path, start, end)
 
-    def _node_points(self, index: int) -> np.ndarray:
-        if index not in self._nodes:
-            grown = self.inflated[index].buffer(MARGIN, join_style="mitre")
-            self._nodes[index] = np.asarray(grown.exterior.coords)[:-1]
-        return self._nodes[index]
-
-    def _rings(self, active: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The nodes of the active obstacles, and the indices of each one's neighbours
-        before and after it on its own polygon."""
-        rings = [self._node_points(i) for i in active]
-        lengths = np.array([len(r) for r in rings])
-        starts = np.repeat(np.cumsum(lengths) - lengths, lengths)
-        sizes = np.repeat(lengths, lengths)
-        position = np.arange(len(starts)) - starts
-        return (np.concatenate(rings), starts + (position - 1) % sizes,
-                starts + (position + 1) % sizes)
-
     def _flat_distance(self, index: int, point: tuple[float, float]) -> float:
         return max(float(shapely.distance(self.cores[index], Point(point)))
                    - float(self.radii[index]), 0.0)
@@ -227,32 +227,36 @@ class Planner:
         taken the path is shortest). The edges the tangents leave are tested for obstacles
         all at once, then searched in plain Python: a search expands a dozen nodes, and a
         numpy call per expansion cost more than the search itself."""
-        tree = shapely.STRtree(self.inflated[active])
-        # Each node's neighbours on its own polygon, to tell the edges tangent at it.
-        candidates, previous_index, next_index = self._rings(active)
-        before, after = candidates[previous_index], candidates[next_index]
-        inside = tree.query(shapely.points(candidates), predicate="intersects")[0]
-        keep = np.ones(len(candidates), dtype=bool)
-        keep[inside] = False
+        ring = np.concatenate([self._rings[i] for i in active])
+        # The nodes inside an active polygon are left out.
+        covered = np.zeros(len(self._ring_nodes), dtype=bool)
+        activity = np.zeros(len(self.obstacles), dtype=bool)
+        activity[active] = True
+        covered[self._held_node[activity[self._holder]]] = True
+        kept = ring[~covered[ring]]
         # Where polygons overlap, a path bends where their outlines cross, which is no
         # node: the nodes next to such a crossing (a neighbour inside another polygon)
         # stand in for it, so no edge at them is left out as not tangent.
-        beside = ~(keep[previous_index] & keep[next_index])
+        beside = covered[self._ring_before[kept]] | covered[self._ring_after[kept]]
         # Coincident nodes (shared vertices, a vertex on an end) would make zero-length
         # edges, degenerate geometry for the distance and intersection tests; a shared
         # vertex belongs to two polygons, so no edge at it is left out either.
-        unique, first, counts = _unique_rows(candidates[keep])
-        ends = np.all(unique == a2, axis=1) | np.all(unique == b2, axis=1)
-        shared = np.concatenate([[True, True], ((counts > 1) | beside[keep][first])[~ends]])
-        nodes = np.vstack([np.array([a2, b2]), unique[~ends]])
-        before = np.vstack([np.array([a2, b2]), before[keep][first][~ends]])
-        after = np.vstack([np.array([a2, b2]), after[keep][first][~ends]])
+        unique, first, counts = _unique_points(self._ring_nodes[kept])
+        a, b = complex(*a2), complex(*b2)
+        ends = (unique == a) | (unique == b)
+        kept = kept[first][~ends]
+        shared = np.concatenate([[True, True], ((counts > 1) | beside[first])[~ends]])
+        nodes = np.concatenate([[a, b], unique[~ends]])
+        # Each node's neighbours on its own polygon, to tell the edges tangent at it.
+        before = np.concatenate([[a, b], self._ring_nodes[self._ring_before[kept]]])
+        after = np.concatenate([[a, b], self._ring_nodes[self._ring_after[kept]]])
         reach = _tangents(nodes, before, after, shared) if self.reduced else \
             np.ones((len(nodes), len(nodes)), dtype=bool)
         bounds, heads, lengths = self._visible(nodes, reach, np.asarray(active), soft)
         # The search, as the open node of least cost plus distance to the goal (the lowest
         # index of equals) taken each time; a node's cost changes only when strictly lower.
-        to_goal = np.hypot(*(nodes - nodes[1]).T).tolist()
+        offset = nodes - nodes[1]
+        to_goal = np.hypot(offset.real, offset.imag).tolist()
         cost = [math.inf] * len(nodes)
         cost[0] = 0.0
         previous = [0] * len(nodes)
@@ -266,7 +270,7 @@ class Planner:
                 order = [1]
                 while order[-1] != 0:
                     order.append(previous[order[-1]])
-                return [(float(nodes[i][0]), float(nodes[i][1])) for i in reversed(order)]
+                return [(float(nodes[i].real), float(nodes[i].imag)) for i in reversed(order)]
             done[node] = True
             here = cost[node]
             for edge in range(bounds[node], bounds[node + 1]):
@@ -287,11 +291,12 @@ class Planner:
         searched."""
         np.fill_diagonal(reach, False)
         first, second = np.nonzero(np.triu(reach | reach.T))
-        lengths = np.hypot(*(nodes[second] - nodes[first]).T)
+        along = nodes[second] - nodes[first]
+        lengths = np.hypot(along.real, along.imag)
         # Segments at the start or the goal are flown from the start or to the goal.
         outward = first == 1
-        starts = np.where(outward[:, None], nodes[second], nodes[first])
-        stops = np.where(outward[:, None], nodes[first], nodes[second])
+        starts = np.where(outward, nodes[second], nodes[first])
+        stops = np.where(outward, nodes[first], nodes[second])
         hit, polygon = self._crossings(starts, stops, active)
         blocking = self._blocking(hit, polygon, starts, stops, first <= 1, active, soft)
         clear = np.ones(len(first), dtype=bool)
@@ -305,15 +310,14 @@ class Planner:
         bounds = np.searchsorted(tails[order], np.arange(len(nodes) + 1)).tolist()
         return bounds, heads[order].tolist(), lengths[order].tolist()
 
-    def _crossings(self, starts: np.ndarray, stops: np.ndarray, active: np.ndarray
+    def _crossings(self, start: np.ndarray, stop: np.ndarray, active: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray]:
-        """The (segment, active obstacle) pairs whose segment meets the obstacle's inflated
-        polygon, as shapely's ``intersects`` says. A segment nearer the polygon's centre than
-        the disk it holds meets it, one farther than the disk that holds it misses it, each
-        by more than ``_SURE`` (far above the rounding of these distances); only the
-        segments in between are asked of shapely. Points are complex numbers here
-        (north + i east): fewer numpy calls for the same arithmetic."""
-        start, stop = _complex(starts), _complex(stops)
+        """The (segment from ``start`` to ``stop``, active obstacle) pairs whose segment
+        meets the obstacle's inflated polygon, as shapely's ``intersects`` says (points are
+        complex, north + i east). A segment nearer the polygon's centre than the disk it
+        holds meets it, one farther than the disk that holds it misses it, each by more
+        than ``_SURE`` (far above the rounding of these distances); only the segments in
+        between are asked of shapely."""
         along = stop - start
         squared = along.real ** 2 + along.imag ** 2
         offset = self._centres.view(np.complex128)[active, 0][None, :] - start[:, None]
@@ -329,8 +333,8 @@ class Planner:
             apart = self._apart(start[segment], along[segment], active[polygon])
             segment, polygon = segment[~apart], polygon[~apart]
         if len(segment):
-            lines = shapely.linestrings(np.stack([starts[segment], stops[segment]], axis=1))
-            asked = shapely.intersects(lines, self.inflated[active[polygon]])
+            asked = shapely.intersects(_segments(start[segment], stop[segment]),
+                                       self.inflated[active[polygon]])
             meets[segment[asked], polygon[asked]] = True
         hit, polygon = np.nonzero(meets)
         return hit, polygon
@@ -362,8 +366,7 @@ class Planner:
         indices = active[polygon]
         check = at_end[hit] & np.isin(indices, list(soft))
         if check.any():
-            segments = shapely.linestrings(np.stack(
-                [starts[hit[check]], stops[hit[check]]], axis=1))
+            segments = _segments(starts[hit[check]], stops[hit[check]])
             gap = shapely.distance(self.cores[indices[check]], segments) \
                 - self.radii[indices[check]]
             blocking[np.flatnonzero(check)] = gap < self.clearance - 1e-9
@@ -424,14 +427,18 @@ def _complex(points: np.ndarray) -> np.ndarray:
     return values
 
 
-def _unique_rows(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``np.unique(points, axis=0, return_index=True, return_counts=True)`` for points
-    (rows of two): the rows in order, the first index of each, how many of each; a
-    stable sort of the two columns does in one call what numpy does over a record view."""
-    order = np.lexsort((points[:, 1], points[:, 0]))
+def _segments(start: np.ndarray, stop: np.ndarray) -> np.ndarray:
+    """Shapely line strings from ``start`` to ``stop`` (complex)."""
+    return np.asarray(shapely.linestrings(
+        np.stack([start, stop], axis=1).view(float).reshape(-1, 2, 2)))
+
+
+def _unique_points(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``np.unique(points, return_index=True, return_counts=True)`` for points (complex):
+    the points in order (north, then east), the first index of each, how many of each."""
+    order = np.lexsort((points.imag, points.real))
     ordered = points[order]
-    starts = np.flatnonzero(np.concatenate([[True], np.any(ordered[1:] != ordered[:-1],
-                                                           axis=1)]))
+    starts = np.flatnonzero(np.concatenate([[True], ordered[1:] != ordered[:-1]]))
     return ordered[starts], order[starts], np.diff(np.append(starts, len(points)))
 
 
@@ -441,27 +448,26 @@ def _tangents(nodes: np.ndarray, before: np.ndarray, after: np.ndarray,
     only around the polygon of the vertex it bends at, so its edges touch the polygons at
     both ends without cutting in (both neighbours of a vertex on one side of the edge).
     Edges from the start, to the goal and at vertices shared by two polygons are always
-    kept (an end may lie inside a polygon it keeps the clearance of: see ``soft``)."""
-    direction = nodes[None, :, :] - nodes[:, None, :]  # [i, j]: from node i to node j
+    kept (an end may lie inside a polygon it keeps the clearance of: see ``soft``).
+    Points are complex (north + i east)."""
+    direction = nodes[None, :] - nodes[:, None]  # [i, j]: from node i to node j
     # A neighbour within a few margins of the edge's line counts as on it: nodes stand a
     # margin off the polygons, so an edge may cut that band, and the path over every
     # visible edge does.
-    scale = 4 * MARGIN * np.hypot(direction[..., 0], direction[..., 1]) + 1e-9
+    scale = 4 * MARGIN * np.hypot(direction.real, direction.imag) + 1e-9
 
     def side(offset: np.ndarray) -> np.ndarray:
-        product: np.ndarray = direction[..., 0] * offset[..., 1] \
-            - direction[..., 1] * offset[..., 0]
+        product: np.ndarray = direction.real * offset.imag[None, :] \
+            - direction.imag * offset.real[None, :]
         return product
 
-    def one_side(first: np.ndarray, second: np.ndarray) -> np.ndarray:
-        mixed: np.ndarray = ((first > scale) & (second < -scale)) \
-            | ((first < -scale) & (second > scale))
-        return ~mixed
-
-    # At the far end j, its neighbours seen along i -> j; at the near end i, along i -> j.
-    far = one_side(side((before - nodes)[None, :, :]), side((after - nodes)[None, :, :]))
-    near = one_side(side((before - nodes)[:, None, :]), side((after - nodes)[:, None, :]))
-    reach: np.ndarray = (far | shared[None, :]) & (near | shared[:, None])
+    # At the far end j, its neighbours seen along i -> j. At the near end the edge is seen
+    # the other way, which turns both signs: tangent at i along i -> j is tangent at i
+    # as the far end of j -> i, the transpose, to the bit.
+    first, second = side(before - nodes), side(after - nodes)
+    far = ~(((first > scale) & (second < -scale)) | ((first < -scale) & (second > scale)))
+    either = far | shared[None, :]
+    reach: np.ndarray = either & either.T
     reach[0, :] = True
     reach[:, 1] = True
     return reach

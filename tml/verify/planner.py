@@ -380,40 +380,46 @@ class Planner:
             return math.inf
         pieces = list(pairwise(points)) or \
                  [(points[0], points[0])]
-        best = math.inf
-        for a, b in pieces:
-            geometry = Point(a[0], a[1]) if math.dist(a[:2], b[:2]) < 1e-9 \
-                else LineString([a[:2], b[:2]])
-            distances = self._surface(geometry, min(a[2], b[2]), max(a[2], b[2]))[1]
-            best = min(best, float(np.min(distances)))
-        return best
+        geometries = [Point(a[0], a[1]) if math.dist(a[:2], b[:2]) < 1e-9
+                      else LineString([a[:2], b[:2]]) for a, b in pieces]
+        distances = self._surface(geometries, [min(a[2], b[2]) for a, b in pieces],
+                                  [max(a[2], b[2]) for a, b in pieces])[1]
+        return float(np.min(distances))
 
     def nearest(self, point: Point3) -> tuple[float, str]:
-        """Distance from a point to the nearest obstacle's surface, and that obstacle's name."""
+        """Distance from a point to the nearest obstacle's surface, and that obstacle's name
+        (of equally near ones, the first)."""
         if not self.obstacles:
             return math.inf, ""
-        indices, distances = self._surface(Point(point[0], point[1]), point[2], point[2])
-        index = int(np.argmin(distances))
-        return float(distances[index]), self.obstacles[int(indices[index])].name
+        indices, distances = self._surface([Point(point[0], point[1])], [point[2]],
+                                           [point[2]])
+        least = float(np.min(distances))
+        return least, self.obstacles[int(np.min(indices[distances == least]))].name
 
-    def _surface(self, geometry: Point | LineString, low: float, high: float
-                 ) -> tuple[np.ndarray, np.ndarray]:
-        """Some obstacles and their surface distances to ``geometry`` flown between
-        altitudes ``low`` and ``high``, the nearest among them. The obstacle nearest over
-        the ground gives a bound; only obstacles whose footprint core lies within the bound
-        plus the largest radius can be nearer, and only those are measured."""
-        found = self._core_tree.query_nearest(geometry)
-        bound = float(np.min(self._distances(found, geometry, low, high)))
+    def _surface(self, geometries: list[Point | LineString], low: list[float],
+                 high: list[float]) -> tuple[np.ndarray, np.ndarray]:
+        """Some obstacles and their surface distances to the geometries, each flown between
+        its altitudes ``low`` and ``high``, the nearest to any among them. The obstacles
+        nearest over the ground give a bound; only obstacles whose footprint core lies
+        within the bound plus the largest radius of a geometry can be nearer, and only
+        those are measured, all in one call for all the geometries."""
+        shapes = np.empty(len(geometries), dtype=object)
+        shapes[:] = geometries
+        lows, highs = np.array(low), np.array(high)
+        piece, found = self._core_tree.query_nearest(shapes)
+        bound = float(np.min(self._distances(found, shapes[piece], lows[piece],
+                                             highs[piece])))
         if math.isfinite(bound):
-            found = np.union1d(found, self._core_tree.query(
-                geometry, predicate="dwithin", distance=bound + self._widest + 1e-6))
+            piece, found = self._core_tree.query(shapes, predicate="dwithin",
+                                                 distance=bound + self._widest + 1e-6)
         else:
-            found = np.arange(len(self.obstacles))
-        return found, self._distances(found, geometry, low, high)
+            piece, found = np.divmod(np.arange(len(shapes) * len(self.obstacles)),
+                                     len(self.obstacles))
+        return found, self._distances(found, shapes[piece], lows[piece], highs[piece])
 
-    def _distances(self, indices: np.ndarray, geometry: Point | LineString, low: float,
-                   high: float) -> np.ndarray:
-        flat = np.maximum(shapely.distance(self.cores[indices], geometry)
+    def _distances(self, indices: np.ndarray, geometries: np.ndarray, low: np.ndarray,
+                   high: np.ndarray) -> np.ndarray:
+        flat = np.maximum(shapely.distance(self.cores[indices], geometries)
                           - self.radii[indices], 0.0)
         gap = np.maximum(np.maximum(self.bottoms[indices] - high, low - self.tops[indices]),
                          0.0)

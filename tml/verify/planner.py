@@ -165,8 +165,11 @@ class Planner:
         position = np.arange(len(owner)) - first[owner]
         self._ring_before = first[owner] + (position - 1) % count[owner]
         self._ring_after = first[owner] + (position + 1) % count[owner]
-        self._held_node, self._holder = self.tree.query(shapely.points(rings[~closing]),
-                                                        predicate="intersects")
+        held, holder = self.tree.query(shapely.points(rings[~closing]),
+                                       predicate="intersects")
+        self._holds: dict[int, list[int]] = {}
+        for node, obstacle in zip(held.tolist(), holder.tolist(), strict=True):
+            self._holds.setdefault(obstacle, []).append(node)
         self._cache: dict[tuple[Point3, Point3], Trajectory | None] = {}
 
     def band(self, low: float, high: float) -> np.ndarray:
@@ -190,31 +193,36 @@ class Planner:
         if math.dist(a2, b2) < 1e-9 or not self.obstacles:  # a vertical or empty leg
             return straight(start, end)
         usable = self.band(min(start[2], end[2]), max(start[2], end[2]))
+        path = [a2, b2]
+        crossed = self._crossed(path, usable)
         # An end may lie inside an inflated polygon yet keep the clearance (the polygon is
         # a little larger than the true shape): such an obstacle stays, but edges from and
-        # to that end are tested against its true shape ("soft").
+        # to that end are tested against its true shape ("soft"). (An obstacle that holds
+        # an end meets the straight line: without a crossing, there is none to look for.)
         soft: set[int] = set()
-        for held in {int(i) for i in self.tree.query(shapely.points([a2, b2]),
-                                                     predicate="intersects")[1]}:
-            if min(self._flat_distance(held, a2), self._flat_distance(held, b2)) \
-                    >= self.clearance - 1e-9:
-                soft.add(held)
-            else:
-                usable[held] = False
+        if crossed:
+            for held in {int(i) for i in self.tree.query(shapely.points(path),
+                                                         predicate="intersects")[1]}:
+                if min(self._flat_distance(held, a2), self._flat_distance(held, b2)) \
+                        >= self.clearance - 1e-9:
+                    soft.add(held)
+                else:
+                    usable[held] = False
+            crossed = {i for i in crossed if usable[i]}
         active: set[int] = set()
-        path = [a2, b2]
-        while True:
-            crossed = {int(i) for i in self.tree.query(shapely.linestrings(path),
-                                                       predicate="intersects")
-                       if usable[i]} - active
-            if not crossed:
-                break
+        while crossed:
             active |= crossed
             found = self._shortest(a2, b2, sorted(active), soft)
             if found is None:
                 return None
             path = found
+            crossed = self._crossed(path, usable) - active
         return _with_altitudes(path, start, end)
+
+    def _crossed(self, path: list[tuple[float, float]], usable: np.ndarray) -> set[int]:
+        """The usable obstacles whose inflated polygon the path meets."""
+        return {int(i) for i in self.tree.query(shapely.linestrings(path),
+                                                predicate="intersects") if usable[i]}
 
     def _flat_distance(self, index: int, point: tuple[float, float]) -> float:
         return max(float(shapely.distance(self.cores[index], Point(point)))
@@ -227,17 +235,18 @@ class Planner:
         taken the path is shortest). The edges the tangents leave are tested for obstacles
         all at once, then searched in plain Python: a search expands a dozen nodes, and a
         numpy call per expansion cost more than the search itself."""
-        ring = np.concatenate([self._rings[i] for i in active])
-        # The nodes inside an active polygon are left out.
-        covered = np.zeros(len(self._ring_nodes), dtype=bool)
-        activity = np.zeros(len(self.obstacles), dtype=bool)
-        activity[active] = True
-        covered[self._held_node[activity[self._holder]]] = True
-        kept = ring[~covered[ring]]
-        # Where polygons overlap, a path bends where their outlines cross, which is no
-        # node: the nodes next to such a crossing (a neighbour inside another polygon)
-        # stand in for it, so no edge at them is left out as not tangent.
-        beside = covered[self._ring_before[kept]] | covered[self._ring_after[kept]]
+        kept = np.concatenate([self._rings[i] for i in active])
+        beside = np.zeros(len(kept), dtype=bool)
+        inside = [self._holds[i] for i in active if i in self._holds]
+        if inside:
+            # The nodes inside an active polygon are left out. Where polygons overlap, a
+            # path bends where their outlines cross, which is no node: the nodes next to
+            # such a crossing (a neighbour inside another polygon) stand in for it, so no
+            # edge at them is left out as not tangent.
+            covered = np.zeros(len(self._ring_nodes), dtype=bool)
+            covered[np.concatenate(inside)] = True
+            kept = kept[~covered[kept]]
+            beside = covered[self._ring_before[kept]] | covered[self._ring_after[kept]]
         # Coincident nodes (shared vertices, a vertex on an end) would make zero-length
         # edges, degenerate geometry for the distance and intersection tests; a shared
         # vertex belongs to two polygons, so no edge at it is left out either.
@@ -289,8 +298,7 @@ class Planner:
         Reach is symmetric but for the start's row and the goal's column, so each pair of
         nodes is tested once; an edge into the start or out of the goal is never
         searched."""
-        np.fill_diagonal(reach, False)
-        first, second = np.nonzero(np.triu(reach | reach.T))
+        first, second = np.nonzero(np.triu(reach | reach.T, 1))
         along = nodes[second] - nodes[first]
         lengths = np.hypot(along.real, along.imag)
         # Segments at the start or the goal are flown from the start or to the goal.
@@ -444,7 +452,10 @@ def _unique_points(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarr
     the points in order (north, then east), the first index of each, how many of each."""
     order = np.lexsort((points.imag, points.real))
     ordered = points[order]
-    starts = np.flatnonzero(np.concatenate([[True], ordered[1:] != ordered[:-1]]))
+    repeated = ordered[1:] == ordered[:-1]
+    if not repeated.any():
+        return ordered, order, np.ones(len(points), dtype=int)
+    starts = np.flatnonzero(np.concatenate([[True], ~repeated]))
     return ordered[starts], order[starts], np.diff(np.append(starts, len(points)))
 
 
@@ -471,7 +482,7 @@ def _tangents(nodes: np.ndarray, before: np.ndarray, after: np.ndarray,
     # the other way, which turns both signs: tangent at i along i -> j is tangent at i
     # as the far end of j -> i, the transpose, to the bit.
     first, second = side(before - nodes), side(after - nodes)
-    far = ~(((first > scale) & (second < -scale)) | ((first < -scale) & (second > scale)))
+    far = ~((np.minimum(first, second) < -scale) & (np.maximum(first, second) > scale))
     either = far | shared[None, :]
     reach: np.ndarray = either & either.T
     reach[0, :] = True

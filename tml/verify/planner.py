@@ -18,7 +18,11 @@ The visibility graph is built lazily: obstacles are added as needed, first only 
 straight line crosses, then, while the shortest path found crosses further obstacles, those
 are added and the path planned again. Free space only shrinks as obstacles are added, so when the
 graph has no path no path exists; when the path found crosses nothing else it is the
-shortest one.
+shortest one. Every obstacle's nodes, their neighbours on its polygon and the other polygons
+that hold any of them are found once, for all obstacles, when the planner is made; a round
+only gathers those of its obstacles. Points are complex numbers (north + i east) in the
+rounds' arithmetic: a numpy call on an (n, n) array of complex numbers, not on an (n, n, 2)
+array, whose last axis of two makes numpy loop in steps of two.
 
 Only edges tangent at both ends are kept (the reduced visibility graph): a shortest path bends
 around the polygon of each vertex it turns at, so an edge that cuts into the polygon at one
@@ -34,7 +38,8 @@ by more than 1e-6 m); only the rest are asked of shapely, so the answers are sha
 test holds them to it). A* then runs over the visible edges in plain Python with a heap.
 
 Distances to obstacles (:meth:`Planner.clearance_of`, :meth:`Planner.nearest`) measure only
-the obstacles an STRtree of their footprints finds near the path, not all of them.
+the obstacles an STRtree of their footprints finds near the path, not all of them, all the
+pieces of a path at once.
 """
 
 from __future__ import annotations

@@ -123,6 +123,19 @@ def test_degenerate_legs_give_no_numeric_warnings() -> None:
         assert around is not None and planner.clearance_of(around.points) >= -1e-6
 
 
+
+def test_an_obstacle_inflated_by_a_vanishing_clearance_gives_no_numeric_warnings() -> None:
+    # Growing the unit square inflated by 1e-49 m raises GEOS's invalid flag; the planner
+    # grows every obstacle when it is made, met by a leg or not.
+    import warnings
+
+    square = Prism("p", ((0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        planner = Planner([square], 3.4781332200485605e-49)
+        assert planner.trajectory((-5.0, 3.0, 1.0), (5.0, 3.0, 1.0)) is not None
+
+
 crowded = st.lists(
     st.builds(lambda n, e, r: Cylinder("c", n, e, r), st.floats(-40, 40), st.floats(-40, 40),
               st.floats(0.5, 10)), max_size=12)

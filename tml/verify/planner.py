@@ -113,9 +113,8 @@ class Planner:
         self.radii = np.array(radii, dtype=float)
         self.bottoms = np.array([o.bottom for o in self.obstacles], dtype=float)
         self.tops = np.array([o.top for o in self.obstacles], dtype=float)
-        self.inflated = np.array(
-            [core.buffer((radius + clearance) * _COVER, quad_segs=QUAD_SEGS)
-             for core, radius in zip(cores, radii, strict=True)], dtype=object)
+        self.inflated = shapely.buffer(self.cores, (self.radii + clearance) * _COVER,
+                                       quad_segs=QUAD_SEGS)
         self.tree = shapely.STRtree(self.inflated)
         self._core_tree = shapely.STRtree(self.cores)
         self._widest = float(np.max(self.radii)) if len(self.radii) else 0.0
@@ -156,9 +155,13 @@ class Planner:
             else np.zeros((len(count), 0, 2))
         # The graph's nodes: each inflated polygon's corners grown by MARGIN (as complex
         # numbers north + i east), obstacle by obstacle, with each one's neighbours on its
-        # own polygon, and which nodes lie in which other polygons.
-        rings, owner = shapely.get_coordinates(shapely.get_exterior_ring(
-            shapely.buffer(self.inflated, MARGIN, join_style="mitre")), return_index=True)
+        # own polygon, and which nodes lie in which other polygons. (GEOS may raise the
+        # invalid flag growing a degenerate polygon, such as one inflated by a clearance of
+        # 1e-49 m: no warning for an obstacle that no leg may ever meet.)
+        with np.errstate(invalid="ignore"):
+            grown = shapely.buffer(self.inflated, MARGIN, join_style="mitre")
+        rings, owner = shapely.get_coordinates(shapely.get_exterior_ring(grown),
+                                               return_index=True)
         closing = np.ones(len(owner), dtype=bool)  # each ring's first, repeated at its end
         closing[:-1] = owner[1:] != owner[:-1]
         self._ring_nodes = _complex(rings[~closing])

@@ -16,8 +16,9 @@ from tml.verify.constraints import (
     Constraint,
     assess_action,
     check_before_action,
+    check_step,
 )
-from tml.verify.motion import PredictedState
+from tml.verify.motion import FlightModel, PredictedState
 from tml.verify.profile import load_profile
 from tml.world import Cylinder, Geofence, Prism, World
 
@@ -224,6 +225,20 @@ def test_assessment_carries_the_prediction() -> None:
     assert assessment.feasible
     assert assessment.step.after.position == (100.0, 0.0, 10.0)
     assert assessment.step.after.battery == pytest.approx(90.0)
+
+
+def test_a_constraint_not_asked_for_is_not_judged_nor_its_ways_home_planned() -> None:
+    # 100 m out on 40 % breaks the reserve; unasked, the reserve is neither reported nor its
+    # way home planned (the planner keeps every leg it was asked for, straight or not).
+    bound, state = go(100, 0, 10), replace(AT_10, position=(0.0, 40.0, 10.0), battery=40.0)
+    asked, unasked = FlightModel(PROFILE, MAST), FlightModel(PROFILE, MAST)
+    step = asked.step(bound, state)
+    assert Constraint.RETURN_RESERVE in {v.constraint for v in check_step(bound, step, asked)}
+    legs = set(asked.planner._cache)
+    found = check_step(bound, unasked.step(bound, state), unasked,
+                       unasked=frozenset({Constraint.RETURN_RESERVE}))
+    assert Constraint.RETURN_RESERVE not in {v.constraint for v in found}
+    assert set(unasked.planner._cache) < legs
 
 
 def test_violation_json_has_both_sides() -> None:

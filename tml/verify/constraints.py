@@ -138,12 +138,15 @@ def _finite(value: float) -> float | None:
 
 
 def check_step(bound: BoundAction, step: Step, model: FlightModel,
-               deadline: float | None = None) -> list[Violation]:
+               deadline: float | None = None,
+               unasked: frozenset[Constraint] = frozenset()) -> list[Violation]:
     """Every constraint of the action's category that ``step`` breaks.
 
     ``deadline`` (s, mission time) is when the action must be over, if it has to be.
+    ``unasked``: constraints the caller does not want judged (not even computed: the
+    reserve check plans ways home).
     """
-    wanted = BY_CATEGORY[bound.spec.category]
+    wanted = BY_CATEGORY[bound.spec.category] - unasked
     location = bound.action.location
     found: list[Violation] = []
 
@@ -167,7 +170,9 @@ def check_step(bound: BoundAction, step: Step, model: FlightModel,
         fail(_C.LABEL, f"label {step.unknown_label!r} holds no point on some way to here",
              0.0, ">=", 1.0, "points")
     _obstacles(step, model, fail)
-    _battery(step, model, bound.name.startswith("RETURN_HOME"), fail)
+    # Going home is what the reserve is kept for.
+    _battery(step, model, _C.RETURN_RESERVE in wanted
+             and not bound.name.startswith("RETURN_HOME"), fail)
     _speed(step, model, deadline, fail)
     _limits(step, model, fail)
     if profile.max_flight_time > 0 and after.time > profile.max_flight_time:
@@ -196,7 +201,7 @@ def _obstacles(step: Step, model: FlightModel, fail: _Fail) -> None:
                       "straight line passes too close", clear, ">=", k2, "m")
 
 
-def _battery(step: Step, model: FlightModel, homeward: bool, fail: _Fail) -> None:
+def _battery(step: Step, model: FlightModel, reserve: bool, fail: _Fail) -> None:
     profile, before, after = model.profile, step.before, step.after
     if step.energy > max(before.battery, 0.0) + 1e-9:
         if step.distance > 0:
@@ -207,8 +212,8 @@ def _battery(step: Step, model: FlightModel, homeward: bool, fail: _Fail) -> Non
         else:
             fail(_C.C2, f"the action needs more than the {before.battery:.1f}% battery left",
                  step.energy, "<=", before.battery, "%")
-    if homeward:
-        return  # going home is what the reserve is kept for
+    if not reserve:
+        return
     points = step.waypoints()
     if not after.flying and points:
         points = points[:-1]  # the action ends on the ground: no need to come home

@@ -260,13 +260,15 @@ class _Walker:
               excused: frozenset[str] = frozenset(), pick: int = 0) -> None:
         for note in step.notes:
             self.action_notes.setdefault((bound.name, note), {})[bound.action.location] = None
-        for violation in check_step(bound, step, self.model):
+        unasked: frozenset[Constraint] = frozenset()
+        if step.before.battery < 0:
+            unasked = _ON_BATTERY  # it ran out before this action: said once, where it did
+        elif step.after.battery < 0:
+            # It runs out in this action (c2): no way home to judge.
+            unasked = frozenset({Constraint.RETURN_RESERVE})
+        for violation in check_step(bound, step, self.model, unasked=unasked):
             if violation.constraint is Constraint.LABEL and step.unknown_label in excused:
                 continue  # guarded by "known", or an event may have stored it
-            if violation.constraint in _ON_BATTERY and step.before.battery < 0:
-                continue  # it ran out before this action: said once, where it did
-            if violation.constraint is Constraint.RETURN_RESERVE and step.after.battery < 0:
-                continue  # it runs out in this action (c2): no way home to judge
             violation = replace(violation, task=where, role=self.role_name,
                                 vehicles=self.vehicles(pick))
             key = (violation.constraint.value, str(violation.location))

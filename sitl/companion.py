@@ -104,6 +104,8 @@ class Companion:
              heading: float) -> list[Any]:
         """Messages due at vehicle ``time`` with the vehicle at ``position`` (north, east,
         up from home); with ``position`` None (not known yet) only the HEARTBEAT."""
+        if time < self._next_heartbeat and time < self._next_report:
+            return []  # most control steps: nothing is due
         out: list[Any] = []
         if time >= self._next_heartbeat:
             self._next_heartbeat = time + 1.0

@@ -196,6 +196,8 @@ class VehicleModel:
         self._fence_polygon = fence.world_polygon(self.world)
         self._fence_inclusions: list[Any] = []  # uploaded zones beyond the first polygon
         self._fence_exclusions: list[Any] = []
+        self._limits_key: tuple[Any, ...] = ()
+        self._limits_kept = Limits()
         # The last conversions (position, origin, result) and (home, origin, result).
         self._last_global: tuple[Vector | None, Home | None, Vector] = (None, None, (0, 0, 0))
         self._last_home_local: tuple[Home | None, Home | None, Vector] = (None, None, (0, 0, 0))
@@ -287,20 +289,27 @@ class VehicleModel:
         the autopilot, which the server encodes straight to the same bytes."""
         self._pending += dt
         out: list[Any] = []
+        builders = messages.BUILDERS
         while self._pending >= TICK - 1e-9:
             self._pending -= TICK
             self.step_count += 1
-            self.time = self.step_count * TICK
+            self.time = now = self.step_count * TICK
             self._tick()
-            self._outbox.extend(self.missions.tick(self.time))
-            for msg_id in self.streams.due(self.time):  # most steps: nothing is due
-                unbuilt = messages.fields(msg_id, self)
-                if unbuilt is not None:
-                    out.append(unbuilt)
+            requests = self.missions.tick(now)
+            if requests:
+                self._outbox.extend(requests)
+            for msg_id in self.streams.due(now):  # most steps: nothing is due
+                builder = builders[msg_id]
+                args = builder.arguments(self)
+                if args is not None:
+                    out.append(Fields(builder.kind, args))
             if self._outbox:
                 out.extend(self._flush())
-            if self.has_companion:
-                out.extend(self.companion.step(self.time, self.position, self.heading))
+            if self.params["SIM_COMPANION"] > 0:  # has_companion
+                body = self.body
+                reports = self.companion.step(now, body.position, body.heading)
+                if reports:
+                    out.extend(reports)
         return out
 
     # ---------------------------------------------------------------- dispatching
@@ -852,7 +861,8 @@ class VehicleModel:
         if not self.origin_set and self.gps_fixed and self.time >= self.origin_time:
             self.origin_set = True
             self._announce_origin()
-        self._report_prearm()
+        if not self.armed:
+            self._report_prearm()
         failure_at = self.faults.battery_failure_at
         if failure_at is not None and self.time >= failure_at:
             self.battery.failed = True
@@ -868,7 +878,7 @@ class VehicleModel:
             self.auto.update()
         self._fly()
         self._check_landed()
-        for _ in range(self.camera.update(self.time, self.position, not self.landed)):
+        for _ in range(self.camera.update(self.time, self.body.position, not self.landed)):
             self._capture_image()
         charger = self.params["SIM_BATT_CHARGE"]
         if charger > 0 and self.landed and not self.armed:
@@ -893,6 +903,16 @@ class VehicleModel:
             self._idle_since = self.time
 
     def _limits(self) -> Limits:
+        # Asked for every control step, and changed only by a parameter write, a mode
+        # change or a speed command: kept until one of them happens.
+        key = (self.params.version, self.mode, self._speed, self._climb_speed,
+               self._descent_speed)
+        if key == self._limits_key:
+            return self._limits_kept
+        self._limits_key, self._limits_kept = key, self._new_limits()
+        return self._limits_kept
+
+    def _new_limits(self) -> Limits:
         p = self.params
         speed = self._speed or p["WPNAV_SPEED"] / 100.0
         if self.mode == "RTL" and p["RTL_SPEED"] > 0:
@@ -954,7 +974,7 @@ class VehicleModel:
             pilot = self.mode in PILOT_MODES
             climb = self.pilot_climb_rate() if pilot else 0.0
             body.shape_velocity((0.0, 0.0, climb), limits, TICK, self._wind(), hold=not pilot)
-        if self._blocked(body.position):
+        if self.obstacles.present and self._blocked(body.position):
             body.position = before
             body.stop()
         if self.landed and body.position[2] > 0.05:
@@ -992,7 +1012,8 @@ class VehicleModel:
             if direction and self.yaw_settled():
                 self._yaw = (heading, rate, 0)  # there: held, not turned round again
             return
-        dn, de = self.position[0] - before[0], self.position[1] - before[1]
+        here = self.body.position
+        dn, de = here[0] - before[0], here[1] - before[1]
         if self.mode in ("AUTO", "GUIDED", "RTL") and math.hypot(dn, de) > 1.0 * TICK:
             course = math.degrees(math.atan2(de, dn))
             self.body.turn(course, self.params["ATC_RATE_Y_MAX"], TICK)
@@ -1230,16 +1251,19 @@ class VehicleModel:
             self._low_voltage_since is not None
             and self.time - self._low_voltage_since >= p["BATT_LOW_TIMER"]
         ) or (p["BATT_LOW_MAH"] > 0 and remaining_mah < p["BATT_LOW_MAH"])
-        for level, active, action in (("battery", low, p["BATT_FS_LOW_ACT"]),
-                                      ("battery critical", critical, p["BATT_FS_CRT_ACT"])):
-            if not active or level in self._failsafes:
-                continue
-            self._failsafes.add(level)
-            word = "critical" if level == "battery critical" else "low"
-            self._text(M.MAV_SEVERITY_CRITICAL,
-                       f"Battery 1 is {word} {voltage:.2f}V used {battery.consumed_mah:.0f} mAh")
-            if self.armed:
-                self._failsafe_action(round(action))
+        if low and "battery" not in self._failsafes:
+            self._raise_battery_failsafe("battery", "low", voltage, p["BATT_FS_LOW_ACT"])
+        if critical and "battery critical" not in self._failsafes:
+            self._raise_battery_failsafe("battery critical", "critical", voltage,
+                                         p["BATT_FS_CRT_ACT"])
+
+    def _raise_battery_failsafe(self, level: str, word: str, voltage: float,
+                                action: float) -> None:
+        self._failsafes.add(level)
+        self._text(M.MAV_SEVERITY_CRITICAL,
+                   f"Battery 1 is {word} {voltage:.2f}V used {self.battery.consumed_mah:.0f} mAh")
+        if self.armed:
+            self._failsafe_action(round(action))
 
     def _failsafe_action(self, action: int) -> None:
         """ArduCopter's failsafe actions: 1 land, 2/3/4 RTL (land if RTL fails), 5 disarm."""

@@ -30,6 +30,9 @@ class Obstacles:
 
     def __init__(self, world: World) -> None:
         self._shapes = [_footprint(obstacle) for obstacle in world.obstacles]
+        # Whether there are any: without, nothing is ever touched (the common case,
+        # asked every control step).
+        self.present = bool(self._shapes)
 
     def touching(self, position: Vector, margin: float = 0.0) -> str | None:
         """The name of an obstacle within ``margin`` metres of ``position``, or None."""

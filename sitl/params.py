@@ -206,6 +206,9 @@ class Params(dict[str, float]):
     ) -> None:
         super().__init__((name, float(value)) for name, value, _ in defaults)
         self._types: dict[str, int] = {name: kind for name, _, kind in defaults}
+        # Counts the writes: what is derived from the values (the model's limits) is kept
+        # while it stands still.
+        self.version = 0
         for name, value in (overrides or {}).items():
             self.set(name, value)
 
@@ -230,6 +233,7 @@ class Params(dict[str, float]):
         if name not in self:
             raise UnknownParameter(name)
         stored = float(value) if self._types[name] == REAL32 else float(round(value))
+        self.version += 1
         super().__setitem__(name, stored)
         other = SAME_AS.get(name)
         if other is not None and other in self:

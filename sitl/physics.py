@@ -72,14 +72,6 @@ def _limit(x: float, y: float, length: float) -> tuple[float, float]:
     return x, y
 
 
-def _sqrt_xy(x: float, y: float, gain: float, limit: float, dt: float) -> tuple[float, float]:
-    size = math.hypot(x, y)
-    if size < 1e-9:
-        return 0.0, 0.0
-    scale = sqrt_controller(size, gain, limit, dt) / size
-    return x * scale, y * scale
-
-
 def _corner_limit(vn: float, ve: float, an: float, ae: float, accel: float
                   ) -> tuple[float, float]:
     """ArduPilot's ``limit_accel_corner_xy``: within ``accel``, keeping at least 1/sqrt(2)
@@ -96,14 +88,6 @@ def _corner_limit(vn: float, ve: float, an: float, ae: float, accel: float
     room = math.sqrt(max(0.0, accel * accel - cn * cn - ce * ce))
     along = max(-room, min(room, along))
     return cn + un * along, ce + ue * along
-
-
-def _shape_velocity_z(velocity: float, accel: float, demand: float, feed: float,
-                      limit: float, jerk: float, dt: float) -> float:
-    """The new vertical acceleration (ArduPilot's ``shape_vel_accel``)."""
-    target = sqrt_controller(demand - velocity, jerk / limit, jerk, dt)
-    target = max(-limit, min(limit, max(-limit, min(limit, target)) + feed))
-    return accel + max(-jerk * dt, min(jerk * dt, target - accel))
 
 
 def wrap_degrees(angle: float) -> float:
@@ -126,38 +110,77 @@ class Body:
         """Advance ``dt`` seconds toward ``target`` (ArduPilot's ``shape_pos_vel_accel``),
         with ``velocity`` and ``accel`` fed forward when the target itself moves; with a
         ``climb_rate`` the vertical axis holds that rate instead of the target's altitude
-        (a landing)."""
+        (a landing).
+
+        Every control step of every flying vehicle comes here: the helpers above are
+        written out in place (the same operations in the same order, so the same
+        floats), which saves a dozen Python calls a step."""
         n, e, u = self.position
+        speed = limits.speed
         # Half the acceleration for the approach: braking never overshoots the goal.
+        # The position error through a square-root controller (within ``half``), the
+        # velocity this asks for within the speed limit (_limit)
         half, gain = 0.5 * limits.accel, 0.5 * limits.jerk / limits.accel
-        cn, ce = _limit(*_sqrt_xy(target[0] - n, target[1] - e, gain, half, dt), limits.speed)
-        cn, ce = _limit(cn + velocity[0], ce + velocity[1], limits.speed)
-        half_z, gain_z = 0.5 * limits.accel_z, 0.5 * limits.jerk_z / limits.accel_z
+        x, y = target[0] - n, target[1] - e
+        size = math.hypot(x, y)
+        if size < 1e-9:
+            cn = ce = 0.0
+        else:
+            scale = sqrt_controller(size, gain, half, dt) / size
+            cn, ce = x * scale, y * scale
+        size = math.hypot(cn, ce)
+        if size > speed:
+            cn, ce = cn / size * speed, ce / size * speed
+        cn, ce = cn + velocity[0], ce + velocity[1]  # _limit(..., speed)
+        size = math.hypot(cn, ce)
+        if size > speed:
+            cn, ce = cn / size * speed, ce / size * speed
         if climb_rate is None:
+            half_z, gain_z = 0.5 * limits.accel_z, 0.5 * limits.jerk_z / limits.accel_z
             cu = sqrt_controller(target[2] - u, gain_z, half_z, dt) + velocity[2]
         else:
             cu = climb_rate
         cu = max(-limits.descent, min(limits.climb, cu))
-        self._accelerate((cn, ce, cu), accel, limits, dt)
+        self._accelerate(cn, ce, cu, accel, limits, dt)
 
     def shape_velocity(self, demand: Vector, limits: Limits, dt: float,
                        wind: tuple[float, float] = (0.0, 0.0), hold: bool = True) -> None:
         """Advance ``dt`` seconds approaching the velocity ``demand`` (ArduPilot's
         ``shape_vel_accel``); without ``hold`` the wind carries the body along."""
-        self._accelerate(demand, ZERO, limits, dt)
+        self._accelerate(demand[0], demand[1], demand[2], ZERO, limits, dt)
         if not hold:
             n, e, u = self.position
             self.position = (n + wind[0] * dt, e + wind[1] * dt, u)
 
-    def _accelerate(self, demand: Vector, feed: Vector, limits: Limits, dt: float) -> None:
+    def _accelerate(self, dn: float, de: float, du: float, feed: Vector, limits: Limits,
+                    dt: float) -> None:
+        """Toward the velocity demand (``dn``, ``de``, ``du``) with the acceleration
+        ``feed`` fed forward; the helpers written out as in :meth:`shape`."""
         (vn, ve, vu), (an, ae, au) = self.velocity, self.accel
-        gain = limits.jerk / limits.accel
-        tn, te = _sqrt_xy(demand[0] - vn, demand[1] - ve, gain, limits.jerk, dt)
-        tn, te = _corner_limit(demand[0], demand[1], tn, te, limits.accel)
-        tn, te = _limit(tn + feed[0], te + feed[1], limits.accel)
-        dn, de = _limit(tn - an, te - ae, limits.jerk * dt)
-        an, ae = an + dn, ae + de
-        au = _shape_velocity_z(vu, au, demand[2], feed[2], limits.accel_z, limits.jerk_z, dt)
+        accel, jerk = limits.accel, limits.jerk
+        # The velocity error through a square-root controller (within the jerk)
+        x, y = dn - vn, de - ve
+        size = math.hypot(x, y)
+        if size < 1e-9:
+            tn = te = 0.0
+        else:
+            scale = sqrt_controller(size, jerk / accel, jerk, dt) / size
+            tn, te = x * scale, y * scale
+        tn, te = _corner_limit(dn, de, tn, te, accel)
+        tn, te = tn + feed[0], te + feed[1]  # _limit(..., accel)
+        size = math.hypot(tn, te)
+        if size > accel:
+            tn, te = tn / size * accel, te / size * accel
+        x, y = tn - an, te - ae  # _limit(..., jerk * dt)
+        size, most = math.hypot(x, y), jerk * dt
+        if size > most:
+            x, y = x / size * most, y / size * most
+        an, ae = an + x, ae + y
+        # The vertical acceleration (ArduPilot's shape_vel_accel on one axis)
+        limit, jerk = limits.accel_z, limits.jerk_z
+        target = sqrt_controller(du - vu, jerk / limit, jerk, dt)
+        target = max(-limit, min(limit, max(-limit, min(limit, target)) + feed[2]))
+        au = au + max(-jerk * dt, min(jerk * dt, target - au))
         n, e, u = self.position
         half_dt2 = 0.5 * dt * dt
         self.position = (n + vn * dt + an * half_dt2, e + ve * dt + ae * half_dt2,

@@ -21,12 +21,13 @@ from __future__ import annotations
 import inspect
 import struct
 from collections.abc import Callable
-from operator import attrgetter, itemgetter
+from operator import attrgetter
 from typing import Any, NamedTuple
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 _HEADER = struct.Struct("<BBBBBBBHB")
+_CORE_PACK = struct.Struct("<BBBBBBHB").pack  # the header after its first byte (253)
 _CRC = struct.Struct("<H")
 _HEADER_PACK = _HEADER.pack
 _CRC_PACK = _CRC.pack
@@ -36,8 +37,10 @@ _PLANS: dict[Any, tuple[Callable[..., bytes], int, int, bytes]] = {}
 Values = Callable[[Any], tuple[Any, ...]]
 # Per message class: a message's field values in wire order, arrays spread.
 _VALUES: dict[Any, Values] = {}
-# Per message class: the same values from the constructor's arguments.
-_ARGUMENTS: dict[Any, Values] = {}
+# Per message class: its packet from the constructor's arguments, a sequence number and
+# the sender (system, component).
+Encoder = Callable[[tuple[Any, ...], int, int, int], bytes]
+_ENCODERS: dict[Any, Encoder] = {}
 
 
 class Fields(NamedTuple):
@@ -94,23 +97,41 @@ def _values_of(kind: Any) -> Values:
     return values
 
 
-def _arguments_of(kind: Any) -> Values:
+def _arguments_source(kind: Any) -> tuple[str, tuple[Any, ...]]:
+    """The source of ``kind``'s encoder from its constructor's arguments, and the
+    defaults of the extension fields it reads."""
     names, spread = _wire_order(kind)
     parameters = list(inspect.signature(kind.__init__).parameters.values())[1:]
     if [p.name for p in parameters] != list(kind.fieldnames):
         raise TypeError(f"{kind.__name__}: constructor arguments are not its fields")
     defaults = tuple(p.default for p in parameters if p.default is not p.empty)
     required = len(parameters) - len(defaults)
-    count = len(parameters)
-    get = _spreading(itemgetter(*(kind.fieldnames.index(name) for name in names)),
-                     len(names), spread)
+    # The arguments in wire order, read by index, arrays spread.
+    values = ", ".join(f"{'*' if wide else ''}a[{kind.fieldnames.index(name)}]"
+                       for name, wide in zip(names, spread, strict=True))
+    source = (
+        "def encode(a, seq, system, component):\n"
+        f"    if len(a) < {len(parameters)}:  # the extensions left out: their defaults\n"
+        f"        a = a + defaults[len(a) - {required}:]\n"
+        f"    payload = pack({values}).rstrip(b'\\0') or b'\\0'\n"
+        f"    core = header(len(payload), 0, 0, seq, system, component, {kind.id & 0xFFFF},"
+        f" {kind.id >> 16}) + payload\n"
+        "    return b'\\xfd' + core + crc_pack(crc(core + extra, 0xFFFF))\n"
+    )
+    return source, defaults
 
-    def values(args: tuple[Any, ...]) -> tuple[Any, ...]:
-        if len(args) < count:  # the extensions left out: the constructor's defaults
-            args = args + defaults[len(args) - required:]
-        return get(args)
-    _ARGUMENTS[kind] = values
-    return values
+
+def _arguments_encoder(kind: Any) -> Encoder:
+    """``kind``'s packet straight from its constructor's arguments: a function written
+    for the message (its fields read by index in wire order, the header and the CRC
+    inline), since streamed telemetry is most of what the simulator does."""
+    source, defaults = _arguments_source(kind)
+    scope = {"defaults": defaults, "pack": kind.unpacker.pack, "header": _CORE_PACK,
+             "crc_pack": _CRC_PACK, "crc": _crc, "extra": bytes((kind.crc_extra,))}
+    exec(compile(source, f"<sitl.wire encoder of {kind.__name__}>", "exec"), scope)
+    encoder: Encoder = scope["encode"]
+    _ENCODERS[kind] = encoder
+    return encoder
 
 
 def _slow_crc(data: bytes, initial: int) -> int:  # x25crc starts from 0xFFFF, as here
@@ -128,10 +149,10 @@ def encode(msg: Any, seq: int, system: int, component: int) -> bytes:
     makes with a link in that state."""
     if type(msg) is Fields:
         kind: Any = msg.kind
-        values = (_ARGUMENTS.get(kind) or _arguments_of(kind))(msg.args)
-    else:
-        kind = type(msg)
-        values = (_VALUES.get(kind) or _values_of(kind))(msg)
+        return (_ENCODERS.get(kind) or _arguments_encoder(kind))(msg.args, seq, system,
+                                                                  component)
+    kind = type(msg)
+    values = (_VALUES.get(kind) or _values_of(kind))(msg)
     pack, low, high, extra = _PLANS.get(kind) or _plan_of(kind)
     payload = pack(*values).rstrip(b"\0") or b"\0"
     header = _HEADER_PACK(253, len(payload), 0, 0, seq, system, component, low, high)

@@ -134,6 +134,10 @@ class MissionServer:
             return [self._home_item(), *stored[1:]]
         return list(stored)
 
+    def count(self, mission_type: int = MISSION) -> int:
+        """How many items :meth:`items` holds, without copying them."""
+        return len(self._lists[mission_type])
+
     def handle(self, msg: Any, now: float) -> list[Any]:
         """Replies to one mission-protocol message (other messages give an empty list)."""
         kind = msg.get_type()

@@ -92,6 +92,8 @@ GUIDED_VELOCITY_TIMEOUT = 3.0  # a velocity target older than this stops the veh
 LIFT_OFF_AFTER_SLEW = 0.5
 RTL_ALT_MIN = 2.0  # m, ArduCopter's lowest RTL return altitude
 FALLING = Limits(accel_z=9.8, descent=10.0, jerk_z=1000.0)  # disarmed in the air
+# Fields(kind, args) without the call to its __new__: the model makes a dozen a step.
+_fields = tuple.__new__
 ORIGIN_AFTER_FIX = 10.0  # s of GPS fix before the EKF sets its origin (ArduCopter SITL: 10 -> 20 s)
 
 Vector = tuple[float, float, float]
@@ -302,7 +304,7 @@ class VehicleModel:
                 builder = builders[msg_id]
                 args = builder.arguments(self)
                 if args is not None:
-                    out.append(Fields(builder.kind, args))
+                    out.append(_fields(Fields, (builder.kind, args)))  # Fields(kind, args)
             if self._outbox:
                 out.extend(self._flush())
             if self.params["SIM_COMPANION"] > 0:  # has_companion
@@ -855,19 +857,21 @@ class VehicleModel:
 
     # ------------------------------------------------------------------ the tick
     def _tick(self) -> None:
-        if not self.booted and self.time >= arming.READY_AT * arming.startup_scale(
-                self.params["SIM_EKF_GPS_TIME"]):
+        now, params = self.time, self.params
+        if not self.booted and now >= arming.READY_AT * arming.startup_scale(
+                params["SIM_EKF_GPS_TIME"]):
             self._boot_done()
-        if not self.origin_set and self.gps_fixed and self.time >= self.origin_time:
+        if not self.origin_set and self.gps_fixed and now >= self.origin_time:
             self.origin_set = True
             self._announce_origin()
         if not self.armed:
             self._report_prearm()
-        failure_at = self.faults.battery_failure_at
-        if failure_at is not None and self.time >= failure_at:
+        faults = self.faults
+        failure_at = faults.battery_failure_at
+        if failure_at is not None and now >= failure_at:
             self.battery.failed = True
-        reboot_at = self.faults.reboot_at
-        if reboot_at is not None and self.time >= reboot_at:
+        reboot_at = faults.reboot_at
+        if reboot_at is not None and now >= reboot_at:
             self.reboot_due = True
         self._check_failsafes()
         if self.mode == "FLIP":
@@ -878,9 +882,11 @@ class VehicleModel:
             self.auto.update()
         self._fly()
         self._check_landed()
-        for _ in range(self.camera.update(self.time, self.body.position, not self.landed)):
-            self._capture_image()
-        charger = self.params["SIM_BATT_CHARGE"]
+        pictures = self.camera.update(now, self.body.position, not self.landed)
+        if pictures:
+            for _ in range(pictures):
+                self._capture_image()
+        charger = params["SIM_BATT_CHARGE"]
         if charger > 0 and self.landed and not self.armed:
             # On its pad the charger also feeds the electronics, so nothing drains.
             self.battery.charge(TICK, charger)
@@ -1470,7 +1476,7 @@ class VehicleModel:
 
     def mission_status(self) -> tuple[int, int, int]:
         """(seq, item count without home, MISSION_STATE) for MISSION_CURRENT."""
-        total = max(len(self.mission_items) - 1, 0)
+        total = max(self.missions.count(MISSION) - 1, 0)
         if self.auto is not None:
             state = M.MISSION_STATE_COMPLETE if self.auto.finished else M.MISSION_STATE_ACTIVE
             return self.auto.current, total, state

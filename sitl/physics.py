@@ -125,8 +125,12 @@ class Body:
         size = math.hypot(x, y)
         if size < 1e-9:
             cn = ce = 0.0
-        else:
-            scale = sqrt_controller(size, gain, half, dt) / size
+        else:  # sqrt_controller(size, gain, half, dt), written out for a positive error
+            linear = half / (gain * gain)
+            wanted = math.sqrt(2.0 * half * (size - linear / 2.0)) if size > linear else (
+                size * gain)
+            most = size / dt
+            scale = max(-most, min(most, wanted)) / size
             cn, ce = x * scale, y * scale
         size = math.hypot(cn, ce)
         if size > speed:
@@ -163,8 +167,13 @@ class Body:
         size = math.hypot(x, y)
         if size < 1e-9:
             tn = te = 0.0
-        else:
-            scale = sqrt_controller(size, jerk / accel, jerk, dt) / size
+        else:  # sqrt_controller(size, jerk / accel, jerk, dt), as in shape
+            gain = jerk / accel
+            linear = jerk / (gain * gain)
+            wanted = math.sqrt(2.0 * jerk * (size - linear / 2.0)) if size > linear else (
+                size * gain)
+            most = size / dt
+            scale = max(-most, min(most, wanted)) / size
             tn, te = x * scale, y * scale
         tn, te = _corner_limit(dn, de, tn, te, accel)
         tn, te = tn + feed[0], te + feed[1]  # _limit(..., accel)

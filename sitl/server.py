@@ -59,7 +59,7 @@ from sitl.frames import FRAMES, frame_of
 from sitl.messages import AUTOPILOT
 from sitl.model import TICK, VehicleModel
 from sitl.params import UnknownParameter
-from sitl.wire import Fields, encode
+from sitl.wire import ENCODERS, Fields, encode
 from tml.geo import to_global
 from tml.signing import signature_first, timestamp_now
 from tml.timebase import Lockstep
@@ -164,6 +164,25 @@ class _Endpoint:
         self.sequences[component] = (seq + 1) % 256  # each component counts its own
         return encode(msg, seq, self.model.system_id, component)
 
+    def encode_all(self, messages: list[Any]) -> list[bytes]:
+        """The packets of ``messages``, in order: as :meth:`encode` makes each, with the
+        streamed telemetry (most of what is sent) handed to its message's encoder at once."""
+        if self.signing_key is not None:
+            return [self.encode(msg) for msg in messages]
+        sequences, system = self.sequences, self.model.system_id
+        seq = sequences.get(AUTOPILOT, 0)
+        packets = []
+        for msg in messages:
+            if type(msg) is Fields:
+                packets.append(ENCODERS[msg.kind](msg.args, seq, system, AUTOPILOT))
+                seq = (seq + 1) % 256
+            else:
+                sequences[AUTOPILOT] = seq
+                packets.append(self.encode(msg))
+                seq = sequences[AUTOPILOT]
+        sequences[AUTOPILOT] = seq
+        return packets
+
     def _signed(self, msg: Any, component: int) -> bytes:
         """``msg`` packed and signed by pymavlink (sitl.wire does not sign)."""
         signer = self.signers.get(component)
@@ -239,6 +258,9 @@ class Simulator:
             kind = FRAMES[frame_of(frames, index)]
             model = kind(index + 1, own_home, world, seed, _own(kind, params), self.faults)
             self._endpoints.append(_Endpoint(model, self.faults, signing_key))
+        # The vehicles whose packets pass through fault channels (lost, delayed).
+        self._channelled = [e for e in self._endpoints
+                            if e.incoming is not None or e.outgoing is not None]
         if signing_key is not None and len(signing_key) != 32:
             raise ValueError("a MAVLink 2 signing key is 32 bytes")
         self.signing_key = signing_key
@@ -375,11 +397,13 @@ class Simulator:
                 self._read_udp(endpoint)
             else:
                 self._read_tcp(endpoint, peer)
-        self._deliver_due()
+        if self._channelled:
+            self._deliver_due()
         for endpoint in self._endpoints:
-            for peer in list(endpoint.tcp_peers):
-                if not peer.flush():
-                    self._drop(endpoint, peer)
+            # Most steps a vehicle has nothing to send.
+            gone = [peer for peer in endpoint.tcp_peers if peer.backlog and not peer.flush()]
+            for peer in gone:
+                self._drop(endpoint, peer)
         return bool(ready)
 
     def _accept(self, endpoint: _Endpoint) -> None:
@@ -492,7 +516,7 @@ class Simulator:
                 peer.send(msg.get_msgbuf())
 
     def _deliver_due(self) -> None:
-        for endpoint in self._endpoints:
+        for endpoint in self._channelled:
             if endpoint.incoming is not None:
                 for msg in endpoint.incoming.due(self.time):
                     self._emit(endpoint, endpoint.model.handle(msg))
@@ -506,7 +530,7 @@ class Simulator:
     def _emit(self, endpoint: _Endpoint, messages: list[Any]) -> None:
         if not messages or not (endpoint.tcp_peers or endpoint.udp_peers):
             return  # nothing to say, or nobody listens: skip the encoding work
-        packets = [endpoint.encode(msg) for msg in messages]
+        packets = endpoint.encode_all(messages)
         if endpoint.outgoing is not None:
             for packet in packets:
                 endpoint.outgoing.send(self.time, packet)
@@ -525,8 +549,11 @@ class Simulator:
         self._ticks += 1
         self.time = self._ticks * TICK
         for endpoint in self._endpoints:
-            self._emit(endpoint, endpoint.model.step_wire(TICK))
-            if endpoint.model.reboot_due:  # a fault (Faults.reboot_at)
+            model = endpoint.model
+            out = model.step_wire(TICK)
+            if out:  # most steps send nothing
+                self._emit(endpoint, out)
+            if model.reboot_due:  # a fault (Faults.reboot_at)
                 self._reboot(endpoint)
 
     def _reboot(self, endpoint: _Endpoint) -> None:

@@ -100,18 +100,22 @@ class Streams:
 
     def due(self, now: float) -> list[int]:
         """The ids of the messages due at ``now``, each scheduled for its next time."""
-        if now + 1e-9 < self._earliest:
+        soon = now + 1e-9
+        if soon < self._earliest:
             return []
         out = []
         earliest = math.inf
+        next_due = self._next_due
         for msg_id, interval in self._intervals.items():
             if interval is None:
                 continue
-            if now + 1e-9 >= self._next_due[msg_id]:
-                following = self._next_due[msg_id] + interval
+            at = next_due[msg_id]
+            if soon >= at:
+                following = at + interval
                 # Late by a whole interval (a long step): restart from now, never burst.
-                self._next_due[msg_id] = following if following > now + 1e-9 else now + interval
+                at = next_due[msg_id] = following if following > soon else now + interval
                 out.append(msg_id)
-            earliest = min(earliest, self._next_due[msg_id])
+            if at < earliest:
+                earliest = at
         self._earliest = earliest
         return out

@@ -37,10 +37,20 @@ _PLANS: dict[Any, tuple[Callable[..., bytes], int, int, bytes]] = {}
 Values = Callable[[Any], tuple[Any, ...]]
 # Per message class: a message's field values in wire order, arrays spread.
 _VALUES: dict[Any, Values] = {}
-# Per message class: its packet from the constructor's arguments, a sequence number and
-# the sender (system, component).
+# A message class's packet from the constructor's arguments, a sequence number and the
+# sender (system, component).
 Encoder = Callable[[tuple[Any, ...], int, int, int], bytes]
-_ENCODERS: dict[Any, Encoder] = {}
+
+
+class _Encoders(dict[Any, Encoder]):
+    def __missing__(self, kind: Any) -> Encoder:
+        encoder = self[kind] = _arguments_encoder(kind)
+        return encoder
+
+
+ENCODERS: dict[Any, Encoder] = _Encoders()
+"""Per message class, its :data:`Encoder` (written on first use): ``ENCODERS[kind](args,
+seq, system, component)`` is ``encode(Fields(kind, args), seq, system, component)``."""
 
 
 class Fields(NamedTuple):
@@ -130,7 +140,6 @@ def _arguments_encoder(kind: Any) -> Encoder:
              "crc_pack": _CRC_PACK, "crc": _crc, "extra": bytes((kind.crc_extra,))}
     exec(compile(source, f"<sitl.wire encoder of {kind.__name__}>", "exec"), scope)
     encoder: Encoder = scope["encode"]
-    _ENCODERS[kind] = encoder
     return encoder
 
 
@@ -149,8 +158,7 @@ def encode(msg: Any, seq: int, system: int, component: int) -> bytes:
     makes with a link in that state."""
     if type(msg) is Fields:
         kind: Any = msg.kind
-        return (_ENCODERS.get(kind) or _arguments_encoder(kind))(msg.args, seq, system,
-                                                                  component)
+        return ENCODERS[kind](msg.args, seq, system, component)
     kind = type(msg)
     values = (_VALUES.get(kind) or _values_of(kind))(msg)
     pack, low, high, extra = _PLANS.get(kind) or _plan_of(kind)

@@ -89,6 +89,7 @@ class Companion:
         self._nearest_obstacle = nearest_obstacle
         self._next_heartbeat = 0.0
         self._next_report = 0.0
+        self.next_due = 0.0  # when :meth:`step` has something to say next
         self._seen: set[WorldObject] = set()
 
     @property
@@ -104,7 +105,7 @@ class Companion:
              heading: float) -> list[Any]:
         """Messages due at vehicle ``time`` with the vehicle at ``position`` (north, east,
         up from home); with ``position`` None (not known yet) only the HEARTBEAT."""
-        if time < self._next_heartbeat and time < self._next_report:
+        if time < self.next_due:
             return []  # most control steps: nothing is due
         out: list[Any] = []
         if time >= self._next_heartbeat:
@@ -117,6 +118,7 @@ class Companion:
         if position is not None and rate > 0 and time >= self._next_report:
             self._next_report = time + 1.0 / rate
             out.extend(self._report(time, position, heading))
+        self.next_due = min(self._next_heartbeat, self._next_report)
         return [self._stamp(msg) for msg in out]
 
     def _report(

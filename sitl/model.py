@@ -282,9 +282,12 @@ class VehicleModel:
 
     def step(self, dt: float) -> list[Any]:
         """Advance ``dt`` seconds of vehicle time; returns the messages that became due."""
+        out = self.step_wire(dt)
+        if not out:  # most steps
+            return out
         system_id = self.system_id
         return [stamp(item.message(), system_id, AUTOPILOT) if type(item) is Fields else item
-                for item in self.step_wire(dt)]
+                for item in out]
 
     def step_wire(self, dt: float) -> list[Any]:
         """As :meth:`step`, with the streamed telemetry not built: :class:`Fields` sent by
@@ -307,11 +310,10 @@ class VehicleModel:
                     out.append(_fields(Fields, (builder.kind, args)))  # Fields(kind, args)
             if self._outbox:
                 out.extend(self._flush())
-            if self.params["SIM_COMPANION"] > 0:  # has_companion
+            companion = self.companion
+            if now >= companion.next_due and self.has_companion:  # most steps: nothing due
                 body = self.body
-                reports = self.companion.step(now, body.position, body.heading)
-                if reports:
-                    out.extend(reports)
+                out.extend(companion.step(now, body.position, body.heading))
         return out
 
     # ---------------------------------------------------------------- dispatching
@@ -1215,7 +1217,8 @@ class VehicleModel:
             elif not lost and "gcs" in self._failsafes:
                 self._failsafes.discard("gcs")
                 self._text(M.MAV_SEVERITY_CRITICAL, "GCS Failsafe Cleared")
-        if self._gps_lost and "ekf" not in self._failsafes:
+        gps_loss_at = self.faults.gps_loss_at  # self._gps_lost, without the call
+        if gps_loss_at is not None and self.time >= gps_loss_at and "ekf" not in self._failsafes:
             self._failsafes.add("ekf")
             self._text(M.MAV_SEVERITY_CRITICAL, "GPS Glitch or Compass error")
             if self.armed and not self.landed and self.mode in self.mode_table.needs_position:

@@ -62,7 +62,9 @@ def sqrt_controller(error: float, gain: float, limit: float, dt: float) -> float
     else:
         correction = error * gain
     step = abs(error) / dt
-    return max(-step, min(step, correction))
+    # max(-step, min(step, correction)), without the two calls (the same comparisons)
+    correction = correction if correction < step else step
+    return correction if correction > -step else -step
 
 
 def _limit(x: float, y: float, length: float) -> tuple[float, float]:
@@ -130,7 +132,8 @@ class Body:
             wanted = math.sqrt(2.0 * half * (size - linear / 2.0)) if size > linear else (
                 size * gain)
             most = size / dt
-            scale = max(-most, min(most, wanted)) / size
+            wanted = wanted if wanted < most else most  # min(most, wanted)
+            scale = (wanted if wanted > -most else -most) / size  # max(-most, ...)
             cn, ce = x * scale, y * scale
         size = math.hypot(cn, ce)
         if size > speed:
@@ -144,7 +147,9 @@ class Body:
             cu = sqrt_controller(target[2] - u, gain_z, half_z, dt) + velocity[2]
         else:
             cu = climb_rate
-        cu = max(-limits.descent, min(limits.climb, cu))
+        climb, descent = limits.climb, -limits.descent
+        cu = cu if cu < climb else climb  # max(-descent, min(climb, cu))
+        cu = cu if cu > descent else descent
         self._accelerate(cn, ce, cu, accel, limits, dt)
 
     def shape_velocity(self, demand: Vector, limits: Limits, dt: float,
@@ -173,7 +178,8 @@ class Body:
             wanted = math.sqrt(2.0 * jerk * (size - linear / 2.0)) if size > linear else (
                 size * gain)
             most = size / dt
-            scale = max(-most, min(most, wanted)) / size
+            wanted = wanted if wanted < most else most  # min(most, wanted)
+            scale = (wanted if wanted > -most else -most) / size  # max(-most, ...)
             tn, te = x * scale, y * scale
         tn, te = _corner_limit(dn, de, tn, te, accel)
         tn, te = tn + feed[0], te + feed[1]  # _limit(..., accel)
@@ -188,8 +194,16 @@ class Body:
         # The vertical acceleration (ArduPilot's shape_vel_accel on one axis)
         limit, jerk = limits.accel_z, limits.jerk_z
         target = sqrt_controller(du - vu, jerk / limit, jerk, dt)
-        target = max(-limit, min(limit, max(-limit, min(limit, target)) + feed[2]))
-        au = au + max(-jerk * dt, min(jerk * dt, target - au))
+        # max(-limit, min(limit, max(-limit, min(limit, target)) + feed)), and the change
+        # of acceleration within the jerk, each min and max written as its comparison
+        target = target if target < limit else limit
+        target = (target if target > -limit else -limit) + feed[2]
+        target = target if target < limit else limit
+        target = target if target > -limit else -limit
+        most = jerk * dt
+        change = target - au
+        change = change if change < most else most
+        au = au + (change if change > -most else -most)
         n, e, u = self.position
         half_dt2 = 0.5 * dt * dt
         self.position = (n + vn * dt + an * half_dt2, e + ve * dt + ae * half_dt2,
@@ -205,7 +219,9 @@ class Body:
             error += 360.0
         elif direction < 0 and error > 0.0:
             error -= 360.0
-        self.heading = wrap_degrees(self.heading + max(-rate * dt, min(rate * dt, error)))
+        most = rate * dt  # max(-most, min(most, error))
+        error = error if error < most else most
+        self.heading = wrap_degrees(self.heading + (error if error > -most else -most))
 
     def restart_shaping(self) -> None:
         """Start shaping afresh from the velocity it has: ArduCopter's ``init_xy_controller``

@@ -12,8 +12,9 @@ sends them.
 Streamed telemetry need not become a pymavlink message at all: a :class:`Fields` holds a
 message's class and the arguments its constructor would take, and :func:`encode` packs
 those arguments as the message would pack them (the extension fields left out take the
-constructor's defaults). tests/test_sitl_wire.py checks both against ``pack`` for every
-message of the dialect.
+constructor's defaults), with a function written for the message's class on first use
+(:data:`ENCODERS`: the arguments read by index in wire order, header and CRC inline).
+tests/test_sitl_wire.py checks both against ``pack`` for every message of the dialect.
 """
 
 from __future__ import annotations

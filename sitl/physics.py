@@ -148,7 +148,7 @@ class Body:
         else:
             cu = climb_rate
         climb, descent = limits.climb, -limits.descent
-        cu = cu if cu < climb else climb  # max(-descent, min(climb, cu))
+        cu = cu if cu < climb else climb  # max(-limits.descent, min(limits.climb, cu))
         cu = cu if cu > descent else descent
         self._accelerate(cn, ce, cu, accel, limits, dt)
 

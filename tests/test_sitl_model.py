@@ -241,6 +241,22 @@ def test_takeoff_and_flight_stay_within_the_speed_limits():
     assert max(steps) <= 2.5 * TICK + 1e-9  # WPNAV_ACCEL 250 cm/s²
 
 
+def test_a_speed_set_in_flight_takes_effect_at_once():
+    # The limits are kept between steps: a PARAM_SET must reach the next one.
+    v = flying(params={"WPNAV_SPEED": 500})
+    lat, lon, _ = v._global((200.0, 0.0, 10.0))
+    v.handle(M.MAVLink_set_position_target_global_int_message(
+        0, 1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, 0b110111111000, round(lat * 1e7),
+        round(lon * 1e7), 10, 0, 0, 0, 0, 0, 0, 0, 0))
+    v.step(10.0)
+    assert math.hypot(*v.body.velocity[:2]) == pytest.approx(5.0, abs=0.05)
+    (echo,) = v.handle(M.MAVLink_param_set_message(1, 1, b"WPNAV_SPEED", 200,
+                                                   M.MAV_PARAM_TYPE_REAL32))
+    assert echo.param_value == 200
+    v.step(10.0)
+    assert math.hypot(*v.body.velocity[:2]) == pytest.approx(2.0, abs=0.05)
+
+
 def test_land_lands_slowly_below_land_alt_low_and_disarms():
     v = flying(12.0)
     assert command(v, M.MAV_CMD_NAV_LAND)[0] == M.MAV_RESULT_ACCEPTED

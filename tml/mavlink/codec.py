@@ -13,13 +13,42 @@ import os
 # mavutil picks the protocol version when first imported: MAVLink 2, explicitly.
 os.environ.setdefault("MAVLINK20", "1")
 
+import importlib.util
 import logging
+import sys
 
-from pymavlink import mavutil
-from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from tml.mavlink.command import Command, CommandAck, CommandInt, CommandLong, Heartbeat
-from tml.mavlink.mission import (
+def _imported_on_first_use(name: str) -> None:
+    """Put module ``name`` in place to be executed when an attribute of it is first read
+    (:class:`importlib.util.LazyLoader`), not when it is imported."""
+    spec = importlib.util.find_spec(name)
+    if name in sys.modules or spec is None or spec.loader is None:
+        return
+    spec.loader = importlib.util.LazyLoader(spec.loader)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    # Bound in its package as an import binds it: ``from package import name`` then takes
+    # it as it is (looked up in sys.modules, its __spec__ would be read, which loads it).
+    package, _, child = name.rpartition(".")
+    setattr(sys.modules[package], child, module)
+
+
+# mavutil imports mavexpression (its log-expression evaluator, which tml never calls) and,
+# through it, numpy: a third of the start-up of every tml process that flies or commands.
+_imported_on_first_use("pymavlink.mavexpression")
+
+from pymavlink import mavutil  # noqa: E402 (after the lazy module is in place)
+from pymavlink.dialects.v20 import ardupilotmega as mavlink  # noqa: E402
+
+from tml.mavlink.command import (  # noqa: E402
+    Command,
+    CommandAck,
+    CommandInt,
+    CommandLong,
+    Heartbeat,
+)
+from tml.mavlink.mission import (  # noqa: E402
     MissionAck,
     MissionClearAll,
     MissionCount,

@@ -32,10 +32,6 @@ from dataclasses import dataclass
 from enum import StrEnum
 from functools import lru_cache
 
-import numpy as np
-import shapely
-from shapely.geometry import LineString, Point, Polygon
-
 from tml.errors import Location
 from tml.language.actions import BoundAction, Category
 from tml.language.kinds import Kind, refusal
@@ -298,6 +294,12 @@ def _limits(step: Step, model: FlightModel, fail: _Fail) -> None:
         fail(_C.RANGE, "the path goes farther from home than the vehicle's range", farthest,
              "<=", profile.max_range, "m")
     if fence is not None and len(fence.polygon) >= 3:
+        # Imported here: a mission without a geofence or obstacles needs neither shapely
+        # nor numpy, and a third of tml run's start-up was importing them.
+        import numpy as np
+        import shapely
+        from shapely.geometry import LineString, Point, Polygon
+
         polygon = Polygon(fence.polygon)
         path = LineString([p[:2] for p in points]) if len(points) > 1 else Point(points[0][:2])
         outside = path.difference(polygon)

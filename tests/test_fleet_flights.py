@@ -12,40 +12,36 @@ from full to the listings' 30 % takes about two and a half minutes of vehicle ti
 return and landing (about 50 s) leaves 5-15 %. The pad puts back 64 A x 1 s / 3.6 = 17.8 mAh
 a second, about 1 % a second: back to 90 % in about 80 s. So a round lasts about 200 s of
 vehicle time and a vehicle landed after a round is ready again
-80 s later. The simulator runs at 40x; a round of four vehicles costs about 10 s of wall
-time on two cores. ``--link-lost-limit`` is raised because a busy machine can stall the
-simulator's thread for longer than 10 s of vehicle time (0.25 s of wall time at 40x).
+80 s later. The simulator runs at 50x at most; a round of four vehicles costs about 10 s of
+wall time on two cores. ``--link-lost-limit`` is raised because a busy machine can stall
+the simulator's thread for longer than 10 s of vehicle time (0.2 s of wall time at 50x).
+Each flight is the one tests/test_flights.py checks the outcome of, flown once for both
+(tests/shared_flights.py).
 """
 
 from __future__ import annotations
 
 import math
 import statistics
-from pathlib import Path
 
 import pytest
-
-from tml.commands.cli import main
-from tml.run.journal import read
+from shared_flights import FLEET, flown
 
 # A guard against a hang, not a time limit: a flight in lock-step with the simulator is
 # slower, never different, on a busy machine (tests/test_timebase.py), and one of a fleet
 # beside three CPU spinners takes several minutes.
 pytestmark = pytest.mark.timeout(900)
 
-MISSIONS = Path(__file__).parent.parent / "missions"
-FAST = ["--speedup", "40", "--sim-param", "SIM_GPS_LOCKTIME=1",
-        "--sim-param", "SIM_EKF_GPS_TIME=2", "--link-lost-limit", "60"]
-BATTERY = ["--sim-param", "BATT_CAPACITY=1700", "--sim-param", "SIM_BATT_CHARGE=64"]
-
 Log = list[dict]
 
 
-def fly(tmp_path: Path, name: str, vehicles: int, extra: list[str]) -> Log:
-    log = tmp_path / f"{name}.jsonl"
-    code = main(["run", str(MISSIONS / f"{name}.xml"), "--sim", "-q", "--log", str(log),
-                 "--vehicles", str(vehicles), *FAST, *extra])
-    lines = read(str(log))
+def fly(factory: pytest.TempPathFactory, name: str, vehicles: int, battery: bool) -> Log:
+    """The flight of ``name`` on ``vehicles`` vehicles, with the fleet's battery and pad
+    (:data:`shared_flights.FLEET`) or only its longer link-lost limit: the same command
+    line as tests/test_flights.py's, so the one flight serves both."""
+    options = (["--vehicles", str(vehicles)] if vehicles > 1 else []) + \
+        (FLEET if battery else ["--link-lost-limit", "60"])
+    code, lines = flown(factory, name, options)
     assert code == 0, [line for line in lines if line["kind"] in ("mission", "error")]
     assert not [line for line in lines if line["kind"] == "error"]
     return lines
@@ -93,8 +89,9 @@ def read_when(lines: Log, vehicle: int, decision: str) -> list[float]:
             if decision in line["message"]]
 
 
-def test_single_vehicle_flies_rounds_each_ending_landed_at_home(tmp_path: Path) -> None:
-    lines = fly(tmp_path, "dolphin_fleet_single", 1, BATTERY)
+def test_single_vehicle_flies_rounds_each_ending_landed_at_home(
+        tmp_path_factory: pytest.TempPathFactory) -> None:
+    lines = fly(tmp_path_factory, "dolphin_fleet_single", 1, True)
     assert picks(lines) == [("v1", (1,)), ("v1", (1,))]  # picked again after each release
     releases = [line["t"] for line in of(lines, "release", 1)]
     flights = airborne(lines, 1)
@@ -126,8 +123,9 @@ def test_single_vehicle_flies_rounds_each_ending_landed_at_home(tmp_path: Path) 
     assert [line["rounds"] for line in ends] == [2]
 
 
-def test_survey_flies_both_areas_at_once(tmp_path: Path) -> None:
-    lines = fly(tmp_path, "dolphin_fleet_survey", 2, BATTERY)
+def test_survey_flies_both_areas_at_once(
+        tmp_path_factory: pytest.TempPathFactory) -> None:
+    lines = fly(tmp_path_factory, "dolphin_fleet_survey", 2, True)
     assert picks(lines) == [("v1", (1,)), ("v2", (2,))] * 2
     north, south = airborne(lines, 1), airborne(lines, 2)
     assert len(north) == len(south) == 2
@@ -156,8 +154,9 @@ def test_survey_flies_both_areas_at_once(tmp_path: Path) -> None:
         assert waits[1] < charged[1]["t"] <= flights[1][0]
 
 
-def test_relay_sends_the_rested_pair_while_the_other_recharges(tmp_path: Path) -> None:
-    lines = fly(tmp_path, "dolphin_fleet_relay", 4, BATTERY)
+def test_relay_sends_the_rested_pair_while_the_other_recharges(
+        tmp_path_factory: pytest.TempPathFactory) -> None:
+    lines = fly(tmp_path_factory, "dolphin_fleet_relay", 4, True)
     # Longest free first: 1 and 2, then 3 and 4 (never used), then 1 and 2 again.
     assert picks(lines) == [("v1", (1,)), ("v2", (2,)), ("v1", (3,)), ("v2", (4,)),
                             ("v1", (1,)), ("v2", (2,))]
@@ -183,8 +182,9 @@ def test_relay_sends_the_rested_pair_while_the_other_recharges(tmp_path: Path) -
     assert [line["rounds"] for line in ends] == [3]
 
 
-def test_compositions_first_choice_time_limit_on_error_and_roles(tmp_path: Path) -> None:
-    lines = fly(tmp_path, "fleet_compositions", 3, [])
+def test_compositions_first_choice_time_limit_on_error_and_roles(
+        tmp_path_factory: pytest.TempPathFactory) -> None:
+    lines = fly(tmp_path_factory, "fleet_compositions", 3, False)
     assert picks(lines) == [("lead", (1,)), ("pair", (2, 3))]  # count="2": both at once
 
     def first(kind: str, vehicle: int | None, text: str) -> float:

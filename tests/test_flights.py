@@ -1,7 +1,8 @@
 """Every mission in missions/ flies on the simulator to its expected outcome (end to end).
 
-Each flight runs ``tml run FILE --sim`` at 50x with the GPS and EKF delays cut to 1-2 s;
-the flight log is then read to check what happened, not only the exit code.
+Each flight runs ``tml run FILE --sim`` at 50x with the GPS and EKF delays cut to 1-2 s,
+once per session for every test that reads it (tests/shared_flights.py); the flight log is
+then read to check what happened, not only the exit code.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from pathlib import Path
 
 import pytest
 from flight_checks import LOG_CHECKS
+from shared_flights import FLEET, flown
 
 from tml.commands.cli import main
 from tml.run.journal import read
@@ -20,13 +22,6 @@ from tml.run.journal import read
 pytestmark = pytest.mark.timeout(900)
 
 MISSIONS = Path(__file__).parent.parent / "missions"
-FAST = ["--speedup", "50", "--sim-param", "SIM_GPS_LOCKTIME=1",
-        "--sim-param", "SIM_EKF_GPS_TIME=2"]
-# Fleets: a 1700 mAh battery and a 64 A charging pad make the rounds drain to 30 % and
-# recharge to 90 % in minutes (see tests/test_fleet_flights.py); several simulated vehicles
-# load the machine, so a stalled link is given longer before the run is aborted.
-FLEET = ["--sim-param", "BATT_CAPACITY=1700", "--sim-param", "SIM_BATT_CHARGE=64",
-         "--link-lost-limit", "60"]
 
 # mission -> (exit code, text the outcome's reason contains, extra simulator parameters)
 EXPECTED: dict[str, tuple[int, str, list[str]]] = {
@@ -60,11 +55,9 @@ EXPECTED: dict[str, tuple[int, str, list[str]]] = {
 KNOWN_GAPS: dict[str, str] = {}
 
 
-def fly(tmp_path: Path, name: str, extra: list[str]) -> tuple[int, list[dict], str]:
-    log = tmp_path / f"{name}.jsonl"
-    code = main(["run", str(MISSIONS / f"{name}.xml"), "--sim", "-q", "--log", str(log),
-                 *FAST, *extra])
-    lines = read(str(log))
+def fly(factory: pytest.TempPathFactory, name: str, extra: list[str]
+        ) -> tuple[int, list[dict], str]:
+    code, lines = flown(factory, name, extra)
     ended = [line for line in lines if line["kind"] == "run" and "outcomes" in line]
     reason = ended[-1]["outcomes"][0]["reason"] if ended else ""
     return code, lines, reason
@@ -77,8 +70,9 @@ def test_every_mission_has_an_expected_outcome() -> None:
 @pytest.mark.parametrize("name", [
     pytest.param(name, marks=pytest.mark.xfail(reason=KNOWN_GAPS[name], strict=True))
     if name in KNOWN_GAPS else name for name in sorted(EXPECTED)])
-def test_mission_flies_to_its_expected_outcome(name: str, tmp_path: Path) -> None:
-    code, lines, reason = fly(tmp_path, name, EXPECTED[name][2])
+def test_mission_flies_to_its_expected_outcome(name: str,
+                                               tmp_path_factory: pytest.TempPathFactory) -> None:
+    code, lines, reason = fly(tmp_path_factory, name, EXPECTED[name][2])
     expected_code, expected_reason, _ = EXPECTED[name]
     assert (code, expected_reason in reason) == (expected_code, True), reason
     assert not [line for line in lines if line["kind"] == "error"]
@@ -88,8 +82,9 @@ def test_mission_flies_to_its_expected_outcome(name: str, tmp_path: Path) -> Non
         LOG_CHECKS[name](lines)
 
 
-def test_battery_event_lands_and_aborts(tmp_path: Path) -> None:
-    code, lines, reason = fly(tmp_path, "battery_event", ["--sim-param", "BATT_CAPACITY=300"])
+def test_battery_event_lands_and_aborts(tmp_path_factory: pytest.TempPathFactory) -> None:
+    code, lines, reason = fly(tmp_path_factory, "battery_event",
+                              ["--sim-param", "BATT_CAPACITY=300"])
     assert code == 3 and "Low battery" in reason
     fired = [line for line in lines if line["kind"] == "event"]
     assert [f["event"] for f in fired] == ["Low battery"]

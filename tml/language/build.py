@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, TypeVar
 from lxml import etree
 
 from tml import geo
-from tml.errors import MissionSyntaxError
+from tml.errors import Location, MissionSyntaxError
 from tml.language import schema
 from tml.language.diagnostics import Diagnostic, error
 from tml.language.model import (
@@ -68,8 +68,11 @@ def _built(node: type[N], /, **fields: object) -> N:
     its fields and equals the one its ``__init__`` makes.
     """
     built = object.__new__(node)
-    built.__dict__.update(fields)
+    _set(built, "__dict__", fields)  # the keywords' own new dict, taken as it is
     return built
+
+
+_set = object.__setattr__
 
 
 class _Builder:
@@ -85,6 +88,13 @@ class _Builder:
         self._children: dict[etree._Element, dict[str, list[etree._Element]]] = {}
         # Where an element (or one of its attributes) is: asked for every node built.
         self.loc = doc.location
+        self._starts = doc.starts
+
+    def at(self, element: etree._Element) -> Location:
+        """Where an element's start tag begins (``loc(element)``, in one step for the
+        elements the read placed, which are all of them but in a document built apart)."""
+        found = self._starts.get(element)
+        return found[1] if found is not None else self.loc(element)
 
     def number(self, element: etree._Element, attribute: str, quantity: Quantity,
                default: str | None = None) -> float:
@@ -229,8 +239,9 @@ class _Builder:
         children: list[Task] = []
         gates: dict[str, list[etree._Element]] = {}
         handlers: list[Task] = []
+        left_out = self.left_out
         for child in element:  # one pass: tasks are the bulk of a mission
-            if child in self.left_out:
+            if left_out and child in left_out:
                 continue
             tag = child.tag
             if tag == "task":
@@ -250,67 +261,84 @@ class _Builder:
             elif tag == "on_error":
                 handlers.extend(self.task(t, path, dispatch, role)
                                 for t in self.children(child, "task"))
+        wait_for: tuple[Condition, ...] = ()
+        until: tuple[Condition, ...] = ()
+        loop: Loop | None = None
         if len(repeats) > 1 or gates:  # rare: most tasks have neither
-            for extra in repeats[1:]:
-                self.diagnostics.append(error(
-                    self.loc(extra), "E251", f"task {name!r} has more than one <repeat>",
-                    "keep one <repeat times=...>"))
-            for tag, found in gates.items():
-                for extra in found[1:]:
-                    self.diagnostics.append(error(
-                        self.loc(extra), "E251", f"task {name!r} has more than one <{tag}>",
-                        f"put all the conditions in one <{tag}>: they must all hold"))
-            for tag in ("wait_for", "until"):
-                found = gates.get(tag, [])
-                if found and not self.children(found[0], "condition"):
-                    self.diagnostics.append(error(
-                        self.loc(found[0]), "E282",
-                        f"<{tag}> in task {name!r} has no condition",
-                        "it would " + ("wait for nothing" if tag == "wait_for" else
-                                       "stop the task at once") + "; give it a <condition> "
-                        "or remove it"))
-            if repeats and "loop" in gates:
-                self.diagnostics.append(error(
-                    self.loc(gates["loop"][0]), "E251",
-                    f"task {name!r} has both <repeat> and <loop>",
-                    "keep <repeat times=...> for a count, or <loop> for while/forever"))
-
-        def conditions_of(tag: str) -> tuple[Condition, ...]:
-            found = gates.get(tag) if gates else None
-            return tuple(self.condition(c) for c in self.children(found[0], "condition")) \
-                if found else ()
-
-        loops = gates.get("loop")
+            self.gates(name, repeats, gates)
+            wait_for = self.conditions_of(gates, "wait_for")
+            until = self.conditions_of(gates, "until")
+            if "loop" in gates:
+                loop = Loop(self.conditions_of(gates, "loop"), self.at(gates["loop"][0]))
         release = element.get("release")
         composition = element.get("composition")
+        time_limit = element.get("time_limit")
         return _built(
             Task,
             name=name,
             path=path,
-            location=self.loc(element),
-            skills=tuple(skills),
-            conditions=tuple(conditions),
+            location=self.at(element),
+            skills=tuple(skills) if skills else (),
+            conditions=tuple(conditions) if conditions else (),
             repeat=_whole(repeats[0].get("times", "1")) if repeats else 1,
             repeat_location=self.loc(repeats[0], "times") if repeats else None,
             action=action,
-            children=tuple(children),
+            children=tuple(children) if children else (),
             dispatch=dispatch,
             role=role,
             role_location=self.loc(element, "role") if written_role is not None else None,
-            composition=self.word(Composition, composition, Composition.SEQUENCE),
-            wait_for=conditions_of("wait_for"),
-            until=conditions_of("until"),
-            time_limit=self.optional_number(element, "time_limit", Quantity.DURATION),
-            on_error=tuple(handlers),
-            loop=Loop(conditions_of("loop"), self.loc(loops[0])) if loops else None,
+            composition=Composition.SEQUENCE if composition is None
+            else self.word(Composition, composition, Composition.SEQUENCE),
+            wait_for=wait_for,
+            until=until,
+            time_limit=None if time_limit is None
+            else self.optional_number(element, "time_limit", Quantity.DURATION),
+            on_error=tuple(handlers) if handlers else (),
+            loop=loop,
             release=tuple(release.split()) if release else (),
             release_location=self.loc(element, "release") if release is not None else None,
         )
 
+    def gates(self, name: str, repeats: list[etree._Element],
+              gates: dict[str, list[etree._Element]]) -> None:
+        """E251 for a second <repeat> or gate of task ``name``, E282 for a gate without a
+        condition."""
+        for extra in repeats[1:]:
+            self.diagnostics.append(error(
+                self.loc(extra), "E251", f"task {name!r} has more than one <repeat>",
+                "keep one <repeat times=...>"))
+        for tag, found in gates.items():
+            for extra in found[1:]:
+                self.diagnostics.append(error(
+                    self.loc(extra), "E251", f"task {name!r} has more than one <{tag}>",
+                    f"put all the conditions in one <{tag}>: they must all hold"))
+        for tag in ("wait_for", "until"):
+            found = gates.get(tag, [])
+            if found and not self.children(found[0], "condition"):
+                self.diagnostics.append(error(
+                    self.loc(found[0]), "E282",
+                    f"<{tag}> in task {name!r} has no condition",
+                    "it would " + ("wait for nothing" if tag == "wait_for" else
+                                   "stop the task at once") + "; give it a <condition> "
+                    "or remove it"))
+        if repeats and "loop" in gates:
+            self.diagnostics.append(error(
+                self.loc(gates["loop"][0]), "E251",
+                f"task {name!r} has both <repeat> and <loop>",
+                "keep <repeat times=...> for a count, or <loop> for while/forever"))
+
+    def conditions_of(self, gates: dict[str, list[etree._Element]],
+                      tag: str) -> tuple[Condition, ...]:
+        """The conditions of a task's first gate ``tag`` (``()`` without one)."""
+        found = gates.get(tag)
+        return tuple(self.condition(c) for c in self.children(found[0], "condition")) \
+            if found else ()
+
     def action(self, element: etree._Element) -> Action:
         arguments = []
+        left_out = self.left_out
         for arg in element:  # the schema allows only <argument> children here
-            if arg in self.left_out or arg.tag != "argument":
+            if arg.tag != "argument" or (left_out and arg in left_out):
                 continue
             value, label = arg.get("value"), arg.get("label")
             if (value is None) == (label is None):
@@ -321,9 +349,9 @@ class _Builder:
                     "give value= for a literal, or label= for a memorized point"))
             arguments.append(_built(Argument, name=arg.get("name", "").strip(), value=value,
                                     label=label.strip() if label else label,
-                                    location=self.loc(arg)))
+                                    location=self.at(arg)))
         return _built(Action, name=element.get("name", "").strip(), arguments=tuple(arguments),
-                      location=self.loc(element))
+                      location=self.at(element))
 
     def mission_item(self, element: etree._Element) -> Action:
         """``<mission_item command=... frame=... param1=.../>``: the action MISSION_ITEM,

@@ -165,14 +165,16 @@ class _Checker:
                     "cannot name either (E244)",
                     "give sibling tasks different names"))
             seen.setdefault(task.name, task)
-            self.check_skills(task.skills)
+            if task.skills:
+                self.check_skills(task.skills)
             inner = self.check_repeat(task, rounds)
             for condition in task.conditions:
                 self.check_condition(condition, guard=True)
             if task.action is not None:
                 self.check_action(task.action, task.dispatch)
             self.check_orchestration(task)
-            self.check_tasks(task.children + task.on_error, inner)
+            if task.children or task.on_error:
+                self.check_tasks(task.children + task.on_error, inner)
 
     def handles(self, *tasks: Task) -> bool:
         """Whether one of ``tasks`` is an <on_error> task."""
@@ -181,6 +183,8 @@ class _Checker:
     def check_repeat(self, task: Task, rounds: int) -> int:
         """Check a task's repeat count and the rounds nested repeats make of it; return the
         rounds its children run (1 once a problem is reported, so it is reported once)."""
+        if task.repeat == 1:  # most tasks: in range, and no more rounds than around it
+            return rounds
         where = task.repeat_location or task.location
         why = out_of_range(Quantity.REPEAT, float(min(task.repeat, 10**18)))
         if task.repeat < 1:
@@ -540,14 +544,17 @@ class _Checker:
     # --- labels ----------------------------------------------------------------------------
 
     def check_labels(self) -> None:
-        order = {id(task): index for index, task in enumerate(self.tasks)}
         set_in_tasks: dict[str, list[int]] = defaultdict(list)
         set_by_events: set[str] = set()
         reads: list[tuple[str, int | None, Argument]] = []
-        for holder, action in self.mission.actions():
-            bound = self.label_arguments(action)
-            index = order.get(id(holder))
-            for label, use, argument in bound:
+        # Every action with its task's index in document order (None: an event's), as
+        # Mission.actions() gives them.
+        held: list[tuple[int | None, Action]] = [
+            (index, task.action) for index, task in enumerate(self.tasks)
+            if task.action is not None]
+        held += [(None, action) for event in self.mission.events for action in event.actions]
+        for index, action in held:
+            for label, use, argument in self.label_arguments(action):
                 if use is actions.LabelUse.WRITE:
                     if index is None:
                         set_by_events.add(label)
@@ -557,13 +564,15 @@ class _Checker:
                     reads.append((label, index, argument))
         # Document order is flight order unless tasks repeat, loop, run side by side, or an
         # event sends the flight back.
-        loops_back = any(task.repeat > 1 or task.loop is not None
-                         or task.composition is not Composition.SEQUENCE
-                         for task in self.tasks) or any(
+        loops_back = bool(reads) and (any(
+            task.repeat > 1 or task.loop is not None
+            or task.composition is not Composition.SEQUENCE for task in self.tasks) or any(
             e.termination.mode in (TerminationMode.JUMP_TO_TASK, TerminationMode.REPEAT_TASK)
-            for e in self.mission.events)
+            for e in self.mission.events))
         known = set(set_in_tasks) | set_by_events
-        tested = [c for t in self.tasks for c in _all_conditions(t)] + [
+        tested = [c for t in self.tasks
+                  if t.conditions or t.wait_for or t.until or t.loop is not None
+                  for c in _all_conditions(t)] + [
             c for e in self.mission.events for c in e.conditions]
         for condition in tested:
             if condition.kind is ConditionKind.LABEL and condition.subject \
@@ -591,6 +600,8 @@ class _Checker:
 
     @staticmethod
     def label_arguments(action: Action) -> list[tuple[str, actions.LabelUse, Argument]]:
+        if not any(argument.label for argument in action.arguments):
+            return []  # most actions: no label to store or read
         spec = actions.lookup(action.name)
         if spec is None:
             return []
@@ -660,8 +671,7 @@ class _Checker:
             self.check_role_name(task.role, task.role_location)
         for name in task.release:
             self.check_role_name(name, task.release_location or task.location)
-        several_roles = len(self.mission.roles) > 1
-        if several_roles and task.is_terminal and task.role is None:
+        if len(self.mission.roles) > 1 and task.is_terminal and task.role is None:
             self.found.append(error(
                 task.location, "E274",
                 f"task {task.name!r} is flown by no role, and the mission has "
@@ -685,7 +695,7 @@ class _Checker:
                     "test a parameter or a label instead"))
             else:
                 self.check_condition(condition)
-        for condition in _all_conditions(task):
+        for condition in _all_conditions(task) if task.conditions or gated else ():
             self.check_written_role(condition.role, condition.location)
             if (self.mission.roles and task.role is None and condition.role is None
                     and condition.kind is ConditionKind.PARAMETER and condition.subject

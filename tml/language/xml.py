@@ -38,6 +38,8 @@ _MARKUP = re.compile(
     re.S,
 )
 _ATTRIBUTE = re.compile(r"""\s+([^\s=/>]+)\s*=\s*(?:"[^"]*"|'[^']*')""")
+_IS_TAG = operator.attrgetter("lastgroup")  # a start tag, not a comment, CDATA or PI
+_LOCATION = functools.partial(tuple.__new__, Location)  # Location(*fields), in C
 _ENCODING_DECL = re.compile(rb"^\s*<\?xml[^>]*encoding\s*=\s*[\"']([^\"']+)[\"']")
 
 
@@ -69,7 +71,7 @@ class XmlDocument:
     text: str
     root: etree._Element
     # Each element's start tag: its character offset and location (found in one sweep).
-    _starts: dict[etree._Element, tuple[int, Location]] = field(repr=False)
+    starts: dict[etree._Element, tuple[int, Location]] = field(repr=False)
 
     @functools.cached_property
     def _line_starts(self) -> list[int]:
@@ -83,7 +85,7 @@ class XmlDocument:
 
     def location(self, element: etree._Element, attribute: str | None = None) -> Location:
         """Where an element's start tag (or one of its attributes) begins."""
-        found = self._starts.get(element)
+        found = self.starts.get(element)
         if found is None:
             return Location(self.file, element.sourceline or 0, 0)
         start, where = found
@@ -182,15 +184,17 @@ def read_xml(source: str | Path, data: bytes | None = None) -> XmlDocument:
                 raise MissionSyntaxError(
                     "DOCTYPE declarations are not accepted (no DTDs or entities in mission "
                     "files)", at(match.start()), "E003")
-    # The offset of each start tag, then its line and column: the loops run in C (a
-    # regular expression, the lines' lengths summed), Python's work is one step per tag.
-    offsets = [match.start() for match in _MARKUP.finditer(text) if match.lastgroup]
+    # The offset of each start tag, then its line and column: every loop runs in C (a
+    # regular expression, the lines' lengths summed, map and zip), none in Python.
+    offsets = list(map(re.Match.start, filter(_IS_TAG, _MARKUP.finditer(text))))
     lines = text.split("\n")
     line_starts = [0, *map(operator.add, itertools.accumulate(map(len, lines)),
                            itertools.count(1))]
-    tags = [(offset, Location(file, line, offset - line_starts[line - 1] + 1))
-            for offset in offsets
-            for line in (bisect.bisect_right(line_starts, offset),)]
+    numbers = list(map(bisect.bisect_right, itertools.repeat(line_starts), offsets))
+    before = [0, *map(operator.sub, line_starts, itertools.repeat(1))]  # line n: before[n]
+    columns = map(operator.sub, offsets, map(before.__getitem__, numbers))
+    places = map(_LOCATION, zip(itertools.repeat(file), numbers, columns, strict=False))
+    tags = zip(offsets, places, strict=True)
     parser = etree.XMLParser(
         resolve_entities=False, no_network=True, load_dtd=False, dtd_validation=False,
         huge_tree=False, remove_blank_text=False, collect_ids=False,
@@ -203,7 +207,7 @@ def read_xml(source: str | Path, data: bytes | None = None) -> XmlDocument:
         raise MissionSyntaxError(f"not well-formed XML: {message}",
                                  Location(file, line, column), "E002") from None
     elements = list(root.iter(etree.Element))
-    starts = dict(zip(elements, tags, strict=False)) if len(elements) == len(tags) else {}
+    starts = dict(zip(elements, tags, strict=False)) if len(elements) == len(offsets) else {}
     # The first element MAX_DEPTH deep, in document order, as libxml2 finds it.
     too_deep = _at_depth(MAX_DEPTH)(root)
     if isinstance(too_deep, list) and too_deep and isinstance(too_deep[0], etree._Element):
@@ -234,7 +238,11 @@ def read_bounded(source: str | Path) -> bytes:
         if info.st_size > MAX_BYTES:
             raise _too_large(str(source), info.st_size)
         with os.fdopen(descriptor, "rb", closefd=False) as stream:
-            data = stream.read(MAX_BYTES + 1)  # the file may have grown since fstat
+            # Its size and one byte more (a buffer of the bound for every file costs more
+            # than reading it), then up to the bound if it has grown since fstat.
+            data = stream.read(info.st_size + 1)
+            if len(data) > info.st_size:
+                data += stream.read(MAX_BYTES + 1 - len(data))
     finally:
         os.close(descriptor)
     if len(data) > MAX_BYTES:

@@ -600,7 +600,10 @@ class _Checker:
 
     @staticmethod
     def label_arguments(action: Action) -> list[tuple[str, actions.LabelUse, Argument]]:
-        if not any(argument.label for argument in action.arguments):
+        for argument in action.arguments:
+            if argument.label:
+                break
+        else:
             return []  # most actions: no label to store or read
         spec = actions.lookup(action.name)
         if spec is None:

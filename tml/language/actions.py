@@ -552,13 +552,19 @@ def action_names() -> list[str]:
 
 
 _NUMBER = NUMBER_PATTERN
+# The types parse_value tells apart, bound once: reading an enum member from its class costs
+# some 1,000 instructions (the enum class's attribute lookup), a global 50.
+_A_POINT, _A_BOOLEAN, _A_CHOICE, _A_STRING, _AN_INTEGER = (
+    ArgType.POINT, ArgType.BOOLEAN, ArgType.CHOICE, ArgType.STRING, ArgType.INTEGER)
+_AXES = (("north", Quantity.COORDINATE), ("east", Quantity.COORDINATE), ("up", Quantity.ALTITUDE))
 _POINT = re.compile(rf"^\(?\s*({_NUMBER})\s*,\s*({_NUMBER})\s*,\s*({_NUMBER})\s*\)?$")
 
 
 def parse_value(spec: ArgumentSpec, raw: str) -> ArgumentValue:
     """The typed value of ``raw`` for ``spec``; raises ValueError saying what was expected."""
     text = raw.strip()
-    if spec.type is ArgType.POINT:
+    kind = spec.type
+    if kind is _A_POINT:
         match = _POINT.match(text)
         if not match:
             raise ValueError("expected a point '(north, east, up)' of three numbers in metres")
@@ -566,24 +572,22 @@ def parse_value(spec: ArgumentSpec, raw: str) -> ArgumentValue:
         north, east, up = map(float, match.groups())
         if not (math.isfinite(north) and math.isfinite(east) and math.isfinite(up)):
             raise ValueError("expected a point of three finite numbers in metres")
-        for axis, component, quantity in (("north", north, Quantity.COORDINATE),
-                                          ("east", east, Quantity.COORDINATE),
-                                          ("up", up, Quantity.ALTITUDE)):
+        for (axis, quantity), component in zip(_AXES, (north, east, up), strict=True):
             why = out_of_range(quantity, component)
             if why is not None:
                 raise ValueError(f"{axis} {component:g} m {why}")
         return north, east, up
-    if spec.type is ArgType.BOOLEAN:
+    if kind is _A_BOOLEAN:
         flag = parse_boolean(text)
         if flag is None:
             raise ValueError("expected yes or no")
         return flag
-    if spec.type is ArgType.CHOICE:
+    if kind is _A_CHOICE:
         for choice in spec.choices:
             if text.lower() == choice.lower():
                 return choice
         raise ValueError("expected one of " + ", ".join(spec.choices))
-    if spec.type is ArgType.STRING:
+    if kind is _A_STRING:
         if not text:
             raise ValueError("expected a non-empty text")
         if spec.table is not None:
@@ -593,7 +597,7 @@ def parse_value(spec: ArgumentSpec, raw: str) -> ArgumentValue:
                 raise ValueError(f"expected a name such as {some} ..., or a number")
             return entry[1] or str(entry[0])
         return text
-    if spec.type is ArgType.INTEGER:
+    if kind is _AN_INTEGER:
         if not re.fullmatch(r"[-+]?\d+", text):
             raise ValueError("expected a whole number")
         # int() refuses a text of thousands of digits; as a float it is out of range

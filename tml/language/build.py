@@ -59,6 +59,13 @@ D = TypeVar("D")
 N = TypeVar("N")
 
 
+# Enum members read for every task or condition, bound once: reading a member from its
+# class costs some 1,000 instructions (the enum class's attribute lookup), a global 50.
+_SEQUENCE = Composition.SEQUENCE
+_CONDITION_KINDS = {"parameter": ConditionKind.PARAMETER, "label": ConditionKind.LABEL}
+_BY_CURRENT_TASK = ConditionKind.CURRENT_TASK
+
+
 def _built(node: type[N], /, **fields: object) -> N:
     """``node(**fields)`` for a frozen dataclass of the model given every one of its fields.
 
@@ -177,10 +184,11 @@ class _Builder:
                       for r in self.children(block, "role"))
         # With a single role, every task is flown by it unless it says otherwise.
         default_role = roles[0].name if len(roles) == 1 else None
+        command = Dispatch.COMMAND
         return Mission(
             name=root.get("name", ""),
             location=self.loc(root),
-            tasks=tuple(self.task(t, (), Dispatch.COMMAND, default_role)
+            tasks=tuple(self.task(t, (), command, default_role)
                         for t in self.children(root, "task")),
             skills=tuple(self.skill(s) for s in self.children(root, "skill")),
             events=tuple(events),
@@ -287,8 +295,8 @@ class _Builder:
             dispatch=dispatch,
             role=role,
             role_location=self.loc(element, "role") if written_role is not None else None,
-            composition=Composition.SEQUENCE if composition is None
-            else self.word(Composition, composition, Composition.SEQUENCE),
+            composition=_SEQUENCE if composition is None
+            else self.word(Composition, composition, _SEQUENCE),
             wait_for=wait_for,
             until=until,
             time_limit=None if time_limit is None
@@ -373,8 +381,7 @@ class _Builder:
                 'e.g. <condition parameter="BATTERY_CHARGE_PERCENTAGE" '
                 'comparison="less than" value="30"/>'))
         attribute, subject = given[0] if given else ("parameter", "")
-        kind = {"parameter": ConditionKind.PARAMETER, "label": ConditionKind.LABEL}.get(
-            attribute, ConditionKind.CURRENT_TASK)
+        kind = _CONDITION_KINDS.get(attribute, _BY_CURRENT_TASK)
         comparison = element.get("comparison")
         return _built(
             Condition,

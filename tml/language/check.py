@@ -51,6 +51,18 @@ _INTERPRETER_PARAMETERS = frozenset({
     "ACTION_FAILURE"})
 
 
+# Enum members the per-element checks compare with, bound once: reading a member from its
+# class costs some 1,000 instructions (the enum class's attribute lookup), a global 50.
+_MISSION = Dispatch.MISSION
+_SEQUENCE = Composition.SEQUENCE
+_CHOICE = Composition.CHOICE
+_WRITE = actions.LabelUse.WRITE
+_BY_PARAMETER = ConditionKind.PARAMETER
+_BY_LABEL = ConditionKind.LABEL
+_BY_CURRENT_TASK = ConditionKind.CURRENT_TASK
+_KNOWN = Comparison.KNOWN
+
+
 def _did_you_mean(word: str, candidates: Iterable[str]) -> str:
     import difflib  # here: a valid mission never needs it, so start-up does without
 
@@ -242,7 +254,7 @@ class _Checker:
                         f'write value="..." ({arg_spec.type.value}'
                         + (f" in {arg_spec.unit}" if arg_spec.unit else "") + ")"))
             elif argument.value is not None:
-                if arg_spec.label is actions.LabelUse.WRITE:
+                if arg_spec.label is _WRITE:
                     self.found.append(error(
                         argument.location, "E214",
                         f"argument {argument.name!r} of {spec.name} names the label to "
@@ -285,14 +297,14 @@ class _Checker:
                     action.location, "E216",
                     f"{spec.name}: {', '.join(group)} go together; missing "
                     f"{', '.join(missing)}"))
-        if dispatch is Dispatch.MISSION and not spec.mission_item:
+        if dispatch is _MISSION and not spec.mission_item:
             self.found.append(error(
                 action.location, "E260",
                 f"{spec.name} cannot be flown as a mission item (dispatch=\"mission\")",
                 'move it to a task with dispatch="command"'))
-        elif dispatch is Dispatch.MISSION:
+        elif dispatch is _MISSION:
             self.check_kept_by_autopilot(action, spec, given)
-        if spec.mission_only and dispatch is not Dispatch.MISSION:
+        if spec.mission_only and dispatch is not _MISSION:
             self.found.append(error(
                 action.location, "E262",
                 f"{spec.name} is flown only as a mission item: its task needs "
@@ -354,26 +366,26 @@ class _Checker:
         """Check a condition; ``guard``: it is a task's own ``<condition>``."""
         if not condition.subject:
             return  # the builder already reported the missing subject
-        if condition.kind is ConditionKind.CURRENT_TASK:
+        if condition.kind is _BY_CURRENT_TASK:
             self.resolve_task(condition.subject, condition, "current_task")
             return
         # An unknown parameter is said whatever else is wrong with the condition.
         param_type = self.parameter_type(condition, guard) \
-            if condition.kind is ConditionKind.PARAMETER else None
+            if condition.kind is _BY_PARAMETER else None
         if condition.comparison is None:
             self.found.append(error(
                 condition.location, "E221", "the condition has no comparison=",
                 "one of: " + ", ".join(c.value for c in Comparison)))
             return
-        if condition.kind is ConditionKind.LABEL:
-            if condition.comparison is not Comparison.KNOWN:
+        if condition.kind is _BY_LABEL:
+            if condition.comparison is not _KNOWN:
                 self.found.append(error(
                     condition.location, "E223",
                     f"a label is tested with comparison=\"known\", not "
                     f"{condition.comparison.value!r}"))
             self.check_known_value(condition)
             return
-        if condition.comparison is Comparison.KNOWN:
+        if condition.comparison is _KNOWN:
             self.check_known_value(condition)
             return
         if condition.value is None:
@@ -555,7 +567,7 @@ class _Checker:
         held += [(None, action) for event in self.mission.events for action in event.actions]
         for index, action in held:
             for label, use, argument in self.label_arguments(action):
-                if use is actions.LabelUse.WRITE:
+                if use is _WRITE:
                     if index is None:
                         set_by_events.add(label)
                     else:
@@ -566,7 +578,7 @@ class _Checker:
         # event sends the flight back.
         loops_back = bool(reads) and (any(
             task.repeat > 1 or task.loop is not None
-            or task.composition is not Composition.SEQUENCE for task in self.tasks) or any(
+            or task.composition is not _SEQUENCE for task in self.tasks) or any(
             e.termination.mode in (TerminationMode.JUMP_TO_TASK, TerminationMode.REPEAT_TASK)
             for e in self.mission.events))
         known = set(set_in_tasks) | set_by_events
@@ -575,7 +587,7 @@ class _Checker:
                   for c in _all_conditions(t)] + [
             c for e in self.mission.events for c in e.conditions]
         for condition in tested:
-            if condition.kind is ConditionKind.LABEL and condition.subject \
+            if condition.kind is _BY_LABEL and condition.subject \
                     and condition.subject not in known:
                 self.found.append(error(
                     condition.location, "E232",
@@ -680,7 +692,7 @@ class _Checker:
                 f"task {task.name!r} is flown by no role, and the mission has "
                 f"{len(self.mission.roles)}: which vehicle flies it?",
                 "write role=\"...\" on the task or on a task above it"))
-        if task.is_terminal and task.composition is not Composition.SEQUENCE:
+        if task.is_terminal and task.composition is not _SEQUENCE:
             self.found.append(error(
                 self.at(task.location, "composition"), "E280",
                 f'composition="{task.composition.value}" on task {task.name!r}, which has '
@@ -690,7 +702,7 @@ class _Checker:
             ("loop", task.loop.conditions if task.loop else ())) for c in conditions] \
             if task.wait_for or task.until or task.loop is not None else []
         for tag, condition in gated:
-            if condition.kind is ConditionKind.CURRENT_TASK:
+            if condition.kind is _BY_CURRENT_TASK:
                 self.found.append(error(
                     condition.location, "E281",
                     f"current_task in <{tag}> of task {task.name!r}",
@@ -701,7 +713,7 @@ class _Checker:
         for condition in _all_conditions(task) if task.conditions or gated else ():
             self.check_written_role(condition.role, condition.location)
             if (self.mission.roles and task.role is None and condition.role is None
-                    and condition.kind is ConditionKind.PARAMETER and condition.subject
+                    and condition.kind is _BY_PARAMETER and condition.subject
                     and id(condition) not in self.unprovided
                     and self.reads_vehicle(condition.subject)):
                 self.found.append(error(
@@ -709,7 +721,7 @@ class _Checker:
                     f"{condition.subject!r} is read from a vehicle, but task {task.name!r} "
                     "is flown by no role: which vehicle's?",
                     'name it: role="..." on the condition or on the task'))
-        if task.composition is Composition.CHOICE:
+        if task.composition is _CHOICE:
             self.check_choice(task)
 
     @staticmethod
@@ -738,8 +750,8 @@ class _Checker:
         for task in siblings:
             # Command-flown sub-trees of a plan may start plans of their own.
             self.check_mission_dispatch(task.children + task.on_error, task)
-            starts_plan = task.dispatch is Dispatch.MISSION and (
-                parent is None or parent.dispatch is not Dispatch.MISSION)
+            starts_plan = task.dispatch is _MISSION and (
+                parent is None or parent.dispatch is not _MISSION)
             if not starts_plan:
                 continue
             plan = _plan_tasks(task)
@@ -772,7 +784,7 @@ def _plan_tasks(task: Task) -> list[Task]:
     are not part of it)."""
     found = [task]
     for child in task.children + task.on_error:
-        if child.dispatch is Dispatch.MISSION:
+        if child.dispatch is _MISSION:
             found.extend(_plan_tasks(child))
     return found
 

@@ -203,6 +203,8 @@ class VehicleModel:
         # The last conversions (position, origin, result) and (home, origin, result).
         self._last_global: tuple[Vector | None, Home | None, Vector] = (None, None, (0, 0, 0))
         self._last_home_local: tuple[Home | None, Home | None, Vector] = (None, None, (0, 0, 0))
+        self._last_target_global: tuple[Vector | None, Home | None, Vector] = (
+            None, None, (0, 0, 0))
         self._home_changed()
 
     # ----------------------------------------------------------------- public state
@@ -1465,9 +1467,17 @@ class VehicleModel:
         None) under a velocity target, None without a target or in any other mode."""
         if self.mode != "GUIDED" or not self.armed or self.landed:
             return None
-        if self._target is not None:
+        target = self._target
+        if target is not None:
+            # Both POSITION_TARGET messages ask, every time they stream, for a target that
+            # seldom changes: its conversion is kept for the same target and origin objects.
             o = self.origin
-            return self._target, to_global(*self._target, o.latitude, o.longitude, o.altitude)
+            last_target, last_origin, last = self._last_target_global
+            if target is last_target and o is last_origin:
+                return target, last
+            converted = to_global(*target, o.latitude, o.longitude, o.altitude)
+            self._last_target_global = (target, o, converted)
+            return target, converted
         if self._velocity is not None:
             velocity, expiry = self._velocity
             return (velocity if self.time < expiry else (0.0, 0.0, 0.0)), None

@@ -297,6 +297,7 @@ class VehicleModel:
         self._pending += dt
         out: list[Any] = []
         builders = messages.BUILDERS
+        streams = self.streams
         while self._pending >= TICK - 1e-9:
             self._pending -= TICK
             self.step_count += 1
@@ -305,11 +306,12 @@ class VehicleModel:
             requests = self.missions.tick(now)
             if requests:
                 self._outbox.extend(requests)
-            for msg_id in self.streams.due(now):  # most steps: nothing is due
-                builder = builders[msg_id]
-                args = builder.arguments(self)
-                if args is not None:
-                    out.append(_fields(Fields, (builder.kind, args)))  # Fields(kind, args)
+            if now + 1e-9 >= streams.earliest:  # most steps nothing is due (Streams.due's test)
+                for msg_id in streams.due(now):
+                    builder = builders[msg_id]
+                    args = builder.arguments(self)
+                    if args is not None:
+                        out.append(_fields(Fields, (builder.kind, args)))  # Fields(kind, args)
             if self._outbox:
                 out.extend(self._flush())
             companion = self.companion

@@ -72,8 +72,9 @@ class Streams:
         self._intervals = {msg_id: _interval(rate) for msg_id, rate in DEFAULT_RATES.items()}
         self._next_due = dict.fromkeys(self._intervals, 0.0)
         # The earliest time anything streaming falls due: most control steps send nothing,
-        # and they learn it from this one comparison.
-        self._earliest = 0.0
+        # and they learn it from this one comparison (the model's step makes it without
+        # calling :meth:`due`).
+        self.earliest = 0.0
 
     def set_interval(self, msg_id: int, interval_us: float, now: float) -> bool:
         """SET_MESSAGE_INTERVAL; False for a message that cannot stream."""
@@ -86,7 +87,7 @@ class Streams:
         else:
             self._intervals[msg_id] = interval_us / 1e6
         self._next_due[msg_id] = now
-        self._earliest = now
+        self.earliest = now
         return True
 
     def request_data_stream(self, stream_id: int, rate: float, start: bool, now: float) -> None:
@@ -96,12 +97,12 @@ class Streams:
             for msg_id in DATA_STREAMS.get(group, ()):
                 self._intervals[msg_id] = 1.0 / rate if start and rate > 0 else None
                 self._next_due[msg_id] = now
-                self._earliest = now
+                self.earliest = now
 
     def due(self, now: float) -> list[int]:
         """The ids of the messages due at ``now``, each scheduled for its next time."""
         soon = now + 1e-9
-        if soon < self._earliest:
+        if soon < self.earliest:
             return []
         out = []
         earliest = math.inf
@@ -117,5 +118,5 @@ class Streams:
                 out.append(msg_id)
             if at < earliest:
                 earliest = at
-        self._earliest = earliest
+        self.earliest = earliest
         return out

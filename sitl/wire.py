@@ -117,14 +117,32 @@ def _arguments_source(kind: Any) -> tuple[str, tuple[Any, ...]]:
         raise TypeError(f"{kind.__name__}: constructor arguments are not its fields")
     defaults = tuple(p.default for p in parameters if p.default is not p.empty)
     required = len(parameters) - len(defaults)
-    # The arguments in wire order, read by index, arrays spread.
-    values = ", ".join(f"{'*' if wide else ''}a[{kind.fieldnames.index(name)}]"
-                       for name, wide in zip(names, spread, strict=True))
+
+    def values(given: int) -> str:
+        """The arguments in wire order, read by index, arrays spread; from the first
+        ``given`` arguments, the extensions after them their defaults."""
+        return ", ".join(
+            f"{'*' if wide else ''}"
+            + (f"a[{index}]" if index < given else f"defaults[{index - required}]")
+            for index, wide in ((kind.fieldnames.index(name), wide)
+                                for name, wide in zip(names, spread, strict=True)))
+    if defaults:  # all the arguments, none of the extensions, or some of them
+        body = (
+            f"    n = len(a)\n"
+            f"    if n == {len(parameters)}:\n"
+            f"        payload = pack({values(len(parameters))})\n"
+            f"    elif n == {required}:\n"
+            f"        payload = pack({values(required)})\n"
+            f"    else:\n"
+            f"        a = a + defaults[n - {required}:]\n"
+            f"        payload = pack({values(len(parameters))})\n"
+        )
+    else:
+        body = f"    payload = pack({values(len(parameters))})\n"
     source = (
         "def encode(a, seq, system, component):\n"
-        f"    if len(a) < {len(parameters)}:  # the extensions left out: their defaults\n"
-        f"        a = a + defaults[len(a) - {required}:]\n"
-        f"    payload = pack({values}).rstrip(b'\\0') or b'\\0'\n"
+        + body +
+        "    payload = payload.rstrip(b'\\0') or b'\\0'\n"
         f"    core = header(len(payload), 0, 0, seq, system, component, {kind.id & 0xFFFF},"
         f" {kind.id >> 16}) + payload\n"
         "    return b'\\xfd' + core + crc_pack(crc(core + extra, 0xFFFF))\n"

@@ -174,7 +174,8 @@ class _Endpoint:
         packets = []
         for msg in messages:
             if type(msg) is Fields:
-                packets.append(ENCODERS[msg.kind](msg.args, seq, system, AUTOPILOT))
+                kind, args = msg
+                packets.append(ENCODERS[kind](args, seq, system, AUTOPILOT))
                 seq = (seq + 1) % 256
             else:
                 sequences[AUTOPILOT] = seq
@@ -399,11 +400,15 @@ class Simulator:
                 self._read_tcp(endpoint, peer)
         if self._channelled:
             self._deliver_due()
+        gone = None
         for endpoint in self._endpoints:
-            # Most steps a vehicle has nothing to send.
-            gone = [peer for peer in endpoint.tcp_peers if peer.backlog and not peer.flush()]
-            for peer in gone:
-                self._drop(endpoint, peer)
+            for peer in endpoint.tcp_peers:
+                # Most steps a vehicle has nothing to send.
+                if peer.backlog and not peer.flush():
+                    gone = gone or []
+                    gone.append((endpoint, peer))
+        for endpoint, peer in gone or ():
+            self._drop(endpoint, peer)
         return bool(ready)
 
     def _accept(self, endpoint: _Endpoint) -> None:

@@ -36,7 +36,8 @@ from pathlib import Path
 import pytest
 from ardupilot_sitl import ChargingPad, SitlVehicle
 from flight_checks import LOG_CHECKS
-from test_flights import EXPECTED, FAST, MISSIONS
+from shared_flights import FAST
+from test_flights import EXPECTED, MISSIONS
 
 from tml.commands.cli import main
 from tml.language.validation import validate_file

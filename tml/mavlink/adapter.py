@@ -131,7 +131,7 @@ from tml.mavlink.health import LinkHealth
 from tml.mavlink.link import Link
 from tml.mavlink.mission import MissionType
 from tml.mavlink.modes import ModeWatch, mode_names
-from tml.mavlink.reboot import RebootWatch
+from tml.mavlink.reboot import RebootWatch, is_boot_text
 from tml.mavlink.safeguards import fence_action, safeguards
 from tml.mavlink.steps import Steps, Until
 from tml.mavlink.telemetry import COMPANION_COMPONENT, Telemetry
@@ -688,12 +688,20 @@ class MavlinkVehicle:
             with self._lock:
                 self._modes.seen(snapshot.mode, snapshot.armed, self.link_clock())
                 self._reboots.heartbeat(snapshot.armed)
+                if msg.system_status == mavlink.MAV_STATE_BOOT and \
+                        self._reboots.boot_sign(self.link_clock()):
+                    self._changes += 1
             self._keep_target(snapshot)
             self._keep_stamps()
             if self.timebase.now() - self._streams_checked >= STREAM_CHECK_PERIOD:
                 self._streams_checked = self.timebase.now()
                 with contextlib.suppress(OSError):
                     self._keep_streams()
+        elif kind == "STATUSTEXT" and component == self.mav.component_id:
+            if is_boot_text(_text(msg.text)):
+                with self._lock:
+                    if self._reboots.boot_sign(self.link_clock()):
+                        self._changes += 1
         elif kind == "PARAM_VALUE":
             with self._params_lock:  # an Until of _param_exchange sees it (no notify)
                 self._params[(component, _text(msg.param_id))] = msg.param_value

@@ -24,9 +24,19 @@ armed in GUIDED with nobody flying it. Then the run's own account: it ended (it 
 still paused, waiting or flying a mission for a vehicle it lost), and how.
 
 A state is flown once for its four cells (:func:`flown`, once per test session, whichever
-worker asks first), so the cells of a state share their setup; the simulator runs at ten
-times real time, tml reading the vehicle's clock (``--clock vehicle``) so that waits and
-limits are the vehicle's seconds.
+worker asks first), so the cells of a state share their setup; tml reads the vehicle's
+clock (``--clock vehicle``) so that waits and limits are the vehicle's seconds.
+
+*Time.* tml is another process, so the vehicles' time cannot wait for it; the test waits
+for states, never delays: each vehicle gets its event at its own state (:func:`strike`:
+the moment its flight log says it hovers in the WAIT, or is paused there; sent again
+until its observer sees the vehicle take it: the mode, the parameter's echo, the reboot's
+disarm), and until then the simulator of a running, paused or continuing run's vehicles
+runs at twice real time (:data:`SLOW`), so that however late a busy machine lets tml and
+the test get there, the hover has not run out, nor tml's limits in vehicle seconds; after
+the events, at ten times (:data:`SPEEDUP`). (A waiting run's vehicles live in real time
+until then, a resumed run's at half of it while the resumed run starts.) The wall-clock limits
+(:data:`LIMIT`) are hang guards, never verdicts.
 """
 
 from __future__ import annotations
@@ -67,11 +77,20 @@ STATES = ("running", "paused", "waiting", "continuing", "resuming")
 EVENTS = ("operator", "failsafe", "reboot", "link")
 """In the order of the vehicles that get them (system ids 1 to 4): tml's ``--clock
 vehicle`` reads the first vehicle, whose link is never cut."""
-LIMIT = 120.0
+LIMIT = 300.0
 """Wall seconds any one state is waited for: a hang guard, never a verdict."""
 SPEEDUP = 10.0
+SLOW = 2.0
+"""The vehicles' speed-up until their events have struck (then SPEEDUP): their hover (250 s
+of their time) outlasts two wall minutes of a busy machine's delays, and tml's limits in
+their seconds (``--ready-timeout``) a minute; a HEARTBEAT every half wall second keeps the
+link well within ``--link-lost-limit`` on tml's wall clock."""
 RETURN = {"RTL_LOIT_TIME": 0.0, "RTL_ALT": 1000.0, "LAND_SPEED": 100.0}  # a quick return
 PARAMS = {**FAST, **RETURN, "BATT_FS_LOW_ACT": 1.0, "FS_GCS_ENABLE": 0.0}
+RESEND = 1.0
+"""Wall seconds after which an event the vehicle has not shown taken is sent again."""
+LOW_MAH = 100000.0
+"""BATT_LOW_MAH that raises the battery failsafe: more than the pack holds."""
 SLOW_FIX = {"SIM_GPS_LOCKTIME": 60.0, "SIM_EKF_GPS_TIME": 62.0}
 """A waiting run's vehicles: not armable before 62 s of their time."""
 OPTIONS = ("--clock", "vehicle", "--link-lost-limit", "2", "--ready-timeout", "120")
@@ -169,23 +188,33 @@ def vehicles(params: dict[str, float], speedup: float = SPEEDUP
                     other.close()
 
 
-def strike(watch: Watch, others: Sequence[Any], given_up: Callable[[int], bool],
+def strike(watch: Watch, others: Sequence[Any], process: subprocess.Popen[str],
+           ready: Callable[[int], bool], given_up: Callable[[int], bool],
            cells: dict[str, Cell]) -> None:
-    """Each vehicle its event, at once; the link's cut lasts until ``given_up(vehicle)``."""
-    for index, event in enumerate(EVENTS):
-        sid, other = index + 1, others[index]
-        cells[event].event_at = watch.clock()
-        if event == "operator":  # another ground station: RTL
-            other.mav.command_long_send(sid, 1, M.MAV_CMD_DO_SET_MODE, 0,
-                                        M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 6, 0, 0, 0, 0, 0)
-        elif event == "failsafe":  # more than the pack holds: the battery is low at once
-            other.mav.param_set_send(sid, 1, b"BATT_LOW_MAH", 100000.0,
-                                     M.MAV_PARAM_TYPE_INT32)
-        elif event == "reboot":
-            other.mav.command_long_send(sid, 1, M.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, 0,
-                                        1, 0, 0, FORCE_REBOOT, 0, 0, 0)
-        else:
-            watch.proxies[index].cut(math.inf)
+    """Each vehicle its event at its own state, the moment ``ready(vehicle)`` (its flight
+    log says it hovers in the WAIT, or its run waits), not when the others have caught
+    up; the link's cut lasts until ``given_up(vehicle)``. ``process``: tml's."""
+    left = list(enumerate(EVENTS))
+    end = time.monotonic() + LIMIT
+    while left:
+        alive(process, f"{[event for _, event in left]} struck", end)
+        for index, event in [(i, e) for i, e in left if ready(i + 1)]:
+            left.remove((index, event))
+            cells[event].event_at = watch.clock()
+            if event == "link":
+                watch.proxies[index].cut(math.inf)
+            else:  # sent again until the observer sees it taken (a frame may be lost)
+                send, taken = event_of(event, index + 1, others[index],
+                                       watch.observers[index])
+                while True:
+                    send()
+                    sent = time.monotonic()
+                    while not taken() and time.monotonic() - sent < RESEND:
+                        alive(process, f"{event} taken by vehicle {index + 1}", end)
+                        time.sleep(0.02)
+                    if taken():
+                        break
+        time.sleep(0.05)
     link = EVENTS.index("link")
     end = time.monotonic() + LIMIT
     while not given_up(link + 1) and time.monotonic() < end:
@@ -193,6 +222,25 @@ def strike(watch: Watch, others: Sequence[Any], given_up: Callable[[int], bool],
     # Never given up (the hang guard): the link cell's failure, not the other cells'.
     cells["link"].notes["given_up"] = given_up(link + 1)
     watch.proxies[link].restore()
+
+
+def event_of(event: str, sid: int, other: Any, observer: Observer
+             ) -> tuple[Callable[[], None], Callable[[], bool]]:
+    """How another ground station (``other``) strikes vehicle ``sid`` with ``event``, and
+    how its ``observer`` sees that it took it."""
+    if event == "operator":  # RTL
+        return (lambda: other.mav.command_long_send(
+            sid, 1, M.MAV_CMD_DO_SET_MODE, 0, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 6, 0, 0, 0,
+            0, 0), lambda: (latest := observer.latest()) is not None and latest.mode == "RTL")
+    if event == "failsafe":  # more than the pack holds: the battery is low at once
+        observer.params.pop("BATT_LOW_MAH", None)
+        return (lambda: other.mav.param_set_send(sid, 1, b"BATT_LOW_MAH", LOW_MAH,
+                                                 M.MAV_PARAM_TYPE_INT32),
+                lambda: observer.params.get("BATT_LOW_MAH") == LOW_MAH)
+    assert event == "reboot"  # forced: the new boot is disarmed
+    return (lambda: other.mav.command_long_send(
+        sid, 1, M.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, 0, 1, 0, 0, FORCE_REBOOT, 0, 0, 0),
+        lambda: (latest := observer.latest()) is not None and not latest.armed)
 
 
 def judge(watch: Watch, cells: dict[str, Cell]) -> None:
@@ -255,10 +303,16 @@ def wait_for(done: Callable[[], bool], what: str,
     """Until ``done()``; fails after LIMIT, or when ``process`` (tml) ended first."""
     end = time.monotonic() + LIMIT
     while not done():
-        if process is not None and process.poll() is not None:
-            raise AssertionError(f"never: {what}: tml ended: {stop(process)[-1500:]}")
-        assert time.monotonic() < end, f"never: {what}"
+        alive(process, what, end)
         time.sleep(0.05)
+
+
+def alive(process: subprocess.Popen[str] | None, what: str, end: float) -> None:
+    """Fails, saying ``what`` never came, when tml ended or the hang guard (``end``, wall)
+    ran out."""
+    if process is not None and process.poll() is not None:
+        raise AssertionError(f"never: {what}: tml ended: {stop(process)[-1500:]}")
+    assert time.monotonic() < end, f"never: {what}"
 
 
 def cli_flight(tmp_path: Path, resume: bool) -> Flown:
@@ -268,7 +322,7 @@ def cli_flight(tmp_path: Path, resume: bool) -> Flown:
     path, log = tmp_path / "hover.xml", tmp_path / "flight.jsonl"
     path.write_text(HIGH_HOVER if resume else HOVER)
     vids = range(1, len(EVENTS) + 1)
-    with vehicles(PARAMS) as (sim, watch, others):
+    with vehicles(PARAMS, SPEEDUP if resume else SLOW) as (sim, watch, others):
         process = start_tml_run(path, watch.addresses, log, *OPTIONS)
         try:
             if resume:
@@ -289,11 +343,13 @@ def cli_flight(tmp_path: Path, resume: bool) -> Flown:
                     latest = watch.observers[index].latest()
                     cells[event].notes["stay_altitude"] = latest.altitude if latest else None
                 cells[EVENTS[0]].notes["resumed_lines"] = resumed()
-                sim.set_speedup(SPEEDUP)
+                sim.set_speedup(SPEEDUP)  # a HEARTBEAT every 2 wall s no more
+                hovering = lambda v: True  # noqa: E731
             else:
-                wait_for(lambda: all(task_running(log_lines(log), v, "Stay") for v in vids),
-                         "every vehicle hovering", process)
-            strike(watch, others, lambda v: link_given_up(log_lines(log), v), cells)
+                hovering = lambda v: task_running(log_lines(log), v, "Stay")  # noqa: E731
+            strike(watch, others, process, hovering,
+                   lambda v: link_given_up(log_lines(log), v), cells)
+            sim.set_speedup(SPEEDUP)
             said = stop(process, LIMIT)
             judge(watch, cells)
         finally:
@@ -344,24 +400,30 @@ def served_flight(tmp_path: Path, state: str) -> Flown:
     # Waiting: in real time until the events have struck, so that the runs are surely
     # waiting then (the service takes a few wall seconds to start), then sped up.
     with vehicles({**PARAMS, **SLOW_FIX} if waiting else PARAMS,
-                  1.0 if waiting else SPEEDUP) as (sim, watch, others):
+                  1.0 if waiting else SLOW) as (sim, watch, others):
         served = Served(watch.addresses, data, *OPTIONS)
         try:
             runs = start_runs(served, SHORT if state == "waiting" else HOVER)
+
+            def hovering(vehicle: int) -> bool:
+                return task_running(run_log(served, runs[vehicle - 1]), vehicle, "Stay")
+
+            def paused(vehicle: int) -> bool:  # paused the moment it hovers
+                if not hovering(vehicle):
+                    return False
+                answer = served.client.post(f"/runs/{runs[vehicle - 1]}/pause")
+                assert answer.status_code == 200 and answer.json()["status"] == "paused", \
+                    answer.text
+                return True
+
+            ready = {"paused": paused, "continuing": hovering}.get(state, lambda v: True)
             if state == "waiting":
                 wait_for(lambda: all(served.run(r)["status"] == "waiting" for r in runs)
                          and all(any(line.get("kind") == "ready" for line in run_log(served, r))
                                  for r in runs), "every run waiting", served.process)
-            else:
-                wait_for(lambda: all(task_running(run_log(served, r), v + 1, "Stay")
-                                     for v, r in enumerate(runs)),
-                         "every vehicle hovering", served.process)
-            if state == "paused":
-                for run in runs:
-                    answer = served.client.post(f"/runs/{run}/pause")
-                    assert answer.status_code == 200 and answer.json()["status"] == "paused", \
-                        answer.text
             if state == "continuing":
+                wait_for(lambda: all(hovering(v) for v in range(1, len(runs) + 1)),
+                         "every vehicle hovering", served.process)
                 served.process.kill()  # SIGKILL: the service dies, the vehicles hover on
                 served.process.communicate(timeout=LIMIT)
                 served = Served(watch.addresses, data, *OPTIONS)
@@ -371,14 +433,9 @@ def served_flight(tmp_path: Path, state: str) -> Flown:
                     answer = served.client.post(f"/runs/{run}/continue")
                     assert answer.status_code == 201, answer.text
                     continued.append(str(answer.json()["id"]))
-                runs = continued
-                wait_for(lambda: all(
-                    sum(line.get("kind") == "action" for line in run_log(served, r)) >= 1
-                    and task_running(run_log(served, r), v + 1, "Stay")
-                    for v, r in enumerate(runs)), "every continued run hovering",
-                    served.process)
+                runs = continued  # each struck once its continued run hovers
             link = EVENTS.index("link")
-            strike(watch, others,
+            strike(watch, others, served.process, ready,
                    lambda v: link_given_up(run_log(served, runs[link]), v), cells)
             sim.set_speedup(SPEEDUP)
             # A run that never ends (still paused, waiting) is its own cell's failure.
@@ -418,7 +475,7 @@ def _safe(cell: Cell, said: str) -> None:
         assert cell.last_armed.mode in SAFE_MODES, (cell.last_armed, said[-600:])
 
 
-@pytest.mark.timeout(600)
+@pytest.mark.timeout(900)
 @pytest.mark.parametrize(("state", "event"), IN_FLIGHT, ids=[f"{s}-{e}" for s, e in IN_FLIGHT])
 def test_a_flying_vehicle_ends_on_the_ground_whatever_happens_in_any_state(
         state: str, event: str, tmp_path_factory: pytest.TempPathFactory) -> None:
@@ -443,7 +500,7 @@ def test_a_flying_vehicle_ends_on_the_ground_whatever_happens_in_any_state(
         assert run.cells[event].notes["stay_altitude"] >= HIGH - 1.5, run.cells[event].notes
 
 
-@pytest.mark.timeout(600)
+@pytest.mark.timeout(900)
 @pytest.mark.parametrize(("state", "event"), WAITING, ids=[f"{s}-{e}" for s, e in WAITING])
 def test_a_vehicle_waited_for_is_never_flown_into_what_happened_to_it(
         state: str, event: str, tmp_path_factory: pytest.TempPathFactory) -> None:

@@ -161,3 +161,30 @@ def test_a_word_of_a_boot_is_forgotten_at_the_old_boots_next_stamp() -> None:
     assert not watch.boot_sign(5.25)
     assert not any(feed(watch, [(52.5, 5.25), (51.0, 5.3), (53.0, 5.35), (53.1, 5.4)]))
     assert watch.reboot is None
+
+
+def test_a_new_boot_saying_so_first_after_an_outage_is_told_before_any_stamp() -> None:
+    """ArduCopter SITL started again says BOOT as soon as it is dialled again, and may
+    stream nothing for seconds: its word after the outage is the reboot; its first stamps
+    then start the new boot, no second reboot."""
+    watch = RebootWatch()
+    old_boot(watch, 5.2)
+    watch.heartbeat(False)
+    assert watch.boot_sign(10.1)
+    assert watch.reboot == Reboot(52.0, None, armed=True)
+    assert str(watch.reboot) == ("rebooted while armed (its clock went from 52.0 s back to "
+                                 "a new boot's: it said it was booting)")
+    assert not watch.boot_sign(10.11)  # its next BOOT HEARTBEATs
+    assert not any(feed(watch, [(49.0 + 0.1 * i, 15.0 + 0.01 * i) for i in range(300)]))
+    assert watch.count == 1
+
+
+def test_a_boot_said_with_no_outage_waits_for_the_stamp_that_shows_it() -> None:
+    """The simulator's reboot: its clock drops to zero at once, its first HEARTBEAT says
+    BOOT; a stray word of a boot amid the old boot's stamps believes nothing by itself."""
+    watch = RebootWatch()
+    old_boot(watch, 5.2)
+    assert not watch.boot_sign(5.25)
+    assert watch.reboot is None
+    assert watch.seen(0.0, 5.3)
+    assert watch.reboot == Reboot(52.0, 0.0, armed=True)

@@ -19,19 +19,22 @@ judged by each run on the reboots during it.
 *A new boot heard late.* An autopilot heard again after an outage (a SITL killed and
 started again and dialled again, a radio out of range while it rebooted) may have run its
 new boot long enough that its clock is near, or past, where the old boot's stood: an
-ArduPilot SITL at a speed-up of 10 lives 10 s for each second of the outage, and streams
-nothing until it is asked again. Its stamps then never stay :data:`SLACK` s behind for
-long. What tells it is the autopilot's own word that it is booting
+ArduPilot SITL at a speed-up of 10 lives 10 s for each second of the outage, and may stream
+nothing for seconds after it is dialled again. Its stamps then never stay :data:`SLACK` s
+behind for long, and meanwhile the silent vehicle's clock is taken to age (the action in
+progress times out on it). What tells it is the autopilot's own word that it is booting
 (:meth:`RebootWatch.boot_sign`: ArduPilot's HEARTBEAT ``system_status`` BOOT, and the
 STATUSTEXTs it sends only while it starts, :func:`is_boot_text`), taken from a boot past
-its own start (:data:`BOOTED_AFTER`: a boot's first seconds say it of themselves). Given
-that word, a stamp is a new boot when it is below the highest of the old boot, or, after
-an outage (no stamp for :data:`OUTAGE` s), below where the old boot's clock should be by
-now: its highest stamp aged by the local time since, at half the rate its stamps rose
-over the last :data:`RATE_WINDOW` s (the speed-up is not known, and a SITL starved of CPU
-lives slower than it did). Without that word nothing changes: a vehicle that merely runs
-slow, a link that delays, reorders or repeats messages, says nothing of a boot, and its
-stamps are judged as above. The word is forgotten at the next stamp of the old boot.
+its own start (:data:`BOOTED_AFTER`: a boot's first seconds say it of themselves). That
+word is a new boot at once when it is the first thing heard after an outage (no stamp for
+:data:`OUTAGE` s), or when a stamp below the old boot's highest came just before it.
+Otherwise the next stamp decides: a new boot when it is below the old boot's highest, or,
+after an outage, below where the old boot's clock should be by now: its highest stamp aged
+by the local time since, at half the rate its stamps rose over the last
+:data:`RATE_WINDOW` s (the speed-up is not known, and a SITL starved of CPU lives slower
+than it did); the old boot going on when it is not, and the word forgotten. Without that
+word nothing changes: a vehicle that merely runs slow, a link that delays, reorders or
+repeats messages, says nothing of a boot, and its stamps are judged as above.
 
 Whether the vehicle was armed when it rebooted is told from its HEARTBEATs of the old boot
 (:meth:`RebootWatch.heartbeat`): the rebooted autopilot says disarmed wherever it is. Armed
@@ -76,12 +79,14 @@ class Reboot:
     ``armed``: it was armed when it rebooted."""
 
     before: float
-    after: float
+    after: float | None  # None: told by the autopilot's word before any stamp of the new boot
     armed: bool = False
 
     def __str__(self) -> str:
+        back = "a new boot's: it said it was booting" if self.after is None \
+            else f"{self.after:.1f} s"
         return (f"rebooted {'while armed' if self.armed else 'disarmed'} (its clock went "
-                f"from {self.before:.1f} s back to {self.after:.1f} s)")
+                f"from {self.before:.1f} s back to {back})")
 
 
 def is_boot_text(text: str) -> bool:
@@ -115,9 +120,11 @@ class RebootWatch:
         reboot believed (a low stamp came before the word; see the module docstring)."""
         if self.highest is None or self.highest < BOOTED_AFTER:
             return False
-        self._booting = True
         if self._since is not None:
             return self._believe(*self._since)
+        if now - self._heard_at >= OUTAGE:  # heard again after an outage, booting
+            return self._believe(now, None)
+        self._booting = True
         return False
 
     def expected(self, now: float) -> float:
@@ -162,8 +169,9 @@ class RebootWatch:
         while len(self._rising) > 2 and now - self._rising[0][0] > RATE_WINDOW:
             self._rising.popleft()
 
-    def _believe(self, now: float, stamp: float) -> bool:
-        """A new boot, heard first at ``now`` stamped ``stamp``: told, and followed."""
+    def _believe(self, now: float, stamp: float | None) -> bool:
+        """A new boot, heard first at ``now`` stamped ``stamp`` (None: no stamp yet): told,
+        and followed."""
         assert self.highest is not None
         armed = self._armed_at is not None and self._armed_at >= self.highest - ARMED_WITHIN
         self.reboot = Reboot(self.highest, stamp, armed)
@@ -171,5 +179,8 @@ class RebootWatch:
         # The new boot from here on: its stamps, and a next reboot's fall from them.
         self._since, self._armed_at, self._booting = None, None, False
         self._rising.clear()
-        self._rose(stamp, now)
+        if stamp is None:
+            self.highest = None  # its first stamp starts it
+        else:
+            self._rose(stamp, now)
         return True

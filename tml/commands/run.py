@@ -201,6 +201,7 @@ def _run(args: argparse.Namespace, options: SessionOptions, mission: Mission, wo
                 return _exit_code(cleared)
             return _fly(args, session, mission, world, cleared, console, journal, resumed)
     except Stopped as error:
+        error.taken()
         errors.print(f"tml run: {error} before the mission started", markup=False)
         return Ending.STOPPED.code
     except SeveralVehicles as error:

@@ -19,9 +19,17 @@ class Stopped(KeyboardInterrupt):
     not be taken for an error by an ``except Exception`` on the way (pymavlink's connect
     retries on any Exception)."""
 
-    def __init__(self, signal_name: str) -> None:
+    def __init__(self, signal_name: str, on_taken: Callable[[], None] | None = None) -> None:
         self.signal_name = signal_name
+        self._on_taken = on_taken
         super().__init__(f"interrupted ({signal_name})")
+
+    def taken(self) -> None:
+        """Say that a command caught this stop and ends because of it: it is raised no
+        more (:class:`StopSignals` raises it again only in case a library swallowed it,
+        and would otherwise interrupt the command's own clean-up on a slow machine)."""
+        if self._on_taken is not None:
+            self._on_taken()
 
 
 AGAIN_AFTER = 1.0
@@ -78,4 +86,7 @@ class StopSignals:
             self.received = name
             signal.signal(signal.SIGALRM, lambda _number, _frame: self._stop(name))
             signal.setitimer(signal.ITIMER_REAL, AGAIN_AFTER, AGAIN_AFTER)
-        raise Stopped(name)
+        raise Stopped(name, on_taken=self._taken)
+
+    def _taken(self) -> None:
+        signal.setitimer(signal.ITIMER_REAL, 0)  # a new signal still raises Stopped

@@ -34,9 +34,11 @@ def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_cmdline_main(config: pytest.Config) -> None:
-    """Tests taken by the workers that run out (``--dist worksteal``) when workers are
-    asked for and no distribution mode is named (xdist's own default would be ``load``)."""
+    """Tests taken by the workers that run out (``--dist worksteal``) with ``-n auto`` when
+    no distribution mode is named (xdist's own default would be ``load``). A count of
+    workers named (``-n 2``: the interoperability suite, whose cases share ArduPilot SITL
+    instances per worker) keeps xdist's default."""
     option = config.option
-    if getattr(option, "numprocesses", None) and getattr(option, "dist", "no") == "no" \
-            and not getattr(option, "distload", False):
+    if getattr(option, "numprocesses", None) == "auto" and \
+            getattr(option, "dist", "no") == "no" and not getattr(option, "distload", False):
         option.dist = "worksteal"

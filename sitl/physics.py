@@ -114,9 +114,10 @@ class Body:
         ``climb_rate`` the vertical axis holds that rate instead of the target's altitude
         (a landing).
 
-        Every control step of every flying vehicle comes here: the helpers above are
-        written out in place (the same operations in the same order, so the same
-        floats), which saves a dozen Python calls a step."""
+        Every control step of every flying vehicle comes here: the small helpers above
+        (``_limit``, ``min``, ``max``) are written out in place (the same operations in the
+        same order, so the same floats), which saves several Python calls a step; the
+        square-root controllers are :func:`sqrt_controller`'s, called once each."""
         n, e, u = self.position
         speed = limits.speed
         # Half the acceleration for the approach: braking never overshoots the goal.
@@ -127,13 +128,8 @@ class Body:
         size = math.hypot(x, y)
         if size < 1e-9:
             cn = ce = 0.0
-        else:  # sqrt_controller(size, gain, half, dt), written out for a positive error
-            linear = half / (gain * gain)
-            wanted = math.sqrt(2.0 * half * (size - linear / 2.0)) if size > linear else (
-                size * gain)
-            most = size / dt
-            wanted = wanted if wanted < most else most  # min(most, wanted)
-            scale = (wanted if wanted > -most else -most) / size  # max(-most, ...)
+        else:
+            scale = sqrt_controller(size, gain, half, dt) / size
             cn, ce = x * scale, y * scale
         size = math.hypot(cn, ce)
         if size > speed:
@@ -164,7 +160,7 @@ class Body:
     def _accelerate(self, dn: float, de: float, du: float, feed: Vector, limits: Limits,
                     dt: float) -> None:
         """Toward the velocity demand (``dn``, ``de``, ``du``) with the acceleration
-        ``feed`` fed forward; the helpers written out as in :meth:`shape`."""
+        ``feed`` fed forward (ArduPilot's ``shape_vel_accel``)."""
         (vn, ve, vu), (an, ae, au) = self.velocity, self.accel
         accel, jerk = limits.accel, limits.jerk
         # The velocity error through a square-root controller (within the jerk)
@@ -172,14 +168,8 @@ class Body:
         size = math.hypot(x, y)
         if size < 1e-9:
             tn = te = 0.0
-        else:  # sqrt_controller(size, jerk / accel, jerk, dt), as in shape
-            gain = jerk / accel
-            linear = jerk / (gain * gain)
-            wanted = math.sqrt(2.0 * jerk * (size - linear / 2.0)) if size > linear else (
-                size * gain)
-            most = size / dt
-            wanted = wanted if wanted < most else most  # min(most, wanted)
-            scale = (wanted if wanted > -most else -most) / size  # max(-most, ...)
+        else:
+            scale = sqrt_controller(size, jerk / accel, jerk, dt) / size
             tn, te = x * scale, y * scale
         tn, te = _corner_limit(dn, de, tn, te, accel)
         tn, te = tn + feed[0], te + feed[1]  # _limit(..., accel)

@@ -26,10 +26,10 @@ import pytest
 from lxml import etree
 from report_checks import boxes_apart, texts_fit
 from rich.console import Console, RenderableType
+from shared_flights import once
 
 import tml.run.display as display
 from tml.commands.cli import main
-from tml.language.model import Mission
 from tml.language.validation import load_mission
 from tml.report.figures import figure, png
 from tml.report.flight import read_flight
@@ -55,18 +55,25 @@ LOW = ["--sim-battery", "40"]
 
 @dataclass
 class Flown:
-    """A flight: its log, exit code, mission, the live view's last screen and the views
-    drawn while an event handler held a task."""
+    """A flight: its log, exit code, the live view's last screen and its last screen
+    drawn while an event handler held a task (text at 80x24: what the terminal showed)."""
 
     log: Path
     code: int
-    mission: Mission
+    last: str = ""
+    held: str | None = None
+
+
+@dataclass
+class Watched:
+    """What the live view drew: its last screen and the views with a task held."""
+
     last: RenderableType | None = None
     held: list[Views] = field(default_factory=list)
 
 
 @contextlib.contextmanager
-def watched(flown: Flown) -> Iterator[None]:
+def watched(flown: Watched) -> Iterator[None]:
     """Within: ``tml run`` prints to an 80x24 terminal, and its live view's last screen
     and the views with a task held are kept in ``flown``."""
     terminal = Console(file=io.StringIO(), width=80, height=24, force_terminal=True)
@@ -97,12 +104,20 @@ def fly(folder: Path, name: str, *options: str) -> Flown:
     """``tml run missions/NAME.xml --sim`` with the live view, and its log."""
     log = folder / f"{name}.jsonl"
     mission = MISSIONS / f"{name}.xml"
-    flown = Flown(log, -1, load_mission(str(mission)))
-    with watched(flown):
+    seen = Watched()
+    with watched(seen):
         # The log names the mission file as given: relative, as a user names it.
-        flown.code = main(["run", str(mission.relative_to(ROOT)), "--sim", "--log", str(log),
-                           *FAST, *options])
-    return flown
+        code = main(["run", str(mission.relative_to(ROOT)), "--sim", "--log", str(log),
+                     *FAST, *options])
+    held = (render_text(load_mission(str(mission)), seen.held[-1], 80, 23) if seen.held
+            else None)
+    return Flown(log, code, screen(seen.last) if seen.last is not None else "", held)
+
+
+def shared(factory: pytest.TempPathFactory, name: str, *options: str) -> Flown:
+    """:func:`fly`, once per test session whichever workers ask (tests/shared_flights.py)."""
+    return once(factory, name, "\0".join(["report", *options]),
+                lambda folder: fly(folder, name, *options))
 
 
 def screen(shown: RenderableType | None) -> str:
@@ -122,17 +137,17 @@ def _at_the_root() -> Iterator[None]:
 
 @pytest.fixture(scope="module")
 def relay(tmp_path_factory: pytest.TempPathFactory) -> Flown:
-    return fly(tmp_path_factory.mktemp("relay"), "dolphin_fleet_relay", *RELAY)
+    return shared(tmp_path_factory, "dolphin_fleet_relay", *RELAY)
 
 
 @pytest.fixture(scope="module")
 def battery(tmp_path_factory: pytest.TempPathFactory) -> Flown:
-    return fly(tmp_path_factory.mktemp("battery"), "battery_event", *LOW)
+    return shared(tmp_path_factory, "battery_event", *LOW)
 
 
 @pytest.fixture(scope="module")
 def battery_pair(tmp_path_factory: pytest.TempPathFactory) -> Flown:
-    return fly(tmp_path_factory.mktemp("pair"), "battery_event", *LOW, "--vehicles", "2")
+    return shared(tmp_path_factory, "battery_event", *LOW, "--vehicles", "2")
 
 
 def table(text: str, number: int) -> list[list[str]]:
@@ -180,7 +195,7 @@ def test_relay_report_draws_the_fleet_in_one_frame_vehicles_in_order(relay: Flow
 
 
 def test_relay_live_view_ends_saying_what_happened(relay: Flown) -> None:
-    text = screen(relay.last)
+    text = relay.last
     lines = text.splitlines()
     assert len(lines) <= 23  # one line spare under the view
     assert lines[0].startswith("Survey relay  mission time ")
@@ -227,13 +242,13 @@ def test_battery_event_report_shows_the_handler_and_the_rounds(battery: Flown) -
 
 def test_battery_event_live_view_interrupted_then_aborted(battery: Flown) -> None:
     # While the event's landing flies, the corner it cut is interrupted, not running.
-    assert battery.held
-    during = render_text(battery.mission, battery.held[-1], 80, 23)
+    during = battery.held
+    assert during is not None
     assert "‖ │  ├─ South-east corner  GO_TO_POINT" in during
     assert "‖ ├─ Patrol the square  round 2 of 5" in during
     assert "LAND (event 'Low battery')" in during
     assert not [line for line in during.splitlines() if line.startswith("▶")]
-    text = screen(battery.last)
+    text = battery.last
     lines = text.splitlines()
     assert "■ │  ├─ South-east corner  GO_TO_POINT" in lines
     assert "■ ├─ Patrol the square  round 2 of 5" in lines
@@ -300,7 +315,7 @@ def write_artifacts(folder: Path = ARTIFACTS) -> None:
         (folder / "relay_report.html").write_text(page(flight), encoding="utf-8")
         (folder / "battery_event_report.png").write_bytes(png(read_flight(str(battery.log))))
         for name, flown in (("relay", relay), ("battery_event", battery)):
-            (folder / f"{name}_live_80x24.txt").write_text(screen(flown.last),
+            (folder / f"{name}_live_80x24.txt").write_text(flown.last,
                                                            encoding="utf-8")
 
 

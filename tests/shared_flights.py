@@ -1,5 +1,6 @@
 """Flights several test modules read: each flown once per test session, by whichever
-pytest-xdist worker asks first, its flight log then read by every test that asks again.
+pytest-xdist worker asks first, its flight log and the live view's screens then read by
+every test that asks again.
 
 A flight on the embedded simulator runs in lock-step with tml, so the same command line
 flies the same flight on any machine and at any speed-up (tests/test_timebase.py): the log
@@ -10,17 +11,24 @@ worker asking for a flight under way waits for it instead of flying it again.
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import hashlib
+import io
 import pickle
 import shutil
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TypeVar
 
 import pytest
+from rich.console import Console, RenderableType
 
+import tml.run.display as display
 from tml.commands.cli import main
+from tml.language.validation import load_mission
+from tml.run.display import LiveDisplay, Views, render_text
 from tml.run.journal import read
 
 T = TypeVar("T")
@@ -57,14 +65,78 @@ def once(factory: pytest.TempPathFactory, name: str, key: str,
     return loaded
 
 
-def flown(factory: pytest.TempPathFactory, name: str, options: list[str]
-          ) -> tuple[int, list[dict]]:
-    """``tml run missions/NAME.xml --sim -q OPTIONS`` with the :data:`FAST` settings,
-    flown once per session: its exit code and its flight log's lines."""
-    arguments = ["run", str(MISSIONS / f"{name}.xml"), "--sim", "-q", *FAST, *options]
+@dataclass
+class Flight:
+    """A flight flown by :func:`flown`: its exit code, its flight log (the file and its
+    lines), the live view's last screen and its last screen drawn while an event handler
+    held a task (text, as an 80x24 terminal showed them)."""
 
-    def fly(folder: Path) -> tuple[int, list[dict]]:
-        log = folder / f"{name}.jsonl"
-        return main([*arguments, "--log", str(log)]), read(str(log))
+    code: int
+    log: Path
+    lines: list[dict]
+    last: str
+    held: str | None
 
-    return once(factory, name, "\0".join(arguments), fly)
+
+@dataclass
+class Watched:
+    """What the live view drew: its last screen and the views with a task held."""
+
+    last: RenderableType | None = None
+    held: list[Views] = field(default_factory=list)
+
+
+@contextlib.contextmanager
+def watched(seen: Watched) -> Iterator[None]:
+    """Within: ``tml run`` prints to an 80x24 terminal, and its live view's last screen
+    and the views with a task held are kept in ``seen``."""
+    terminal = Console(file=io.StringIO(), width=80, height=24, force_terminal=True)
+    errors = Console(file=io.StringIO(), width=80, stderr=True)
+    shown: list[LiveDisplay] = []
+    originals = (display.output_console, LiveDisplay.__enter__, LiveDisplay.update)
+
+    def enter(self: LiveDisplay) -> LiveDisplay:
+        shown.append(self)
+        return originals[1](self)
+
+    def update(self: LiveDisplay, views: Views, force: bool = False) -> None:
+        if any(view.held for view, _ in views):
+            seen.held.append(list(views))
+        originals[2](self, views, force)
+
+    display.output_console = lambda stderr=False: errors if stderr else terminal  # type: ignore[assignment]
+    LiveDisplay.__enter__ = enter  # type: ignore[method-assign]
+    LiveDisplay.update = update  # type: ignore[method-assign]
+    try:
+        yield
+    finally:
+        display.output_console, LiveDisplay.__enter__, LiveDisplay.update = originals  # type: ignore[method-assign]
+        seen.last = shown[-1].shown if shown else None
+
+
+def screen(shown: RenderableType | None) -> str:
+    """A screen of the live view as text, at 80x24 ("" for none)."""
+    if shown is None:
+        return ""
+    console = Console(file=io.StringIO(), width=80, height=24, record=True)
+    console.print(shown)
+    return console.export_text()
+
+
+def fly(folder: Path, name: str, options: list[str]) -> Flight:
+    """``tml run missions/NAME.xml --sim --log FOLDER/NAME.jsonl OPTIONS`` with the live
+    view on an 80x24 terminal."""
+    log, mission = folder / f"{name}.jsonl", MISSIONS / f"{name}.xml"
+    seen = Watched()
+    with watched(seen):
+        code = main(["run", str(mission), "--sim", "--log", str(log), *options])
+    held = (render_text(load_mission(str(mission)), seen.held[-1], 80, 23) if seen.held
+            else None)
+    return Flight(code, log, read(str(log)), screen(seen.last), held)
+
+
+def flown(factory: pytest.TempPathFactory, name: str, options: list[str]) -> Flight:
+    """:func:`fly` with the :data:`FAST` settings and OPTIONS, flown once per session."""
+    arguments = [*FAST, *options]
+    return once(factory, name, "\0".join(arguments),
+                lambda folder: fly(folder, name, arguments))

@@ -41,7 +41,8 @@ def fly(factory: pytest.TempPathFactory, name: str, vehicles: int, battery: bool
     line as tests/test_flights.py's, so the one flight serves both."""
     options = (["--vehicles", str(vehicles)] if vehicles > 1 else []) + \
         (FLEET if battery else ["--link-lost-limit", "60"])
-    code, lines = flown(factory, name, options)
+    flight = flown(factory, name, options)
+    code, lines = flight.code, flight.lines
     assert code == 0, [line for line in lines if line["kind"] in ("mission", "error")]
     assert not [line for line in lines if line["kind"] == "error"]
     return lines

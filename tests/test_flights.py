@@ -57,7 +57,8 @@ KNOWN_GAPS: dict[str, str] = {}
 
 def fly(factory: pytest.TempPathFactory, name: str, extra: list[str]
         ) -> tuple[int, list[dict], str]:
-    code, lines = flown(factory, name, extra)
+    flight = flown(factory, name, extra)
+    code, lines = flight.code, flight.lines
     ended = [line for line in lines if line["kind"] == "run" and "outcomes" in line]
     reason = ended[-1]["outcomes"][0]["reason"] if ended else ""
     return code, lines, reason

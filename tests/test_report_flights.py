@@ -13,141 +13,47 @@ what each shows).
 
 from __future__ import annotations
 
-import contextlib
-import io
 import itertools
 import math
 import sys
-from collections.abc import Iterator
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
 from lxml import etree
 from report_checks import boxes_apart, texts_fit
-from rich.console import Console, RenderableType
-from shared_flights import once
+from shared_flights import FAST, FLEET, Flight, flown, fly
 
-import tml.run.display as display
-from tml.commands.cli import main
-from tml.language.validation import load_mission
 from tml.report.figures import figure, png
 from tml.report.flight import read_flight
 from tml.report.pages import page
 from tml.report.scene import TITLE_CHARS, scene
-from tml.run.display import LiveDisplay, Views, render_text
 
 # A guard against a hang, not a time limit: a flight in lock-step with the simulator is
 # slower, never different, on a busy machine.
 pytestmark = pytest.mark.timeout(900)
 
 ROOT = Path(__file__).resolve().parent.parent
-MISSIONS = ROOT / "missions"
 ARTIFACTS = ROOT / "test-artifacts" / "reports"
-FAST = ["--speedup", "40", "--sim-param", "SIM_GPS_LOCKTIME=1",
-        "--sim-param", "SIM_EKF_GPS_TIME=2", "--link-lost-limit", "60"]
-RELAY = ["--vehicles", "4", "--sim-param", "BATT_CAPACITY=1700",
-         "--sim-param", "SIM_BATT_CHARGE=64"]
-"""The README's relay: two vehicles survey while the two others recharge."""
-LOW = ["--sim-battery", "40"]
+RELAY = ["--vehicles", "4", *FLEET]
+"""The README's relay: two vehicles survey while the two others recharge (the flight
+tests/test_flights.py and tests/test_fleet_flights.py check too: flown once for all)."""
+LOW = ["--sim-battery", "40", "--link-lost-limit", "60"]
 """The README's battery_event: 40 % at the start, below 30 % in the second round."""
 
 
-@dataclass
-class Flown:
-    """A flight: its log, exit code, the live view's last screen and its last screen
-    drawn while an event handler held a task (text at 80x24: what the terminal showed)."""
-
-    log: Path
-    code: int
-    last: str = ""
-    held: str | None = None
-
-
-@dataclass
-class Watched:
-    """What the live view drew: its last screen and the views with a task held."""
-
-    last: RenderableType | None = None
-    held: list[Views] = field(default_factory=list)
-
-
-@contextlib.contextmanager
-def watched(flown: Watched) -> Iterator[None]:
-    """Within: ``tml run`` prints to an 80x24 terminal, and its live view's last screen
-    and the views with a task held are kept in ``flown``."""
-    terminal = Console(file=io.StringIO(), width=80, height=24, force_terminal=True)
-    errors = Console(file=io.StringIO(), width=80, stderr=True)
-    shown: list[LiveDisplay] = []
-    originals = (display.output_console, LiveDisplay.__enter__, LiveDisplay.update)
-
-    def enter(self: LiveDisplay) -> LiveDisplay:
-        shown.append(self)
-        return originals[1](self)
-
-    def update(self: LiveDisplay, views: Views, force: bool = False) -> None:
-        if any(view.held for view, _ in views):
-            flown.held.append(list(views))
-        originals[2](self, views, force)
-
-    display.output_console = lambda stderr=False: errors if stderr else terminal  # type: ignore[assignment]
-    LiveDisplay.__enter__ = enter  # type: ignore[method-assign]
-    LiveDisplay.update = update  # type: ignore[method-assign]
-    try:
-        yield
-    finally:
-        display.output_console, LiveDisplay.__enter__, LiveDisplay.update = originals  # type: ignore[method-assign]
-        flown.last = shown[-1].shown if shown else None
-
-
-def fly(folder: Path, name: str, *options: str) -> Flown:
-    """``tml run missions/NAME.xml --sim`` with the live view, and its log."""
-    log = folder / f"{name}.jsonl"
-    mission = MISSIONS / f"{name}.xml"
-    seen = Watched()
-    with watched(seen):
-        # The log names the mission file as given: relative, as a user names it.
-        code = main(["run", str(mission.relative_to(ROOT)), "--sim", "--log", str(log),
-                     *FAST, *options])
-    held = (render_text(load_mission(str(mission)), seen.held[-1], 80, 23) if seen.held
-            else None)
-    return Flown(log, code, screen(seen.last) if seen.last is not None else "", held)
-
-
-def shared(factory: pytest.TempPathFactory, name: str, *options: str) -> Flown:
-    """:func:`fly`, once per test session whichever workers ask (tests/shared_flights.py)."""
-    return once(factory, name, "\0".join(["report", *options]),
-                lambda folder: fly(folder, name, *options))
-
-
-def screen(shown: RenderableType | None) -> str:
-    """A screen of the live view as text, at 80x24."""
-    assert shown is not None
-    console = Console(file=io.StringIO(), width=80, height=24, record=True)
-    console.print(shown)
-    return console.export_text()
-
-
-@pytest.fixture(scope="module", autouse=True)
-def _at_the_root() -> Iterator[None]:
-    with pytest.MonkeyPatch.context() as patch:
-        patch.chdir(ROOT)  # the logs name the mission files relative to it
-        yield
+@pytest.fixture(scope="module")
+def relay(tmp_path_factory: pytest.TempPathFactory) -> Flight:
+    return flown(tmp_path_factory, "dolphin_fleet_relay", RELAY)
 
 
 @pytest.fixture(scope="module")
-def relay(tmp_path_factory: pytest.TempPathFactory) -> Flown:
-    return shared(tmp_path_factory, "dolphin_fleet_relay", *RELAY)
+def battery(tmp_path_factory: pytest.TempPathFactory) -> Flight:
+    return flown(tmp_path_factory, "battery_event", LOW)
 
 
 @pytest.fixture(scope="module")
-def battery(tmp_path_factory: pytest.TempPathFactory) -> Flown:
-    return shared(tmp_path_factory, "battery_event", *LOW)
-
-
-@pytest.fixture(scope="module")
-def battery_pair(tmp_path_factory: pytest.TempPathFactory) -> Flown:
-    return shared(tmp_path_factory, "battery_event", *LOW, "--vehicles", "2")
+def battery_pair(tmp_path_factory: pytest.TempPathFactory) -> Flight:
+    return flown(tmp_path_factory, "battery_event", [*LOW, "--vehicles", "2"])
 
 
 def table(text: str, number: int) -> list[list[str]]:
@@ -157,7 +63,7 @@ def table(text: str, number: int) -> list[list[str]]:
     return [["".join(c.itertext()) for c in row.findall("td")] for row in found.findall("tr")[1:]]
 
 
-def test_relay_report_draws_the_fleet_in_one_frame_vehicles_in_order(relay: Flown) -> None:
+def test_relay_report_draws_the_fleet_in_one_frame_vehicles_in_order(relay: Flight) -> None:
     assert relay.code == 0
     flight = read_flight(str(relay.log))
     drawn = scene(flight)
@@ -194,7 +100,7 @@ def test_relay_report_draws_the_fleet_in_one_frame_vehicles_in_order(relay: Flow
                                                                     "round 3"]
 
 
-def test_relay_live_view_ends_saying_what_happened(relay: Flown) -> None:
+def test_relay_live_view_ends_saying_what_happened(relay: Flight) -> None:
     text = relay.last
     lines = text.splitlines()
     assert len(lines) <= 23  # one line spare under the view
@@ -211,7 +117,7 @@ def test_relay_live_view_ends_saying_what_happened(relay: Flown) -> None:
     assert all(len(line) <= 80 for line in lines)
 
 
-def test_battery_event_report_shows_the_handler_and_the_rounds(battery: Flown) -> None:
+def test_battery_event_report_shows_the_handler_and_the_rounds(battery: Flight) -> None:
     assert battery.code == 3
     flight = read_flight(str(battery.log))
     drawn = scene(flight)
@@ -240,7 +146,7 @@ def test_battery_event_report_shows_the_handler_and_the_rounds(battery: Flown) -
     assert [row[1] for row in tasks][2:9] == ["round 1 of 5"] * 4 + ["round 2 of 5"] * 3
 
 
-def test_battery_event_live_view_interrupted_then_aborted(battery: Flown) -> None:
+def test_battery_event_live_view_interrupted_then_aborted(battery: Flight) -> None:
     # While the event's landing flies, the corner it cut is interrupted, not running.
     during = battery.held
     assert during is not None
@@ -261,7 +167,7 @@ def test_battery_event_live_view_interrupted_then_aborted(battery: Flown) -> Non
     assert "critical" not in text
 
 
-def test_two_vehicles_on_one_event_apart_in_order_one_label(battery_pair: Flown) -> None:
+def test_two_vehicles_on_one_event_apart_in_order_one_label(battery_pair: Flight) -> None:
     flight = read_flight(str(battery_pair.log))
     drawn = scene(flight)
     one, two = (track.points for track in drawn.tracks)
@@ -283,11 +189,11 @@ def test_two_vehicles_on_one_event_apart_in_order_one_label(battery_pair: Flown)
     ("mission_dispatch", "photo", 3),  # START_CAPTURING and two photo tasks of a plan
     ("imav2016", "detection", 3),  # the buckets and items the companion recognises
 ])
-def test_photos_and_detections_are_marked_where_they_were(tmp_path: Path, name: str,
-                                                          kind: str, count: int) -> None:
-    flown = fly(tmp_path, name)
-    assert flown.code == 0
-    flight = read_flight(str(flown.log))
+def test_photos_and_detections_are_marked_where_they_were(
+        tmp_path_factory: pytest.TempPathFactory, name: str, kind: str, count: int) -> None:
+    flew = flown(tmp_path_factory, name, [])  # as tests/test_flights.py flies it
+    assert flew.code == 0
+    flight = read_flight(str(flew.log))
     drawn = scene(flight)
     found = [m for m in drawn.markers if m.kind == kind]
     assert len(found) == count
@@ -302,14 +208,12 @@ def test_photos_and_detections_are_marked_where_they_were(tmp_path: Path, name: 
 
 def write_artifacts(folder: Path = ARTIFACTS) -> None:
     """Fly the relay and battery_event and write their reports and last screens."""
-    import os
     import tempfile
 
-    os.chdir(ROOT)  # the logs name the mission files relative to it
     folder.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as work:
-        relay = fly(Path(work), "dolphin_fleet_relay", *RELAY)
-        battery = fly(Path(work), "battery_event", *LOW)
+        relay = fly(Path(work), "dolphin_fleet_relay", [*FAST, *RELAY])
+        battery = fly(Path(work), "battery_event", [*FAST, *LOW])
         flight = read_flight(str(relay.log))
         (folder / "relay_report.png").write_bytes(png(flight))
         (folder / "relay_report.html").write_text(page(flight), encoding="utf-8")

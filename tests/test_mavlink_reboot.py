@@ -165,18 +165,56 @@ def test_a_word_of_a_boot_is_forgotten_at_the_old_boots_next_stamp() -> None:
 
 def test_a_new_boot_saying_so_first_after_an_outage_is_told_before_any_stamp() -> None:
     """ArduCopter SITL started again says BOOT as soon as it is dialled again, and may
-    stream nothing for seconds: its word after the outage is the reboot; its first stamps
-    then start the new boot, no second reboot."""
+    stream nothing for seconds: its word after the outage, said again in its next HEARTBEAT
+    (disarmed), is the reboot; its first stamps then start the new boot, no second reboot."""
     watch = RebootWatch()
     old_boot(watch, 5.2)
     watch.heartbeat(False)
-    assert watch.boot_sign(10.1)
+    assert not watch.boot_sign(10.1)  # one word: it may be forged
+    watch.heartbeat(False)
+    assert watch.boot_sign(11.1)  # its next HEARTBEAT, still BOOT
     assert watch.reboot == Reboot(52.0, None, armed=True)
     assert str(watch.reboot) == ("rebooted while armed (its clock went from 52.0 s back to "
                                  "a new boot's: it said it was booting)")
-    assert not watch.boot_sign(10.11)  # its next BOOT HEARTBEATs
+    assert not watch.boot_sign(12.1)  # its next BOOT HEARTBEATs
     assert not any(feed(watch, [(49.0 + 0.1 * i, 15.0 + 0.01 * i) for i in range(300)]))
     assert watch.count == 1
+
+
+def test_a_start_up_text_after_the_word_confirms_it() -> None:
+    watch = RebootWatch()
+    old_boot(watch, 5.2)
+    watch.heartbeat(False)
+    assert not watch.boot_sign(10.1)  # BOOT in its HEARTBEAT
+    assert watch.boot_sign(10.7)  # "EKF3 IMU0 initialised"
+    assert watch.reboot == Reboot(52.0, None, armed=True)
+
+
+@pytest.mark.parametrize("after", [0.05, 0.6, 3.0])
+def test_one_forged_boot_heartbeat_after_an_outage_is_answered_by_the_next_armed_one(
+        after: float) -> None:
+    """A flying vehicle out of reach for 5 s; heard again, the first HEARTBEAT is a forged
+    one saying BOOT. The autopilot's own next HEARTBEAT says armed: no reboot, and a later
+    word is a first word again, not a second."""
+    watch = RebootWatch()
+    old_boot(watch, 5.2)
+    watch.heartbeat(False)  # the forged one: disarmed, BOOT
+    assert not watch.boot_sign(10.1)
+    watch.heartbeat(True)  # the autopilot's own, ``after`` s later
+    assert not watch.boot_sign(10.1 + after + 1.0)  # a second forged one, later still
+    watch.heartbeat(True)
+    assert not any(feed(watch, [(102.0 + 0.1 * i, 12.0 + 0.01 * i) for i in range(50)]))
+    assert watch.reboot is None and watch.count == 0
+
+
+def test_words_of_a_boot_sent_in_one_burst_after_an_outage_are_one_word() -> None:
+    watch = RebootWatch()
+    old_boot(watch, 5.2)
+    for i in range(5):  # five forged HEARTBEATs at once
+        watch.heartbeat(False)
+        assert not watch.boot_sign(10.1 + 0.01 * i)
+    watch.heartbeat(True)  # the autopilot's own
+    assert watch.reboot is None
 
 
 def test_a_boot_said_with_no_outage_waits_for_the_stamp_that_shows_it() -> None:

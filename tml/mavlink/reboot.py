@@ -26,11 +26,16 @@ progress times out on it). What tells it is the autopilot's own word that it is 
 (:meth:`RebootWatch.boot_sign`: ArduPilot's HEARTBEAT ``system_status`` BOOT, and the
 STATUSTEXTs it sends only while it starts, :func:`is_boot_text`), taken from a boot past
 its own start (:data:`BOOTED_AFTER`: a boot's first seconds say it of themselves). That
-word is a new boot at once when it is the first thing heard after an outage (no stamp for
-:data:`OUTAGE` s), or when a stamp below the old boot's highest came just before it.
-Otherwise the next stamp decides: a new boot when it is below the old boot's highest, or,
-after an outage, below where the old boot's clock should be by now: its highest stamp aged
-by the local time since, at half the rate its stamps rose over the last
+word is a new boot at once when a stamp below the old boot's highest came just before it.
+When it is the first thing heard after an outage (no stamp for :data:`OUTAGE` s), a
+second word at least :data:`WORD_APART` s later makes it a new boot before any stamp
+(a restarted ArduPilot says BOOT in each HEARTBEAT of its first seconds, and its start-up
+texts), unless a HEARTBEAT between them said armed: a rebooted autopilot is disarmed, so
+one forged HEARTBEAT saying BOOT after an outage is answered by the flying autopilot's next
+HEARTBEAT, and believes nothing. In every case the next stamp decides: a new boot when it
+is below the old boot's highest, or, after an outage, below where the old boot's clock
+should be by now: its highest stamp aged by the local time since, at half the rate its
+stamps rose over the last
 :data:`RATE_WINDOW` s (the speed-up is not known, and a SITL starved of CPU lives slower
 than it did); the old boot going on when it is not, and the word forgotten. Without that
 word nothing changes: a vehicle that merely runs slow, a link that delays, reorders or
@@ -60,6 +65,10 @@ BOOTED_AFTER = 10.0
 """Seconds of a boot's own clock after which its autopilot's word that it is booting is a
 new boot's: ArduPilot says it within the first 5 s (BOOT until its set-up is done, its EKF
 initialised at about 4.4 s, measured on ArduCopter SITL)."""
+WORD_APART = 0.5
+"""Local seconds between two words of a boot after an outage for the second to confirm the
+first (ArduPilot beats at 1 Hz: its next HEARTBEAT, or a start-up text, confirms; a burst of
+messages sent at once does not)."""
 RATE_WINDOW = 5.0
 """Local seconds of the old boot's stamps its clock's rate is measured over."""
 MIN_RATE_SPAN = 0.5
@@ -108,9 +117,12 @@ class RebootWatch:
         self._rising: deque[tuple[float, float]] = deque()  # the boot's (local, stamp) as it rose
         self._heard_at = 0.0  # local time of the boot's latest stamp
         self._booting = False  # the autopilot said it is booting since the boot's latest stamp
+        self._word_at: float | None = None  # local time of a word of a boot after an outage
 
     def heartbeat(self, armed: bool) -> None:
         """A HEARTBEAT of the autopilot says ``armed`` (or not)."""
+        if armed and self._word_at is not None:  # a rebooted autopilot says disarmed
+            self._word_at, self._booting = None, False
         if armed and self._since is None and not self._booting:
             self._armed_at = self.highest
 
@@ -123,7 +135,10 @@ class RebootWatch:
         if self._since is not None:
             return self._believe(*self._since)
         if now - self._heard_at >= OUTAGE:  # heard again after an outage, booting
-            return self._believe(now, None)
+            if self._word_at is None:
+                self._word_at = now
+            elif now - self._word_at >= WORD_APART:  # said again, never armed between
+                return self._believe(now, None)
         self._booting = True
         return False
 
@@ -147,7 +162,7 @@ class RebootWatch:
             return self._believe(now, stamp)  # a new boot, said so
         if self.highest is None or stamp >= self.highest - SLACK:
             self._since = None  # the old boot goes on: a low stamp before was stray
-            self._booting = False  # ... and so was a word of a boot
+            self._booting, self._word_at = False, None  # ... and so was a word of a boot
             self._heard_at = now
             if self.highest is None or stamp > self.highest:
                 self._rose(stamp, now)
@@ -177,7 +192,7 @@ class RebootWatch:
         self.reboot = Reboot(self.highest, stamp, armed)
         self.count += 1
         # The new boot from here on: its stamps, and a next reboot's fall from them.
-        self._since, self._armed_at, self._booting = None, None, False
+        self._since, self._armed_at, self._booting, self._word_at = None, None, False, None
         self._rising.clear()
         if stamp is None:
             self.highest = None  # its first stamp starts it

@@ -50,11 +50,20 @@ def until(done: Callable[[], bool], guard: float = 20.0) -> None:
         time.sleep(0.02)
 
 
+def expire(engine: sa.Engine, name: str) -> None:
+    """The lease of instance ``name`` runs out now, as if it had stopped renewing it."""
+    with engine.begin() as db:
+        db.execute(sa.text("UPDATE cluster_instances SET expires = clock_timestamp() - "
+                           "interval '1 millisecond' WHERE name = :name"), {"name": name})
+
+
 def test_an_instance_name_is_held_by_one_live_process(engine: sa.Engine) -> None:
-    # The second's lease is long: its renew below must not find it expired on a busy machine.
-    first, second = Leases(engine, "a", lease=0.5), Leases(engine, "a", lease=30.0)
+    # Both leases are long: each runs out only when the test says so, however busy the
+    # machine.
+    first, second = Leases(engine, "a", lease=30.0), Leases(engine, "a", lease=30.0)
     assert first.join()
     assert not second.join()  # the first one's lease runs
+    expire(engine, "a")
     until(second.join)  # ... until it expires: a restarted process gets the name
     assert not first.renew()  # and the first one's session is over for good
     assert second.renew()
@@ -62,13 +71,14 @@ def test_an_instance_name_is_held_by_one_live_process(engine: sa.Engine) -> None
 
 def test_a_vehicle_is_owned_by_one_instance_until_its_lease_expires(
         engine: sa.Engine) -> None:
-    a, b = Leases(engine, "a", lease=0.5), Leases(engine, "b", lease=30.0)
+    a, b = Leases(engine, "a", lease=30.0), Leases(engine, "b", lease=30.0)
     assert a.join() and b.join()
     taken = a.take(7)
     assert taken is not None and taken.token == 1 and taken.previous is None
     assert a.take(7) == Taken(7, 1, "a")  # taking it again changes nothing
     assert b.take(7) is None
     assert b.owners([7, 8]) == {7: "a"}
+    expire(engine, "a")
     until(lambda: b.take(7) is not None)  # a stopped renewing: b takes it over
     assert b.owners([7]) == {7: "b"}
     assert a.take(7) is None and not a.renew()
@@ -121,9 +131,7 @@ def test_the_runs_of_an_expired_instance_are_adopted_by_one_survivor(
         storage.add_run(StoredRun(run_id, "m", "M", "<mission/>", [vehicle], status, "", [],
                                   None, instance, {}, time.time(), None))
     assert one.orphans() == []  # its lease holds (for 30 s: however slow this machine is)
-    with engine.begin() as db:  # ... and now "dead" has stopped renewing it, and it ran out
-        db.execute(sa.text("UPDATE cluster_instances SET expires = clock_timestamp() - "
-                           "interval '1 second' WHERE name = 'dead'"))
+    expire(engine, "dead")  # ... and now "dead" has stopped renewing it, and it ran out
     assert one.orphans() == ["r1"]
     assert two.adopt("r1", "its instance died", time.time())
     assert not one.adopt("r1", "its instance died", time.time())
@@ -158,9 +166,7 @@ def test_a_vehicle_whose_owner_died_is_abandoned_for_as_long_as_it_stays_so(
     assert dead.join() and alive.join()
     assert dead.take(5) and alive.take(6)
     assert alive.abandoned() == {}  # its lease holds (for 30 s: however slow this machine is)
-    with engine.begin() as db:  # ... and now "dead" has stopped renewing it, and it ran out
-        db.execute(sa.text("UPDATE cluster_instances SET expires = clock_timestamp() - "
-                           "interval '1 millisecond' WHERE name = 'dead'"))
+    expire(engine, "dead")
     until(lambda: 5 in alive.abandoned())
     assert list(alive.abandoned()) == [5]
     until(lambda: alive.abandoned()[5] > 0.3)  # seconds since, by the server's clock

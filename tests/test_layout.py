@@ -21,6 +21,7 @@ LAYERS: list[set[str]] = [
     {"tml.report", "tml.serve", "tml.simulator"},
     {"tml.run", "tml.plans"},
     {"tml.engine", "tml.mavlink", "tml.verify"},
+    {"tml.actions"},
     {"tml.vehicle"},
     {"tml.language"},
     {"tml.geo", "tml.world", "tml.patterns", "tml.signing", "tml.timebase"},

@@ -35,7 +35,7 @@ from tml.engine.conditions import names_task, reads_vehicle
 from tml.engine.context import Duty, Pilot, Run, TaskOwner, Verdict, Work, WorkMode
 from tml.engine.leaves import ActionLeaf
 from tml.engine.records import Status
-from tml.engine.scripts import SCRIPTS, ActionFailed
+from tml.engine.scripts import ActionFailed, procedure
 from tml.engine.wake import Waker, condition_fields
 from tml.language.actions import Category, bind
 from tml.language.model import ConditionKind, Event, EventTrigger, TerminationMode
@@ -264,7 +264,7 @@ class Events:
             run.note("action", f"{bound.name} (event {event.name!r})", vid, action=bound.name,
                      line=action.location.line)
             try:
-                for _ in SCRIPTS[bound.name](pilot, bound):
+                for _ in procedure(pilot, bound):
                     pass  # memory actions finish without waiting
             except ActionFailed as failure:
                 pilot.failure = failure.reason

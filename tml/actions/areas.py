@@ -1,0 +1,39 @@
+"""Covering an area: SURVEY_AREA's lawnmower and EXPLORE_SPACE's expanding square
+(the points from :mod:`tml.patterns`)."""
+
+from __future__ import annotations
+
+from tml.actions import guided
+from tml.actions.definition import ActionDef, spec
+from tml.actions.guided import Context, Script, fly_to
+from tml.language.actions import BoundAction
+from tml.patterns import expanding_square, survey
+
+
+def survey_area(ctx: Context, bound: BoundAction) -> Script:
+    """Lawnmower passes over the area, each along its length, ``spacing`` apart, the last
+    on the far edge (:func:`tml.patterns.survey`)."""
+    here = guided.require_flying(ctx, "SURVEY_AREA")
+    base = guided.point_argument(ctx, bound, "coordinates")
+    if base is None and "latitude" in bound.values:
+        base = guided.local(ctx, bound)
+    base = base or here
+    altitude = bound.number("altitude", here[2])
+    for point in survey((base[0], base[1], altitude), bound.number("length"),
+                        bound.number("width"), bound.number("spacing"),
+                        bound.choice("direction")):
+        yield from fly_to(ctx, point, "SURVEY_AREA")
+
+
+def explore_space(ctx: Context, bound: BoundAction) -> Script:
+    """An expanding square around the start out to ``radius``, passes ``spacing`` apart,
+    then back to the start (:func:`tml.patterns.expanding_square`)."""
+    here = guided.require_flying(ctx, "EXPLORE_SPACE")
+    for point in expanding_square(here, bound.number("radius"), bound.number("spacing")):
+        yield from fly_to(ctx, point, "EXPLORE_SPACE")
+
+
+DEFINITIONS: tuple[ActionDef, ...] = (
+    ActionDef(spec("SURVEY_AREA"), guided=survey_area, drives=True),
+    ActionDef(spec("EXPLORE_SPACE"), guided=explore_space, drives=True),
+)

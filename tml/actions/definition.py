@@ -1,0 +1,62 @@
+"""What one action of the catalogue is made of: :class:`ActionDef`, one field per stage.
+
+See :mod:`tml.actions` for the design. A stage that truly does not apply to an action (a
+FLIP has no mission item, a MISSION_ITEM is never flown with commands) holds a
+:class:`NotApplicable` with the reason, which the stage's consumer gives when it refuses
+the action; a part that is simply missing is an error when the registry loads
+(:func:`tml.actions.registry.build`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from tml.actions.guided import Context, Script
+from tml.language.actions import ActionSpec, BoundAction, lookup
+
+
+@dataclass(frozen=True)
+class NotApplicable:
+    """A stage that does not apply to an action, and why (said when it is refused)."""
+
+    reason: str
+
+
+Procedure = Callable[[Context, BoundAction], Script]
+"""The GUIDED procedure: a script of steps flying the action with commands
+(:mod:`tml.actions.guided`)."""
+
+
+@dataclass(frozen=True)
+class ActionDef:
+    """Everything tml knows about one action, stage by stage.
+
+    ``spec``: the arguments, as the language validates them (:mod:`tml.language.actions`);
+    ``guided``: how ``dispatch="command"`` flies it; ``resumed``: how it goes on when a run
+    interrupted while it ran is resumed with the vehicle in the air (None: as ``guided``);
+    ``drives``: a ground vehicle arms itself to drive before it (its moves).
+    """
+
+    spec: ActionSpec
+    guided: Procedure | NotApplicable
+    drives: bool = False
+    resumed: Procedure | None = None
+
+    @property
+    def name(self) -> str:
+        """The canonical action name."""
+        return self.spec.name
+
+
+STAGES = ("guided",)
+"""The fields of :class:`ActionDef` every action must fill (a part or a NotApplicable)."""
+
+
+def spec(name: str) -> ActionSpec:
+    """The language's spec of the action called ``name`` (canonical); raises LookupError
+    for a name the catalogue does not have."""
+    found = lookup(name)
+    if found is None or found.name != name:
+        raise LookupError(f"{name!r} is not an action of the catalogue")
+    return found

@@ -1,0 +1,71 @@
+"""Actions in place: ROTATE_YAW, STABILIZE, WAIT and FLIP."""
+
+from __future__ import annotations
+
+from tml.actions import guided
+from tml.actions.definition import ActionDef, spec
+from tml.actions.guided import ActionFailed, Context, Script, Send, Sleep, Until, fly_to
+from tml.language.actions import BoundAction
+from tml.language.kinds import Kind
+from tml.vehicle import Flip, Hold, SetYaw
+
+
+def rotate_yaw(ctx: Context, bound: BoundAction) -> Script:
+    """Turn by an angle, or to a heading; done when the heading is within tolerance."""
+    guided.require_flying(ctx, "ROTATE_YAW")
+    heading = ctx.state.heading
+    angle = bound.number("angle", None)
+    if angle is not None:
+        target = (heading + angle) % 360
+    else:
+        target = bound.number("orientation_angle") % 360
+    # Sent as a heading, not a turn: a resent request (after an event) must not turn again.
+    yield Send(SetYaw(ctx.vehicle_id, target))
+    turn = abs((target - heading + 540) % 360 - 180)
+    tolerance = ctx.limits.heading_tolerance
+    yield Until(lambda s: abs((target - s.heading + 540) % 360 - 180) <= tolerance,
+                ctx.limits.factor * turn / ctx.limits.yaw_rate + ctx.limits.slack,
+                f"face {target:.0f} deg")
+
+
+def stabilize(ctx: Context, bound: BoundAction) -> Script:
+    """Stop all motion and hold (a fixed-wing cannot stop: it circles where it is)."""
+    guided.require_flying(ctx, "STABILIZE")
+    yield Send(Hold(ctx.vehicle_id))
+    if guided.vehicle_kind(ctx) is Kind.FIXED_WING:
+        ctx.note("STABILIZE: a fixed-wing cannot stop; it circles where it is")
+        return
+    yield Until(lambda s: s.ground_speed <= 0.3, ctx.limits.slack, "come to a stop")
+
+
+def wait(ctx: Context, bound: BoundAction) -> Script:
+    """Hold position (when flying) for a time."""
+    if ctx.state.possibly_flying:
+        yield Send(Hold(ctx.vehicle_id))
+    yield Sleep(bound.number("duration"))
+
+
+def flip(ctx: Context, bound: BoundAction) -> Script:
+    """One flip as ArduCopter makes it (:class:`~tml.vehicle.Flip`), then back where it began.
+
+    A flip costs ArduCopter about 4 m of height, so below ``flip_altitude`` the vehicle
+    climbs there first; afterwards it flies back to the point it started from.
+    """
+    start = guided.require_flying(ctx, "FLIP")
+    if "flip" not in ctx.state.capabilities:
+        raise ActionFailed("unsupported", "this vehicle has no FLIP mode")
+    high = max(start[2], ctx.limits.flip_altitude)
+    if high - start[2] > ctx.limits.acceptance_radius:
+        ctx.note(f"FLIP: climbing to {high:g} m first, a flip costs about 4 m",
+                 altitude=high)
+        yield from fly_to(ctx, (start[0], start[1], high), "FLIP")
+    yield Send(Flip(ctx.vehicle_id, bound.choice("direction")))
+    yield from fly_to(ctx, start, "FLIP")
+
+
+DEFINITIONS: tuple[ActionDef, ...] = (
+    ActionDef(spec("ROTATE_YAW"), guided=rotate_yaw),
+    ActionDef(spec("STABILIZE"), guided=stabilize),
+    ActionDef(spec("WAIT"), guided=wait),
+    ActionDef(spec("FLIP"), guided=flip),
+)

@@ -1,0 +1,94 @@
+"""Moves to a point: GO_TO_POINT, MOVE, MOVE_FORWARDS, MOVE_FROM_HOME, GO_TO_POSITION,
+SET_ALTITUDE, RETURN_HOME and GO_TO_RECTANGLE (IMAV 2016)."""
+
+from __future__ import annotations
+
+import math
+
+from tml.actions import guided
+from tml.actions.definition import ActionDef, spec
+from tml.actions.guided import ActionFailed, Context, Script, fly_to
+from tml.language.actions import BoundAction
+from tml.patterns import displaced
+
+
+def go_to_point(ctx: Context, bound: BoundAction) -> Script:
+    """Fly to a local point, a memorized label, or a point relative to the vehicle."""
+    here = guided.reference(ctx)
+    target = guided.point_argument(ctx, bound, "coordinates")
+    if target is None:
+        dn, de, du = bound.point("relative_coordinates")
+        target = (here[0] + dn, here[1] + de, here[2] + du)
+    yield from fly_to(ctx, target, "GO_TO_POINT")
+
+
+def move(ctx: Context, bound: BoundAction) -> Script:
+    """Move by a displacement, or a distance in a direction relative to the heading."""
+    here = guided.reference(ctx)
+    if "coordinates" in bound.values:
+        dn, de, du = bound.point("coordinates")
+        target = (here[0] + dn, here[1] + de, here[2] + du)
+    else:
+        target = displaced(here, ctx.state.heading, bound.choice("direction"),
+                           bound.number("distance"))
+    yield from fly_to(ctx, target, bound.name)
+
+
+def move_forwards(ctx: Context, bound: BoundAction) -> Script:
+    """Move straight ahead along the heading."""
+    here = guided.reference(ctx)
+    target = displaced(here, ctx.state.heading, "forward", bound.number("distance"))
+    yield from fly_to(ctx, target, "MOVE_FORWARDS")
+
+
+def move_from_home(ctx: Context, bound: BoundAction) -> Script:
+    """Fly to an offset from home (the local frame's origin)."""
+    yield from fly_to(ctx, bound.point("coordinates"), "MOVE_FROM_HOME")
+
+
+def go_to_position(ctx: Context, bound: BoundAction) -> Script:
+    """Fly to a WGS84 position."""
+    yield from fly_to(ctx, guided.local(ctx, bound), "GO_TO_POSITION")
+
+
+def set_altitude(ctx: Context, bound: BoundAction) -> Script:
+    """Climb or descend where the vehicle is."""
+    here = guided.reference(ctx)
+    altitude = bound.number("altitude")
+    if bound.choice("altitude_reference") == "amsl" and ctx.state.home is not None:
+        altitude -= ctx.state.home.altitude
+    yield from fly_to(ctx, (here[0], here[1], altitude), "SET_ALTITUDE")
+
+
+def return_home(ctx: Context, bound: BoundAction) -> Script:
+    """Fly back over home at the current altitude and hold."""
+    here = guided.require_flying(ctx, "RETURN_HOME")
+    yield from fly_to(ctx, (0.0, 0.0, here[2]), "RETURN_HOME")
+
+
+def go_to_rectangle(ctx: Context, bound: BoundAction) -> Script:
+    """Fly to the coloured frame known in the environment, 1 m in front of it."""
+    colour = bound.text("frame_color").lower()
+    frames = [o for o in (ctx.world.objects if ctx.world else ())
+              if o.kind == "frame" and o.color.lower() == colour]
+    if not frames:
+        raise ActionFailed("infeasible", f"no {colour} frame is known in the environment")
+    here = guided.current_position(ctx)
+    frame = min(frames, key=lambda o: math.hypot(o.north - here[0], o.east - here[1]))
+    distance = math.hypot(frame.north - here[0], frame.east - here[1])
+    back = min(1.0, distance) / max(distance, 1e-6)
+    target = (frame.north - (frame.north - here[0]) * back,
+              frame.east - (frame.east - here[1]) * back, frame.altitude or here[2])
+    yield from fly_to(ctx, target, "GO_TO_RECTANGLE")
+
+
+DEFINITIONS: tuple[ActionDef, ...] = (
+    ActionDef(spec("GO_TO_POINT"), guided=go_to_point, drives=True),
+    ActionDef(spec("MOVE"), guided=move, drives=True),
+    ActionDef(spec("MOVE_FORWARDS"), guided=move_forwards, drives=True),
+    ActionDef(spec("MOVE_FROM_HOME"), guided=move_from_home, drives=True),
+    ActionDef(spec("GO_TO_POSITION"), guided=go_to_position, drives=True),
+    ActionDef(spec("SET_ALTITUDE"), guided=set_altitude, drives=True),
+    ActionDef(spec("RETURN_HOME"), guided=return_home, drives=True),
+    ActionDef(spec("GO_TO_RECTANGLE"), guided=go_to_rectangle, drives=True),
+)

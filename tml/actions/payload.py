@@ -1,0 +1,34 @@
+"""The gripper: PICK_UP_ITEM and DROP_ITEM (IMAV 2016)."""
+
+from __future__ import annotations
+
+from tml.actions import guided
+from tml.actions.definition import ActionDef, spec
+from tml.actions.guided import ActionFailed, Context, Script, Send, Sleep, fly_to
+from tml.language.actions import BoundAction
+from tml.vehicle import Gripper
+
+
+def pick_up_item(ctx: Context, bound: BoundAction) -> Script:
+    """Descend to 1 m, close the gripper, climb back."""
+    here = guided.require_flying(ctx, "PICK_UP_ITEM")
+    if "gripper" not in ctx.state.capabilities:
+        raise ActionFailed("unsupported", "this vehicle has no gripper")
+    yield from fly_to(ctx, (here[0], here[1], min(here[2], 1.0)), "PICK_UP_ITEM")
+    yield Send(Gripper(ctx.vehicle_id, grab=True))
+    yield Sleep(1.0)
+    yield from fly_to(ctx, here, "PICK_UP_ITEM")
+
+
+def drop_item(ctx: Context, bound: BoundAction) -> Script:
+    """Open the gripper."""
+    if "gripper" not in ctx.state.capabilities:
+        raise ActionFailed("unsupported", "this vehicle has no gripper")
+    yield Send(Gripper(ctx.vehicle_id, grab=False))
+    yield Sleep(1.0)
+
+
+DEFINITIONS: tuple[ActionDef, ...] = (
+    ActionDef(spec("PICK_UP_ITEM"), guided=pick_up_item),
+    ActionDef(spec("DROP_ITEM"), guided=drop_item),
+)

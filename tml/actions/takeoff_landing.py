@@ -1,0 +1,150 @@
+"""Taking off and landing: TAKE_OFF, LAND, LANDING_POINT, RETURN_HOME_AND_LAND."""
+
+from __future__ import annotations
+
+import math
+
+from tml.actions import guided
+from tml.actions.definition import ActionDef, spec
+from tml.actions.guided import LANDED_READS, Context, Script, Send, Until, fly_to
+from tml.language.actions import BoundAction
+from tml.language.kinds import Kind
+from tml.vehicle import Arm, Disarm, Land, ReturnToLaunch, SetMode, SetYaw, TakeOff
+
+
+def take_off(ctx: Context, bound: BoundAction) -> Script:
+    """Arm in GUIDED and climb; ignored (as the paper says) when already flying.
+
+    A fixed-wing cannot take off in GUIDED: its TakeOff request is ArduPlane's TAKEOFF mode
+    (a climb along its heading to the altitude, then a circle), which arms it too.
+    """
+    altitude = bound.number("altitude")
+    if ctx.state.flying:
+        ctx.note("TAKE_OFF ignored: the vehicle is already flying", altitude=ctx.state.altitude)
+        return
+    yield Until(lambda s: s.ready, ctx.limits.ready_timeout,
+                "a position estimate to arm with (EKF using GPS)")
+    if guided.vehicle_kind(ctx) is not Kind.FIXED_WING:
+        yield Send(SetMode(ctx.vehicle_id, "GUIDED"))
+        yield Send(Arm(ctx.vehicle_id))
+    yield Send(TakeOff(ctx.vehicle_id, altitude))
+    tolerance = guided.tolerances(ctx)[1]
+    yield Until(lambda s: s.altitude >= altitude - tolerance,
+                ctx.limits.factor * altitude / ctx.limits.climb_rate + ctx.limits.slack,
+                f"climb to {altitude:g} m", lambda s: max(0.0, min(1.0, s.altitude / altitude)),
+                frozenset(("position", "current")))
+
+
+def _climb_on(ctx: Context, bound: BoundAction) -> Script:
+    """A TAKE_OFF the interrupted run began, resumed with the vehicle in the air: it is not
+    ignored as a fresh one would be (the next action's hold would stop the climb short of
+    the altitude it was given), the climb goes on to that altitude -- a position target
+    there, above where the vehicle is (a fixed-wing's TAKEOFF mode climbs on by itself) --
+    and is done when the telemetry shows it."""
+    altitude = bound.number("altitude")
+    here = guided.current_position(ctx)
+    tolerance = guided.tolerances(ctx)[1]
+    if here[2] >= altitude - tolerance:
+        ctx.note(f"TAKE_OFF resumed: the vehicle is at its altitude ({altitude:g} m) already",
+                 altitude=ctx.state.altitude)
+        return
+    ctx.note(f"TAKE_OFF resumed in the air at {here[2]:.1f} m: climbing on to {altitude:g} m",
+             altitude=ctx.state.altitude)
+    if guided.vehicle_kind(ctx) is not Kind.FIXED_WING:
+        yield from fly_to(ctx, (here[0], here[1], altitude), "TAKE_OFF")
+        return
+    yield Until(lambda s: s.altitude >= altitude - tolerance,
+                ctx.limits.factor * (altitude - here[2]) / ctx.limits.climb_rate
+                + ctx.limits.slack, f"climb to {altitude:g} m",
+                lambda s: max(0.0, min(1.0, s.altitude / altitude)),
+                frozenset(("position", "current")))
+
+
+def land(ctx: Context, bound: BoundAction) -> Script:
+    """Land where the vehicle is and wait until it is down and disarmed (a fixed-wing:
+    along an approach straight ahead)."""
+    if not ctx.state.possibly_flying:  # seen on the ground since it was last asked to fly
+        ctx.note("LAND: the vehicle is already on the ground")
+        return
+    if guided.vehicle_kind(ctx) is Kind.FIXED_WING:
+        yield from guided.glide(ctx, None, "LAND")
+        return
+    start = ctx.state.altitude
+    yield Send(Land(ctx.vehicle_id))
+    yield Until(guided.landed_and_disarmed,
+                ctx.limits.factor * start / ctx.limits.land_rate + ctx.limits.slack,
+                "land and disarm", lambda s: max(0.0, min(1.0, 1 - s.altitude / max(start, 1))),
+                LANDED_READS)
+
+
+def landing_point(ctx: Context, bound: BoundAction) -> Script:
+    """Fly over the landing point, face the yaw if given, and land; nothing when the
+    vehicle is down there already (a run resumed after it landed, as LAND)."""
+    point = guided.point_argument(ctx, bound, "coordinates")
+    if point is None:
+        point = guided.local(ctx, bound)
+    if not ctx.state.flying and guided.vehicle_kind(ctx) is not Kind.GROUND and \
+            math.dist(guided.current_position(ctx)[:2], point[:2]) <= 2 * guided.tolerances(ctx)[0]:
+        ctx.note("LANDING_POINT: the vehicle is already down at the landing point")
+        return
+    here = guided.require_flying(ctx, "LANDING_POINT")
+    yaw = bound.number("yaw", None)
+    precision = bound.choice("precision_mode") != "disabled"
+    if guided.vehicle_kind(ctx) is Kind.FIXED_WING:
+        if yaw is not None or precision:
+            ctx.note("LANDING_POINT: a fixed-wing lands along its approach; yaw and "
+                     "precision landing are not applied")
+        yield from guided.glide(ctx, (point[0], point[1], 0.0), "LANDING_POINT")
+        return
+    yield from fly_to(ctx, (point[0], point[1], max(here[2], point[2])), "LANDING_POINT")
+    if yaw is not None:
+        yield Send(SetYaw(ctx.vehicle_id, yaw % 360))
+    if precision:
+        ctx.note("precision landing is applied only to dispatch=\"mission\" (NAV_LAND)")
+    yield from land(ctx, bound)
+
+
+def return_home_and_land(ctx: Context, bound: BoundAction) -> Script:
+    """ArduPilot RTL: return, descend and land at home; done when disarmed.
+
+    RTL flies a straight line home. When known obstacles stand on that line, the vehicle
+    first flies the planned path home in GUIDED, and RTL then only descends.
+    """
+    here = guided.require_flying(ctx, "RETURN_HOME_AND_LAND")
+    kind = guided.vehicle_kind(ctx)
+    if kind is Kind.FIXED_WING:
+        yield from guided.glide(ctx, (0.0, 0.0, 0.0), "RETURN_HOME_AND_LAND")
+        return
+    if kind is Kind.GROUND and not ctx.state.armed:
+        ctx.note("RETURN_HOME_AND_LAND: the vehicle is already stopped and disarmed")
+        return
+    above_home = (0.0, 0.0, here[2])
+    if ctx.route is not None:
+        path = ctx.route(here, above_home)
+        if path is not None and len(path) > 2:
+            yield from fly_to(ctx, above_home, "RETURN_HOME_AND_LAND")
+            here = guided.current_position(ctx)
+    yield Send(ReturnToLaunch(ctx.vehicle_id))
+    if kind is Kind.GROUND:
+        # Rover's RTL drives home and stops there, armed: then tml disarms it.
+        home = guided.arrived(ctx, (0.0, 0.0, 0.0))
+        yield Until(lambda s: home(s) and s.ground_speed <= 0.3,
+                    guided.travel_time(ctx, here, (0.0, 0.0, 0.0)), "drive home and stop",
+                    lambda s: 1.0 - min(1.0, math.dist(s.position or here, (0, 0, 0))
+                                        / max(math.dist(here, (0, 0, 0)), 1.0)))
+        yield Send(Disarm(ctx.vehicle_id))
+        yield Until(lambda s: not s.armed, ctx.limits.slack, "disarm")
+        return
+    limit = guided.travel_time(ctx, here, (0.0, 0.0, 0.0)) + ctx.limits.factor * max(
+        here[2], 15.0) / ctx.limits.land_rate
+    yield Until(guided.landed_and_disarmed, limit, "return home and land",
+                lambda s: 1.0 - min(1.0, math.dist(s.position or here, (0, 0, 0))
+                                    / max(math.dist(here, (0, 0, 0)), 1.0)), LANDED_READS)
+
+
+DEFINITIONS: tuple[ActionDef, ...] = (
+    ActionDef(spec("TAKE_OFF"), guided=take_off, resumed=_climb_on),
+    ActionDef(spec("LAND"), guided=land),
+    ActionDef(spec("LANDING_POINT"), guided=landing_point),
+    ActionDef(spec("RETURN_HOME_AND_LAND"), guided=return_home_and_land),
+)

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from tml.actions import mav
 from tml.actions.definition import STAGES, ActionDef, NotApplicable
 from tml.actions.registry import MODULES, REGISTRY, RegistryError, build, definition
 from tml.language.actions import CATALOGUE
@@ -83,3 +84,30 @@ def test_the_action_index_of_docs_lists_exactly_the_registry() -> None:
 def test_the_reference_of_each_action_lists_exactly_its_arguments(name: str) -> None:
     rows = re.findall(r"^\| `(\w+)` \|", _section(name), re.M)
     assert rows == [argument.name for argument in REGISTRY[name].spec.arguments]
+
+
+def test_the_item_stage_agrees_with_the_language() -> None:
+    first = next(d for d in DEFINITIONS if d.spec.mission_item)
+    with pytest.raises(RegistryError, match=f"{first.name}: the language says it has mission"):
+        build([replace(first, items=NotApplicable("none")),
+               *(d for d in DEFINITIONS if d is not first)])
+
+
+@pytest.mark.parametrize("name", list(REGISTRY))
+def test_the_reference_says_whether_each_action_has_mission_items(name: str) -> None:
+    has = not isinstance(REGISTRY[name].items, NotApplicable)
+    said = re.search(r"mission item: (yes|no|only)", _section(name))
+    assert said is not None, f"docs/language.md's {name} does not say whether it has items"
+    assert (said.group(1) in ("yes", "only")) is has
+
+
+def test_the_item_numbers_are_pymavlinks() -> None:
+    from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+    numbers = {name: value for name, value in vars(mav).items()
+               if name.isupper() and isinstance(value, int)}
+    assert len(numbers) > 20
+    for name, value in numbers.items():
+        full = name if name.startswith("GRIPPER") else \
+            f"MAV_{name}" if name.startswith("FRAME") else f"MAV_CMD_{name}"
+        assert getattr(mavlink, full) == value, name

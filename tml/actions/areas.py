@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from tml.actions import guided
+from tml.actions import guided, items
 from tml.actions.definition import ActionDef, spec
 from tml.actions.guided import Context, Script, fly_to
 from tml.language.actions import BoundAction
@@ -33,7 +33,27 @@ def explore_space(ctx: Context, bound: BoundAction) -> Script:
         yield from fly_to(ctx, point, "EXPLORE_SPACE")
 
 
+# --- mission items (dispatch="mission") ----------------------------------------
+
+def survey_area_items(b: items.Builder, action: BoundAction) -> None:
+    if "latitude" in action.values:
+        base, _ = items.global_point(b, action)
+    else:
+        base = action.point("coordinates", b.cursor.position)
+    altitude = action.number("altitude", b.cursor.position[2])
+    for point in survey((base[0], base[1], altitude), action.number("length"),
+                        action.number("width"), action.number("spacing"),
+                        action.choice("direction")):
+        b.waypoint(point)
+
+
+def explore_space_items(b: items.Builder, action: BoundAction) -> None:
+    for point in expanding_square(b.cursor.position, action.number("radius"),
+                                  action.number("spacing")):
+        b.waypoint(point)
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
-    ActionDef(spec("SURVEY_AREA"), guided=survey_area, drives=True),
-    ActionDef(spec("EXPLORE_SPACE"), guided=explore_space, drives=True),
+    ActionDef(spec("SURVEY_AREA"), guided=survey_area, drives=True, items=survey_area_items),
+    ActionDef(spec("EXPLORE_SPACE"), guided=explore_space, drives=True, items=explore_space_items),
 )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from tml.actions import items, mav
 from tml.actions.definition import ActionDef, spec
 from tml.actions.guided import Context, Script, Send, Sleep
 from tml.language.actions import BoundAction
@@ -31,9 +32,30 @@ def stop_capturing(ctx: Context, bound: BoundAction) -> Script:
     yield Send(Camera(ctx.vehicle_id, "stop"))
 
 
+# --- mission items (dispatch="mission") ----------------------------------------
+
+def capture_photo_items(b: items.Builder, action: BoundAction) -> None:
+    # param5 (shoot) travels in the item's x field.
+    b.add(mav.DO_DIGICAM_CONTROL, raw=(1, 0, 0.0))
+
+
+def capture_photos_items(b: items.Builder, action: BoundAction) -> None:
+    b.add(mav.IMAGE_START_CAPTURE,
+          params=(0.0, action.number("interval"), action.number("count"), 0.0))
+
+
+def start_capturing_items(b: items.Builder, action: BoundAction) -> None:
+    b.add(mav.IMAGE_START_CAPTURE,
+          params=(0.0, action.number("interval"), 0.0, 0.0))
+
+
+def stop_capturing_items(b: items.Builder, action: BoundAction) -> None:
+    b.add(mav.IMAGE_STOP_CAPTURE)
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
-    ActionDef(spec("CAPTURE_PHOTO"), guided=capture_photo),
-    ActionDef(spec("CAPTURE_PHOTOS"), guided=capture_photos),
-    ActionDef(spec("START_CAPTURING"), guided=start_capturing),
-    ActionDef(spec("STOP_CAPTURING"), guided=stop_capturing),
+    ActionDef(spec("CAPTURE_PHOTO"), guided=capture_photo, items=capture_photo_items),
+    ActionDef(spec("CAPTURE_PHOTOS"), guided=capture_photos, items=capture_photos_items),
+    ActionDef(spec("START_CAPTURING"), guided=start_capturing, items=start_capturing_items),
+    ActionDef(spec("STOP_CAPTURING"), guided=stop_capturing, items=stop_capturing_items),
 )

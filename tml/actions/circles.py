@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from tml.actions import guided
+from tml.actions import guided, items
 from tml.actions.definition import ActionDef, spec
 from tml.actions.guided import Context, Script
+from tml.geo import Point
 from tml.language.actions import BoundAction
 
 
@@ -31,7 +32,36 @@ def return_home_and_loiter(ctx: Context, bound: BoundAction) -> Script:
     yield from guided.circle(ctx, (0.0, 0.0, here[2]), bound.number("radius"), None, None)
 
 
+# --- mission items (dispatch="mission") ----------------------------------------
+
+def _loiter_centre(b: items.Builder, action: BoundAction) -> tuple[Point, str]:
+    if "latitude" in action.values:
+        return items.global_point(b, action, action.choice("altitude_reference"))
+    return _local_centre(b, action), "relative"
+
+
+def _local_centre(b: items.Builder, action: BoundAction) -> Point:
+    point = action.point("coordinates", None)
+    if point is not None:
+        return point
+    relative = action.point("relative_coordinates", None)
+    if relative is not None:
+        return items.plus(b.cursor.position, relative)
+    return action.point("from_home", b.cursor.position)
+
+
+def loiter_items(b: items.Builder, action: BoundAction) -> None:
+    exact = items.written_position(b, action) if "latitude" in action.values else None
+    items.loiter_at(b, *_loiter_centre(b, action), action.number("radius"),
+               action.number("turns", None), action.number("duration", None), exact)
+
+
+def return_home_and_loiter_items(b: items.Builder, action: BoundAction) -> None:
+    items.loiter_at(b, (0.0, 0.0, b.cursor.position[2]), "relative", action.number("radius"))
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
-    ActionDef(spec("LOITER"), guided=loiter, drives=True),
-    ActionDef(spec("RETURN_HOME_AND_LOITER"), guided=return_home_and_loiter, drives=True),
+    ActionDef(spec("LOITER"), guided=loiter, drives=True, items=loiter_items),
+    ActionDef(spec("RETURN_HOME_AND_LOITER"), guided=return_home_and_loiter, drives=True,
+              items=return_home_and_loiter_items),
 )

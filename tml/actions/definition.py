@@ -13,6 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from tml.actions.guided import Context, Script
+from tml.actions.items import Builder
 from tml.language.actions import ActionSpec, BoundAction, lookup
 
 
@@ -28,18 +29,26 @@ Procedure = Callable[[Context, BoundAction], Script]
 (:mod:`tml.actions.guided`)."""
 
 
+ItemCompiler = Callable[[Builder, BoundAction], None]
+"""The AUTO item compiler: appends the action's mission items to a builder
+(:mod:`tml.actions.items`)."""
+
+
 @dataclass(frozen=True)
 class ActionDef:
     """Everything tml knows about one action, stage by stage.
 
     ``spec``: the arguments, as the language validates them (:mod:`tml.language.actions`);
-    ``guided``: how ``dispatch="command"`` flies it; ``resumed``: how it goes on when a run
+    ``guided``: how ``dispatch="command"`` flies it; ``items``: the mission items
+    ``dispatch="mission"`` flies (NotApplicable: the language refuses it there, E260);
+    ``resumed``: how it goes on when a run
     interrupted while it ran is resumed with the vehicle in the air (None: as ``guided``);
     ``drives``: a ground vehicle arms itself to drive before it (its moves).
     """
 
     spec: ActionSpec
     guided: Procedure | NotApplicable
+    items: ItemCompiler | NotApplicable
     drives: bool = False
     resumed: Procedure | None = None
 
@@ -49,7 +58,7 @@ class ActionDef:
         return self.spec.name
 
 
-STAGES = ("guided",)
+STAGES = ("guided", "items")
 """The fields of :class:`ActionDef` every action must fill (a part or a NotApplicable)."""
 
 

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from tml.actions import guided
-from tml.actions.definition import ActionDef, spec
+from tml.actions import guided, items, mav
+from tml.actions.definition import ActionDef, NotApplicable, spec
 from tml.actions.guided import ActionFailed, Context, Script, Send, Sleep, Until, fly_to
 from tml.language.actions import BoundAction
 from tml.language.kinds import Kind
@@ -63,9 +63,30 @@ def flip(ctx: Context, bound: BoundAction) -> Script:
     yield from fly_to(ctx, start, "FLIP")
 
 
+# --- mission items (dispatch="mission") ----------------------------------------
+
+def rotate_yaw_items(b: items.Builder, action: BoundAction) -> None:
+    angle = action.number("angle", None)
+    if angle is not None:
+        items.yaw_item(b, angle, relative=True)
+    else:
+        items.yaw_item(b, action.number("orientation_angle") % 360.0, relative=False)
+
+
+def stabilize_items(b: items.Builder, action: BoundAction) -> None:
+    b.add(mav.NAV_DELAY, params=(0.0, -1.0, -1.0, -1.0))
+
+
+def wait_items(b: items.Builder, action: BoundAction) -> None:
+    # NAV_DELAY param1 is seconds; params 2-4 (a time of day) are -1: not used.
+    b.add(mav.NAV_DELAY, params=(action.number("duration"), -1.0, -1.0, -1.0))
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
-    ActionDef(spec("ROTATE_YAW"), guided=rotate_yaw),
-    ActionDef(spec("STABILIZE"), guided=stabilize),
-    ActionDef(spec("WAIT"), guided=wait),
-    ActionDef(spec("FLIP"), guided=flip),
+    ActionDef(spec("ROTATE_YAW"), guided=rotate_yaw, items=rotate_yaw_items),
+    ActionDef(spec("STABILIZE"), guided=stabilize, items=stabilize_items),
+    ActionDef(spec("WAIT"), guided=wait, items=wait_items),
+    ActionDef(spec("FLIP"), guided=flip,
+              items=NotApplicable("has no mission item: ArduCopter enters FLIP from "
+                                  "ALT_HOLD with the sticks held, never from a mission")),
 )

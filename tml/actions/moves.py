@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import math
 
-from tml.actions import guided
-from tml.actions.definition import ActionDef, spec
+from tml.actions import guided, items
+from tml.actions.definition import ActionDef, NotApplicable, spec
 from tml.actions.guided import ActionFailed, Context, Script, fly_to
 from tml.language.actions import BoundAction
 from tml.patterns import displaced
@@ -82,13 +82,64 @@ def go_to_rectangle(ctx: Context, bound: BoundAction) -> Script:
     yield from fly_to(ctx, target, "GO_TO_RECTANGLE")
 
 
+# --- mission items (dispatch="mission") ----------------------------------------
+
+def go_to_point_items(b: items.Builder, action: BoundAction) -> None:
+    point = action.point("coordinates", None)
+    if point is None:
+        point = items.plus(b.cursor.position, action.point("relative_coordinates", (0.0, 0.0, 0.0)))
+    b.waypoint(point)
+
+
+def move_items(b: items.Builder, action: BoundAction) -> None:
+    offset = action.point("coordinates", None)
+    if offset is not None:
+        b.waypoint(items.plus(b.cursor.position, offset))
+    else:
+        b.waypoint(displaced(b.cursor.position, b.cursor.heading, action.choice("direction"),
+                             action.number("distance")))
+
+
+def move_forwards_items(b: items.Builder, action: BoundAction) -> None:
+    b.waypoint(displaced(b.cursor.position, b.cursor.heading, "forward",
+                         action.number("distance")))
+
+
+def move_from_home_items(b: items.Builder, action: BoundAction) -> None:
+    b.waypoint(action.point("coordinates", (0.0, 0.0, b.cursor.position[2])))
+
+
+def go_to_position_items(b: items.Builder, action: BoundAction) -> None:
+    point, reference = items.global_point(b, action, action.choice("altitude_reference"))
+    b.waypoint(point, reference, items.written_position(b, action))
+
+
+def set_altitude_items(b: items.Builder, action: BoundAction) -> None:
+    reference = action.choice("altitude_reference")
+    altitude = action.number("altitude")
+    up = altitude - b.home.altitude if reference == "amsl" else altitude
+    n, e, _ = b.cursor.position
+    # A waypoint above the expected position: DO_CHANGE_ALTITUDE only changes the altitude
+    # of the navigation command in progress, which may already be done (and ArduCopter 4.7
+    # refuses it in a mission upload as UNSUPPORTED).
+    b.waypoint((n, e, up), reference)
+
+
+def return_home_items(b: items.Builder, action: BoundAction) -> None:
+    b.waypoint((0.0, 0.0, b.cursor.position[2]))
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
-    ActionDef(spec("GO_TO_POINT"), guided=go_to_point, drives=True),
-    ActionDef(spec("MOVE"), guided=move, drives=True),
-    ActionDef(spec("MOVE_FORWARDS"), guided=move_forwards, drives=True),
-    ActionDef(spec("MOVE_FROM_HOME"), guided=move_from_home, drives=True),
-    ActionDef(spec("GO_TO_POSITION"), guided=go_to_position, drives=True),
-    ActionDef(spec("SET_ALTITUDE"), guided=set_altitude, drives=True),
-    ActionDef(spec("RETURN_HOME"), guided=return_home, drives=True),
-    ActionDef(spec("GO_TO_RECTANGLE"), guided=go_to_rectangle, drives=True),
+    ActionDef(spec("GO_TO_POINT"), guided=go_to_point, drives=True, items=go_to_point_items),
+    ActionDef(spec("MOVE"), guided=move, drives=True, items=move_items),
+    ActionDef(spec("MOVE_FORWARDS"), guided=move_forwards, drives=True, items=move_forwards_items),
+    ActionDef(spec("MOVE_FROM_HOME"), guided=move_from_home, drives=True,
+              items=move_from_home_items),
+    ActionDef(spec("GO_TO_POSITION"), guided=go_to_position, drives=True,
+              items=go_to_position_items),
+    ActionDef(spec("SET_ALTITUDE"), guided=set_altitude, drives=True, items=set_altitude_items),
+    ActionDef(spec("RETURN_HOME"), guided=return_home, drives=True, items=return_home_items),
+    ActionDef(spec("GO_TO_RECTANGLE"), guided=go_to_rectangle, drives=True,
+              items=NotApplicable("flies to a frame the camera sees in flight, which no "
+                                  "mission item can name")),
 )

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from tml.actions import guided
+from tml.actions import guided, items, mav
 from tml.actions.definition import ActionDef, spec
 from tml.actions.guided import ActionFailed, Context, Script, Send, Sleep, fly_to
 from tml.language.actions import BoundAction
@@ -28,7 +28,17 @@ def drop_item(ctx: Context, bound: BoundAction) -> Script:
     yield Sleep(1.0)
 
 
+# --- mission items (dispatch="mission") ----------------------------------------
+
+def pick_up_item_items(b: items.Builder, action: BoundAction) -> None:
+    b.add(mav.DO_GRIPPER, params=(1.0, mav.GRIPPER_ACTION_GRAB, 0.0, 0.0))
+
+
+def drop_item_items(b: items.Builder, action: BoundAction) -> None:
+    b.add(mav.DO_GRIPPER, params=(1.0, mav.GRIPPER_ACTION_RELEASE, 0.0, 0.0))
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
-    ActionDef(spec("PICK_UP_ITEM"), guided=pick_up_item),
-    ActionDef(spec("DROP_ITEM"), guided=drop_item),
+    ActionDef(spec("PICK_UP_ITEM"), guided=pick_up_item, items=pick_up_item_items),
+    ActionDef(spec("DROP_ITEM"), guided=drop_item, items=drop_item_items),
 )

@@ -3,7 +3,9 @@
 :data:`REGISTRY` is built when this module is first imported, from the ``DEFINITIONS`` of
 the modules in :data:`MODULES`; :func:`build` refuses (:class:`RegistryError`) a catalogue
 action without a definition, a definition of no catalogue action or given twice, and a
-definition missing a stage's part (see :data:`tml.actions.definition.STAGES`).
+definition missing a stage's part (see :data:`tml.actions.definition.STAGES`), and an
+``items`` part that contradicts the language's ``mission_item`` (which ``tml validate``
+checks, E260, without loading this package).
 """
 
 from __future__ import annotations
@@ -58,6 +60,10 @@ def build(definitions: Iterable[ActionDef],
                  for name in found if name not in specs]
     problems += [f"{name}: its definition's spec is not the catalogue's"
                  for name, spec in specs.items() if name in found and found[name].spec is not spec]
+    problems += [f"{name}: the language says it {'has' if spec.mission_item else 'has no'} "
+                 "mission item, its definition the opposite"
+                 for name, spec in specs.items() if name in found and spec.mission_item
+                 is isinstance(found[name].items, NotApplicable)]
     if problems:
         raise RegistryError("the action registry is incomplete: " + "; ".join(problems))
     return MappingProxyType({name: found[name] for name in specs})

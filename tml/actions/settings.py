@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from tml.actions import guided
-from tml.actions.definition import ActionDef, spec
+from tml.actions import guided, items, mav
+from tml.actions.definition import ActionDef, NotApplicable, spec
 from tml.actions.guided import Context, Script, Send
 from tml.language.actions import BoundAction
 from tml.vehicle import SetHome, SetSpeed
@@ -39,8 +39,26 @@ def memorize_point(ctx: Context, bound: BoundAction) -> Script:
     yield from ()
 
 
+# --- mission items (dispatch="mission") ----------------------------------------
+
+def set_speed_items(b: items.Builder, action: BoundAction) -> None:
+    kind = items.SPEED_TYPES[action.choice("speed_type")]
+    b.add(mav.DO_CHANGE_SPEED, params=(kind, action.number("speed"), -1.0, 0.0))
+
+
+def set_home_items(b: items.Builder, action: BoundAction) -> None:
+    if "latitude" not in action.values:
+        b.add(mav.DO_SET_HOME, params=(1.0, 0.0, 0.0, 0.0))
+        return
+    b.add(mav.DO_SET_HOME, frame=mav.FRAME_GLOBAL_INT,
+          raw=(round(action.number("latitude") * 1e7),
+               round(action.number("longitude") * 1e7), action.number("altitude")))
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
-    ActionDef(spec("SET_SPEED"), guided=set_speed),
-    ActionDef(spec("SET_HOME"), guided=set_home),
-    ActionDef(spec("MEMORIZE_POINT"), guided=memorize_point),
+    ActionDef(spec("SET_SPEED"), guided=set_speed, items=set_speed_items),
+    ActionDef(spec("SET_HOME"), guided=set_home, items=set_home_items),
+    ActionDef(spec("MEMORIZE_POINT"), guided=memorize_point,
+              items=NotApplicable("remembers a position in tml, which no mission item "
+                                  "can do")),
 )

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from tml.actions import guided
+from tml.actions import guided, items, mav
 from tml.actions.definition import ActionDef, spec
 from tml.actions.guided import LANDED_READS, Context, Script, Send, Until, fly_to
 from tml.language.actions import BoundAction
@@ -142,9 +142,54 @@ def return_home_and_land(ctx: Context, bound: BoundAction) -> Script:
                                     / max(math.dist(here, (0, 0, 0)), 1.0)), LANDED_READS)
 
 
+# --- mission items (dispatch="mission") ----------------------------------------
+
+def take_off_items(b: items.Builder, action: BoundAction) -> None:
+    altitude = action.number("altitude")
+    b.add(mav.NAV_TAKEOFF, altitude=altitude,
+          params=(action.number("pitch"), 0.0, 0.0, 0.0))
+    n, e, _ = b.cursor.position
+    b.cursor.position = (n, e, altitude)
+
+
+def land_items(b: items.Builder, action: BoundAction) -> None:
+    if b.kind is Kind.FIXED_WING:
+        items.glide(b, None)
+        return
+    b.add(mav.NAV_LAND, point=b.cursor.position)
+    b.cursor.position = (*b.cursor.position[:2], 0.0)
+
+
+def landing_point_items(b: items.Builder, action: BoundAction) -> None:
+    exact = None
+    if "latitude" in action.values:
+        point, reference = items.global_point(b, action, action.choice("altitude_reference"))
+        exact = items.written_position(b, action)
+    else:
+        point, reference = action.point("coordinates", b.cursor.position), "relative"
+    if b.kind is Kind.FIXED_WING:
+        items.glide(b, (point[0], point[1], 0.0))
+        return
+    items.land_at(b, action, point, reference, exact)
+
+
+def return_home_and_land_items(b: items.Builder, action: BoundAction) -> None:
+    if b.kind is Kind.FIXED_WING:
+        items.glide(b, (0.0, 0.0, 0.0))
+        return
+    if action.number("yaw", None) is None and action.choice("precision_mode") == "disabled":
+        b.add(mav.NAV_RETURN_TO_LAUNCH)
+        b.cursor.position = (0.0, 0.0, 0.0)
+        return
+    # RTL carries neither a heading nor a precision-landing mode: fly home, then land.
+    b.waypoint((0.0, 0.0, b.cursor.position[2]))
+    items.land_at(b, action, b.cursor.position, "relative")
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
-    ActionDef(spec("TAKE_OFF"), guided=take_off, resumed=_climb_on),
-    ActionDef(spec("LAND"), guided=land),
-    ActionDef(spec("LANDING_POINT"), guided=landing_point),
-    ActionDef(spec("RETURN_HOME_AND_LAND"), guided=return_home_and_land),
+    ActionDef(spec("TAKE_OFF"), guided=take_off, resumed=_climb_on, items=take_off_items),
+    ActionDef(spec("LAND"), guided=land, items=land_items),
+    ActionDef(spec("LANDING_POINT"), guided=landing_point, items=landing_point_items),
+    ActionDef(spec("RETURN_HOME_AND_LAND"), guided=return_home_and_land,
+              items=return_home_and_land_items),
 )

@@ -66,6 +66,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import TypedDict, Unpack
 
+from tml.actions.items import LOITER_TURNS_MAX
 from tml.errors import MissionTransferError
 
 DEFAULT_TIMEOUT = 1.5
@@ -754,10 +755,6 @@ def _signed_whole(value: float) -> Expected:
     if not isinstance(metres, float):
         return metres
     return -metres if v < 0 else metres
-
-
-LOITER_TURNS_MAX = 255
-"""The most turns ArduPilot keeps in one NAV_LOITER_TURNS (the low byte of its p1)."""
 
 
 def _turns(value: float) -> Expected:

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 
 from lxml import etree
 
+from tml.actions.items import LOITER_TURNS_MAX
 from tml.errors import Location, MissionSemanticError
 from tml.language.actions import BoundAction, bind, lookup
 from tml.language.kinds import Kind
@@ -46,7 +47,7 @@ from tml.mavlink.compile import (
     CompileError,
     compile_mission,
 )
-from tml.mavlink.mission import LOITER_TURNS_MAX, MissionItem
+from tml.mavlink.mission import MissionItem
 from tml.plans.planned import (
     AMSL_FRAMES,
     GLOBAL_FRAMES,

@@ -6,6 +6,7 @@ from __future__ import annotations
 from tml.actions import guided, items
 from tml.actions.definition import ActionDef, spec
 from tml.actions.guided import Context, Script, fly_to
+from tml.actions.motion import Labels, Motion, PredictedState, Step
 from tml.language.actions import BoundAction
 from tml.patterns import expanding_square, survey
 
@@ -53,7 +54,34 @@ def explore_space_items(b: items.Builder, action: BoundAction) -> None:
         b.waypoint(point)
 
 
+# --- motion models (tml verify) -------------------------------------------------------------
+
+def survey_area_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                       labels: Labels) -> Step:
+    base, unknown = model.point_of(bound, labels)
+    if unknown:
+        return model.unknown(state, labels, unknown)
+    if base is None and "latitude" in bound.values:
+        base = model.local(bound.number("latitude"), bound.number("longitude"), 0.0,
+                           "relative")
+    base = base or state.position
+    altitude = bound.number("altitude", None) or state.position[2]
+    targets = survey((base[0], base[1], altitude), bound.number("length"),
+                     bound.number("width"), bound.number("spacing"),
+                     bound.choice("direction"))
+    return model.go(bound, state, labels, targets)
+
+
+def explore_space_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                         labels: Labels) -> Step:
+    targets = expanding_square(state.position, bound.number("radius"),
+                               bound.number("spacing"))
+    return model.go(bound, state, labels, targets)
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
-    ActionDef(spec("SURVEY_AREA"), guided=survey_area, drives=True, items=survey_area_items),
-    ActionDef(spec("EXPLORE_SPACE"), guided=explore_space, drives=True, items=explore_space_items),
+    ActionDef(spec("SURVEY_AREA"), guided=survey_area, drives=True, items=survey_area_items,
+              motion=survey_area_motion),
+    ActionDef(spec("EXPLORE_SPACE"), guided=explore_space, drives=True, items=explore_space_items,
+              motion=explore_space_motion),
 )

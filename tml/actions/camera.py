@@ -5,6 +5,7 @@ from __future__ import annotations
 from tml.actions import items, mav
 from tml.actions.definition import ActionDef, spec
 from tml.actions.guided import Context, Script, Send, Sleep
+from tml.actions.motion import Labels, Motion, PredictedState, Step, instant
 from tml.language.actions import BoundAction
 from tml.vehicle import Camera
 
@@ -53,9 +54,21 @@ def stop_capturing_items(b: items.Builder, action: BoundAction) -> None:
     b.add(mav.IMAGE_STOP_CAPTURE)
 
 
+# --- motion models (tml verify) -------------------------------------------------------------
+
+def capture_photos_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                          labels: Labels) -> Step:
+    seconds = (bound.integer("count") - 1) * bound.number("interval")
+    return Step(state, model.hover(state, seconds), labels=labels)
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
-    ActionDef(spec("CAPTURE_PHOTO"), guided=capture_photo, items=capture_photo_items),
-    ActionDef(spec("CAPTURE_PHOTOS"), guided=capture_photos, items=capture_photos_items),
-    ActionDef(spec("START_CAPTURING"), guided=start_capturing, items=start_capturing_items),
-    ActionDef(spec("STOP_CAPTURING"), guided=stop_capturing, items=stop_capturing_items),
+    ActionDef(spec("CAPTURE_PHOTO"), guided=capture_photo, items=capture_photo_items,
+              motion=instant),
+    ActionDef(spec("CAPTURE_PHOTOS"), guided=capture_photos, items=capture_photos_items,
+              motion=capture_photos_motion),
+    ActionDef(spec("START_CAPTURING"), guided=start_capturing, items=start_capturing_items,
+              motion=instant),
+    ActionDef(spec("STOP_CAPTURING"), guided=stop_capturing, items=stop_capturing_items,
+              motion=instant),
 )

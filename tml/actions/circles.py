@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from tml.actions import guided, items
 from tml.actions.definition import ActionDef, spec
 from tml.actions.guided import Context, Script
+from tml.actions.motion import Labels, Motion, PredictedState, Step, add
 from tml.geo import Point
 from tml.language.actions import BoundAction
 
@@ -23,7 +26,7 @@ def loiter(ctx: Context, bound: BoundAction) -> Script:
         centre = guided.local(ctx, bound)
     centre = centre or here
     yield from guided.circle(ctx, centre, bound.number("radius"), bound.number("turns", None),
-                       bound.number("duration", None))
+                             bound.number("duration", None))
 
 
 def return_home_and_loiter(ctx: Context, bound: BoundAction) -> Script:
@@ -53,15 +56,43 @@ def _local_centre(b: items.Builder, action: BoundAction) -> Point:
 def loiter_items(b: items.Builder, action: BoundAction) -> None:
     exact = items.written_position(b, action) if "latitude" in action.values else None
     items.loiter_at(b, *_loiter_centre(b, action), action.number("radius"),
-               action.number("turns", None), action.number("duration", None), exact)
+                    action.number("turns", None), action.number("duration", None), exact)
 
 
 def return_home_and_loiter_items(b: items.Builder, action: BoundAction) -> None:
     items.loiter_at(b, (0.0, 0.0, b.cursor.position[2]), "relative", action.number("radius"))
 
 
+# --- motion models (tml verify) -------------------------------------------------------------
+
+def loiter_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                  labels: Labels) -> Step:
+    centre, unknown = model.point_of(bound, labels)
+    if unknown:
+        return model.unknown(state, labels, unknown)
+    relative = bound.point("relative_coordinates", None)
+    from_home = bound.point("from_home", None)
+    if centre is None and relative is not None:
+        centre = add(state.position, relative)
+    elif centre is None and from_home is not None:
+        centre = add(state.home, from_home)
+    elif centre is None and "latitude" in bound.values:
+        centre = model.global_point(bound)
+    return model.circle(bound, state, labels, centre or state.position,
+                        bound.number("radius"), bound.integer("turns", None),
+                        bound.number("duration", None))
+
+
+def return_home_and_loiter_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                                  labels: Labels) -> Step:
+    step = model.circle(bound, state, labels, (*state.home[:2], state.position[2]),
+                        bound.number("radius"))
+    return replace(step, notes=(
+        "circles home until an event ends it; no time counted for it",))
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
-    ActionDef(spec("LOITER"), guided=loiter, drives=True, items=loiter_items),
+    ActionDef(spec("LOITER"), guided=loiter, drives=True, items=loiter_items, motion=loiter_motion),
     ActionDef(spec("RETURN_HOME_AND_LOITER"), guided=return_home_and_loiter, drives=True,
-              items=return_home_and_loiter_items),
+              items=return_home_and_loiter_items, motion=return_home_and_loiter_motion),
 )

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 from tml.actions.guided import Context, Script
 from tml.actions.items import Builder
+from tml.actions.motion import Labels, Motion, PredictedState, Step
 from tml.language.actions import ActionSpec, BoundAction, lookup
 
 
@@ -34,6 +35,11 @@ ItemCompiler = Callable[[Builder, BoundAction], None]
 (:mod:`tml.actions.items`)."""
 
 
+MotionModel = Callable[[Motion, BoundAction, PredictedState, Labels], Step]
+"""The motion model for ``tml verify``: the step the action takes from a predicted state
+(:mod:`tml.actions.motion`)."""
+
+
 @dataclass(frozen=True)
 class ActionDef:
     """Everything tml knows about one action, stage by stage.
@@ -41,14 +47,17 @@ class ActionDef:
     ``spec``: the arguments, as the language validates them (:mod:`tml.language.actions`);
     ``guided``: how ``dispatch="command"`` flies it; ``items``: the mission items
     ``dispatch="mission"`` flies (NotApplicable: the language refuses it there, E260);
-    ``resumed``: how it goes on when a run
-    interrupted while it ran is resumed with the vehicle in the air (None: as ``guided``);
+    ``motion``: what ``tml verify`` predicts it does (:func:`tml.actions.motion.instant`
+    for an action that takes no time or battery in the model); ``resumed``: how it goes on
+    when a run interrupted while it ran is resumed with the vehicle in the air (None: as
+    ``guided``);
     ``drives``: a ground vehicle arms itself to drive before it (its moves).
     """
 
     spec: ActionSpec
     guided: Procedure | NotApplicable
     items: ItemCompiler | NotApplicable
+    motion: MotionModel
     drives: bool = False
     resumed: Procedure | None = None
 
@@ -58,7 +67,7 @@ class ActionDef:
         return self.spec.name
 
 
-STAGES = ("guided", "items")
+STAGES = ("guided", "items", "motion")
 """The fields of :class:`ActionDef` every action must fill (a part or a NotApplicable)."""
 
 

@@ -65,7 +65,6 @@ class ActionFailed(Exception):
         self.detail = detail
 
 
-
 @dataclass(frozen=True)
 class Send:
     """Submit a request; the script resumes when the vehicle has accepted it."""
@@ -74,7 +73,9 @@ class Send:
 
 
 UNTIL_READS = frozenset(SHOWN_FIELDS)
-
+"""What an :class:`Until` that does not say reads of its vehicle's state: any field that
+says what the vehicle shows, and whether the picture is newer than the latest request
+(``current``, which no compared field tells)."""
 
 
 @dataclass(frozen=True)
@@ -91,7 +92,6 @@ class Until:
     reads: frozenset[str] = UNTIL_READS
 
 
-
 @dataclass(frozen=True)
 class Sleep:
     """Wait ``seconds`` of mission time."""
@@ -106,14 +106,17 @@ Script = Generator[Step, None, None]
 
 
 Cruise = tuple[float, float]
+"""How a vehicle moves from point to point, as its profile says: its speed until SET_SPEED
+changes it (m/s) and its acceleration speeding up and braking at each point (m/s²; 0: at
+once)."""
 
 
 NO_PROFILE: Cruise = (5.0, 0.0)
+"""How a vehicle is taken to move when no profile says (engine tests)."""
 
 
 def _no_profile(vehicle_type: str) -> Cruise:
     return NO_PROFILE
-
 
 
 @dataclass
@@ -291,6 +294,7 @@ def landed_and_disarmed(state: VehicleState) -> bool:
 
 
 LANDED_READS = frozenset(("landed", "armed", "current"))
+"""What :func:`landed_and_disarmed` reads (and whether the picture is current)."""
 
 
 def local(ctx: Context, bound: BoundAction, altitude_key: str = "altitude") -> Point:
@@ -317,7 +321,7 @@ def point_argument(ctx: Context, bound: BoundAction, name: str) -> Point | None:
 
 
 def circle(ctx: Context, centre: Point, radius: float, turns: float | None,
-            duration: float | None) -> Script:
+           duration: float | None) -> Script:
     """Circle ``centre`` clockwise: a number of turns, for a time, or until stopped (neither).
 
     As ArduPilot's loiter items do, the vehicle joins the circle at its nearest point (the
@@ -388,6 +392,8 @@ def _bearing(point: Point, centre: Point) -> float:
 
 
 LAND_DISARM_DELAY = 30.0
+"""Seconds a fixed-wing may take to disarm after touching down (ArduPlane's
+LAND_DISARMDELAY is 20 s)."""
 
 
 def glide(ctx: Context, touchdown: Point | None, what: str) -> Script:

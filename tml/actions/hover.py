@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from tml.actions import guided, items, mav
 from tml.actions.definition import ActionDef, NotApplicable, spec
 from tml.actions.guided import ActionFailed, Context, Script, Send, Sleep, Until, fly_to
+from tml.actions.motion import Labels, Motion, PredictedState, Step, instant
 from tml.language.actions import BoundAction
 from tml.language.kinds import Kind
 from tml.vehicle import Flip, Hold, SetYaw
@@ -82,11 +85,31 @@ def wait_items(b: items.Builder, action: BoundAction) -> None:
     b.add(mav.NAV_DELAY, params=(action.number("duration"), -1.0, -1.0, -1.0))
 
 
+# --- motion models (tml verify) -------------------------------------------------------------
+
+def rotate_yaw_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                      labels: Labels) -> Step:
+    angle = bound.number("angle", None)
+    if angle is not None:
+        turn = angle
+    else:
+        turn = (bound.number("orientation_angle") - state.heading + 180.0) % 360.0 - 180.0
+    after = model.hover(state, abs(turn) / model.profile.yaw_rate)
+    return Step(state, replace(after, heading=(state.heading + turn) % 360.0), labels=labels)
+
+
+def wait_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                labels: Labels) -> Step:
+    return Step(state, model.hover(state, bound.number("duration")), labels=labels)
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
-    ActionDef(spec("ROTATE_YAW"), guided=rotate_yaw, items=rotate_yaw_items),
-    ActionDef(spec("STABILIZE"), guided=stabilize, items=stabilize_items),
-    ActionDef(spec("WAIT"), guided=wait, items=wait_items),
+    ActionDef(spec("ROTATE_YAW"), guided=rotate_yaw, items=rotate_yaw_items,
+              motion=rotate_yaw_motion),
+    ActionDef(spec("STABILIZE"), guided=stabilize, items=stabilize_items, motion=instant),
+    ActionDef(spec("WAIT"), guided=wait, items=wait_items, motion=wait_motion),
     ActionDef(spec("FLIP"), guided=flip,
               items=NotApplicable("has no mission item: ArduCopter enters FLIP from "
-                                  "ALT_HOLD with the sticks held, never from a mission")),
+                                  "ALT_HOLD with the sticks held, never from a mission"),
+              motion=instant),
 )

@@ -143,8 +143,8 @@ def glide(b: Builder, touchdown: Point | None) -> None:
 
 
 def loiter_at(b: Builder, centre: Point, reference: str, radius: float,
-               turns: float | None = None, duration: float | None = None,
-               exact: tuple[int, int, float] | None = None) -> None:
+              turns: float | None = None, duration: float | None = None,
+              exact: tuple[int, int, float] | None = None) -> None:
     if turns is not None:
         # ArduPilot keeps at most LOITER_TURNS_MAX turns in an item: more are several items
         # over the same centre, flown one after the other without leaving the circle.
@@ -163,7 +163,7 @@ def loiter_at(b: Builder, centre: Point, reference: str, radius: float,
 
 
 def land_at(b: Builder, action: BoundAction, point: Point, reference: str,
-             exact: tuple[int, int, float] | None = None) -> None:
+            exact: tuple[int, int, float] | None = None) -> None:
     precision = PRECISION_MODES[action.choice("precision_mode")]
     yaw = action.number("yaw", None)
     if yaw is not None:

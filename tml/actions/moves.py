@@ -8,6 +8,7 @@ import math
 from tml.actions import guided, items
 from tml.actions.definition import ActionDef, NotApplicable, spec
 from tml.actions.guided import ActionFailed, Context, Script, fly_to
+from tml.actions.motion import Labels, Motion, PredictedState, Step, add
 from tml.language.actions import BoundAction
 from tml.patterns import displaced
 
@@ -129,17 +130,83 @@ def return_home_items(b: items.Builder, action: BoundAction) -> None:
     b.waypoint((0.0, 0.0, b.cursor.position[2]))
 
 
+# --- motion models (tml verify) -------------------------------------------------------------
+
+def go_to_point_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                       labels: Labels) -> Step:
+    point, unknown = model.point_of(bound, labels)
+    if unknown:
+        return model.unknown(state, labels, unknown)
+    if point is None:
+        point = add(state.position, bound.point("relative_coordinates"))
+    return model.go(bound, state, labels, [point])
+
+
+def move_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                labels: Labels) -> Step:
+    offset = bound.point("coordinates", None)
+    if offset is not None:
+        return model.go(bound, state, labels, [add(state.position, offset)])
+    target = displaced(state.position, state.heading, bound.choice("direction"),
+                       bound.number("distance"))
+    return model.go(bound, state, labels, [target])
+
+
+def move_forwards_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                         labels: Labels) -> Step:
+    target = displaced(state.position, state.heading, "forward", bound.number("distance"))
+    return model.go(bound, state, labels, [target])
+
+
+def move_from_home_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                          labels: Labels) -> Step:
+    return model.go(bound, state, labels, [add(state.home, bound.point("coordinates"))])
+
+
+def go_to_position_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                          labels: Labels) -> Step:
+    return model.go(bound, state, labels, [model.global_point(bound)])
+
+
+def set_altitude_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                        labels: Labels) -> Step:
+    altitude = bound.number("altitude")
+    if bound.choice("altitude_reference") == "amsl":
+        altitude -= model.home.altitude
+    return model.go(bound, state, labels, [(*state.position[:2], altitude)])
+
+
+def return_home_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                       labels: Labels) -> Step:
+    return model.go(bound, state, labels, [(*state.home[:2], state.position[2])])
+
+
+def go_to_rectangle_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                           labels: Labels) -> Step:
+    colour = bound.text("frame_color").lower()
+    frames = [o for o in model.world.objects if o.kind == "frame" and o.color.lower() == colour]
+    if not frames:
+        return Step(state, state, labels=labels, notes=(
+            f"no {colour} frame in the world: where it is is known only in flight",))
+    frame = frames[0]
+    return model.go(bound, state, labels, [(frame.north, frame.east, frame.altitude)])
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
-    ActionDef(spec("GO_TO_POINT"), guided=go_to_point, drives=True, items=go_to_point_items),
-    ActionDef(spec("MOVE"), guided=move, drives=True, items=move_items),
-    ActionDef(spec("MOVE_FORWARDS"), guided=move_forwards, drives=True, items=move_forwards_items),
+    ActionDef(spec("GO_TO_POINT"), guided=go_to_point, drives=True, items=go_to_point_items,
+              motion=go_to_point_motion),
+    ActionDef(spec("MOVE"), guided=move, drives=True, items=move_items, motion=move_motion),
+    ActionDef(spec("MOVE_FORWARDS"), guided=move_forwards, drives=True, items=move_forwards_items,
+              motion=move_forwards_motion),
     ActionDef(spec("MOVE_FROM_HOME"), guided=move_from_home, drives=True,
-              items=move_from_home_items),
+              items=move_from_home_items, motion=move_from_home_motion),
     ActionDef(spec("GO_TO_POSITION"), guided=go_to_position, drives=True,
-              items=go_to_position_items),
-    ActionDef(spec("SET_ALTITUDE"), guided=set_altitude, drives=True, items=set_altitude_items),
-    ActionDef(spec("RETURN_HOME"), guided=return_home, drives=True, items=return_home_items),
+              items=go_to_position_items, motion=go_to_position_motion),
+    ActionDef(spec("SET_ALTITUDE"), guided=set_altitude, drives=True, items=set_altitude_items,
+              motion=set_altitude_motion),
+    ActionDef(spec("RETURN_HOME"), guided=return_home, drives=True, items=return_home_items,
+              motion=return_home_motion),
     ActionDef(spec("GO_TO_RECTANGLE"), guided=go_to_rectangle, drives=True,
               items=NotApplicable("flies to a frame the camera sees in flight, which no "
-                                  "mission item can name")),
+                                  "mission item can name"), motion=go_to_rectangle_motion),
 )

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from tml.actions import guided, items, mav
 from tml.actions.definition import ActionDef, NotApplicable, spec
 from tml.actions.guided import Context, Script, Send
+from tml.actions.motion import Labels, Motion, PredictedState, Step
 from tml.language.actions import BoundAction
 from tml.vehicle import SetHome, SetSpeed
 
@@ -55,10 +58,42 @@ def set_home_items(b: items.Builder, action: BoundAction) -> None:
                round(action.number("longitude") * 1e7), action.number("altitude")))
 
 
+# --- motion models (tml verify) -------------------------------------------------------------
+
+def memorize_point_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                          labels: Labels) -> Step:
+    label = bound.labels.get("coordinates")
+    if label:
+        labels[label] = state.position
+    return Step(state, state, labels=labels)
+
+
+def set_speed_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                     labels: Labels) -> Step:
+    kind, value = bound.choice("speed_type"), bound.number("speed")
+    if kind == "climb":
+        after = replace(state, climb_rate=min(value, model.profile.climb_rate))
+    elif kind == "descent":
+        after = replace(state, descent_rate=min(value, model.profile.descent_rate))
+    else:
+        after = replace(state, speed=value)
+    return Step(state, after, labels=labels, requested_speed=(kind, value))
+
+
+def set_home_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                    labels: Labels) -> Step:
+    if "latitude" not in bound.values:
+        home = state.position
+    else:
+        home = model.local(bound.number("latitude"), bound.number("longitude"),
+                           bound.number("altitude"), "amsl")
+    return Step(state, replace(state, home=home), labels=labels)
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
-    ActionDef(spec("SET_SPEED"), guided=set_speed, items=set_speed_items),
-    ActionDef(spec("SET_HOME"), guided=set_home, items=set_home_items),
+    ActionDef(spec("SET_SPEED"), guided=set_speed, items=set_speed_items, motion=set_speed_motion),
+    ActionDef(spec("SET_HOME"), guided=set_home, items=set_home_items, motion=set_home_motion),
     ActionDef(spec("MEMORIZE_POINT"), guided=memorize_point,
               items=NotApplicable("remembers a position in tml, which no mission item "
-                                  "can do")),
+                                  "can do"), motion=memorize_point_motion),
 )

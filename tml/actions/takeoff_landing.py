@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 from tml.actions import guided, items, mav
 from tml.actions.definition import ActionDef, spec
 from tml.actions.guided import LANDED_READS, Context, Script, Send, Until, fly_to
+from tml.actions.motion import Labels, Motion, PredictedState, Step
 from tml.language.actions import BoundAction
 from tml.language.kinds import Kind
+from tml.patterns import displaced
 from tml.vehicle import Arm, Disarm, Land, ReturnToLaunch, SetMode, SetYaw, TakeOff
 
 
@@ -186,10 +189,64 @@ def return_home_and_land_items(b: items.Builder, action: BoundAction) -> None:
     items.land_at(b, action, b.cursor.position, "relative")
 
 
+# --- motion models (tml verify) -------------------------------------------------------------
+
+def take_off_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                    labels: Labels) -> Step:
+    if state.flying:
+        return Step(state, state, labels=labels, notes=("already flying: ignored",))
+    if model.profile.kind is Kind.GROUND:
+        return Step(state, state, labels=labels)  # refused: see the vehicle constraint
+    written = bound.action.argument("altitude", "height") is not None
+    altitude = bound.number("altitude") if written else model.profile.takeoff_altitude
+    target = (state.position[0], state.position[1], altitude)
+    if model.profile.kind is Kind.FIXED_WING:  # a climb along the heading
+        run = altitude / model.profile.climb_rate * model.profile.cruise_speed
+        target = (*displaced(state.position, state.heading, "forward", run)[:2], altitude)
+    step = model.go(bound, replace(state, flying=True), labels, [target], cruise=False)
+    return replace(step, before=state)
+
+
+def land_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                labels: Labels) -> Step:
+    if model.profile.kind is Kind.FIXED_WING:
+        return model.landing(bound, state, labels, None)
+    if model.profile.kind is Kind.GROUND:
+        return Step(state, state, labels=labels)  # refused: see the vehicle constraint
+    target = (state.position[0], state.position[1], 0.0)
+    step = model.go(bound, state, labels, [target], landing=True, cruise=False)
+    return replace(step, after=replace(step.after, flying=False))
+
+
+def landing_point_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                         labels: Labels) -> Step:
+    point, unknown = model.point_of(bound, labels)
+    if unknown:
+        return model.unknown(state, labels, unknown)
+    if point is None:
+        point = model.global_point(bound)
+    if model.profile.kind is Kind.FIXED_WING:
+        return model.landing(bound, state, labels, (point[0], point[1], 0.0))
+    targets = [(point[0], point[1], state.position[2]), (point[0], point[1], 0.0)]
+    step = model.go(bound, state, labels, targets, landing=True, cruise=False)
+    return replace(step, after=replace(step.after, flying=False))
+
+
+def return_home_and_land_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                                labels: Labels) -> Step:
+    if model.profile.kind is Kind.FIXED_WING:
+        return model.landing(bound, state, labels, state.home)
+    after, legs, blocked = model.fly_home_and_land(state, state.home)
+    return Step(state, replace(after, flying=False), tuple(legs), tuple(blocked),
+                labels=labels, destination=state.home)
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
-    ActionDef(spec("TAKE_OFF"), guided=take_off, resumed=_climb_on, items=take_off_items),
-    ActionDef(spec("LAND"), guided=land, items=land_items),
-    ActionDef(spec("LANDING_POINT"), guided=landing_point, items=landing_point_items),
+    ActionDef(spec("TAKE_OFF"), guided=take_off, resumed=_climb_on, items=take_off_items,
+              motion=take_off_motion),
+    ActionDef(spec("LAND"), guided=land, items=land_items, motion=land_motion),
+    ActionDef(spec("LANDING_POINT"), guided=landing_point, items=landing_point_items,
+              motion=landing_point_motion),
     ActionDef(spec("RETURN_HOME_AND_LAND"), guided=return_home_and_land,
-              items=return_home_and_land_items),
+              items=return_home_and_land_items, motion=return_home_and_land_motion),
 )

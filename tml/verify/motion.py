@@ -24,122 +24,35 @@ takes off in a climb along its heading and lands along an approach
 (:func:`tml.language.kinds.landing_approach`), gliding to a touchdown ahead of it or at the point
 it lands on; a ground vehicle drives every point at 0 m, is underway (armed) from its first
 move on, and its RETURN_HOME_AND_LAND drives home and stops.
+
+What each action does in the model is the ``motion`` part of its definition in the action
+registry (:mod:`tml.actions`), made of the pieces :class:`FlightModel` offers (fly, hover,
+circle, land ...); the state and the step are :mod:`tml.actions.motion`'s.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from itertools import pairwise
 
 from tml import geo
-from tml.language.actions import GLOBAL_FRAME_NUMBERS, BoundAction, table_entry
+from tml.actions.motion import Labels, Loiter, PredictedState, Step
+from tml.actions.registry import definition
+from tml.language.actions import BoundAction
 from tml.language.kinds import Kind, landing_approach
-from tml.language.mavlink_tables import MAV_FRAME
 from tml.patterns import (
     CIRCLE_POINTS_PER_TURN,
-    circle,
     circle_chord,
     circle_entry,
     circle_point,
-    displaced,
-    expanding_square,
     stop_to_stop,
-    survey,
 )
 from tml.verify.planner import Planner, Point3, Trajectory, straight
 from tml.verify.profile import VehicleProfile
 from tml.world import DEFAULT_HOME, World
 
-Labels = dict[str, Point3]
-
-
-@dataclass(frozen=True)
-class PredictedState:
-    """The variables: what the vehicle is predicted to be and have at one moment.
-
-    Not the vehicle's state as the engine reads it in flight
-    (:class:`tml.vehicle.VehicleState`, from telemetry): a prediction holds only what the
-    feasibility model reasons about, with no link, mode or sensor in it, and always a
-    position (:func:`tml.verify.inflight.live_variables` makes one from the other)."""
-
-    position: Point3 = (0.0, 0.0, 0.0)  # local metres from home
-    battery: float = 100.0  # percent
-    time: float = 0.0  # s since the mission started
-    heading: float = 0.0  # degrees clockwise from north
-    flying: bool = False
-    home: Point3 = (0.0, 0.0, 0.0)  # where RETURN_HOME goes (SET_HOME moves it)
-    speed: float | None = None  # m/s set by SET_SPEED; None: the profile's cruise speed
-    climb_rate: float | None = None  # m/s set by SET_SPEED speed_type=climb
-    descent_rate: float | None = None  # m/s set by SET_SPEED speed_type=descent
-
-
-@dataclass(frozen=True)
-class Loiter:
-    """A circle flown around a centre, joined at the bearing ``start`` (radians)."""
-
-    centre: Point3
-    radius: float
-    start: float = 0.0
-
-    def points(self) -> list[Point3]:
-        """One turn of the circle as it is flown (:func:`tml.patterns.circle`): a closed
-        polygonal line through the targets, at the centre's altitude."""
-        return circle(self.centre, self.radius, self.start)
-
-
-@dataclass(frozen=True)
-class Step:
-    """What one action does, as predicted from the state before it."""
-
-    before: PredictedState
-    after: PredictedState
-    legs: tuple[Trajectory, ...] = ()  # paths flown, in order
-    blocked: tuple[tuple[Point3, Point3], ...] = ()  # legs with no collision-free path
-    destination: Point3 | None = None  # the point the action flies to (checked by c1)
-    loiter: Loiter | None = None
-    circle_metres: float = 0.0  # metres flown around the loiter circle
-    requested_speed: tuple[str, float] | None = None  # (speed_type, m/s) of SET_SPEED
-    cruise: bool = False  # a translation leg, held to the cruise altitude limits
-    labels: Labels = field(default_factory=dict)  # labels after the action
-    unknown_label: str = ""  # a label read that holds no point at this point
-    notes: tuple[str, ...] = ()
-
-    @property
-    def distance(self) -> float:
-        """Metres flown (loiter circles included)."""
-        return sum(leg.length for leg in self.legs) + self.circle_metres
-
-    @property
-    def duration(self) -> float:
-        """Seconds the action takes."""
-        return self.after.time - self.before.time
-
-    @property
-    def energy(self) -> float:
-        """Percent of the battery the action uses."""
-        return self.before.battery - self.after.battery
-
-    def path_points(self) -> list[Point3]:
-        """Every vertex of the paths flown and of the loiter circle."""
-        points = [p for leg in self.legs for p in leg.points]
-        return points + (self.loiter.points() if self.loiter is not None else [])
-
-    def waypoints(self) -> list[tuple[Point3, float]]:
-        """Every vertex of the paths flown with the battery predicted there; the battery
-        falls in proportion to the distance flown along the legs."""
-        total = sum(leg.length for leg in self.legs)
-        flown = 0.0
-        found: list[tuple[Point3, float]] = []
-        for leg in self.legs:
-            previous = leg.points[0]
-            for point in leg.points:
-                flown += math.dist(previous, point)
-                previous = point
-                share = flown / total if total else 1.0
-                found.append((point, self.before.battery - self.energy * share))
-        return found
+__all__ = ["FlightModel", "Labels", "Loiter", "PredictedState", "Step"]
 
 
 class FlightModel:
@@ -260,20 +173,16 @@ class FlightModel:
         up = altitude - home.altitude if reference == "amsl" else altitude
         return (north, east, up)
 
-    # --- the actions ----------------------------------------------------------------------
+    # --- the actions: each one's model is in its module of tml.actions ----------------------
 
     def step(self, bound: BoundAction, state: PredictedState,
              labels: Labels | None = None) -> Step:
         """Predict one action from ``state`` (pure: neither argument is changed)."""
-        labels = dict(labels or {})
-        handler: Callable[[BoundAction, PredictedState, Labels], Step] | None = getattr(
-            self, "_" + bound.name.lower(), None)
-        if handler is None:
-            return Step(state, state, labels=labels,
-                        notes=(f"{bound.name} takes no time or battery in the model",))
-        return handler(bound, state, labels)
+        return definition(bound).motion(self, bound, state, dict(labels or {}))
 
-    def _point(self, bound: BoundAction, labels: Labels, name: str = "coordinates") -> tuple[
+    # --- the pieces the action models (tml.actions) are made of ---------------------------
+
+    def point_of(self, bound: BoundAction, labels: Labels, name: str = "coordinates") -> tuple[
             Point3 | None, str]:
         """The point an argument gives (value or label); (None, label) for an unknown label."""
         if name in bound.labels:
@@ -281,141 +190,43 @@ class FlightModel:
             return labels.get(label), ("" if label in labels else label)
         return bound.point(name, None), ""
 
-    def _global(self, bound: BoundAction) -> Point3:
+    def global_point(self, bound: BoundAction) -> Point3:
         """The local point of the action's latitude, longitude, altitude and reference."""
         return self.local(bound.number("latitude"), bound.number("longitude"),
                           bound.number("altitude"), bound.choice("altitude_reference"))
 
-    def _go(self, bound: BoundAction, state: PredictedState, labels: Labels,
-            targets: list[Point3], landing: bool = False, cruise: bool = True) -> Step:
+    def go(self, bound: BoundAction, state: PredictedState, labels: Labels,
+           targets: list[Point3], landing: bool = False, cruise: bool = True) -> Step:
+        """Fly through ``targets`` (planned around the obstacles); ``landing``: the last is
+        a touch-down; ``cruise``: a translation held to the cruise altitude limits."""
         after, legs, blocked = self.fly(state, targets, landing=landing)
         destination = targets[-1] if targets else None
         return Step(state, after, tuple(legs), tuple(blocked), labels=labels,
                     destination=destination, cruise=cruise)
 
-    def _unknown(self, state: PredictedState, labels: Labels, label: str) -> Step:
+    def unknown(self, state: PredictedState, labels: Labels, label: str) -> Step:
+        """The step of a move to a label that holds no point: not predicted, noted."""
         return Step(state, state, labels=labels, unknown_label=label,
                     notes=(f"label {label!r} holds no point here; the move is not predicted",))
 
-    def _take_off(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        if state.flying:
-            return Step(state, state, labels=labels, notes=("already flying: ignored",))
-        if self.profile.kind is Kind.GROUND:
-            return Step(state, state, labels=labels)  # refused: see the vehicle constraint
-        written = bound.action.argument("altitude", "height") is not None
-        altitude = bound.number("altitude") if written else self.profile.takeoff_altitude
-        target = (state.position[0], state.position[1], altitude)
-        if self.profile.kind is Kind.FIXED_WING:  # a climb along the heading
-            run = altitude / self.profile.climb_rate * self.profile.cruise_speed
-            target = (*displaced(state.position, state.heading, "forward", run)[:2], altitude)
-        step = self._go(bound, replace(state, flying=True), labels, [target], cruise=False)
-        return replace(step, before=state)
-
-    def _landing(self, bound: BoundAction, state: PredictedState, labels: Labels,
-                 touchdown: Point3 | None) -> Step:
+    def landing(self, bound: BoundAction, state: PredictedState, labels: Labels,
+                touchdown: Point3 | None) -> Step:
         """A fixed-wing's approach and glide to ``touchdown`` (None: straight ahead)."""
         approach, ground = landing_approach(state.position, state.heading, touchdown)
         targets = [ground] if approach == state.position else [approach, ground]
-        step = self._go(bound, state, labels, targets, cruise=False)
+        step = self.go(bound, state, labels, targets, cruise=False)
         return replace(step, after=replace(step.after, flying=False))
 
-    def _land(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        if self.profile.kind is Kind.FIXED_WING:
-            return self._landing(bound, state, labels, None)
-        if self.profile.kind is Kind.GROUND:
-            return Step(state, state, labels=labels)  # refused: see the vehicle constraint
-        target = (state.position[0], state.position[1], 0.0)
-        step = self._go(bound, state, labels, [target], landing=True, cruise=False)
-        return replace(step, after=replace(step.after, flying=False))
-
-    def _go_to_point(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        point, unknown = self._point(bound, labels)
-        if unknown:
-            return self._unknown(state, labels, unknown)
-        if point is None:
-            point = _add(state.position, bound.point("relative_coordinates"))
-        return self._go(bound, state, labels, [point])
-
-    def _move(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        offset = bound.point("coordinates", None)
-        if offset is not None:
-            return self._go(bound, state, labels, [_add(state.position, offset)])
-        target = displaced(state.position, state.heading, bound.choice("direction"),
-                           bound.number("distance"))
-        return self._go(bound, state, labels, [target])
-
-    def _move_forwards(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        target = displaced(state.position, state.heading, "forward", bound.number("distance"))
-        return self._go(bound, state, labels, [target])
-
-    def _move_from_home(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        return self._go(bound, state, labels, [_add(state.home, bound.point("coordinates"))])
-
-    def _go_to_position(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        return self._go(bound, state, labels, [self._global(bound)])
-
-    def _set_altitude(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        altitude = bound.number("altitude")
-        if bound.choice("altitude_reference") == "amsl":
-            altitude -= self.home.altitude
-        return self._go(bound, state, labels, [(*state.position[:2], altitude)])
-
-    def _return_home(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        return self._go(bound, state, labels, [(*state.home[:2], state.position[2])])
-
-    def _return_home_and_land(self, bound: BoundAction, state: PredictedState,
-                              labels: Labels) -> Step:
-        if self.profile.kind is Kind.FIXED_WING:
-            return self._landing(bound, state, labels, state.home)
-        after, legs, blocked = self.fly_home_and_land(state, state.home)
-        return Step(state, replace(after, flying=False), tuple(legs), tuple(blocked),
-                    labels=labels, destination=state.home)
-
-    def _return_home_and_loiter(self, bound: BoundAction, state: PredictedState,
-                                labels: Labels) -> Step:
-        step = self._circle(bound, state, labels, (*state.home[:2], state.position[2]),
-                            bound.number("radius"))
-        return replace(step, notes=(
-            "circles home until an event ends it; no time counted for it",))
-
-    def _landing_point(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        point, unknown = self._point(bound, labels)
-        if unknown:
-            return self._unknown(state, labels, unknown)
-        if point is None:
-            point = self._global(bound)
-        if self.profile.kind is Kind.FIXED_WING:
-            return self._landing(bound, state, labels, (point[0], point[1], 0.0))
-        targets = [(point[0], point[1], state.position[2]), (point[0], point[1], 0.0)]
-        step = self._go(bound, state, labels, targets, landing=True, cruise=False)
-        return replace(step, after=replace(step.after, flying=False))
-
-    def _loiter(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        centre, unknown = self._point(bound, labels)
-        if unknown:
-            return self._unknown(state, labels, unknown)
-        relative = bound.point("relative_coordinates", None)
-        from_home = bound.point("from_home", None)
-        if centre is None and relative is not None:
-            centre = _add(state.position, relative)
-        elif centre is None and from_home is not None:
-            centre = _add(state.home, from_home)
-        elif centre is None and "latitude" in bound.values:
-            centre = self._global(bound)
-        return self._circle(bound, state, labels, centre or state.position,
-                            bound.number("radius"), bound.integer("turns", None),
-                            bound.number("duration", None))
-
-    def _circle(self, bound: BoundAction, state: PredictedState, labels: Labels,
-                centre: Point3, radius: float, turns: int | None = None,
-                duration: float | None = None) -> Step:
+    def circle(self, bound: BoundAction, state: PredictedState, labels: Labels,
+               centre: Point3, radius: float, turns: int | None = None,
+               duration: float | None = None) -> Step:
         """Join the circle around ``centre`` and go round it, as the scripts fly it: to its
         nearest point (not to its centre, often the very thing it circles around), then
         from target to target (:mod:`tml.patterns`) for ``turns`` or ``duration`` seconds
         (neither: until an event ends it)."""
         start = circle_entry(centre, state.position)
         entry = circle_point(centre, radius, start, 0)
-        step = self._go(bound, state, labels, [entry] if entry != state.position else [])
+        step = self.go(bound, state, labels, [entry] if entry != state.position else [])
         step = replace(step, destination=centre, loiter=Loiter(centre, radius, start))
         speed = min(state.speed or self.profile.cruise_speed, self.profile.max_speed)
         chord = circle_chord(radius)
@@ -432,124 +243,4 @@ class FlightModel:
                         battery=step.after.battery - self.energy(metres, seconds))
         return replace(step, after=after, circle_metres=metres)
 
-    def _survey_area(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        base, unknown = self._point(bound, labels)
-        if unknown:
-            return self._unknown(state, labels, unknown)
-        if base is None and "latitude" in bound.values:
-            base = self.local(bound.number("latitude"), bound.number("longitude"), 0.0,
-                              "relative")
-        base = base or state.position
-        altitude = bound.number("altitude", None) or state.position[2]
-        targets = survey((base[0], base[1], altitude), bound.number("length"),
-                         bound.number("width"), bound.number("spacing"),
-                         bound.choice("direction"))
-        return self._go(bound, state, labels, targets)
 
-    def _explore_space(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        targets = expanding_square(state.position, bound.number("radius"),
-                                   bound.number("spacing"))
-        return self._go(bound, state, labels, targets)
-
-    def _go_to_rectangle(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        colour = bound.text("frame_color").lower()
-        frames = [o for o in self.world.objects if o.kind == "frame" and o.color.lower() == colour]
-        if not frames:
-            return Step(state, state, labels=labels, notes=(
-                f"no {colour} frame in the world: where it is is known only in flight",))
-        frame = frames[0]
-        return self._go(bound, state, labels, [(frame.north, frame.east, frame.altitude)])
-
-    def _rotate_yaw(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        angle = bound.number("angle", None)
-        if angle is not None:
-            turn = angle
-        else:
-            turn = (bound.number("orientation_angle") - state.heading + 180.0) % 360.0 - 180.0
-        after = self.hover(state, abs(turn) / self.profile.yaw_rate)
-        return Step(state, replace(after, heading=(state.heading + turn) % 360.0), labels=labels)
-
-    def _mission_item(self, bound: BoundAction, state: PredictedState,
-                      labels: Labels) -> Step:
-        """A raw mission item, as the autopilot flies its command: a take-off climbs, a
-        navigation item with a position flies there (and holds or loiters its param1
-        seconds where the command says so), a landing lands, a return to launch comes
-        home; other commands (DO_, CONDITION_) take no time. A DO_JUMP's repeats are not
-        predicted."""
-        command = bound.text("command").removeprefix("MAV_CMD_")
-        frame = table_entry(MAV_FRAME, bound.text("frame"))
-        hold = bound.number("param1")
-        altitude = bound.number("param7")
-        if not math.isfinite(altitude):
-            altitude = state.position[2]
-        elif frame is not None and frame[0] in (0, 5):  # above sea level
-            altitude -= self.home.altitude if self.home is not None else DEFAULT_HOME.altitude
-        latitude, longitude = bound.number("param5"), bound.number("param6")
-        placed = frame is not None and frame[0] in GLOBAL_FRAME_NUMBERS \
-            and (latitude or longitude)
-        if bound.number("param7") == 0:  # ArduCopter: an altitude of 0 is the current one
-            altitude = state.position[2]
-        here = self.local(latitude, longitude, altitude, "relative") if placed \
-            else (*state.position[:2], altitude)
-        if command in ("NAV_TAKEOFF", "NAV_VTOL_TAKEOFF"):
-            if state.flying or self.profile.kind is Kind.GROUND:
-                return Step(state, state, labels=labels)
-            step = self._go(bound, replace(state, flying=True), labels,
-                            [(*state.position[:2], altitude)], cruise=False)
-            return replace(step, before=state)
-        if command in ("NAV_LAND", "NAV_VTOL_LAND"):
-            if self.profile.kind is Kind.GROUND:
-                return Step(state, state, labels=labels)
-            target = (*here[:2], 0.0) if placed else (*state.position[:2], 0.0)
-            if self.profile.kind is Kind.FIXED_WING:
-                return self._landing(bound, state, labels, target)
-            targets = [(*here[:2], state.position[2]), target] if placed else [target]
-            step = self._go(bound, state, labels, targets, landing=True, cruise=False)
-            return replace(step, after=replace(step.after, flying=False))
-        if command == "NAV_RETURN_TO_LAUNCH":
-            return self._return_home_and_land(bound, state, labels)
-        if command == "NAV_DELAY" and hold > 0:
-            return Step(state, self.hover(state, hold), labels=labels)
-        if command.startswith("NAV_") and command not in ("NAV_DELAY",):
-            step = self._go(bound, state, labels, [here])
-            if command in ("NAV_WAYPOINT", "NAV_LOITER_TIME") and hold > 0 \
-                    and math.isfinite(hold):
-                step = replace(step, after=self.hover(step.after, hold))
-            return step
-        notes = ("DO_JUMP: its repeats are not predicted",) if command == "DO_JUMP" else ()
-        return Step(state, state, labels=labels, notes=notes)
-
-    def _wait(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        return Step(state, self.hover(state, bound.number("duration")), labels=labels)
-
-    def _capture_photos(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        seconds = (bound.integer("count") - 1) * bound.number("interval")
-        return Step(state, self.hover(state, seconds), labels=labels)
-
-    def _memorize_point(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        label = bound.labels.get("coordinates")
-        if label:
-            labels[label] = state.position
-        return Step(state, state, labels=labels)
-
-    def _set_speed(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        kind, value = bound.choice("speed_type"), bound.number("speed")
-        if kind == "climb":
-            after = replace(state, climb_rate=min(value, self.profile.climb_rate))
-        elif kind == "descent":
-            after = replace(state, descent_rate=min(value, self.profile.descent_rate))
-        else:
-            after = replace(state, speed=value)
-        return Step(state, after, labels=labels, requested_speed=(kind, value))
-
-    def _set_home(self, bound: BoundAction, state: PredictedState, labels: Labels) -> Step:
-        if "latitude" not in bound.values:
-            home = state.position
-        else:
-            home = self.local(bound.number("latitude"), bound.number("longitude"),
-                              bound.number("altitude"), "amsl")
-        return Step(state, replace(state, home=home), labels=labels)
-
-
-def _add(a: Point3, b: tuple[float, ...]) -> Point3:
-    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])

@@ -48,45 +48,23 @@ import contextlib
 import heapq
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 from itertools import pairwise
 
 import numpy as np
 import shapely
 from shapely.geometry import LineString, Point, Polygon
 
+from tml.actions.motion import Point3, Trajectory, straight
 from tml.world import Cylinder, Obstacle
 
-Point3 = tuple[float, float, float]  # (north, east, up) in metres from home
+__all__ = ["Planner", "Point3", "Trajectory", "straight"]
+
 QUAD_SEGS = 3
 MARGIN = 0.01  # m between a test polygon and the graph nodes around it
 _COVER = 1.0 / math.cos(math.pi / (4 * QUAD_SEGS))
 # m: a segment this much nearer or farther than a polygon's inner or outer disk certainly
 # meets or misses it (the distances are computed to about 1e-12 m).
 _SURE = 1e-6
-
-
-@dataclass(frozen=True)
-class Trajectory:
-    """A path of straight segments in the local frame, from its first point to its last."""
-
-    points: tuple[Point3, ...]
-
-    @property
-    def length(self) -> float:
-        """Length in metres, climbs and descents included (the paper's Length)."""
-        return sum(math.dist(a, b) for a, b in pairwise(self.points))
-
-    @property
-    def horizontal_length(self) -> float:
-        """Length in metres over the ground."""
-        return sum(math.hypot(b[0] - a[0], b[1] - a[1])
-                   for a, b in pairwise(self.points))
-
-
-def straight(a: Point3, b: Point3) -> Trajectory:
-    """The straight segment from ``a`` to ``b``."""
-    return Trajectory((a, b)) if a != b else Trajectory((a,))
 
 
 class Planner:

@@ -111,3 +111,10 @@ def test_the_item_numbers_are_pymavlinks() -> None:
         full = name if name.startswith("GRIPPER") else \
             f"MAV_{name}" if name.startswith("FRAME") else f"MAV_CMD_{name}"
         assert getattr(mavlink, full) == value, name
+
+
+def test_an_item_time_goes_with_the_items() -> None:
+    first = next(d for d in DEFINITIONS if not isinstance(d.items, NotApplicable))
+    with pytest.raises(RegistryError, match=f"{first.name}: its item time must be"):
+        build([replace(first, item_time=NotApplicable("none")),
+               *(d for d in DEFINITIONS if d is not first)])

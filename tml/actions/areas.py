@@ -3,10 +3,14 @@
 
 from __future__ import annotations
 
-from tml.actions import guided, items
+import math
+from itertools import pairwise
+
+from tml.actions import guided, items, timing
 from tml.actions.definition import ActionDef, spec
-from tml.actions.guided import Context, Script, fly_to
+from tml.actions.guided import Context, Limits, Script, fly_to
 from tml.actions.motion import Labels, Motion, PredictedState, Step
+from tml.geo import Point
 from tml.language.actions import BoundAction
 from tml.patterns import expanding_square, survey
 
@@ -79,9 +83,20 @@ def explore_space_motion(model: Motion, bound: BoundAction, state: PredictedStat
     return model.go(bound, state, labels, targets)
 
 
+# --- time of the mission items (the interpreter's watch) ------------------------------------
+
+def survey_area_time(limits: Limits, vehicle_type: str, here: Point,
+                     bound: BoundAction) -> float:
+    """The lawnmower flown (:func:`tml.patterns.survey`), from its base."""
+    passes = survey((0.0, 0.0, 0.0), bound.number("length"), bound.number("width"),
+                    bound.number("spacing"), bound.choice("direction"))
+    return timing.nominal(limits, vehicle_type, here, bound) + sum(
+        limits.leg_seconds(vehicle_type, math.dist(a, b)) for a, b in pairwise(passes))
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
     ActionDef(spec("SURVEY_AREA"), guided=survey_area, drives=True, items=survey_area_items,
-              motion=survey_area_motion),
-    ActionDef(spec("EXPLORE_SPACE"), guided=explore_space, drives=True, items=explore_space_items,
-              motion=explore_space_motion),
+              motion=survey_area_motion, item_time=survey_area_time),
+    ActionDef(spec("EXPLORE_SPACE"), guided=explore_space, drives=True,
+              items=explore_space_items, motion=explore_space_motion, item_time=timing.nominal),
 )

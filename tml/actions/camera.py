@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from tml.actions import items, mav
+from tml.actions import items, mav, timing
 from tml.actions.definition import ActionDef, spec
 from tml.actions.guided import Context, Script, Send, Sleep
 from tml.actions.motion import Labels, Motion, PredictedState, Step, instant
@@ -64,11 +64,11 @@ def capture_photos_motion(model: Motion, bound: BoundAction, state: PredictedSta
 
 DEFINITIONS: tuple[ActionDef, ...] = (
     ActionDef(spec("CAPTURE_PHOTO"), guided=capture_photo, items=capture_photo_items,
-              motion=instant),
+              motion=instant, item_time=timing.nominal),
     ActionDef(spec("CAPTURE_PHOTOS"), guided=capture_photos, items=capture_photos_items,
-              motion=capture_photos_motion),
+              motion=capture_photos_motion, item_time=timing.nominal),
     ActionDef(spec("START_CAPTURING"), guided=start_capturing, items=start_capturing_items,
-              motion=instant),
+              motion=instant, item_time=timing.nominal),
     ActionDef(spec("STOP_CAPTURING"), guided=stop_capturing, items=stop_capturing_items,
-              motion=instant),
+              motion=instant, item_time=timing.nominal),
 )

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from tml.actions import guided, items
+from tml.actions import guided, items, timing
 from tml.actions.definition import ActionDef, spec
 from tml.actions.guided import Context, Script
 from tml.actions.motion import Labels, Motion, PredictedState, Step, add
@@ -92,7 +92,9 @@ def return_home_and_loiter_motion(model: Motion, bound: BoundAction, state: Pred
 
 
 DEFINITIONS: tuple[ActionDef, ...] = (
-    ActionDef(spec("LOITER"), guided=loiter, drives=True, items=loiter_items, motion=loiter_motion),
+    ActionDef(spec("LOITER"), guided=loiter, drives=True, items=loiter_items,
+              motion=loiter_motion, item_time=timing.until_stopped),
     ActionDef(spec("RETURN_HOME_AND_LOITER"), guided=return_home_and_loiter, drives=True,
-              items=return_home_and_loiter_items, motion=return_home_and_loiter_motion),
+              items=return_home_and_loiter_items, motion=return_home_and_loiter_motion,
+              item_time=timing.until_stopped),
 )

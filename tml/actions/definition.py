@@ -12,9 +12,10 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from tml.actions.guided import Context, Script
+from tml.actions.guided import Context, Limits, Script
 from tml.actions.items import Builder
 from tml.actions.motion import Labels, Motion, PredictedState, Step
+from tml.geo import Point
 from tml.language.actions import ActionSpec, BoundAction, lookup
 
 
@@ -40,6 +41,11 @@ MotionModel = Callable[[Motion, BoundAction, PredictedState, Labels], Step]
 (:mod:`tml.actions.motion`)."""
 
 
+ItemTime = Callable[[Limits, str, Point, BoundAction], float]
+"""The nominal seconds of the action flown as mission items by a vehicle of a type from a
+point (:mod:`tml.actions.timing`)."""
+
+
 @dataclass(frozen=True)
 class ActionDef:
     """Everything tml knows about one action, stage by stage.
@@ -47,6 +53,8 @@ class ActionDef:
     ``spec``: the arguments, as the language validates them (:mod:`tml.language.actions`);
     ``guided``: how ``dispatch="command"`` flies it; ``items``: the mission items
     ``dispatch="mission"`` flies (NotApplicable: the language refuses it there, E260);
+    ``item_time``: how long those items are expected to take (NotApplicable exactly when
+    ``items`` is);
     ``motion``: what ``tml verify`` predicts it does (:func:`tml.actions.motion.instant`
     for an action that takes no time or battery in the model); ``resumed``: how it goes on
     when a run interrupted while it ran is resumed with the vehicle in the air (None: as
@@ -57,6 +65,7 @@ class ActionDef:
     spec: ActionSpec
     guided: Procedure | NotApplicable
     items: ItemCompiler | NotApplicable
+    item_time: ItemTime | NotApplicable
     motion: MotionModel
     drives: bool = False
     resumed: Procedure | None = None
@@ -67,7 +76,7 @@ class ActionDef:
         return self.spec.name
 
 
-STAGES = ("guided", "items", "motion")
+STAGES = ("guided", "items", "item_time", "motion")
 """The fields of :class:`ActionDef` every action must fill (a part or a NotApplicable)."""
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from tml.actions import guided, items, mav
+from tml.actions import guided, items, mav, timing
 from tml.actions.definition import ActionDef, NotApplicable, spec
 from tml.actions.guided import ActionFailed, Context, Script, Send, Sleep, Until, fly_to
 from tml.actions.motion import Labels, Motion, PredictedState, Step, instant
@@ -103,13 +103,17 @@ def wait_motion(model: Motion, bound: BoundAction, state: PredictedState,
     return Step(state, model.hover(state, bound.number("duration")), labels=labels)
 
 
+_NO_ITEM = NotApplicable("has no mission item: ArduCopter enters FLIP from "
+                         "ALT_HOLD with the sticks held, never from a mission")
+"""Why FLIP has no mission item (nor an item time)."""
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
     ActionDef(spec("ROTATE_YAW"), guided=rotate_yaw, items=rotate_yaw_items,
-              motion=rotate_yaw_motion),
-    ActionDef(spec("STABILIZE"), guided=stabilize, items=stabilize_items, motion=instant),
-    ActionDef(spec("WAIT"), guided=wait, items=wait_items, motion=wait_motion),
-    ActionDef(spec("FLIP"), guided=flip,
-              items=NotApplicable("has no mission item: ArduCopter enters FLIP from "
-                                  "ALT_HOLD with the sticks held, never from a mission"),
-              motion=instant),
+              motion=rotate_yaw_motion, item_time=timing.nominal),
+    ActionDef(spec("STABILIZE"), guided=stabilize, items=stabilize_items, motion=instant,
+              item_time=timing.nominal),
+    ActionDef(spec("WAIT"), guided=wait, items=wait_items, motion=wait_motion,
+              item_time=timing.nominal),
+    ActionDef(spec("FLIP"), guided=flip, items=_NO_ITEM, motion=instant, item_time=_NO_ITEM),
 )

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 
-from tml.actions import guided, items
+from tml.actions import guided, items, timing
 from tml.actions.definition import ActionDef, NotApplicable, spec
 from tml.actions.guided import ActionFailed, Context, Script, fly_to
 from tml.actions.motion import Labels, Motion, PredictedState, Step, add
@@ -192,21 +192,26 @@ def go_to_rectangle_motion(model: Motion, bound: BoundAction, state: PredictedSt
     return model.go(bound, state, labels, [(frame.north, frame.east, frame.altitude)])
 
 
+_NO_ITEM = NotApplicable("flies to a frame the camera sees in flight, which no "
+                         "mission item can name")
+"""Why GO_TO_RECTANGLE has no mission item (nor an item time)."""
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
     ActionDef(spec("GO_TO_POINT"), guided=go_to_point, drives=True, items=go_to_point_items,
-              motion=go_to_point_motion),
-    ActionDef(spec("MOVE"), guided=move, drives=True, items=move_items, motion=move_motion),
+              motion=go_to_point_motion, item_time=timing.nominal),
+    ActionDef(spec("MOVE"), guided=move, drives=True, items=move_items, motion=move_motion,
+              item_time=timing.nominal),
     ActionDef(spec("MOVE_FORWARDS"), guided=move_forwards, drives=True, items=move_forwards_items,
-              motion=move_forwards_motion),
+              motion=move_forwards_motion, item_time=timing.nominal),
     ActionDef(spec("MOVE_FROM_HOME"), guided=move_from_home, drives=True,
-              items=move_from_home_items, motion=move_from_home_motion),
+              items=move_from_home_items, motion=move_from_home_motion, item_time=timing.nominal),
     ActionDef(spec("GO_TO_POSITION"), guided=go_to_position, drives=True,
-              items=go_to_position_items, motion=go_to_position_motion),
+              items=go_to_position_items, motion=go_to_position_motion, item_time=timing.nominal),
     ActionDef(spec("SET_ALTITUDE"), guided=set_altitude, drives=True, items=set_altitude_items,
-              motion=set_altitude_motion),
+              motion=set_altitude_motion, item_time=timing.nominal),
     ActionDef(spec("RETURN_HOME"), guided=return_home, drives=True, items=return_home_items,
-              motion=return_home_motion),
-    ActionDef(spec("GO_TO_RECTANGLE"), guided=go_to_rectangle, drives=True,
-              items=NotApplicable("flies to a frame the camera sees in flight, which no "
-                                  "mission item can name"), motion=go_to_rectangle_motion),
+              motion=return_home_motion, item_time=timing.nominal),
+    ActionDef(spec("GO_TO_RECTANGLE"), guided=go_to_rectangle, drives=True, items=_NO_ITEM,
+              motion=go_to_rectangle_motion, item_time=_NO_ITEM),
 )

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from tml.actions import guided, items, mav
+from tml.actions import guided, items, mav, timing
 from tml.actions.definition import ActionDef, spec
 from tml.actions.guided import ActionFailed, Context, Script, Send, Sleep, fly_to
 from tml.actions.motion import instant
@@ -40,6 +40,8 @@ def drop_item_items(b: items.Builder, action: BoundAction) -> None:
 
 
 DEFINITIONS: tuple[ActionDef, ...] = (
-    ActionDef(spec("PICK_UP_ITEM"), guided=pick_up_item, items=pick_up_item_items, motion=instant),
-    ActionDef(spec("DROP_ITEM"), guided=drop_item, items=drop_item_items, motion=instant),
+    ActionDef(spec("PICK_UP_ITEM"), guided=pick_up_item, items=pick_up_item_items, motion=instant,
+              item_time=timing.nominal),
+    ActionDef(spec("DROP_ITEM"), guided=drop_item, items=drop_item_items, motion=instant,
+              item_time=timing.nominal),
 )

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
-from tml.actions import items, mav
+from tml.actions import items, mav, timing
 from tml.actions.definition import ActionDef, NotApplicable, spec
 from tml.actions.motion import Labels, Motion, PredictedState, Step
 from tml.actions.takeoff_landing import return_home_and_land_motion
@@ -93,5 +93,5 @@ DEFINITIONS: tuple[ActionDef, ...] = (
     ActionDef(spec("MISSION_ITEM"),
               guided=NotApplicable("MISSION_ITEM is flown only as a mission item "
                                    "(dispatch=\"mission\")"),
-              items=mission_item_items, motion=mission_item_motion),
+              items=mission_item_items, motion=mission_item_motion, item_time=timing.nominal),
 )

@@ -64,6 +64,9 @@ def build(definitions: Iterable[ActionDef],
                  "mission item, its definition the opposite"
                  for name, spec in specs.items() if name in found and spec.mission_item
                  is isinstance(found[name].items, NotApplicable)]
+    problems += [f"{name}: its item time must be NotApplicable exactly when its items are"
+                 for name, d in found.items() if isinstance(d.items, NotApplicable)
+                 is not isinstance(d.item_time, NotApplicable)]
     if problems:
         raise RegistryError("the action registry is incomplete: " + "; ".join(problems))
     return MappingProxyType({name: found[name] for name in specs})

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from tml.actions import guided, items, mav
+from tml.actions import guided, items, mav, timing
 from tml.actions.definition import ActionDef, NotApplicable, spec
 from tml.actions.guided import Context, Script, Send
 from tml.actions.motion import Labels, Motion, PredictedState, Step
@@ -90,10 +90,16 @@ def set_home_motion(model: Motion, bound: BoundAction, state: PredictedState,
     return Step(state, replace(state, home=home), labels=labels)
 
 
+_NO_ITEM = NotApplicable("remembers a position in tml, which no mission item "
+                         "can do")
+"""Why MEMORIZE_POINT has no mission item (nor an item time)."""
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
-    ActionDef(spec("SET_SPEED"), guided=set_speed, items=set_speed_items, motion=set_speed_motion),
-    ActionDef(spec("SET_HOME"), guided=set_home, items=set_home_items, motion=set_home_motion),
-    ActionDef(spec("MEMORIZE_POINT"), guided=memorize_point,
-              items=NotApplicable("remembers a position in tml, which no mission item "
-                                  "can do"), motion=memorize_point_motion),
+    ActionDef(spec("SET_SPEED"), guided=set_speed, items=set_speed_items, motion=set_speed_motion,
+              item_time=timing.nominal),
+    ActionDef(spec("SET_HOME"), guided=set_home, items=set_home_items, motion=set_home_motion,
+              item_time=timing.nominal),
+    ActionDef(spec("MEMORIZE_POINT"), guided=memorize_point, items=_NO_ITEM,
+              motion=memorize_point_motion, item_time=_NO_ITEM),
 )

@@ -5,10 +5,11 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
-from tml.actions import guided, items, mav
+from tml.actions import guided, items, mav, timing
 from tml.actions.definition import ActionDef, spec
-from tml.actions.guided import LANDED_READS, Context, Script, Send, Until, fly_to
+from tml.actions.guided import LANDED_READS, Context, Limits, Script, Send, Until, fly_to
 from tml.actions.motion import Labels, Motion, PredictedState, Step
+from tml.geo import Point
 from tml.language.actions import BoundAction
 from tml.language.kinds import Kind
 from tml.patterns import displaced
@@ -241,12 +242,43 @@ def return_home_and_land_motion(model: Motion, bound: BoundAction, state: Predic
                 labels=labels, destination=state.home)
 
 
+# --- time of the mission items (the interpreter's watch) ------------------------------------
+
+def take_off_time(limits: Limits, vehicle_type: str, here: Point, bound: BoundAction) -> float:
+    """The climb to the take-off altitude."""
+    return timing.nominal(limits, vehicle_type, here, bound) \
+        + bound.number("altitude") / limits.climb_rate
+
+
+def land_time(limits: Limits, vehicle_type: str, here: Point, bound: BoundAction) -> float:
+    """Down where the vehicle is."""
+    return timing.nominal(limits, vehicle_type, here, bound) \
+        + timing.landing(limits, vehicle_type, here, here)
+
+
+def landing_point_time(limits: Limits, vehicle_type: str, here: Point,
+                       bound: BoundAction) -> float:
+    """Over the landing point (taken as where the vehicle is for a WGS84 one), then down."""
+    over = here if "latitude" in bound.values else timing.target(bound) or (0.0, 0.0, 0.0)
+    return timing.nominal(limits, vehicle_type, here, bound) \
+        + timing.landing(limits, vehicle_type, here, over)
+
+
+def return_home_and_land_time(limits: Limits, vehicle_type: str, here: Point,
+                              bound: BoundAction) -> float:
+    """Home, then down."""
+    return timing.nominal(limits, vehicle_type, here, bound) \
+        + timing.landing(limits, vehicle_type, here, (0.0, 0.0, 0.0))
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
     ActionDef(spec("TAKE_OFF"), guided=take_off, resumed=_climb_on, items=take_off_items,
-              motion=take_off_motion),
-    ActionDef(spec("LAND"), guided=land, items=land_items, motion=land_motion),
+              motion=take_off_motion, item_time=take_off_time),
+    ActionDef(spec("LAND"), guided=land, items=land_items, motion=land_motion,
+              item_time=land_time),
     ActionDef(spec("LANDING_POINT"), guided=landing_point, items=landing_point_items,
-              motion=landing_point_motion),
+              motion=landing_point_motion, item_time=landing_point_time),
     ActionDef(spec("RETURN_HOME_AND_LAND"), guided=return_home_and_land,
-              items=return_home_and_land_items, motion=return_home_and_land_motion),
+              items=return_home_and_land_items, motion=return_home_and_land_motion,
+              item_time=return_home_and_land_time),
 )

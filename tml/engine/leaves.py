@@ -20,8 +20,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from itertools import pairwise
 
+from tml.actions.definition import NotApplicable
+from tml.actions.registry import definition
 from tml.engine.composites import Node, NodeStatus
 from tml.engine.context import (
     WORK_MOVES,
@@ -37,10 +38,10 @@ from tml.engine.failures import Failure
 from tml.engine.records import TaskState
 from tml.engine.scripts import ActionFailed, Script, Send, Sleep, Until, script_for
 from tml.engine.wake import Waker
-from tml.language.actions import BoundAction, Category, bind
+from tml.errors import EngineError
+from tml.language.actions import BoundAction, bind
 from tml.language.failures import FailureReason
 from tml.language.model import Action, Task
-from tml.patterns import survey
 from tml.vehicle import FlyMission, Hold, Request, RequestResult
 
 
@@ -601,43 +602,16 @@ class PlanLeaf(Leaf):
 
 
 def item_limit(bound: BoundAction, pilot: Pilot, stall: float) -> float:
-    """How long one action of a mission plan may take: its nominal time, doubled, plus
-    slack; an endless loiter has no limit (an event ends it). ``stall`` when the action
-    gives no time of its own."""
+    """How long one action of a mission plan may take: its nominal time (the ``item_time``
+    of its definition, :mod:`tml.actions.timing`), doubled, plus slack; an endless loiter
+    has no limit (an event ends it). ``stall`` when the action gives no time of its own."""
     limits, here = pilot.limits, pilot.state.position or (0.0, 0.0, 0.0)
-    vehicle_type = pilot.state.vehicle_type
-    speed = limits.move_speed(vehicle_type)
-    turns, duration = _number(bound, "turns"), _number(bound, "duration")
-    if bound.name in ("LOITER", "RETURN_HOME_AND_LOITER") and turns is None \
-            and duration is None:
+    item_time = definition(bound).item_time
+    if isinstance(item_time, NotApplicable):  # compile_mission refused it before
+        raise EngineError(f"{bound.name} has no mission item: {item_time.reason}")
+    seconds = item_time(limits, pilot.state.vehicle_type, here, bound)
+    if math.isinf(seconds):
         return math.inf
-    seconds = duration or 0.0
-    if turns is not None:
-        seconds += 2 * math.pi * (_number(bound, "radius") or 0.0) * turns / speed
-    point = bound.point("coordinates", None) if bound.takes("coordinates") else None
-    if point is not None:
-        seconds += limits.leg_seconds(vehicle_type, math.dist(here, point))
-    if bound.name == "SURVEY_AREA":  # the lawnmower flown (tml.patterns), from its base
-        passes = survey((0.0, 0.0, 0.0), bound.number("length"), bound.number("width"),
-                        bound.number("spacing"), bound.choice("direction"))
-        seconds += sum(limits.leg_seconds(vehicle_type, math.dist(a, b))
-                       for a, b in pairwise(passes))
-    if bound.name == "TAKE_OFF":
-        seconds += (_number(bound, "altitude") or 0.0) / limits.climb_rate
-    if bound.spec.category is Category.TAKE_OFF_LANDING and bound.name != "TAKE_OFF":
-        # Over the landing point (home when none is given), then down at LAND_SPEED.
-        over = point or (0.0, 0.0, 0.0)
-        if "latitude" in bound.values or bound.name == "LAND":
-            over = here
-        seconds += limits.leg_seconds(vehicle_type, math.hypot(here[0] - over[0],
-                                                               here[1] - over[1])) \
-            + max(here[2], 15.0) / limits.land_rate
     if seconds == 0.0:
         return stall
     return limits.factor * seconds + limits.slack
-
-
-def _number(bound: BoundAction, name: str) -> float | None:
-    """A number argument of the action, None when it has no such argument or it is
-    absent."""
-    return bound.number(name, None) if bound.takes(name) else None

@@ -12,6 +12,7 @@ import pytest
 
 from tml.actions import mav
 from tml.actions.definition import STAGES, ActionDef, NotApplicable
+from tml.actions.reading import Reading
 from tml.actions.registry import MODULES, REGISTRY, RegistryError, build, definition
 from tml.language.actions import CATALOGUE
 
@@ -29,7 +30,8 @@ def test_the_registry_holds_every_catalogue_action_in_its_order() -> None:
 @pytest.mark.parametrize("stage", STAGES)
 def test_every_action_provides_every_stage(name: str, stage: str) -> None:
     part = getattr(definition(name), stage)
-    assert callable(part) or (isinstance(part, NotApplicable) and part.reason.strip())
+    assert callable(part) or (isinstance(part, Reading) and part.commands) \
+        or (isinstance(part, NotApplicable) and part.reason.strip())
 
 
 @pytest.mark.parametrize("stage", STAGES)
@@ -118,3 +120,9 @@ def test_an_item_time_goes_with_the_items() -> None:
     with pytest.raises(RegistryError, match=f"{first.name}: its item time must be"):
         build([replace(first, item_time=NotApplicable("none")),
                *(d for d in DEFINITIONS if d is not first)])
+
+
+def test_a_reading_of_no_command_is_no_part() -> None:
+    first = next(d for d in DEFINITIONS if isinstance(d.imports, Reading))
+    with pytest.raises(RegistryError, match=f"{first.name} has no 'imports' part"):
+        build([replace(d, imports=Reading({})) if d is first else d for d in DEFINITIONS])

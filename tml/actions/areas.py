@@ -7,7 +7,7 @@ import math
 from itertools import pairwise
 
 from tml.actions import guided, items, timing
-from tml.actions.definition import ActionDef, spec
+from tml.actions.definition import ActionDef, NotApplicable, spec
 from tml.actions.guided import Context, Limits, Script, fly_to
 from tml.actions.motion import Labels, Motion, PredictedState, Step
 from tml.geo import Point
@@ -96,7 +96,11 @@ def survey_area_time(limits: Limits, vehicle_type: str, here: Point,
 
 DEFINITIONS: tuple[ActionDef, ...] = (
     ActionDef(spec("SURVEY_AREA"), guided=survey_area, drives=True, items=survey_area_items,
-              motion=survey_area_motion, item_time=survey_area_time),
-    ActionDef(spec("EXPLORE_SPACE"), guided=explore_space, drives=True,
-              items=explore_space_items, motion=explore_space_motion, item_time=timing.nominal),
+              motion=survey_area_motion, item_time=survey_area_time,
+              imports=NotApplicable("its passes read back as GO_TO_POSITION "
+                                    "waypoints")),
+    ActionDef(spec("EXPLORE_SPACE"), guided=explore_space, drives=True, items=explore_space_items,
+              motion=explore_space_motion, item_time=timing.nominal,
+              imports=NotApplicable("its square reads back as GO_TO_POSITION "
+                                    "waypoints")),
 )

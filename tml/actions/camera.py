@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from tml.actions import items, mav, timing
+from tml.actions import items, mav, reading, timing
 from tml.actions.definition import ActionDef, spec
 from tml.actions.guided import Context, Script, Send, Sleep
 from tml.actions.motion import Labels, Motion, PredictedState, Step, instant
@@ -62,13 +62,31 @@ def capture_photos_motion(model: Motion, bound: BoundAction, state: PredictedSta
     return Step(state, model.hover(state, seconds), labels=labels)
 
 
+# --- reading mission items back (tml import) ------------------------------------------------
+
+def capture_photos_read(item: reading.ItemFields) -> reading.Arguments | None:
+    """IMAGE_START_CAPTURE of a number of photos."""
+    if item.param3 > 0:
+        return {"count": reading.value(item.param3), "interval": reading.value(item.param2)}
+    return None
+
+
+def start_capturing_read(item: reading.ItemFields) -> reading.Arguments | None:
+    """IMAGE_START_CAPTURE until stopped."""
+    return None if item.param3 > 0 else {"interval": reading.value(item.param2)}
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
     ActionDef(spec("CAPTURE_PHOTO"), guided=capture_photo, items=capture_photo_items,
-              motion=instant, item_time=timing.nominal),
+              motion=instant, item_time=timing.nominal,
+              imports=reading.Reading({mav.DO_DIGICAM_CONTROL: lambda item: {}})),
     ActionDef(spec("CAPTURE_PHOTOS"), guided=capture_photos, items=capture_photos_items,
-              motion=capture_photos_motion, item_time=timing.nominal),
+              motion=capture_photos_motion, item_time=timing.nominal,
+              imports=reading.Reading({mav.IMAGE_START_CAPTURE: capture_photos_read})),
     ActionDef(spec("START_CAPTURING"), guided=start_capturing, items=start_capturing_items,
-              motion=instant, item_time=timing.nominal),
+              motion=instant, item_time=timing.nominal,
+              imports=reading.Reading({mav.IMAGE_START_CAPTURE: start_capturing_read})),
     ActionDef(spec("STOP_CAPTURING"), guided=stop_capturing, items=stop_capturing_items,
-              motion=instant, item_time=timing.nominal),
+              motion=instant, item_time=timing.nominal,
+              imports=reading.Reading({mav.IMAGE_STOP_CAPTURE: lambda item: {}})),
 )

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import replace
 
-from tml.actions import guided, items, timing
-from tml.actions.definition import ActionDef, spec
+from tml.actions import guided, items, mav, reading, timing
+from tml.actions.definition import ActionDef, NotApplicable, spec
 from tml.actions.guided import Context, Script
 from tml.actions.motion import Labels, Motion, PredictedState, Step, add
 from tml.geo import Point
@@ -91,10 +92,46 @@ def return_home_and_loiter_motion(model: Motion, bound: BoundAction, state: Pred
         "circles home until an event ends it; no time counted for it",))
 
 
+# --- reading mission items back (tml import) ------------------------------------------------
+
+def _circle_read(item: reading.ItemFields, param1: str | None) -> reading.Arguments:
+    """A loiter item: its centre when it has one, ``param1`` (turns or duration), its
+    radius."""
+    arguments = reading.position({}, item) if reading.placed(item) else {}
+    if param1 is not None:
+        arguments[param1] = reading.value(item.param1)
+    if item.param3:
+        arguments["radius"] = reading.value(abs(item.param3))
+    return arguments
+
+
+def loiter_join(before: str, before_arguments: Mapping[str, str],
+                arguments: Mapping[str, str]) -> reading.Arguments | None:
+    """Turns beyond what one NAV_LOITER_TURNS keeps, written as several over one circle."""
+    same_circle = all(before_arguments.get(k) == arguments.get(k)
+                      for k in ("latitude", "longitude", "altitude", "radius"))
+    if before == "LOITER" and "turns" in arguments \
+            and before_arguments.get("turns") == str(items.LOITER_TURNS_MAX) and same_circle:
+        joined = dict(before_arguments)
+        joined["turns"] = str(items.LOITER_TURNS_MAX + int(arguments["turns"]))
+        return joined
+    return None
+
+
+LOITER_READING = reading.Reading({
+    mav.NAV_LOITER_UNLIM: lambda item: _circle_read(item, None),
+    mav.NAV_LOITER_TURNS: lambda item: _circle_read(item, "turns"),
+    mav.NAV_LOITER_TIME: lambda item: _circle_read(item, "duration"),
+}, join=loiter_join)
+"""LOITER from each loiter item."""
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
-    ActionDef(spec("LOITER"), guided=loiter, drives=True, items=loiter_items,
-              motion=loiter_motion, item_time=timing.until_stopped),
+    ActionDef(spec("LOITER"), guided=loiter, drives=True, items=loiter_items, motion=loiter_motion,
+              item_time=timing.until_stopped, imports=LOITER_READING),
     ActionDef(spec("RETURN_HOME_AND_LOITER"), guided=return_home_and_loiter, drives=True,
               items=return_home_and_loiter_items, motion=return_home_and_loiter_motion,
-              item_time=timing.until_stopped),
+              item_time=timing.until_stopped,
+              imports=NotApplicable("its circle reads back as a LOITER around "
+                                    "home's position")),
 )

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from tml.actions.guided import Context, Limits, Script
 from tml.actions.items import Builder
 from tml.actions.motion import Labels, Motion, PredictedState, Step
+from tml.actions.reading import Reading
 from tml.geo import Point
 from tml.language.actions import ActionSpec, BoundAction, lookup
 
@@ -59,6 +60,9 @@ class ActionDef:
     for an action that takes no time or battery in the model); ``resumed``: how it goes on
     when a run interrupted while it ran is resumed with the vehicle in the air (None: as
     ``guided``);
+    ``imports``: how ``tml import`` reads mission items back as it
+    (:mod:`tml.actions.reading`; NotApplicable for an action whose items read back as
+    another's);
     ``drives``: a ground vehicle arms itself to drive before it (its moves).
     """
 
@@ -67,6 +71,7 @@ class ActionDef:
     items: ItemCompiler | NotApplicable
     item_time: ItemTime | NotApplicable
     motion: MotionModel
+    imports: Reading | NotApplicable
     drives: bool = False
     resumed: Procedure | None = None
 
@@ -76,7 +81,7 @@ class ActionDef:
         return self.spec.name
 
 
-STAGES = ("guided", "items", "item_time", "motion")
+STAGES = ("guided", "items", "item_time", "motion", "imports")
 """The fields of :class:`ActionDef` every action must fill (a part or a NotApplicable)."""
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from tml.actions import guided, items, mav, timing
+from tml.actions import guided, items, mav, reading, timing
 from tml.actions.definition import ActionDef, NotApplicable, spec
 from tml.actions.guided import ActionFailed, Context, Script, Send, Sleep, Until, fly_to
 from tml.actions.motion import Labels, Motion, PredictedState, Step, instant
@@ -103,6 +103,25 @@ def wait_motion(model: Motion, bound: BoundAction, state: PredictedState,
     return Step(state, model.hover(state, bound.number("duration")), labels=labels)
 
 
+# --- reading mission items back (tml import) ------------------------------------------------
+
+def rotate_yaw_read(item: reading.ItemFields) -> reading.Arguments:
+    """CONDITION_YAW: a turn in the direction param3 gives when relative, else a heading."""
+    if item.param4:
+        return {"angle": reading.value(item.param1 * (-1 if item.param3 < 0 else 1))}
+    return {"orientation_angle": reading.value(item.param1)}
+
+
+def stabilize_read(item: reading.ItemFields) -> reading.Arguments | None:
+    """NAV_DELAY of no time."""
+    return {} if item.param1 <= 0 else None
+
+
+def wait_read(item: reading.ItemFields) -> reading.Arguments | None:
+    """NAV_DELAY of a time."""
+    return None if item.param1 <= 0 else {"duration": reading.value(item.param1)}
+
+
 _NO_ITEM = NotApplicable("has no mission item: ArduCopter enters FLIP from "
                          "ALT_HOLD with the sticks held, never from a mission")
 """Why FLIP has no mission item (nor an item time)."""
@@ -110,10 +129,12 @@ _NO_ITEM = NotApplicable("has no mission item: ArduCopter enters FLIP from "
 
 DEFINITIONS: tuple[ActionDef, ...] = (
     ActionDef(spec("ROTATE_YAW"), guided=rotate_yaw, items=rotate_yaw_items,
-              motion=rotate_yaw_motion, item_time=timing.nominal),
+              motion=rotate_yaw_motion, item_time=timing.nominal,
+              imports=reading.Reading({mav.CONDITION_YAW: rotate_yaw_read})),
     ActionDef(spec("STABILIZE"), guided=stabilize, items=stabilize_items, motion=instant,
-              item_time=timing.nominal),
+              item_time=timing.nominal, imports=reading.Reading({mav.NAV_DELAY: stabilize_read})),
     ActionDef(spec("WAIT"), guided=wait, items=wait_items, motion=wait_motion,
-              item_time=timing.nominal),
-    ActionDef(spec("FLIP"), guided=flip, items=_NO_ITEM, motion=instant, item_time=_NO_ITEM),
+              item_time=timing.nominal, imports=reading.Reading({mav.NAV_DELAY: wait_read})),
+    ActionDef(spec("FLIP"), guided=flip, items=_NO_ITEM, motion=instant, item_time=_NO_ITEM,
+              imports=_NO_ITEM),
 )

@@ -50,3 +50,14 @@ def number(text: str) -> int:
         return int(text)
     name = text.removeprefix("MAV_")
     return _FRAME[name] if name.startswith("FRAME_") else _CMD[name.removeprefix("CMD_")]
+
+AMSL_FRAMES = frozenset({FRAME_GLOBAL, FRAME_GLOBAL_INT})
+"""The global frames whose altitude is above mean sea level."""
+RELATIVE_FRAMES = frozenset({FRAME_GLOBAL_RELATIVE_ALT, FRAME_GLOBAL_RELATIVE_ALT_INT})
+"""The global frames whose altitude is above home."""
+TERRAIN_FRAMES = frozenset({FRAME_GLOBAL_TERRAIN_ALT, FRAME_GLOBAL_TERRAIN_ALT_INT})
+"""The global frames whose altitude is above the terrain."""
+GLOBAL_FRAMES = AMSL_FRAMES | RELATIVE_FRAMES | TERRAIN_FRAMES
+"""The frames whose x and y are latitude and longitude (degrees * 1e7)."""
+FLOAT_FRAMES = frozenset({FRAME_GLOBAL, FRAME_GLOBAL_RELATIVE_ALT, FRAME_GLOBAL_TERRAIN_ALT})
+"""The global frames without _INT, which frame_encoding="float" writes."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 
-from tml.actions import guided, items, timing
+from tml.actions import guided, items, mav, reading, timing
 from tml.actions.definition import ActionDef, NotApplicable, spec
 from tml.actions.guided import ActionFailed, Context, Script, fly_to
 from tml.actions.motion import Labels, Motion, PredictedState, Step, add
@@ -192,26 +192,48 @@ def go_to_rectangle_motion(model: Motion, bound: BoundAction, state: PredictedSt
     return model.go(bound, state, labels, [(frame.north, frame.east, frame.altitude)])
 
 
+# --- reading mission items back (tml import) ------------------------------------------------
+
+def go_to_position_read(item: reading.ItemFields) -> reading.Arguments | None:
+    """NAV_WAYPOINT at a position."""
+    return reading.position({}, item) if reading.placed(item) else None
+
+
+def set_altitude_read(item: reading.ItemFields) -> reading.Arguments | None:
+    """NAV_WAYPOINT "here", at an altitude."""
+    if reading.placed(item):
+        return None
+    return reading.encoding({"altitude": reading.value(item.z)}, item)
+
+
 _NO_ITEM = NotApplicable("flies to a frame the camera sees in flight, which no "
                          "mission item can name")
 """Why GO_TO_RECTANGLE has no mission item (nor an item time)."""
 
 
+_AS_WAYPOINT = NotApplicable("its waypoint reads back as a GO_TO_POSITION (tml import "
+                             "reads positions as written, in WGS84)")
+"""Why the moves to a local point are not read back."""
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
     ActionDef(spec("GO_TO_POINT"), guided=go_to_point, drives=True, items=go_to_point_items,
-              motion=go_to_point_motion, item_time=timing.nominal),
+              motion=go_to_point_motion, item_time=timing.nominal, imports=_AS_WAYPOINT),
     ActionDef(spec("MOVE"), guided=move, drives=True, items=move_items, motion=move_motion,
-              item_time=timing.nominal),
+              item_time=timing.nominal, imports=_AS_WAYPOINT),
     ActionDef(spec("MOVE_FORWARDS"), guided=move_forwards, drives=True, items=move_forwards_items,
-              motion=move_forwards_motion, item_time=timing.nominal),
+              motion=move_forwards_motion, item_time=timing.nominal, imports=_AS_WAYPOINT),
     ActionDef(spec("MOVE_FROM_HOME"), guided=move_from_home, drives=True,
-              items=move_from_home_items, motion=move_from_home_motion, item_time=timing.nominal),
+              items=move_from_home_items, motion=move_from_home_motion, item_time=timing.nominal,
+              imports=_AS_WAYPOINT),
     ActionDef(spec("GO_TO_POSITION"), guided=go_to_position, drives=True,
-              items=go_to_position_items, motion=go_to_position_motion, item_time=timing.nominal),
+              items=go_to_position_items, motion=go_to_position_motion, item_time=timing.nominal,
+              imports=reading.Reading({mav.NAV_WAYPOINT: go_to_position_read})),
     ActionDef(spec("SET_ALTITUDE"), guided=set_altitude, drives=True, items=set_altitude_items,
-              motion=set_altitude_motion, item_time=timing.nominal),
+              motion=set_altitude_motion, item_time=timing.nominal,
+              imports=reading.Reading({mav.NAV_WAYPOINT: set_altitude_read})),
     ActionDef(spec("RETURN_HOME"), guided=return_home, drives=True, items=return_home_items,
-              motion=return_home_motion, item_time=timing.nominal),
+              motion=return_home_motion, item_time=timing.nominal, imports=_AS_WAYPOINT),
     ActionDef(spec("GO_TO_RECTANGLE"), guided=go_to_rectangle, drives=True, items=_NO_ITEM,
-              motion=go_to_rectangle_motion, item_time=_NO_ITEM),
+              motion=go_to_rectangle_motion, item_time=_NO_ITEM, imports=_NO_ITEM),
 )

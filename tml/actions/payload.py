@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from tml.actions import guided, items, mav, timing
+from tml.actions import guided, items, mav, reading, timing
 from tml.actions.definition import ActionDef, spec
 from tml.actions.guided import ActionFailed, Context, Script, Send, Sleep, fly_to
 from tml.actions.motion import instant
@@ -39,9 +39,22 @@ def drop_item_items(b: items.Builder, action: BoundAction) -> None:
     b.add(mav.DO_GRIPPER, params=(1.0, mav.GRIPPER_ACTION_RELEASE, 0.0, 0.0))
 
 
+# --- reading mission items back (tml import) ------------------------------------------------
+
+def pick_up_item_read(item: reading.ItemFields) -> reading.Arguments | None:
+    """DO_GRIPPER grabbing."""
+    return {} if int(item.param2) == mav.GRIPPER_ACTION_GRAB else None
+
+
+def drop_item_read(item: reading.ItemFields) -> reading.Arguments | None:
+    """DO_GRIPPER releasing."""
+    return None if int(item.param2) == mav.GRIPPER_ACTION_GRAB else {}
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
     ActionDef(spec("PICK_UP_ITEM"), guided=pick_up_item, items=pick_up_item_items, motion=instant,
-              item_time=timing.nominal),
+              item_time=timing.nominal,
+              imports=reading.Reading({mav.DO_GRIPPER: pick_up_item_read})),
     ActionDef(spec("DROP_ITEM"), guided=drop_item, items=drop_item_items, motion=instant,
-              item_time=timing.nominal),
+              item_time=timing.nominal, imports=reading.Reading({mav.DO_GRIPPER: drop_item_read})),
 )

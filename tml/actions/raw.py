@@ -93,5 +93,7 @@ DEFINITIONS: tuple[ActionDef, ...] = (
     ActionDef(spec("MISSION_ITEM"),
               guided=NotApplicable("MISSION_ITEM is flown only as a mission item "
                                    "(dispatch=\"mission\")"),
-              items=mission_item_items, motion=mission_item_motion, item_time=timing.nominal),
+              items=mission_item_items, motion=mission_item_motion, item_time=timing.nominal,
+              imports=NotApplicable("an item no other action reads back exactly is one: "
+                                    "the importer's own way (tml.plans.imported)")),
 )

@@ -25,6 +25,7 @@ from tml.actions import (
     takeoff_landing,
 )
 from tml.actions.definition import STAGES, ActionDef, NotApplicable
+from tml.actions.reading import Reading
 from tml.language.actions import CATALOGUE, ActionSpec, BoundAction
 
 MODULES = (takeoff_landing, moves, circles, areas, hover, payload, camera, settings, raw)
@@ -53,7 +54,7 @@ def build(definitions: Iterable[ActionDef],
                 if not part.reason.strip():
                     problems.append(f"{definition.name}: stage {stage!r} does not apply "
                                     "but says no reason")
-            elif not callable(part):
+            elif not (callable(part) or (isinstance(part, Reading) and part.commands)):
                 problems.append(f"{definition.name} has no {stage!r} part")
     problems += [f"{name} has no definition" for name in specs if name not in found]
     problems += [f"{name} is defined but is no action of the catalogue"

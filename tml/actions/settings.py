@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from tml.actions import guided, items, mav, timing
+from tml.actions import guided, items, mav, reading, timing
 from tml.actions.definition import ActionDef, NotApplicable, spec
 from tml.actions.guided import Context, Script, Send
 from tml.actions.motion import Labels, Motion, PredictedState, Step
@@ -90,6 +90,24 @@ def set_home_motion(model: Motion, bound: BoundAction, state: PredictedState,
     return Step(state, replace(state, home=home), labels=labels)
 
 
+# --- reading mission items back (tml import) ------------------------------------------------
+
+def set_speed_read(item: reading.ItemFields) -> reading.Arguments:
+    """DO_CHANGE_SPEED: the speed and which one."""
+    kinds = {number: name for name, number in items.SPEED_TYPES.items()}
+    return {"speed": reading.value(item.param2),
+            "speed_type": kinds.get(int(item.param1), "airspeed")}
+
+
+def set_home_read(item: reading.ItemFields) -> reading.Arguments:
+    """DO_SET_HOME: here, or a position."""
+    if item.param1 == 1 or not (item.x or item.y):
+        return {}
+    return reading.encoding({"latitude": reading.value(item.x / 1e7),
+                             "longitude": reading.value(item.y / 1e7),
+                             "altitude": reading.value(item.z)}, item)
+
+
 _NO_ITEM = NotApplicable("remembers a position in tml, which no mission item "
                          "can do")
 """Why MEMORIZE_POINT has no mission item (nor an item time)."""
@@ -97,9 +115,10 @@ _NO_ITEM = NotApplicable("remembers a position in tml, which no mission item "
 
 DEFINITIONS: tuple[ActionDef, ...] = (
     ActionDef(spec("SET_SPEED"), guided=set_speed, items=set_speed_items, motion=set_speed_motion,
-              item_time=timing.nominal),
+              item_time=timing.nominal,
+              imports=reading.Reading({mav.DO_CHANGE_SPEED: set_speed_read})),
     ActionDef(spec("SET_HOME"), guided=set_home, items=set_home_items, motion=set_home_motion,
-              item_time=timing.nominal),
+              item_time=timing.nominal, imports=reading.Reading({mav.DO_SET_HOME: set_home_read})),
     ActionDef(spec("MEMORIZE_POINT"), guided=memorize_point, items=_NO_ITEM,
-              motion=memorize_point_motion, item_time=_NO_ITEM),
+              motion=memorize_point_motion, item_time=_NO_ITEM, imports=_NO_ITEM),
 )

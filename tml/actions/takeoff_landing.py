@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import replace
 
-from tml.actions import guided, items, mav, timing
+from tml.actions import guided, items, mav, reading, timing
 from tml.actions.definition import ActionDef, spec
 from tml.actions.guided import LANDED_READS, Context, Limits, Script, Send, Until, fly_to
 from tml.actions.motion import Labels, Motion, PredictedState, Step
@@ -271,14 +272,52 @@ def return_home_and_land_time(limits: Limits, vehicle_type: str, here: Point,
         + timing.landing(limits, vehicle_type, here, (0.0, 0.0, 0.0))
 
 
+# --- reading mission items back (tml import) ------------------------------------------------
+
+def take_off_read(item: reading.ItemFields) -> reading.Arguments:
+    """NAV_TAKEOFF: its altitude and pitch."""
+    return reading.encoding({"altitude": reading.value(item.z),
+                             "pitch": reading.value(item.param1)}, item)
+
+
+def land_read(item: reading.ItemFields) -> reading.Arguments | None:
+    """NAV_LAND where the vehicle is (no position)."""
+    return None if reading.placed(item) else {}
+
+
+def landing_point_read(item: reading.ItemFields) -> reading.Arguments | None:
+    """NAV_LAND at a position, with its precision landing mode and heading."""
+    if not reading.placed(item):
+        return None
+    arguments = reading.position({}, item)
+    precision = {number: name for name, number in items.PRECISION_MODES.items()}
+    if int(item.param2) in precision:
+        arguments["precision_mode"] = precision[int(item.param2)]
+    if item.param4:
+        arguments["yaw"] = reading.value(item.param4)
+    return arguments
+
+
+def landing_point_join(before: str, before_arguments: Mapping[str, str],
+                       arguments: Mapping[str, str]) -> reading.Arguments | None:
+    """The CONDITION_YAW to the heading it lands with, then its NAV_LAND: one action."""
+    if before == "ROTATE_YAW" and "yaw" in arguments \
+            and before_arguments.get("orientation_angle") == arguments["yaw"]:
+        return dict(arguments)
+    return None
+
+
 DEFINITIONS: tuple[ActionDef, ...] = (
     ActionDef(spec("TAKE_OFF"), guided=take_off, resumed=_climb_on, items=take_off_items,
-              motion=take_off_motion, item_time=take_off_time),
-    ActionDef(spec("LAND"), guided=land, items=land_items, motion=land_motion,
-              item_time=land_time),
+              motion=take_off_motion, item_time=take_off_time,
+              imports=reading.Reading({mav.NAV_TAKEOFF: take_off_read})),
+    ActionDef(spec("LAND"), guided=land, items=land_items, motion=land_motion, item_time=land_time,
+              imports=reading.Reading({mav.NAV_LAND: land_read})),
     ActionDef(spec("LANDING_POINT"), guided=landing_point, items=landing_point_items,
-              motion=landing_point_motion, item_time=landing_point_time),
+              motion=landing_point_motion, item_time=landing_point_time,
+              imports=reading.Reading({mav.NAV_LAND: landing_point_read}, join=landing_point_join)),
     ActionDef(spec("RETURN_HOME_AND_LAND"), guided=return_home_and_land,
               items=return_home_and_land_items, motion=return_home_and_land_motion,
-              item_time=return_home_and_land_time),
+              item_time=return_home_and_land_time,
+              imports=reading.Reading({mav.NAV_RETURN_TO_LAUNCH: lambda item: {}})),
 )

@@ -5,7 +5,8 @@ Theory of operation
 Import is exact or says what it could not keep. Each mission item becomes one task, all in
 one task with ``dispatch="mission"``: the file was a plan for the autopilot to fly in AUTO,
 and so it stays. An item becomes the action that compiles back to it
-(:mod:`tml.mavlink.compile`, read backwards: NAV_TAKEOFF a TAKE_OFF, NAV_WAYPOINT a
+(:mod:`tml.mavlink.compile`, read backwards by the ``imports`` part of each action's
+definition, :mod:`tml.actions.reading`: NAV_TAKEOFF a TAKE_OFF, NAV_WAYPOINT a
 GO_TO_POSITION, NAV_LAND a LANDING_POINT ...) only when that action compiles back to *the
 same item*, every field of it: the mission is compiled and compared item for item, and
 every item no action says exactly (a DO_JUMP, a spline waypoint, a waypoint with a hold
@@ -27,35 +28,23 @@ unless the losses are allowed.
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from lxml import etree
 
-from tml.actions.items import LOITER_TURNS_MAX
+from tml.actions.mav import GLOBAL_FRAMES
+from tml.actions.reading import Reader, Reading
+from tml.actions.reading import value as _value
+from tml.actions.registry import REGISTRY
 from tml.errors import Location, MissionSemanticError
 from tml.language.actions import BoundAction, bind, lookup
 from tml.language.kinds import Kind
 from tml.language.mavlink_tables import MAV_CMD, MAV_FRAME
 from tml.language.model import Action, Argument
 from tml.mavlink.codec import mavlink
-from tml.mavlink.compile import (
-    FLOAT_FRAMES,
-    PRECISION_MODES,
-    SPEED_TYPES,
-    CompileError,
-    compile_mission,
-)
+from tml.mavlink.compile import CompileError, compile_mission
 from tml.mavlink.mission import MissionItem
-from tml.plans.planned import (
-    AMSL_FRAMES,
-    GLOBAL_FRAMES,
-    JUMP_FRAME,
-    TERRAIN_FRAMES,
-    plan_mission,
-    same_item,
-)
+from tml.plans.planned import JUMP_FRAME, plan_mission, same_item
 from tml.plans.qgc import PlanFile, PlanFileError
 from tml.world import DEFAULT_HOME, inside
 
@@ -84,156 +73,40 @@ class Imported:
     world: bool = False  # a world file (the plan's fence), not a mission
 
 
-def _value(number: float) -> str:
-    """The shortest text that reads back as ``number`` (``15``, not ``15.0``; ``NaN``)."""
-    number = float(number)
-    if math.isnan(number):
-        return "NaN"
-    return str(int(number)) if number.is_integer() else repr(number)
+def _readers() -> dict[int, list[tuple[str, Reader]]]:
+    """Mission item command -> the actions that may read back from it, with their readers
+    (the ``imports`` parts of the action registry), in the catalogue's order."""
+    found: dict[int, list[tuple[str, Reader]]] = {}
+    for name, action in REGISTRY.items():
+        if isinstance(action.imports, Reading):
+            for command, reader in action.imports.commands.items():
+                found.setdefault(command, []).append((name, reader))
+    return found
 
 
-def _position(action: _Action, item: MissionItem) -> None:
-    """Latitude, longitude, altitude and its reference, from a global item."""
-    action.arguments["latitude"] = _value(item.x / 1e7)
-    action.arguments["longitude"] = _value(item.y / 1e7)
-    action.arguments["altitude"] = _value(item.z)
-    if item.frame in AMSL_FRAMES:
-        action.arguments["altitude_reference"] = "amsl"
-    elif item.frame in TERRAIN_FRAMES:
-        action.arguments["altitude_reference"] = "terrain"
-    _encoding(action, item)
+READERS = _readers()
 
 
-def _encoding(action: _Action, item: MissionItem) -> None:
-    """frame_encoding="float" for an item in a global frame without _INT (frame 3 ...)."""
-    if item.frame in FLOAT_FRAMES.values():
-        action.arguments["frame_encoding"] = "float"
-
-
-def _placed(item: MissionItem) -> bool:
-    return item.frame in GLOBAL_FRAMES and (item.x != 0 or item.y != 0)
-
-
-def _take_off(item: MissionItem) -> _Action:
-    action = _Action("TAKE_OFF", {"altitude": _value(item.z), "pitch": _value(item.param1)})
-    _encoding(action, item)
-    return action
-
-
-def _waypoint(item: MissionItem) -> _Action:
-    if not _placed(item):  # "here", at an altitude
-        action = _Action("SET_ALTITUDE", {"altitude": _value(item.z)})
-        _encoding(action, item)
-        return action
-    action = _Action("GO_TO_POSITION")
-    _position(action, item)
-    return action
-
-
-def _loiter(item: MissionItem) -> _Action:
-    action = _Action("LOITER")
-    if _placed(item):
-        _position(action, item)
-    if item.command == mavlink.MAV_CMD_NAV_LOITER_TURNS:
-        action.arguments["turns"] = _value(item.param1)
-    elif item.command == mavlink.MAV_CMD_NAV_LOITER_TIME:
-        action.arguments["duration"] = _value(item.param1)
-    if item.param3:
-        action.arguments["radius"] = _value(abs(item.param3))
-    return action
-
-
-def _land(item: MissionItem) -> _Action:
-    if not _placed(item):
-        return _Action("LAND")
-    action = _Action("LANDING_POINT")
-    _position(action, item)
-    precision = {number: name for name, number in PRECISION_MODES.items()}
-    if int(item.param2) in precision:
-        action.arguments["precision_mode"] = precision[int(item.param2)]
-    if item.param4:
-        action.arguments["yaw"] = _value(item.param4)
-    return action
-
-
-def _delay(item: MissionItem) -> _Action:
-    if item.param1 <= 0:
-        return _Action("STABILIZE")
-    return _Action("WAIT", {"duration": _value(item.param1)})
-
-
-def _yaw(item: MissionItem) -> _Action:
-    if item.param4:  # relative, in the direction param3 gives
-        return _Action("ROTATE_YAW", {"angle": _value(item.param1 * (-1 if item.param3 < 0
-                                                                      else 1))})
-    return _Action("ROTATE_YAW", {"orientation_angle": _value(item.param1)})
-
-
-def _speed(item: MissionItem) -> _Action:
-    kinds = {number: name for name, number in SPEED_TYPES.items()}
-    return _Action("SET_SPEED", {"speed": _value(item.param2),
-                                 "speed_type": kinds.get(int(item.param1), "airspeed")})
-
-
-def _capture(item: MissionItem) -> _Action:
-    if item.param3 > 0:
-        return _Action("CAPTURE_PHOTOS", {"count": _value(item.param3),
-                                          "interval": _value(item.param2)})
-    return _Action("START_CAPTURING", {"interval": _value(item.param2)})
-
-
-def _gripper(item: MissionItem) -> _Action:
-    grab = int(item.param2) == mavlink.GRIPPER_ACTION_GRAB
-    return _Action("PICK_UP_ITEM" if grab else "DROP_ITEM")
-
-
-def _set_home(item: MissionItem) -> _Action:
-    if item.param1 == 1 or not (item.x or item.y):
-        return _Action("SET_HOME")
-    action = _Action("SET_HOME", {"latitude": _value(item.x / 1e7),
-                                  "longitude": _value(item.y / 1e7),
-                                  "altitude": _value(item.z)})
-    _encoding(action, item)
-    return action
-
-
-ACTIONS: dict[int, Callable[[MissionItem], _Action]] = {
-    mavlink.MAV_CMD_NAV_TAKEOFF: _take_off,
-    mavlink.MAV_CMD_NAV_WAYPOINT: _waypoint,
-    mavlink.MAV_CMD_NAV_LOITER_UNLIM: _loiter,
-    mavlink.MAV_CMD_NAV_LOITER_TURNS: _loiter,
-    mavlink.MAV_CMD_NAV_LOITER_TIME: _loiter,
-    mavlink.MAV_CMD_NAV_LAND: _land,
-    mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH: lambda item: _Action("RETURN_HOME_AND_LAND"),
-    mavlink.MAV_CMD_NAV_DELAY: _delay,
-    mavlink.MAV_CMD_CONDITION_YAW: _yaw,
-    mavlink.MAV_CMD_DO_CHANGE_SPEED: _speed,
-    mavlink.MAV_CMD_DO_DIGICAM_CONTROL: lambda item: _Action("CAPTURE_PHOTO"),
-    mavlink.MAV_CMD_IMAGE_START_CAPTURE: _capture,
-    mavlink.MAV_CMD_IMAGE_STOP_CAPTURE: lambda item: _Action("STOP_CAPTURING"),
-    mavlink.MAV_CMD_DO_GRIPPER: _gripper,
-    mavlink.MAV_CMD_DO_SET_HOME: _set_home,
-}
-"""Mission item command -> the action that compiles back to it."""
+def _read(item: MissionItem) -> _Action:
+    """The action ``item`` reads back as; a MISSION_ITEM when no action reads it."""
+    for name, reader in READERS.get(item.command, ()):
+        arguments = reader(item)
+        if arguments is not None:
+            return _Action(name, arguments)
+    return _raw(item)
 
 
 def _joined(previous: _Action, action: _Action) -> bool:
-    """Join ``action`` into ``previous`` when both are what one action compiled to; True
-    when joined."""
-    if action.name == "LANDING_POINT" and previous.name == "ROTATE_YAW" \
-            and "yaw" in action.arguments \
-            and previous.arguments.get("orientation_angle") == action.arguments["yaw"]:
-        previous.name, previous.arguments = action.name, action.arguments
-        previous.items += action.items
-        return True
-    same_circle = all(previous.arguments.get(k) == action.arguments.get(k)
-                      for k in ("latitude", "longitude", "altitude", "radius"))
-    if action.name == previous.name == "LOITER" and "turns" in action.arguments \
-            and previous.arguments.get("turns") == str(LOITER_TURNS_MAX) and same_circle:
-        previous.arguments["turns"] = str(LOITER_TURNS_MAX + int(action.arguments["turns"]))
-        previous.items += action.items
-        return True
-    return False
+    """Join ``action`` into ``previous`` when both are what one action compiled to (its
+    definition's ``join`` says); True when joined."""
+    imports = REGISTRY[action.name].imports
+    join = imports.join if isinstance(imports, Reading) else None
+    joined = join(previous.name, previous.arguments, action.arguments) if join else None
+    if joined is None:
+        return False
+    previous.name, previous.arguments = action.name, joined
+    previous.items += action.items
+    return True
 
 
 def _without_defaults(action: _Action) -> dict[str, str]:
@@ -336,8 +209,7 @@ def import_plan(plan: PlanFile, name: str) -> Imported:
     losses = list(plan.losses)
     actions: list[_Action] = []
     for item in plan.items:
-        make = ACTIONS.get(item.command)
-        action = make(item) if make is not None else _raw(item)
+        action = _read(item)
         action.items.append(item.seq)
         if not (actions and action.name != "MISSION_ITEM" and _joined(actions[-1], action)):
             actions.append(action)

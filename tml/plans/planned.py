@@ -26,22 +26,15 @@ import math
 from dataclasses import dataclass, replace
 from itertools import pairwise
 
+from tml.actions.mav import AMSL_FRAMES, GLOBAL_FRAMES
 from tml.geo import to_global
 from tml.language.actions import BoundAction, bind
 from tml.language.kinds import Kind, refusal, role_kinds
 from tml.language.model import Composition, Mission, Task
 from tml.mavlink.codec import mavlink
-from tml.mavlink.compile import FRAMES, CompileError, compile_mission, has_items
+from tml.mavlink.compile import CompileError, compile_mission, has_items
 from tml.mavlink.mission import MissionItem
 from tml.world import Home, World
-
-AMSL_FRAMES = frozenset({mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_FRAME_GLOBAL_INT})
-RELATIVE_FRAMES = frozenset({mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
-                             mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT})
-TERRAIN_FRAMES = frozenset({mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT,
-                            mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT})
-GLOBAL_FRAMES = AMSL_FRAMES | RELATIVE_FRAMES | TERRAIN_FRAMES | frozenset(FRAMES.values())
-"""The frames whose x and y are latitude and longitude (degrees * 1e7)."""
 
 
 @dataclass(frozen=True)

@@ -15,9 +15,10 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+from tml.actions.mav import GLOBAL_FRAMES
 from tml.language.kinds import Kind
 from tml.mavlink.mission import MissionItem
-from tml.plans.planned import GLOBAL_FRAMES, Plan, local_to_global
+from tml.plans.planned import Plan, local_to_global
 from tml.world import Cylinder, Home, PlanSettings, Prism
 
 FIRMWARE_ARDUPILOT = 3  # MAV_AUTOPILOT_ARDUPILOTMEGA

@@ -8,9 +8,10 @@ Every action of the language's catalogue (:data:`tml.language.actions.CATALOGUE`
 :mod:`~tml.actions.circles`, :mod:`~tml.actions.areas`, :mod:`~tml.actions.hover`,
 :mod:`~tml.actions.payload`, :mod:`~tml.actions.camera`, :mod:`~tml.actions.settings`,
 :mod:`~tml.actions.raw`) beside the code of each of its stages. A definition has one typed
-field per stage (see :data:`~tml.actions.definition.STAGES`); the stages read them from
-one registry (:mod:`tml.actions.registry`), never from tables or ``if`` chains on action
-names of their own. The registry is built once, when it is first imported, and refuses
+field per stage (see :data:`~tml.actions.definition.STAGES`: the GUIDED procedure, the
+mission items, their expected time, the motion model, the import reading); the stages read
+them from one registry (:mod:`tml.actions.registry`), never from tables or ``if`` chains on
+action names of their own. The registry is built once, when it is first imported, and refuses
 to load when a catalogue action has no definition or a definition lacks a stage's part: a
 stage that truly does not apply holds a :class:`~tml.actions.definition.NotApplicable` with
 the reason, and the stage's consumer refuses the action with that reason.
@@ -25,8 +26,12 @@ never imports pymavlink. The language keeps what validation needs (the argument 
 simulator (sitl/) is not in it: it stays an independent oracle implementing MAVLink
 commands as ArduPilot does.
 
-What the action modules share is in toolkits: :mod:`tml.actions.guided` (the steps a
-procedure flying with commands yields, and the moves several actions make).
+What the action modules share is in toolkits, one per stage: :mod:`tml.actions.guided` (the
+steps a procedure flying with commands yields, and the moves several actions make),
+:mod:`tml.actions.items` and :mod:`tml.actions.mav` (mission items as plain numbers, no
+pymavlink), :mod:`tml.actions.timing` (how long the items are watched for),
+:mod:`tml.actions.motion` (the predicted state and step, and the flight model's interface
+for ``tml verify``) and :mod:`tml.actions.reading` (items read back by ``tml import``).
 
 Adding an action
 ----------------

@@ -2,10 +2,11 @@
 
 :data:`REGISTRY` is built when this module is first imported, from the ``DEFINITIONS`` of
 the modules in :data:`MODULES`; :func:`build` refuses (:class:`RegistryError`) a catalogue
-action without a definition, a definition of no catalogue action or given twice, and a
-definition missing a stage's part (see :data:`tml.actions.definition.STAGES`), and an
-``items`` part that contradicts the language's ``mission_item`` (which ``tml validate``
-checks, E260, without loading this package).
+action without a definition, a definition of no catalogue action or given twice or with
+another spec than the catalogue's, a definition missing a stage's part (see
+:data:`tml.actions.definition.STAGES`), an ``items`` part that contradicts the language's
+``mission_item`` (which ``tml validate`` checks, E260, without loading this package), and an
+``item_time`` without items or items without one.
 """
 
 from __future__ import annotations

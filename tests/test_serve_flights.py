@@ -199,19 +199,28 @@ def flown_by_another_station(service: Service, vehicle: int) -> Iterator[
             observer.close()
 
 
-def observed(observer: Observer, vehicle: int, check: Callable[[Any], bool]) -> bool:
+def observed(observer: Observer, vehicle: int, check: Callable[[Any], bool],
+             vehicle_seconds: float = 60.0) -> bool:
     """Whether the vehicle's GLOBAL_POSITION_INT, as the observer reads it from now on
     (asked for first; what it had not read yet is older, and left), satisfies ``check``
-    within LIMIT wall seconds."""
+    within ``vehicle_seconds`` of the vehicle's own clock (its ``time_boot_ms``): a busy
+    machine slows the simulator down, never changes what it flies in that time. LIMIT x 10
+    wall seconds only guard against a hang."""
     observer.conn.mav.request_data_stream_send(vehicle, 1, mavutil.mavlink.MAV_DATA_STREAM_ALL,
                                                10, 1)
     while observer.conn.recv_match(blocking=False) is not None:
         pass
-    end = time.monotonic() + LIMIT
+    first: float | None = None
+    end = time.monotonic() + LIMIT * 10
     while time.monotonic() < end:
         msg = observer.conn.recv_match(type="GLOBAL_POSITION_INT", blocking=True, timeout=1)
-        if msg is not None and msg.get_srcSystem() == vehicle and check(msg):
+        if msg is None or msg.get_srcSystem() != vehicle:
+            continue
+        if check(msg):
             return True
+        first = msg.time_boot_ms if first is None else first
+        if msg.time_boot_ms - first > vehicle_seconds * 1000:
+            return False
     return False
 
 

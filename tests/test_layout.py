@@ -24,7 +24,7 @@ LAYERS: list[set[str]] = [
     {"tml.actions"},
     {"tml.vehicle"},
     {"tml.language"},
-    {"tml.geo", "tml.world", "tml.patterns", "tml.signing", "tml.timebase"},
+    {"tml.geo", "tml.world", "tml.patterns", "tml.signing", "tml.timebase", "tml.terrain"},
     {"tml.errors", "tml.__init__", "tml.__version__"},
 ]
 IMPORT = re.compile(r"^\s*(?:from\s+(tml[\w.]*)\s+import\s+([\w, ()]+)|import\s+(tml[\w.]*))",

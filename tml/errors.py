@@ -75,6 +75,28 @@ class MissionInfeasibleError(MissionError):
     """The mission cannot be flown within the vehicle's physical limits or the map."""
 
 
+class TerrainError(TmlError):
+    """Elevation data that cannot be used: a tile that is corrupt, truncated, of the wrong
+    size or in another projection (``path``: the file, ``reason``: why), or a place the
+    data does not cover or where it has a void."""
+
+    def __init__(self, reason: str, path: str = "") -> None:
+        self.reason = reason
+        self.path = path
+        super().__init__(f"{path}: {reason}" if path else reason)
+
+
+class TerrainNotCovered(TerrainError):
+    """A place outside every tile given (``tile``: the SRTM tile that would hold it), or on
+    a void of the data (``tile``: the file with the void)."""
+
+    def __init__(self, reason: str, latitude: float, longitude: float, tile: str) -> None:
+        self.latitude = latitude
+        self.longitude = longitude
+        self.tile = tile
+        super().__init__(reason)
+
+
 class EngineError(TmlError):
     """The engine was asked for a change its rules do not allow (a defect in tml): the runner
     stops the run and commands every vehicle to its safe state."""

@@ -129,8 +129,19 @@ class PlanSettings:
 
 
 @dataclass(frozen=True)
+class TerrainSource:
+    """Elevation data a mission or world names (``<terrain source="..."/>``): the path as
+    written and resolved relative to the file (:mod:`tml.terrain` reads it)."""
+
+    source: str
+    path: str
+    location: Location | None = None
+
+
+@dataclass(frozen=True)
 class World:
-    """Home, geofence, obstacles, recognisable objects, rally points and the plan settings."""
+    """Home, geofence, obstacles, recognisable objects, rally points, the plan settings and
+    the terrain data named."""
 
     home: Home | None = None
     geofence: Geofence | None = None
@@ -139,6 +150,7 @@ class World:
     location: Location | None = None
     rally: tuple[RallyPoint, ...] = ()
     plan_settings: PlanSettings | None = None
+    terrain: TerrainSource | None = None
 
     @property
     def home_or_default(self) -> Home:
@@ -157,6 +169,7 @@ class World:
             objects=self.objects + other.objects,
             rally=self.rally + other.rally,
             plan_settings=other.plan_settings or self.plan_settings,
+            terrain=other.terrain or self.terrain,
         )
 
 

@@ -51,7 +51,7 @@ from tml.language.quantities import RANGES, Quantity, out_of_range
 from tml.language.xml import XmlDocument, element_name, read_xml
 
 if TYPE_CHECKING:
-    from tml.world import Geofence, Home, RallyPoint, World
+    from tml.world import Geofence, Home, RallyPoint, TerrainSource, World
 
 
 E = TypeVar("E", bound=StrEnum)
@@ -506,7 +506,30 @@ class _Builder:
                 self.optional_number(s, "hover_speed", Quantity.SPEED), mode,
                 location=self.loc(s))
         return World(home, geofence, tuple(obstacles), tuple(objects), self.loc(element),
-                     tuple(rally), plan_settings)
+                     tuple(rally), plan_settings, self.terrain(element))
+
+    def terrain(self, element: etree._Element) -> TerrainSource | None:
+        """The ``<terrain>`` named, resolved relative to the file; one that is not there is
+        an error (it is read when the mission is verified)."""
+        from tml.world import TerrainSource
+
+        found = self.children(element, "terrain")
+        for extra in found[1:]:
+            self.diagnostics.append(error(self.loc(extra), "E253", "more than one <terrain>",
+                                          "keep one: a directory holds several tiles"))
+        if not found:
+            return None
+        source = (found[0].get("source") or "").strip()
+        if not source:
+            return None  # the schema says so
+        path = (Path(self.doc.file).parent / source).resolve()
+        if not path.exists():
+            self.diagnostics.append(error(
+                self.loc(found[0], "source"), "E253",
+                f"terrain source {source!r}: no such file or directory ({path})",
+                "give an SRTM .hgt tile, a GeoTIFF or a directory of them, relative to "
+                "this file"))
+        return TerrainSource(source, str(path), self.loc(found[0]))
 
     def rally_point_fits(self, element: etree._Element, point: RallyPoint,
                          geofence: Geofence | None) -> None:

@@ -186,6 +186,8 @@ def test_constraint(constraint: Constraint, case: Case) -> None:
 
 def test_every_constraint_has_cases_that_hold_and_fail() -> None:
     for constraint in Constraint:
+        if constraint is Constraint.TERRAIN:
+            continue  # judged over terrain data, apart: tests/test_verify_terrain.py
         cases = CASES[constraint]
         assert any(c.fails is None for c in cases), constraint
         assert any(c.fails is not None for c in cases), constraint

@@ -1,12 +1,22 @@
-"""<terrain source> in a mission: resolved relative to the mission file, checked to exist."""
+"""Verify above the ground (tml.verify.terrain, tml verify --terrain, <terrain source>): over a
+synthetic hill the tests write as an SRTM tile and as a GeoTIFF, none downloaded."""
 
 from __future__ import annotations
 
+import json
+from dataclasses import replace
 from pathlib import Path
 
-from terrain_files import GROUND, HILL_NORTH, METRES_PER_DEGREE, write_hgt
+import numpy as np
+import pytest
+from terrain_files import GROUND, HILL_NORTH, METRES_PER_DEGREE, write_geotiff, write_hgt
 
+from tml.commands.cli import main
 from tml.language.validation import load_mission, validate_file
+from tml.terrain import load_terrain
+from tml.verify.constraints import Constraint
+from tml.verify.profile import load_profile
+from tml.verify.static import verify_mission
 from tml.world import DEFAULT_HOME
 
 HOME = f'<home latitude="{DEFAULT_HOME.latitude}" longitude="{DEFAULT_HOME.longitude}" ' \
@@ -42,6 +52,140 @@ INTO_THE_HILL = "\n".join([TAKE_OFF, go(1200, 0, 30), LAND])  # the leg: line 8
 BESIDE_THE_HILL = "\n".join([TAKE_OFF, go(0, 600, 30), LAND])
 
 
+@pytest.fixture(params=["hgt", "GeoTIFF"])
+def tile(request: pytest.FixtureRequest, tmp_path: Path) -> Path:
+    if request.param == "hgt":
+        return write_hgt(tmp_path)
+    return write_geotiff(tmp_path / "hill.tif")
+
+
+def test_a_flat_mission_into_the_hill_is_refused_with_its_line(
+        tmp_path: Path, tile: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = mission(tmp_path, INTO_THE_HILL, tile.name)
+    assert main(["verify", str(path)]) == 1
+    out = capsys.readouterr().out
+    found = [line for line in out.splitlines() if ": terrain: GO_TO_POINT:" in line]
+    assert len(found) == 1, out
+    assert found[0].startswith(f"{path}:8:")
+    # The place is on the hill north of home, far below it.
+    assert f"{TOP[1]:.6f}" in found[0] and "must be >= 10.0 m" in found[0]
+
+
+def test_the_same_flight_beside_the_hill_is_feasible(
+        tmp_path: Path, tile: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = mission(tmp_path, BESIDE_THE_HILL, tile.name)
+    assert main(["verify", str(path), "--format", "json"]) == 0
+    document = json.loads(capsys.readouterr().out)
+    assert document["terrain"] == str(tile)
+    clearances = [a["terrain_clearance"] for a in document["actions"]]
+    # The take-off's climb from the ground is not judged; the leg flies 30 m over the
+    # flat ground (the hill 850 m away adds nothing), and so does the way home until its
+    # landing, whose descent is not judged.
+    assert clearances[0] is None
+    assert clearances[1] == pytest.approx(30, abs=0.1)
+    assert clearances[2] == pytest.approx(30, abs=0.1)
+
+
+def test_the_table_shows_the_lowest_clearance_above_the_ground(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    tile = write_hgt(tmp_path)
+    path = mission(tmp_path, INTO_THE_HILL)
+    assert main(["verify", str(path), "--terrain", str(tile)]) == 1
+    out = capsys.readouterr().out
+    assert "above ground m" in out
+    leg = next(line for line in out.splitlines() if "GO_TO_POINT" in line and "│" in line)
+    lowest = float(leg.split("│")[-2])
+    # As low as the line comes over the hill sampled every metre.
+    terrain = load_terrain(tile)
+    dense = terrain.heights(DEFAULT_HOME.latitude + np.linspace(0, 1200, 1201)
+                            / METRES_PER_DEGREE, np.full(1201, DEFAULT_HOME.longitude))
+    assert lowest == pytest.approx(GROUND + 30 - dense.max(), abs=1.0)
+    assert lowest < -100
+
+
+def test_without_terrain_nothing_is_judged_above_the_ground(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = mission(tmp_path, INTO_THE_HILL)
+    assert main(["verify", str(path)]) == 1  # the return reserve alone
+    out = capsys.readouterr().out
+    assert ": terrain:" not in out and "above ground" not in out
+
+
+def test_a_terrain_relative_position_flies_at_its_real_altitude(tmp_path: Path) -> None:
+    tile = write_hgt(tmp_path)
+    terrain = load_terrain(tile)
+    def flown(reference: str) -> tuple[float, float, float | None]:
+        body = "\n".join([TAKE_OFF, f"""  <task name="over"><action name="GO_TO_POSITION">
+    <argument name="latitude" value="{TOP[0]}"/><argument name="longitude" value="{TOP[1]}"/>
+    <argument name="altitude" value="40"/>
+    <argument name="altitude_reference" value="{reference}"/></action></task>""", LAND])
+        path = mission(tmp_path, body, name=f"{reference}.xml")
+        profile = replace(load_profile("quadcopter"), max_altitude=400.0)
+        report = verify_mission(load_mission(path), profile, terrain=terrain)
+        row = report.rows[1]
+        return row.path[-1][2], row.battery, row.terrain_clearance
+
+    up, battery, clearance = flown("terrain")
+    ground = terrain.height(*TOP)
+    assert up == pytest.approx(ground + 40 - GROUND, abs=0.5)  # m above home
+    assert clearance == pytest.approx(30, abs=0.1)  # the lowest: where it starts, 30 m up
+    relative_up, relative_battery, relative_clearance = flown("relative")
+    assert relative_up == pytest.approx(40)
+    assert relative_clearance is not None and relative_clearance < 0  # into the hill
+    assert battery < relative_battery  # the climb costs battery
+
+
+def test_a_path_beyond_the_data_names_the_missing_tile(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    tile = write_geotiff(tmp_path / "hill.tif")  # 0.04 degrees: about 1.8 km each way
+    path = mission(tmp_path, "\n".join([TAKE_OFF, go(0, 1900, 30), LAND]), tile.name)
+    assert main(["verify", str(path)]) == 1
+    out = capsys.readouterr().out
+    assert f"{path}:8:20: terrain: GO_TO_POINT: no terrain data at " in out
+    assert f"outside {tile} (latitude " in out and "SRTM tile S36E149.hgt holds the place" in out
+    assert "no data" in out  # in the table
+    # A directory of tiles names the tile missing from it.
+    (tmp_path / "tiles").mkdir()
+    write_hgt(tmp_path / "tiles")
+    far = mission(tmp_path, "\n".join([TAKE_OFF, go(0, 1900, 30), LAND]), "tiles",
+                  home=HOME.replace(str(DEFAULT_HOME.longitude), "149.99"), name="far.xml")
+    assert main(["verify", str(far)]) == 1
+    out = capsys.readouterr().out
+    assert f"{far}:8:20: terrain: GO_TO_POINT: no terrain data at " in out
+    assert f"tile S36E150.hgt is missing from {tmp_path / 'tiles'}" in out
+
+
+def test_home_off_the_ground_is_warned(tmp_path: Path,
+                                       capsys: pytest.CaptureFixture[str]) -> None:
+    tile = write_hgt(tmp_path)
+    high = HOME.replace(f'altitude="{GROUND:g}"', 'altitude="620"')
+    path = mission(tmp_path, BESIDE_THE_HILL, tile.name, home=high)
+    main(["verify", str(path)])
+    out = capsys.readouterr().out
+    assert "warning: the ground under home is 584 m above the EGM96 geoid" in out
+    assert "36 m below <home>'s altitude 620 m" in out
+
+
+def test_a_ground_vehicle_is_not_judged_above_the_ground(tmp_path: Path) -> None:
+    tile = write_hgt(tmp_path)
+    path = mission(tmp_path, go(1200, 0, 0))
+    report = verify_mission(load_mission(path), load_profile("rover"),
+                            terrain=load_terrain(tile))
+    assert Constraint.TERRAIN not in {v.constraint for v in report.violations}
+    assert report.rows[0].terrain_clearance is None
+
+
+def test_the_profile_sets_the_minimum(tmp_path: Path) -> None:
+    tile = write_hgt(tmp_path)
+    path = mission(tmp_path, BESIDE_THE_HILL)
+    terrain = load_terrain(tile)
+    strict = replace(load_profile("quadcopter"), min_terrain_clearance=40.0)
+    found = [v for v in verify_mission(load_mission(path), strict, terrain=terrain).violations
+             if v.constraint is Constraint.TERRAIN]
+    assert [v.location.line for v in found if v.location] == [8, 9]
+    assert all(v.limit == 40.0 and v.value == pytest.approx(29.5, abs=0.6) for v in found)
+    assert load_profile("quadcopter").min_terrain_clearance == 10.0
+
 
 def test_a_mission_names_its_terrain_relative_to_its_file(tmp_path: Path) -> None:
     (tmp_path / "tiles").mkdir()
@@ -59,3 +203,23 @@ def test_a_missing_terrain_source_is_an_error_with_its_place(tmp_path: Path) -> 
     [found] = result.errors
     assert (found.code, found.location.line, found.location.column) == ("E253", 5, 14)
     assert "terrain source 'nowhere.hgt': no such file or directory" in found.message
+
+
+def test_an_unusable_tile_the_mission_names_is_refused_with_its_place(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    tile = write_hgt(tmp_path)
+    tile.write_bytes(tile.read_bytes()[:1000])
+    path = mission(tmp_path, BESIDE_THE_HILL, tile.name)
+    assert main(["verify", str(path)]) == 1
+    out = capsys.readouterr().out
+    assert f"{path}:5:5: terrain source 'S36E149.hgt': {tile}: 1,000 bytes" in out
+    assert "Traceback" not in out
+
+
+def test_an_unusable_terrain_option_is_a_usage_error(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = mission(tmp_path, BESIDE_THE_HILL)
+    projected = write_geotiff(tmp_path / "utm.tif", keys={1024: 1, 3072: 32755})
+    assert main(["verify", str(path), "--terrain", str(projected)]) == 2
+    err = capsys.readouterr().err
+    assert f"tml verify: {projected}: in projected coordinates (EPSG:32755)" in err

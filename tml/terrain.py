@@ -157,6 +157,12 @@ class Terrain:
                     f"{path}: a void (no data) at {la:.6f}, {lo:.6f}: voids are refused, "
                     "not filled in; use a tile with the void filled", la, lo, path)
             name = tile_name(la, lo)
+            if len(self.tiles) == 1 and not Path(self.source).is_dir():
+                t = self.tiles[0]
+                raise TerrainNotCovered(
+                    f"no terrain data at {la:.6f}, {lo:.6f}: outside {t.path} (latitude "
+                    f"{t.south:g} to {t.north:g}, longitude {t.west:g} to {t.east:g}); "
+                    f"SRTM tile {name} holds the place", la, lo, name)
             raise TerrainNotCovered(
                 f"no terrain data at {la:.6f}, {lo:.6f}: tile {name} is missing"
                 + (f" from {self.source}" if self.source else ""), la, lo, name)

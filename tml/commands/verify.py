@@ -1,8 +1,8 @@
 """``tml verify``: arguments and the command itself.
 
-Exit codes: 0 feasible, 1 infeasible or invalid mission, 2 usage or I/O error (a missing
-file, a bad profile or world file, a vehicle that cannot be reached for ``--profile
-vehicle``).
+Exit codes: 0 feasible, 1 infeasible or invalid mission (a terrain file the mission names
+that cannot be read, too), 2 usage or I/O error (a missing file, a bad profile, world or
+``--terrain`` file, a vehicle that cannot be reached for ``--profile vehicle``).
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 from tml.errors import ExitCode
 
 if TYPE_CHECKING:
+    from tml.terrain import Terrain
     from tml.verify.profile import VehicleProfile
     from tml.world import World
 
@@ -36,6 +37,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(default 30)")
     parser.add_argument("--world", metavar="W",
                         help="world file laid over the mission's <environment>")
+    parser.add_argument("--terrain", metavar="PATH",
+                        help="terrain data: an SRTM .hgt tile, an EPSG:4326 GeoTIFF or a "
+                             "directory of them; every path is judged above the ground "
+                             "(instead of the mission's <terrain>)")
     parser.add_argument("--battery", type=float, default=100.0, metavar="PERCENT",
                         help="battery charge at the start (default: 100)")
     parser.add_argument("--format", choices=("table", "json"), default="table",
@@ -60,6 +65,7 @@ def run(args: argparse.Namespace) -> ExitCode:
         profile = (_vehicle_profile(args.connect, args.timeout)
                    if args.profile == VEHICLE_PROFILE else load_profile(args.profile))
         world = load_world(args.world) if args.world else None
+        terrain = _load_terrain(args.terrain) if args.terrain else None
     except OSError as exc:
         print(f"tml verify: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
         return ExitCode.USAGE
@@ -71,7 +77,7 @@ def run(args: argparse.Namespace) -> ExitCode:
     for index, path in enumerate(args.missions):
         if index and args.format != "json":
             print()
-        code, document = _verify_one(path, args, profile, world)
+        code, document = _verify_one(path, args, profile, world, terrain)
         codes.append(code)
         if document is not None:
             documents.append(document)
@@ -81,10 +87,18 @@ def run(args: argparse.Namespace) -> ExitCode:
     return max(codes)  # a usage error over an infeasible mission over a feasible one
 
 
+def _load_terrain(path: str) -> Terrain:
+    from tml.terrain import load_terrain
+
+    return load_terrain(path)
+
+
 def _verify_one(path: str, args: argparse.Namespace, profile: VehicleProfile,
-                world: World | None) -> tuple[ExitCode, str | None]:
+                world: World | None, terrain: Terrain | None = None
+                ) -> tuple[ExitCode, str | None]:
     """Verify one mission file and print its report (a JSON document is returned instead);
     the exit code it alone would give."""
+    from tml.errors import TmlError
     from tml.language.diagnostics import format_human_all, format_json
     from tml.language.validation import validate_file
     from tml.verify.motion import PredictedState
@@ -106,9 +120,18 @@ def _verify_one(path: str, args: argparse.Namespace, profile: VehicleProfile,
     mission = result.mission
     for text in format_human_all(result.diagnostics, {result.file: result.source}):
         print(text, file=sys.stderr)  # a valid mission's warnings
-    home = (mission.world or World()).merged(world).home_or_default
-    start = PredictedState(battery=args.battery, heading=home.heading)
-    report = verify_mission(mission, profile, world, start)
+    merged = (mission.world or World()).merged(world)
+    named = merged.terrain
+    if terrain is None and named is not None:
+        try:
+            terrain = _load_terrain(named.path)
+        except TmlError as exc:
+            where = f"{named.location}: " if named.location else ""
+            print(f"{where}terrain source {named.source!r}: {exc}")
+            print(f"{result.file}: terrain data unusable, not verified")
+            return ExitCode.INVALID, None
+    start = PredictedState(battery=args.battery, heading=merged.home_or_default.heading)
+    report = verify_mission(mission, profile, world, start, terrain)
     code = ExitCode.OK if report.feasible else ExitCode.INVALID
     if args.format == "json":
         from tml.verify.report import report_json

@@ -58,6 +58,7 @@ class Constraint(StrEnum):
     TURN_RADIUS = "turn-radius"
     LABEL = "label"
     VEHICLE = "vehicle"
+    TERRAIN = "terrain"  # judged over terrain data when given (tml.verify.terrain)
 
 
 _C = Constraint

@@ -33,6 +33,7 @@ circle, land ...); the state and the step are :mod:`tml.actions.motion`'s.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import replace
 from itertools import pairwise
 
@@ -63,6 +64,9 @@ class FlightModel:
         self.world = world or World()
         self.home = self.world.home_or_default
         self.planner = Planner(self.world.obstacles, profile.min_clearance)
+        # The ground's height AMSL at a latitude/longitude, or None where it is not known
+        # (tml.verify.terrain sets it when terrain data is given).
+        self.ground: Callable[[float, float], float | None] | None = None
 
     # --- the pieces every action is made of --------------------------------------------------
 
@@ -166,11 +170,16 @@ class FlightModel:
     def local(self, latitude: float, longitude: float, altitude: float,
               reference: str) -> Point3:
         """A WGS84 position as a local point; ``reference`` says what ``altitude`` is
-        measured from (terrain is taken as home: no terrain model)."""
+        measured from (terrain: the ground's height there when terrain data is given, else
+        taken as home's)."""
         home = self.home if self.home is not None else DEFAULT_HOME
         north, east, _ = geo.to_local(latitude, longitude, home.altitude,
                                       home.latitude, home.longitude, home.altitude)
         up = altitude - home.altitude if reference == "amsl" else altitude
+        ground = self.ground(latitude, longitude) \
+            if reference == "terrain" and self.ground is not None else None
+        if ground is not None:
+            up = ground + altitude - home.altitude
         return (north, east, up)
 
     # --- the actions: each one's model is in its module of tml.actions ----------------------

@@ -57,6 +57,7 @@ class VehicleProfile:
     min_turn_radius: float  # m, smallest loiter circle (0 for a multicopter)
     max_flight_time: float  # s from the start of the mission to its end; 0: no limit
     vehicle_type: str = DEFAULT_VEHICLE_TYPE  # a word of tml.language.kinds.VEHICLE_TYPES
+    min_terrain_clearance: float = 10.0  # m above the ground (terrain data), when given
 
     @property
     def kind(self) -> Kind:
@@ -67,11 +68,12 @@ class VehicleProfile:
 # Keys that may be zero; every other number must be strictly positive.
 _MAY_BE_ZERO = frozenset({"min_altitude", "min_turn_radius", "max_flight_time",
                           "battery_reserve", "min_clearance", "battery_per_second",
-                          "acceleration", "land_speed", "land_altitude", "return_hover"})
+                          "acceleration", "land_speed", "land_altitude", "return_hover",
+                          "min_terrain_clearance"})
 # Keys a profile file may leave out, and the value they then take (files written before
 # the key existed keep their meaning).
 _OPTIONAL = {"acceleration": 0.0, "land_speed": 0.0, "land_altitude": 0.0,
-             "return_hover": 0.0}
+             "return_hover": 0.0, "min_terrain_clearance": 10.0}
 TEXT_KEYS = ("name", "vehicle_type")
 NUMBER_KEYS = tuple(f.name for f in fields(VehicleProfile) if f.name not in TEXT_KEYS)
 

@@ -23,6 +23,14 @@ def _cell(value: float, digits: int = 1) -> str:
     return "-" if math.isinf(value) else f"{value:.{digits}f}"
 
 
+def _ground(clearance: float | None) -> str:
+    """The lowest clearance above the ground: ``-`` where nothing is judged (on the ground,
+    a take-off's climb), ``no data`` where the terrain data does not cover the path."""
+    if clearance is None:
+        return "-"
+    return "no data" if math.isnan(clearance) else _cell(clearance)
+
+
 def _charge(battery: float) -> str:
     """The battery column: "empty" once the battery has run out, never a negative charge."""
     return "empty" if battery < 0 else _cell(battery)
@@ -60,14 +68,17 @@ def print_report(report: Report, console: Console) -> None:
     if report.roles:
         table.add_column("role (vehicles)", no_wrap=True)
     table.add_column("action", no_wrap=True)
-    for heading in ("distance m", "time s", "battery %", "clearance m"):
+    headings = ["distance m", "time s", "battery %", "clearance m"]
+    for heading in headings + (["above ground m"] if report.terrain else []):
         table.add_column(heading, justify="right", no_wrap=True)
     for row in report.rows:
         task = f"event {row.event}" if row.event else row.task
         whose = [f"{row.role} ({', '.join(map(str, row.vehicles))})"] if report.roles else []
+        ground = [_ground(row.terrain_clearance)] if report.terrain else []
         table.add_row(str(row.line), _safe(task), *map(_safe, whose), row.action,
                       _cell(row.distance),
-                      _cell(row.duration), _charge(row.battery), _cell(row.clearance))
+                      _cell(row.duration), _charge(row.battery), _cell(row.clearance),
+                      *ground)
     console.print(table)
     for note in report.notes:
         console.print(_safe(f"note: {note}"), highlight=False)
@@ -108,6 +119,16 @@ def _violation(violation: Violation) -> dict[str, object]:
     return found
 
 
+def _above_ground(row: Row, report: Report) -> dict[str, object]:
+    """``terrain_clearance`` of an action, when the report was made over terrain data (null
+    where nothing is judged or the data does not cover the path)."""
+    if not report.terrain:
+        return {}
+    value = row.terrain_clearance
+    return {"terrain_clearance": None if value is None or math.isnan(value)
+            else round(value, 3)}
+
+
 def report_document(report: Report) -> dict[str, object]:
     """The report as plain values (see docs/verify.md for its fields)."""
     document: dict[str, object] = {
@@ -115,13 +136,15 @@ def report_document(report: Report) -> dict[str, object]:
         "profile": report.profile.name,
         "feasible": report.feasible,
         "approximate": report.approximate,
-        "actions": [row.to_dict() for row in report.rows],
+        "actions": [row.to_dict() | _above_ground(row, report) for row in report.rows],
         "violations": [_violation(v) for v in report.violations],
         "notes": report.notes,
         "warnings": report.warnings,
         "skills": list(report.skills),
         "end": _end(report.end),
     }
+    if report.terrain:
+        document["terrain"] = report.terrain
     if report.roles:
         document["ends"] = {role: _end(end) for role, end in report.ends.items()}
     return document

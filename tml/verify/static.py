@@ -43,6 +43,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 from tml.errors import Location
 from tml.language import actions
@@ -54,7 +55,11 @@ from tml.verify.constraints import Constraint, Violation, check_step
 from tml.verify.motion import FlightModel, Labels, PredictedState, Step
 from tml.verify.planner import Point3
 from tml.verify.profile import SHIPPED_FOR_KIND, VehicleProfile, load_profile
+from tml.verify.terrain import GroundCheck, ground_check
 from tml.world import World
+
+if TYPE_CHECKING:
+    from tml.terrain import Terrain
 
 MAX_ALTERNATIVES = 16
 
@@ -75,6 +80,9 @@ class Row:
     role: str = ""  # the role flying it, in a mission that declares roles
     vehicles: tuple[int, ...] = ()  # which of the role's vehicles (1, 2 ... in pick order)
     path: tuple[Point3, ...] = ()  # the points flown through, ending where the action ends
+    # m above the ground at the lowest point of the path (terrain data given; NaN where it
+    # does not cover the path, None where nothing is judged: on the ground, a take-off)
+    terrain_clearance: float | None = None
 
     def to_dict(self) -> dict[str, object]:
         """A JSON-ready dictionary (``role`` and ``vehicles`` only when there are roles)."""
@@ -107,6 +115,8 @@ class Report:
     skills: tuple[str, ...] = ()
     """The skills the mission switches on the vehicle (catalogue names, the ground ones left
     out): the vehicle must provide them (a companion computer), tml run waits for them."""
+    terrain: str = ""
+    """The terrain data the paths were judged over (a file or directory), if any."""
 
     @property
     def feasible(self) -> bool:
@@ -140,8 +150,10 @@ class _Walker:
     """Walks the task tree for one vehicle: every terminal task, or a role's only."""
 
     def __init__(self, model: FlightModel, start: PredictedState,
-                 event_labels: frozenset[str] = frozenset(), role: Role | None = None) -> None:
+                 event_labels: frozenset[str] = frozenset(), role: Role | None = None,
+                 ground: GroundCheck | None = None) -> None:
         self.model = model
+        self.ground = ground  # the paths' clearance over terrain data, when given
         self.start = start  # also the state of a fresh vehicle picked after a release
         self.role = role
         # Labels an event handler may store at any time: reading one is not an error even
@@ -266,7 +278,10 @@ class _Walker:
         elif step.after.battery < 0:
             # It runs out in this action (c2): no way home to judge.
             unasked = frozenset({Constraint.RETURN_RESERVE})
-        for violation in check_step(bound, step, self.model, unasked=unasked):
+        found = check_step(bound, step, self.model, unasked=unasked)
+        above = self.ground.violation(step, bound.name, bound.action.location) \
+            if self.ground is not None else None
+        for violation in found + ([above] if above is not None else []):
             if violation.constraint is Constraint.LABEL and step.unknown_label in excused:
                 continue  # guarded by "known", or an event may have stored it
             violation = replace(violation, task=where, role=self.role_name,
@@ -293,10 +308,12 @@ class _Walker:
         if worst.destination is not None and not points:
             points = [worst.destination]
         clearance = self.model.planner.clearance_of(points) if points else math.inf
+        terrain = self.ground.table_value([s for _, s in steps]) \
+            if self.ground is not None else None
         self.rows.append(Row(task, bound.name, bound.action.location.line, worst.distance,
                              worst.duration, worst.after.time, worst.after.battery,
                              clearance, event, self.role_name, self.vehicles(pick),
-                             (*points, worst.after.position)))
+                             (*points, worst.after.position), terrain))
 
     def merge(self, alternatives: list[_Alternative]) -> list[_Alternative]:
         grouped: dict[tuple[object, ...], _Alternative] = {}
@@ -400,12 +417,15 @@ def _lands_by_event(mission: Mission, walker: _Walker) -> bool:
 
 
 def verify_mission(mission: Mission, profile: VehicleProfile, world: World | None = None,
-                   start: PredictedState | None = None) -> Report:
+                   start: PredictedState | None = None,
+                   terrain: Terrain | None = None) -> Report:
     """Predict and check every action of ``mission`` (and of its event handlers).
 
     ``world`` is laid over the mission's own ``<environment>``; ``start`` is the state
     before the first action (default: on the ground at home, battery full, heading as
     the world's home), and with roles the state of every vehicle when it is picked.
+    ``terrain``: the ground's heights, over which every path is judged
+    (:mod:`tml.verify.terrain`; the caller reads the data the world names).
     """
     merged = (mission.world or World()).merged(world)
     model = FlightModel(profile, merged)
@@ -428,8 +448,10 @@ def verify_mission(mission: Mission, profile: VehicleProfile, world: World | Non
             models[name] = FlightModel(load_profile(name), merged)
         return models[name]
 
-    walkers = [_Walker(role_model(role), start, event_labels, role) for role in mission.roles] \
-        or [_Walker(model, start, event_labels)]
+    def walking(flight: FlightModel, role: Role | None = None) -> _Walker:
+        return _Walker(flight, start, event_labels, role, ground_check(flight, terrain))
+
+    walkers = [walking(role_model(role), role) for role in mission.roles] or [walking(model)]
     if mission.roles:
         names = {role.name for role in mission.roles}
         notes |= {f"{task.location}: task {task.path_name}: flown by no declared role; not "
@@ -438,6 +460,9 @@ def verify_mission(mission: Mission, profile: VehicleProfile, world: World | Non
     violations: list[Violation] = []
     ends: dict[str, PredictedState] = {}
     warnings: list[str] = []
+    checks = [w.ground for w in walkers if w.ground is not None]
+    if checks and (said := checks[0].home_warning()):
+        warnings.append(said)
     for walker in walkers:
         finals = walker.tasks(mission.tasks, [_alternative(start, {})])
         # A ground vehicle is never in the air, and LAND is refused to it: where its mission
@@ -468,4 +493,5 @@ def verify_mission(mission: Mission, profile: VehicleProfile, world: World | Non
     skills = mission_vehicle_skills(mission)
     return Report(mission.file, profile, rows, violations, list(notes), end,
                   any(w.approximate for w in walkers), roles,
-                  ends if mission.roles else {}, warnings, tuple(sorted(skills)))
+                  ends if mission.roles else {}, warnings, tuple(sorted(skills)),
+                  terrain.source if terrain is not None else "")

@@ -223,3 +223,27 @@ def test_an_unusable_terrain_option_is_a_usage_error(
     assert main(["verify", str(path), "--terrain", str(projected)]) == 2
     err = capsys.readouterr().err
     assert f"tml verify: {projected}: in projected coordinates (EPSG:32755)" in err
+
+
+EXAMPLE = Path(__file__).resolve().parent.parent / "missions" / "terrain_hill.xml"
+
+
+def test_the_example_tile_is_the_hill_the_tests_write(tmp_path: Path) -> None:
+    shipped = EXAMPLE.parent / "terrain" / "S36E149.hgt"
+    assert shipped.read_bytes() == write_hgt(tmp_path).read_bytes()  # made, not downloaded
+
+
+def test_the_example_mission_climbs_the_hill_above_the_ground(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["verify", str(EXAMPLE), "--format", "json"]) == 0
+    document = json.loads(capsys.readouterr().out)
+    assert document["terrain"] == str(EXAMPLE.parent / "terrain")
+    take_off, up, home = document["actions"]
+    flank = load_terrain(EXAMPLE.parent / "terrain").height(-35.360117, 149.165230)
+    assert 35 < flank - GROUND < 40  # 350 m north, on the hill's south flank
+    # The take-off is not judged; the climb's lowest point is where it starts, 30 m over
+    # home; the way home's is where it starts too, 665 m AMSL over the flank.
+    assert [a["terrain_clearance"] for a in document["actions"]] == [
+        None, 30.0, round(665 - flank, 3)]
+    assert up["path"][-1][2] == pytest.approx(665 - GROUND)
+    assert up["battery"] < take_off["battery"] and home["battery"] < up["battery"]

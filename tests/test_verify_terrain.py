@@ -205,6 +205,21 @@ def test_a_missing_terrain_source_is_an_error_with_its_place(tmp_path: Path) -> 
     assert "terrain source 'nowhere.hgt': no such file or directory" in found.message
 
 
+def test_a_terrain_source_no_file_can_have_is_an_error_not_a_traceback(tmp_path: Path) -> None:
+    path = mission(tmp_path, BESIDE_THE_HILL, "a" * 5000)
+    [found] = validate_file(path).errors
+    assert (found.code, found.location.line) == ("E253", 5)
+    assert "File name too long" in found.message
+
+
+def test_a_rewritten_tile_in_a_directory_is_read_again(tmp_path: Path) -> None:
+    write_hgt(tmp_path)
+    assert load_terrain(tmp_path).height(*TOP) > GROUND + 100
+    tile = tmp_path / "S36E149.hgt"
+    np.full((1201, 1201), 700, dtype=">i2").tofile(tile)
+    assert load_terrain(tmp_path).height(*TOP) == 700
+
+
 def test_an_unusable_tile_the_mission_names_is_refused_with_its_place(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     tile = write_hgt(tmp_path)

@@ -338,7 +338,7 @@ def read_tile(path: Path) -> Tile:
 
 
 @lru_cache(maxsize=8)
-def _load(resolved: str, stamp: float) -> Terrain:
+def _load(resolved: str, stamp: tuple[tuple[str, int, int], ...]) -> Terrain:
     path = Path(resolved)
     if path.is_dir():
         files = sorted(p for p in path.iterdir()
@@ -352,12 +352,15 @@ def _load(resolved: str, stamp: float) -> Terrain:
 
 def load_terrain(path: str | Path) -> Terrain:
     """The terrain of one file or of every ``.hgt``, ``.tif`` and ``.tiff`` file in a
-    directory (read once per process while the file is unchanged); a path that is not
+    directory (read once per process while the files are unchanged); a path that is not
     there or cannot be read is a :class:`TerrainError`."""
     try:
         resolved = Path(path).resolve()
-        return _load(str(resolved), resolved.stat().st_mtime)
+        # A directory's own time does not change when a tile in it is rewritten.
+        found = [resolved, *resolved.iterdir()] if resolved.is_dir() else [resolved]
+        stamp = tuple((p.name, p.stat().st_mtime_ns, p.stat().st_size) for p in found)
+        return _load(str(resolved), stamp)
     except FileNotFoundError:
         raise TerrainError("no such file or directory", str(path)) from None
-    except OSError as exc:
-        raise TerrainError(exc.strerror or str(exc), str(path)) from None
+    except (OSError, RuntimeError) as exc:  # unreadable, a name too long, a loop of links
+        raise TerrainError(getattr(exc, "strerror", None) or str(exc), str(path)) from None

@@ -25,7 +25,7 @@ from lxml import etree
 from tml import geo
 from tml.errors import Location, MissionSyntaxError
 from tml.language import schema
-from tml.language.diagnostics import Diagnostic, error
+from tml.language.diagnostics import Diagnostic, error, printable
 from tml.language.model import (
     Action,
     Argument,
@@ -522,11 +522,16 @@ class _Builder:
         source = (found[0].get("source") or "").strip()
         if not source:
             return None  # the schema says so
-        path = (Path(self.doc.file).parent / source).resolve()
-        if not path.exists():
+        path = Path(self.doc.file).parent / source
+        try:
+            path = path.resolve()
+            why = "" if path.exists() else "no such file or directory"
+        except (OSError, RuntimeError) as exc:  # a name too long, a loop of links
+            why = getattr(exc, "strerror", None) or str(exc)
+        if why:
             self.diagnostics.append(error(
                 self.loc(found[0], "source"), "E253",
-                f"terrain source {source!r}: no such file or directory ({path})",
+                f"terrain source '{printable(source)}': {why} ({printable(str(path))})",
                 "give an SRTM .hgt tile, a GeoTIFF or a directory of them, relative to "
                 "this file"))
         return TerrainSource(source, str(path), self.loc(found[0]))

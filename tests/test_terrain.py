@@ -171,6 +171,23 @@ def _plain_tiff(tmp_path: Path) -> Path:
     return path
 
 
+def _huge_tiff(tmp_path: Path) -> Path:
+    # A header that claims 100000 x 100000 samples in a file of a few hundred bytes.
+    import tifffile
+
+    path = write_geotiff(tmp_path / "huge.tif", side=3, degrees=0.001)
+    data = bytearray(path.read_bytes())
+    with tifffile.TiffFile(path) as tif:
+        for code in (256, 257):  # ImageWidth, ImageLength
+            tag = tif.pages[0].tags[code]
+            offset, kind = tag.valueoffset, tag.dtype
+            size = 4 if kind == 4 else 2
+            data[offset:offset + size] = (100_000).to_bytes(size, "little") \
+                if size == 4 else (60_000).to_bytes(2, "little")
+    path.write_bytes(bytes(data))
+    return path
+
+
 def _not_tiff(tmp_path: Path) -> Path:
     path = tmp_path / "photo.tif"
     path.write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(100))
@@ -203,6 +220,7 @@ BAD = {
     "truncated GeoTIFF": (_truncated_tiff, "not a readable GeoTIFF"),
     "TIFF without keys": (_plain_tiff, "without GeoTIFF keys"),
     "not a TIFF": (_not_tiff, "not a readable GeoTIFF"),
+    "huge GeoTIFF": (_huge_tiff, r"samples: more than 169,000,000"),
     "other suffix": (_other_suffix, "not terrain data"),
     "empty directory": (_empty_directory, "a directory without .hgt or GeoTIFF"),
     "missing": (_missing, "no such file or directory"),

@@ -48,6 +48,10 @@ SRTM_SIZES = {1201: 3.0, 3601: 1.0}
 LOWEST, HIGHEST = -1000.0, 9000.0
 """Heights (m) outside which a sample is not ground on Earth: a tile holding one is corrupt."""
 
+MAX_SAMPLES = 13_000 * 13_000
+"""The most samples a GeoTIFF may hold (a 3 x 3 degree mosaic at 1 arc-second is 10801 x
+10801): a file claiming more is refused before anything is decompressed."""
+
 METRES_PER_DEGREE = 111_320.0
 """Metres a degree of latitude spans, near enough to space samples along a path."""
 
@@ -269,6 +273,10 @@ def read_geotiff(path: Path) -> Tile:
                           if _TRANSFORMATION in tags else "no ModelPixelScale and "
                           "ModelTiepoint: where its samples lie is not said")
                 raise TerrainError(f"{reason}; only north-up grids are read", where)
+            if math.prod(page.shape) > MAX_SAMPLES:
+                raise TerrainError(f"a raster of {' x '.join(map(str, page.shape))} samples:"
+                                   f" more than {MAX_SAMPLES:,}, the most tml reads from "
+                                   "one file; cut it into tiles", where)
             samples = page.asarray()
     except TerrainError:
         raise

@@ -78,10 +78,10 @@ def test_the_same_flight_beside_the_hill_is_feasible(
     document = json.loads(capsys.readouterr().out)
     assert document["terrain"] == str(tile)
     clearances = [a["terrain_clearance"] for a in document["actions"]]
-    # The take-off's climb from the ground is not judged; the leg flies 30 m over the
-    # flat ground (the hill 850 m away adds nothing), and so does the way home until its
-    # landing, whose descent is not judged.
-    assert clearances[0] is None
+    # The take-off's climb from the ground is not judged, the point it climbs to is; the
+    # leg flies 30 m over the flat ground (the hill 850 m away adds nothing), and so does
+    # the way home until its landing, whose descent is not judged.
+    assert clearances[0] == pytest.approx(30, abs=0.1)
     assert clearances[1] == pytest.approx(30, abs=0.1)
     assert clearances[2] == pytest.approx(30, abs=0.1)
 
@@ -166,6 +166,23 @@ def test_home_off_the_ground_is_warned(tmp_path: Path,
     assert "36 m below <home>'s altitude 620 m" in out
 
 
+def test_a_take_off_is_judged_where_it_climbs_to_and_a_wait_is_not_judged_again(
+        tmp_path: Path) -> None:
+    tile = write_hgt(tmp_path)
+    low = ('  <task name="climb"><action name="TAKE_OFF"><argument name="altitude" '
+           'value="4"/></action></task>')
+    wait = ('  <task name="stay"><action name="WAIT"><argument name="duration" '
+            'value="5"/></action></task>')
+    path = mission(tmp_path, "\n".join([low, wait, '  <task name="down"><action '
+                                         'name="LAND"/></task>']))
+    report = verify_mission(load_mission(path), load_profile("quadcopter"),
+                            terrain=load_terrain(tile))
+    found = [(v.location.line, v.value) for v in report.violations
+             if v.constraint is Constraint.TERRAIN and v.location]
+    assert found == [(7, pytest.approx(4.0))]  # the take-off's hover point, 4 m up
+    assert [row.terrain_clearance for row in report.rows] == [pytest.approx(4.0), None, None]
+
+
 def test_a_ground_vehicle_is_not_judged_above_the_ground(tmp_path: Path) -> None:
     tile = write_hgt(tmp_path)
     path = mission(tmp_path, go(1200, 0, 0))
@@ -182,7 +199,7 @@ def test_the_profile_sets_the_minimum(tmp_path: Path) -> None:
     strict = replace(load_profile("quadcopter"), min_terrain_clearance=40.0)
     found = [v for v in verify_mission(load_mission(path), strict, terrain=terrain).violations
              if v.constraint is Constraint.TERRAIN]
-    assert [v.location.line for v in found if v.location] == [8, 9]
+    assert [v.location.line for v in found if v.location] == [7, 8, 9]
     assert all(v.limit == 40.0 and v.value == pytest.approx(29.5, abs=0.6) for v in found)
     assert load_profile("quadcopter").min_terrain_clearance == 10.0
 
@@ -256,9 +273,10 @@ def test_the_example_mission_climbs_the_hill_above_the_ground(
     take_off, up, home = document["actions"]
     flank = load_terrain(EXAMPLE.parent / "terrain").height(-35.360117, 149.165230)
     assert 35 < flank - GROUND < 40  # 350 m north, on the hill's south flank
-    # The take-off is not judged; the climb's lowest point is where it starts, 30 m over
-    # home; the way home's is where it starts too, 665 m AMSL over the flank.
+    # The take-off is judged where it climbs to; the climb's lowest point is where it
+    # starts, 30 m over home; the way home's is where it starts too, 665 m AMSL over the
+    # flank.
     assert [a["terrain_clearance"] for a in document["actions"]] == [
-        None, 30.0, round(665 - flank, 3)]
+        30.0, 30.0, round(665 - flank, 3)]
     assert up["path"][-1][2] == pytest.approx(665 - GROUND)
     assert up["battery"] < take_off["battery"] and home["battery"] < up["battery"]

@@ -12,7 +12,9 @@ and the place (latitude, longitude). A place the data does not cover, or a void,
 
 The climb from the ground of a take-off and the last descent of a landing come close to
 the ground by design: a segment that starts on the ground (the action starts landed) or
-ends on it (the action ends landed) is not sampled.
+ends on it (the action ends landed) is not sampled, though the point a take-off climbs to
+is. An action that does not move (WAIT, SET_SPEED ...) is not judged again where the
+action before it left the vehicle.
 
 ``altitude_reference="terrain"`` positions are placed at the ground's height there plus
 their altitude (the flight model's ``ground`` hook, set by :func:`ground_check`), so their
@@ -136,14 +138,14 @@ class GroundCheck:
 
 def _segments(step: Step) -> list[tuple[Point3, Point3]]:
     """The straight segments of a step's path that are held above the ground: not the
-    first when it starts on the ground (a take-off's climb), nor the last when it ends
-    there (a landing's descent). A vehicle hovering where it is counts as one point."""
+    first when it starts on the ground (a take-off's climb: the point it climbs to is held,
+    as a segment of no length), nor the last when it ends there (a landing's descent). An
+    action that does not move is not judged again where the action before left it."""
     points = step.path_points()
-    if not points:
-        points = [step.after.position] if step.after.flying and step.before.flying else []
-    segments = list(pairwise(points)) or [(p, p) for p in points]
+    segments = list(pairwise(points))
     if segments and not step.before.flying:
-        segments = segments[1:]
+        segments = segments[1:] if len(segments) > 1 or not step.after.flying else \
+            [(points[-1], points[-1])]
     if segments and not step.after.flying:
         segments = segments[:-1]
     return segments

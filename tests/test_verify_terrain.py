@@ -246,6 +246,9 @@ def test_an_unusable_tile_the_mission_names_is_refused_with_its_place(
     out = capsys.readouterr().out
     assert f"{path}:5:5: terrain source 'S36E149.hgt': {tile}: 1,000 bytes" in out
     assert "Traceback" not in out
+    assert main(["verify", str(path), "--format", "json"]) == 1
+    said = capsys.readouterr()
+    assert said.out == "" and "terrain data unusable, not verified" in said.err
 
 
 def test_an_unusable_terrain_option_is_a_usage_error(

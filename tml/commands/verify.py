@@ -127,8 +127,9 @@ def _verify_one(path: str, args: argparse.Namespace, profile: VehicleProfile,
             terrain = _load_terrain(named.path)
         except TmlError as exc:
             where = f"{named.location}: " if named.location else ""
-            print(f"{where}terrain source {named.source!r}: {exc}")
-            print(f"{result.file}: terrain data unusable, not verified")
+            said = sys.stderr if args.format == "json" else sys.stdout  # JSON: no document
+            print(f"{where}terrain source {named.source!r}: {exc}", file=said)
+            print(f"{result.file}: terrain data unusable, not verified", file=said)
             return ExitCode.INVALID, None
     start = PredictedState(battery=args.battery, heading=merged.home_or_default.heading)
     report = verify_mission(mission, profile, world, start, terrain)

@@ -81,7 +81,8 @@ class Row:
     vehicles: tuple[int, ...] = ()  # which of the role's vehicles (1, 2 ... in pick order)
     path: tuple[Point3, ...] = ()  # the points flown through, ending where the action ends
     # m above the ground at the lowest point of the path (terrain data given; NaN where it
-    # does not cover the path, None where nothing is judged: on the ground, a take-off)
+    # does not cover the path, None where nothing is judged: an action that does not move,
+    # a landing from where it is)
     terrain_clearance: float | None = None
 
     def to_dict(self) -> dict[str, object]:

@@ -152,6 +152,16 @@ def test_take_off_go_to_yaw_and_hold(rig: Rig) -> None:
     assert stopped.position[0] < 39.0
 
 
+def test_a_position_target_with_a_yaw_turns_the_vehicle_to_it_on_the_way(rig: Rig) -> None:
+    # ORBIT's targets: each carries the heading toward the point of interest; without a
+    # yaw ArduCopter would head along its path (WP_YAW_BEHAVIOR).
+    rig.fly(5.0)
+    assert rig.do(GoTo(1, (0.0, 20.0, 5.0), yaw=200.0)).ok
+    there = rig.until(lambda s: math.dist(s.position, (0, 20, 5)) < 0.5
+                      and abs((s.heading - 200 + 180) % 360 - 180) < 2, "there, facing 200")
+    assert there.mode == "GUIDED"
+
+
 def test_requests_are_carried_out_by_the_links_reactor_not_a_thread_per_vehicle(
         rig: Rig) -> None:
     threads = {t.ident for t in threading.enumerate()}

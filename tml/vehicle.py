@@ -325,10 +325,12 @@ class TakeOff(Request):
 
 @dataclass(frozen=True)
 class GoTo(Request):
-    """Fly to a local point (GUIDED position target); ``speed`` None keeps the current one."""
+    """Fly to a local point (GUIDED position target); ``speed`` None keeps the current one,
+    ``yaw`` (degrees clockwise from north) None leaves the heading to the autopilot."""
 
     target: Point
     speed: float | None = None
+    yaw: float | None = None
 
 
 @dataclass(frozen=True)

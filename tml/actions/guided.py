@@ -246,11 +246,12 @@ def arrived(ctx: Context, target: Point) -> Callable[[VehicleState], bool]:
     return arrived
 
 
-def fly_to(ctx: Context, target: Point, what: str) -> Script:
+def fly_to(ctx: Context, target: Point, what: str, facing: Point | None = None) -> Script:
     """Fly to a local point and wait until within the acceptance radius.
 
     With a router, the vehicle follows the collision-free path around known obstacles,
-    one waypoint after the other; without one, a straight line.
+    one waypoint after the other; without one, a straight line. With ``facing``, each
+    target carries the heading from it toward that point.
     """
     start = require_flying(ctx, what)
     if vehicle_kind(ctx) is Kind.GROUND:
@@ -279,10 +280,16 @@ def fly_to(ctx: Context, target: Point, what: str) -> Script:
             covered = done + max(0.0, leg - math.dist(here, point))
             return max(0.0, min(1.0, covered / total))
 
-        yield Send(GoTo(ctx.vehicle_id, point))
+        yaw = None if facing is None else heading_toward(point, facing)
+        yield Send(GoTo(ctx.vehicle_id, point, yaw=yaw))
         yield Until(arrived(ctx, point), travel_time(ctx, path[index], point),
                     f"reach {fmt(point)}", progress)
     ctx.last_target = target
+
+
+def heading_toward(here: Point, there: Point) -> float:
+    """Degrees clockwise from north from ``here`` toward ``there`` (0 when above it)."""
+    return math.degrees(math.atan2(there[1] - here[1], there[0] - here[0])) % 360.0
 
 
 def fmt(point: Point) -> str:
@@ -321,12 +328,13 @@ def point_argument(ctx: Context, bound: BoundAction, name: str) -> Point | None:
 
 
 def circle(ctx: Context, centre: Point, radius: float, turns: float | None,
-           duration: float | None) -> Script:
+           duration: float | None, facing: Point | None = None) -> Script:
     """Circle ``centre`` clockwise: a number of turns, for a time, or until stopped (neither).
 
     As ArduPilot's loiter items do, the vehicle joins the circle at its nearest point (the
     centre itself may be what it circles, a mast or a tower) and goes round from there. A
-    fixed-wing circles natively (:func:`_orbit`).
+    fixed-wing circles natively (:func:`_orbit`), heading along its circle whatever
+    ``facing`` says; a multicopter given ``facing`` turns toward that point at each target.
     """
     if vehicle_kind(ctx) is Kind.FIXED_WING:
         yield from _orbit(ctx, centre, radius, turns, duration)
@@ -340,7 +348,7 @@ def circle(ctx: Context, centre: Point, radius: float, turns: float | None,
         if duration is not None and started is not None and \
                 ctx.now - started >= duration:
             return
-        yield from fly_to(ctx, circle_point(centre, radius, start, step), "loiter")
+        yield from fly_to(ctx, circle_point(centre, radius, start, step), "loiter", facing)
         if started is None:
             started = ctx.now  # the time and the turns count once on the circle
         step += 1

@@ -950,7 +950,7 @@ class MavlinkVehicle:
         yield from self._guided()
         if request.speed and kind is not Kind.GROUND:
             yield from self.mav.commanding(speed_command(request.speed))
-        self._aim(latitude, longitude, request.target[2])
+        self._keep_aim(_Aim((latitude, longitude, request.target[2]), request.yaw))
         speed = request.speed or self._ground_speed
         if speed and kind is Kind.GROUND:
             yield from self.mav.commanding(speed_command(speed))

@@ -87,13 +87,19 @@ def _readers() -> dict[int, list[tuple[str, Reader]]]:
 READERS = _readers()
 
 
-def _read(item: MissionItem) -> _Action:
-    """The action ``item`` reads back as; a MISSION_ITEM when no action reads it."""
-    for name, reader in READERS.get(item.command, ()):
-        arguments = reader(item)
-        if arguments is not None:
-            return _Action(name, arguments)
-    return _raw(item)
+def _read_next(actions: list[_Action], item: MissionItem) -> None:
+    """Read ``item`` onto ``actions``: joined into the last one when an action that reads
+    it says both are one (the first such in the catalogue's order: a NAV_LOITER_TURNS
+    after an ORBIT's ROI is the ORBIT's circle, not a LOITER), else as the first action
+    that reads it, else as a MISSION_ITEM."""
+    readings = [(name, arguments) for name, reader in READERS.get(item.command, ())
+                if (arguments := reader(item)) is not None]
+    for name, arguments in readings if actions else ():
+        if _joined(actions[-1], _Action(name, arguments, [item.seq])):
+            return
+    action = _Action(*readings[0]) if readings else _raw(item)
+    action.items.append(item.seq)
+    actions.append(action)
 
 
 def _joined(previous: _Action, action: _Action) -> bool:
@@ -209,10 +215,7 @@ def import_plan(plan: PlanFile, name: str) -> Imported:
     losses = list(plan.losses)
     actions: list[_Action] = []
     for item in plan.items:
-        action = _read(item)
-        action.items.append(item.seq)
-        if not (actions and action.name != "MISSION_ITEM" and _joined(actions[-1], action)):
-            actions.append(action)
+        _read_next(actions, item)
     actions = _exact(actions, plan, losses)
     repeats = _repeats(actions, plan)
     text = _mission(plan, name, actions, repeats, losses)

@@ -42,6 +42,7 @@ EXPECTED: dict[str, tuple[int, str, list[str]]] = {
     "imav2016": (0, "all tasks done", []),
     "jump_and_repeat": (0, "all tasks done", []),
     "mission_dispatch": (0, "all tasks done", []),
+    "orbit": (0, "all tasks done", []),
     "dolphin_uav_surface": (0, "all tasks done",
                             ["--vehicles", "2", "--sim-frame", "copter,rover",
                              "--link-lost-limit", "60"]),

@@ -20,6 +20,7 @@ from tml.actions import (
     circles,
     hover,
     moves,
+    orbit,
     payload,
     raw,
     settings,
@@ -29,7 +30,8 @@ from tml.actions.definition import STAGES, ActionDef, NotApplicable
 from tml.actions.reading import Reading
 from tml.language.actions import CATALOGUE, ActionSpec, BoundAction
 
-MODULES = (takeoff_landing, moves, circles, areas, hover, payload, camera, settings, raw)
+MODULES = (takeoff_landing, moves, circles, areas, hover, payload, camera, settings, raw,
+           orbit)
 """The action modules, each with its ``DEFINITIONS``: a new action is a new module here
 (or a new definition in the module of its family)."""
 

@@ -443,6 +443,32 @@ CATALOGUE: tuple[ActionSpec, ...] = (
         together=(("latitude", "longitude", "altitude"),),
         aliases=("HOME",),
     ),
+    # --- circling a point of interest, facing it ------------------------------------------
+    ActionSpec(
+        "ORBIT", Category.HOVER,
+        "Circle a point of interest at a radius, facing it, for a number of turns or a time. "
+        "With commands the circle's targets are sent one after the other, each with the "
+        "heading toward the point; as mission items it is DO_SET_ROI_LOCATION, "
+        "NAV_LOITER_TURNS and DO_SET_ROI_NONE (the autopilot faces the point while it "
+        "circles, and forgets it afterwards).",
+        (
+            _point("coordinates", "the point of interest (north, east, up) from home; up is "
+                   "the height of what is looked at", aliases=("point",), label=LabelUse.READ),
+            _LATITUDE, _LONGITUDE,
+            _number("target_altitude", "height above home of the point of interest given "
+                    "by latitude and longitude", "m", Quantity.ALTITUDE, default=0.0),
+            _number("altitude", "altitude above home the circle is flown at; absent: the "
+                    "altitude the vehicle is at", "m", Quantity.ALTITUDE, positive=True),
+            _RADIUS,
+            _integer("turns", "number of circles", Quantity.TURNS),
+            _number("duration", "time to circle (as mission items: the whole turns it "
+                    "takes at ArduCopter's CIRCLE_RATE, 20 deg/s)", "s", Quantity.DURATION,
+                    positive=True, aliases=("time",)),
+            _FRAME_ENCODING,
+        ),
+        exactly_one_of=(("coordinates", "latitude"), ("turns", "duration")),
+        together=(("latitude", "longitude"),),
+    ),
     # --- any mission item ----------------------------------------------------------------
     ActionSpec(
         "MISSION_ITEM", Category.CONFIGURATION,

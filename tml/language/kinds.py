@@ -146,6 +146,8 @@ _CANNOT: dict[Kind, dict[str, str]] = {
         "ROTATE_YAW": "cannot turn in place (ArduPilot Rover turns only while driving)",
         "FLIP": "has no FLIP mode",
         "PICK_UP_ITEM": "cannot descend on an item to pick it up",
+        "ORBIT": "cannot face a point while it circles it (ArduPilot Rover heads along "
+                 "its circle, and an ROI only aims a camera mount)",
     },
 }
 

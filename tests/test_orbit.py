@@ -89,24 +89,28 @@ def test_a_ground_vehicle_cannot_orbit() -> None:
 
 # --- mission items ------------------------------------------------------------------------
 
-def test_its_items_are_the_roi_the_circle_and_the_roi_cleared() -> None:
+def test_its_items_are_the_roi_the_circle_where_it_ends_and_the_roi_cleared() -> None:
+    # ArduPilot runs the DO items after a navigation item while it flies: the ROI is
+    # cleared during the waypoint where the circle ends, not as the circle starts.
     plan = compiled(act("ORBIT", coordinates="(30, 10, 5)", radius="8", turns="3",
-                        altitude="12"))
-    roi, circle, clear = plan.items
-    assert (roi.command, circle.command, clear.command) == (
-        M.MAV_CMD_DO_SET_ROI_LOCATION, M.MAV_CMD_NAV_LOITER_TURNS, M.MAV_CMD_DO_SET_ROI_NONE)
-    assert roi.frame == circle.frame == M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+                        altitude="12"), start=(30.0, -20.0, 10.0))
+    roi, circle, end, clear = plan.items
+    assert [i.command for i in plan.items] == [
+        M.MAV_CMD_DO_SET_ROI_LOCATION, M.MAV_CMD_NAV_LOITER_TURNS, M.MAV_CMD_NAV_WAYPOINT,
+        M.MAV_CMD_DO_SET_ROI_NONE]
+    assert roi.frame == circle.frame == end.frame == M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
     assert local(roi) == (30.0, 10.0, 5.0) and local(circle) == (30.0, 10.0, 12.0)
     assert (circle.param1, circle.param3) == (3, 8)
+    assert local(end) == (30.0, 2.0, 12.0)  # the circle's point nearest the vehicle
     assert (clear.x, clear.y, clear.z) == (0, 0, 0)
-    assert plan.action_index == (0, 0, 0)
+    assert plan.action_index == (0, 0, 0, 0)
 
 
 def test_a_global_point_is_written_as_given_and_the_circle_defaults_to_the_altitude_there(
         ) -> None:
     plan = compiled(act("ORBIT", latitude="-35.3630", longitude="149.1653",
                         target_altitude="2", turns="1"), start=(0.0, 0.0, 17.0))
-    roi, circle, _ = plan.items
+    roi, circle, _, _ = plan.items
     assert (roi.x, roi.y, roi.z) == (-353630000, 1491653000, 2.0)
     assert (circle.x, circle.y, circle.z) == (-353630000, 1491653000, 17.0)
 
@@ -134,7 +138,7 @@ def test_the_items_fly_round_the_point_in_the_simulator() -> None:
                     act("LAND"), start=(0, 0, 0))
     v, out = fly(plan.items, limit=600)
     reached = [m.seq - 1 for m in out if m.get_type() == "MISSION_ITEM_REACHED"]
-    assert [plan.action_at(s) for s in reached if plan.items[s].command < 80] == [0, 1, 2]
+    assert [plan.action_at(s) for s in reached if plan.items[s].command < 80] == [0, 1, 1, 2]
     assert v.landed
 
 
@@ -174,27 +178,36 @@ def _imported_actions(text: str, tmp_path: Path) -> tuple[list[str], list[Missio
     return names, list(back.items)
 
 
-TAKE_OFF_ROW = "3\t22\t0\t0\t0\t0\t0\t0\t15"
-ROI_ROW = "3\t195\t0\t0\t0\t0\t-35.3630\t149.1653\t2"
-CIRCLE_ROW = "3\t18\t2\t0\t10\t0\t-35.3630\t149.1653\t20"
-CLEAR_ROW = "2\t197\t0\t0\t0\t0\t0\t0\t0"
+def _row(item: MissionItem) -> str:
+    return "\t".join(str(v) for v in (item.frame, item.command, item.param1, item.param2,
+                                       item.param3, item.param4, item.x / 1e7, item.y / 1e7,
+                                       item.z))
 
 
-def test_the_roi_the_circle_and_the_roi_cleared_are_imported_as_one_orbit(
+TAKE_OFF_ROW, ROI_ROW, CIRCLE_ROW, END_ROW, CLEAR_ROW = (_row(i) for i in compiled(
+    act("TAKE_OFF", altitude="15"), act("ORBIT", latitude="-35.3630", longitude="149.1653",
+                                          target_altitude="2", altitude="20", radius="10",
+                                          turns="2"), start=(0.0, 0.0, 0.0)).items)
+
+
+def test_the_roi_the_circle_where_it_ends_and_the_roi_cleared_are_imported_as_one_orbit(
         tmp_path: Path) -> None:
-    names, items = _imported_actions(_wpl(TAKE_OFF_ROW, ROI_ROW, CIRCLE_ROW, CLEAR_ROW),
-                                     tmp_path)
+    names, items = _imported_actions(_wpl(TAKE_OFF_ROW, ROI_ROW, CIRCLE_ROW, END_ROW,
+                                          CLEAR_ROW), tmp_path)
     assert names == ["TAKE_OFF", "ORBIT"]
-    assert [i.command for i in items] == [22, 195, 18, 197]
+    assert [i.command for i in items] == [22, 195, 18, 16, 197]
 
 
 @pytest.mark.parametrize(("rows", "names"), [
     # A circle with no ROI before it is a LOITER; an ROI with no circle stays as written.
     ((TAKE_OFF_ROW, CIRCLE_ROW), ["TAKE_OFF", "LOITER"]),
     ((TAKE_OFF_ROW, ROI_ROW, CLEAR_ROW), ["TAKE_OFF", "MISSION_ITEM", "MISSION_ITEM"]),
-    # The circle round another point than the ROI's: three items as written.
-    ((TAKE_OFF_ROW, ROI_ROW, CIRCLE_ROW.replace("149.1653", "149.1654"), CLEAR_ROW),
-     ["TAKE_OFF", "MISSION_ITEM", "LOITER", "MISSION_ITEM"]),
+    # The ROI cleared as the circle starts (no waypoint between): each item as written.
+    ((TAKE_OFF_ROW, ROI_ROW, CIRCLE_ROW, CLEAR_ROW),
+     ["TAKE_OFF", "MISSION_ITEM", "MISSION_ITEM", "MISSION_ITEM"]),
+    # The circle round another point than the ROI's: no ORBIT.
+    ((TAKE_OFF_ROW, ROI_ROW, CIRCLE_ROW.replace("149.1653", "149.1654"), END_ROW, CLEAR_ROW),
+     ["TAKE_OFF", "MISSION_ITEM", "LOITER", "GO_TO_POSITION", "MISSION_ITEM"]),
 ])
 def test_items_that_are_no_orbit_stay_what_they_are(rows: tuple[str, ...], names: list[str],
                                                      tmp_path: Path) -> None:

@@ -8,11 +8,15 @@ ArduPilot has no MAV_CMD_DO_ORBIT, so ORBIT is made of what it has:
   along its circle (it cannot face a point); a ground vehicle is refused
   (:mod:`tml.language.kinds`);
 - as mission items (AUTO), DO_SET_ROI_LOCATION at the point of interest, NAV_LOITER_TURNS
-  around it at the flight altitude, and DO_SET_ROI_NONE: ArduCopter faces the ROI while it
-  circles, and keeps facing it after the circle unless the ROI is cleared. A time becomes
-  the whole turns it takes at ArduCopter's default CIRCLE_RATE (20 deg/s), since ArduPilot
-  circles only by turns;
-- ``tml import`` reads those three items back as one ORBIT when they compile back exactly.
+  around it at the flight altitude, a NAV_WAYPOINT where the circle ends, and
+  DO_SET_ROI_NONE: ArduCopter faces the ROI while it circles, and keeps facing it after the
+  circle unless the ROI is cleared. ArduPilot runs the DO items that follow a navigation
+  item while that item flies (AP_Mission), so the ROI is set during the item before the
+  circle, and the ROI is cleared only once the circle is over, during the waypoint where it
+  ends (it ends where it began: ArduCopter joins the circle at its point nearest the
+  vehicle and flies whole turns). A time becomes the whole turns it takes at ArduCopter's
+  default CIRCLE_RATE (20 deg/s), since ArduPilot circles only by turns;
+- ``tml import`` reads those four items back as one ORBIT when they compile back exactly.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from tml.actions.guided import Context, Limits, Script
 from tml.actions.motion import Labels, Motion, PredictedState, Step
 from tml.geo import Point, to_local
 from tml.language.actions import BoundAction
+from tml.patterns import circle_entry, circle_point
 
 TURN_SECONDS = 360.0 / 20.0
 """Seconds ArduCopter takes for one turn of NAV_LOITER_TURNS at its default CIRCLE_RATE
@@ -69,9 +74,18 @@ def orbit_items(b: items.Builder, action: BoundAction) -> None:
     else:
         target = action.point("coordinates")
         roi_exact = circle_exact = None
+    centre = (target[0], target[1], altitude)
+    radius = action.number("radius")
     b.add(mav.DO_SET_ROI_LOCATION, point=target, raw=roi_exact)
-    items.loiter_at(b, (target[0], target[1], altitude), "relative", action.number("radius"),
-                    turns_of(action), exact=circle_exact)
+    # Where the circle ends, from the centre as the items carry it (1e-7 degrees), so that
+    # the same items imported back compile to the same end.
+    roi = b.items[-1]
+    north, east, _ = to_local(roi.x / 1e7, roi.y / 1e7, b.home.altitude, b.home.latitude,
+                              b.home.longitude, b.home.altitude)
+    end = circle_point((north, east, altitude), radius,
+                       circle_entry((north, east, altitude), b.cursor.position), 0)
+    items.loiter_at(b, centre, "relative", radius, turns_of(action), exact=circle_exact)
+    b.waypoint(end)
     b.add(mav.DO_SET_ROI_NONE)
 
 
@@ -109,6 +123,8 @@ read (never written: an ORBIT with it does not validate, so a lone ROI item stay
 MISSION_ITEM)."""
 _CIRCLE = "circle"
 """The same for its NAV_LOITER_TURNS, until its DO_SET_ROI_NONE is read."""
+_END = "end"
+"""The same for the NAV_WAYPOINT where its circle ends."""
 _CLEAR = "clear"
 """The same for its DO_SET_ROI_NONE (alone, it is no ORBIT)."""
 
@@ -130,6 +146,13 @@ def _circle_read(item: reading.ItemFields) -> reading.Arguments | None:
             "turns": reading.value(item.param1), "radius": reading.value(abs(item.param3))}
 
 
+def _end_read(item: reading.ItemFields) -> reading.Arguments | None:
+    if item.frame not in mav.RELATIVE_FRAMES or not reading.placed(item) \
+            or item.param1 or item.param2 or item.param3 or item.param4:
+        return None
+    return {_END: "yes", "altitude": reading.value(item.z)}
+
+
 def _none_read(item: reading.ItemFields) -> reading.Arguments | None:
     return {_CLEAR: "yes"} if item.frame == mav.FRAME_MISSION and not any(
         (item.param1, item.param2, item.param3, item.param4, item.x, item.y, item.z)) else None
@@ -144,17 +167,22 @@ def orbit_join(before: str, before_arguments: Mapping[str, str],
     if _CIRCLE in arguments and _ROI in before_arguments and _CIRCLE not in before_arguments \
             and all(before_arguments[k] == arguments[k] for k in ("latitude", "longitude")):
         return {**before_arguments, **arguments}
-    if _CLEAR in arguments and _CIRCLE in before_arguments:
-        return {k: v for k, v in before_arguments.items() if k not in (_ROI, _CIRCLE)}
+    if _END in arguments and _CIRCLE in before_arguments and _END not in before_arguments \
+            and before_arguments["altitude"] == arguments["altitude"]:
+        return {**before_arguments, _END: "yes"}  # the compiler writes where it ends
+    if _CLEAR in arguments and _END in before_arguments:
+        return {k: v for k, v in before_arguments.items() if k not in (_ROI, _CIRCLE, _END)}
     return None
 
 
 ORBIT_READING = reading.Reading({
     mav.DO_SET_ROI_LOCATION: _roi_read,
     mav.NAV_LOITER_TURNS: _circle_read,
+    mav.NAV_WAYPOINT: _end_read,
     mav.DO_SET_ROI_NONE: _none_read,
 }, join=orbit_join)
-"""ORBIT from its three items (the circle alone reads back as a LOITER first)."""
+"""ORBIT from its four items (the circle alone reads back as a LOITER, the waypoint as a
+GO_TO_POSITION)."""
 
 
 DEFINITIONS: tuple[ActionDef, ...] = (

@@ -449,8 +449,8 @@ CATALOGUE: tuple[ActionSpec, ...] = (
         "Circle a point of interest at a radius, facing it, for a number of turns or a time. "
         "With commands the circle's targets are sent one after the other, each with the "
         "heading toward the point; as mission items it is DO_SET_ROI_LOCATION, "
-        "NAV_LOITER_TURNS and DO_SET_ROI_NONE (the autopilot faces the point while it "
-        "circles, and forgets it afterwards).",
+        "NAV_LOITER_TURNS, a NAV_WAYPOINT where the circle ends and DO_SET_ROI_NONE (the "
+        "autopilot faces the point while it circles, and forgets it afterwards).",
         (
             _point("coordinates", "the point of interest (north, east, up) from home; up is "
                    "the height of what is looked at", aliases=("point",), label=LabelUse.READ),

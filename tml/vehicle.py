@@ -375,10 +375,12 @@ class ReturnToLaunch(Request):
 
 @dataclass(frozen=True)
 class SetSpeed(Request):
-    """Change speed: ``kind`` is airspeed, ground, climb or descent."""
+    """Change speed: ``kind`` is airspeed, ground, climb or descent; ``throttle`` in
+    percent, -1 for no change (DO_CHANGE_SPEED's param3)."""
 
     speed: float
     kind: str = "ground"
+    throttle: float = -1.0
 
 
 @dataclass(frozen=True)

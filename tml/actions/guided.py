@@ -51,6 +51,7 @@ from tml.vehicle import (
     Land,
     Request,
     SetMode,
+    SetYaw,
     VehicleState,
 )
 from tml.world import World
@@ -235,8 +236,12 @@ def travel_time(ctx: Context, start: Point, end: Point) -> float:
     return limits.factor * max(horizontal, vertical) + limits.slack
 
 
-def arrived(ctx: Context, target: Point) -> Callable[[VehicleState], bool]:
+def arrived(ctx: Context, target: Point,
+            within: float | None = None) -> Callable[[VehicleState], bool]:
+    """Whether a state is at ``target``: within the vehicle's tolerances, or horizontally
+    within ``within`` metres when given (a waypoint's acceptance radius)."""
     radius, vertical = tolerances(ctx)
+    radius = within if within is not None else radius
 
     def arrived(state: VehicleState) -> bool:
         p = state.position
@@ -246,8 +251,10 @@ def arrived(ctx: Context, target: Point) -> Callable[[VehicleState], bool]:
     return arrived
 
 
-def fly_to(ctx: Context, target: Point, what: str, facing: Point | None = None) -> Script:
-    """Fly to a local point and wait until within the acceptance radius.
+def fly_to(ctx: Context, target: Point, what: str, facing: Point | None = None,
+           within: float | None = None) -> Script:
+    """Fly to a local point and wait until within the acceptance radius (``within`` metres
+    horizontally when given).
 
     With a router, the vehicle follows the collision-free path around known obstacles,
     one waypoint after the other; without one, a straight line. With ``facing``, each
@@ -282,7 +289,9 @@ def fly_to(ctx: Context, target: Point, what: str, facing: Point | None = None) 
 
         yaw = None if facing is None else heading_toward(point, facing)
         yield Send(GoTo(ctx.vehicle_id, point, yaw=yaw))
-        yield Until(arrived(ctx, point), travel_time(ctx, path[index], point),
+        last = index == len(path) - 2
+        yield Until(arrived(ctx, point, within if last else None),
+                    travel_time(ctx, path[index], point),
                     f"reach {fmt(point)}", progress)
     ctx.last_target = target
 
@@ -290,6 +299,18 @@ def fly_to(ctx: Context, target: Point, what: str, facing: Point | None = None) 
 def heading_toward(here: Point, there: Point) -> float:
     """Degrees clockwise from north from ``here`` toward ``there`` (0 when above it)."""
     return math.degrees(math.atan2(there[1] - here[1], there[0] - here[0])) % 360.0
+
+
+def face(ctx: Context, target: float) -> Script:
+    """Turn to the heading ``target`` (degrees from north) and wait until facing it."""
+    heading = ctx.state.heading
+    # Sent as a heading, not a turn: a resent request (after an event) must not turn again.
+    yield Send(SetYaw(ctx.vehicle_id, target))
+    turn = abs((target - heading + 540) % 360 - 180)
+    tolerance = ctx.limits.heading_tolerance
+    yield Until(lambda s: abs((target - s.heading + 540) % 360 - 180) <= tolerance,
+                ctx.limits.factor * turn / ctx.limits.yaw_rate + ctx.limits.slack,
+                f"face {target:.0f} deg")
 
 
 def fmt(point: Point) -> str:

@@ -10,7 +10,7 @@ from tml.actions.guided import ActionFailed, Context, Script, Send, Sleep, Until
 from tml.actions.motion import Labels, Motion, PredictedState, Step, instant
 from tml.language.actions import BoundAction
 from tml.language.kinds import Kind
-from tml.vehicle import Flip, Hold, SetYaw
+from tml.vehicle import Flip, Hold
 
 
 def rotate_yaw(ctx: Context, bound: BoundAction) -> Script:
@@ -22,13 +22,7 @@ def rotate_yaw(ctx: Context, bound: BoundAction) -> Script:
         target = (heading + angle) % 360
     else:
         target = bound.number("orientation_angle") % 360
-    # Sent as a heading, not a turn: a resent request (after an event) must not turn again.
-    yield Send(SetYaw(ctx.vehicle_id, target))
-    turn = abs((target - heading + 540) % 360 - 180)
-    tolerance = ctx.limits.heading_tolerance
-    yield Until(lambda s: abs((target - s.heading + 540) % 360 - 180) <= tolerance,
-                ctx.limits.factor * turn / ctx.limits.yaw_rate + ctx.limits.slack,
-                f"face {target:.0f} deg")
+    yield from guided.face(ctx, target)
 
 
 def stabilize(ctx: Context, bound: BoundAction) -> Script:

@@ -102,10 +102,14 @@ class Builder:
         self.owners.append(self.action)
 
     def waypoint(self, point: Point, reference: str = "relative",
-                 exact: tuple[int, int, float] | None = None) -> None:
-        """Fly to ``point`` (at ``exact``, its x, y, z as written, when given) and move the
-        cursor there."""
-        self.add(mav.NAV_WAYPOINT, point=point, reference=reference, raw=exact)
+                 exact: tuple[int, int, float] | None = None,
+                 params: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0)) -> None:
+        """Fly to ``point`` (at ``exact``, its x, y, z as written, when given; with
+        ``params``, its hold, acceptance radius, pass radius and yaw) and move the cursor
+        there."""
+        p1, p2, p3, p4 = params
+        self.add(mav.NAV_WAYPOINT, point=point, reference=reference, raw=exact,
+                 params=(p1, p2, p3, p4))
         self.cursor.position = point
 
 

@@ -7,10 +7,11 @@ import math
 
 from tml.actions import guided, items, mav, reading, timing
 from tml.actions.definition import ActionDef, NotApplicable, spec
-from tml.actions.guided import ActionFailed, Context, Script, fly_to
+from tml.actions.guided import ActionFailed, Context, Script, Send, Sleep, fly_to
 from tml.actions.motion import Labels, Motion, PredictedState, Step, add
 from tml.language.actions import BoundAction
 from tml.patterns import displaced
+from tml.vehicle import Hold
 
 
 def go_to_point(ctx: Context, bound: BoundAction) -> Script:
@@ -48,8 +49,18 @@ def move_from_home(ctx: Context, bound: BoundAction) -> Script:
 
 
 def go_to_position(ctx: Context, bound: BoundAction) -> Script:
-    """Fly to a WGS84 position."""
-    yield from fly_to(ctx, guided.local(ctx, bound), "GO_TO_POSITION")
+    """Fly to a WGS84 position (reached within ``acceptance_radius`` when given), then face
+    ``yaw`` and hover for ``hold`` seconds when given, as ArduCopter flies a NAV_WAYPOINT
+    with those params."""
+    radius = bound.number("acceptance_radius", 0.0)
+    yield from fly_to(ctx, guided.local(ctx, bound), "GO_TO_POSITION", within=radius or None)
+    yaw = bound.number("yaw", math.nan)
+    if not math.isnan(yaw):
+        yield from guided.face(ctx, yaw % 360.0)
+    hold = bound.number("hold", 0.0)
+    if hold > 0:
+        yield Send(Hold(ctx.vehicle_id))
+        yield Sleep(hold)
 
 
 def set_altitude(ctx: Context, bound: BoundAction) -> Script:
@@ -112,7 +123,8 @@ def move_from_home_items(b: items.Builder, action: BoundAction) -> None:
 
 def go_to_position_items(b: items.Builder, action: BoundAction) -> None:
     point, reference = items.global_point(b, action, action.choice("altitude_reference"))
-    b.waypoint(point, reference, items.written_position(b, action))
+    b.waypoint(point, reference, items.written_position(b, action),
+               params=tuple(action.number(name, 0.0) for name in WAYPOINT_PARAMS))
 
 
 def set_altitude_items(b: items.Builder, action: BoundAction) -> None:
@@ -194,9 +206,21 @@ def go_to_rectangle_motion(model: Motion, bound: BoundAction, state: PredictedSt
 
 # --- reading mission items back (tml import) ------------------------------------------------
 
+WAYPOINT_PARAMS = ("hold", "acceptance_radius", "pass_radius", "yaw")
+"""GO_TO_POSITION's arguments that are a NAV_WAYPOINT's param1 to param4."""
+
+
 def go_to_position_read(item: reading.ItemFields) -> reading.Arguments | None:
-    """NAV_WAYPOINT at a position."""
-    return reading.position({}, item) if reading.placed(item) else None
+    """NAV_WAYPOINT at a position, with its hold, acceptance and pass radius and yaw when
+    not 0 (NaN kept as NaN)."""
+    if not reading.placed(item):
+        return None
+    arguments = reading.position({}, item)
+    params = (item.param1, item.param2, item.param3, item.param4)
+    for name, param in zip(WAYPOINT_PARAMS, params, strict=True):
+        if param != 0:  # NaN included
+            arguments[name] = reading.value(param)
+    return arguments
 
 
 def set_altitude_read(item: reading.ItemFields) -> reading.Arguments | None:

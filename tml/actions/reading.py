@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from tml.actions import mav
+from tml.language.mavlink_tables import MAV_FRAME
 
 Arguments = dict[str, str]
 """An action's arguments, name -> value as the XML writes it."""
@@ -75,6 +76,14 @@ def encoding(arguments: Arguments, item: ItemFields) -> Arguments:
     _INT (frame 3 ...)."""
     if item.frame in mav.FLOAT_FRAMES:
         arguments["frame_encoding"] = "float"
+    return arguments
+
+
+def frame(arguments: Arguments, item: ItemFields) -> Arguments:
+    """``arguments`` with the frame of an item without a position when it is not the
+    MISSION frame the compiler writes."""
+    if item.frame != mav.FRAME_MISSION:
+        arguments["frame"] = MAV_FRAME.get(item.frame) or str(item.frame)
     return arguments
 
 

@@ -16,7 +16,7 @@ def set_speed(ctx: Context, bound: BoundAction) -> Script:
     """Change the speed of the following moves."""
     speed = bound.number("speed")
     kind = bound.choice("speed_type")
-    yield Send(SetSpeed(ctx.vehicle_id, speed, kind))
+    yield Send(SetSpeed(ctx.vehicle_id, speed, kind, bound.number("throttle", -1.0)))
     if kind in ("airspeed", "ground"):
         ctx.limits.speed = speed
     elif kind == "climb":
@@ -46,7 +46,8 @@ def memorize_point(ctx: Context, bound: BoundAction) -> Script:
 
 def set_speed_items(b: items.Builder, action: BoundAction) -> None:
     kind = items.SPEED_TYPES[action.choice("speed_type")]
-    b.add(mav.DO_CHANGE_SPEED, params=(kind, action.number("speed"), -1.0, 0.0))
+    b.add(mav.DO_CHANGE_SPEED, params=(kind, action.number("speed"),
+                                       action.number("throttle", -1.0), 0.0))
 
 
 def set_home_items(b: items.Builder, action: BoundAction) -> None:
@@ -93,10 +94,14 @@ def set_home_motion(model: Motion, bound: BoundAction, state: PredictedState,
 # --- reading mission items back (tml import) ------------------------------------------------
 
 def set_speed_read(item: reading.ItemFields) -> reading.Arguments:
-    """DO_CHANGE_SPEED: the speed and which one."""
+    """DO_CHANGE_SPEED: the speed and which one, the throttle when it changes it, and the
+    frame a file wrote."""
     kinds = {number: name for name, number in items.SPEED_TYPES.items()}
-    return {"speed": reading.value(item.param2),
-            "speed_type": kinds.get(int(item.param1), "airspeed")}
+    arguments = {"speed": reading.value(item.param2),
+                 "speed_type": kinds.get(int(item.param1), "airspeed")}
+    if item.param3 != -1:
+        arguments["throttle"] = reading.value(item.param3)
+    return reading.frame(arguments, item)
 
 
 def set_home_read(item: reading.ItemFields) -> reading.Arguments:

@@ -38,6 +38,9 @@ def take_off(ctx: Context, bound: BoundAction) -> Script:
                 ctx.limits.factor * altitude / ctx.limits.climb_rate + ctx.limits.slack,
                 f"climb to {altitude:g} m", lambda s: max(0.0, min(1.0, s.altitude / altitude)),
                 frozenset(("position", "current")))
+    yaw = bound.number("yaw", math.nan)
+    if not math.isnan(yaw) and guided.vehicle_kind(ctx) is not Kind.FIXED_WING:
+        yield from guided.face(ctx, yaw % 360.0)
 
 
 def _climb_on(ctx: Context, bound: BoundAction) -> Script:
@@ -151,9 +154,14 @@ def return_home_and_land(ctx: Context, bound: BoundAction) -> Script:
 
 def take_off_items(b: items.Builder, action: BoundAction) -> None:
     altitude = action.number("altitude")
-    b.add(mav.NAV_TAKEOFF, altitude=altitude,
-          params=(action.number("pitch"), 0.0, 0.0, 0.0))
     n, e, _ = b.cursor.position
+    params = (action.number("pitch"), 0.0, 0.0, action.number("yaw", 0.0))
+    if "latitude" in action.values:  # the position the item carries, as written
+        b.add(mav.NAV_TAKEOFF, point=(n, e, altitude), params=params,
+              raw=(round(action.number("latitude") * 1e7),
+                   round(action.number("longitude") * 1e7), altitude))
+    else:
+        b.add(mav.NAV_TAKEOFF, altitude=altitude, params=params)
     b.cursor.position = (n, e, altitude)
 
 
@@ -275,9 +283,15 @@ def return_home_and_land_time(limits: Limits, vehicle_type: str, here: Point,
 # --- reading mission items back (tml import) ------------------------------------------------
 
 def take_off_read(item: reading.ItemFields) -> reading.Arguments:
-    """NAV_TAKEOFF: its altitude and pitch."""
-    return reading.encoding({"altitude": reading.value(item.z),
-                             "pitch": reading.value(item.param1)}, item)
+    """NAV_TAKEOFF: its altitude and pitch, and the position and yaw it carries when it has
+    them."""
+    arguments = {"altitude": reading.value(item.z), "pitch": reading.value(item.param1)}
+    if reading.placed(item):
+        arguments["latitude"] = reading.value(item.x / 1e7)
+        arguments["longitude"] = reading.value(item.y / 1e7)
+    if item.param4 != 0:  # NaN included
+        arguments["yaw"] = reading.value(item.param4)
+    return reading.encoding(arguments, item)
 
 
 def land_read(item: reading.ItemFields) -> reading.Arguments | None:
@@ -319,5 +333,6 @@ DEFINITIONS: tuple[ActionDef, ...] = (
     ActionDef(spec("RETURN_HOME_AND_LAND"), guided=return_home_and_land,
               items=return_home_and_land_items, motion=return_home_and_land_motion,
               item_time=return_home_and_land_time,
-              imports=reading.Reading({mav.NAV_RETURN_TO_LAUNCH: lambda item: {}})),
+              imports=reading.Reading({mav.NAV_RETURN_TO_LAUNCH:
+                                       lambda item: reading.frame({}, item)})),
 )

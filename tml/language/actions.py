@@ -176,6 +176,32 @@ _PRECISION = ArgumentSpec(
     aliases=("land_mode", "landMode"),
 )
 _GLOBAL = (_LATITUDE, _LONGITUDE, _ALTITUDE, _ALTITUDE_REFERENCE, _FRAME_ENCODING)
+# --- the frame of an item without a position (RETURN_HOME_AND_LAND, SET_SPEED), as a file
+# wrote it: ArduPilot's files write 0 (GLOBAL), others 3 or 5, tml 2 (MISSION)
+_ITEM_FRAME = ArgumentSpec(
+    "frame", ArgType.STRING,
+    "the MAV_FRAME its mission items without a position are written in, by name or number "
+    "(such an item's frame means nothing to the autopilot; kept as a file wrote it); "
+    "absent: MISSION", table=MAV_FRAME)
+# --- the position a NAV_TAKEOFF item carries (TAKE_OFF), as planners write it
+_TAKE_OFF_POSITION = tuple(
+    replace(s, description=f"{s.description} its mission item carries (ground stations write "
+            "where the vehicle stands); a multicopter climbs where it is, as ArduCopter does")
+    for s in (_LATITUDE, _LONGITUDE))
+# --- a waypoint's params (GO_TO_POSITION): absent, each is what the compiler writes
+# when none is given (0); NaN where the item says "not set".
+_WAYPOINT = (
+    _number("hold", "time to hover at the position once reached (NAV_WAYPOINT param1)", "s",
+            Quantity.DURATION, minimum=0.0),
+    _number("acceptance_radius", "how near counts as reached; absent or 0: the vehicle's "
+            "own (WPNAV_RADIUS) (param2)", "m", Quantity.RADIUS, minimum=0.0),
+    _number("pass_radius", "fixed-wing: pass the position at this distance, positive to "
+            "the right, negative to the left; 0: through it (param3)", "m",
+            Quantity.COORDINATE),
+    replace(_number("yaw", "heading to face at the position, clockwise from north; absent "
+                    "or NaN: the vehicle chooses (param4; ArduCopter ignores it in AUTO)",
+                    "deg", Quantity.ANGLE, minimum=-360.0, maximum=360.0), nan=True),
+)
 _INTERVAL = _number("interval", "time between photos", "s", Quantity.DURATION, default=2.0,
                     positive=True)
 _LOITER_POSITION = (
@@ -217,7 +243,12 @@ CATALOGUE: tuple[ActionSpec, ...] = (
             _number("pitch", "take-off pitch for fixed-wing vehicles (Dolphin takeOff)", "deg",
                     Quantity.ANGLE, default=15.0, minimum=0.0, maximum=90.0),
             _FRAME_ENCODING,
+            *_TAKE_OFF_POSITION,
+            replace(_WAYPOINT[3], description="heading to face once at the altitude, clockwise "
+                    "from north; absent or NaN: the vehicle chooses (NAV_TAKEOFF param4; "
+                    "ArduCopter ignores it in AUTO)"),
         ),
+        together=(("latitude", "longitude"),),
     ),
     ActionSpec("LAND", Category.TAKE_OFF_LANDING,
                "Descend vertically where the vehicle is until it touches the ground; "
@@ -335,8 +366,10 @@ CATALOGUE: tuple[ActionSpec, ...] = (
     # --- Dolphin MAVLink plugin ----------------------------------------------------------
     ActionSpec(
         "GO_TO_POSITION", Category.TRANSLATION,
-        "Fly to a WGS84 position (Dolphin goPos).",
-        (*(replace(s, required=True) for s in _GLOBAL[:3]), *_GLOBAL[3:]),
+        "Fly to a WGS84 position (Dolphin goPos), optionally reached within an acceptance "
+        "radius, then facing a heading and holding there for a time (a NAV_WAYPOINT's "
+        "params).",
+        (*(replace(s, required=True) for s in _GLOBAL[:3]), *_GLOBAL[3:], *_WAYPOINT),
     ),
     ActionSpec(
         "LOITER", Category.HOVER,
@@ -373,7 +406,7 @@ CATALOGUE: tuple[ActionSpec, ...] = (
     ActionSpec(
         "RETURN_HOME_AND_LAND", Category.TAKE_OFF_LANDING,
         "Return to launch and land there (ArduPilot RTL; Dolphin returnHomeAndLand).",
-        (_YAW, _PRECISION),
+        (_YAW, _PRECISION, _ITEM_FRAME),
         aliases=("RETURN_TO_LAUNCH", "RTL"),
     ),
     ActionSpec(
@@ -385,6 +418,10 @@ CATALOGUE: tuple[ActionSpec, ...] = (
                          default="airspeed",
                          choices=("airspeed", "ground", "climb", "descent"),
                          aliases=("type",)),
+            _number("throttle", "throttle to set, in percent (DO_CHANGE_SPEED param3); "
+                    "absent: -1, no change; ArduCopter ignores it, ArduPlane sets a value "
+                    "above 0", "%", Quantity.ITEM_PARAM, minimum=-1.0, maximum=100.0),
+            _ITEM_FRAME,
         ),
         aliases=("CHANGE_SPEED", "SPEED"),
     ),

@@ -1036,7 +1036,8 @@ class MavlinkVehicle:
             self._ground_speed = request.speed  # sent with the next position target
             return
         yield from self.mav.commanding(CommandLong(
-            mavlink.MAV_CMD_DO_CHANGE_SPEED, SPEED_TYPES.get(request.kind, 1), request.speed, -1))
+            mavlink.MAV_CMD_DO_CHANGE_SPEED, SPEED_TYPES.get(request.kind, 1), request.speed,
+            request.throttle))
 
     def _camera(self, request: Camera) -> Steps[None]:
         if request.operation == "stop":

@@ -35,12 +35,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+from tml.actions import mav
 from tml.actions.definition import NotApplicable
 from tml.actions.items import FRAMES, PRECISION_MODES, SPEED_TYPES, Builder, Cursor, Item, glide
 from tml.actions.registry import definition
 from tml.geo import Point
-from tml.language.actions import BoundAction
+from tml.language.actions import BoundAction, table_entry
 from tml.language.kinds import Kind
+from tml.language.mavlink_tables import MAV_FRAME
 from tml.mavlink.codec import mavlink
 from tml.mavlink.mission import MissionItem
 from tml.world import Home
@@ -106,6 +108,13 @@ def compile_mission(actions: tuple[BoundAction, ...] | list[BoundAction], home: 
         compiler(builder, action)
         if action.values.get("frame_encoding") == "float":
             builder.items[first:] = [replace(item, frame=FLOAT_FRAMES.get(item.frame, item.frame))
+                                     for item in builder.items[first:]]
+        written = action.values.get("frame") if action.name != "MISSION_ITEM" else None
+        if written is not None:  # the frame a file gave its items without a position
+            entry = table_entry(MAV_FRAME, str(written))
+            assert entry is not None  # validated
+            builder.items[first:] = [replace(item, frame=entry[0])
+                                     if item.frame == mav.FRAME_MISSION else item
                                      for item in builder.items[first:]]
     _close_trailing_commands(builder)
     return CompiledMission(_numbered(builder.items), tuple(builder.owners))

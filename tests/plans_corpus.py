@@ -59,11 +59,14 @@ def differences(source: PlanFile, back: PlanFile) -> list[str]:
         found.append(f"fence {zones_a} back as {zones_b}")
     if source.settings is not None:
         for name in ("firmware_type", "vehicle_type", "cruise_speed", "hover_speed",
-                     "altitude_mode"):
+                     "altitude_mode", "ground_station"):
             given = getattr(source.settings, name)
             got = getattr(back.settings, name) if back.settings is not None else None
             if given is not None and given != got:
                 found.append(f"{name} {given} back as {got}")
+        editors = back.settings.items if back.settings is not None else ()
+        if repr(source.settings.items) != repr(editors):  # NaN (null) equal to NaN
+            found.append(f"the editor's item fields {source.settings.items} back as {editors}")
     rally_a = [(_degrees(lat), _degrees(lon), alt) for lat, lon, alt in source.rally]
     rally_b = [(_degrees(lat), _degrees(lon), alt) for lat, lon, alt in back.rally]
     if rally_a != rally_b:

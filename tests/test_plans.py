@@ -556,3 +556,31 @@ def test_a_plan_altitude_mode_qgroundcontrol_has_not_is_refused() -> None:
         return [d.message for d in validate_file("m.xml", text.encode()).errors]
 
     assert errors("5") == [] and errors("6") != []
+
+
+def test_a_plan_exports_back_its_ground_station_and_each_items_editor_fields(
+        tmp_path: Path) -> None:
+    def simple(seq: int, command: int, frame: int, params: list, **editor: object) -> dict:
+        return {**editor, "autoContinue": True, "command": command, "doJumpId": seq,
+                "frame": frame, "params": params, "type": "SimpleItem"}
+
+    items = [simple(1, 22, 3, [0, 0, 0, None, -35.3632, 149.1652, 10], Altitude=10,
+                    AltitudeMode=1, AMSLAltAboveTerrain=None),
+             simple(2, 16, 0, [0, 0, 0, None, -35.3620, 149.1652, 600], Altitude=16,
+                    AltitudeMode=3, AMSLAltAboveTerrain=600.5),
+             simple(3, 20, 2, [0, 0, 0, 0, 0, 0, 0])]
+    text = json.dumps({"fileType": "Plan", "version": 1, "groundStation": "LiniaGenerator",
+                       "geoFence": {"circles": [], "polygons": [], "version": 2},
+                       "rallyPoints": {"points": [], "version": 2},
+                       "mission": {"items": items, "plannedHomePosition": [
+                           -35.3632, 149.1652, 584], "version": 2}})
+    imported = import_plan(read_plan(text, "p.plan"), "editor")
+    assert imported.raw == 0 and imported.losses == ()
+    back = json.loads(write_plan(_imported_plan(imported.text, Kind.MULTICOPTER, tmp_path)))
+    assert back["groundStation"] == "LiniaGenerator"
+    editor = ("Altitude", "AltitudeMode", "AMSLAltAboveTerrain")
+    assert [{k: i[k] for k in editor if k in i} for i in back["mission"]["items"]] == [
+        {k: i[k] for k in editor if k in i} for i in items]
+    # A mission written in TML says it was tml.
+    plain = _plans(ROOT / "missions/mission_dispatch.xml")[0]
+    assert json.loads(write_plan(plain))["groundStation"] == "tml"

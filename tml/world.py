@@ -112,6 +112,18 @@ OBJECT_KINDS = ("marker", "aruco", "item", "bucket", "frame", "subject")
 
 
 @dataclass(frozen=True)
+class ItemAltitude:
+    """What QGroundControl's editor keeps beside a mission item's params (the plan's
+    ``Altitude``, ``AltitudeMode`` and ``AMSLAltAboveTerrain`` of item ``number``, counted
+    from 1): for each, None when the file does not have it, NaN for its ``null``."""
+
+    number: int
+    altitude: float | None = None
+    altitude_mode: float | None = None
+    amsl_above_terrain: float | None = None
+
+
+@dataclass(frozen=True)
 class PlanSettings:
     """What a ground station's plan says beside its items, as QGroundControl's Mission
     Settings hold it: the firmware and vehicle the plan was made for (MAV_AUTOPILOT and
@@ -126,6 +138,8 @@ class PlanSettings:
     hover_speed: float | None = None
     altitude_mode: int | None = None
     location: Location | None = None
+    ground_station: str | None = None  # the plan's groundStation
+    items: tuple[ItemAltitude, ...] = ()  # the editor's fields of the items that have them
 
 
 @dataclass(frozen=True)

@@ -15,6 +15,7 @@ own, the schema's saying it already.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from enum import StrEnum
 from pathlib import Path
@@ -417,6 +418,7 @@ class _Builder:
             Cylinder,
             Geofence,
             Home,
+            ItemAltitude,
             PlanSettings,
             Prism,
             RallyPoint,
@@ -504,7 +506,11 @@ class _Builder:
                 firmware, vehicle,
                 self.optional_number(s, "cruise_speed", Quantity.SPEED),
                 self.optional_number(s, "hover_speed", Quantity.SPEED), mode,
-                location=self.loc(s))
+                location=self.loc(s), ground_station=s.get("ground_station"),
+                items=tuple(ItemAltitude(_whole(i.get("number", "1")), *(
+                    _double(i.get(name))
+                    for name in ("altitude", "altitude_mode", "amsl_above_terrain")))
+                    for i in self.children(s, "item")))
         return World(home, geofence, tuple(obstacles), tuple(objects), self.loc(element),
                      tuple(rally), plan_settings, self.terrain(element))
 
@@ -615,6 +621,17 @@ class _Builder:
 MISSION_ITEM_ATTRIBUTES = ("command", "frame", "param1", "param2", "param3", "param4",
                            "param5", "param6", "param7", "autocontinue")
 """The attributes of ``<mission_item>``, the arguments of MISSION_ITEM."""
+
+
+def _double(text: str | None) -> float | None:
+    """An xs:double the schema accepted (NaN included), None when absent; one the schema
+    refused is read as NaN."""
+    if text is None:
+        return None
+    try:
+        return float(text)
+    except ValueError:
+        return math.nan
 
 
 def _whole(text: str) -> int:

@@ -341,7 +341,14 @@ def _environment(root: etree._Element, plan: PlanFile, losses: list[str],
             ("cruise_speed", plan.settings.cruise_speed),
             ("hover_speed", plan.settings.hover_speed),
             ("altitude_mode", plan.settings.altitude_mode)) if value is not None}
-        etree.SubElement(environment, "plan_settings", settings)
+        if plan.settings.ground_station is not None:
+            settings["ground_station"] = plan.settings.ground_station
+        written = etree.SubElement(environment, "plan_settings", settings)
+        for editor in plan.settings.items:  # QGroundControl's editor fields of each item
+            etree.SubElement(written, "item", {"number": str(editor.number)} | {
+                name: _value(value) for name, value in (
+                    ("altitude", editor.altitude), ("altitude_mode", editor.altitude_mode),
+                    ("amsl_above_terrain", editor.amsl_above_terrain)) if value is not None})
     if plan.home is None:
         return
     fenced: tuple[tuple[float, float], ...] = ()

@@ -19,7 +19,7 @@ from tml.actions.mav import GLOBAL_FRAMES
 from tml.language.kinds import Kind
 from tml.mavlink.mission import MissionItem
 from tml.plans.planned import Plan, local_to_global
-from tml.world import Cylinder, Home, PlanSettings, Prism
+from tml.world import Cylinder, Home, ItemAltitude, PlanSettings, Prism
 
 FIRMWARE_ARDUPILOT = 3  # MAV_AUTOPILOT_ARDUPILOTMEGA
 FLOAT32_MAX = 3.4028234663852886e38  # the largest param a mission item carries
@@ -139,9 +139,17 @@ def item_from_params(seq: int, frame: int, command: int, params: list[Any],
 def write_plan(plan: Plan) -> str:
     """The ``.plan`` JSON text of ``plan``."""
     home = plan.home
+    settings = plan.world.plan_settings or PlanSettings()
+    editors = {e.number: e for e in settings.items}
     items = []
     for item in plan.items:
-        entry: dict[str, Any] = {
+        entry: dict[str, Any] = {}
+        editor = editors.get(item.seq + 1)
+        for key, name in EDITOR_FIELDS if editor is not None else ():
+            value = getattr(editor, name)
+            if value is not None:  # as the imported plan had it; NaN its null
+                entry[key] = None if math.isnan(value) else _given(value, 0)
+        entry |= {
             "autoContinue": bool(item.autocontinue), "command": item.command,
             "doJumpId": item.seq + 1, "frame": item.frame,
             "params": [None if v is not None and math.isnan(v) else v
@@ -162,7 +170,6 @@ def write_plan(plan: Plan) -> str:
         elif isinstance(obstacle, Prism):
             polygons.append({"inclusion": False, "version": 1,
                              "polygon": global_corners(home, obstacle.polygon, obstacle.written)})
-    settings = plan.world.plan_settings or PlanSettings()
     mission: dict[str, Any] = {
         "version": 2, "firmwareType": _given(settings.firmware_type, FIRMWARE_ARDUPILOT),
         "vehicleType": _given(settings.vehicle_type, VEHICLE_TYPES[plan.kind]),
@@ -174,7 +181,8 @@ def write_plan(plan: Plan) -> str:
     if plan.world.plan_settings is not None and settings.altitude_mode is None:
         del mission["globalPlanAltitudeMode"]  # as the imported plan had it
     document = {
-        "fileType": "Plan", "version": 1, "groundStation": "tml", "mission": mission,
+        "fileType": "Plan", "version": 1, "groundStation": settings.ground_station or "tml",
+        "mission": mission,
         "geoFence": {"version": 2, "polygons": polygons, "circles": circles},
         "rallyPoints": {"version": 2, "points": [
             [*global_corners(home, ((p.north, p.east),), p.written)[0], p.altitude]
@@ -218,6 +226,7 @@ def read_plan(text: str, name: str = "plan") -> PlanFile:
     items: list[MissionItem] = []
     jump_ids: dict[int, int] = {}  # doJumpId -> the item's number (from 1)
     sources: list[str] = []
+    editors: list[ItemAltitude] = []
     try:
         for number, entry in enumerate(mission.get("items", []), start=1):
             nested = _simple_items(entry, f"item {number}", losses)
@@ -233,6 +242,9 @@ def read_plan(text: str, name: str = "plan") -> PlanFile:
                                               params, bool(simple.get("autoContinue", True)),
                                               losses, source))
                 sources.append(source)
+                editor = _item_altitude(len(items), simple)
+                if editor is not None:
+                    editors.append(editor)
                 if "doJumpId" in simple:
                     jump_ids[int(simple["doJumpId"])] = len(items)
         items = _jumps_by_number(items, jump_ids, sources, losses)
@@ -244,7 +256,7 @@ def read_plan(text: str, name: str = "plan") -> PlanFile:
         raise PlanFileError(f"{name}: {error}") from None
     except (KeyError, TypeError, ValueError, IndexError, AttributeError) as error:
         raise PlanFileError(f"{name}: malformed plan: {error!r}") from None
-    settings = _settings(mission)
+    settings = _settings(mission, document.get("groundStation"), tuple(editors))
     firmware = settings.firmware_type if settings is not None else None
     if firmware not in (None, FIRMWARE_ARDUPILOT):
         skipped.append(f"the plan was made for firmware type {firmware} "
@@ -258,10 +270,32 @@ def read_plan(text: str, name: str = "plan") -> PlanFile:
                     tuple(losses), settings)
 
 
-def _settings(mission: dict[str, Any]) -> PlanSettings | None:
+EDITOR_FIELDS = (("Altitude", "altitude"), ("AltitudeMode", "altitude_mode"),
+                 ("AMSLAltAboveTerrain", "amsl_above_terrain"))
+"""The fields QGroundControl's editor writes beside an item's params, and their names in
+:class:`ItemAltitude`."""
+
+
+def _item_altitude(number: int, simple: dict[str, Any]) -> ItemAltitude | None:
+    """The editor's fields of a simple item (``number`` counted from 1), when it has any
+    that is a number or null."""
+    values: dict[str, float] = {}
+    for key, name in EDITOR_FIELDS:
+        value = simple.get(key, False)
+        if value is None:
+            values[name] = math.nan
+        elif isinstance(value, int | float) and not isinstance(value, bool) \
+                and math.isfinite(value):
+            values[name] = float(value)
+    return ItemAltitude(number, **values) if values else None
+
+
+def _settings(mission: dict[str, Any], ground_station: Any = None,
+              editors: tuple[ItemAltitude, ...] = ()) -> PlanSettings | None:
     """The firmware and vehicle type, the speeds and the global altitude mode a plan's
     mission gives, as QGroundControl reads them (numbers; one of another type is ignored,
-    as it is there; an altitude mode QGroundControl has no AltMode for too)."""
+    as it is there; an altitude mode QGroundControl has no AltMode for too), the ground
+    station that wrote it and its editor's fields of each item."""
     def number(key: str) -> float | None:
         value = mission.get(key)
         if isinstance(value, bool) or not isinstance(value, int | float):
@@ -274,7 +308,9 @@ def _settings(mission: dict[str, Any]) -> PlanSettings | None:
         int(firmware) if firmware is not None and firmware.is_integer() else None,
         int(vehicle) if vehicle is not None and vehicle.is_integer() else None,
         number("cruiseSpeed"), number("hoverSpeed"),
-        int(mode) if mode is not None and mode in ALTITUDE_MODES else None)
+        int(mode) if mode is not None and mode in ALTITUDE_MODES else None,
+        ground_station=ground_station if isinstance(ground_station, str) else None,
+        items=editors)
     return found if found != PlanSettings() else None
 
 

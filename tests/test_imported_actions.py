@@ -97,12 +97,14 @@ def test_waypoint_take_off_speed_and_return_items_keep_every_param(tmp_path: Pat
                   "4\t0\t3\t16\t0\t0\t0\tnan\t-35.3615\t149.1652\t20\t1\n"
                   "5\t0\t3\t178\t0\t8\t-1\t0\t0\t0\t0\t1\n"
                   "6\t0\t0\t20\t0\t0\t0\t0\t0\t0\t0\t1\n"
-                  "7\t0\t3\t20\t0\t0\t0\t0\t0\t0\t0\t1\n")
+                  "7\t0\t3\t20\t0\t0\t0\t0\t0\t0\t0\t1\n"
+                  "8\t0\t0\t211\t0\t0\t0\t0\t0\t0\t0\t1\n")
     actions = _actions_and_back(read_wpl(text), tmp_path)
     assert [a.get("name") for a in actions] == [
         "TAKE_OFF", "SET_SPEED", "GO_TO_POSITION", "GO_TO_POSITION", "SET_SPEED",
-        "RETURN_HOME_AND_LAND", "RETURN_HOME_AND_LAND"]
-    speed, waypoint, unset, again, rtl, rtl3 = (_arguments(a) for a in actions[1:])
+        "RETURN_HOME_AND_LAND", "RETURN_HOME_AND_LAND", "DROP_ITEM"]
+    speed, waypoint, unset, again, rtl, rtl3, drop = (_arguments(a) for a in actions[1:])
+    assert drop == {"gripper": "0", "frame": "MAV_FRAME_GLOBAL"}
     assert (speed["speed_type"], speed["throttle"], speed["frame"]) == (
         "ground", "0", "MAV_FRAME_GLOBAL")
     assert "throttle" not in again and again["frame"] == "MAV_FRAME_GLOBAL_RELATIVE_ALT"
@@ -131,6 +133,8 @@ MISSION = f"""<?xml version="1.0" encoding="UTF-8"?>
       <argument name="acceptance_radius" value="2"/><argument name="yaw" value="180"/>
       <argument name="hold" value="4"/><argument name="pass_radius" value="0"/>
     </action></task>
+    <task name="Drop"><action name="DROP_ITEM"><argument name="gripper" value="0"/>
+      <argument name="frame" value="0"/></action></task>
     <task name="Home"><action name="RETURN_HOME_AND_LAND">
       <argument name="frame" value="GLOBAL"/></action></task>
   </task>
@@ -171,6 +175,7 @@ def test_the_actions_fly_with_commands(tmp_path: Path) -> None:
     requests = [r for r in records if r["kind"] == "request"]
     (speed,) = [r for r in requests if r["message"] == "SetSpeed"]
     assert (speed["speed"], speed["throttle"]) == (4.0, 50.0)
+    assert [r["grab"] for r in requests if r["message"] == "Gripper"] == [False]
     # The take-off climbs where the vehicle is, then faces its yaw.
     take_off = _between(records, "TAKE_OFF started", "TAKE_OFF done")
     seen = [r for r in take_off if r["kind"] == "telemetry"]
@@ -196,9 +201,9 @@ def test_the_actions_fly_as_mission_items_in_auto(tmp_path: Path) -> None:
     texts = [r["text"] for r in records if r["kind"] == "autopilot"]
     said = [t for t in texts if t.startswith("Mission:")]
     assert said == ["Mission: 1 Takeoff", "Mission: 2 ChangeSpeed", "Mission: 3 WP",
-                    "Mission: 4 RTL"]
+                    "Mission: 4 Gripper", "Mission: 5 RTL"]
     # ArduCopter holds at a waypoint for its param1 before it goes on.
-    at = _between(records, "Mission: 3 WP", "Mission: 4 RTL")
+    at = _between(records, "Mission: 3 WP", "Mission: 4 Gripper")
     held = _held_at_target(at)
     assert held and held[-1]["t"] - held[0]["t"] >= 3
     assert all(r["mode"] == "AUTO" for r in at if r["kind"] == "telemetry")

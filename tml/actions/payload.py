@@ -32,23 +32,31 @@ def drop_item(ctx: Context, bound: BoundAction) -> Script:
 # --- mission items (dispatch="mission") ----------------------------------------
 
 def pick_up_item_items(b: items.Builder, action: BoundAction) -> None:
-    b.add(mav.DO_GRIPPER, params=(1.0, mav.GRIPPER_ACTION_GRAB, 0.0, 0.0))
+    b.add(mav.DO_GRIPPER, params=(float(action.integer("gripper", 1)),
+                                  mav.GRIPPER_ACTION_GRAB, 0.0, 0.0))
 
 
 def drop_item_items(b: items.Builder, action: BoundAction) -> None:
-    b.add(mav.DO_GRIPPER, params=(1.0, mav.GRIPPER_ACTION_RELEASE, 0.0, 0.0))
+    b.add(mav.DO_GRIPPER, params=(float(action.integer("gripper", 1)),
+                                  mav.GRIPPER_ACTION_RELEASE, 0.0, 0.0))
 
 
 # --- reading mission items back (tml import) ------------------------------------------------
 
+def _gripper(item: reading.ItemFields) -> reading.Arguments:
+    """A DO_GRIPPER's gripper number when not 1, and its frame when not MISSION."""
+    arguments = {} if item.param1 == 1 else {"gripper": reading.value(item.param1)}
+    return reading.frame(arguments, item)
+
+
 def pick_up_item_read(item: reading.ItemFields) -> reading.Arguments | None:
     """DO_GRIPPER grabbing."""
-    return {} if int(item.param2) == mav.GRIPPER_ACTION_GRAB else None
+    return _gripper(item) if int(item.param2) == mav.GRIPPER_ACTION_GRAB else None
 
 
 def drop_item_read(item: reading.ItemFields) -> reading.Arguments | None:
     """DO_GRIPPER releasing."""
-    return None if int(item.param2) == mav.GRIPPER_ACTION_GRAB else {}
+    return None if int(item.param2) == mav.GRIPPER_ACTION_GRAB else _gripper(item)
 
 
 DEFINITIONS: tuple[ActionDef, ...] = (

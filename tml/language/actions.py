@@ -183,6 +183,13 @@ _ITEM_FRAME = ArgumentSpec(
     "the MAV_FRAME its mission items without a position are written in, by name or number "
     "(such an item's frame means nothing to the autopilot; kept as a file wrote it); "
     "absent: MISSION", table=MAV_FRAME)
+# --- a DO_GRIPPER item as a file wrote it (PICK_UP_ITEM, DROP_ITEM)
+_GRIPPER_ITEM = (
+    ArgumentSpec("gripper", ArgType.INTEGER, "the gripper number its DO_GRIPPER item "
+                 "carries (param1); absent: 1; ArduPilot has one gripper and ignores it",
+                 minimum=0.0, maximum=255.0, quantity=Quantity.ITEM_PARAM),
+    _ITEM_FRAME,
+)
 # --- the position a NAV_TAKEOFF item carries (TAKE_OFF), as planners write it
 _TAKE_OFF_POSITION = tuple(
     replace(s, description=f"{s.description} its mission item carries (ground stations write "
@@ -355,12 +362,14 @@ CATALOGUE: tuple[ActionSpec, ...] = (
     ActionSpec(
         "PICK_UP_ITEM", Category.PAYLOAD,
         "Descend on the item below and close the gripper (IMAV 2016). Needs a gripper.",
-        (ArgumentSpec("item", ArgType.STRING, "name of the item, for the log"),),
+        (ArgumentSpec("item", ArgType.STRING, "name of the item, for the log"),
+         *_GRIPPER_ITEM),
         requires="gripper",
     ),
     ActionSpec(
         "DROP_ITEM", Category.PAYLOAD,
         "Open the gripper and release the item carried (IMAV 2016). Needs a gripper.",
+        _GRIPPER_ITEM,
         requires="gripper",
     ),
     # --- Dolphin MAVLink plugin ----------------------------------------------------------

@@ -174,6 +174,21 @@ def test_a_do_jump_back_over_whole_actions_is_imported_as_a_repeat(tmp_path: Pat
     _round_trip(read_wpl(text), tmp_path)
 
 
+def test_a_do_jump_in_qgroundcontrols_frame_2_is_a_repeat_that_exports_back_in_it(
+        tmp_path: Path) -> None:
+    text = WPL_HOME + ("1\t0\t3\t22\t0\t0\t0\t0\t0\t0\t20\t1\n"
+                       "2\t0\t3\t16\t0\t0\t0\t0\t-35.3621\t149.1651\t20\t1\n"
+                       "3\t0\t3\t16\t0\t0\t0\t0\t-35.3622\t149.1652\t20\t1\n"
+                       "4\t0\t2\t177\t2\t1\t0\t0\t0\t0\t0\t1\n"  # back to 2, once more
+                       "5\t0\t3\t21\t0\t0\t0\t0\t-35.3623\t149.1653\t20\t1\n")
+    imported = import_plan(read_wpl(text), "loop")
+    assert imported.raw == 0
+    loop, = etree.fromstring(imported.text.encode()).iter("repeat")
+    assert (loop.get("times"), loop.get("jump_frame")) == ("2", "2")
+    back = _round_trip(read_wpl(text), tmp_path)
+    assert (back.items[3].command, back.items[3].frame) == (mavlink.MAV_CMD_DO_JUMP, 2)
+
+
 def test_a_do_jump_into_the_middle_of_an_action_stays_a_mission_item(tmp_path: Path) -> None:
     # Items 2-3 are one LANDING_POINT with a yaw (CONDITION_YAW, then NAV_LAND): a jump to
     # item 3 lands in the middle of it.

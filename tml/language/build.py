@@ -291,6 +291,8 @@ class _Builder:
             conditions=tuple(conditions) if conditions else (),
             repeat=_whole(repeats[0].get("times", "1")) if repeats else 1,
             repeat_location=self.loc(repeats[0], "times") if repeats else None,
+            repeat_frame=_whole(repeats[0].get("jump_frame", "0"))
+            if repeats and repeats[0].get("jump_frame") is not None else None,
             action=action,
             children=tuple(children) if children else (),
             dispatch=dispatch,

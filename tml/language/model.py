@@ -186,6 +186,8 @@ class Task:
     conditions: tuple[Condition, ...] = ()
     repeat: int = 1
     repeat_location: Location | None = None
+    # The MAV_FRAME of the DO_JUMP an exported <repeat> is written as (None: 0).
+    repeat_frame: int | None = None
     action: Action | None = None
     children: tuple[Task, ...] = ()
     dispatch: Dispatch = Dispatch.COMMAND  # inherited from the parent task when not given

@@ -226,19 +226,21 @@ def import_plan(plan: PlanFile, name: str) -> Imported:
     return Imported(text, tuple(warnings), len(actions) - len(repeats), tuple(losses), raw)
 
 
-def _repeats(actions: list[_Action], plan: PlanFile) -> dict[int, tuple[int, int]]:
+def _repeats(actions: list[_Action], plan: PlanFile) -> dict[int, tuple[int, int, int]]:
     """The DO_JUMPs that are a ``<repeat>``: body's first action -> (the DO_JUMP's action,
-    times). A DO_JUMP is one when it is what a repeat exports (:data:`JUMP_FRAME`, a repeat
-    count of 1 or more, nothing else set) and jumps back to the first item of an action,
+    times, its frame). A DO_JUMP is one when it is what a repeat exports (:data:`JUMP_FRAME`
+    or, with ``jump_frame``, QGroundControl's MISSION, a repeat count of 1 or more, nothing
+    else set) and jumps back to the first item of an action,
     over a body that holds no other DO_JUMP; any other (forward, into the middle of an
     action, forever, in another frame) stays a MISSION_ITEM with its target."""
     starts = {a.items[0]: n for n, a in enumerate(actions)}
-    found: dict[int, tuple[int, int]] = {}
+    found: dict[int, tuple[int, int, int]] = {}
     for n, action in enumerate(actions):
         item = plan.items[action.items[0]]
         if action.name != "MISSION_ITEM" or item.command != mavlink.MAV_CMD_DO_JUMP \
-                or (item.frame, item.param3, item.param4, item.x, item.y, item.z,
-                    bool(item.autocontinue)) != (JUMP_FRAME, 0, 0, 0, 0, 0, True) \
+                or item.frame not in (JUMP_FRAME, mavlink.MAV_FRAME_MISSION) \
+                or (item.param3, item.param4, item.x, item.y, item.z,
+                    bool(item.autocontinue)) != (0, 0, 0, 0, 0, True) \
                 or not (item.param1.is_integer() and item.param2.is_integer()
                         and item.param2 >= 1):
             continue
@@ -246,14 +248,14 @@ def _repeats(actions: list[_Action], plan: PlanFile) -> dict[int, tuple[int, int
         if body is None or body >= n or any(
                 plan.items[a.items[0]].command == mavlink.MAV_CMD_DO_JUMP
                 and a.name == "MISSION_ITEM" for a in actions[body:n]) \
-                or any(start < n and body <= jump for start, (jump, _) in found.items()):
+                or any(start < n and body <= jump for start, (jump, _, _) in found.items()):
             continue
-        found[body] = (n, int(item.param2) + 1)
+        found[body] = (n, int(item.param2) + 1, item.frame)
     return found
 
 
 def _mission(plan: PlanFile, name: str, actions: list[_Action],
-             repeats: dict[int, tuple[int, int]], losses: list[str]) -> str:
+             repeats: dict[int, tuple[int, int, int]], losses: list[str]) -> str:
     """The mission's XML text: a task per action, in one ``dispatch="mission"`` task; the
     actions of a repeat's body in a task with ``<repeat>``."""
     root = etree.Element("mission", nsmap={"xsi": SCHEMA_INSTANCE}, name=name)
@@ -266,12 +268,14 @@ def _mission(plan: PlanFile, name: str, actions: list[_Action],
     parent, ends = top, -1
     for n, action in enumerate(actions):
         if n in repeats:
-            ends, times = repeats[n]
+            ends, times, frame = repeats[n]
             jump = plan.source(actions[ends].items[0])
             parent = etree.SubElement(top, "task", name=f"{plan.source(action.items[0])} to "
                                       f"{plan.source(actions[ends - 1].items[-1])}: "
                                       f"{times} times ({jump}: DO_JUMP)")
-            etree.SubElement(parent, "repeat", times=str(times))
+            repeat = etree.SubElement(parent, "repeat", times=str(times))
+            if frame != JUMP_FRAME:  # QGroundControl's MISSION frame, exported back
+                repeat.set("jump_frame", str(frame))
         if n == ends:  # the DO_JUMP is the repeat
             parent = top
             continue

@@ -265,7 +265,8 @@ def _jumps(items: tuple[MissionItem, ...], action_index: tuple[int, ...],
     while n < len(items):
         if n in jump_at:
             task, first, stop = jump_at[n]
-            kept.append(MissionItem(seq=len(kept), frame=JUMP_FRAME,
+            frame = JUMP_FRAME if task.repeat_frame is None else task.repeat_frame
+            kept.append(MissionItem(seq=len(kept), frame=frame,
                                     command=mavlink.MAV_CMD_DO_JUMP,
                                     param1=float(new_seq[first.start] + 1),
                                     param2=float(task.repeat - 1)))

@@ -110,6 +110,17 @@ def test_go_to_position_converts_from_wgs84() -> None:
     assert step.after.position == pytest.approx((100.0, -50.0, 20.0), abs=0.01)
 
 
+def test_go_to_position_with_a_hold_hovers_that_long_at_the_position() -> None:
+    latitude, longitude, _ = geo.to_global(100.0, -50.0, 0.0, DEFAULT_HOME.latitude,
+                                           DEFAULT_HOME.longitude, DEFAULT_HOME.altitude)
+    where = {"latitude": str(latitude), "longitude": str(longitude), "altitude": "20"}
+    moved = MODEL.step(action("GO_TO_POSITION", **where), FLYING)
+    held = MODEL.step(action("GO_TO_POSITION", hold="30", **where), FLYING)
+    assert held.after.position == moved.after.position
+    assert held.duration == pytest.approx(moved.duration + 30)
+    assert held.after.battery < moved.after.battery
+
+
 def test_return_home_and_land_climbs_to_the_return_altitude_first() -> None:
     state = PredictedState(position=(100.0, 0.0, 10.0), flying=True)
     step = MODEL.step(action("RETURN_HOME_AND_LAND"), state)

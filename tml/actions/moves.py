@@ -4,6 +4,7 @@ SET_ALTITUDE, RETURN_HOME and GO_TO_RECTANGLE (IMAV 2016)."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 from tml.actions import guided, items, mav, reading, timing
 from tml.actions.definition import ActionDef, NotApplicable, spec
@@ -177,7 +178,9 @@ def move_from_home_motion(model: Motion, bound: BoundAction, state: PredictedSta
 
 def go_to_position_motion(model: Motion, bound: BoundAction, state: PredictedState,
                           labels: Labels) -> Step:
-    return model.go(bound, state, labels, [model.global_point(bound)])
+    step = model.go(bound, state, labels, [model.global_point(bound)])
+    hold = bound.number("hold", 0.0)
+    return replace(step, after=model.hover(step.after, hold)) if hold > 0 else step
 
 
 def set_altitude_motion(model: Motion, bound: BoundAction, state: PredictedState,

@@ -3,7 +3,8 @@
 Exit codes: 0 stopped (SIGINT, SIGTERM: every flying vehicle sent to its safe state
 first), 2 bad arguments (a non-loopback address without a token, an address and port that
 cannot be served on -- in use, or not this machine's --, a database that cannot be
-opened, ``--cluster`` without PostgreSQL, the ``serve`` extra not installed), 4 the
+opened, ``--cluster`` without PostgreSQL, the ``serve`` extra not installed, a ``--tiles``
+file that is not a raster MBTiles file or a ``--tile-url`` that is not a tile URL), 4 the
 vehicles cannot be reached.
 """
 
@@ -29,7 +30,7 @@ from tml.commands.vehicles import (
     system_id,
     vehicle_problem,
 )
-from tml.errors import ExitCode
+from tml.errors import ExitCode, TmlError
 
 if TYPE_CHECKING:
     import uvicorn
@@ -37,6 +38,7 @@ if TYPE_CHECKING:
     from tml.serve.hangar import Hangar
     from tml.serve.service import Service
     from tml.serve.storage import Storage
+    from tml.serve.tiles import TileSource
     from tml.vehicle import Vehicle
 
 TOKEN_VARIABLE = "TML_SERVE_TOKEN"
@@ -73,6 +75,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="leave each vehicle's own fence as it is (by default each run "
                              "uploads its mission's geofence and obstacles as the vehicle's "
                              "fence before take-off; rally points go up either way)")
+    tiles = parser.add_argument_group("the page's map (docs/serve.md); without either "
+                                      "source, drawn in metres on a grid")
+    tiles.add_argument("--tiles", metavar="FILE.mbtiles",
+                       help="show the map over the raster tiles of this MBTiles file, served "
+                            "by tml itself (works with no network)")
+    tiles.add_argument("--tile-url", metavar="TEMPLATE",
+                       help="show the map over the tiles of this server, which the browser "
+                            "asks itself, e.g. https://tiles.example.org/{z}/{x}/{y}.png")
+    tiles.add_argument("--tile-attribution", metavar="TEXT", default="",
+                       help="--tile-url: who made the tiles, shown on the map")
     cluster = parser.add_argument_group("cluster (several instances on one PostgreSQL, "
                                         "docs/serve.md)")
     cluster.add_argument("--cluster", action="store_true",
@@ -164,13 +176,35 @@ def run(args: argparse.Namespace) -> ExitCode:
               "their leases there", file=sys.stderr)
         return ExitCode.USAGE
     try:
+        tiles = _tiles(args)
+    except TmlError as error:
+        print(f"tml serve: {error}", file=sys.stderr)
+        return ExitCode.USAGE
+    try:
         listening = _listen(args.host, args.port)
     except OSError as error:
         print(f"tml serve: cannot serve on {args.host} port {args.port}: "
               f"{error.strerror or error}", file=sys.stderr)
         return ExitCode.USAGE
     with listening:
-        return _serve(args, token, listening)
+        return _serve(args, token, listening, tiles)
+
+
+def _tiles(args: argparse.Namespace) -> TileSource:
+    """The map's tile source (--tiles, --tile-url or none), checked; raises TmlError."""
+    from tml.serve.tiles import TilesError, TileSource, open_mbtiles, tile_url
+
+    if args.tiles is not None and args.tile_url is not None:
+        raise TilesError("--tiles and --tile-url: give one of them (the map shows one "
+                         "source of tiles)")
+    if args.tile_attribution and args.tile_url is None:
+        raise TilesError("--tile-attribution goes with --tile-url (an MBTiles file names "
+                         "its own attribution)")
+    if args.tiles is not None:
+        return open_mbtiles(Path(args.tiles))
+    if args.tile_url is not None:
+        return tile_url(args.tile_url, args.tile_attribution)
+    return TileSource()
 
 
 def _listen(host: str, port: int) -> socket.socket:
@@ -192,11 +226,11 @@ def _listen(host: str, port: int) -> socket.socket:
     return listening
 
 
-def _serve(args: argparse.Namespace, token: str | None, listening: socket.socket) -> ExitCode:
+def _serve(args: argparse.Namespace, token: str | None, listening: socket.socket,
+           tiles: TileSource) -> ExitCode:
     """Open the storage and the vehicles and serve on ``listening`` until stopped."""
     import uvicorn
 
-    from tml.errors import TmlError
     from tml.serve.api import create_app
     from tml.serve.service import Service, ServiceOptions
     from tml.serve.storage import Storage, database_url
@@ -242,7 +276,7 @@ def _serve(args: argparse.Namespace, token: str | None, listening: socket.socket
                   f"{', '.join(str(v.vehicle_id) for v in vehicles)}; {storage.backend} "
                   f"storage{'; token required' if token else ''})", flush=True)
             app = create_app(service, token, bound=args.host, hosts=args.allow_host,
-                             max_body=args.max_body)
+                             max_body=args.max_body, tiles=tiles)
             server = uvicorn.Server(uvicorn.Config(app, log_level="warning"))
             with _stopped_by_signals(server):
                 # until SIGINT or SIGTERM; the app's shutdown stops every run

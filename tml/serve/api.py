@@ -23,7 +23,8 @@ the body size limit, and the security headers of every answer.
 
 *Auth.* With a token, every API route needs ``Authorization: Bearer TOKEN`` (compared in
 constant time). The page's files and the OpenAPI document hold no data and are served to
-anyone, so that a browser can load the page, which then asks for the token.
+anyone, so that a browser can load the page, which then asks for the token; so are the
+map's tiles and their description (``/tiles``: a browser's image requests carry no token).
 
 *Live updates* are Server-Sent Events: ``GET /runs/{id}/stream`` sends the run's flight
 log lines, each as one ``record`` event whose data is the line (the JSON of ``tml run
@@ -38,6 +39,7 @@ import asyncio
 import hmac
 import json
 import logging
+import sqlite3
 from collections.abc import AsyncIterator, Awaitable, Callable, Sequence
 from contextlib import asynccontextmanager
 from importlib import resources
@@ -59,6 +61,7 @@ from tml.errors import TmlError
 from tml.serve.guard import MAX_BODY, Guard
 from tml.serve.service import RequestError, Service
 from tml.serve.storage import StorageError
+from tml.serve.tiles import TileSource
 
 LAST_RECORD = 2**31  # the highest record number asked for (after, Last-Event-ID)
 METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
@@ -268,6 +271,21 @@ class ServiceStatus(BaseModel):
     live_runs: list[str]
 
 
+class TileDescription(BaseModel):
+    """Where the page's map tiles come from (``tml serve --tiles`` or ``--tile-url``)."""
+
+    source: Literal["mbtiles", "url"] | None = Field(
+        description="mbtiles: this service serves them; url: a tile server; null: none")
+    url: str | None = Field(None, description="the template of a tile's URL, with {z}, {x} "
+                                              "and {y} (rows counted from the north)")
+    attribution: str | None = Field(None, description="who made the tiles (plain text)")
+    minzoom: int | None = None
+    maxzoom: int | None = None
+    bounds: list[float] | None = Field(
+        None, min_length=4, max_length=4,
+        description="west, south, east, north in degrees, when the file says")
+
+
 ERRORS: dict[int | str, dict[str, Any]] = {
     code: {"model": Problem, "description": text} for code, text in (
         (400, "a request that cannot be read, or sent to a host name the service does not "
@@ -282,10 +300,14 @@ ERRORS: dict[int | str, dict[str, Any]] = {
 # --- the application ---------------------------------------------------------------------
 
 def create_app(service: Service, token: str | None = None, *, bound: str = "127.0.0.1",
-               hosts: Sequence[str] = (), max_body: int = MAX_BODY) -> FastAPI:
+               hosts: Sequence[str] = (), max_body: int = MAX_BODY,
+               tiles: TileSource | None = None) -> FastAPI:
     """The ASGI application of ``service``; with ``token``, every API route needs it.
     ``bound`` is the address it is served on, ``hosts`` more names it may be called by,
-    ``max_body`` the largest request body it takes (:class:`~tml.serve.guard.Guard`)."""
+    ``max_body`` the largest request body it takes (:class:`~tml.serve.guard.Guard`),
+    ``tiles`` where the page's map tiles come from (:mod:`tml.serve.tiles`; none: the
+    map is drawn in metres on a grid)."""
+    tiles = tiles or TileSource()
 
     @asynccontextmanager
     async def lifespan(_app: FastAPI) -> AsyncIterator[None]:
@@ -297,7 +319,8 @@ def create_app(service: Service, token: str | None = None, *, bound: str = "127.
                   description="Fly TML missions on MAVLink vehicles: upload and verify "
                               "missions, run them, watch them live. See docs/serve.md.")
     _errors(app)
-    app.add_middleware(Guard, bound=bound, hosts=hosts, max_body=max_body)
+    app.add_middleware(Guard, bound=bound, hosts=hosts, max_body=max_body,
+                       images=tiles.origin())
 
     def authorized(authorization: str | None = Header(
             None, description="Bearer TOKEN, when the service was started with a token")
@@ -321,6 +344,7 @@ def create_app(service: Service, token: str | None = None, *, bound: str = "127.
         return {"version": __version__, **service.status()}
 
     app.include_router(api)
+    _tiles(app, tiles)
     page = resources.files("tml.serve").joinpath("page")
     app.mount("/page", PageFiles(directory=str(page)), name="page")
 
@@ -340,6 +364,38 @@ class PageFiles(StaticFiles):
         response = super().file_response(*args, **kwargs)
         response.headers["Cache-Control"] = "no-cache"
         return response
+
+
+def _tiles(app: FastAPI, tiles: TileSource) -> None:
+    """The map's tiles: served to anyone, as the page's files are (a browser's image
+    requests carry no token)."""
+
+    @app.get("/tiles", response_model=TileDescription, tags=["map"])
+    def description() -> dict[str, Any]:
+        """Where the page's map tiles come from: this service's MBTiles file, a tile
+        server's URL template, or none (source null: the map is drawn in metres)."""
+        return tiles.description()
+
+    @app.get("/tiles/{z}/{x}/{y}", tags=["map"], response_class=Response, responses={
+        200: {"content": {"image/png": {}, "image/jpeg": {}, "image/webp": {}},
+              "description": "the tile"},
+        404: {"model": Problem, "description": "no tile there, or no --tiles file"},
+        503: {"model": Problem, "description": "the --tiles file cannot be read"}})
+    async def tile(z: int = Path(ge=0, le=30), x: int = Path(ge=0),
+                   y: int = Path(ge=0)) -> Response:
+        """One tile of the ``--tiles`` MBTiles file: zoom ``z``, column ``x``, row ``y``
+        counted from the north (as web maps count; the file's rows are flipped)."""
+        try:
+            found = await _call(tiles.tile, z, x, y)
+        except sqlite3.Error as error:
+            log.error("the tiles file %s cannot be read: %s", tiles.mbtiles, error)
+            raise HTTPException(503, f"the tiles file cannot be read: {error}") from None
+        if found is None:
+            raise HTTPException(404, f"no tile {z}/{x}/{y}" if tiles.mbtiles else
+                                "this service serves no tiles (no --tiles file)")
+        data, media_type = found
+        return Response(data, media_type=media_type,
+                        headers={"Cache-Control": "max-age=300"})
 
 
 def _id() -> Any:

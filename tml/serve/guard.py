@@ -26,8 +26,9 @@ refuses such requests before any of the service sees them:
 - *Body size*: at most ``max_body`` bytes, on every route: a larger ``Content-Length`` is
   refused at once, a longer chunked body as soon as it passes the limit (413).
 - *Headers* on every answer: a Content-Security-Policy allowing only the page's own files
-  (no inline script) and no framing, ``X-Frame-Options: DENY``,
-  ``X-Content-Type-Options: nosniff``, ``Referrer-Policy: no-referrer``.
+  (no inline script; images also from the one tile server of ``--tile-url``) and no
+  framing, ``X-Frame-Options: DENY``, ``X-Content-Type-Options: nosniff``,
+  ``Referrer-Policy: no-referrer``.
 """
 
 from __future__ import annotations
@@ -54,6 +55,15 @@ POLICY = ("default-src 'none'; script-src 'self'; style-src 'self'; img-src 'sel
 HEADERS = [(b"content-security-policy", POLICY.encode()), (b"x-frame-options", b"DENY"),
            (b"x-content-type-options", b"nosniff"), (b"referrer-policy", b"no-referrer"),
            (b"cross-origin-resource-policy", b"same-origin")]
+
+
+def headers(images: str | None = None) -> list[tuple[bytes, bytes]]:
+    """The security headers of every answer; ``images``: the one more origin the page may
+    load images from (the tile server of ``--tile-url``), besides the service itself."""
+    if images is None:
+        return HEADERS
+    policy = POLICY.replace("img-src 'self' data:;", f"img-src 'self' data: {images};")
+    return [(b"content-security-policy", policy.encode()), *HEADERS[1:]]
 WILDCARDS = ("0.0.0.0", "::", "")
 
 
@@ -68,11 +78,12 @@ class BodyTooLarge(HTTPException):
 class Guard:
     """The middleware; see the module docstring. ``bound``: the address the service is
     bound to; ``hosts``: more names it may be called by; ``max_body``: the largest body
-    taken, in bytes."""
+    taken, in bytes; ``images``: an origin images may come from besides the service."""
 
     def __init__(self, app: ASGIApp, bound: str = "127.0.0.1", hosts: Iterable[str] = (),
-                 max_body: int = MAX_BODY) -> None:
+                 max_body: int = MAX_BODY, images: str | None = None) -> None:
         self.app = app
+        self.headers = headers(images)
         self.bound = bound.strip("[]").lower()
         self.hosts = {"localhost"} | {_plain_host(h) for h in hosts}
         self.max_body = max_body
@@ -86,7 +97,7 @@ class Guard:
         refusal = self.refusal(str(scope.get("method", "GET")).upper(),
                                str(scope.get("path", "")), headers)
         if refusal is not None:
-            await _answer(send, *refusal)
+            await _answer(send, *refusal, self.headers)
             return
         started = False
 
@@ -96,7 +107,7 @@ class Guard:
                 started = True
                 names = {k.lower() for k, _ in message.get("headers", ())}
                 message["headers"] = [*message.get("headers", ()),
-                                      *[(k, v) for k, v in HEADERS if k not in names]]
+                                      *[(k, v) for k, v in self.headers if k not in names]]
             await send(message)
 
         read = 0
@@ -115,7 +126,7 @@ class Guard:
         except BodyTooLarge:
             if started:
                 raise
-            await _answer(send, *self.too_large())
+            await _answer(send, *self.too_large(), self.headers)
 
     def refusal(self, method: str, path: str,
                 headers: dict[str, str]) -> tuple[int, str] | None:
@@ -186,10 +197,11 @@ def _same_origin(origin: str, host: str) -> bool:
         found.netloc.lower() == host.strip().lower() and not found.path.strip("/")
 
 
-async def _answer(send: Send, status: int, message: str) -> None:
+async def _answer(send: Send, status: int, message: str,
+                  security: list[tuple[bytes, bytes]]) -> None:
     body = json.dumps({"error": message}).encode()
     await send({"type": "http.response.start", "status": status,
                 "headers": [(b"content-type", b"application/json"),
                             (b"content-length", str(len(body)).encode()),
-                            (b"connection", b"close"), *HEADERS]})
+                            (b"connection", b"close"), *security]})
     await send({"type": "http.response.body", "body": body})

@@ -24,11 +24,13 @@ from typing import Any
 import httpx
 import pytest
 import uvicorn
+from mbtiles import NORTH_EAST, NORTH_WEST, SOUTH_EAST, SOUTH_WEST, quadrant_tiles, write_mbtiles
 from serving import ROOT, SHORT, TYPO, FakeHangar, free_port, interrupted_run, simulated
 
 from tml.serve.api import create_app
 from tml.serve.service import Service, ServiceOptions
 from tml.serve.storage import Storage, database_url
+from tml.serve.tiles import TileSource, open_mbtiles, tile_url
 
 CHROMIUM, DRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
 ARTIFACTS = Path(os.environ.get("TML_TEST_ARTIFACTS") or ROOT / "test-artifacts")
@@ -58,10 +60,11 @@ def browser() -> Iterator[Any]:
 
 
 @contextlib.contextmanager
-def served_page(service: Service) -> Iterator[str]:
-    """``service`` served on a free port; its address. Stopped on leaving."""
+def served_page(service: Service, tiles: TileSource | None = None) -> Iterator[str]:
+    """``service`` served on a free port (its map over ``tiles``); its address. Stopped on
+    leaving."""
     port = free_port()
-    server = uvicorn.Server(uvicorn.Config(create_app(service), host="127.0.0.1",
+    server = uvicorn.Server(uvicorn.Config(create_app(service, tiles=tiles), host="127.0.0.1",
                                            port=port, log_level="warning"))
     thread = threading.Thread(target=server.run, daemon=True)
     thread.start()
@@ -172,6 +175,8 @@ def test_upload_fly_and_watch_a_mission_in_the_browser(browser: Any, page: str,
     assert driver.find_elements(By.CSS_SELECTOR, "#map path.plan"), "the planned path is drawn"
     assert driver.find_elements(By.CSS_SELECTOR, "#map g.scale"), "the scale is drawn"
     assert driver.find_elements(By.CSS_SELECTOR, "#map g.north"), "the north arrow is drawn"
+    assert driver.find_elements(By.CSS_SELECTOR, "#map path.grid"), "on a grid"
+    assert not driver.find_element(By.ID, "tile-map").is_displayed(), "no tiles: no tile map"
 
     # Pause: the vehicle holds (once it has braked, it stays where it is while its clock
     # runs on); resume: it flies on.
@@ -446,3 +451,161 @@ def test_a_fleet_in_flight_on_a_phone_and_a_laptop(browser: Any, page: str,
     finally:
         driver.execute_cdp_cmd("Emulation.clearDeviceMetricsOverride", {})
         client.close()
+
+
+# --- the map over tiles ----------------------------------------------------------------------
+
+@contextlib.contextmanager
+def tiled_page(tmp_path: Path, tiles: Any) -> Iterator[tuple[str, Any]]:
+    """A service on one simulated vehicle, its map over the tiles ``tiles(home)`` gives
+    (home: the vehicle's, once known); its address and that home."""
+    with simulated(vehicles=1, speedup=8) as hangar:
+        wake = threading.Event()
+        hangar.subscribe(wake)
+        vehicle = hangar.vehicles[1]
+        for _ in range(600):  # news comes several times a second: at most a minute or so
+            if vehicle.state().home is not None:
+                break
+            hangar.wait(wake, 0.5)
+        home = vehicle.state().home
+        assert home is not None, "the simulated vehicle says where its home is"
+        storage = Storage(database_url(None, tmp_path))
+        service = Service(storage, hangar, ServiceOptions(stop_timeout=30))
+        try:
+            with served_page(service, tiles(home)) as address:
+                yield address, home
+        finally:
+            storage.close()
+
+
+def colours_around(driver: Any, selector: str, offset: int) -> dict[str, tuple[int, ...]]:
+    """The colours of the screenshot ``offset`` pixels diagonally off the centre of the
+    element ``selector`` (north-east, north-west, south-east, south-west of it)."""
+    import io
+
+    from PIL import Image
+
+    x, y = driver.execute_script(
+        "const r = document.querySelector(arguments[0]).getBoundingClientRect();"
+        "return [r.left + r.width / 2, r.top + r.height / 2];", selector)
+    shot = Image.open(io.BytesIO(driver.get_screenshot_as_png())).convert("RGB")
+    ratio = shot.width / driver.execute_script("return innerWidth;")
+    at = {"north-east": (offset, -offset), "north-west": (-offset, -offset),
+          "south-east": (offset, offset), "south-west": (-offset, offset)}
+    return {name: shot.getpixel((round((x + dx) * ratio), round((y + dy) * ratio)))
+            for name, (dx, dy) in at.items()}
+
+
+def test_the_map_shows_an_mbtiles_file_under_the_mission_at_the_right_place(
+        browser: Any, tmp_path: Path) -> None:
+    """Tiles made here, coloured by quadrant around the vehicle's home (Web Mercator,
+    computed by the test), served from an MBTiles file: around the home marker the page
+    draws, each quadrant shows its own colour, so the tiles are under the mission where
+    they belong (a row not flipped, or a tile misplaced, shows another colour)."""
+    from selenium.webdriver.common.by import By
+
+    def tiles(home: Any) -> TileSource:
+        path = write_mbtiles(tmp_path / "field.mbtiles", quadrant_tiles(
+            home.latitude, home.longitude, range(17, 21)), {"attribution": "Test field"})
+        return open_mbtiles(path)
+
+    expected = {"north-east": NORTH_EAST, "north-west": NORTH_WEST,
+                "south-east": SOUTH_EAST, "south-west": SOUTH_WEST}
+    home = "#tile-map path.home[data-vehicle='1']"
+    seen: dict[str, Any] = {}
+
+    def settled(d: Any) -> bool:
+        seen.update(colours_around(d, home, 30))
+        return all(max(abs(a - b) for a, b in zip(seen[k], colour, strict=True)) <= 8
+                   for k, colour in expected.items())
+
+    driver = browser
+    with tiled_page(tmp_path, tiles) as (page, _home):
+        client = httpx.Client(base_url=page, timeout=30)
+        try:
+            mission = client.post("/missions?filename=long.xml", content=LONG,
+                                  headers={"Content-Type": "application/xml"}).json()["id"]
+            assert client.post("/runs", json={"mission": mission, "vehicles": [1]}
+                               ).status_code == 201
+            for name, (width, height) in SIZES.items():
+                show_at(driver, width, height)
+                driver.get(page)
+                wait(driver, "the planned path over the tiles", lambda d: d.find_elements(
+                    By.CSS_SELECTOR, "#tile-map path.plan[data-vehicle='1']"))
+                wait(driver, "the vehicle over the tiles", lambda d: d.find_elements(
+                    By.CSS_SELECTOR, "#tile-map .vehicle[data-vehicle='1']"))
+                assert not driver.find_element(By.ID, "map").is_displayed()
+                assert driver.find_element(By.ID, "frame").text == \
+                    "Over the tiles of the --tiles file, north up."
+                assert "Test field" in driver.find_element(
+                    By.CSS_SELECTOR, "#tile-map .leaflet-control-attribution").text
+                assert driver.find_elements(By.CSS_SELECTOR, "#tile-map .leaflet-control-scale")
+                assert driver.find_elements(By.CSS_SELECTOR, "#tile-map svg.north")
+                driver.execute_script(
+                    "document.querySelector('#tile-map').scrollIntoView({block: 'center'})")
+                # Tiles fade in: wait for the colours to settle, then they must be these.
+                try:
+                    wait(driver, "the quadrants' colours around home", settled, timeout=30)
+                except Exception:
+                    pytest.fail(f"{name}: around home the tiles show {seen}, not {expected}")
+                ARTIFACTS.mkdir(parents=True, exist_ok=True)
+                shot = ARTIFACTS / f"serve-page-tiles-{name}.png"
+                assert driver.save_screenshot(str(shot)) and shot.stat().st_size > 10_000
+                assert driver.find_element(By.ID, "tile-problem").is_displayed() is False
+        finally:
+            driver.execute_cdp_cmd("Emulation.clearDeviceMetricsOverride", {})
+            client.close()
+
+
+@contextlib.contextmanager
+def tile_server(answer: bool) -> Iterator[str]:
+    """A tile server on a free port that answers every request 500 (``answer``), or one
+    that takes connections and never answers; its URL template."""
+    import http.server
+    import socket
+
+    class Failing(http.server.BaseHTTPRequestHandler):
+        def do_GET(self) -> None:
+            self.send_error(500, "tile store down")
+
+        def log_message(self, *args: Any) -> None:
+            pass
+
+    if answer:
+        server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Failing)
+        thread = threading.Thread(target=server.serve_forever, daemon=True)
+        thread.start()
+        try:
+            yield f"http://127.0.0.1:{server.server_address[1]}/{{z}}/{{x}}/{{y}}.png"
+        finally:
+            server.shutdown()
+            server.server_close()
+        return
+    with socket.socket() as silent:
+        silent.bind(("127.0.0.1", 0))
+        silent.listen(64)  # the kernel takes the connections; no one ever answers
+        yield f"http://127.0.0.1:{silent.getsockname()[1]}/{{z}}/{{x}}/{{y}}.png"
+
+
+@pytest.mark.parametrize(("answer", "said"), [
+    (True, "The tiles from 127.0.0.1:{port} do not load ("),
+    (False, "127.0.0.1:{port} has not answered for "),
+])
+def test_a_tile_server_that_fails_is_said_and_the_mission_is_drawn_on(
+        browser: Any, tmp_path: Path, answer: bool, said: str) -> None:
+    from selenium.webdriver.common.by import By
+
+    driver = browser
+    with tile_server(answer) as url:
+        port = url.split(":")[2].split("/")[0]
+        with tiled_page(tmp_path, lambda _home: tile_url(url, "Nobody")) as (page, _home):
+            driver.get(page)
+            problem = wait(driver, "the tiles' problem said", lambda d: (lambda e: e.text if (
+                e.is_displayed() and e.text) else None)(d.find_element(By.ID, "tile-problem")))
+            assert problem.startswith(said.format(port=port)), problem
+            assert problem.endswith("the mission is drawn without them.") or \
+                problem.endswith("the mission is drawn without tiles."), problem
+            # Nothing lost: the vehicle and its home are drawn, the map can be used.
+            assert driver.find_elements(By.CSS_SELECTOR, "#tile-map .vehicle[data-vehicle='1']")
+            assert driver.find_elements(By.CSS_SELECTOR, "#tile-map path.home")
+            assert driver.find_elements(By.CSS_SELECTOR, "#telemetry .vehicle-card")

@@ -526,6 +526,16 @@ function project(origin, latitude, longitude) {
           (longitude - origin.longitude) * Math.PI / 180 * normal * Math.cos(phi)];
 }
 
+// Its inverse: the latitude and longitude of a point metres north and east of `origin`.
+function unproject(origin, [north, east]) {
+  const phi = origin.latitude * Math.PI / 180;
+  const w = Math.sqrt(1 - WGS84_E2 * Math.sin(phi) ** 2);
+  const meridian = WGS84_A * (1 - WGS84_E2) / (w * w * w);
+  const normal = WGS84_A / w;
+  return [origin.latitude + north / meridian * 180 / Math.PI,
+          origin.longitude + east / (normal * Math.cos(phi)) * 180 / Math.PI];
+}
+
 function shownVehicleIds() {
   return state.run ? state.run.vehicles : state.vehicles.map((v) => v.id);
 }
@@ -604,7 +614,7 @@ function drawTheMap() {
   const tracks = Object.entries(state.log.tracks).map(([id, samples]) => ({vehicle: id,
     points: samples.map((s) => frame.point(Number(id), s.global, s.position)).filter((p) => p)}));
   const world = worldInFrame(frame);
-  drawMap($("#map"), {
+  const caption = drawSceneMap($("#map"), $("#tile-map"), {
     world: world,
     plans: plansInFrame(frame),
     tracks: tracks,
@@ -612,13 +622,14 @@ function drawTheMap() {
       point: frame.offset(id)})),
     vehicles: state.vehicles.filter((v) => shown.includes(v.id)).map((v) => ({id: v.id,
       position: frame.point(v.id, v.global, v.position), heading: v.heading})),
+    place: frame.origin ? (point) => unproject(frame.origin, point) : null,
   });
   drawLegend($("#legend"), shown,
     Boolean((world.geofence && world.geofence.polygon && world.geofence.polygon.length)
       || world.obstacles.length));
-  $("#frame").textContent = frame.origin
+  $("#frame").textContent = caption || (frame.origin
     ? `Metres from vehicle ${frame.originVehicle}'s home, north up; every vehicle where it is.`
-    : "Metres from each vehicle's own home (no home known yet), north up.";
+    : "Metres from each vehicle's own home (no home known yet), north up.");
 }
 
 // --- controls ------------------------------------------------------------------------------

@@ -1,11 +1,13 @@
 // The map of the page: an SVG drawing in one shared frame (metres north and east of one
-// origin, the first vehicle's home), north up, with a scale bar and a north arrow. It is
-// drawn from a scene, every point already in that frame:
+// origin, the first vehicle's home), north up, on a grid with a scale bar and a north
+// arrow; or the same over map tiles (below: drawSceneMap). It is drawn from a scene, every
+// point already in that frame:
 //   {world: {geofence, obstacles},
 //    plans: [{key, vehicle, points: [[n, e, u], ...]}],   vehicle null: not yet picked
 //    tracks: [{vehicle, points: [[n, e], ...]}],
 //    homes: [{vehicle, point: [n, e]}],
-//    vehicles: [{id, position: [n, e, u], heading, faded}]}
+//    vehicles: [{id, position: [n, e, u], heading, faded}],
+//    place: ([n, e]) -> [latitude, longitude], or null while no origin is known}
 // Each vehicle has its own colour (vehicleColour), used for its marker, its home, its
 // planned path (dashed) and its track (solid), and in the legend the page draws.
 // SVG x is east and y is minus north, so that north is up.
@@ -87,6 +89,20 @@ function drawMap(svg, scene) {
   const world = scene.world || {};
   const line = {"vector-effect": "non-scaling-stroke", fill: "none"};
 
+  // The grid, one line every scale-bar length, through the origin.
+  const length = niceLength(box.span / 5);
+  const steps = (from) => {
+    const found = [];
+    for (let at = Math.ceil(from / length) * length; at <= from + box.span; at += length) {
+      found.push(at);
+    }
+    return found;
+  };
+  const grid = [...steps(box.x).map((x) => `M${x},${box.y} V${box.y + box.span}`),
+    ...steps(box.y).map((y) => `M${box.x},${y} H${box.x + box.span}`)];
+  svg.append(svgElement("path", {...line, class: "grid", stroke: "#d8dee4", "stroke-width": 1,
+    d: grid.join(" ")}));
+
   const fence = world.geofence;
   if (fence && fence.polygon && fence.polygon.length) {
     svg.append(svgElement("path", {...line, class: "geofence", stroke: "#9a6700",
@@ -150,7 +166,6 @@ function drawMap(svg, scene) {
   }
 
   // The scale bar, bottom left, and the north arrow, top left.
-  const length = niceLength(box.span / 5);
   const [x0, y0] = [box.x + unit * 5, box.y + box.span - unit * 6];
   const scale = svgElement("g", {class: "scale"});
   scale.append(svgElement("path", {...line, stroke: INK, "stroke-width": 2,
@@ -201,4 +216,199 @@ function drawLegend(box, vehicleIds, hasWorld) {
       " geofence"), item({class: "style-key"}, obstacle, " obstacle"));
   }
   box.replaceChildren(...items);
+}
+
+// --- over tiles (tml serve --tiles, --tile-url) ---------------------------------------------
+// With a tile source (GET /tiles) and a known origin, the same scene is drawn with Leaflet
+// (vendor/leaflet, unmodified) in latitude and longitude over the tiles, in #tile-map: the
+// scene's points are placed by scene.place([n, e]) -> [latitude, longitude]. Without them
+// the SVG drawing above is the map. A tile source that fails (errors, or nothing answers
+// within NO_ANSWER_MS) is said under the map; the mission is drawn on either way.
+
+const NO_ANSWER_MS = 10000;
+const tiles = {source: undefined, map: null, overlays: null, layer: null, fitted: "",
+  moved: false, asked: null, loaded: 0, failed: 0};
+
+// Asked once the page has loaded: tiles that never come do not hold its load up.
+window.addEventListener("load", () => fetch("/tiles")
+  .then((answer) => answer.ok ? answer.json() : {source: null})
+  .then((found) => { tiles.source = found && found.source ? found : null; })
+  .catch(() => { tiles.source = null; }));
+
+function escapeHtml(text) {
+  return String(text).replace(/[&<>"']/g, (c) => `&#${c.charCodeAt(0)};`);
+}
+
+function tileHost() {
+  return tiles.source.source === "mbtiles" ? "the --tiles file"
+    : new URL(tiles.source.url.replace(/[{}]/g, "")).host;
+}
+
+// Why the tiles do not show, or "" while they do (or may yet).
+function tileProblem(now) {
+  if (tiles.loaded) {
+    return tiles.failed && tiles.source.source === "url"
+      ? `${tiles.failed} tile(s) from ${tileHost()} failed to load.` : "";
+  }
+  if (tiles.failed) {
+    return tiles.source.source === "mbtiles"
+      ? "The --tiles file has no tiles here at this zoom: the mission is drawn without them."
+      : `The tiles from ${tileHost()} do not load (${tiles.failed} answered with an error): ` +
+        "the mission is drawn without them.";
+  }
+  if (tiles.asked !== null && now - tiles.asked > NO_ANSWER_MS) {
+    return `${tileHost()} has not answered for ${Math.round((now - tiles.asked) / 1000)} s ` +
+      "(no network?): the mission is drawn without tiles.";
+  }
+  return "";
+}
+
+function northArrow() {
+  const control = L.control({position: "topright"});
+  control.onAdd = () => {
+    const box = L.DomUtil.create("div", "north-arrow leaflet-bar");
+    const drawing = svgElement("svg", {class: "north", viewBox: "-12 -16 24 30", width: 24,
+      height: 30, role: "img", "aria-label": "north is up"});
+    drawing.append(svgElement("path", {d: "M0,-14 L7,6 L0,1 L-7,6 Z", fill: INK}));
+    drawing.append(svgElement("text", {x: 0, y: 14, "text-anchor": "middle",
+      "font-size": 9, fill: INK}, "N"));
+    box.append(drawing);
+    return box;
+  };
+  return control;
+}
+
+// The map, its view on `corners` (south-west, north-east) before any tile is asked for.
+// Below the source's least zoom no tile is shown (scaling its tiles down would ask for
+// thousands); above its greatest, its deepest tiles are enlarged.
+function startTileMap(container, corners) {
+  const source = tiles.source;
+  const map = L.map(container, {maxZoom: Math.max(source.maxzoom + 3, 20), zoomSnap: 0.25});
+  map.fitBounds(corners, {maxZoom: source.maxzoom});
+  tiles.fitted = corners.flat().map((v) => v.toFixed(6)).join(",");
+  map.attributionControl.setPrefix(
+    '<a href="https://leafletjs.com" title="a JavaScript library for maps">Leaflet</a>');
+  const layer = L.tileLayer(source.url, {minZoom: source.minzoom, maxZoom: map.getMaxZoom(),
+    maxNativeZoom: source.maxzoom, attribution: escapeHtml(source.attribution || "")});
+  layer.on("tileloadstart", () => { if (tiles.asked === null) tiles.asked = Date.now(); });
+  layer.on("tileload", () => { tiles.loaded += 1; });
+  layer.on("tileerror", () => { tiles.failed += 1; });
+  layer.addTo(map);
+  L.control.scale({imperial: false, position: "bottomleft"}).addTo(map);
+  northArrow().addTo(map);
+  // Once the operator moves the map, it stays where they put it.
+  for (const kind of ["mousedown", "touchstart", "wheel", "keydown"]) {
+    container.addEventListener(kind, () => { tiles.moved = true; }, {passive: true});
+  }
+  tiles.map = map;
+  tiles.layer = layer;
+  tiles.overlays = L.layerGroup().addTo(map);
+}
+
+function tagged(layer, attributes) {
+  const element = layer.getElement && layer.getElement();
+  if (element) {
+    for (const [key, value] of Object.entries(attributes)) element.setAttribute(key, value);
+  }
+  return layer;
+}
+
+function vehicleIcon(vehicle) {
+  const colour = vehicleColour(vehicle.id);
+  const right = Number(vehicle.id) % 2 === 0;
+  const drawing = svgElement("svg", {viewBox: "-30 -15 60 30", width: 60, height: 30});
+  const arrow = svgElement("path", {d: "M0,-10 L7,10 L0,5 L-7,10 Z", fill: colour,
+    stroke: "white", "stroke-width": 1.5, transform: `rotate(${vehicle.heading || 0})`});
+  drawing.append(arrow, svgElement("text", {x: right ? 12 : -12, y: 4,
+    "text-anchor": right ? "start" : "end", "font-size": 13, "font-weight": 600,
+    fill: colour, stroke: "white", "stroke-width": 3, "paint-order": "stroke"},
+  String(vehicle.id)));
+  return L.divIcon({html: drawing, className: "vehicle-icon", iconSize: [60, 30],
+    iconAnchor: [30, 15]});
+}
+
+// The scene over the tiles; returns the caption under the map.
+function drawOverTiles(container, scene) {
+  const place = scene.place;
+  // The view: the scene's extent, until the operator moves the map.
+  const box = sceneBounds(scene);
+  const corners = [place([-box.y - box.span, box.x]), place([-box.y, box.x + box.span])];
+  const key = corners.flat().map((v) => v.toFixed(6)).join(",");
+  if (!tiles.map) startTileMap(container, corners);
+  tiles.map.invalidateSize({pan: false});
+  if (!tiles.moved && key !== tiles.fitted) {
+    tiles.fitted = key;
+    tiles.map.fitBounds(corners, {maxZoom: tiles.source.maxzoom});
+  }
+  const group = tiles.overlays;
+  group.clearLayers();
+  const world = scene.world || {};
+  const line = (points, options) => L.polyline(points.map(place), {interactive: false,
+    ...options});
+  const fence = world.geofence;
+  if (fence && fence.polygon && fence.polygon.length) {
+    group.addLayer(L.polygon(fence.polygon.map(place), {className: "geofence", color: "#9a6700",
+      weight: 2, fill: false, interactive: false}));
+  }
+  for (const obstacle of world.obstacles || []) {
+    const look = {className: "obstacle", color: "#57606a", weight: 1, fillColor: "#8c959f",
+      fillOpacity: 0.6};
+    const shape = obstacle.shape === "cylinder"
+      ? L.circle(place([obstacle.north, obstacle.east]), {...look, radius: obstacle.radius})
+      : L.polygon(obstacle.polygon.map(place), look);
+    group.addLayer(shape.bindTooltip(obstacle.name));
+  }
+  for (const track of scene.tracks || []) {
+    if (track.points.length > 1) {
+      tagged(line(track.points, {className: "track", color: vehicleColour(track.vehicle),
+        weight: 5, opacity: 0.45}).addTo(group), {"data-vehicle": track.vehicle});
+    }
+  }
+  for (const plan of scene.plans || []) {
+    if (plan.points.length > 1) {
+      const colour = plan.vehicle === null ? UNPICKED : vehicleColour(plan.vehicle);
+      tagged(line(plan.points, {className: "plan", color: colour, weight: 1.5,
+        dashArray: "6 4"}).addTo(group), {"data-plan": plan.key,
+        ...(plan.vehicle === null ? {} : {"data-vehicle": plan.vehicle})});
+    }
+  }
+  for (const home of scene.homes || []) {
+    const [latitude, longitude] = place(home.point);
+    tagged(L.circleMarker([latitude, longitude], {className: "home", radius: 5,
+      color: vehicleColour(home.vehicle), weight: 2, fillColor: "white", fillOpacity: 1})
+      .bindTooltip(`vehicle ${home.vehicle}: home`).addTo(group), {"data-vehicle": home.vehicle,
+      "data-latitude": latitude.toFixed(7), "data-longitude": longitude.toFixed(7)});
+  }
+  for (const vehicle of scene.vehicles || []) {
+    if (!vehicle.position) continue;
+    const [latitude, longitude] = place(vehicle.position);
+    const marker = L.marker([latitude, longitude], {icon: vehicleIcon(vehicle),
+      interactive: false, keyboard: false, opacity: vehicle.faded ? 0.45 : 1}).addTo(group);
+    tagged(marker, {"data-vehicle": vehicle.id, "data-latitude": latitude.toFixed(7),
+      "data-longitude": longitude.toFixed(7), "data-up": vehicle.position[2].toFixed(2),
+      title: `vehicle ${vehicle.id}: ${vehicle.position[2].toFixed(1)} m up`});
+    marker.getElement().classList.add("vehicle");
+  }
+
+  const problem = tileProblem(Date.now());
+  const shown = document.getElementById("tile-problem");
+  shown.textContent = problem;
+  shown.hidden = !problem;
+  return tiles.source.source === "mbtiles"
+    ? "Over the tiles of the --tiles file, north up."
+    : `Over the tiles of ${tileHost()}, north up.`;
+}
+
+// The map of `scene` (see the top of this file): over tiles when the service names a tile
+// source and the scene's origin is known, else in metres (the SVG `svg`). Returns the
+// caption over tiles, null for the drawing in metres.
+function drawSceneMap(svg, container, scene) {
+  const overTiles = Boolean(tiles.source && scene.place && window.L);
+  svg.toggleAttribute("hidden", overTiles);  // an SVG element has no `hidden` property
+  container.hidden = !overTiles;
+  if (!overTiles) {
+    drawMap(svg, scene);
+    return null;
+  }
+  return drawOverTiles(container, scene);
 }

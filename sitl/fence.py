@@ -91,3 +91,28 @@ def breach(position: Vector, params: Params, home: Vector, polygon: Polygon | No
     if kinds & 4 and any(zone.contains(here) for zone in exclusions):
         return "exclusion zone"
     return ""
+
+
+class Geofence:
+    """One vehicle's fence zones: the inclusion polygon (the first one uploaded, else the
+    world's), the further inclusion zones and the exclusion zones uploaded with it."""
+
+    def __init__(self, world: World) -> None:
+        self.world = world
+        self.polygon = world_polygon(world)
+        self.inclusions: list[Polygon] = []
+        self.exclusions: list[Polygon] = []
+
+    def load(self, items: Sequence[tuple[int, float, tuple[float, float]]]) -> None:
+        """Take the uploaded fence items (as :func:`uploaded_zones` reads them)."""
+        inclusions, self.exclusions = uploaded_zones(items)
+        # No inclusion zone uploaded: the world's polygon (a vehicle set up beforehand).
+        self.polygon = inclusions[0] if inclusions else world_polygon(self.world)
+        self.inclusions = inclusions[1:]
+
+    def breach(self, position: Vector, params: Params, home: Vector) -> str:
+        """The limit ``position`` breaks (:func:`breach`), home being ``home``."""
+        geofence = self.world.geofence
+        ceiling = geofence.max_altitude if geofence is not None else None
+        return breach(position, params, home, self.polygon, ceiling,
+                      inclusions=self.inclusions, exclusions=self.exclusions)

@@ -20,6 +20,15 @@ the pictures that fell due, the battery drains (or, landed and disarmed with
 the messages :mod:`sitl.streams` says are due are built by :mod:`sitl.messages`, which
 reads the model's public state. The mode table is :mod:`sitl.modes`.
 
+The model ties together classes with one job each, and keeps the vehicle's state and its
+motion: the failsafes (:class:`sitl.failsafes.Failsafes`), the fence zones
+(:class:`sitl.fence.Geofence`), the pilot's sticks (:class:`sitl.sticks.Sticks`), FLIP
+(:class:`sitl.flip.Flip`), ArduCopter's RTL (:class:`sitl.rtl.CopterRtl`), the
+navigation's speeds and limits from the parameters (:class:`sitl.speeds.Speeds`), the
+battery (:class:`sitl.physics.Battery`), the camera (:class:`sitl.camera.Camera`), the
+mission protocol (:class:`sitl.missions.MissionServer`) and AUTO's executor
+(:class:`sitl.auto.AutoMission`).
+
 What a ground station sees follows ArduCopter: HEARTBEAT type QUADROTOR, autopilot
 ARDUPILOTMEGA, ``custom_mode`` = mode number, at 1 Hz and once more at each mode change
 (so even a FLIP shorter than a second shows); any mode entered while disarmed, and arming
@@ -46,11 +55,13 @@ from sitl import arming, auto, fence, messages
 from sitl.camera import COMMANDS as CAMERA_COMMANDS
 from sitl.camera import Camera
 from sitl.companion import Companion
+from sitl.failsafes import Failsafes
 from sitl.faults import Faults
+from sitl.flip import SINK_RATE, Flip
 from sitl.items import MissionItem
 from sitl.messages import AUTOPILOT, COMPANION, stamp, statustext, targets
-from sitl.missions import FENCE, MISSION, RALLY, MissionServer
-from sitl.modes import COPTER, FLIP_FROM, FLIP_NEEDS_THROTTLE, PILOT_MODES, ModeTable
+from sitl.missions import FENCE, MISSION, MissionServer
+from sitl.modes import COPTER, PILOT_MODES, ModeTable
 from sitl.obstacles import Obstacles
 from sitl.params import AUTOPILOT_DEFAULTS, Params, param_replies
 from sitl.physics import (
@@ -62,6 +73,9 @@ from sitl.physics import (
     stopping_distance,
 )
 from sitl.results import Result
+from sitl.rtl import CopterRtl
+from sitl.speeds import BRAKE_DECEL, Speeds
+from sitl.sticks import Sticks
 from sitl.streams import Streams
 from sitl.track import Shape, Track, make_leg
 from sitl.wire import Fields
@@ -71,17 +85,6 @@ from tml.world import Home, World
 TICK = 0.05  # seconds of vehicle time per control step
 
 M = mavlink
-FLIP_RATE = 400.0  # degrees per second of roll, ArduCopter's FLIP_ROTATION_RATE
-FLIP_TIMEOUT = 2.5  # seconds: ArduCopter abandons a flip not over by then (FLIP_TIMEOUT_MS)
-FLIP_ALTITUDE_LOSS = 4.0  # metres a flip costs (ArduCopter SITL: 3.9 and 4.4 m, mid throttle)
-FLIP_STICK = 4000  # centidegrees of roll or pitch stick at which ArduCopter abandons a flip
-FLIP_DIRECTION_STICK = 300  # centidegrees of pitch stick that make it a pitch flip
-RC_RADIO = (1500, 1500, 1000, 1500)  # SITL radio, nobody at the sticks: centred, throttle down
-STICK_DEADZONE = 20  # microseconds around 1500 where roll and pitch read 0 (RCn_DZ)
-THROTTLE_DEADZONE = 30  # microseconds above 1000 where the throttle reads 0 (RC3_DZ)
-# m/s², ArduCopter's BRAKE_MODE_DECEL_RATE; reached at PSC_JERK_XY, so that from 10 m/s
-# BRAKE stops in about 20 m as ArduCopter SITL does, no shorter than GUIDED's stop.
-BRAKE_DECEL = 7.5
 FORCE_ARM = (2989, 21196)  # param2 magic numbers that skip the checks
 FORCE_REBOOT = 20190226  # PREFLIGHT_REBOOT_SHUTDOWN param4 that reboots even when armed
 LANDED_AFTER = 1.0  # seconds on the ground before touch-down counts (ArduCopter's detector)
@@ -90,7 +93,6 @@ GUIDED_VELOCITY_TIMEOUT = 3.0  # a velocity target older than this stops the veh
 # spool up (MOT_SPOOL_TIME), the take-off throttle ramps (TKOFF_SLEW_TIME), and half a
 # second more passes before the climb lifts it (measured, docs/simulator.md).
 LIFT_OFF_AFTER_SLEW = 0.5
-RTL_ALT_MIN = 2.0  # m, ArduCopter's lowest RTL return altitude
 FALLING = Limits(accel_z=9.8, descent=10.0, jerk_z=1000.0)  # disarmed in the air
 # Fields(kind, args) without the call to its __new__: the model makes a dozen a step.
 _fields = tuple.__new__
@@ -143,11 +145,7 @@ class VehicleModel:
             self.params.set("FENCE_ENABLE", 1)
         self._rng = random.Random(f"{seed}/{system_id}")
         self.body = Body(heading=home.heading)
-        self.battery = Battery(self.params["BATT_CAPACITY"], self.params["SIM_BATT_VOLTAGE"],
-                               self.params["SIM_BATT_CAP_AH"] * 1000.0)
-        # SIM_BATT_START: a battery not full at boot has used the rest of its capacity.
-        start = min(max(self.params["SIM_BATT_START"], 0.0), 100.0)
-        self.battery.consumed_mah = self.battery.capacity_mah * (100.0 - start) / 100.0
+        self.battery = Battery.from_params(self.params)
         self.missions = MissionServer(self._home_item, self._list_changed)
         self.companion = Companion(system_id, self.world, self._nearest_obstacle)
         self.mode = self.initial_mode
@@ -163,17 +161,13 @@ class VehicleModel:
         self.images_captured = 0
         self.roll = 0.0  # radians; only a flip rolls (or pitches) the simulated vehicle
         self.pitch = 0.0
-        # (mode to return to, degrees turned so far, "roll" or "pitch", direction +1/-1, start)
-        self._flip: tuple[str, float, str, int, float] = ("", 0.0, "roll", 1, 0.0)
-        self._rc_override: dict[int, int] = {}  # channel (1-based) -> PWM
-        self._rc_override_at = -math.inf
+        self.sticks = Sticks(self.params)
+        self.flip = Flip(self.sticks)
         self._pending = 0.0
         self._outbox: list[Any] = []
         self.streams = Streams()
-        # DO_CHANGE_SPEED overrides of WPNAV_SPEED, WPNAV_SPEED_UP, WPNAV_SPEED_DN (m/s).
-        self._speed: float | None = None
-        self._climb_speed: float | None = None
-        self._descent_speed: float | None = None
+        # WPNAV_SPEED, WPNAV_SPEED_UP, WPNAV_SPEED_DN and DO_CHANGE_SPEED's overrides of them.
+        self.speeds = Speeds(self.params)
         self._target: Vector | None = None  # a position-controller goal (GUIDED, take-off)
         self._track: Track | None = None  # waypoint legs (AUTO, RTL)
         self._lift_off_at: float | None = None  # end of the take-off run-up
@@ -182,24 +176,16 @@ class VehicleModel:
         self._paused = False  # GUIDED paused by DO_PAUSE_CONTINUE (see _pause)
         # (heading, rate, direction: 1 clockwise, -1 anticlockwise, 0 the shorter way)
         self._yaw: tuple[float, float, int] | None = None
-        self._rtl_phase = ""
-        self._rtl_to: Vector = (0.0, 0.0, 0.0)  # where the RTL in progress lands
-        self._rtl_since = 0.0
+        self.rtl = CopterRtl()
         self.auto: auto.AutoMission | None = None
         self._mission_current = 0
         self._ground_since = 0.0
         self._idle_since = 0.0
-        self._gcs_seen: float | None = None
-        self._failsafes: set[str] = set()
-        self._low_voltage_since: float | None = None
+        self.failsafes = Failsafes()
         self._colliding = False
         self.camera = Camera(self.params)
         self.obstacles = Obstacles(self.world)
-        self._fence_polygon = fence.world_polygon(self.world)
-        self._fence_inclusions: list[Any] = []  # uploaded zones beyond the first polygon
-        self._fence_exclusions: list[Any] = []
-        self._limits_key: tuple[Any, ...] = ()
-        self._limits_kept = Limits()
+        self.geofence = fence.Geofence(self.world)
         # The last conversions (position, origin, result) and (home, origin, result).
         self._last_global: tuple[Vector | None, Home | None, Vector] = (None, None, (0, 0, 0))
         self._last_home_local: tuple[Home | None, Home | None, Vector] = (None, None, (0, 0, 0))
@@ -269,7 +255,7 @@ class VehicleModel:
             # ground station of MAV_GCS_SYSID, by its system id alone: another system's
             # HEARTBEAT, a GCS's too, neither arms it nor keeps it quiet.
             if msg.get_srcSystem() == round(self.params["MAV_GCS_SYSID"]):
-                self._gcs_seen = self.time
+                self.failsafes.gcs_seen = self.time
             return []
         if getattr(msg, "target_component", 0) == COMPANION:
             if self.has_companion and targets(msg, self.system_id, COMPANION):
@@ -325,8 +311,7 @@ class VehicleModel:
         if kind.startswith("PARAM_"):
             replies = param_replies(self.params, msg)
             if kind == "PARAM_SET" and replies:
-                self.battery.capacity_mah = self.params["BATT_CAPACITY"]
-                self.battery.cell_capacity_mah = self.params["SIM_BATT_CAP_AH"] * 1000.0
+                self.battery.configure(self.params)
             return replies
         if kind.startswith("MISSION_") and kind not in ("MISSION_SET_CURRENT", "MISSION_ACK"):
             return self.missions.handle(msg, self.time)
@@ -340,7 +325,7 @@ class VehicleModel:
             result = Result.ACCEPTED if ok else Result.FAILED
             return [M.MAVLink_command_ack_message(M.MAVLINK_MSG_ID_SET_MODE, result)]
         if kind == "RC_CHANNELS_OVERRIDE":
-            self._override_sticks(msg)
+            self.sticks.override(msg, self.time)
         elif kind == "SET_POSITION_TARGET_LOCAL_NED":
             self._local_target(msg)
         elif kind == "SET_POSITION_TARGET_GLOBAL_INT":
@@ -501,7 +486,7 @@ class VehicleModel:
             self._text(M.MAV_SEVERITY_WARNING, "Auto: Missing Takeoff Cmd")
             return False
         flying = self.armed and not self.landed
-        if name == "FLIP" and not self._flip_allowed():
+        if name == "FLIP" and not self.flip.allowed(self.mode, flying, self.time):
             self._text(M.MAV_SEVERITY_WARNING, "Mode change to FLIP failed: init failed")
             return False
         previous, self.mode = self.mode, name
@@ -510,7 +495,7 @@ class VehicleModel:
         self._paused = False  # ArduCopter's ModeGuided::init clears it
         self._stop_motion()
         self.auto = None
-        self._rtl_phase = ""
+        self.rtl.phase = ""
         self.roll = self.pitch = 0.0
         self._announce_mode()
         self._enter(name, previous, flying)
@@ -519,7 +504,7 @@ class VehicleModel:
     def _enter(self, name: str, previous: str, flying: bool) -> None:
         """What the vehicle starts doing in mode ``name`` (entered from ``previous``)."""
         if name == "FLIP":  # turn once around, then back to ``previous``
-            self._flip = (previous, 0.0, *self._flip_direction(), self.time)
+            self.flip.start(previous, self.time)
             self.body.stop()
         elif name == "BRAKE" and flying:
             # ArduCopter's BRAKE shapes the velocity to zero at BRAKE_MODE_DECEL_RATE
@@ -577,7 +562,7 @@ class VehicleModel:
     def extra_arming_failures(self) -> list[str]:
         """The simulator's own arming checks, after ArduCopter's start-up ones."""
         found = []
-        if self._failsafes & {"battery", "battery critical"}:
+        if self.failsafes.active & {"battery", "battery critical"}:
             found.append("Battery failsafe")
         if self.params["FENCE_ENABLE"] and self._fence_breach(self.position):
             found.append("Vehicle breaching fence")
@@ -642,7 +627,7 @@ class VehicleModel:
         if p[4] or p[5]:
             north, east, _ = self._local(p[4], p[5], self.origin.altitude)
         if p[0] > 0:
-            self._speed = p[0]
+            self.speeds.horizontal = p[0]
         return north, east, here[2] if math.isnan(p[6]) else p[6]
 
     def _pause(self, pause: bool) -> Result:
@@ -816,12 +801,7 @@ class VehicleModel:
 
         A waypoint leg in progress is planned again from where the vehicle is, as
         ArduCopter recalculates its leg when the speed changes."""
-        if speed_type == auto.SPEED_CLIMB:
-            self._climb_speed = speed
-        elif speed_type == auto.SPEED_DESCENT:
-            self._descent_speed = speed
-        else:
-            self._speed = speed
+        self.speeds.set(speed_type, speed)
         if self._track is not None:
             self._track.replan(self._limits(), self._shape(), self.time)
 
@@ -879,10 +859,10 @@ class VehicleModel:
         reboot_at = faults.reboot_at
         if reboot_at is not None and now >= reboot_at:
             self.reboot_due = True
-        self._check_failsafes()
+        self.failsafes.check(self)
         if self.mode == "FLIP":
             self._update_flip()
-        if self.mode == "RTL" or self._rtl_phase:
+        if self.mode == "RTL" or self.rtl.phase:
             self._update_rtl()
         if self.auto is not None:
             self.auto.update()
@@ -915,33 +895,10 @@ class VehicleModel:
             self._idle_since = self.time
 
     def _limits(self) -> Limits:
-        # Asked for every control step, and changed only by a parameter write, a mode
-        # change or a speed command: kept until one of them happens.
-        key = (self.params.version, self.mode, self._speed, self._climb_speed,
-               self._descent_speed)
-        if key == self._limits_key:
-            return self._limits_kept
-        self._limits_key, self._limits_kept = key, self._new_limits()
-        return self._limits_kept
-
-    def _new_limits(self) -> Limits:
-        p = self.params
-        speed = self._speed or p["WPNAV_SPEED"] / 100.0
-        if self.mode == "RTL" and p["RTL_SPEED"] > 0:
-            speed = p["RTL_SPEED"] / 100.0
-        accel = BRAKE_DECEL if self.mode == "BRAKE" else p["WPNAV_ACCEL"] / 100.0
-        climb = self._climb_speed or p["WPNAV_SPEED_UP"] / 100.0
-        descent = self._descent_speed or p["WPNAV_SPEED_DN"] / 100.0
-        accel_z = p["PILOT_ACCEL_Z" if self.mode in PILOT_MODES else "WPNAV_ACCEL_Z"] / 100.0
-        if self.mode in PILOT_MODES:  # the stick's rate, not the navigation's limits
-            climb = p["PILOT_SPEED_UP"] / 100.0
-            descent = (p["PILOT_SPEED_DN"] or p["PILOT_SPEED_UP"]) / 100.0
-        return Limits(speed, climb, descent, accel, accel_z, p["ATC_RATE_Y_MAX"], p["PSC_JERK_XY"],
-                      p["PSC_JERK_Z"])
+        return self.speeds.limits(self.mode)
 
     def _shape(self) -> Shape:
-        p = self.params
-        return Shape(p["WPNAV_JERK"], 2.0 * max(p["ATC_INPUT_TC"], 0.1))
+        return self.speeds.shape()
 
     def _wind(self) -> tuple[float, float]:
         # SIM_WIND_DIR is where the wind comes from; it blows toward the opposite side.
@@ -965,9 +922,9 @@ class VehicleModel:
         before = body.position
         if self.mode == "FLIP":
             # The flip's sink, spread over the turn: about 4 m, as ArduCopter's.
-            sink = FLIP_ALTITUDE_LOSS * FLIP_RATE / 360.0
             north, east, up = body.position
-            body.position, body.velocity = (north, east, up - sink * TICK), (0.0, 0.0, -sink)
+            body.position, body.velocity = (north, east, up - SINK_RATE * TICK), (
+                0.0, 0.0, -SINK_RATE)
         elif paused:
             body.shape_velocity((0.0, 0.0, 0.0), limits, TICK)
         elif self._landing is not None:
@@ -1063,234 +1020,47 @@ class VehicleModel:
         if self.armed and (landing or self.mode in ("LAND", "RTL")):
             self.disarm()
 
-    def _flip_allowed(self) -> bool:
-        """ArduCopter's ModeFlip::init: from a pilot mode (throttle up in ACRO and
-        STABILIZE), roll stick under 40 degrees, armed and off the ground."""
-        if self.mode not in FLIP_FROM or not self.armed or self.landed:
-            return False
-        if self.mode in FLIP_NEEDS_THROTTLE and self.rc(3) <= RC_RADIO[2] + THROTTLE_DEADZONE:
-            return False
-        return abs(self._stick(1)) < FLIP_STICK
-
-    def _flip_direction(self) -> tuple[str, int]:
-        """As ArduCopter: pitch stick back or forward makes a pitch flip that way, else a
-        roll to the side the roll stick leans (right when centred)."""
-        pitch = self._stick(2)
-        if abs(pitch) > FLIP_DIRECTION_STICK:
-            return "pitch", 1 if pitch > 0 else -1
-        return "roll", 1 if self._stick(1) >= 0 else -1
-
     def _update_flip(self) -> None:
-        previous, turned, axis, direction, start = self._flip
-        turned += FLIP_RATE * TICK
-        abandon = not self.armed or self.time - start > FLIP_TIMEOUT or max(
-            abs(self._stick(1)), abs(self._stick(2))) >= FLIP_STICK
-        if turned >= 360.0 or abandon:
+        attitude = self.flip.turn(TICK, self.armed, self.time)
+        if attitude is None:
             # As ArduCopter: back to the mode the flip started from, else STABILIZE; the
             # recovery's extra throttle stops the sink.
             vn, ve, _ = self.body.velocity
             self.body.velocity = (vn, ve, 0.0)
-            if not self.set_mode(previous):
+            if not self.set_mode(self.flip.previous):
                 self.set_mode("STABILIZE")
             return
-        self._flip = (previous, turned, axis, direction, start)
-        angle = direction * math.radians(turned - 360.0 if turned > 180.0 else turned)
-        self.roll, self.pitch = (angle, 0.0) if axis == "roll" else (0.0, angle)
+        self.roll, self.pitch = attitude
 
     # ------------------------------------------------------------- the pilot's sticks
     def rc(self, channel: int) -> int:
-        """The PWM of RC ``channel`` (1-based): the ground station's RC_CHANNELS_OVERRIDE
-        while it is younger than RC_OVERRIDE_TIME (0: overrides off, -1: no time limit),
-        else SITL's idle radio (sticks centred, throttle down)."""
-        limit = self.params["RC_OVERRIDE_TIME"]
-        fresh = limit < 0 or (limit > 0 and self.time - self._rc_override_at <= limit)
-        if fresh and channel in self._rc_override:
-            return self._rc_override[channel]
-        return RC_RADIO[channel - 1] if channel <= len(RC_RADIO) else 1500
+        """The PWM of RC ``channel`` (1-based) now (:class:`sitl.sticks.Sticks`)."""
+        return self.sticks.rc(channel, self.time)
 
     @property
     def sticks_overridden(self) -> frozenset[int]:
         """The RC channels a ground station holds (given back ones are not)."""
-        return frozenset(self._rc_override)
-
-    def _override_sticks(self, msg: Any) -> None:
-        # As ArduPilot: only the ground station named by MAV_GCS_SYSID may hold the sticks.
-        # Channels 1-8: UINT16_MAX leaves a channel as it is, 0 gives it back to the radio.
-        if msg.get_srcSystem() != round(self.params["MAV_GCS_SYSID"]):
-            return
-        for channel in range(1, 9):
-            value = getattr(msg, f"chan{channel}_raw")
-            if value == 0:
-                self._rc_override.pop(channel, None)
-            elif value != 65535:
-                self._rc_override[channel] = value
-        self._rc_override_at = self.time
-
-    def _stick(self, channel: int) -> float:
-        """Roll (1) or pitch (2) stick in centidegrees, as ArduCopter's control_in."""
-        offset = self.rc(channel) - 1500
-        if abs(offset) <= STICK_DEADZONE:
-            return 0.0
-        return math.copysign(abs(offset) - STICK_DEADZONE, offset) / (500 - STICK_DEADZONE) * 4500
+        return self.sticks.overridden
 
     def pilot_climb_rate(self) -> float:
-        """m/s up the throttle stick asks for in ALT_HOLD (ArduCopter's
-        get_pilot_desired_climb_rate: THR_DZ around mid-stick holds the altitude)."""
-        throttle = min(max(self.rc(3) - 1000, 0), 1000)
-        top, bottom = 500 + self.params["THR_DZ"], 500 - self.params["THR_DZ"]
-        up = self.params["PILOT_SPEED_UP"] / 100.0
-        down = (self.params["PILOT_SPEED_DN"] or self.params["PILOT_SPEED_UP"]) / 100.0
-        if throttle > top:
-            return up * (throttle - top) / (1000 - top)
-        if throttle < bottom:
-            return down * (throttle - bottom) / bottom
-        return 0.0
+        """m/s up the throttle stick asks for in ALT_HOLD."""
+        return self.sticks.climb_rate(self.time)
 
     # --------------------------------------------------------------------- RTL
     def _start_rtl(self) -> None:
-        """ArduCopter's RTL: climb to the return altitude, fly home at it, loiter, land.
-
-        The return altitude is ``RTL_ALT``, or the present altitude (plus ``RTL_CLIMB_MIN``)
-        if higher, but no higher than ``RTL_CONE_SLOPE`` times the distance home, so a
-        vehicle already near home does not climb (``ModeRTL::compute_return_target``). The
-        climb and the return are two waypoint legs, the first blended into the second.
-        "Home" is the nearest uploaded rally point when that is nearer (at no less than its
-        altitude; :meth:`_rtl_destination`)."""
-        p, here = self.params, self._stopping_point(keep_altitude=True)
-        home, rally_altitude = self._rtl_destination(here)
-        self._rtl_to = home
-        lowest = max(RTL_ALT_MIN, here[2] + max(0.0, p["RTL_CLIMB_MIN"] / 100.0))
-        altitude = max(p["RTL_ALT"] / 100.0, lowest)
-        distance = math.hypot(home[0] - here[0], home[1] - here[1])
-        if p["RTL_CONE_SLOPE"] >= 0.5:
-            altitude = min(altitude, max(distance * p["RTL_CONE_SLOPE"], lowest))
-        altitude = max(altitude, here[2], rally_altitude)
-        self._rtl_phase = "climb"
-        self._fly_legs((here[0], here[1], altitude), (home[0], home[1], altitude))
-
-    def _rtl_destination(self, here: Vector) -> tuple[Vector, float]:
-        """Where RTL returns to, and the least altitude there: ArduCopter's
-        ``AP_Rally::calc_best_rally_or_home_location``. The rally point nearest to ``here``
-        (one within ``RALLY_LIMIT_KM`` of home, when that is above 0), unless home is nearer
-        and ``RALLY_INCL_HOME`` is set; else home (0: no least altitude)."""
-        home = self._home_local()
-        best: tuple[float, Vector, float] | None = None
-        limit = self.params["RALLY_LIMIT_KM"] * 1000.0
-        for item in self.missions.items(RALLY):
-            point = self._local(item.x / 1e7, item.y / 1e7, self.origin.altitude)
-            if limit > 0 and math.hypot(point[0] - home[0], point[1] - home[1]) > limit:
-                continue
-            distance = math.hypot(point[0] - here[0], point[1] - here[1])
-            if best is None or distance < best[0]:
-                best = (distance, (point[0], point[1], home[2]), home[2] + item.z)
-        if best is None or (self.params["RALLY_INCL_HOME"] and math.hypot(
-                home[0] - here[0], home[1] - here[1]) <= best[0]):
-            return home, 0.0
-        return best[1], best[2]
+        """ArduCopter's RTL (:class:`sitl.rtl.CopterRtl`)."""
+        self.rtl.start(self)
 
     def _update_rtl(self) -> None:
-        if not self._rtl_phase or not self.armed:
-            return
-        if self._rtl_phase == "climb" and self._leg_reached():
-            self._rtl_phase = "return"
-            track = self._track
-            assert track is not None
-            if track.next is not None:
-                self._fly_legs(track.next.destination)
-        elif self._rtl_phase == "return" and self._leg_reached():
-            self._rtl_phase, self._rtl_since = "loiter", self.time
-        elif self._rtl_phase == "loiter" and (
-            self.time - self._rtl_since >= self.params["RTL_LOIT_TIME"] / 1000.0
-        ):
-            self._rtl_phase = "land"
-            self.land_at(self._rtl_to[0], self._rtl_to[1])
+        self.rtl.update(self)
 
     # ---------------------------------------------------------------- failsafes
-    def _check_failsafes(self) -> None:
-        self._battery_failsafe()
-        if self.params["FS_GCS_ENABLE"] and self._gcs_seen is not None:
-            lost = self.time - self._gcs_seen > self.params["FS_GCS_TIMEOUT"]
-            if lost and "gcs" not in self._failsafes and self.armed:
-                self._failsafes.add("gcs")
-                self._text(M.MAV_SEVERITY_CRITICAL, "GCS Failsafe")
-                action = round(self.params["FS_GCS_ENABLE"])
-                if not (action == 2 and self.mode == "AUTO"):
-                    # ArduCopter's failsafe_gcs_on_event: 4 (SmartRTL or LAND; no SmartRTL
-                    # here) and 5 land, every other value returns (RTL, LAND if it cannot).
-                    self._failsafe_action(1 if action in (4, 5) else 2)
-            elif not lost and "gcs" in self._failsafes:
-                self._failsafes.discard("gcs")
-                self._text(M.MAV_SEVERITY_CRITICAL, "GCS Failsafe Cleared")
-        gps_loss_at = self.faults.gps_loss_at  # self._gps_lost, without the call
-        if gps_loss_at is not None and self.time >= gps_loss_at and "ekf" not in self._failsafes:
-            self._failsafes.add("ekf")
-            self._text(M.MAV_SEVERITY_CRITICAL, "GPS Glitch or Compass error")
-            if self.armed and not self.landed and self.mode in self.mode_table.needs_position:
-                self._text(M.MAV_SEVERITY_CRITICAL, "EKF Failsafe: changed to LAND Mode")
-                self.mode = "LAND"
-                self._target, self._velocity, self.auto, self._rtl_phase = None, None, None, ""
-                self._announce_mode()
-                self._landing = self.position[:2]
-        if self.params["FENCE_ENABLE"] and self.armed and not self.landed:
-            breach = self._fence_breach(self.position)
-            if breach and "fence" not in self._failsafes:
-                self._failsafes.add("fence")
-                # A notice, as ArduCopter says it (AC_Fence), and "Fence breach cleared"
-                # once back inside.
-                self._text(M.MAV_SEVERITY_NOTICE, fence.BREACH_TEXTS[breach])
-                action = round(self.params["FENCE_ACTION"])
-                if action and self.mode not in ("RTL", "LAND"):
-                    self._failsafe_action({1: 2, 2: 1, 3: 2, 4: 4, 5: 2}.get(action, 2))
-            elif not breach and "fence" in self._failsafes:
-                self._failsafes.discard("fence")
-                self._text(M.MAV_SEVERITY_NOTICE, "Fence breach cleared")
-
-    def _battery_failsafe(self) -> None:
-        """Raise the low and critical battery failsafes as their conditions arise.
-
-        Each level latches, as ArduPilot's battery monitor does until a reboot: a pack
-        recharged on its pad reports its charge again but still refuses arming
-        ("PreArm: Battery failsafe") once a failsafe was raised.
-        """
-        p, battery = self.params, self.battery
-        voltage = battery.voltage
-        if voltage < p["BATT_LOW_VOLT"]:
-            self._low_voltage_since = self._low_voltage_since or self.time
-        else:
-            self._low_voltage_since = None
-        remaining_mah = battery.capacity_mah - battery.consumed_mah
-        critical = battery.failed or (0 < voltage < p["BATT_CRT_VOLT"])
-        low = critical or (
-            self._low_voltage_since is not None
-            and self.time - self._low_voltage_since >= p["BATT_LOW_TIMER"]
-        ) or (p["BATT_LOW_MAH"] > 0 and remaining_mah < p["BATT_LOW_MAH"])
-        if low and "battery" not in self._failsafes:
-            self._raise_battery_failsafe("battery", "low", voltage, p["BATT_FS_LOW_ACT"])
-        if critical and "battery critical" not in self._failsafes:
-            self._raise_battery_failsafe("battery critical", "critical", voltage,
-                                         p["BATT_FS_CRT_ACT"])
-
-    def _raise_battery_failsafe(self, level: str, word: str, voltage: float,
-                                action: float) -> None:
-        self._failsafes.add(level)
-        self._text(M.MAV_SEVERITY_CRITICAL,
-                   f"Battery 1 is {word} {voltage:.2f}V used {self.battery.consumed_mah:.0f} mAh")
-        if self.armed:
-            self._failsafe_action(round(action))
-
-    def _failsafe_action(self, action: int) -> None:
-        """ArduCopter's failsafe actions: 1 land, 2/3/4 RTL (land if RTL fails), 5 disarm."""
-        if not self.armed:
-            return
-        if self.landed:
-            self.disarm()
-        elif action == 1:
-            self.set_mode("LAND")
-        elif action in (2, 3, 4):
-            if not self.set_mode("RTL"):
-                self.set_mode("LAND")
-        elif action == 5:
-            self.disarm()
+    def land_here(self) -> None:
+        """LAND where the vehicle is, none of the mode's checks asked (the EKF failsafe)."""
+        self.mode = "LAND"
+        self._target, self._velocity, self.auto, self.rtl.phase = None, None, None, ""
+        self._announce_mode()
+        self._landing = self.position[:2]
 
     def _outside_fence(self, destination: Vector) -> bool:
         """True when the fence is on and ``destination`` breaks it: ArduCopter refuses such
@@ -1299,11 +1069,7 @@ class VehicleModel:
         return bool(self.params["FENCE_ENABLE"]) and bool(self._fence_breach(destination))
 
     def _fence_breach(self, position: Vector) -> str:
-        geofence = self.world.geofence
-        ceiling = geofence.max_altitude if geofence is not None else None
-        return fence.breach(position, self.params, self._home_local(), self._fence_polygon,
-                            ceiling, inclusions=self._fence_inclusions,
-                            exclusions=self._fence_exclusions)
+        return self.geofence.breach(position, self.params, self._home_local())
 
     # ------------------------------------------------------------- obstacles
     def _blocked(self, position: Vector) -> bool:
@@ -1402,13 +1168,8 @@ class VehicleModel:
         elif mission_type == FENCE:
             items = self.missions.items(FENCE)
             self.params.set("FENCE_TOTAL", len(items))
-            inclusions, self._fence_exclusions = fence.uploaded_zones([
-                (i.command, i.param1, self._local(i.x / 1e7, i.y / 1e7,
-                                                  self.origin.altitude)[:2]) for i in items])
-            # No inclusion zone uploaded: the world's polygon (a vehicle set up beforehand).
-            self._fence_polygon = inclusions[0] if inclusions else fence.world_polygon(
-                self.world)
-            self._fence_inclusions = inclusions[1:]
+            self.geofence.load([(i.command, i.param1, self._local(
+                i.x / 1e7, i.y / 1e7, self.origin.altitude)[:2]) for i in items])
         else:
             self.params.set("RALLY_TOTAL", len(self.missions.items(mission_type)))
 
@@ -1453,7 +1214,7 @@ class VehicleModel:
     @property
     def in_failsafe(self) -> bool:
         """True while any failsafe (battery, GCS, EKF, fence) is active."""
-        return bool(self._failsafes)
+        return bool(self.failsafes.active)
 
     def global_position(self) -> Vector:
         """Latitude, longitude (degrees) and altitude above mean sea level (m)."""

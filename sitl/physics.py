@@ -28,6 +28,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from sitl.params import Params
 
 Vector = tuple[float, float, float]
 ZERO: Vector = (0.0, 0.0, 0.0)
@@ -254,6 +258,22 @@ class Battery:
         self.consumed_mah = 0.0
         self.current = 0.0
         self.failed = False
+
+    @classmethod
+    def from_params(cls, params: Params) -> Battery:
+        """The battery ``params`` describe at boot: the monitor's ``BATT_CAPACITY``, the
+        simulated pack's ``SIM_BATT_VOLTAGE`` and ``SIM_BATT_CAP_AH``, and a pack not
+        full at boot (``SIM_BATT_START`` percent) having used the rest of its capacity."""
+        battery = cls(params["BATT_CAPACITY"], params["SIM_BATT_VOLTAGE"],
+                      params["SIM_BATT_CAP_AH"] * 1000.0)
+        start = min(max(params["SIM_BATT_START"], 0.0), 100.0)
+        battery.consumed_mah = battery.capacity_mah * (100.0 - start) / 100.0
+        return battery
+
+    def configure(self, params: Params) -> None:
+        """Take the capacities ``params`` give now (after a parameter write)."""
+        self.capacity_mah = params["BATT_CAPACITY"]
+        self.cell_capacity_mah = params["SIM_BATT_CAP_AH"] * 1000.0
 
     def drain(self, dt: float, current: float) -> None:
         """Draw ``current`` amperes for ``dt`` seconds."""

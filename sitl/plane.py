@@ -88,7 +88,7 @@ class PlaneModel(VehicleModel):
         return abs(self.params["WP_LOITER_RAD"])
 
     def _cruise(self) -> float:
-        return self._speed or self.params["AIRSPEED_CRUISE"]
+        return self.speeds.horizontal or self.params["AIRSPEED_CRUISE"]
 
     def _orbit(self, centre: Vector, radius: float = 0.0, clockwise: bool = True) -> _Goal:
         self._goal = _Goal("orbit", centre, abs(radius) or self.loiter_radius, clockwise)

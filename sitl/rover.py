@@ -66,7 +66,7 @@ class RoverModel(VehicleModel):
 
     def _enter(self, name: str, previous: str, flying: bool) -> None:
         self._announce_arrival = False
-        self._speed = None  # every mode starts at WP_SPEED (Rover re-initialises wp_nav)
+        self.speeds.horizontal = None  # every mode starts at WP_SPEED (Rover re-initialises wp_nav)
         if name in ("RTL", "SMART_RTL") and self.armed:
             self._start_rtl()
         elif name == "AUTO":
@@ -83,12 +83,12 @@ class RoverModel(VehicleModel):
 
     def _start_rtl(self) -> None:
         home = self._home_local()
-        self._rtl_phase = "return"
+        self.rtl.phase = "return"
         self._go((home[0], home[1], 0.0))
 
     def _update_rtl(self) -> None:
-        if self._rtl_phase == "return" and self._target is None:
-            self._rtl_phase = ""
+        if self.rtl.phase == "return" and self._target is None:
+            self.rtl.phase = ""
             self._text(M.MAV_SEVERITY_INFO, "Reached destination")
 
     def _current(self) -> float:
@@ -150,7 +150,7 @@ class RoverModel(VehicleModel):
 
     def returned(self) -> bool:
         """Home, stopped."""
-        return self._rtl_phase == "" and self._target is None
+        return self.rtl.phase == "" and self._target is None
 
     def arrived(self, target: Vector, radius: float) -> bool:
         """Within ``radius`` metres of ``target`` on the ground."""
@@ -179,7 +179,7 @@ class RoverModel(VehicleModel):
             else:
                 course = math.degrees(math.atan2(de, dn))
                 error = math.radians((course - self.heading + 180.0) % 360.0 - 180.0)
-                cruise = self._speed or p["WP_SPEED"] or p["CRUISE_SPEED"]
+                cruise = self.speeds.horizontal or p["WP_SPEED"] or p["CRUISE_SPEED"]
                 wanted = min(cruise, math.sqrt(2.0 * BRAKING * max(distance - STOPPED_WITHIN,
                                                                    0.0)))
                 wanted = max(min(wanted, SLOWEST_TURN), wanted * max(0.0, math.cos(error)))

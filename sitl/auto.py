@@ -60,7 +60,7 @@ NAMES = {
     NAV_LOITER_TIME: "LoitTime", NAV_RETURN_TO_LAUNCH: "RTL", NAV_LAND: "Land",
     NAV_TAKEOFF: "Takeoff", NAV_DELAY: "Delay", CONDITION_DELAY: "CondDelay",
     CONDITION_YAW: "CondYaw", DO_JUMP: "Jump", DO_CHANGE_SPEED: "ChangeSpeed",
-    DO_SET_HOME: "SetHome", DO_DIGICAM_CONTROL: "DigiCam",
+    DO_SET_HOME: "SetHome", DO_DIGICAM_CONTROL: "DigiCamCtrl",
     DO_SET_CAM_TRIGG_DIST: "CamTrigDist", DO_GRIPPER: "Gripper",
     IMAGE_START_CAPTURE: "ImageStart", IMAGE_STOP_CAPTURE: "ImageStop",
 }

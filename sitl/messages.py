@@ -351,12 +351,16 @@ def autopilot_version(v: Source) -> Arguments:
         v.system_id)
 
 
-def camera_image_captured(v: Source, index: int) -> Any:
-    """CAMERA_IMAGE_CAPTURED for picture ``index`` taken here and now."""
+def camera_feedback(v: Source, index: int) -> Any:
+    """CAMERA_FEEDBACK for picture ``index`` (the first is 1) taken here and now, as
+    ArduPilot's AP_Camera sends it for a camera without a feedback pin: camera 0, the
+    vehicle's position (altitude AMSL and above home) and attitude in degrees, flags
+    CAMERA_FEEDBACK_PHOTO, no completed captures counted; no UNIX time (0)."""
     lat, lon, alt = v.global_position()
-    return M.MAVLink_camera_image_captured_message(
-        int(v.time * 1000), 0, 0, round(lat * 1e7), round(lon * 1e7), round(alt * 1000),
-        round(v.position[2] * 1000), _quaternion(v.heading), index, 1, b"")
+    yaw = v.heading % 360.0
+    return M.MAVLink_camera_feedback_message(
+        0, 0, 0, index, round(lat * 1e7), round(lon * 1e7), alt, v.position[2] - v.home_local()[2],
+        math.degrees(v.roll), math.degrees(v.pitch), yaw, 0.0, M.CAMERA_FEEDBACK_PHOTO, 0)
 
 
 BUILDERS: dict[int, Builder] = {

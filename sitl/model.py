@@ -408,8 +408,7 @@ class VehicleModel:
         if command == M.MAV_CMD_DO_SET_MISSION_CURRENT:
             return ok if self._set_current(round(p[0])) else failed
         if command in CAMERA_COMMANDS:
-            self._camera(command, p)
-            return ok
+            return self._camera(command, p)
         if command == M.MAV_CMD_DO_GRIPPER:
             return ok if self._gripper(p[1]) else failed
         if command == M.MAV_CMD_SET_MESSAGE_INTERVAL:
@@ -868,10 +867,8 @@ class VehicleModel:
             self.auto.update()
         self._fly()
         self._check_landed()
-        pictures = self.camera.update(now, self.body.position, not self.landed)
-        if pictures:
-            for _ in range(pictures):
-                self._capture_image()
+        if self.camera.update(now, self.body.position):
+            self._capture_image()
         charger = params["SIM_BATT_CHARGE"]
         if charger > 0 and self.landed and not self.armed:
             # On its pad the charger also feeds the electronics, so nothing drains.
@@ -1095,13 +1092,15 @@ class VehicleModel:
         return self.obstacles.nearest(position)
 
     # ---------------------------------------------------------- camera, gripper
-    def _camera(self, command: int, p: list[float]) -> None:
-        for _ in range(self.camera.command(command, p, self.time, self.position)):
+    def _camera(self, command: int, p: list[float]) -> Result:
+        result, pictures = self.camera.command(command, p, self.time, self.position)
+        for _ in range(pictures):
             self._capture_image()
+        return result
 
     def _capture_image(self) -> None:
-        self._outbox.append(messages.camera_image_captured(self, self.images_captured))
         self.images_captured += 1
+        self._outbox.append(messages.camera_feedback(self, self.images_captured))
 
     def _gripper(self, action: float) -> bool:
         """DO_GRIPPER's action (GRIPPER_ACTION_RELEASE 0, GRAB 1), in any mode, as ArduPilot:

@@ -105,7 +105,10 @@ AUTOPILOT_DEFAULTS: tuple[tuple[str, float, int], ...] = (
     ("AVOID_MARGIN", 2, REAL32),
     ("GRIP_ENABLE", 1, INT8),
     ("GRIP_TYPE", 1, INT8),  # 1 servo: a gripper is fitted
-    ("CAM_TRIGG_DIST", 0, REAL32),
+    # A camera is fitted (1: a servo-triggered one, read at boot as ArduPilot does; 0: none).
+    ("CAM1_TYPE", 1, INT8),
+    ("CAM1_TRIGG_DIST", 0, REAL32),
+    ("CAM1_DURATION", 0.1, REAL32),  # s the shutter is held: no other picture meanwhile
     ("SIM_GPS_LOCKTIME", 10, REAL32),
     ("SIM_EKF_GPS_TIME", 41, REAL32),
     ("SIM_WIND_SPD", 0, REAL32),

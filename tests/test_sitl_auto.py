@@ -110,7 +110,7 @@ def test_hold_time_delays_and_conditions():
     ])
     assert reached(out) == [1, 4, 5, 6]
     assert texts(out).index("Mission: 2 CondDelay") < texts(out).index("Mission: 3 ImageStart")
-    assert sum(m.get_type() == "CAMERA_IMAGE_CAPTURED" for m in out) == 1
+    assert sum(m.get_type() == "CAMERA_FEEDBACK" for m in out) == 1
 
 
 def test_loiter_turns_circles_and_rtl_ends_the_mission():
@@ -130,7 +130,8 @@ def test_auto_needs_a_takeoff_first_when_on_the_ground():
 
 
 def local(msg) -> tuple[float, float]:
-    north, east, _ = to_local(msg.lat / 1e7, msg.lon / 1e7, H.altitude, H.latitude,
+    lon = msg.lng if msg.get_type() == "CAMERA_FEEDBACK" else msg.lon
+    north, east, _ = to_local(msg.lat / 1e7, lon / 1e7, H.altitude, H.latitude,
                               H.longitude, H.altitude)
     return north, east
 
@@ -140,7 +141,7 @@ def test_cam_trigg_dist_takes_a_picture_every_n_metres_of_the_leg():
         item(22, alt=10), item(206, 10), item(16, 2, north=50), item(206, 0),
         item(16, north=50, east=30), item(21, north=50, east=30, alt=0),
     ])
-    spots = [local(m) for m in out if m.get_type() == "CAMERA_IMAGE_CAPTURED"]
+    spots = [local(m) for m in out if m.get_type() == "CAMERA_FEEDBACK"]
     # Every 10 m (and up to one control step's travel, 0.5 m at 10 m/s, as the check runs
     # once a step) along the 50 m leg north, none on the leg east: a DO item acts on the leg
     # that follows it, so the one after the northern waypoint turns the camera off there.
@@ -168,7 +169,7 @@ def shoot(frame: int = 2) -> tuple:
 
 
 def pictures(out: list) -> list[tuple[float, float]]:
-    return [local(m) for m in out if m.get_type() == "CAMERA_IMAGE_CAPTURED"]
+    return [local(m) for m in out if m.get_type() == "CAMERA_FEEDBACK"]
 
 
 def test_each_do_item_runs_once_per_pass_on_the_leg_after_the_waypoint_before_it():
@@ -177,14 +178,14 @@ def test_each_do_item_runs_once_per_pass_on_the_leg_after_the_waypoint_before_it
         item(177, 2, 1), item(21, alt=0),
     ])
     assert reached(out) == [1, 2, 4, 2, 4, 6]
-    assert texts(out).count("Mission: 3 DigiCam") == 2  # once in each of the two passes
+    assert texts(out).count("Mission: 3 DigiCamCtrl") == 2  # once in each of the two passes
     spots = pictures(out)
     assert len(spots) == 2  # one picture per pass, not one per item and per NAV command
     # ArduPilot runs the DO items after a waypoint when that waypoint is reached: first the
     # DO item, then the next waypoint starts.
     assert all(abs(north - 10.0) <= 2.1 for north, _ in spots)  # within WPNAV_RADIUS
     said = texts(out)
-    assert said.index("Mission: 2 WP") < said.index("Mission: 3 DigiCam") < said.index(
+    assert said.index("Mission: 2 WP") < said.index("Mission: 3 DigiCamCtrl") < said.index(
         "Mission: 4 WP")
 
 
@@ -194,7 +195,7 @@ def test_only_the_first_do_item_after_the_last_nav_item_runs():
     out += v.step(2)
     # AP_Mission starts the first and finds no NAV command after it: the mission is complete.
     assert len(pictures(out)) == 1
-    assert "Mission: 3 DigiCam" in texts(out) and "Mission: 4 DigiCam" not in texts(out)
+    assert "Mission: 3 DigiCamCtrl" in texts(out) and "Mission: 4 DigiCamCtrl" not in texts(out)
     assert v.mode == "AUTO" and v.armed and v.position[2] > 4.5  # holds where it ended
     replies = v.handle(M.MAVLink_command_long_message(1, 1, 300, 0, 0, 0, 0, 0, 0, 0, 0))
     assert replies[0].result == M.MAV_RESULT_ACCEPTED  # MISSION_START: it runs again

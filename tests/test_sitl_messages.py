@@ -163,9 +163,11 @@ def test_build_serves_requests_by_id_and_pictures_say_where_they_were_taken():
     assert messages.build(99999, State()) is None
     version = messages.build(M.MAVLINK_MSG_ID_AUTOPILOT_VERSION, State())
     assert version.capabilities & M.MAV_PROTOCOL_CAPABILITY_MISSION_INT
-    picture = messages.camera_image_captured(State(position=(0.0, 0.0, 20.0)), 4)
-    assert (picture.image_index, picture.relative_alt) == (4, 20000)
-    assert picture.lat == round(H.latitude * 1e7)
+    picture = messages.camera_feedback(State(position=(0.0, 0.0, 20.0), heading=-90.0), 4)
+    assert (picture.img_idx, picture.cam_idx, picture.alt_rel, picture.yaw) == (4, 0, 20.0, 270.0)
+    assert (picture.lat, picture.lng) == (round(H.latitude * 1e7), round(H.longitude * 1e7))
+    assert picture.alt_msl == pytest.approx(H.altitude + 20.0)
+    assert (picture.flags, picture.completed_captures) == (M.CAMERA_FEEDBACK_PHOTO, 0)
 
 
 def test_addressing_helpers():

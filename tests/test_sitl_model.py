@@ -592,9 +592,33 @@ def test_gripper_and_camera():
     assert texts(replies) == ["Gripper load grabbed"]
     result, replies = command(v, M.MAV_CMD_IMAGE_START_CAPTURE, 0, 1, 3)
     out = replies + v.step(5)
-    images = [m for m in out if m.get_type() == "CAMERA_IMAGE_CAPTURED"]
-    assert [m.image_index for m in images] == [0, 1, 2]
+    images = [m for m in out if m.get_type() == "CAMERA_FEEDBACK"]
+    assert [m.img_idx for m in images] == [1, 2, 3]
     assert command(v, M.MAV_CMD_IMAGE_STOP_CAPTURE)[0] == M.MAV_RESULT_ACCEPTED
+
+
+def test_each_picture_sends_camera_feedback_from_where_it_was_taken():
+    v = flying(10.0)
+    v.fly_to((35.0, 0.0, 10.0))
+    result, replies = command(v, M.MAV_CMD_DO_SET_CAM_TRIGG_DIST, 10, 0, 1)
+    out = replies + v.step(15)
+    feedback = [m for m in out if m.get_type() == "CAMERA_FEEDBACK"]
+    assert result == M.MAV_RESULT_ACCEPTED and v.params["CAM1_TRIGG_DIST"] == 10
+    assert [m.img_idx for m in feedback] == [1, 2, 3, 4]  # at once, then 10, 20, 30 m on
+    assert all(abs(m.alt_rel - 10.0) < 0.2 for m in feedback)
+    north = [v._local(m.lat / 1e7, m.lng / 1e7, m.alt_msl)[0] for m in feedback]
+    assert abs(north[0]) < 0.1  # then each 10 m on (and up to one step's travel more)
+    assert all(10.0 <= b - a <= 10.6 for a, b in itertools.pairwise(north))
+
+
+def test_without_a_camera_pictures_are_refused_or_ignored_as_on_arducopter():
+    v = vehicle(params={"CAM1_TYPE": 0})
+    assert command(v, M.MAV_CMD_IMAGE_START_CAPTURE, 0, 0, 1)[0] == M.MAV_RESULT_FAILED
+    result, replies = command(v, M.MAV_CMD_DO_DIGICAM_CONTROL, 0, 0, 0, 0, 1)
+    assert result == M.MAV_RESULT_ACCEPTED
+    assert not [m for m in replies if m.get_type() == "STATUSTEXT"]
+    assert not [m for m in v.step(2) if m.get_type() == "CAMERA_FEEDBACK"]
+    assert v.images_captured == 0
 
 
 def test_wind_drifts_a_vehicle_that_holds_nothing_but_not_one_that_holds_position():

@@ -58,12 +58,14 @@ class Launcher:
 
     def command(self, vehicle: str, instance: int, speedup: float, home: str,
                 scratch: Path, boot_parm: Path | None = None,
-                extra: Sequence[str] = ()) -> list[str]:
+                extra: Sequence[str] = (), wipe: bool = True) -> list[str]:
         """The command line that starts ``vehicle`` as ``instance``; ``boot_parm`` is a
         parameter file read after ArduPilot's autotest one (for parameters that take
         effect only at boot, such as GRIP_ENABLE); ``extra``: more of ArduPilot's options
-        (e.g. ``--serial1 udpclient:127.0.0.1:14550``)."""
-        if self.is_script:
+        (e.g. ``--serial1 udpclient:127.0.0.1:14550``). ``wipe`` False runs the binary
+        (the launcher script's, beside it) without ``--wipe``, so that a reboot keeps the
+        parameters set over MAVLink (the EEPROM starts empty in a new ``scratch`` anyway)."""
+        if self.is_script and wipe:
             command = [str(self.path), "--vehicle", vehicle, "-I", str(instance),
                        "--speedup", f"{speedup:g}", "--home", home]
             if boot_parm is not None:  # replaces the launcher's --defaults: name both
@@ -72,8 +74,8 @@ class Launcher:
                 command += ["--defaults", ",".join(map(str, files))]
             return [*command, *extra]
         binary = self.path.parent / BINARIES[vehicle]
-        command = [str(binary), "--wipe", "--model", MODELS[vehicle], "--speedup",
-                   f"{speedup:g}", "-I", str(instance), "--sysid", str(instance + 1),
+        command = [str(binary), *(["--wipe"] if wipe else []), "--model", MODELS[vehicle],
+                   "--speedup", f"{speedup:g}", "-I", str(instance), "--sysid", str(instance + 1),
                    "--home", home]
         files = [p for p in (parameter_file(binary, vehicle), boot_parm) if p is not None]
         if files:
@@ -225,7 +227,8 @@ def start_vehicle(launcher: Launcher, vehicle: str = "copter", *, speedup: float
                   home: str = DEFAULT_HOME, params: Mapping[str, float] | None = None,
                   boot_params: Mapping[str, float] | None = None,
                   scratch: Path | None = None, extra: Sequence[str] = (),
-                  serial0: str | None = None) -> SitlVehicle:
+                  serial0: str | None = None,
+                  reboot_params: Mapping[str, float] | None = None) -> SitlVehicle:
     """Start one vehicle, wait until it answers on SERIAL0, and set ``params`` on it.
 
     ``serial0`` puts SERIAL0 on another of ArduPilot's devices (``uart:PATH:BAUD``,
@@ -237,6 +240,10 @@ def start_vehicle(launcher: Launcher, vehicle: str = "copter", *, speedup: float
     clock; ``params`` are set over it and it is closed again, so that the ground station
     under test connects to a vehicle that has already booted (ArduPilot takes the next
     client on the same port).
+
+    ``reboot_params`` are set over MAVLink and the vehicle is rebooted with them (run
+    without ``--wipe``): for parameters read only at boot that a defaults file does not
+    set (CAM1_TYPE on ArduPilot 4.7).
     """
     for _ in range(5):
         instance = _claim_instance()
@@ -248,7 +255,8 @@ def start_vehicle(launcher: Launcher, vehicle: str = "copter", *, speedup: float
             boot_parm.write_text("".join(f"{name} {value:g}\n"
                                          for name, value in boot_params.items()))
         more = [*extra, "--serial0", serial0] if serial0 is not None else list(extra)
-        command = launcher.command(vehicle, instance, speedup, home, folder, boot_parm, more)
+        command = launcher.command(vehicle, instance, speedup, home, folder, boot_parm, more,
+                                   wipe=not reboot_params)
         with log.open("wb") as out:
             process = subprocess.Popen(command, cwd=folder, stdout=out,
                                        stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
@@ -259,6 +267,8 @@ def start_vehicle(launcher: Launcher, vehicle: str = "copter", *, speedup: float
     else:
         raise RuntimeError(f"ArduPilot SITL did not start: {sitl.output()}")
     try:
+        if reboot_params:
+            _first_contact(sitl, dict(reboot_params), reboot=True)
         _first_contact(sitl, dict(params or {}))
     except Exception:
         sitl.stop()
@@ -278,7 +288,7 @@ def _wait_listening(sitl: SitlVehicle) -> bool:
     return False
 
 
-def _first_contact(sitl: SitlVehicle, params: dict[str, float]) -> None:
+def _first_contact(sitl: SitlVehicle, params: dict[str, float], reboot: bool = False) -> None:
     address = f"tcp:127.0.0.1:{sitl.setup_port}"
     conn = mavutil.mavlink_connection(address, source_system=250, source_component=190)
     try:
@@ -286,8 +296,18 @@ def _first_contact(sitl: SitlVehicle, params: dict[str, float]) -> None:
             raise RuntimeError(f"no heartbeat from {address}: {sitl.output()}")
         for name, value in params.items():
             set_parameter(conn, sitl.system_id, name, value)
+        if reboot:  # PREFLIGHT_REBOOT_SHUTDOWN: the same process starts again
+            conn.mav.command_long_send(sitl.system_id, 1, 246, 0, 1, 0, 0, 0, 0, 0, 0)
+            if conn.recv_match(type="COMMAND_ACK", blocking=True, timeout=5.0) is None:
+                raise RuntimeError(f"no answer to the reboot: {sitl.output()}")
+            conn.port.settimeout(BOOT_TIMEOUT)  # the old process's link ends with it
+            with contextlib.suppress(OSError):
+                while conn.port.recv(4096):
+                    pass
     finally:
         conn.close()
+    if reboot and not _wait_listening(sitl):
+        raise RuntimeError(f"not back after the reboot: {sitl.output()}")
 
 
 def set_parameter(conn: mavutil.mavfile, system_id: int, name: str, value: float) -> None:

@@ -256,11 +256,12 @@ def same_mission(sent: list[tuple[int, int, int, float]],
 
 
 @contextlib.contextmanager
-def python_sitl(speedup: float = 20.0) -> Iterator[str]:
-    """``python -m sitl`` with its default parameters, on a free port: its address. It is
-    stopped by its pid on leaving."""
+def python_sitl(speedup: float = 20.0, *options: str) -> Iterator[str]:
+    """``python -m sitl`` with its default parameters (and ``options``, e.g. ``--param``),
+    on a free port: its address. It is stopped by its pid on leaving."""
     process = subprocess.Popen(
-        [sys.executable, "-m", "sitl", "--tcp-base-port", "0", "--speedup", str(speedup)],
+        [sys.executable, "-m", "sitl", "--tcp-base-port", "0", "--speedup", str(speedup),
+         *options],
         cwd=Path(__file__).resolve().parents[2], stdout=subprocess.PIPE,
         stderr=subprocess.PIPE, text=True)
     try:

@@ -122,6 +122,7 @@ class VehicleModel:
     initial_mode = "STABILIZE"  # the mode it is in when it says "ArduPilot Ready"
     lands_vertically = True  # NAV_LAND: over the point first, then straight down
     orbits = False  # circles natively (a fixed-wing); else flies round a moving point
+    yaws_to_roi = True  # DO_SET_ROI turns the vehicle (ArduCopter); else only a camera mount
     # Waypoint legs as ArduCopter's S-curves (:mod:`sitl.track`); else (a plane, a rover)
     # straight to each point, done within the waypoint radius.
     flies_s_curves = True
@@ -176,6 +177,7 @@ class VehicleModel:
         self._paused = False  # GUIDED paused by DO_PAUSE_CONTINUE (see _pause)
         # (heading, rate, direction: 1 clockwise, -1 anticlockwise, 0 the shorter way)
         self._yaw: tuple[float, float, int] | None = None
+        self._roi: Vector | None = None  # DO_SET_ROI's point, local: the nose points at it
         self.rtl = CopterRtl()
         self.auto: auto.AutoMission | None = None
         self._mission_current = 0
@@ -407,6 +409,12 @@ class VehicleModel:
             return ok
         if command == M.MAV_CMD_DO_SET_MISSION_CURRENT:
             return ok if self._set_current(round(p[0])) else failed
+        if command in (M.MAV_CMD_DO_SET_ROI_LOCATION, M.MAV_CMD_DO_SET_ROI):
+            self.set_roi(p[4], p[5], p[6])
+            return ok
+        if command == M.MAV_CMD_DO_SET_ROI_NONE:
+            self.set_roi(0.0, 0.0, 0.0)
+            return ok
         if command in CAMERA_COMMANDS:
             return self._camera(command, p)
         if command == M.MAV_CMD_DO_GRIPPER:
@@ -492,6 +500,7 @@ class VehicleModel:
         if not self.armed:
             self._prearm.bring_forward(self.time)
         self._paused = False  # ArduCopter's ModeGuided::init clears it
+        self._roi = None  # each mode's init sets its default yaw (ModeAuto's clears the ROI)
         self._stop_motion()
         self.auto = None
         self.rtl.phase = ""
@@ -615,6 +624,7 @@ class VehicleModel:
             return Result.FAILED
         if self.mode != "GUIDED" and not self.set_mode("GUIDED"):
             return Result.FAILED
+        self._roi = None  # ModeGuided::set_destination without a yaw: the default yaw
         self._go(target)
         return Result.ACCEPTED
 
@@ -691,8 +701,8 @@ class VehicleModel:
         elif mask & 2048 and (not mask & 0b111 or not mask & 0b111000):
             # ArduCopter hands the heading back to its default yaw behaviour on a position
             # or velocity target without a yaw or a yaw rate (ModeGuided::set_yaw_state): a
-            # CONDITION_YAW turn in progress stops where it is.
-            self._yaw = None
+            # CONDITION_YAW turn in progress stops where it is; an ROI is let go.
+            self._yaw = self._roi = None
 
     def _go(self, target: Vector) -> None:
         """Fly to ``target`` with the position controller (GUIDED targets, take-off)."""
@@ -808,6 +818,19 @@ class VehicleModel:
         """Turn to ``heading`` degrees at ``rate`` degrees per second, and keep it: the
         shorter way, or clockwise (``direction`` 1) or anticlockwise (-1)."""
         self._yaw = (heading, min(rate, self.params["ATC_RATE_Y_MAX"]), direction)
+        self._roi = None
+
+    def set_roi(self, latitude: float, longitude: float, altitude: float) -> None:
+        """DO_SET_ROI_LOCATION / DO_SET_ROI at this point, as ArduCopter's
+        AutoYaw::set_roi: from now on the nose points at it in GUIDED and AUTO (across the
+        mission's waypoints) until DO_SET_ROI_NONE, a mode change, a yaw asked for
+        (CONDITION_YAW, a target's yaw) or a GUIDED target without one; latitude,
+        longitude and altitude all 0 is DO_SET_ROI_NONE: the default yaw again."""
+        if not self.yaws_to_roi:
+            return
+        self._yaw = None
+        none = latitude == 0 and longitude == 0 and altitude == 0
+        self._roi = None if none else self._local(latitude, longitude, self.origin.altitude)
 
     def yaw_settled(self) -> bool:
         """True when the heading has reached the yaw target."""
@@ -824,11 +847,14 @@ class VehicleModel:
             self._home_changed()
 
     def do_command(self, item: MissionItem) -> None:
-        """Camera and gripper items of a mission."""
+        """Camera, gripper and ROI items of a mission."""
         params = [item.param1, item.param2, item.param3, item.param4, float(item.x),
                   float(item.y), item.z]
         if item.command == auto.DO_GRIPPER:
             self._gripper(item.param2)
+        elif item.command in (auto.DO_SET_ROI_LOCATION, auto.DO_SET_ROI, auto.DO_SET_ROI_NONE):
+            # AP_Mission: ROI_NONE is the same handler with a zero location.
+            self.set_roi(item.x / 1e7, item.y / 1e7, item.z)
         else:
             self._camera(item.command, params)
 
@@ -972,6 +998,13 @@ class VehicleModel:
         return self.time >= self._lift_off_at
 
     def _turn(self, before: Vector) -> None:
+        roi = self._roi
+        if roi is not None and self.mode in ("AUTO", "GUIDED"):
+            here = self.body.position
+            if math.hypot(roi[0] - here[0], roi[1] - here[1]) > 0.1:  # over it: as it is
+                bearing = math.degrees(math.atan2(roi[1] - here[1], roi[0] - here[0]))
+                self.body.turn(bearing % 360.0, self.params["ATC_RATE_Y_MAX"], TICK)
+            return
         if self._yaw is not None:
             heading, rate, direction = self._yaw
             self.body.turn(heading, rate, TICK, direction)

@@ -73,6 +73,7 @@ class PlaneModel(VehicleModel):
     initial_mode = "MANUAL"
     lands_vertically = False
     orbits = True
+    yaws_to_roi = False  # DO_SET_ROI points a camera mount only, not the vehicle
     flies_s_curves = False
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:

@@ -46,6 +46,7 @@ class RoverModel(VehicleModel):
     parameter_table = ROVER_DEFAULTS
     initial_mode = "MANUAL"
     reports_landed_state = False
+    yaws_to_roi = False  # DO_SET_ROI points a camera mount only, not the vehicle
     flies_s_curves = False
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:

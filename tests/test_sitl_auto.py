@@ -261,3 +261,31 @@ def test_land_without_a_point_lands_where_the_vehicle_is():
     v, out = fly([item(22, alt=10), item(16, 1, 0.3, north=15, east=-5), item(21, alt=3)])
     assert reached(out) == [1, 2, 3]
     assert math.dist(v.position, (15.0, -5.0, 0.0)) < 0.5 and v.landed and not v.armed
+
+
+def test_an_roi_item_points_the_nose_at_it_across_waypoints_until_roi_none():
+    # As measured on ArduCopter 4.7 SITL: the heading follows the bearing to the ROI along
+    # both legs after DO_SET_ROI_LOCATION, and the course again after DO_SET_ROI_NONE.
+    north_east = (0.0, 50.0)
+    v = VehicleModel(1, H, params=FAST)
+    v.step(3)
+    load(v, [item(22, alt=10), item(195, north=0, east=50, alt=0), item(16, north=40),
+             item(16, north=40, east=-30), item(197, frame=2), item(16, north=0, east=-30),
+             item(21, north=0, east=-30, alt=0)])
+    assert v.set_mode("GUIDED")
+    v.handle(M.MAVLink_command_long_message(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0))
+    assert v.set_mode("AUTO")
+    off: dict[int, list[float]] = {}  # per item flown: degrees off the bearing to the ROI
+    out: list = []
+    while v.armed:
+        assert v.time < 300
+        out += v.step(TICK)
+        if math.hypot(*v.velocity[:2]) > 2.0:  # along a leg
+            bearing = math.degrees(math.atan2(north_east[1] - v.position[1],
+                                              north_east[0] - v.position[0]))
+            off.setdefault(v.mission_status()[0], []).append(
+                abs((v.heading - bearing + 180) % 360 - 180))
+    said = texts(out)
+    assert "Mission: 2 SetROILocation" in said and "Mission: 5 SetROINone" in said
+    assert max(off[3][5:]) < 5.0 and max(off[4][5:]) < 5.0  # both legs: facing the ROI
+    assert min(off[6][10:]) > 20.0  # the leg south after ROI_NONE: its course again

@@ -1046,3 +1046,43 @@ def test_a_guided_destination_beyond_the_fence_is_refused_as_on_arducopter():
     result, _ = command(v, M.MAV_CMD_DO_REPOSITION, -1, 1, 0, 0, *v._global((20, 0, 0))[:2],
                         10.0)
     assert result == M.MAV_RESULT_ACCEPTED
+
+
+def _heading_settles(v: VehicleModel, seconds: float = 10.0) -> float:
+    v.step(seconds)
+    return v.heading
+
+
+def _off(heading: float, wanted: float) -> float:
+    return abs((heading - wanted + 180.0) % 360.0 - 180.0)
+
+
+def test_guided_points_the_nose_at_the_roi_until_a_target_without_yaw_roi_none_or_a_mode_change():
+    # ArduCopter 4.7 SITL (measured): ACCEPTED; the nose turns to the ROI; a position target
+    # that leaves the yaw out hands the heading back to the course; ROI_NONE holds it.
+    from tml.geo import to_global
+
+    v = flying(10.0)
+    lat, lon, _ = to_global(0.0, 50.0, 0.0, DEFAULT_HOME.latitude, DEFAULT_HOME.longitude,
+                            DEFAULT_HOME.altitude)
+    result, _ = command(v, M.MAV_CMD_DO_SET_ROI_LOCATION, 0, 0, 0, 0, lat, lon, 0)
+    assert result == M.MAV_RESULT_ACCEPTED and _off(_heading_settles(v), 90.0) < 1.0
+    v.handle(M.MAVLink_set_position_target_local_ned_message(  # 40 m north, yaw left out
+        0, 1, 1, M.MAV_FRAME_LOCAL_NED, 3576, 40, 0, -10, 0, 0, 0, 0, 0, 0, 0, 0))
+    assert _off(_heading_settles(v, 15.0), 0.0) < 2.0  # the course north, the ROI let go
+    v.handle(M.MAVLink_command_int_message(  # again, as COMMAND_INT: from 40 m north
+        1, 1, M.MAV_FRAME_GLOBAL, M.MAV_CMD_DO_SET_ROI_LOCATION, 0, 0, 0, 0, 0, 0,
+        round(lat * 1e7), round(lon * 1e7), 0))
+    wanted = math.degrees(math.atan2(50.0 - v.position[1], 0.0 - v.position[0])) % 360
+    assert _off(_heading_settles(v), wanted) < 1.0
+    assert command(v, M.MAV_CMD_DO_SET_ROI_NONE)[0] == M.MAV_RESULT_ACCEPTED
+    assert _off(_heading_settles(v), wanted) < 1.0  # held where it was
+    command(v, M.MAV_CMD_DO_SET_ROI, 3, 0, 0, 0, lat, lon, 0)  # the older command, the same
+    v.fly_to((40.0, -40.0, 10.0))
+    v.step(2)
+    assert _off(v.heading, math.degrees(math.atan2(50.0 - v.position[1],
+                                                   -v.position[0])) % 360) < 5.0
+    assert v.set_mode("LOITER") and v.set_mode("GUIDED")  # a mode change lets it go
+    v.fly_to((40.0, 0.0, 10.0))
+    v.step(6)
+    assert _off(v.heading, 90.0) < 5.0  # flying east: its course, not the ROI (south-east)

@@ -122,3 +122,17 @@ def test_it_draws_rover_s_current_driving_and_none_stopped() -> None:
     target(v, 200, 0)
     run_until(v, lambda: v.position[0] > 50, 60)
     assert v.battery.current == pytest.approx(12.5, abs=0.3)  # measured on Rover SITL at 5 m/s
+
+
+def test_an_roi_is_accepted_but_does_not_steer_the_rover() -> None:
+    # Rover hands DO_SET_ROI to its camera mount (mode_auto's do_set_roi), not its steering.
+    v = armed_in_guided()
+    lat, lon, _ = to_global(0.0, 50.0, 0.0, H.latitude, H.longitude, H.altitude)
+    heading = v.heading
+    assert command(v, M.MAV_CMD_DO_SET_ROI_LOCATION, 0, 0, 0, 0, lat, lon, 0)[0] == (
+        M.MAV_RESULT_ACCEPTED)
+    v.step(5)
+    assert v.heading == pytest.approx(heading)
+    target(v, 30.0, 0.0)
+    run_until(v, lambda: v.position[0] > 20.0, 60)
+    assert abs((v.heading + 180) % 360 - 180) < 5.0  # driving north, not toward the ROI

@@ -87,6 +87,7 @@ class Pilot(Protocol):
     control_period: float  # seconds per control step
     lands_vertically: bool
     orbits: bool
+    says_circles: bool  # "Mission: starting circle i/N", as ArduCopter's verify_circle
 
     @property
     def position(self) -> Vector: ...  # read-only: the model derives it from its state
@@ -110,6 +111,7 @@ class Pilot(Protocol):
     def yaw_settled(self) -> bool: ...
     def set_home_from(self, item: MissionItem) -> None: ...
     def do_command(self, item: MissionItem) -> None: ...
+    def look_at(self, point: Vector | None) -> None: ...  # nose at a point (None: let go)
     def text(self, severity: int, message: str) -> None: ...
     def reached(self, seq: int) -> None: ...
 
@@ -121,6 +123,9 @@ class _Nav:
     phase: str = "go"  # go -> hold/circle/descend -> done
     since: float = 0.0
     angle: float = 0.0  # loiter turns: degrees travelled
+    centre: Vector | None = None  # loiter turns of a vehicle that does not orbit: the centre
+    start: float = 0.0  # ... and the bearing from it (degrees) where the circle starts
+    closing: str = ""  # a STATUSTEXT said once the item is reached
 
 
 class AutoMission:
@@ -156,6 +161,8 @@ class AutoMission:
         if self._update_nav(self.nav):
             done = self.nav.index
             self.pilot.reached(done)
+            if self.nav.closing:
+                self.pilot.text(6, self.nav.closing)
             self._advance(done + 1)
         self._run_dos()
 
@@ -242,6 +249,22 @@ class AutoMission:
                 nav.phase = "descend"
                 return
             nav.target = (nav.target[0], nav.target[1], here[2])
+        elif item.command == NAV_LOITER_TURNS and not pilot.orbits:
+            # As ArduCopter's ModeAuto::circle_movetoedge_start: round at once from the
+            # bearing the vehicle is at (ahead along its heading when over the centre),
+            # moving out as it goes; from more than 3 m outside the circle, to its nearest
+            # edge first.
+            centre, here = nav.target, pilot.position
+            away = math.hypot(here[0] - centre[0], here[1] - centre[1])
+            nav.start = pilot.heading if away < 0.5 else math.degrees(
+                math.atan2(here[1] - centre[1], here[0] - centre[0]))
+            radius, start = abs(item.param3) or 10.0, math.radians(nav.start)
+            nav.centre = centre
+            if away <= radius + 3.0:
+                self._start_circle(nav, item)
+                return
+            nav.target = (centre[0] + radius * math.cos(start),
+                          centre[1] + radius * math.sin(start), centre[2])
         following = None
         if item.command == NAV_WAYPOINT and item.param1 <= 0:
             after = self._next_nav(nav.index + 1)
@@ -272,7 +295,7 @@ class AutoMission:
                 nav.phase = "descend"
                 return False
             if command == NAV_LOITER_TURNS:
-                nav.phase = "circle"
+                self._start_circle(nav, item)
             if pilot.orbits and command in (NAV_LOITER_UNLIM, NAV_LOITER_TIME,
                                             NAV_LOITER_TURNS):
                 pilot.loiter_at(nav.target, abs(item.param3), item.param3 >= 0)
@@ -284,17 +307,31 @@ class AutoMission:
             return self._circle(nav, item)
         return False  # NAV_LOITER_UNLIM: until the mode changes or the mission is moved on
 
+    def _start_circle(self, nav: _Nav, item: MissionItem) -> None:
+        nav.phase = "circle"
+        self.pilot.look_at(nav.centre)  # AutoYaw's CIRCLE mode: the nose at the centre
+        if self.pilot.says_circles:
+            self.pilot.text(6, f"Mission: starting circle 1/{round(item.param1)}")
+
     def _circle(self, nav: _Nav, item: MissionItem) -> bool:
         radius = abs(item.param3) or 10.0
         clockwise = item.param3 >= 0
+        before = nav.angle
         nav.angle += self.pilot.circle_rate(radius) * self.pilot.control_period
         if self.pilot.orbits:  # it flies the circle itself
             return nav.angle >= 360.0 * max(item.param1, 0.0)
+        turns = int(nav.angle // 360.0)
+        said = f"Mission: starting circle {turns + 1}/{round(item.param1)}"
+        centre = nav.target if nav.centre is None else nav.centre
         if nav.angle >= 360.0 * max(item.param1, 0.0):
-            self.pilot.fly_to(nav.target)
+            if self.pilot.says_circles:  # ArduCopter says it after the item is reached
+                nav.closing = said
+            self.pilot.look_at(None)
+            self.pilot.fly_to(self.pilot.position)  # leaves from the edge, as ArduCopter
             return True
-        bearing = math.radians(nav.angle if clockwise else -nav.angle)
-        centre = nav.target
+        if turns > int(before // 360.0) and self.pilot.says_circles:
+            self.pilot.text(6, said)
+        bearing = math.radians(nav.start + (nav.angle if clockwise else -nav.angle))
         self.pilot.fly_to((
             centre[0] + radius * math.cos(bearing), centre[1] + radius * math.sin(bearing),
             centre[2],

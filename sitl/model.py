@@ -123,6 +123,7 @@ class VehicleModel:
     lands_vertically = True  # NAV_LAND: over the point first, then straight down
     orbits = False  # circles natively (a fixed-wing); else flies round a moving point
     yaws_to_roi = True  # DO_SET_ROI turns the vehicle (ArduCopter); else only a camera mount
+    says_circles = True  # NAV_LOITER_TURNS says "Mission: starting circle i/N" (ArduCopter)
     # Waypoint legs as ArduCopter's S-curves (:mod:`sitl.track`); else (a plane, a rover)
     # straight to each point, done within the waypoint radius.
     flies_s_curves = True
@@ -178,6 +179,7 @@ class VehicleModel:
         # (heading, rate, direction: 1 clockwise, -1 anticlockwise, 0 the shorter way)
         self._yaw: tuple[float, float, int] | None = None
         self._roi: Vector | None = None  # DO_SET_ROI's point, local: the nose points at it
+        self._look_at: Vector | None = None  # AUTO's loiter turns: the nose at the centre
         self.rtl = CopterRtl()
         self.auto: auto.AutoMission | None = None
         self._mission_current = 0
@@ -500,7 +502,7 @@ class VehicleModel:
         if not self.armed:
             self._prearm.bring_forward(self.time)
         self._paused = False  # ArduCopter's ModeGuided::init clears it
-        self._roi = None  # each mode's init sets its default yaw (ModeAuto's clears the ROI)
+        self._roi = self._look_at = None  # each mode starts with its default yaw
         self._stop_motion()
         self.auto = None
         self.rtl.phase = ""
@@ -754,9 +756,17 @@ class VehicleModel:
         self._go(centre)
 
     def circle_rate(self, radius: float) -> float:
-        """Degrees per second around a loiter circle (ArduCopter's CIRCLE_RATE of 20, at
-        most 5 m/s along the circle)."""
-        return min(20.0, math.degrees(5.0 / radius))
+        """Degrees per second around a loiter circle: ArduCopter's CIRCLE_RATE of 20, at
+        most the speed along the circle that uses half of ``WPNAV_ACCEL`` toward the
+        centre, and no more than ``WPNAV_SPEED`` (AC_Circle::calc_velocities)."""
+        p = self.params
+        speed = min(p["WPNAV_SPEED"] / 100.0, math.sqrt(0.5 * p["WPNAV_ACCEL"] / 100.0 * radius))
+        return min(20.0, math.degrees(speed / radius))
+
+    def look_at(self, point: Vector | None) -> None:
+        """Point the nose at ``point`` in AUTO (an ROI still wins), or stop (None); only a
+        vehicle that turns for a region of interest does."""
+        self._look_at = point if self.yaws_to_roi else None
 
     def returned(self) -> bool:
         """NAV_RETURN_TO_LAUNCH is done: for a multicopter, landed at home."""
@@ -1003,6 +1013,13 @@ class VehicleModel:
             here = self.body.position
             if math.hypot(roi[0] - here[0], roi[1] - here[1]) > 0.1:  # over it: as it is
                 bearing = math.degrees(math.atan2(roi[1] - here[1], roi[0] - here[0]))
+                self.body.turn(bearing % 360.0, self.params["ATC_RATE_Y_MAX"], TICK)
+            return
+        look_at = self._look_at
+        if look_at is not None and self.mode == "AUTO":
+            here = self.body.position
+            if math.hypot(look_at[0] - here[0], look_at[1] - here[1]) > 0.1:
+                bearing = math.degrees(math.atan2(look_at[1] - here[1], look_at[0] - here[0]))
                 self.body.turn(bearing % 360.0, self.params["ATC_RATE_Y_MAX"], TICK)
             return
         if self._yaw is not None:

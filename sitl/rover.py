@@ -47,6 +47,7 @@ class RoverModel(VehicleModel):
     initial_mode = "MANUAL"
     reports_landed_state = False
     yaws_to_roi = False  # DO_SET_ROI points a camera mount only, not the vehicle
+    says_circles = False  # Rover's LOITER_TURNS says nothing per circle (measured)
     flies_s_curves = False
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
@@ -148,6 +149,11 @@ class RoverModel(VehicleModel):
     def return_home(self) -> None:
         """NAV_RETURN_TO_LAUNCH: drive home."""
         self._start_rtl()
+
+    def circle_rate(self, radius: float) -> float:
+        """Degrees per second round NAV_LOITER_TURNS: 20, at most 5 m/s along the circle
+        (Rover has no WPNAV_ parameters; ArduPilot Rover measured 1 turn of 10 m in 23 s)."""
+        return min(20.0, math.degrees(5.0 / radius))
 
     def returned(self) -> bool:
         """Home, stopped."""

@@ -289,3 +289,57 @@ def test_an_roi_item_points_the_nose_at_it_across_waypoints_until_roi_none():
     assert "Mission: 2 SetROILocation" in said and "Mission: 5 SetROINone" in said
     assert max(off[3][5:]) < 5.0 and max(off[4][5:]) < 5.0  # both legs: facing the ROI
     assert min(off[6][10:]) > 20.0  # the leg south after ROI_NONE: its course again
+
+
+def test_loiter_turns_goes_round_from_the_nearest_edge_facing_the_centre_as_arducopter():
+    # ArduCopter 4.7 SITL, the same mission (measured): from the centre it moved out north
+    # (its heading) as it went round anticlockwise (param3 -15), at 14.4 m, facing the centre;
+    # said "starting circle 1/2", "2/2", "3/2", about 24 s a turn, and left from the edge.
+    centre = (40.0, 0.0)
+    v = VehicleModel(1, H, params=FAST)
+    v.step(3)
+    load(v, [item(22, alt=20), item(16, north=40, alt=20), item(18, 2, 0, -15, north=40, alt=20),
+             item(16, north=0, east=30, alt=20), item(20)])
+    assert v.set_mode("GUIDED")
+    v.handle(M.MAVLink_command_long_message(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0))
+    assert v.set_mode("AUTO")
+    out: list = []
+    circling: list[tuple[float, float, float, float]] = []  # time, distance, bearing, off
+    while v.mission_status()[0] <= 3:
+        assert v.time < 200
+        step = v.step(TICK)
+        out += step
+        said = texts(step)
+        if "Mission: starting circle 1/2" in said:
+            started = v.time
+        if "Mission: starting circle 3/2" in said:
+            ended, left_at = v.time, v.position
+        if v.mission_status()[0] == 3 and "Mission: starting circle 1/2" in texts(out):
+            dn, de = v.position[0] - centre[0], v.position[1] - centre[1]
+            facing = math.degrees(math.atan2(-de, -dn))
+            circling.append((v.time, math.hypot(dn, de), math.degrees(math.atan2(de, dn)),
+                             abs((v.heading - facing + 180) % 360 - 180)))
+    assert [t for t in texts(out) if "circle" in t] == [
+        "Mission: starting circle 1/2", "Mission: starting circle 2/2",
+        "Mission: starting circle 3/2"]
+    assert 40.0 < ended - started < 50.0  # 2 turns: 21.8 s each here, about 24 on ArduCopter
+    steady = [c for c in circling if c[0] > started + 5.0]
+    # 14.1 m here, 14.4 m on ArduCopter: both lag inside the 15 m circle they are given
+    assert all(13.5 < c[1] < 15.0 for c in steady) and all(c[3] < 10.0 for c in steady)
+    turned = sum((b[2] - a[2] + 180) % 360 - 180 for a, b in itertools.pairwise(steady))
+    assert turned < -600.0  # anticlockwise: the bearing from the centre goes down
+    assert math.hypot(left_at[0] - centre[0], left_at[1] - centre[1]) > 13.5  # from the edge
+
+
+def test_loiter_turns_from_outside_flies_to_the_nearest_edge_first():
+    # ArduCopter's circle_movetoedge_start: more than 3 m outside, to the closest point.
+    v = VehicleModel(1, H, params=FAST)
+    v.step(3)
+    load(v, [item(22, alt=20), item(18, 1, 0, 15, north=40, east=40, alt=20), item(20)])
+    assert v.set_mode("GUIDED")
+    v.handle(M.MAVLink_command_long_message(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0))
+    assert v.set_mode("AUTO")
+    while "Mission: starting circle 1/1" not in texts(v.step(TICK)):
+        assert v.time < 100
+    edge = (40.0 - 15.0 / math.sqrt(2), 40.0 - 15.0 / math.sqrt(2))  # towards home
+    assert math.dist(v.position[:2], edge) < 1.5

@@ -136,3 +136,21 @@ def test_an_roi_is_accepted_but_does_not_steer_the_rover() -> None:
     target(v, 30.0, 0.0)
     run_until(v, lambda: v.position[0] > 20.0, 60)
     assert abs((v.heading + 180) % 360 - 180) < 5.0  # driving north, not toward the ROI
+
+
+def test_loiter_turns_drives_round_and_goes_on_saying_no_circles() -> None:
+    # ArduPilot Rover 4.7 SITL (measured): "Mission: 2 LoitTurns", one turn of 10 m, then on
+    # to the next item; unlike ArduCopter it says nothing per circle.
+    from test_sitl_auto import item, load
+
+    v = rover()
+    load(v, [item(16, north=20, alt=0), item(18, 1, 0, 10, north=20, alt=0),
+             item(16, north=0, east=20, alt=0)])
+    assert v.set_mode("GUIDED")
+    assert command(v, M.MAV_CMD_COMPONENT_ARM_DISARM, 1)[0] == M.MAV_RESULT_ACCEPTED
+    assert v.set_mode("AUTO")
+    said: list[str] = []
+    while "Mission: 3 WP" not in said:
+        assert v.time < 120
+        said += texts(v.step(0.05))
+    assert "Mission: 2 LoitTurns" in said and not [t for t in said if "circle" in t]

@@ -288,12 +288,28 @@ def _wait_listening(sitl: SitlVehicle) -> bool:
     return False
 
 
-def _first_contact(sitl: SitlVehicle, params: dict[str, float], reboot: bool = False) -> None:
+def _connect(sitl: SitlVehicle) -> mavutil.mavfile:
+    """A connection to the setup port that has heard a HEARTBEAT. A vehicle run without
+    ``--wipe`` may reset a connection made while it takes the port again after the first
+    one closed: then it is tried again, for up to :data:`BOOT_TIMEOUT` s."""
     address = f"tcp:127.0.0.1:{sitl.setup_port}"
-    conn = mavutil.mavlink_connection(address, source_system=250, source_component=190)
+    end = time.monotonic() + BOOT_TIMEOUT
+    while True:
+        conn = mavutil.mavlink_connection(address, source_system=250, source_component=190)
+        try:
+            if conn.wait_heartbeat(timeout=BOOT_TIMEOUT) is None:
+                raise RuntimeError(f"no heartbeat from {address}: {sitl.output()}")
+            return conn
+        except ConnectionError:
+            conn.close()
+            if time.monotonic() > end or sitl.process.poll() is not None:
+                raise
+            time.sleep(0.2)
+
+
+def _first_contact(sitl: SitlVehicle, params: dict[str, float], reboot: bool = False) -> None:
+    conn = _connect(sitl)
     try:
-        if conn.wait_heartbeat(timeout=BOOT_TIMEOUT) is None:
-            raise RuntimeError(f"no heartbeat from {address}: {sitl.output()}")
         for name, value in params.items():
             set_parameter(conn, sitl.system_id, name, value)
         if reboot:  # PREFLIGHT_REBOOT_SHUTDOWN: the same process starts again

@@ -19,6 +19,10 @@ otherwise keep the others idle.
 from __future__ import annotations
 
 import os
+import re
+import stat
+from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
@@ -42,3 +46,65 @@ def pytest_cmdline_main(config: pytest.Config) -> None:
     if getattr(option, "numprocesses", None) == "auto" and \
             getattr(option, "dist", "no") == "no" and not getattr(option, "distload", False):
         option.dist = "worksteal"
+
+
+# -- Every flight log the suite's flights write follows the flight log's schema ----------
+
+FLIGHT_LOG = re.compile(rb'^\{"t":[-0-9.e]+,"kind":"run"')
+"""How a flight log the journal writes begins (its first line, compact JSON)."""
+_seen: dict[str, tuple[int, int]] = {}  # path -> (size, mtime) when it was checked
+
+
+def schema_problems(path: str) -> list[str]:
+    """Where the flight log at ``path`` breaks the schema (tml.engine.flightlog)."""
+    from tml.engine.flightlog import VERSION, problems
+    from tml.run.journal import LogUnreadable, read_log
+
+    try:
+        log = read_log(path)
+    except LogUnreadable as error:
+        return [str(error)]
+    if log.version > VERSION:
+        return []
+    return [f"{path}:{number}: {problem}" for number, line in enumerate(log.lines, 1)
+            for problem in problems(line)]
+
+
+def new_flight_logs(base: Path) -> list[str]:
+    """The flight logs under ``base`` written or changed since the last call."""
+    found = []
+    for folder, _dirs, files in os.walk(base):
+        for name in files:
+            path = os.path.join(folder, name)
+            try:
+                status = os.stat(path)
+            except OSError:
+                continue
+            key = (status.st_size, status.st_mtime_ns)
+            if _seen.get(path) == key or not stat.S_ISREG(status.st_mode):
+                continue
+            _seen[path] = key
+            try:
+                with open(path, "rb") as stream:
+                    head = stream.read(40)
+            except OSError:
+                continue
+            if FLIGHT_LOG.match(head):
+                found.append(path)
+    return found
+
+
+@pytest.fixture(autouse=True)
+def flight_logs_follow_the_schema(request: pytest.FixtureRequest,
+                                  tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """After each test, every flight log written under the suite's temporary directories
+    since the last test (by the test, its fixtures, or a ``tml`` process it started) is
+    read back and each line checked against the flight log's schema."""
+    yield
+    if request.node.get_closest_marker("foreign_logs"):
+        return
+    found = [problem for path in new_flight_logs(tmp_path_factory.getbasetemp())
+             for problem in schema_problems(path)]
+    if found:
+        pytest.fail("flight log lines that break the schema:\n" + "\n".join(found[:20]),
+                    pytrace=False)

@@ -116,7 +116,8 @@ def test_resume_options_that_cannot_work_are_usage_errors(
     not_a_log = tmp_path / "notes.jsonl"
     not_a_log.write_text('{"kind": "note"}\n')
     said = refusal(capsys, str(mission), "--connect", ADDRESS, "--resume", str(not_a_log))
-    assert "not a flight log of tml run" in said
+    assert "notes.jsonl:1: not a flight log line (no 't' and 'kind'): not a tml flight " \
+        "log" in said
     said = refusal(capsys, str(mission), "--connect", ADDRESS, "--resume",
                    str(tmp_path / "missing.jsonl"))
     assert "cannot read" in said

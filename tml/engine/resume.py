@@ -32,10 +32,22 @@ without a ground station is not counted: a time limit continues where it stood.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+import contextlib
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from tml.engine.flightlog import (
+    ControlLine,
+    DecisionLine,
+    Line,
+    MissionLine,
+    RequestLine,
+    TaskLine,
+    UnknownKind,
+    get,
+    parse,
+)
 from tml.engine.records import TaskState
 from tml.vehicle import Point
 
@@ -60,79 +72,165 @@ class Progress:
     recovering: frozenset[str] = frozenset()  # failed tasks whose on_error tasks ran
 
 
-def progress(records: Iterable[Mapping[str, Any]], vehicle_id: int) -> Progress:
-    """Fold the engine's records of ``vehicle_id`` (a flight log's lines, in order) into
-    where its mission stood; see the module docstring."""
-    ended: dict[str, TaskState] = {}
-    running: dict[str, float] = {}
-    rounds: dict[str, int] = {}
-    labels: dict[str, Point] = {}
-    plans: dict[str, tuple[int, Point]] = {}
-    recovering: set[str] = set()
-    planning = ""  # the task whose plan the next FlyMission request sends
-    base = offset = elapsed = 0.0
-    last_id, started, status = 0, False, ""
+@dataclass
+class _Course:
+    """What the fold keeps of one vehicle's mission (or of the tasks no vehicle flies)."""
+
+    ended: dict[str, TaskState] = field(default_factory=dict)
+    running: dict[str, float] = field(default_factory=dict)
+    rounds: dict[str, int] = field(default_factory=dict)
+    labels: dict[str, Point] = field(default_factory=dict)
+    plans: dict[str, tuple[int, Point]] = field(default_factory=dict)
+    recovering: set[str] = field(default_factory=set)
+    states: dict[str, TaskState] = field(default_factory=dict)  # the board: the last said
+    planning: str = ""  # the task whose plan the next FlyMission request sends
+    base: float = 0.0
+    offset: float = 0.0
+    elapsed: float = 0.0
+    started: bool = False
+    status: str = ""
     paused_at: float | None = None
+
+    def forget_below(self, path: str) -> None:
+        """A task begins (again): what ended below it belongs to its last run."""
+        prefix = path + "/"
+        for found in (self.ended, self.rounds, self.states):
+            for below in [p for p in found if p.startswith(prefix)]:
+                del found[below]
+
+
+class Fold:
+    """The one fold of a flight log's records into where each vehicle's mission stands:
+    what :func:`progress` gives a resumed run, and the task board the service, its page
+    and the reports show (:meth:`board`). Fed record by record, in the log's order
+    (:meth:`see`); see the module docstring for the rules (rounds, jumps, pauses,
+    resumes)."""
+
+    def __init__(self) -> None:
+        self.courses: dict[int | None, _Course] = {}
+        self.last_id = 0  # the highest request or plan id used
+        self.changes = 0  # counts the changes of the board: a reader redraws when it moves
+
+    def course(self, vehicle_id: int | None) -> _Course:
+        """What the fold keeps of ``vehicle_id`` (None: the tasks no vehicle flies)."""
+        found = self.courses.get(vehicle_id)
+        if found is None:
+            found = self.courses[vehicle_id] = _Course()
+        return found
+
+    def see(self, record: Line | Mapping[str, Any]) -> None:
+        """Take the next record (typed, or a parsed line of a kind this version knows)."""
+        if not isinstance(record, Line):
+            try:
+                record = parse(record)
+            except (UnknownKind, KeyError, TypeError):
+                return
+        for value in (get(record, "request_id"), get(record, "plan_id")):
+            if isinstance(value, int) and not isinstance(value, bool):
+                self.last_id = max(self.last_id, value)
+        course = self.course(record.vehicle)
+        if isinstance(record, TaskLine):
+            self._board(course, record)
+        elif isinstance(record, MissionLine) and record.ended:
+            # A continued run (tml serve): the tasks its interrupted run had ended.
+            for path, state in record.ended.items():
+                with contextlib.suppress(ValueError):
+                    course.states[str(path)] = TaskState(state)
+            self.changes += 1
+        self._progress(course, record)
+
+    def _board(self, course: _Course, record: TaskLine) -> None:
+        with contextlib.suppress(ValueError):
+            state = TaskState(record.state)
+            if state is TaskState.RUNNING and not record.resumed:
+                course.forget_below(record.task)
+            course.states[record.task] = state
+            self.changes += 1
+
+    def _progress(self, course: _Course, record: Line) -> None:
+        t = float(record.t)
+        if isinstance(record, MissionLine):
+            if record.elapsed is not None:  # resumed: the clock goes on
+                course.base, course.offset, course.started = t, float(record.elapsed), True
+                course.paused_at = None
+            elif record.status is not None:
+                course.status = record.status
+            else:
+                course.base, course.offset, course.started = t, 0.0, True
+                course.status, course.paused_at = "", None
+        if not course.started:
+            return
+        if isinstance(record, ControlLine) and record.control == "pause":
+            course.paused_at = t
+        elif isinstance(record, ControlLine) and record.control == "resume":
+            course.offset -= float(record.paused or 0.0)
+            course.paused_at = None
+        now = course.offset + ((t if course.paused_at is None else course.paused_at)
+                               - course.base)
+        course.elapsed = max(course.elapsed, now)
+        if isinstance(record, TaskLine):
+            path = record.task
+            if record.state == TaskState.RUNNING.value:
+                if not record.resumed:
+                    course.forget_below(path)
+                    course.recovering.discard(path)
+                    course.running[path] = now
+                course.ended.pop(path, None)
+            elif record.state in ENDED:
+                course.ended[path] = TaskState(record.state)
+                course.running.pop(path, None)
+        elif isinstance(record, DecisionLine) and isinstance(record.task, str):
+            path = record.task
+            if record.recover:
+                course.recovering.add(path)
+            elif record.actions is not None:
+                course.planning = path  # "flown as a mission": its FlyMission follows
+            else:
+                number = record.iteration if record.iteration is not None else record.round
+                if isinstance(number, int) and not record.resumed:
+                    course.rounds[path] = number
+                    course.forget_below(path)
+                    self.changes += 1
+        elif isinstance(record, RequestLine) and get(record, "message") == "FlyMission" \
+                and course.planning and record.plan_id is not None:
+            x, y, z = (float(v) for v in record.start or (0.0, 0.0, 0.0))
+            course.plans[course.planning] = (int(record.plan_id), (x, y, z))
+        label, point = get(record, "label"), get(record, "point")
+        if isinstance(label, str) and isinstance(point, list):
+            x, y, z = (float(v) for v in point)
+            course.labels[label] = (x, y, z)
+
+    def progress(self, vehicle_id: int) -> Progress:
+        """Where ``vehicle_id``'s mission stood at the last record seen."""
+        course = self.course(vehicle_id)
+        return Progress(dict(course.ended), dict(course.running), dict(course.rounds),
+                        dict(course.labels), course.elapsed, self.last_id, course.started,
+                        course.status, dict(course.plans), frozenset(course.recovering))
+
+    def tasks(self, vehicle_id: int | None) -> dict[str, TaskState]:
+        """Every task's state said for ``vehicle_id`` (None: the tasks no vehicle flies),
+        as they stand: a task of a round before the one flown now is not there (pending)."""
+        return dict(self.course(vehicle_id).states)
+
+    def board(self, paths: Sequence[str], vehicles: Iterable[int]
+              ) -> dict[str, dict[str, str]]:
+        """Per vehicle (by id, as text; "" for tasks no vehicle flies, when there are
+        any) the state of each of ``paths``, ``pending`` for a task not reached."""
+        whose: list[int | None] = list(vehicles)
+        whose += [v for v in self.courses if v not in whose and self.courses[v].states]
+        return {("" if v is None else str(v)): {
+                    path: self.course(v).states.get(path, TaskState.PENDING).value
+                    for path in paths}
+                for v in whose}
+
+
+def progress(records: Iterable[Line | Mapping[str, Any]], vehicle_id: int) -> Progress:
+    """Fold the records of a flight log (typed, or its parsed lines, in order) into where
+    the mission of ``vehicle_id`` stood (:class:`Fold`); see the module docstring."""
+    fold = Fold()
     for record in records:
-        for key in ("request_id", "plan_id"):
-            if isinstance(record.get(key), int):
-                last_id = max(last_id, record[key])
-        if record.get("vehicle") != vehicle_id:
-            continue
-        kind, t = record.get("kind"), float(record.get("t", 0.0))
-        if kind == "mission" and "elapsed" in record:  # resumed: the clock goes on
-            base, offset, started, paused_at = t, float(record["elapsed"]), True, None
-        elif kind == "mission" and "status" in record:
-            status = str(record["status"])
-        elif kind == "mission":
-            base, offset, started, status, paused_at = t, 0.0, True, "", None
-        if not started:
-            continue
-        if kind == "control" and record.get("control") == "pause":
-            paused_at = t
-        elif kind == "control" and record.get("control") == "resume":
-            offset -= float(record.get("paused", 0.0))
-            paused_at = None
-        now = offset + ((t if paused_at is None else paused_at) - base)
-        elapsed = max(elapsed, now)
-        path = record.get("task")
-        if kind == "task" and isinstance(path, str):
-            state = record.get("state")
-            if state == TaskState.RUNNING.value:
-                if not record.get("resumed"):
-                    _forget_below(ended, rounds, path)
-                    recovering.discard(path)
-                    running[path] = now
-                ended.pop(path, None)
-            elif state in ENDED:
-                ended[path] = TaskState(state)
-                running.pop(path, None)
-        elif kind == "decision" and isinstance(path, str) and record.get("recover"):
-            recovering.add(path)
-        elif kind == "decision" and isinstance(path, str) and "actions" in record:
-            planning = path  # "flown as a mission": its FlyMission request follows
-        elif kind == "request" and record.get("message") == "FlyMission" and planning:
-            x, y, z = (float(v) for v in record.get("start") or (0.0, 0.0, 0.0))
-            plans[planning] = (int(record["plan_id"]), (x, y, z))
-        elif kind == "decision" and isinstance(path, str):
-            number = record.get("iteration", record.get("round"))
-            if isinstance(number, int) and not record.get("resumed"):
-                rounds[path] = number
-                _forget_below(ended, rounds, path)
-        if isinstance(record.get("label"), str) and isinstance(record.get("point"), list):
-            x, y, z = (float(v) for v in record["point"])
-            labels[record["label"]] = (x, y, z)
-    return Progress(ended, running, rounds, labels, elapsed, last_id, started, status, plans,
-                    frozenset(recovering))
-
-
-def _forget_below(ended: dict[str, TaskState], rounds: dict[str, int], path: str) -> None:
-    """A task begins (again): what ended below it belongs to its last run."""
-    prefix = path + "/"
-    for done in [p for p in ended if p.startswith(prefix)]:
-        del ended[done]
-    for counted in [p for p in rounds if p.startswith(prefix)]:
-        del rounds[counted]
+        fold.see(record)
+    return fold.progress(vehicle_id)
 
 
 class Restoring:

@@ -41,7 +41,6 @@ shown as info (:func:`tml.vehicle.shown_severity`) with the severity it was said
 
 from __future__ import annotations
 
-import json
 import math
 import re
 from dataclasses import dataclass, field
@@ -49,6 +48,7 @@ from pathlib import Path
 from typing import Any
 
 from tml.errors import TmlError
+from tml.run.journal import LogUnreadable, read_log
 from tml.vehicle import SEVERITIES, shown_severity
 
 
@@ -189,21 +189,17 @@ def _by_vehicle(outcome: dict[str, Any]) -> tuple[float, str]:
 
 
 def read_flight(path: str) -> Flight:
-    """The flight of the log at ``path``; OSError when it cannot be opened, LogError when a
-    line is not JSON or the file is no flight log."""
+    """The flight of the log at ``path`` (read by :func:`tml.run.journal.read_log`: a last
+    line cut short is left out, a log of a later version refused); OSError when it cannot
+    be opened, LogError when a line is not JSON or the file is no flight log."""
     flight = Flight(path)
     reading = _Reading()
-    with open(path, encoding="utf-8") as stream:
-        for number, text in enumerate(stream, start=1):
-            if not text.strip():
-                continue
-            try:
-                line = json.loads(text)
-            except json.JSONDecodeError as error:
-                raise LogError(f"{path}:{number}: not a JSON line: {error.msg}") from None
-            if not isinstance(line, dict) or "kind" not in line or "t" not in line:
-                raise LogError(f"{path}:{number}: not a flight log line (no 't' and 'kind')")
-            _take(flight, line, reading)
+    try:
+        log = read_log(path)
+    except LogUnreadable as error:
+        raise LogError(str(error)) from None
+    for line in log.lines:
+        _take(flight, line, reading)
     if not flight.tracks and not flight.tasks and not flight.mission:
         raise LogError(f"{path}: no run in this log (not a tml flight log?)")
     flight.tracks = dict(sorted(flight.tracks.items()))

@@ -48,10 +48,12 @@ import math
 import os
 import stat
 import threading
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from datetime import datetime
 from typing import Any, Protocol
 
+from tml.engine.flightlog import VERSION, Line, UnknownKind, parse
 from tml.errors import TmlError
 from tml.geo import to_global
 from tml.vehicle import AutopilotMessage, VehicleState
@@ -289,7 +291,78 @@ class Journal:
                     self._failed(error)
 
 
+MAX_LOG_BYTES = 1 << 30
+"""A flight log larger than this is not read back (a day of telemetry is about 100 MB)."""
+
+
+class LogUnreadable(TmlError):
+    """A file that is not a flight log this tml reads: not one at all, a line that is no
+    log line, too large, or of a later version; the message says where and why."""
+
+
+@dataclass(frozen=True)
+class FlightLog:
+    """A flight log read back (:func:`read_log`)."""
+
+    path: str
+    version: int  # its schema version (1: written before the version was kept)
+    lines: list[dict[str, Any]]  # every line, parsed, in order
+    cut: bool = False  # the last line was cut short (the writer was killed) and is left out
+
+    def records(self) -> Iterator[Line]:
+        """The lines as typed records (:mod:`tml.engine.flightlog`), those of a kind this
+        version does not know passed over."""
+        for line in self.lines:
+            with contextlib.suppress(UnknownKind):
+                yield parse(line)
+
+
+def read_log(path: str, max_bytes: int = MAX_LOG_BYTES) -> FlightLog:
+    """The flight log at ``path``: the one reader of flight logs (resume, reports, the
+    service). A last line cut short by a crash is left out; :class:`LogUnreadable` for a
+    file larger than ``max_bytes``, a line before the last that is not a log line (a JSON
+    object with ``t`` and ``kind``), a file whose first line is none (not a flight log), or
+    a log of a later schema version than :data:`~tml.engine.flightlog.VERSION`; OSError
+    when it cannot be read."""
+    with open(path, "rb") as stream:
+        data = stream.read(max_bytes + 1)
+    if len(data) > max_bytes:
+        raise LogUnreadable(f"{path}: larger than {max_bytes} bytes, not read")
+    texts = data.decode("utf-8", errors="replace").splitlines()
+    lines: list[dict[str, Any]] = []
+    cut = False
+    for number, text in enumerate(texts, 1):
+        if not text.strip():
+            continue
+        try:
+            line = json.loads(text)
+        except ValueError as error:
+            if number == len(texts) and lines:
+                cut = True  # written when the run was killed
+                break
+            said = error.msg if isinstance(error, json.JSONDecodeError) else error
+            raise LogUnreadable(f"{path}:{number}: not a JSON line: {said}"
+                                + ("" if lines else " (not a tml flight log)")) from None
+        if not isinstance(line, dict) or "t" not in line or "kind" not in line:
+            raise LogUnreadable(f"{path}:{number}: not a flight log line (no 't' and 'kind')"
+                                + ("" if lines else ": not a tml flight log"))
+        lines.append(line)
+    version = version_of(lines)
+    if version > VERSION:
+        raise LogUnreadable(f"{path}: a flight log of version {version}, written by a later "
+                            f"tml; this one reads versions 1 to {VERSION}")
+    return FlightLog(path, version, lines, cut)
+
+
+def version_of(lines: Sequence[Mapping[str, Any]]) -> int:
+    """A log's schema version: its first ``run`` line's ``log_version`` (1 without)."""
+    for line in lines:
+        if line.get("kind") == "run":
+            found = line.get("log_version", 1)
+            return found if isinstance(found, int) and not isinstance(found, bool) else 1
+    return 1
+
+
 def read(path: str) -> list[dict[str, Any]]:
-    """Every line of a flight log, parsed."""
-    with open(path, encoding="utf-8") as stream:
-        return [json.loads(line) for line in stream if line.strip()]
+    """Every line of a flight log, parsed (:func:`read_log`)."""
+    return read_log(path).lines

@@ -12,17 +12,14 @@ that progress, its request and plan ids following the interrupted run's.
 from __future__ import annotations
 
 import hashlib
-import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from tml.engine.resume import Progress, progress
+from tml.engine.resume import Fold, Progress
 from tml.errors import TmlError
 from tml.language.model import Mission
-
-MAX_LOG_BYTES = 1 << 30
-"""A flight log larger than this is not read back (a day of telemetry is about 100 MB)."""
+from tml.run.journal import LogUnreadable, read_log
 
 
 class ResumeRefused(TmlError):
@@ -49,27 +46,13 @@ def file_digest(path: str) -> str:
     return digest.hexdigest()
 
 
-def read_log(path: str) -> list[dict[str, Any]]:
-    """The lines of a flight log; a last line cut short by the crash is left out."""
-    with open(path, "rb") as stream:
-        data = stream.read(MAX_LOG_BYTES + 1)
-    if len(data) > MAX_LOG_BYTES:
-        raise ResumeRefused(f"{path}: larger than {MAX_LOG_BYTES} bytes, not read")
-    lines: list[dict[str, Any]] = []
-    texts = data.decode("utf-8", errors="replace").splitlines()
-    for number, text in enumerate(texts, 1):
-        if not text.strip():
-            continue
-        try:
-            line = json.loads(text)
-        except ValueError:
-            if number == len(texts):  # written when the run was killed
-                break
-            raise ResumeRefused(f"{path}:{number}: not a flight log line") from None
-        if not isinstance(line, dict):
-            raise ResumeRefused(f"{path}:{number}: not a flight log line")
-        lines.append(line)
-    return lines
+def read_lines(path: str) -> list[dict[str, Any]]:
+    """The lines of a flight log (:func:`tml.run.journal.read_log`: a last line cut short
+    by the crash left out); ResumeRefused with the reason when it cannot be read."""
+    try:
+        return read_log(path).lines
+    except LogUnreadable as refused:
+        raise ResumeRefused(str(refused)) from None
 
 
 def resume_point(path: str, mission: Mission, digest: str,
@@ -77,7 +60,7 @@ def resume_point(path: str, mission: Mission, digest: str,
     """Where the run logged in ``path`` stood, if ``mission`` (whose file has the SHA-256
     ``digest``) on ``vehicles`` (their addresses) may go on from it; ResumeRefused with the
     reason otherwise. The vehicles are numbered 1, 2 ... in the order given."""
-    lines = read_log(path)
+    lines = read_lines(path)
     runs = [line for line in lines if line.get("kind") == "run"]
     if not runs or runs[0].get("message") != "run started":
         raise ResumeRefused(f"{path}: not a flight log of tml run (no 'run started' line)")
@@ -108,6 +91,9 @@ def progress_point(lines: Sequence[Mapping[str, Any]], mission: Mission,
     with roles). ``tml run --resume`` and ``tml serve``'s continue both go by it."""
     if mission.roles:
         raise ResumeRefused(f"{mission.file}: a mission with roles cannot be resumed")
-    found = {vid: progress(list(lines), vid) for vid in vehicles}
+    fold = Fold()
+    for line in lines:
+        fold.see(line)
+    found = {vid: fold.progress(vid) for vid in vehicles}
     last = max((p.last_id for p in found.values()), default=0)
     return ResumePoint(found, last + 1)

@@ -129,6 +129,7 @@ from functools import partial
 from typing import Any
 
 from tml.engine import Interpreter, Options, Output, Status, View
+from tml.engine.flightlog import VERSION as LOG_VERSION
 from tml.engine.resume import Progress
 from tml.engine.safety import left_to_itself, safe_state_request, safe_state_shown
 from tml.engine.wake import ANYTHING, fields_read
@@ -485,7 +486,8 @@ class Runner:
         for flight in self.flights:  # a reboot before this run is not this run's
             flight.boots = flight.vehicle.state().reboots
         self.journal.write(now, "run", message="run resumed" if self.resume is not None
-                           else "run started", mission=self.mission.name,
+                           else "run started", log_version=LOG_VERSION,
+                           mission=self.mission.name,
                            file=self.mission.file, vehicles=[f.vehicle.vehicle_id
                                                              for f in self.flights],
                            roles=[r.name for r in self.mission.roles],

@@ -10,7 +10,8 @@ kept in memory for the live stream, stored in the database in batches (every
 ``STORE_PERIOD`` seconds and at the end), and handed at once to every listener (the
 API's event streams). The log is read as it is written: a ``mission`` line means the
 vehicles were ready and the mission started (status ``running``), and every ``task``
-line updates the :class:`TaskBoard`, the state of every task per vehicle.
+line updates the :class:`TaskBoard`, the state of every task per vehicle (the log's one
+fold, :class:`tml.engine.resume.Fold`).
 
 When the runner returns, the run's outcome is stored (its status and exit code are those
 of its ending, :mod:`tml.run.endings`: ``completed``, ``aborted``, ``taken`` or ``failed``),
@@ -36,7 +37,7 @@ import traceback
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
-from tml.engine.resume import Progress
+from tml.engine.resume import Fold, Progress
 from tml.engine.safety import safe_state_request
 from tml.language.model import Mission
 from tml.run.endings import Ending
@@ -47,34 +48,33 @@ from tml.serve.storage import Storage, StoredRun, failure
 from tml.vehicle import IdSource
 
 STORE_PERIOD = 0.5  # s between two writes of a run's new log lines to the database
-FLEET = ""  # the task board's key for tasks no vehicle flies (orchestration only)
 
 Listener = Callable[[int, str | None], None]  # (seq, line); line None: the log has ended
 
 
 class TaskBoard:
-    """Every task's state per vehicle, folded from a flight log's ``task`` lines."""
+    """Every task's state per vehicle, as the flight log's one fold has it
+    (:class:`~tml.engine.resume.Fold`: a repeat's next round or a jump back shows the tasks
+    below it pending again, as a resumed run would fly them)."""
 
     def __init__(self, mission: Mission, vehicles: Iterable[int]) -> None:
         self.paths = [task.path_name for task in mission.walk()]
-        self.states: dict[str, dict[str, str]] = {str(v): {} for v in vehicles}
+        self.vehicles = list(vehicles)
+        self.fold = Fold()
 
     def see(self, record: Mapping[str, Any]) -> None:
         """Take one log record."""
-        if record.get("kind") == "task" and "task" in record:
-            whose = str(record.get("vehicle", FLEET))
-            self.states.setdefault(whose, {})[str(record["task"])] = str(record.get("state"))
-        elif record.get("kind") == "mission" and isinstance(record.get("ended"), dict):
-            # A continued run: the tasks its interrupted run had ended.
-            whose = str(record.get("vehicle", FLEET))
-            for path, state in record["ended"].items():
-                self.states.setdefault(whose, {})[str(path)] = str(state)
+        self.fold.see(record)
+
+    @property
+    def changes(self) -> int:
+        """Counts the board's changes: it moved when this did."""
+        return self.fold.changes
 
     def snapshot(self) -> dict[str, dict[str, str]]:
         """Per vehicle (by id, as text; "" for tasks no vehicle flies) every task's state,
         ``pending`` for a task not reached."""
-        return {whose: {path: seen.get(path, "pending") for path in self.paths}
-                for whose, seen in self.states.items()}
+        return self.fold.board(self.paths, self.vehicles)
 
 
 class RunLog:

@@ -399,10 +399,10 @@ class Service:
         board = TaskBoard(mission, stored.vehicles)
         safety: list[str] = []
         for _seq, line in self.storage.lines(run_id):
-            if '"kind":"task"' in line or '"kind":"mission"' in line:
-                board.see(json.loads(line))
-            elif '"kind":"safety"' in line or '"kind":"taken"' in line:
-                safety.append(_safety_said(json.loads(line)))
+            record = json.loads(line)
+            board.see(record)
+            if record.get("kind") in ("safety", "taken"):
+                safety.append(_safety_said(record))
         return {**self._run_summary(stored), "tasks": board.snapshot(), "safety": safety}
 
     def save_ended(self) -> None:

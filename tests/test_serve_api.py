@@ -326,7 +326,7 @@ def test_the_stream_sends_the_flight_log_lines_then_the_end(served: Served) -> N
     mission = served.upload()
     run = served.start(mission)
     served.hangar.flowing.set()
-    records, ids, end = [], [], None
+    records, ids, end, boards = [], [], None, []
     with served.client.stream("GET", f"/runs/{run['id']}/stream") as stream:
         event = ""
         for line in stream.iter_lines():
@@ -336,6 +336,8 @@ def test_the_stream_sends_the_flight_log_lines_then_the_end(served: Served) -> N
                 ids.append(int(line[4:]))
             elif line.startswith("data: ") and event == "record":
                 records.append(line[6:])
+            elif line.startswith("data: ") and event == "tasks":
+                boards.append(json.loads(line[6:]))
             elif line.startswith("data: ") and event == "end":
                 end = json.loads(line[6:])
     log = served.client.get(f"/runs/{run['id']}/log")
@@ -345,6 +347,10 @@ def test_the_stream_sends_the_flight_log_lines_then_the_end(served: Served) -> N
     kinds = {json.loads(r)["kind"] for r in records}
     assert {"run", "mission", "task", "action", "request", "telemetry"} <= kinds
     assert end is not None and end["status"] == "completed"
+    # The task board as the service folds the log, after the records sent at first and
+    # each time it changes: the page draws it.
+    assert boards and boards[-1] == end["tasks"]
+    assert set(end["tasks"]["1"].values()) == {"done"}
     # A client that reconnects after record 5 gets the rest, from the database now.
     with served.client.stream("GET", f"/runs/{run['id']}/stream",
                               headers={"Last-Event-ID": "5"}) as stream:

@@ -593,6 +593,8 @@ async def _events(service: Service, run_id: str, after: int,
         lines = await _call(lambda: list(service.storage.lines(run_id, after)))
         for seq, line in lines:
             yield {"event": "record", "id": str(seq), "data": line}
+        stored = await _call(service.run, run_id)
+        yield {"event": "tasks", "data": json.dumps(stored.get("tasks") or {})}
     else:
         loop = asyncio.get_running_loop()
         queue: asyncio.Queue[tuple[int, str | None]] = asyncio.Queue()
@@ -600,15 +602,21 @@ async def _events(service: Service, run_id: str, after: int,
         def listener(seq: int, line: str | None) -> None:
             loop.call_soon_threadsafe(queue.put_nowait, (seq, line))
 
+        board = live.board
         history, open_ = live.log.listen(after, listener)
+        told = board.changes
         try:
             for seq, line in history:
                 yield {"event": "record", "id": str(seq), "data": line}
+            yield {"event": "tasks", "data": json.dumps(board.snapshot())}
             while open_:
                 seq, text = await queue.get()
                 if text is None:
                     break
                 yield {"event": "record", "id": str(seq), "data": text}
+                if board.changes != told:  # the fold moved: the page shows what it says
+                    told = board.changes
+                    yield {"event": "tasks", "data": json.dumps(board.snapshot())}
         finally:
             live.log.unlisten(listener)
     if not await request.is_disconnected():

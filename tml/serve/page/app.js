@@ -363,6 +363,13 @@ function handleEvent(controller, block) {
     refreshRuns().catch(() => {});
   } else if (kind === "record") {
     record(payload);
+  } else if (kind === "tasks") {
+    // Every task's state per vehicle, as the service folds the log (rounds, jumps,
+    // resumes): the page shows it, it does not fold the records itself.
+    if (state.run) {
+      state.run.tasks = payload;
+      later("tasks");
+    }
   }
 }
 
@@ -379,11 +386,7 @@ function record(line) {
     log.missionStart = t - stamp.mt;
     later("lists");
   }
-  if (line.kind === "task" && run.tasks) {
-    if (!run.tasks[whose]) run.tasks[whose] = {};
-    run.tasks[whose][line.task] = line.state;
-    later("tasks");
-  } else if (line.kind === "telemetry") {
+  if (line.kind === "telemetry") {
     if (!log.tracks[whose]) log.tracks[whose] = [];
     log.tracks[whose].push({global: line.global, position: line.position});
   } else if (line.kind === "mission") {

@@ -113,7 +113,7 @@ class ActionLine(Line):
     handler's."""
 
     KIND: ClassVar[str] = "action"
-    action: str
+    action: str | None = None  # None: a mission flight's (dispatch="mission") failure
     task: str | None = None
     line: int | None = None
     arguments: dict[str, Any] | None = None
@@ -223,8 +223,8 @@ class AutopilotLine(Line):
 
     KIND: ClassVar[str] = "autopilot"
     severity: str
-    level: int
     text: str
+    level: int | None = None  # the severity's number (0 the worst)
 
 
 @dataclass(frozen=True, kw_only=True)

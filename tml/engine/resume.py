@@ -3,10 +3,12 @@
 Theory of operation
 -------------------
 Everything the engine decides is a record (:class:`~tml.engine.records.Record`), and the
-flight log keeps them in order. :func:`progress` folds one vehicle's records into a
-:class:`Progress`: the tasks that had ended, the tasks whose body was running and since
-when, the round each repeat or loop was in, the points memorized, the mission time
-reached, and the highest request or plan id used. The interpreter starts from it
+flight log keeps them in order (typed: :mod:`tml.engine.flightlog`). :class:`Fold` is the
+one fold of a log's records into task state: what resume, the service's task board and
+its page read. :func:`progress` folds one vehicle's records into a :class:`Progress`: the
+tasks that had ended, the tasks whose body was running and since when, the round each
+repeat or loop was in, the points memorized, the mission time reached, and the highest
+request or plan id used. The interpreter starts from it
 (:meth:`tml.engine.Interpreter.start` with ``progress``) through the same nodes as a fresh
 start, with these differences, each consumed once: a task that had ended is passed over
 without running or being recorded again; a task that was running is entered as a jump
@@ -24,6 +26,10 @@ Rounds: a repeat's round record (``repeat N of M``) and a task that starts runni
 (a later round, a jump back) forget what ended below it in the round before. A record the
 resumed run writes for a task it re-enters carries ``resumed`` and forgets nothing, so a
 run resumed and interrupted again folds to the same place.
+
+The task board (:meth:`Fold.board`) is the last state said of each task, forgotten
+below a task by the same rounds: a repeat's next round shows its tasks pending again, so
+the board shows what a resumed run would still fly.
 
 Time: the mission clock is read from the records' times, per run (each ``mission`` record
 that starts or resumes the mission sets the base; a pause is taken out), so the time spent

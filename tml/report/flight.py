@@ -1,8 +1,10 @@
 """A flight as its log tells it: tracks, tasks, events, autopilot messages, the outcome.
 
-:func:`read_flight` reads a flight log (:mod:`tml.run.journal`, one JSON object per line)
-into a :class:`Flight`. Lines of kinds it does not know are passed over, so that a log of
-a later version still reads. The planned path comes from the mission file the log names
+:func:`read_flight` reads a flight log (:mod:`tml.run.journal`, one JSON object per line;
+its one reader, :func:`~tml.run.journal.read_log`) as typed records
+(:mod:`tml.engine.flightlog`) into a :class:`Flight`. Lines of kinds it does not know, or
+without their kind's fields, are passed over; a log of a later version is refused.
+The planned path comes from the mission file the log names
 (:mod:`tml.plans.planned`: the path its mission items fly), when that file is still there
 and valid; a report is drawn without it otherwise.
 
@@ -47,6 +49,21 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from tml.engine.flightlog import (
+    ActionLine,
+    AutopilotLine,
+    DecisionLine,
+    ErrorLine,
+    EventLine,
+    MissionLine,
+    PickLine,
+    RunLine,
+    SafetyLine,
+    TaskLine,
+    TelemetryLine,
+    UnknownKind,
+    parse,
+)
 from tml.errors import TmlError
 from tml.run.journal import LogUnreadable, read_log
 from tml.vehicle import SEVERITIES, shown_severity
@@ -299,72 +316,78 @@ def _parent(before: list[TaskSpan], span: TaskSpan) -> TaskSpan | None:
 
 
 def _take(flight: Flight, line: dict[str, Any], reading: _Reading) -> None:
-    kind, t, vehicle = line["kind"], float(line["t"]), line.get("vehicle")
+    """One line of the log: its times, then what its record (typed) tells."""
+    t = float(line["t"])
     flight.end = max(flight.end, t)
     wall = str(line.get("wall") or "")
     if wall:
         flight.walls = (flight.walls[0] or wall, wall)
-    mission_time = line.get("mission_time")
+    try:
+        record = parse(line)
+    except (UnknownKind, TypeError):  # a later kind, or a line without its fields
+        return
+    vehicle = record.vehicle
+    mission_time = record.mission_time
     if flight.mission_start is None and isinstance(mission_time, (int, float)):
         flight.mission_start = t - float(mission_time)
-    elif flight.mission_start is None and kind == "mission":  # a log without mission_time
-        elapsed = line.get("elapsed")
-        flight.mission_start = t - (float(elapsed) if isinstance(elapsed, (int, float))
+    elif flight.mission_start is None and isinstance(record, MissionLine):
+        # A log without mission_time.
+        flight.mission_start = t - (float(record.elapsed) if record.elapsed is not None
                                     else 0.0)
-    if kind == "run" and "mission" in line:
+    if isinstance(record, RunLine) and record.mission is not None:
         flight.mission, flight.mission_file, flight.start = (
-            str(line["mission"]), str(line.get("file") or ""), t)
-    elif kind == "run" and "exit_code" in line:
-        flight.exit_code = int(line["exit_code"])
-        flight.outcomes = list(line.get("outcomes") or [])
-    elif kind == "telemetry" and line.get("position") and vehicle is not None:
-        _sample(flight, line, int(vehicle), t, wall, reading)
-    elif kind == "task":
-        key = (str(line["task"]), vehicle)
+            str(record.mission), str(record.file or ""), t)
+    elif isinstance(record, RunLine) and record.exit_code is not None:
+        flight.exit_code = int(record.exit_code)
+        flight.outcomes = list(record.outcomes or [])
+    elif isinstance(record, TelemetryLine) and record.position and vehicle is not None:
+        _sample(flight, record, int(vehicle), t, wall, reading)
+    elif isinstance(record, TaskLine):
+        key = (record.task, vehicle)
         open_tasks = reading.open_tasks
-        if line["state"] == "running":
+        if record.state == "running":
             open_tasks[key] = span = TaskSpan(key[0], vehicle, t)
             flight.tasks.append(span)
         elif key in open_tasks:
             span = open_tasks.pop(key)
-            span.end, span.state = t, str(line["state"])
+            span.end, span.state = t, record.state
         else:  # ended without running (skipped)
-            flight.tasks.append(TaskSpan(key[0], vehicle, t, t, str(line["state"])))
-    elif kind == "action":
-        _action(flight, line, vehicle, t, reading)
-    elif kind == "decision" and isinstance(line.get("iteration"), int):
-        found = ROUND.search(str(line.get("message", "")))
+            flight.tasks.append(TaskSpan(key[0], vehicle, t, t, record.state))
+    elif isinstance(record, ActionLine):
+        _action(flight, record, vehicle, t, reading)
+    elif isinstance(record, DecisionLine) and isinstance(record.iteration, int):
+        found = ROUND.search(record.message)
         if found:
-            reading.repeats[str(line.get("task"))] = int(found.group(1))
-    elif kind == "pick":
-        picked = flight.picked.setdefault(str(line.get("role")), [])
-        picked.extend(v for v in line.get("vehicles") or [] if v not in picked)
-    elif kind == "event":
-        reading.fired[vehicle] = str(line.get("event", ""))
-        flight.marks.append(Mark(t, vehicle, "event", str(line.get("event", "")), wall=wall))
-    elif kind == "autopilot":
-        text, said = str(line.get("text", "")), str(line.get("severity", ""))
+            reading.repeats[str(record.task)] = int(found.group(1))
+    elif isinstance(record, PickLine):
+        picked = flight.picked.setdefault(record.role, [])
+        picked.extend(v for v in record.vehicles or [] if v not in picked)
+    elif isinstance(record, EventLine):
+        reading.fired[vehicle] = record.event
+        flight.marks.append(Mark(t, vehicle, "event", record.event, wall=wall))
+    elif isinstance(record, AutopilotLine):
+        text, said = record.text, record.severity
         shown = said
         if said in SEVERITIES:
             level = shown_severity(SEVERITIES.index(said), text)
             shown = SEVERITIES[level]
         flight.marks.append(Mark(t, vehicle, "autopilot", text, shown,
                                  said if shown != said else "", wall))
-    elif kind in ("safety", "error"):
-        flight.marks.append(Mark(t, vehicle, kind, str(line.get("message", "")), wall=wall))
+    elif isinstance(record, (SafetyLine, ErrorLine)):
+        flight.marks.append(Mark(t, vehicle, record.kind, record.message, wall=wall))
 
 
-def _sample(flight: Flight, line: dict[str, Any], vehicle: int, t: float, wall: str,
+def _sample(flight: Flight, record: TelemetryLine, vehicle: int, t: float, wall: str,
             reading: _Reading) -> None:
     """A telemetry line: a sample of the vehicle's track, and the detections new in it."""
-    north, east, up = (float(v) for v in line["position"])
-    where = line.get("global") or (None, None, None)
-    battery = line.get("battery")
+    north, east, up = (float(v) for v in record.position or ())
+    where = record.global_ or (None, None, None)
+    battery = record.battery
     flight.tracks.setdefault(vehicle, []).append(Sample(
         t, north, east, up, where[0], where[1], where[2],
-        None if battery is None else float(battery), str(line.get("mode", "")),
-        bool(line.get("armed")), wall))
-    detections = line.get("detections")
+        None if battery is None else float(battery), str(record.mode or ""),
+        bool(record.armed), wall))
+    detections = record.detections
     if not isinstance(detections, dict):
         return
     for name, value in detections.items():
@@ -377,13 +400,13 @@ def _sample(flight: Flight, line: dict[str, Any], vehicle: int, t: float, wall: 
         del reading.seen[vehicle, name]
 
 
-def _action(flight: Flight, line: dict[str, Any], vehicle: Any, t: float,
+def _action(flight: Flight, record: ActionLine, vehicle: Any, t: float,
             reading: _Reading) -> None:
     """An action line: a photo taken, or an event handler's action begun or ended."""
-    name, started = str(line.get("action", "")), "arguments" in line
+    name, started = record.action or "", record.arguments is not None
     if started and name in PHOTO_ACTIONS and isinstance(vehicle, int):
         flight.spots.append(Spot(t, vehicle, "photo", name))
-    if line.get("task") is not None:
+    if record.task is not None:
         return
     if started:  # a handler's action (a task's names its task)
         begun = TaskSpan(name, vehicle, t, event=reading.fired.get(vehicle, "?"))
@@ -393,9 +416,9 @@ def _action(flight: Flight, line: dict[str, Any], vehicle: Any, t: float,
     span = reading.open_actions.get(vehicle)
     if span is None or span.task != name:
         return
-    message = str(line.get("message", ""))
-    state = "done" if message == f"{name} done" else "failed" if "reason" in line \
-        else "aborted" if "why" in line else ""
+    message = record.message
+    state = "done" if message == f"{name} done" else "failed" if record.reason is not None \
+        else "aborted" if record.why is not None else ""
     if state:
         span.end, span.state = t, state
         del reading.open_actions[vehicle]

@@ -19,11 +19,14 @@ both in the local frame and as latitude, longitude and altitude AMSL, so that a 
 drawn on any map), ``autopilot`` (each message of a vehicle's autopilot, a STATUSTEXT, with
 its severity), ``ready`` (what a vehicle still lacks before the first task, each time that
 changes) and ``safety`` (what it did to leave the vehicles safe). docs/run.md lists the
-fields. Lines are flushed at once, so that a log survives a crash of the run up to its last
-event, and every decision (:data:`DECISIONS`) is synced to the disk too (fsync), so that a
-log read back after the machine itself went down holds every decision taken: ``tml run
---resume`` goes on from it (:mod:`tml.run.resume`). The decisions of one engine call are
-synced together (:meth:`Journal.grouped`), before the requests they lead to are sent.
+fields; :mod:`tml.engine.flightlog` has a record class per kind and the schema (its
+version is on the ``run`` lines: ``log_version``), and :func:`read_log` is the one reader
+of a log (resume, reports, the service). Lines are flushed at once, so that a log
+survives a crash of the run up to its last event, and every decision (:data:`DECISIONS`)
+is synced to the disk too (fsync), so that a log read back after the machine itself went
+down holds every decision taken: ``tml run --resume`` goes on from it
+(:mod:`tml.run.resume`). The decisions of one engine call are synced together
+(:meth:`Journal.grouped`), before the requests they lead to are sent.
 
 A log that cannot be written (a full disk, a directory removed under it) never stops the
 flight: the first failure is kept (:attr:`Journal.failure`) and told to ``on_failure``, the
@@ -53,7 +56,7 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import Any, Protocol
 
-from tml.engine.flightlog import VERSION, Line, UnknownKind, parse
+from tml.engine.flightlog import VERSION
 from tml.errors import TmlError
 from tml.geo import to_global
 from tml.vehicle import AutopilotMessage, VehicleState
@@ -308,13 +311,6 @@ class FlightLog:
     version: int  # its schema version (1: written before the version was kept)
     lines: list[dict[str, Any]]  # every line, parsed, in order
     cut: bool = False  # the last line was cut short (the writer was killed) and is left out
-
-    def records(self) -> Iterator[Line]:
-        """The lines as typed records (:mod:`tml.engine.flightlog`), those of a kind this
-        version does not know passed over."""
-        for line in self.lines:
-            with contextlib.suppress(UnknownKind):
-                yield parse(line)
 
 
 def read_log(path: str, max_bytes: int = MAX_LOG_BYTES) -> FlightLog:

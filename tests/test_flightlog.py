@@ -126,8 +126,8 @@ def test_the_reader_leaves_out_a_cut_last_line_and_refuses_the_rest(tmp_path: Pa
 
 @pytest.mark.parametrize("log", LOGS, ids=lambda p: p.name)
 def test_logs_of_version_1_still_report(log: Path, tmp_path: Path) -> None:
-    # The mission file the log names is gone (it flew from another checkout): the report
-    # is drawn without the planned path.
+    # The mission file the log names is where it flew from (another checkout, perhaps
+    # gone): the report is drawn with its planned path or without.
     for form in ("html", "gpx"):
         assert main(["report", str(log), "-o", str(tmp_path / f"r.{form}")]) == 0
         assert (tmp_path / f"r.{form}").stat().st_size > 0

@@ -233,8 +233,8 @@ def serve_ending(cause: str, tmp_path: Path) -> tuple[str, int]:
     """A ``tml serve`` run of the mission with ``cause`` while it flies: its status and
     exit code, as the API shows them."""
     with vehicle() as (port, proxy), service_at(proxy.address, tmp_path) as service:
-        mission = service.upload("long.xml", mission_for(cause).encode())["id"]
-        run = service.start_run(mission, [1])["id"]
+        mission = service.upload("long.xml", mission_for(cause).encode()).id
+        run = service.start_run(mission, [1]).id
         live = service.live(run)
 
         def said(text: str) -> bool:
@@ -246,7 +246,7 @@ def serve_ending(cause: str, tmp_path: Path) -> tuple[str, int]:
             live.wake.wait(0.05)
         if cause == "operator rtl":
             answer, done = service.command(1, "rtl")
-            assert done and answer["run"] == run, answer
+            assert done and answer.run == run, answer
         elif cause == "another ground station":
             switch_to_rtl(port)
         elif cause == "interrupted":
@@ -255,7 +255,7 @@ def serve_ending(cause: str, tmp_path: Path) -> tuple[str, int]:
             lost_and_back(proxy, lambda: said("link lost for more than"))
         assert live.join(240), "the run did not end"
         found = service.run(run)
-        return found["status"], found["exit_code"]
+        return found.status, found.exit_code
 
 
 @pytest.mark.parametrize("cause", list(CAUSES_FLOWN))

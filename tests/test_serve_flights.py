@@ -21,6 +21,7 @@ from test_command_command import LIMIT, Observer, fly_away
 
 from tml.mavlink.autopilot import Autopilot
 from tml.mavlink.link import Link
+from tml.serve.answers import RunView, VehicleView
 from tml.serve.api import create_app
 from tml.serve.service import Service, ServiceOptions
 from tml.serve.storage import Storage, database_url
@@ -40,7 +41,7 @@ def service(tmp_path: Path) -> Iterator[Service]:
             storage.close()
 
 
-def ended(service: Service, run_id: str) -> dict:
+def ended(service: Service, run_id: str) -> RunView:
     live = service.live(run_id)
     assert live is None or live.join(240), "the run did not end"
     return service.run(run_id)
@@ -64,7 +65,7 @@ def until(service: Service, run_id: str, done) -> None:
     pytest.fail("the run ended first")
 
 
-def vehicle_when(service: Service, run_id: str, vehicle: int, done) -> dict:
+def vehicle_when(service: Service, run_id: str, vehicle: int, done) -> VehicleView:
     """The vehicle's telemetry once ``done(telemetry)`` holds (while the run flies)."""
     live = service.live(run_id)
     assert live is not None
@@ -77,34 +78,34 @@ def vehicle_when(service: Service, run_id: str, vehicle: int, done) -> dict:
 
 
 def test_two_runs_fly_at_once_on_two_vehicles(service: Service) -> None:
-    mission = service.upload("short.xml", SHORT)["id"]
+    mission = service.upload("short.xml", SHORT).id
     first = service.start_run(mission, [1])
     second = service.start_run(mission, [2])
-    until(service, first["id"], lambda r: r["kind"] == "task" and r["state"] == "running")
-    assert service.live(second["id"]) is not None, "both fly at once"
-    runs = [ended(service, r["id"]) for r in (first, second)]
-    assert [(r["status"], r["exit_code"]) for r in runs] == [("completed", 0)] * 2
-    assert [r["tasks"] for r in runs] == [{"1": dict.fromkeys(("Up", "Out", "Down"), "done")},
+    until(service, first.id, lambda r: r["kind"] == "task" and r["state"] == "running")
+    assert service.live(second.id) is not None, "both fly at once"
+    runs = [ended(service, r.id) for r in (first, second)]
+    assert [(r.status, r.exit_code) for r in runs] == [("completed", 0)] * 2
+    assert [r.tasks for r in runs] == [{"1": dict.fromkeys(("Up", "Out", "Down"), "done")},
                                          {"2": dict.fromkeys(("Up", "Out", "Down"), "done")}]
-    starts = [next(x["t"] for x in lines(service, r["id"]) if x["kind"] == "mission")
+    starts = [next(x["t"] for x in lines(service, r.id) if x["kind"] == "mission")
               for r in runs]
-    ends = [lines(service, r["id"])[-1]["t"] for r in runs]
+    ends = [lines(service, r.id)[-1]["t"] for r in runs]
     assert starts[1] < ends[0] and starts[0] < ends[1], "their flights overlap in time"
 
 
 def test_pause_holds_and_resume_flies_on(service: Service) -> None:
-    mission = service.upload("long.xml", LONG)["id"]
-    run = service.start_run(mission, [1])["id"]
+    mission = service.upload("long.xml", LONG).id
+    run = service.start_run(mission, [1]).id
     until(service, run, lambda r: r["kind"] == "telemetry" and r["position"][0] > 20)
-    assert service.control(run, "pause")["status"] == "paused"
+    assert service.control(run, "pause").status == "paused"
     # Told to hold where it was, the vehicle brakes, comes back to that point and stays.
-    told = service.vehicle(1)["time"]
-    held = vehicle_when(service, run, 1, lambda v: v["time"] > told + 20)
-    now = vehicle_when(service, run, 1, lambda v: v["time"] > held["time"] + 10)
-    assert now["position"] == pytest.approx(held["position"], abs=0.5)
-    assert service.control(run, "resume")["status"] == "running"
+    told = service.vehicle(1).time
+    held = vehicle_when(service, run, 1, lambda v: v.time > told + 20)
+    now = vehicle_when(service, run, 1, lambda v: v.time > held.time + 10)
+    assert now.position == pytest.approx(held.position, abs=0.5)
+    assert service.control(run, "resume").status == "running"
     result = ended(service, run)
-    assert result["status"] == "completed"
+    assert result.status == "completed"
     records = lines(service, run)
     assert [r["control"] for r in records if r["kind"] == "control"] == ["pause", "resume"]
     out = max(r["position"][0] for r in records if r["kind"] == "telemetry" and r["position"])
@@ -112,24 +113,24 @@ def test_pause_holds_and_resume_flies_on(service: Service) -> None:
 
 
 def test_abort_sends_the_vehicle_home(service: Service) -> None:
-    mission = service.upload("long.xml", LONG)["id"]
-    run = service.start_run(mission, [2])["id"]
+    mission = service.upload("long.xml", LONG).id
+    run = service.start_run(mission, [2]).id
     until(service, run, lambda r: r["kind"] == "telemetry" and r["position"][0] > 20)
     service.abort(run)
     result = ended(service, run)
-    assert (result["status"], result["exit_code"]) == ("aborted", 3)
+    assert (result.status, result.exit_code) == ("aborted", 3)
     safety = [r for r in lines(service, run) if r["kind"] == "safety"]
     assert safety and safety[0]["request"] == "ReturnToLaunch"
-    assert service.vehicle(2)["mode"] == "RTL"
+    assert service.vehicle(2).mode == "RTL"
 
 
 def test_jump_goes_on_from_the_task(service: Service) -> None:
-    mission = service.upload("long.xml", LONG)["id"]
-    run = service.start_run(mission, [1])["id"]
+    mission = service.upload("long.xml", LONG).id
+    run = service.start_run(mission, [1]).id
     until(service, run, lambda r: r["kind"] == "telemetry" and r["position"][0] > 20)
-    assert service.control(run, "jump", "Down")["tasks"]["1"]["Out"] == "aborted"
+    assert service.control(run, "jump", "Down").tasks["1"]["Out"] == "aborted"
     result = ended(service, run)
-    assert result["status"] == "completed" and result["tasks"]["1"]["Down"] == "done"
+    assert result.status == "completed" and result.tasks["1"]["Down"] == "done"
     out = max(r["position"][0] for r in lines(service, run)
               if r["kind"] == "telemetry" and r["position"])
     assert out < 100, "it landed on its way out, not at the end of the leg"
@@ -138,10 +139,10 @@ def test_jump_goes_on_from_the_task(service: Service) -> None:
 def test_a_run_verified_with_the_profile_read_from_its_vehicle(service: Service) -> None:
     """As ``tml run --profile vehicle``: the quadcopter profile filled in from the
     vehicle's own parameters (a speed limit above what a leg needs flies)."""
-    mission = service.upload("short.xml", SHORT)["id"]
+    mission = service.upload("short.xml", SHORT).id
     run = service.start_run(mission, [1], profile="vehicle")
-    assert service.run(run["id"])["options"]["profile"] == "vehicle"
-    assert (ended(service, run["id"])["status"]) == "completed"
+    assert service.run(run.id).options["profile"] == "vehicle"
+    assert (ended(service, run.id).status) == "completed"
 
 
 
@@ -160,9 +161,9 @@ def test_each_run_puts_its_fence_and_rally_points_on_the_vehicle_unless_told_to_
         found = Service(storage, hangar, ServiceOptions(stop_timeout=60,
                                                         vehicle_fence=not keep))
         try:
-            run = found.start_run(found.upload("fenced.xml", FENCED)["id"], [1])
-            assert ended(found, run["id"])["status"] == "completed"
-            (told,) = [line for line in lines(found, run["id"]) if line["kind"] == "safeguard"]
+            run = found.start_run(found.upload("fenced.xml", FENCED).id, [1])
+            assert ended(found, run.id).status == "completed"
+            (told,) = [line for line in lines(found, run.id) if line["kind"] == "safeguard"]
         finally:
             found.stop()
             storage.close()
@@ -251,8 +252,8 @@ def test_hold_of_a_vehicle_no_run_holds_is_brake_and_confirmed_by_its_stop(
 
 
 def test_hold_during_a_run_pauses_it_and_is_confirmed_by_the_stop(service: Service) -> None:
-    mission = service.upload("long.xml", LONG)["id"]
-    run = service.start_run(mission, [1])["id"]
+    mission = service.upload("long.xml", LONG).id
+    run = service.start_run(mission, [1]).id
     until(service, run, lambda r: r["kind"] == "telemetry" and r["position"][0] > 20)
     address = service.hangar.vehicles[1].link.address  # type: ignore[attr-defined]
     observer = Observer(int(address.rsplit(":", 1)[1]))
@@ -268,20 +269,20 @@ def test_hold_during_a_run_pauses_it_and_is_confirmed_by_the_stop(service: Servi
             assert client.post(f"/runs/{run}/abort").status_code == 200
     finally:
         observer.close()
-    assert ended(service, run)["status"] == "aborted"
+    assert ended(service, run).status == "aborted"
 
 
 def test_rtl_during_a_run_ends_it_and_is_confirmed_on_its_way_home(service: Service) -> None:
     # Out 400 m, and everything ready before the run starts: the command must come while the
     # vehicle flies out however slowly this machine runs the test (the simulator keeps its
     # own pace), not after the mission's landing at the far end.
-    mission = service.upload("far.xml", SHORT.replace(b"(40,0,10)", b"(400,0,10)"))["id"]
+    mission = service.upload("far.xml", SHORT.replace(b"(40,0,10)", b"(400,0,10)")).id
     address = service.hangar.vehicles[2].link.address  # type: ignore[attr-defined]
     observer = Observer(int(address.rsplit(":", 1)[1]))
     try:
         with TestClient(create_app(service), base_url="http://127.0.0.1") as client:
-            run = service.start_run(mission, [2])["id"]
-            vehicle_when(service, run, 2, lambda v: v["position"] and v["position"][0] > 30)
+            run = service.start_run(mission, [2]).id
+            vehicle_when(service, run, 2, lambda v: v.position and v.position[0] > 30)
             body = confirmed(client, 2, "rtl", run)
         # The observer, on its own: flying south, home (it flew out north).
         assert observed(observer, 2, lambda msg: msg.vx < -100)
@@ -290,7 +291,7 @@ def test_rtl_during_a_run_ends_it_and_is_confirmed_on_its_way_home(service: Serv
     assert body["message"].startswith(f"vehicle 2: rtl done (run {run} ends into rtl): "
                                       "mode RTL")
     assert re.search(r"\d+ m from home", body["seen"]), body["seen"]
-    assert (ended(service, run)["status"]) == "taken"
+    assert (ended(service, run).status) == "taken"
 
 
 def test_a_hold_another_station_undoes_is_not_confirmed(service: Service) -> None:

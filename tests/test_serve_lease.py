@@ -326,9 +326,9 @@ def test_an_operator_command_to_a_vehicle_another_instance_leases_is_carried_out
     here.owner = "b"
     answer, done = a.command(1, "rtl")
     assert asked == [("b", {"op": "command", "vehicle": 1, "command": "rtl"})]
-    assert done and answer["message"] == "vehicle 1: nothing to do: " \
+    assert done and answer.message == "vehicle 1: nothing to do: " \
         f"{there.fakes[0].state().mode}, on the ground, disarmed"
-    assert answer["vehicle_state"]["id"] == 1
+    assert answer.vehicle_state.id == 1
     here.owner = "ghost"
     with pytest.raises(RequestError, match="'ghost' did not answer") as refused:
         a.command(1, "land")
@@ -339,6 +339,7 @@ def test_an_operator_command_to_a_vehicle_another_instance_leases_is_carried_out
 
 def test_an_instance_whose_lease_expired_shuts_its_fence_aborts_its_runs_and_joins_again(
         engine: sa.Engine) -> None:
+    from tml.serve.answers import ServiceStatus
     from tml.serve.cluster import Cluster
 
     class Service:
@@ -346,8 +347,9 @@ def test_an_instance_whose_lease_expired_shuts_its_fence_aborts_its_runs_and_joi
             self.aborted: list[str] = []
             self.reasons: list[str] = []
 
-        def status(self) -> dict[str, Any]:
-            return {"live_runs": ["r1"]}
+        def status(self) -> ServiceStatus:
+            return ServiceStatus(version="0", instance="a", storage="postgresql",
+                                 started=0.0, vehicles=[1], live_runs=["r1"])
 
         def abort(self, run_id: str, reason: str) -> None:
             self.aborted.append(run_id)

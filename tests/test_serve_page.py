@@ -267,7 +267,7 @@ def test_an_interrupted_run_is_continued_from_the_page(browser: Any, tmp_path: P
     hangar = FakeHangar(count=1)
     storage = Storage(database_url(None, tmp_path))
     service = Service(storage, hangar, ServiceOptions(stop_timeout=30))
-    mission_id = service.upload("short.xml", SHORT)["id"]
+    mission_id = service.upload("short.xml", SHORT).id
     old = interrupted_run(storage, hangar.fakes[0], mission_id)
     with served_page(service) as address:
         driver = browser

@@ -58,10 +58,19 @@ from starlette.routing import Match
 
 from tml import __version__
 from tml.errors import TmlError
+from tml.serve.answers import (
+    CommandAnswer,
+    MissionDetail,
+    MissionSummary,
+    RunView,
+    ServiceStatus,
+    VehicleView,
+)
 from tml.serve.guard import MAX_BODY, Guard
 from tml.serve.service import RequestError, Service
 from tml.serve.storage import StorageError
 from tml.serve.tiles import TileSource
+from tml.verify.report import report_document
 
 LAST_RECORD = 2**31  # the highest record number asked for (after, Last-Event-ID)
 METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
@@ -77,39 +86,6 @@ class Problem(BaseModel):
 
     model_config = ConfigDict(extra="allow")
     error: str = Field(description="what went wrong, in one sentence")
-
-
-class Diagnostic(BaseModel):
-    """One problem found in a mission, as ``tml validate --format json`` gives it."""
-
-    file: str
-    line: int
-    column: int
-    code: str
-    message: str
-    hint: str
-    severity: Literal["error", "warning"]
-
-
-class MissionSummary(BaseModel):
-    """A stored mission."""
-
-    id: str
-    name: str
-    filename: str
-    uploaded: float = Field(description="when it was uploaded (Unix time)")
-    warnings: list[Diagnostic]
-
-
-class MissionDetail(MissionSummary):
-    """A stored mission with what the page draws of it."""
-
-    tasks: list[dict[str, Any]] = Field(description="the task tree: name, path, line, action, "
-                                                    "role, composition, children, on_error")
-    roles: list[dict[str, Any]]
-    events: list[dict[str, Any]]
-    world: dict[str, Any] = Field(description="home, geofence, obstacles and objects, in "
-                                              "metres north and east of home")
 
 
 class VerifyRequest(BaseModel):
@@ -146,91 +122,6 @@ class JumpRequest(BaseModel):
                                   "(names joined by '/')")
 
 
-class MissionRef(BaseModel):
-    """The mission a run flies."""
-
-    id: str
-    name: str
-
-
-class RunView(BaseModel):
-    """A run."""
-
-    id: str
-    mission: MissionRef
-    vehicles: list[int]
-    status: Literal["waiting", "running", "paused", "completed", "aborted", "taken",
-                    "failed", "interrupted"] = Field(
-        description="how the run stands, then how it ended (docs/run.md, How a run ends)")
-    reason: str
-    outcomes: list[dict[str, Any]] = Field(description="per vehicle: status, reason, cause")
-    exit_code: int | None = Field(description="the exit code tml run gives for the same "
-                                              "ending (0, 3, 4)")
-    instance: str
-    options: dict[str, Any]
-    created: float
-    ended: float | None
-    tasks: dict[str, dict[str, str]] | None = Field(
-        default=None,
-        description="per vehicle id ('' for tasks no vehicle flies): every task's state, "
-                    "by path")
-    safety: list[str] | None = Field(
-        default=None, description="what was done to leave the vehicles safe")
-
-
-class HomeView(BaseModel):
-    """A vehicle's home: the origin of its local frame."""
-
-    latitude: float
-    longitude: float
-    altitude: float = Field(description="metres above mean sea level")
-
-
-class OperatorCommandSeen(BaseModel):
-    """An operator's last command to a vehicle, as the service saw it through."""
-
-    command: Literal["rtl", "land", "hold", "disarm"]
-    outcome: Literal["refused", "sent", "unanswered", "accepted", "done",
-                     "not confirmed"] = Field(
-        description="refused (by the rule or the vehicle), sent (to the vehicle, or "
-                    "through the run that held it), unanswered, accepted by the vehicle "
-                    "(its motion awaited), done (confirmed by the vehicle's telemetry, or "
-                    "nothing to do), not confirmed (within the command's timeout: what "
-                    "was wanted and seen in detail)")
-    detail: str
-    at: float = Field(description="when (Unix time)")
-
-
-class VehicleView(BaseModel):
-    """A vehicle with its live telemetry."""
-
-    id: int
-    run: str | None = Field(description="the run that holds it")
-    vehicle_type: str
-    time: float
-    link: str
-    mode: str
-    armed: bool
-    landed: bool
-    position: list[float] | None = Field(description="north, east, up in metres from home")
-    global_position: list[float] | None = Field(
-        alias="global", description="latitude, longitude (degrees) and altitude AMSL (m)")
-    home: HomeView | None = Field(description="where the vehicle's local frame starts")
-    heading: float
-    ground_speed: float
-    climb: float = Field(description="vertical speed, m/s, up positive")
-    battery: float | None = Field(description="charge left, %")
-    voltage: float | None = Field(description="battery voltage, V")
-    gps_fix: int | None = Field(description="GPS_RAW_INT fix type (3: 3D)")
-    satellites: int | None = Field(description="GPS satellites visible")
-    mission: dict[str, Any] | None
-    detections: dict[str, Any]
-    status_text: str = Field(description="the autopilot's last message")
-    awaiting: list[str] = Field(description="what it still lacks before a mission may start")
-    command: OperatorCommandSeen | None = Field(
-        default=None, description="the last operator command and what came of it")
-
-
 class CommandRequest(BaseModel):
     """An operator's command to a vehicle."""
 
@@ -239,36 +130,6 @@ class CommandRequest(BaseModel):
         description="rtl: return to launch; land: land where it is; hold: stop where it is "
                     "(a multicopter hovers, a fixed-wing circles, a rover stops); disarm: "
                     "only on the ground")
-
-
-class CommandAnswer(BaseModel):
-    """What an operator's command did."""
-
-    vehicle: int
-    command: Literal["rtl", "land", "hold", "disarm"]
-    run: str | None = Field(description="the run that held the vehicle, paused (hold) or "
-                                        "ended by the command")
-    outcome: Literal["done", "nothing to do", "not confirmed"] = Field(
-        description="done: the vehicle's telemetry confirmed it (docs/command.md: hold "
-                    "stopped, rtl on its way home, land descending, disarm disarmed); "
-                    "nothing to do: disarmed on the ground; not confirmed: not within the "
-                    "command's timeout (30 s)")
-    confirmed: bool = Field(description="whether the telemetry confirmed it (outcome done "
-                                        "or nothing to do)")
-    seen: str = Field(description="what the vehicle's telemetry showed last")
-    message: str = Field(description="what was done, in one sentence")
-    vehicle_state: VehicleView = Field(description="the vehicle as it is now")
-
-
-class ServiceStatus(BaseModel):
-    """What the service is."""
-
-    version: str
-    instance: str
-    storage: str
-    started: float
-    vehicles: list[int]
-    live_runs: list[str]
 
 
 class TileDescription(BaseModel):
@@ -339,9 +200,9 @@ def create_app(service: Service, token: str | None = None, *, bound: str = "127.
     _vehicles(api, service)
 
     @api.get("/status", response_model=ServiceStatus, tags=["service"])
-    def status() -> dict[str, Any]:
+    def status() -> ServiceStatus:
         """The service: its instance name, storage backend, vehicles and live runs."""
-        return {"version": __version__, **service.status()}
+        return service.status()
 
     app.include_router(api)
     _tiles(app, tiles)
@@ -424,7 +285,7 @@ def _missions(api: APIRouter, service: Service, max_body: int) -> None:
     async def upload(request: Request, filename: str | None = Query(
             None, max_length=200, description="the file name diagnostics name (default: "
                                               "the uploaded file's, or mission.xml)"),
-                     ) -> dict[str, Any]:
+                     ) -> MissionSummary:
         """Upload a mission: the XML as the body, or a multipart form with a ``file``.
         Validated as ``tml validate`` does; an invalid mission is answered 422 with its
         ``diagnostics`` (file, line, column, code, message, hint, severity)."""
@@ -441,12 +302,12 @@ def _missions(api: APIRouter, service: Service, max_body: int) -> None:
         return await _call(service.upload, _plain_name(name), data)
 
     @api.get("/missions", response_model=list[MissionSummary], tags=["missions"])
-    def missions() -> list[dict[str, Any]]:
+    def missions() -> list[MissionSummary]:
         """Every stored mission, the oldest first."""
         return service.missions()
 
     @api.get("/missions/{mission_id}", response_model=MissionDetail, tags=["missions"])
-    def mission(mission_id: str = _id()) -> dict[str, Any]:
+    def mission(mission_id: str = _id()) -> MissionDetail:
         """A mission with its task tree, roles, events and world."""
         return service.mission(mission_id)
 
@@ -467,16 +328,17 @@ def _missions(api: APIRouter, service: Service, max_body: int) -> None:
 
     @api.post("/missions/{mission_id}/verify", tags=["missions"],
               response_model=dict[str, Any])
-    def verify(mission_id: str = _id(), request: VerifyRequest | None = None) -> dict[str, Any]:
+    def verify(mission_id: str = _id(),
+               request: VerifyRequest | None = None) -> dict[str, object]:
         """The ``tml verify --format json`` report of the mission: every action predicted
         (with its planned ``path``), every violated constraint, ``feasible``."""
         wanted = request or VerifyRequest()
-        return service.verify(mission_id, wanted.profile, wanted.battery)
+        return report_document(service.verify(mission_id, wanted.profile, wanted.battery))
 
 
 def _runs(api: APIRouter, service: Service) -> None:
     @api.post("/runs", status_code=201, response_model=RunView, tags=["runs"])
-    def start(request: RunRequest) -> dict[str, Any]:
+    def start(request: RunRequest) -> RunView:
         """Start a run: verified and checked against the vehicles as ``tml run`` does
         (422 with the report when infeasible, unless ``force``); 409 when a vehicle is
         held by another run."""
@@ -485,36 +347,36 @@ def _runs(api: APIRouter, service: Service) -> None:
                                  force=request.force)
 
     @api.get("/runs", response_model=list[RunView], tags=["runs"])
-    def runs() -> list[dict[str, Any]]:
+    def runs() -> list[RunView]:
         """Every run, the oldest first (without task states)."""
         return service.runs()
 
     @api.get("/runs/{run_id}", response_model=RunView, tags=["runs"])
-    def run(run_id: str = _id()) -> dict[str, Any]:
+    def run(run_id: str = _id()) -> RunView:
         """A run: status, every task's state per vehicle, outcome, exit code."""
         return service.run(run_id)
 
     @api.post("/runs/{run_id}/abort", response_model=RunView, tags=["runs"])
-    def abort(run_id: str = _id()) -> dict[str, Any]:
+    def abort(run_id: str = _id()) -> RunView:
         """Abort a run: every vehicle to its safe state; 409 when it has ended."""
         return service.abort(run_id)
 
     @api.post("/runs/{run_id}/pause", response_model=RunView, tags=["runs"])
-    def pause(run_id: str = _id()) -> dict[str, Any]:
+    def pause(run_id: str = _id()) -> RunView:
         """Pause a run: its flying vehicles hold where they are, nothing of the mission is
         stepped, and its time limits and elapsed times stop counting; 409 when it has not
         started, is paused already or has ended."""
         return service.control(run_id, "pause")
 
     @api.post("/runs/{run_id}/resume", response_model=RunView, tags=["runs"])
-    def resume(run_id: str = _id()) -> dict[str, Any]:
+    def resume(run_id: str = _id()) -> RunView:
         """Resume a paused run: the interrupted actions go on, as after CONTINUE, with the
         time they had left; 409 when it is not paused."""
         return service.control(run_id, "resume")
 
     @api.post("/runs/{run_id}/continue", response_model=RunView, status_code=201,
               tags=["runs"])
-    def continue_run(run_id: str = _id()) -> dict[str, Any]:
+    def continue_run(run_id: str = _id()) -> RunView:
         """Go on with a run the service was flying when it died (status ``interrupted``),
         as ``tml run --resume`` does: a new run on the same vehicles, from where the run's
         log stood -- tasks done stay done, the running one goes on, a plan flown in AUTO is
@@ -523,7 +385,7 @@ def _runs(api: APIRouter, service: Service) -> None:
         return service.continue_run(run_id)
 
     @api.post("/runs/{run_id}/jump", response_model=RunView, tags=["runs"])
-    def jump(request: JumpRequest, run_id: str = _id()) -> dict[str, Any]:
+    def jump(request: JumpRequest, run_id: str = _id()) -> RunView:
         """Go on from a task, as JUMP_TO_TASK does (what runs is stopped, its vehicle
         holds); 422 with the language's ``code`` when a JUMP_TO_TASK to it would be refused
         (E240 no such task, E244 an ambiguous name, E283 roles or orchestration)."""
@@ -555,12 +417,12 @@ def _runs(api: APIRouter, service: Service) -> None:
 
 def _vehicles(api: APIRouter, service: Service) -> None:
     @api.get("/vehicles", response_model=list[VehicleView], tags=["vehicles"])
-    def vehicles() -> list[dict[str, Any]]:
+    def vehicles() -> list[VehicleView]:
         """Every vehicle with its live telemetry, link state and the run that holds it."""
         return service.vehicles()
 
     @api.get("/vehicles/{vehicle_id}", response_model=VehicleView, tags=["vehicles"])
-    def vehicle(vehicle_id: int = Path(ge=0, le=2**31)) -> dict[str, Any]:
+    def vehicle(vehicle_id: int = Path(ge=0, le=2**31)) -> VehicleView:
         """One vehicle."""
         return service.vehicle(vehicle_id)
 
@@ -571,7 +433,7 @@ def _vehicles(api: APIRouter, service: Service) -> None:
                                               "telemetry within the command's timeout "
                                               "(outcome not confirmed, what was seen)"}})
     def command(request: CommandRequest, response: Response,
-                vehicle_id: int = Path(ge=0, le=2**31)) -> dict[str, Any]:
+                vehicle_id: int = Path(ge=0, le=2**31)) -> CommandAnswer:
         """Tell a vehicle to return to launch, land, hold or disarm, now; answered 200 once
         the vehicle's telemetry confirms it by its motion (``confirmed``), 202 when it did
         not within the command's timeout (what was seen in ``seen``). 409 with the reason
@@ -620,7 +482,9 @@ async def _events(service: Service, run_id: str, after: int,
         finally:
             live.log.unlisten(listener)
     if not await request.is_disconnected():
-        yield {"event": "end", "data": json.dumps(await _call(service.run, run_id))}
+        ended = await _call(service.run, run_id)
+        yield {"event": "end", "data": json.dumps(ended.model_dump(mode="json", by_alias=True,
+                                                                   exclude_none=False))}
 
 
 # --- requests and errors -----------------------------------------------------------------

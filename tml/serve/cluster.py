@@ -65,6 +65,7 @@ from tml.serve.lease import ClusterError, Leases
 from tml.vehicle import Vehicle
 
 if TYPE_CHECKING:
+    from tml.serve.forward import Answer, Forwarded
     from tml.serve.service import Service
 
 JOIN_PATIENCE = 3.0  # leases to wait for an earlier process of this name to expire
@@ -348,7 +349,7 @@ class Cluster:
         self.hangar.lapsed()
         from tml.serve.service import RequestError
 
-        for run_id in self.service.status()["live_runs"]:
+        for run_id in self.service.status().live_runs:
             with contextlib.suppress(RequestError):  # ended meanwhile
                 self.service.abort(run_id, f"the lease of service instance "
                                            f"{self.leases.name} expired")
@@ -371,10 +372,10 @@ class Cluster:
                 log.error("cluster: run %s not continued: %s", run_id, refused.message)
                 self.leases.give_up(run_id, refused.message)
                 continue
-            self.adopted.append((run_id, run["id"]))
-            continued.append(run["id"])
+            self.adopted.append((run_id, run.id))
+            continued.append(run.id)
             log.warning("cluster: run %s of a stopped instance continued as run %s on %s",
-                        run_id, run["id"], self.leases.name)
+                        run_id, run.id, self.leases.name)
         return continued
 
 
@@ -388,7 +389,7 @@ def clustered(service: Service, hangar: ClusterHangar) -> Iterator[Cluster]:
     forwarder = Forwarder(hangar.leases.engine, hangar.leases.name, service.carry_out)
     forwarder.start()
 
-    def forward(instance: str, request: dict[str, Any]) -> tuple[int, str, dict[str, Any]]:
+    def forward(instance: str, request: Forwarded) -> Answer:
         # An operator's command waits for the run that held the vehicle to end, up to the
         # service's command timeout, there as here.
         wait = service.options.command_timeout + TIMEOUT if request.get("op") == "command" \

@@ -26,16 +26,35 @@ import logging
 import secrets
 import threading
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Literal, Required, TypedDict
 
 import sqlalchemy as sa
+from pydantic import JsonValue
 from sqlalchemy.engine import Engine
 
 CHANNEL = "tml_serve"
 TIMEOUT = 10.0  # s to wait for the owner's answer
 
-Handler = Callable[[dict[str, Any]], tuple[int, str, dict[str, Any]]]
-"""Carries out a request addressed to this instance: (status, message, detail)."""
+
+
+class Forwarded(TypedDict, total=False):
+    """A request carried to the instance that flies a run (``abort``, ``control``: its
+    ``kind`` and ``target``) or leases a vehicle (``command``)."""
+
+    op: Required[Literal["abort", "control", "command"]]
+    run: str
+    kind: str
+    target: str
+    vehicle: int
+    command: str
+
+
+Answer = tuple[int, str, dict[str, JsonValue]]
+"""How a forwarded request was answered: HTTP status, message and more JSON (a
+refusal's detail; a command's run, outcome and what was seen)."""
+
+Handler = Callable[[Forwarded], Answer]
+"""Carries out a request addressed to this instance."""
 
 log = logging.getLogger("tml.serve")
 
@@ -69,8 +88,7 @@ class Forwarder:
         self._stop.set()
         self._thread.join(2.0)
 
-    def ask(self, instance: str, request: dict[str, Any],
-            timeout: float = TIMEOUT) -> tuple[int, str, dict[str, Any]]:
+    def ask(self, instance: str, request: Forwarded, timeout: float = TIMEOUT) -> Answer:
         """Have ``instance`` carry out ``request``; its (status, message, detail). Raises
         Unanswered after ``timeout`` seconds without an answer."""
         ident = secrets.token_hex(8)
@@ -129,7 +147,7 @@ class Forwarder:
 
     def _answer(self, payload: dict[str, Any]) -> None:
         try:
-            status, message, detail = self.handle(dict(payload.get("request", {})))
+            status, message, detail = self.handle(payload.get("request", {}))
         except Exception as error:  # answered, not left to time out
             status, message, detail = 500, f"{type(error).__name__}: {error}", {}
         self._notify({"id": payload.get("id"), "to": payload.get("from"),

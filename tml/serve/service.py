@@ -47,9 +47,10 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ParamSpec, TypeVar
 
+from tml import __version__
 from tml.engine.resume import Progress
 from tml.errors import ControlRefused, TmlError
-from tml.language.model import Mission, Task
+from tml.language.model import Event, Mission, Role, Task
 from tml.language.validation import ValidationResult, validate_file
 from tml.run.checked import checked_options
 from tml.run.clearance import (
@@ -65,14 +66,43 @@ from tml.run.endings import Ending
 from tml.run.journal import jsonable, telemetry_fields
 from tml.run.resume import ResumeRefused, progress_point
 from tml.run.session import VEHICLE_PROFILE
+from tml.serve.answers import (
+    AnswerOutcome,
+    CommandAnswer,
+    CommandOutcome,
+    CylinderOutline,
+    Diagnostic,
+    EventOutline,
+    FenceOutline,
+    HomeOutline,
+    HomeView,
+    MissionDetail,
+    MissionRef,
+    MissionSummary,
+    ObjectOutline,
+    OperatorCommand,
+    OperatorCommandSeen,
+    PrismOutline,
+    RoleOutline,
+    RunView,
+    ServiceStatus,
+    TaskOutline,
+    VehicleOutcome,
+    VehicleView,
+    WorldOutline,
+    answer_outcome,
+    operator_command,
+    run_status,
+)
+from tml.serve.forward import Answer, Forwarded
 from tml.serve.hangar import Hangar, VehicleTaken
 from tml.serve.live import LiveRun, TaskBoard
 from tml.serve.storage import ACTIVE, Storage, StoredMission, StoredRun
-from tml.vehicle import IdSource, Vehicle, VehicleState, awaiting
+from tml.vehicle import IdSource, Vehicle, awaiting
 from tml.verify.motion import PredictedState
 from tml.verify.profile import SHIPPED, VehicleProfile, load_profile
 from tml.verify.report import report_document
-from tml.verify.static import verify_mission
+from tml.verify.static import Report, verify_mission
 from tml.world import Cylinder, World
 
 if TYPE_CHECKING:
@@ -150,6 +180,16 @@ class Refused(RequestError):
 
 
 @dataclass
+class Asked:
+    """An operator's command being answered: to which vehicle, and the run that held it
+    (:meth:`Service.command`)."""
+
+    vehicle: int
+    command: OperatorCommand
+    run: str | None = None
+
+
+@dataclass
 class ServiceOptions:
     """How the service flies its runs."""
 
@@ -178,12 +218,11 @@ class Service:
         self._unsaved: dict[str, LiveRun] = {}  # ended, not stored yet (module docstring)
         self._parsed: OrderedDict[str, Mission] = OrderedDict()  # small ones: _parse
         self._lock = threading.Lock()
-        self._commands: dict[int, dict[str, Any]] = {}  # each vehicle's last operator command
+        self._commands: dict[int, OperatorCommandSeen] = {}  # each vehicle's last one
         self._targets = TargetWatches()  # GUIDED targets, by vehicle id
         # In a cluster (tml.serve.cluster): has the instance named carry out a request
         # about a run it flies, and answers as it did (tml.serve.forward).
-        self.forward: Callable[[str, dict[str, Any]], tuple[int, str, dict[str, Any]]] \
-            | None = None
+        self.forward: Callable[[str, Forwarded], Answer] | None = None
 
     # --- life ----------------------------------------------------------------------------
 
@@ -202,18 +241,18 @@ class Service:
             run.join(self.options.stop_timeout)
             self.said.extend(f"run {run.id}: {message}" for message in run.safety)
 
-    def status(self) -> dict[str, Any]:
-        """What the service is: instance, storage, vehicles, live runs."""
+    def status(self) -> ServiceStatus:
+        """What the service is: version, instance, storage, vehicles, live runs."""
         with self._lock:
             live = sorted(self._live)
-        return {"instance": self.options.instance, "storage": self.storage.backend,
-                "started": self.started, "vehicles": sorted(self.hangar.vehicles),
-                "live_runs": live}
+        return ServiceStatus(version=__version__, instance=self.options.instance,
+                             storage=self.storage.backend, started=self.started,
+                             vehicles=sorted(self.hangar.vehicles), live_runs=live)
 
     # --- missions ------------------------------------------------------------------------
 
     @_gives_memory_back
-    def upload(self, filename: str, data: bytes) -> dict[str, Any]:
+    def upload(self, filename: str, data: bytes) -> MissionSummary:
         """Validate and keep a mission; Refused with the diagnostics when it is invalid."""
         self.save_ended()
         filename = filename or "mission.xml"
@@ -228,16 +267,21 @@ class Service:
         self._keep(stored.id, result.mission, len(stored.source))
         return self._mission_summary(stored)
 
-    def missions(self) -> list[dict[str, Any]]:
+    def missions(self) -> list[MissionSummary]:
         """Every stored mission, summed up."""
         return [self._mission_summary(m) for m in self.storage.missions()]
 
     @_gives_memory_back
-    def mission(self, mission_id: str) -> dict[str, Any]:
+    def mission(self, mission_id: str) -> MissionDetail:
         """A mission: its summary, task tree, roles and world."""
         stored = self._stored_mission(mission_id)
         mission = self._parse(stored.id, stored.filename, stored.source)
-        return {**self._mission_summary(stored), **mission_outline(mission)}
+        return MissionDetail(id=stored.id, name=stored.name, filename=stored.filename,
+                             uploaded=stored.uploaded, warnings=_diagnostics(stored.warnings),
+                             tasks=[_task(t) for t in mission.tasks],
+                             roles=[_role(r) for r in mission.roles],
+                             events=[_event(e) for e in mission.events],
+                             world=world_outline(mission.world or World()))
 
     def mission_source(self, mission_id: str) -> str:
         """A mission's XML text as it was uploaded."""
@@ -258,21 +302,22 @@ class Service:
 
     @_gives_memory_back
     def verify(self, mission_id: str, profile: str = "quadcopter",
-               battery: float = 100.0) -> dict[str, Any]:
-        """The ``tml verify`` report of a mission (its JSON form)."""
+               battery: float = 100.0) -> Report:
+        """The ``tml verify`` report of a mission (:func:`report_document`: its JSON
+        form)."""
         stored = self._stored_mission(mission_id)
         mission = self._parse(stored.id, stored.filename, stored.source)
         home = (mission.world or World()).home_or_default
         report = verify_mission(mission, _profile(profile), None,
                                 PredictedState(battery=battery, heading=home.heading))
-        return report_document(report)
+        return report
 
     # --- runs ----------------------------------------------------------------------------
 
     @_gives_memory_back
     def start_run(self, mission_id: str, vehicles: Sequence[int] | None = None, *,
                   safe_state: str = "rtl", profile: str = "quadcopter",
-                  force: bool = False) -> dict[str, Any]:
+                  force: bool = False) -> RunView:
         """Start flying a mission; the run as :meth:`run` shows it."""
         self.save_ended()
         stored = self._stored_mission(mission_id)
@@ -294,7 +339,7 @@ class Service:
             raise
 
     @_gives_memory_back
-    def continue_run(self, run_id: str) -> dict[str, Any]:
+    def continue_run(self, run_id: str) -> RunView:
         """Go on with a run the service was flying when it died (``interrupted``), as
         ``tml run --resume`` does from its log: a new run on the same vehicles, whose
         mission goes on where the stored log stood (:mod:`tml.engine.resume`). Refused
@@ -356,7 +401,7 @@ class Service:
 
     def _launch(self, record: StoredRun, mission: Mission, checked: VehicleProfile,
                 resume: Mapping[int, Progress] | None = None,
-                claimed: bool = False) -> dict[str, Any]:
+                claimed: bool = False) -> RunView:
         """Hold the run's vehicles (unless ``claimed`` already), store it and start flying
         it."""
         if not claimed:
@@ -383,17 +428,17 @@ class Service:
         live.start()
         return self.run(record.id)
 
-    def runs(self) -> list[dict[str, Any]]:
+    def runs(self) -> list[RunView]:
         """Every run, summed up, the oldest first."""
         return [self._run_summary(r) for r in self.storage.runs()]
 
     @_gives_memory_back
-    def run(self, run_id: str) -> dict[str, Any]:
+    def run(self, run_id: str) -> RunView:
         """A run: status, outcome, exit code, every task's state per vehicle."""
         live = self.live(run_id)
         if live is not None:
-            return {**self._run_summary(live.record, live), "tasks": live.board.snapshot(),
-                    "safety": list(live.safety)}
+            return self._run_summary(live.record, live, tasks=live.board.snapshot(),
+                                     safety=list(live.safety))
         stored = self._stored_run(run_id)
         mission = self._parse(f"run {stored.id}", "mission.xml", stored.mission_source)
         board = TaskBoard(mission, stored.vehicles)
@@ -403,7 +448,7 @@ class Service:
             board.see(record)
             if record.get("kind") in ("safety", "taken"):
                 safety.append(_safety_said(record))
-        return {**self._run_summary(stored), "tasks": board.snapshot(), "safety": safety}
+        return self._run_summary(stored, tasks=board.snapshot(), safety=safety)
 
     def save_ended(self) -> None:
         """Store the ended runs the database could not take when they ended."""
@@ -414,7 +459,7 @@ class Service:
                 with self._lock:
                     self._unsaved.pop(run.id, None)
 
-    def abort(self, run_id: str, reason: str = "aborted by the operator") -> dict[str, Any]:
+    def abort(self, run_id: str, reason: str = "aborted by the operator") -> RunView:
         """Abort a live run: every vehicle to its safe state (``Ending.STOPPED``)."""
         if self._elsewhere(run_id, {"op": "abort"}):
             return self.run(run_id)
@@ -422,7 +467,7 @@ class Service:
         live.abort(reason)
         return self.run(run_id)
 
-    def control(self, run_id: str, kind: str, target: str = "") -> dict[str, Any]:
+    def control(self, run_id: str, kind: str, target: str = "") -> RunView:
         """Pause, resume or jump a live run: 409 when the run refuses now (not started,
         paused already ...), 422 when the language refuses the jump (with its ``code``)."""
         if self._elsewhere(run_id, {"op": "control", "kind": kind, "target": target}):
@@ -437,15 +482,15 @@ class Service:
             raise Conflict(f"cannot {kind} run {run_id}: {refusal}") from None
         return self.run(run_id)
 
-    def carry_out(self, request: Mapping[str, Any]) -> tuple[int, str, dict[str, Any]]:
+    def carry_out(self, request: Forwarded) -> Answer:
         """A request another instance of the cluster forwarded about a run this one flies
         or a vehicle it leases (``op``: ``abort``, ``control`` or ``command``): its HTTP
         status, message and detail."""
         try:
             if request.get("op") == "command":
                 answer, done = self.command(int(request["vehicle"]), str(request["command"]))
-                return 200 if done else 202, str(answer["message"]), {
-                    "run": answer["run"], "outcome": answer["outcome"], "seen": answer["seen"]}
+                return 200 if done else 202, answer.message, {
+                    "run": answer.run, "outcome": answer.outcome, "seen": answer.seen}
             if request.get("op") == "abort":
                 self.abort(str(request["run"]))
             elif request.get("op") == "control":
@@ -458,7 +503,7 @@ class Service:
         return 200, "done", {}
 
     def _command_elsewhere(self, vehicle_id: int,
-                           command: str) -> tuple[dict[str, Any], bool] | None:
+                           command: str) -> tuple[CommandAnswer, bool] | None:
         """In a cluster, an operator's command to a vehicle another instance leases:
         carried out there, and answered as it answered; None for a vehicle no other
         instance leases (tml.serve.cluster.ClusterHangar.owner_elsewhere)."""
@@ -473,13 +518,15 @@ class Service:
             refused = RequestError(message, **detail)
             refused.status = status
             raise refused
-        return ({"vehicle": vehicle_id, "command": command, "run": detail.get("run"),
-                 "outcome": detail.get("outcome", "done" if status == 200 else "not confirmed"),
-                 "confirmed": status == 200, "seen": str(detail.get("seen", "")),
-                 "message": message, "vehicle_state": self.vehicle(vehicle_id)},
-                status == 200)
+        run = detail.get("run")
+        outcome = detail.get("outcome", "done" if status == 200 else "not confirmed")
+        return CommandAnswer(vehicle=vehicle_id, command=operator_command(command),
+                             run=None if run is None else str(run),
+                             outcome=answer_outcome(str(outcome)), confirmed=status == 200,
+                             seen=str(detail.get("seen", "")), message=message,
+                             vehicle_state=self.vehicle(vehicle_id)), status == 200
 
-    def _elsewhere(self, run_id: str, request: dict[str, Any]) -> bool:
+    def _elsewhere(self, run_id: str, request: Forwarded) -> bool:
         """Whether the run is flown by another instance of the cluster, which then
         carried out ``request`` (its refusal raised here as it gave it)."""
         if self.forward is None or self.live(run_id) is not None:
@@ -514,30 +561,27 @@ class Service:
 
     # --- vehicles ------------------------------------------------------------------------
 
-    def vehicles(self) -> list[dict[str, Any]]:
+    def vehicles(self) -> list[VehicleView]:
         """Every vehicle with its live telemetry, link and the run that holds it."""
         return [self.vehicle(vid) for vid in sorted(self.hangar.vehicles)]
 
-    def vehicle(self, vehicle_id: int) -> dict[str, Any]:
+    def vehicle(self, vehicle_id: int) -> VehicleView:
         """One vehicle."""
         found = self.hangar.vehicles.get(vehicle_id)
         if found is None:
             raise NotFound(f"no vehicle {vehicle_id}")
         state = found.state()
-        home = None if state.home is None else {
-            "latitude": state.home.latitude, "longitude": state.home.longitude,
-            "altitude": state.home.altitude}
-        return {"id": vehicle_id, "run": self.hangar.holder(vehicle_id),
-                "vehicle_type": state.vehicle_type, "time": round(state.time, 3),
-                **telemetry_fields(state), "home": home, "status_text": state.status_text,
-                "awaiting": list(awaiting(state)),
-                "command": self._command_seen(vehicle_id, state)}
+        home = None if state.home is None else HomeView(
+            latitude=state.home.latitude, longitude=state.home.longitude,
+            altitude=state.home.altitude)
+        # The telemetry fields of the flight log's telemetry lines ("global" among them).
+        return VehicleView(id=vehicle_id, run=self.hangar.holder(vehicle_id),
+                           vehicle_type=state.vehicle_type, time=round(state.time, 3),
+                           **telemetry_fields(state), home=home,
+                           status_text=state.status_text, awaiting=list(awaiting(state)),
+                           command=self._commands.get(vehicle_id))
 
-    def _command_seen(self, vehicle_id: int, state: VehicleState) -> dict[str, Any] | None:
-        """A vehicle's last operator command and what came of it (:meth:`command`)."""
-        return self._commands.get(vehicle_id)
-
-    def command(self, vehicle_id: int, command: str) -> tuple[dict[str, Any], bool]:
+    def command(self, vehicle_id: int, command: str) -> tuple[CommandAnswer, bool]:
         """An operator's command to a vehicle (rtl, land, hold, disarm), and whether it is
         confirmed: done only when the vehicle's telemetry shows it carried out, by the
         rule of ``tml command`` (:class:`~tml.engine.confirm.Confirmation`), within
@@ -568,11 +612,12 @@ class Service:
         except CommandRefusal as refusal:
             self._tell(vehicle_id, command, "refused", str(refusal))
             raise Conflict(f"vehicle {vehicle_id}: {command} refused: {refusal}") from None
-        answer: dict[str, Any] = {"vehicle": vehicle_id, "command": command, "run": None}
+        # (operator_request refuses any other word than an operator command's)
+        asked = Asked(vehicle_id, operator_command(command))
         holder = self.hangar.holder(vehicle_id)
         live = self.live(holder) if holder is not None else None
         if live is not None and not live.ended:
-            answer["run"] = live.id
+            asked.run = live.id
             check = MotionCheck(found, command, self._fresh_targets(vehicle_id, found))
             said = self._through_run(live, command)
             self._tell(vehicle_id, command, "sent", said)
@@ -581,14 +626,12 @@ class Service:
             self._confirm(check, ending)
             if check.confirmed or not live.ended \
                     or operator_command_shown(found.state(), command):
-                return self._answered(answer, vehicle_id, check, said)
+                return self._answered(asked, check, said)
         outcome = self._send(found, vehicle_id, command)
         if isinstance(outcome, str):
-            return {**answer, "outcome": "nothing to do", "confirmed": True,
-                    "seen": outcome, "message": f"vehicle {vehicle_id}: nothing to do: "
-                                                f"{outcome}",
-                    "vehicle_state": self.vehicle(vehicle_id)}, True
-        return self._answered(answer, vehicle_id, *outcome)
+            return self._answer(asked, "nothing to do", outcome,
+                                f"vehicle {vehicle_id}: nothing to do: {outcome}"), True
+        return self._answered(asked, *outcome)
 
     def _through_run(self, live: LiveRun, command: str) -> str:
         """Carry out an operator's command through the run that holds the vehicle: a hold
@@ -625,10 +668,10 @@ class Service:
         finally:
             self.hangar.unsubscribe(wake)
 
-    def _answered(self, answer: dict[str, Any], vehicle_id: int, check: MotionCheck,
-                  said: str) -> tuple[dict[str, Any], bool]:
+    def _answered(self, asked: Asked, check: MotionCheck,
+                  said: str) -> tuple[CommandAnswer, bool]:
         """The answer to a command sent (``said``: how), confirmed or not."""
-        confirmation, command = check.confirmation, answer["command"]
+        confirmation, command, vehicle_id = check.confirmation, asked.command, asked.vehicle
         seen = confirmation.seen()
         if check.confirmed:
             self._tell(vehicle_id, command, "done", seen)
@@ -638,9 +681,14 @@ class Service:
             self._tell(vehicle_id, command, "not confirmed", detail)
             message = (f"vehicle {vehicle_id}: {command} not confirmed within "
                        f"{self.options.command_timeout:g} s ({said}; {detail})")
-        return ({**answer, "outcome": "done" if check.confirmed else "not confirmed",
-                 "confirmed": check.confirmed, "seen": seen, "message": message,
-                 "vehicle_state": self.vehicle(vehicle_id)}, check.confirmed)
+        return self._answer(asked, "done" if check.confirmed else "not confirmed", seen,
+                            message), check.confirmed
+
+    def _answer(self, asked: Asked, outcome: AnswerOutcome, seen: str,
+                message: str) -> CommandAnswer:
+        return CommandAnswer(vehicle=asked.vehicle, command=asked.command, run=asked.run,
+                             outcome=outcome, confirmed=outcome != "not confirmed", seen=seen,
+                             message=message, vehicle_state=self.vehicle(asked.vehicle))
 
     def _send(self, found: Vehicle, vehicle_id: int,
               command: str) -> tuple[MotionCheck, str] | str:
@@ -702,12 +750,16 @@ class Service:
             self.hangar.unsubscribe(wake)
             self.hangar.release(holder)
 
-    def _tell(self, vehicle_id: int, command: str, outcome: str, detail: str) -> None:
-        """Keep a vehicle's last operator command (GET /vehicles shows it) and log it."""
+    def _tell(self, vehicle_id: int, command: str, outcome: CommandOutcome,
+              detail: str) -> None:
+        """Keep a vehicle's last operator command (GET /vehicles shows it) and log it (a
+        word that is no command, refused, is only logged)."""
         import logging
 
-        self._commands[vehicle_id] = {"command": command, "outcome": outcome,
-                                      "detail": detail, "at": time.time()}
+        with contextlib.suppress(ValueError):
+            self._commands[vehicle_id] = OperatorCommandSeen(
+                command=operator_command(command), outcome=outcome, detail=detail,
+                at=time.time())
         logging.getLogger("tml.serve").warning("vehicle %d: operator command %s: %s (%s)",
                                                vehicle_id, command, outcome, detail)
 
@@ -787,22 +839,26 @@ class Service:
         return live
 
     @staticmethod
-    def _mission_summary(stored: StoredMission) -> dict[str, Any]:
-        return {"id": stored.id, "name": stored.name, "filename": stored.filename,
-                "uploaded": stored.uploaded, "warnings": stored.warnings}
+    def _mission_summary(stored: StoredMission) -> MissionSummary:
+        return MissionSummary(id=stored.id, name=stored.name, filename=stored.filename,
+                              uploaded=stored.uploaded, warnings=_diagnostics(stored.warnings))
 
     @staticmethod
-    def _run_summary(stored: StoredRun, live: LiveRun | None = None) -> dict[str, Any]:
-        return {"id": stored.id, "mission": {"id": stored.mission_id,
-                                             "name": stored.mission_name},
-                "vehicles": stored.vehicles,
-                "status": live.status if live is not None else stored.status,
-                "reason": live.reason if live is not None else stored.reason,
-                "outcomes": live.outcomes if live is not None else stored.outcomes,
-                "exit_code": live.exit_code if live is not None else stored.exit_code,
-                "instance": stored.instance, "options": stored.options,
-                "created": stored.created,
-                "ended": stored.ended if live is None else live.ended_at}
+    def _run_summary(stored: StoredRun, live: LiveRun | None = None, *,
+                     tasks: dict[str, dict[str, str]] | None = None,
+                     safety: list[str] | None = None) -> RunView:
+        """A run as it is stored, or as it stands when it is ``live``; ``tasks`` and
+        ``safety`` (:meth:`run`) when given."""
+        outcomes = live.outcomes if live is not None else stored.outcomes
+        return RunView(
+            id=stored.id, mission=MissionRef(id=stored.mission_id, name=stored.mission_name),
+            vehicles=stored.vehicles,
+            status=run_status(live.status if live is not None else stored.status),
+            reason=live.reason if live is not None else stored.reason,
+            outcomes=[VehicleOutcome.model_validate(o) for o in outcomes],
+            exit_code=live.exit_code if live is not None else stored.exit_code,
+            instance=stored.instance, options=stored.options, created=stored.created,
+            ended=stored.ended if live is None else live.ended_at, tasks=tasks, safety=safety)
 
 
 def _safety_said(record: Mapping[str, Any]) -> str:
@@ -822,48 +878,53 @@ def _profile(name: str) -> VehicleProfile:
     return load_profile(name)
 
 
-def mission_outline(mission: Mission) -> dict[str, Any]:
-    """What the page draws of a mission: its task tree, roles, events and world."""
-    return {"tasks": [_task(t) for t in mission.tasks],
-            "roles": [{"name": r.name, "count": r.count, "vehicle_type": r.vehicle_type,
-                       "payloads": list(r.payloads)} for r in mission.roles],
-            "events": [{"name": e.name, "line": e.location.line,
-                        "termination": e.termination.mode.value} for e in mission.events],
-            "world": world_outline(mission.world or World())}
+def _diagnostics(found: Sequence[object]) -> list[Diagnostic]:
+    """Diagnostics stored with a mission (:meth:`Diagnostic.to_dict`'s form)."""
+    return [Diagnostic.model_validate(d) for d in found]
 
 
-def _task(task: Task) -> dict[str, Any]:
-    return {"name": task.name, "path": task.path_name, "line": task.location.line,
-            "action": task.action.name if task.action is not None else None,
-            "role": task.role, "composition": task.composition.value,
-            "children": [_task(t) for t in task.children],
-            "on_error": [_task(t) for t in task.on_error]}
+def _task(task: Task) -> TaskOutline:
+    return TaskOutline(name=task.name, path=task.path_name, line=task.location.line,
+                       action=task.action.name if task.action is not None else None,
+                       role=task.role, composition=task.composition.value,
+                       children=[_task(t) for t in task.children],
+                       on_error=[_task(t) for t in task.on_error])
 
 
-def world_outline(world: World) -> dict[str, Any]:
+def _role(role: Role) -> RoleOutline:
+    return RoleOutline(name=role.name, count=role.count, vehicle_type=role.vehicle_type,
+                       payloads=list(role.payloads))
+
+
+def _event(event: Event) -> EventOutline:
+    return EventOutline(name=event.name, line=event.location.line,
+                        termination=event.termination.mode.value)
+
+
+def world_outline(world: World) -> WorldOutline:
     """A world in plain values: home, geofence, obstacles and objects in the local frame
     (north, east metres from home; an unbounded top is null)."""
     home = world.home_or_default
     fence = world.geofence
-    obstacles: list[dict[str, Any]] = []
+    obstacles: list[CylinderOutline | PrismOutline] = []
     for obstacle in world.obstacles:
-        found: dict[str, Any] = {"name": obstacle.name, "bottom": obstacle.bottom,
-                                 "top": None if math.isinf(obstacle.top) else obstacle.top}
+        top = None if math.isinf(obstacle.top) else obstacle.top
         if isinstance(obstacle, Cylinder):
-            found |= {"shape": "cylinder", "north": obstacle.north, "east": obstacle.east,
-                      "radius": obstacle.radius}
+            obstacles.append(CylinderOutline(
+                name=obstacle.name, bottom=obstacle.bottom, top=top, shape="cylinder",
+                north=obstacle.north, east=obstacle.east, radius=obstacle.radius))
         else:
-            found |= {"shape": "prism", "polygon": [list(p) for p in obstacle.polygon]}
-        obstacles.append(found)
-    outline: dict[str, Any] = jsonable({
-        "home": {"latitude": home.latitude, "longitude": home.longitude,
-                 "altitude": home.altitude, "heading": home.heading,
-                 "declared": world.home is not None},
-        "geofence": None if fence is None else {
-            "polygon": [list(p) for p in fence.polygon], "min_altitude": fence.min_altitude,
-            "max_altitude": fence.max_altitude},
-        "obstacles": obstacles,
-        "objects": [{"kind": o.kind, "ident": o.ident, "north": o.north, "east": o.east,
-                     "altitude": o.altitude, "color": o.color, "name": o.name}
-                    for o in world.objects]})
-    return outline
+            obstacles.append(PrismOutline(name=obstacle.name, bottom=obstacle.bottom, top=top,
+                                          shape="prism",
+                                          polygon=[list(p) for p in obstacle.polygon]))
+    return WorldOutline(
+        home=HomeOutline(latitude=home.latitude, longitude=home.longitude,
+                         altitude=home.altitude, heading=home.heading,
+                         declared=world.home is not None),
+        geofence=None if fence is None else FenceOutline(
+            polygon=[list(p) for p in fence.polygon], min_altitude=fence.min_altitude,
+            max_altitude=fence.max_altitude),
+        obstacles=obstacles,
+        objects=[ObjectOutline(kind=o.kind, ident=o.ident, north=o.north, east=o.east,
+                               altitude=o.altitude, color=o.color, name=o.name)
+                 for o in world.objects])

@@ -268,16 +268,17 @@ def _fly(args: argparse.Namespace, session: Session, mission: Mission, world: Wo
     payloads: dict[int, list[str]] = {}
     for number, names in args.payload:
         payloads.setdefault(number, []).extend(names)
-    runner = session.runner(
+    flight = session.flight(
         mission, profile, world, journal, resumed=resumed.point, payloads=payloads,
         on_safety=on_safety,
         on_update=(lambda r: display.update(r.views())) if display else None,
         about={"sha256": resumed.digest})
+    runner = flight.runner
     try:
         with on_stop_signals(lambda name: runner.stop(f"interrupted ({name})")), \
                 display if display is not None else contextlib.nullcontext(), \
                 _control_sockets(session, runner):
-            outcome = runner.run()
+            outcome = flight.fly()
             if display is not None:
                 display.update(runner.views(), force=True)
         _tell_signing(session, journal, said, runner.clock())

@@ -22,10 +22,10 @@ line parser goes below ``tml/commands``) and opens a :class:`Session` with
    station (``FS_GCS_ENABLE``), the verifier's profile read from the vehicle (``--profile
    vehicle``) and the mission verified with it. A refusal is a :class:`Refusal`, which the
    command maps to its exit code;
-4. makes the runner that flies the cleared mission on its vehicles, with their wake flag,
-   clock, time base and the options checked against the profile and world
-   (:meth:`Session.runner`; a resumed run goes on from its point, on the vehicles it
-   flew: :meth:`Session.check_resume`).
+4. makes the flight of the cleared mission on its vehicles (:meth:`Session.flight`, the
+   one use case of :mod:`tml.run.flight`): its runner with their wake flag, clock, time
+   base and the options checked against the profile and world (a resumed run goes on
+   from its point, on the vehicles it flew: :meth:`Session.check_resume`).
 
 ``tml companion`` attaches the simulator's companion computer (through the factory its
 command passes, as the simulator's) to the autopilot at one address with the same options
@@ -61,9 +61,10 @@ if TYPE_CHECKING:
     from tml.mavlink.adapter import MavlinkVehicle
     from tml.mavlink.link import Link
     from tml.run.clearance import ClearanceOptions, Finding
+    from tml.run.flight import Flight, FlightOptions
     from tml.run.journal import Journal
     from tml.run.resume import ResumePoint
-    from tml.run.runner import Runner, RunOptions
+    from tml.run.runner import Runner
     from tml.verify.profile import VehicleProfile
     from tml.world import World
 
@@ -185,6 +186,19 @@ class SessionOptions:
         return self.simulator is not None
 
     @property
+    def flight(self) -> FlightOptions:
+        """How the session's missions are cleared and flown: the GCS failsafe not read on
+        the simulator of this process (its link does not die alone) unless required."""
+        from tml.run.flight import FlightOptions
+
+        return FlightOptions(safe_state=self.safe_state, link_lost_limit=self.link_lost_limit,
+                             ready_timeout=self.ready_timeout,
+                             safe_state_timeout=self.safe_state_timeout,
+                             vehicle_fence=not self.keep_vehicle_fence, force=self.force,
+                             gcs_failsafe=not self.sim,
+                             require_gcs_failsafe=self.require_gcs_failsafe)
+
+    @property
     def signing_on(self) -> bool:
         """Whether the links sign (a key file given, or the environment's key)."""
         from tml.signing import ENVIRONMENT
@@ -226,21 +240,17 @@ class Session:
         vehicle``), the profile read from the first vehicle and the mission verified with
         it (a ``profile`` given was verified before the vehicles were opened:
         :func:`verify`). The profile to fly with, or why not."""
-        from tml.run.clearance import Cleared, clear
+        from tml.run.clearance import Cleared
+        from tml.run.flight import Flight
 
-        found = clear(mission, self.vehicles, profile, extra, self.clearance_options(),
-                      verified=True)
+        found = Flight(mission, self.vehicles, self.options.flight).clear(profile, extra,
+                                                                         verified=True)
         self._say(mission, found.findings)
         return found.profile if isinstance(found, Cleared) else found.refusal
 
     def clearance_options(self) -> ClearanceOptions:
-        """The clearance's options of the session's: the GCS failsafe not read on the
-        simulator of this process (its link does not die alone) unless required."""
-        from tml.run.clearance import ClearanceOptions
-
-        return ClearanceOptions(force=self.options.force,
-                                gcs_failsafe=not self.options.sim,
-                                require_gcs_failsafe=self.options.require_gcs_failsafe)
+        """The clearance's options of the session's (:attr:`SessionOptions.flight`)."""
+        return self.options.flight.clearance()
 
     def gcs_failsafe(self) -> Refusal | None:
         """Read each vehicle's own reaction to a lost ground station
@@ -268,16 +278,6 @@ class Session:
 
     # -- the run ----------------------------------------------------------------------------
 
-    def run_options(self, profile: VehicleProfile, world: World) -> RunOptions:
-        """The runner's options for a flight checked against ``profile`` and ``world``."""
-        from tml.run.checked import checked_options
-
-        return checked_options(profile, world, safe_state=self.options.safe_state,
-                               link_lost_limit=self.options.link_lost_limit,
-                               ready_timeout=self.options.ready_timeout,
-                               safe_state_timeout=self.options.safe_state_timeout,
-                               vehicle_fence=not self.options.keep_vehicle_fence)
-
     def check_resume(self, point: ResumePoint | None) -> None:
         """Raise ResumeRefused when the vehicles opened are not the ones the interrupted
         run flew (their system ids, as its log keeps them): one address may carry several
@@ -290,27 +290,28 @@ class Session:
                 f"the run flew the vehicle(s) with system id {_ids(point.system_ids)}, "
                 f"not {_ids(opened)}: say which with --sysid")
 
-    def runner(self, mission: Mission, profile: VehicleProfile, world: World, journal: Journal,
-               *, resumed: ResumePoint | None = None,
+    def flight(self, mission: Mission, profile: VehicleProfile, world: World,
+               journal: Journal, *, resumed: ResumePoint | None = None,
                payloads: Mapping[int, Iterable[str]] | None = None,
                on_safety: Callable[[str], None] | None = None,
                on_update: Callable[[Runner], None] | None = None,
-               about: Mapping[str, object] | None = None) -> Runner:
-        """The runner that flies the cleared ``mission`` on the session's vehicles, with
-        :meth:`run_options`, going on from ``resumed`` (an interrupted run's point, its
-        request numbers continued) when given. The run's first log line names the
-        addresses and each vehicle's system id, and ``about``."""
-        from tml.run.runner import Runner
+               about: Mapping[str, object] | None = None) -> Flight:
+        """The flight of the cleared ``mission`` on the session's vehicles, its runner
+        made (:meth:`tml.run.flight.Flight.start`) with the session's
+        :attr:`SessionOptions.flight`, going on from ``resumed`` (an interrupted run's
+        point, its request numbers continued) when given. The run's first log line names
+        the addresses and each vehicle's system id, and ``about``."""
+        from tml.run.flight import Flight
         from tml.vehicle import IdSource
 
-        return Runner(mission, self.vehicles, clock=self.clock,
-                      options=self.run_options(profile, world), journal=journal,
-                      wake=self.wake, timebase=self.timebase, on_safety=on_safety,
-                      payloads=payloads, on_update=on_update,
-                      ids=None if resumed is None else IdSource(resumed.next_id),
-                      resume=None if resumed is None else resumed.progress,
-                      about={**(about or {}), "connect": list(self.options.connect),
-                             "system_ids": [v.system_id for v in self.vehicles]})
+        flight = Flight(mission, self.vehicles, self.options.flight, on_safety=on_safety)
+        flight.start(profile, world, journal, clock=self.clock, wake=self.wake,
+                     timebase=self.timebase, payloads=payloads, on_update=on_update,
+                     ids=None if resumed is None else IdSource(resumed.next_id),
+                     resume=None if resumed is None else resumed.progress,
+                     about={**(about or {}), "connect": list(self.options.connect),
+                            "system_ids": [v.system_id for v in self.vehicles]})
+        return flight
 
     def signing_counts(self) -> list[tuple[str, int, int]]:
         """With signing on, what each link dropped: (address, unsigned, wrongly signed)."""

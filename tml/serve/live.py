@@ -2,9 +2,10 @@
 
 Theory of operation
 -------------------
-A :class:`LiveRun` is ``tml run`` inside the service: one :class:`~tml.run.runner.Runner`
-flying a mission on the vehicles the run holds, in a thread of its own, with the clock and
-the vehicle links of the :class:`~tml.serve.hangar.Hangar`. Its journal writes to a
+A :class:`LiveRun` is ``tml run`` inside the service: one :class:`~tml.run.flight.Flight`
+(the use case ``tml run`` flies with too) of a mission on the vehicles the run holds, in a
+thread of its own, with the clock and the vehicle links of the
+:class:`~tml.serve.hangar.Hangar`. Its journal writes to a
 :class:`RunLog` instead of a file: the same JSON lines, numbered from 1 as they come,
 kept in memory for the live stream, stored in the database in batches (every
 ``STORE_PERIOD`` seconds and at the end), and handed at once to every listener (the
@@ -20,7 +21,8 @@ that saw the stream end finds the run ended, and a vehicle is never given to a s
 while the first still commands it.
 
 *A database that fails* (full, gone) during the flight ends the run as any exception of
-the runner does: ``failed`` (``Ending.ERROR``), its vehicles sent to their safe state. Its
+the runner does: ``failed`` (``Ending.ERROR``), its vehicles sent to their safe state
+(:meth:`~tml.run.flight.Flight.fly`). Its
 lines not stored are kept, and so is its outcome when that cannot be stored either
 (:attr:`LiveRun.saved` is False): the run still ends -- its streams end, its vehicles are
 released -- and the service stores it later (:meth:`LiveRun.save`), once the database
@@ -33,19 +35,20 @@ import contextlib
 import json
 import threading
 import time
-import traceback
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 from tml.engine.resume import Fold, Progress
-from tml.engine.safety import safe_state_request
 from tml.language.model import Mission
 from tml.run.endings import Ending
+from tml.run.flight import Flight, FlightOptions
 from tml.run.journal import Journal
-from tml.run.runner import Outcome, Runner, RunOptions
+from tml.run.runner import Outcome
 from tml.serve.hangar import Hangar
 from tml.serve.storage import Storage, StoredRun, failure
 from tml.vehicle import IdSource
+from tml.verify.profile import VehicleProfile
+from tml.world import World
 
 STORE_PERIOD = 0.5  # s between two writes of a run's new log lines to the database
 
@@ -167,7 +170,7 @@ class LiveRun:
     """One run flying in its own thread; see the module docstring."""
 
     def __init__(self, record: StoredRun, mission: Mission, hangar: Hangar, storage: Storage,
-                 options: RunOptions, ids: IdSource,
+                 options: FlightOptions, profile: VehicleProfile, ids: IdSource,
                  payloads: Mapping[int, Iterable[str]] | None = None,
                  on_end: Callable[[LiveRun], None] | None = None,
                  resume: Mapping[int, Progress] | None = None) -> None:
@@ -188,11 +191,11 @@ class LiveRun:
         self.safety: list[str] = []
         self.wake = threading.Event()
         vehicles = [hangar.vehicles[vid] for vid in record.vehicles]
-        self.runner = Runner(mission, vehicles, clock=hangar.clock, options=options,
-                             journal=Journal(self.log), wake=self.wake,
-                             wait=lambda timeout: hangar.wait(self.wake, timeout),
-                             on_safety=self.safety.append, payloads=payloads, ids=ids,
-                             resume=resume)
+        self.flight = Flight(mission, vehicles, options, on_safety=self.safety.append)
+        self.runner = self.flight.start(profile, mission.world or World(), Journal(self.log),
+                                        clock=hangar.clock, wake=self.wake,
+                                        wait=lambda timeout: hangar.wait(self.wake, timeout),
+                                        payloads=payloads, ids=ids, resume=resume)
         self.thread = threading.Thread(target=self._fly, name=f"run {record.id}", daemon=True)
 
     def start(self) -> None:
@@ -250,17 +253,12 @@ class LiveRun:
 
     def _fly(self) -> None:
         try:
-            outcome = self.runner.run()
+            outcome = self.flight.fly(_said)
             self.outcomes = _outcomes(outcome)
             ending = outcome.ending
             self.reason = _reason(outcome)
         except Exception as error:  # a broken vehicle adapter, a failed database write
-            self.reason = f"service error: {failure(error)}"
-            with contextlib.suppress(Exception):  # the log's database may be what failed
-                self.runner.journal.write(self.hangar.clock(), "error", None,
-                                          message=self.reason,
-                                          traceback=traceback.format_exc())
-            self._safe_state(self.reason)
+            self.reason = _said(error)  # (journaled, the vehicles sent to their safe state)
             ending = Ending.ERROR
         assert ending.status is not None  # (a run that flew has a status)
         self.ended_at = time.time()
@@ -276,17 +274,11 @@ class LiveRun:
         if self.on_end is not None:
             self.on_end(self)
 
-    def _safe_state(self, reason: str) -> None:
-        """The engine's safe state, sent from here when the runner itself failed."""
-        for vid in self.record.vehicles:
-            vehicle = self.hangar.vehicles[vid]
-            try:
-                safe = safe_state_request(vehicle.state(), self.runner.options.safe_state)
-                if safe is not None:
-                    vehicle.submit(safe[0])
-                    self.safety.append(f"vehicle {vid}: {safe[0].name} ({reason})")
-            except Exception as error:  # one vehicle must not spare the others
-                self.safety.append(f"vehicle {vid}: safe state not sent: {error!r}")
+
+def _said(error: Exception) -> str:
+    """A run's reason when the service failed under it."""
+    return f"service error: {failure(error)}"
+
 
 def _outcomes(outcome: Outcome) -> list[dict[str, Any]]:
     return [{"vehicle": v.vehicle_id, "status": v.status.value, "reason": v.reason,

@@ -12,20 +12,24 @@ infeasible one with the report of ``tml verify``.
 the pipeline of ``tml validate``; only valid ones are stored (warnings are kept with
 them). A stored mission is parsed again from its text when it is needed (and kept parsed).
 
-*Runs* start as ``tml run`` starts: the mission is cleared for the run's vehicles by the
-pre-flight clearance (:func:`tml.run.clearance.clear`: verified against the vehicle
-profile, the vehicles' kinds checked against its actions; refused unless ``force``), the
-vehicles are claimed, and a
-:class:`~tml.serve.live.LiveRun` flies it in its own thread with the in-flight checks of
-:func:`tml.run.checked.checked_options`. Without roles every vehicle of the run flies
-the whole mission, as with ``tml run --vehicles N``; with roles the run's vehicles are
-the ones its roles pick from. A run asked for without vehicles takes the first free one
-(a mission with roles: every free one).
+*Runs* are flown as ``tml run`` flies, by the one use case :class:`tml.run.flight.Flight`
+with the run's :class:`~tml.run.flight.FlightOptions` (:meth:`ServiceOptions.flight`): the
+mission is cleared for the run's vehicles by the pre-flight clearance (verified against
+the vehicle profile, the vehicles' kinds checked against its actions; refused unless
+``force``), the vehicles are claimed, and a :class:`~tml.serve.live.LiveRun` flies it in
+its own thread with the in-flight checks of :func:`tml.run.checked.checked_options`.
+Without roles every vehicle of the run flies the whole mission, as with ``tml run
+--vehicles N``; with roles the run's vehicles are the ones its roles pick from. A run
+asked for without vehicles takes the first free one (a mission with roles: every free
+one).
 
 *A run whose end could not be stored* (the database full or gone) has ended all the same:
 its vehicles are free and its stream has ended. The service keeps it (its outcome, its
 log) and shows it as it ended until the database takes it; each later write request
 (an upload, a start, a delete) tries to store it first.
+
+*Answers* are the API's typed models (:mod:`tml.serve.answers`), built here; the API
+sends them as they are.
 
 *Stopping.* :meth:`Service.stop` aborts every live run (each vehicle to its safe state,
 as Ctrl-C does to ``tml run``) and waits for the runs to end. A run that was flying when
@@ -52,17 +56,10 @@ from tml.engine.resume import Progress
 from tml.errors import ControlRefused, TmlError
 from tml.language.model import Event, Mission, Role, Task
 from tml.language.validation import ValidationResult, validate_file
-from tml.run.checked import checked_options
-from tml.run.clearance import (
-    ClearanceOptions,
-    Incapable,
-    Infeasible,
-    NoParameters,
-    NotCleared,
-    clear,
-)
+from tml.run.clearance import Incapable, Infeasible, NoParameters, NotCleared
 from tml.run.control import MotionCheck, TargetWatches
 from tml.run.endings import Ending
+from tml.run.flight import Flight, FlightOptions
 from tml.run.journal import jsonable, telemetry_fields
 from tml.run.resume import ResumeRefused, progress_point
 from tml.run.session import VEHICLE_PROFILE
@@ -199,6 +196,15 @@ class ServiceOptions:
     stop_timeout: float = 60.0  # wall s to wait for each run to end when the service stops
     command_timeout: float = 30.0  # wall s an operator's command waits for its answer
     vehicle_fence: bool = True  # put each mission's fence on its vehicles (False: keep theirs)
+
+    def flight(self, safe_state: str = "rtl", force: bool = False) -> FlightOptions:
+        """How a run is cleared and flown (``safe_state`` and ``force``: the run's own);
+        the GCS failsafe of every vehicle was read when the service opened it (or leased
+        it), not again for each run."""
+        return FlightOptions(safe_state=safe_state, link_lost_limit=self.link_lost_limit,
+                             ready_timeout=self.ready_timeout,
+                             vehicle_fence=self.vehicle_fence, force=force,
+                             gcs_failsafe=False)
 
 
 class Service:
@@ -381,9 +387,9 @@ class Service:
         choice = None if profile == VEHICLE_PROFILE else _profile(profile)
         # A vehicle this service does not have (a continued run's) fails when it is flown,
         # as before there was a clearance here.
-        found = clear(mission, [self.hangar.vehicles[v] for v in vehicles
-                                if v in self.hangar.vehicles], choice,
-                      options=ClearanceOptions(force=force, gcs_failsafe=False))
+        found = Flight(mission, [self.hangar.vehicles[v] for v in vehicles
+                                 if v in self.hangar.vehicles],
+                       self.options.flight(force=force)).clear(choice)
         if not isinstance(found, NotCleared):
             return found.profile
         why = found.reason
@@ -410,16 +416,12 @@ class Service:
             except VehicleTaken as taken:
                 raise Conflict(str(taken), vehicle=taken.vehicle_id,
                                run=taken.run_id) from None
-        world = mission.world or World()
-        options = checked_options(checked, world,
-                                  safe_state=str(record.options.get("safe_state", "rtl")),
-                                  link_lost_limit=self.options.link_lost_limit,
-                                  ready_timeout=self.options.ready_timeout,
-                                  vehicle_fence=self.options.vehicle_fence)
+        options = self.options.flight(safe_state=str(record.options.get("safe_state", "rtl")),
+                                      force=bool(record.options.get("force", False)))
         try:
             self.storage.add_run(record)
-            live = LiveRun(record, mission, self.hangar, self.storage, options, self.ids,
-                           on_end=self._ended, resume=resume)
+            live = LiveRun(record, mission, self.hangar, self.storage, options, checked,
+                           self.ids, on_end=self._ended, resume=resume)
         except BaseException:
             self.hangar.release(record.id)
             raise

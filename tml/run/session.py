@@ -326,9 +326,10 @@ def verify(mission: Mission, profile: VehicleProfile, extra: World | None,
     """Verify ``mission`` with ``profile`` (and the ``extra`` world) before the vehicles are
     opened (:func:`tml.run.clearance.clear` without vehicles), what it found said on
     ``errors``; the refusal if it must not be flown (infeasible, without ``force``)."""
-    from tml.run.clearance import ClearanceOptions, NotCleared, clear, say
+    from tml.run.clearance import NotCleared, say
+    from tml.run.flight import Flight, FlightOptions
 
-    found = clear(mission, (), profile, extra, ClearanceOptions(force=options.force))
+    found = Flight(mission, (), FlightOptions(force=options.force)).clear(profile, extra)
     if errors is not None:
         say(found.findings, mission.file, options.program, options.force, errors)
     return found.refusal if isinstance(found, NotCleared) else None

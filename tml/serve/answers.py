@@ -12,12 +12,21 @@ from typing import Literal, cast, get_args
 
 from pydantic import BaseModel, Field, JsonValue
 
+from tml.run.journal import jsonable
+
 RunStatus = Literal["waiting", "running", "paused", "completed", "aborted", "taken",
                     "failed", "interrupted"]
 OperatorCommand = Literal["rtl", "land", "hold", "disarm"]
 CommandOutcome = Literal["refused", "sent", "unanswered", "accepted", "done",
                          "not confirmed"]
 AnswerOutcome = Literal["done", "nothing to do", "not confirmed"]
+
+
+def json_value(value: object) -> JsonValue:
+    """``value`` in JSON's own values (:func:`tml.run.journal.jsonable`: tuples as lists,
+    keys as text, a non-finite number as its text)."""
+    found: JsonValue = jsonable(value)
+    return found
 
 
 def _spelled(choices: tuple[str, ...], word: str, what: str) -> str:

@@ -51,6 +51,8 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ParamSpec, TypeVar
 
+from pydantic import JsonValue
+
 from tml import __version__
 from tml.engine.resume import Progress
 from tml.errors import ControlRefused, TmlError
@@ -60,7 +62,7 @@ from tml.run.clearance import Incapable, Infeasible, NoParameters, NotCleared
 from tml.run.control import MotionCheck, TargetWatches
 from tml.run.endings import Ending
 from tml.run.flight import Flight, FlightOptions
-from tml.run.journal import jsonable, telemetry_fields
+from tml.run.journal import telemetry_fields
 from tml.run.resume import ResumeRefused, progress_point
 from tml.run.session import VEHICLE_PROFILE
 from tml.serve.answers import (
@@ -88,6 +90,7 @@ from tml.serve.answers import (
     VehicleView,
     WorldOutline,
     answer_outcome,
+    json_value,
     operator_command,
     run_status,
 )
@@ -152,10 +155,10 @@ class RequestError(TmlError):
 
     status = 400
 
-    def __init__(self, message: str, **detail: Any) -> None:
+    def __init__(self, message: str, **detail: JsonValue) -> None:
         super().__init__(message)
         self.message = message
-        self.detail = detail
+        self.detail: dict[str, JsonValue] = detail
 
 
 class NotFound(RequestError):
@@ -266,7 +269,7 @@ class Service:
         diagnostics = [d.to_dict() for d in result.diagnostics]
         if result.errors or result.mission is None:
             raise Refused(f"{filename}: invalid mission ({len(result.errors)} error(s))",
-                          diagnostics=diagnostics)
+                          diagnostics=json_value(diagnostics))
         stored = StoredMission(secrets.token_hex(6), result.mission.name, filename,
                                result.source, time.time(), diagnostics)
         self.storage.add_mission(stored)
@@ -395,11 +398,11 @@ class Service:
         why = found.reason
         if isinstance(why, Infeasible):
             raise Refused(f"{filename}: infeasible mission, not flown (force flies it "
-                          "anyway)", report=report_document(why.report))
+                          "anyway)", report=json_value(report_document(why.report)))
         if isinstance(why, Incapable):
             raise Refused(f"{filename}: the vehicles cannot do every action of the mission, "
                           "not flown (force flies it anyway)",
-                          violations=[v.to_dict() for v in why.violations])
+                          violations=json_value([v.to_dict() for v in why.violations]))
         if isinstance(why, NoParameters):
             raise Refused(f"profile 'vehicle': vehicle {why.vehicle_id} does not report its "
                           "parameters")
@@ -501,7 +504,7 @@ class Service:
             else:
                 raise RequestError(f"unknown forwarded request {request.get('op')!r}")
         except RequestError as refused:
-            return refused.status, refused.message, jsonable(refused.detail)
+            return refused.status, refused.message, refused.detail
         return 200, "done", {}
 
     def _command_elsewhere(self, vehicle_id: int,

@@ -456,7 +456,7 @@ async def _events(service: Service, run_id: str, after: int,
         for seq, line in lines:
             yield {"event": "record", "id": str(seq), "data": line}
         stored = await _call(service.run, run_id)
-        yield {"event": "tasks", "data": json.dumps(stored.get("tasks") or {})}
+        yield {"event": "tasks", "data": json.dumps(stored.tasks or {})}
     else:
         loop = asyncio.get_running_loop()
         queue: asyncio.Queue[tuple[int, str | None]] = asyncio.Queue()

@@ -52,6 +52,10 @@ def pytest_cmdline_main(config: pytest.Config) -> None:
 
 FLIGHT_LOG = re.compile(rb'^\{"t":[-0-9.e]+,"kind":"run"')
 """How a flight log the journal writes begins (its first line, compact JSON)."""
+TEMPORARY = {"tmp_path", "tmp_path_factory", "tmpdir", "tmpdir_factory"}
+"""The fixtures through which a test, or a fixture it uses, writes under the suite's
+temporary directories (checked after the tests that use one: walking them after every test
+would cost the suite more than its flights' logs)."""
 _seen: dict[str, tuple[int, int]] = {}  # path -> (size, mtime) when it was checked
 
 
@@ -104,17 +108,18 @@ def new_flight_logs(base: Path) -> list[str]:
 
 
 @pytest.fixture(autouse=True)
-def flight_logs_follow_the_schema(request: pytest.FixtureRequest,
-                                  tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+def flight_logs_follow_the_schema(request: pytest.FixtureRequest) -> Iterator[None]:
     """After each test, every flight log written under the suite's temporary directories
     since the last test (by the test, its fixtures, or a ``tml`` process it started) is
     read back and each line checked against the flight log's schema. A log another worker
     is still writing is checked as far as it goes (its last line may be cut) and again
     once it has grown."""
     yield
-    if request.node.get_closest_marker("foreign_logs"):
-        return
-    found = [problem for folder in log_folders(tmp_path_factory.getbasetemp())
+    if request.node.get_closest_marker("foreign_logs") or \
+            not TEMPORARY & set(request.fixturenames):
+        return  # a test without pytest's temporary directories writes no log there
+    factory: pytest.TempPathFactory = request.getfixturevalue("tmp_path_factory")
+    found = [problem for folder in log_folders(factory.getbasetemp())
              for path in new_flight_logs(folder) for problem in schema_problems(path)]
     if found:
         pytest.fail("flight log lines that break the schema:\n" + "\n".join(found[:20]),

@@ -18,10 +18,9 @@ from tml.commands.cli import main
 from tml.run.journal import read
 
 MISSIONS = Path(__file__).parent.parent / "missions"
-# DISARM_DELAY 0: an armed vehicle on the ground is not disarmed by itself. At ten times
-# real time ArduCopter's 10 s are 1 s of the wall clock the run keeps with --connect, less
-# than one command timeout (1.5 s): a take-off lost once would find the vehicle disarmed
-# again, a failure of the clocks, not of the link (docs/simulator.md).
+# DISARM_DELAY 0: an armed vehicle on the ground is not disarmed by itself: a take-off
+# whose command and its retries are lost for ArduCopter's 10 s would find the vehicle
+# disarmed again, a failure of the test's timing, not of the link (docs/simulator.md).
 FAST = {"SIM_GPS_LOCKTIME": 1, "SIM_EKF_GPS_TIME": 2, "DISARM_DELAY": 0}
 
 
@@ -29,8 +28,10 @@ def fly_through_loss(name: str, log: Path, seed: int = 1) -> tuple[int, list[dic
     """Fly missions/NAME.xml on the simulator through a 30 % lossy proxy; the log's lines."""
     with Simulator(vehicles=1, speedup=10, tcp_base_port=0, params=FAST) as sim, \
             LossyProxy(sim.tcp_ports[0], loss=0.3, seed=seed) as proxy:
+        # On the vehicle's clock: every wait of the run (a command's ACK, its retries) in
+        # the simulator's seconds, which a busy machine slows down with it.
         code = main(["run", str(MISSIONS / f"{name}.xml"), "--connect", proxy.address, "-q",
-                     "--log", str(log)])
+                     "--clock", "vehicle", "--log", str(log)])
     return code, read(str(log)), proxy
 
 

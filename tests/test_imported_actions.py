@@ -2,7 +2,8 @@
 
 A waypoint's hold, acceptance radius, pass radius and yaw (GO_TO_POSITION), the position and
 yaw a take-off carries (TAKE_OFF), the throttle of a speed change (SET_SPEED) and the frame of
-an item without a position (RETURN_HOME_AND_LAND, SET_SPEED) are arguments: the items come back
+an item without a position (RETURN_HOME_AND_LAND, SET_SPEED, WAIT) and a NAV_DELAY's unused time
+of day (WAIT) are arguments: the items come back
 exactly, and the actions fly with ``dispatch="command"`` as well as in AUTO on the simulator.
 """
 
@@ -135,6 +136,9 @@ MISSION = f"""<?xml version="1.0" encoding="UTF-8"?>
     </action></task>
     <task name="Drop"><action name="DROP_ITEM"><argument name="gripper" value="0"/>
       <argument name="frame" value="0"/></action></task>
+    <task name="Pause"><action name="WAIT"><argument name="duration" value="3"/>
+      <argument name="time_of_day" value="0"/><argument name="frame" value="GLOBAL"/>
+    </action></task>
     <task name="Home"><action name="RETURN_HOME_AND_LAND">
       <argument name="frame" value="GLOBAL"/></action></task>
   </task>
@@ -170,6 +174,27 @@ def _between(records: list[dict[str, Any]], start: str, end: str) -> list[dict[s
     return records[first:last + 1]
 
 
+def _paused(records: list[dict[str, Any]]) -> float:
+    """How long ``records`` span, in the vehicle's time, once every picture of the
+    telemetry among them shows the vehicle stopped within 1 m of the first."""
+    seen = [r for r in records if r["kind"] == "telemetry"]
+    assert len(seen) >= 2
+    assert all(math.dist(r["position"], seen[0]["position"]) <= 1.0
+               and r["ground_speed"] <= 0.3 for r in seen), "moved while it should wait"
+    return float(records[-1]["t"] - records[0]["t"])
+
+
+def test_a_delay_as_ardupilot_writes_it_is_a_wait(tmp_path: Path) -> None:
+    # ArduPilot's autotest writes a NAV_DELAY's unused time of day as 0 and its frame 0.
+    text = WPL + ("1\t0\t3\t22\t0\t0\t0\t0\t0\t0\t10\t1\n"
+                  "2\t0\t0\t93\t5\t0\t0\t0\t0\t0\t0\t1\n"
+                  "3\t0\t2\t93\t7\t-1\t-1\t-1\t0\t0\t0\t1\n")
+    actions = _actions_and_back(read_wpl(text), tmp_path)
+    assert [(a.get("name"), _arguments(a)) for a in actions[1:]] == [
+        ("WAIT", {"duration": "5", "time_of_day": "0", "frame": "MAV_FRAME_GLOBAL"}),
+        ("WAIT", {"duration": "7"})]
+
+
 def test_the_actions_fly_with_commands(tmp_path: Path) -> None:
     records = _flown(tmp_path, "command")
     requests = [r for r in records if r["kind"] == "request"]
@@ -193,6 +218,8 @@ def test_the_actions_fly_with_commands(tmp_path: Path) -> None:
             and r["message"] == "SetYaw"] == [180.0]
     assert moved[-1]["t"] - next(r["t"] for r in moved if r["kind"] == "request"
                                  and r["message"] == "Hold") >= 4
+    # The wait: hovering where the vehicle was for its 3 s.
+    assert _paused(_between(records, "WAIT started", "WAIT done")) >= 3
     assert records[-1]["kind"] == "run"
 
 
@@ -201,9 +228,12 @@ def test_the_actions_fly_as_mission_items_in_auto(tmp_path: Path) -> None:
     texts = [r["text"] for r in records if r["kind"] == "autopilot"]
     said = [t for t in texts if t.startswith("Mission:")]
     assert said == ["Mission: 1 Takeoff", "Mission: 2 ChangeSpeed", "Mission: 3 WP",
-                    "Mission: 4 Gripper", "Mission: 5 RTL"]
+                    "Mission: 4 Gripper", "Mission: 5 Delay", "Mission: 6 RTL"]
     # ArduCopter holds at a waypoint for its param1 before it goes on.
     at = _between(records, "Mission: 3 WP", "Mission: 4 Gripper")
     held = _held_at_target(at)
     assert held and held[-1]["t"] - held[0]["t"] >= 3
     assert all(r["mode"] == "AUTO" for r in at if r["kind"] == "telemetry")
+    # The NAV_DELAY, its time of day written 0 and its frame 0, holds for its 3 s.
+    assert _paused(_between(records, "Mission: 5 Delay", "Mission: 6 RTL")) >= 3
+

@@ -138,6 +138,10 @@ CASES: dict[Constraint, list[Case]] = {
     Constraint.AIRBORNE: [
         Case("flying", go(10, 0, 10)),
         Case("on the ground", go(10, 0, 10), state=PredictedState(), fails=(0.0, 0.0)),
+        # A NAV_DELAY after a landing: the vehicle waits where it stands.
+        Case("wait on the ground", action("WAIT", duration="5"), state=PredictedState()),
+        Case("turn on the ground", action("ROTATE_YAW", angle="90"), state=PredictedState(),
+             fails=(0.0, 0.0)),
     ],
     Constraint.TURN_RADIUS: [
         Case("50 m circle", action("LOITER", radius="50", turns="1"),

@@ -75,8 +75,10 @@ def stabilize_items(b: items.Builder, action: BoundAction) -> None:
 
 
 def wait_items(b: items.Builder, action: BoundAction) -> None:
-    # NAV_DELAY param1 is seconds; params 2-4 (a time of day) are -1: not used.
-    b.add(mav.NAV_DELAY, params=(action.number("duration"), -1.0, -1.0, -1.0))
+    # NAV_DELAY param1 is seconds; params 2-4 (a time of day) are -1: not used (or as the
+    # file wrote them: ArduPilot reads them only when param1 is not above 0).
+    clock = action.number("time_of_day", -1.0)
+    b.add(mav.NAV_DELAY, params=(action.number("duration"), clock, clock, clock))
 
 
 # --- motion models (tml verify) -------------------------------------------------------------
@@ -94,6 +96,9 @@ def rotate_yaw_motion(model: Motion, bound: BoundAction, state: PredictedState,
 
 def wait_motion(model: Motion, bound: BoundAction, state: PredictedState,
                 labels: Labels) -> Step:
+    if not state.flying:  # waits where it stands, as WAIT does (a NAV_DELAY after a landing)
+        after = replace(state, time=state.time + bound.number("duration"))
+        return Step(state, after, grounded=True, labels=labels)
     return Step(state, model.hover(state, bound.number("duration")), labels=labels)
 
 
@@ -112,8 +117,15 @@ def stabilize_read(item: reading.ItemFields) -> reading.Arguments | None:
 
 
 def wait_read(item: reading.ItemFields) -> reading.Arguments | None:
-    """NAV_DELAY of a time."""
-    return None if item.param1 <= 0 else {"duration": reading.value(item.param1)}
+    """NAV_DELAY of a time, with the unused time of day when a file wrote it 0 (not -1) and
+    the frame a file wrote."""
+    clock = (item.param2, item.param3, item.param4)
+    if item.param1 <= 0 or any(c != clock[0] for c in clock) or clock[0] not in (0, -1):
+        return None
+    arguments = {"duration": reading.value(item.param1)}
+    if clock[0] == 0:
+        arguments["time_of_day"] = "0"
+    return reading.frame(arguments, item)
 
 
 _NO_ITEM = NotApplicable("has no mission item: ArduCopter enters FLIP from "

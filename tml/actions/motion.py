@@ -96,6 +96,7 @@ class Step:
     cruise: bool = False  # a translation leg, held to the cruise altitude limits
     labels: Labels = field(default_factory=dict)  # labels after the action
     unknown_label: str = ""  # a label read that holds no point at this point
+    grounded: bool = False  # time spent on the ground by design (a WAIT there), no flight
     notes: tuple[str, ...] = ()
 
     @property

@@ -190,6 +190,15 @@ _GRIPPER_ITEM = (
                  minimum=0.0, maximum=255.0, quantity=Quantity.ITEM_PARAM),
     _ITEM_FRAME,
 )
+# --- a NAV_DELAY item as a file wrote it (WAIT)
+_DELAY_ITEM = (
+    ArgumentSpec("time_of_day", ArgType.INTEGER,
+                 "what its NAV_DELAY item's hour, minute and second (params 2-4, a UTC time of "
+                 "day that a delay of a time does not use) are written as: ArduPilot's "
+                 "autotest files write 0, MAVLink's \"ignore\" is -1; absent: -1",
+                 minimum=-1.0, maximum=0.0, quantity=Quantity.ITEM_PARAM),
+    _ITEM_FRAME,
+)
 # --- the position a NAV_TAKEOFF item carries (TAKE_OFF), as planners write it
 _TAKE_OFF_POSITION = tuple(
     replace(s, description=f"{s.description} its mission item carries (ground stations write "
@@ -318,7 +327,7 @@ CATALOGUE: tuple[ActionSpec, ...] = (
         "WAIT", Category.HOVER,
         "Hover where the vehicle is for a time (Dolphin delay).",
         (_number("duration", "time to wait", "s", Quantity.DURATION, required=True,
-                 aliases=("time", "seconds")),),
+                 aliases=("time", "seconds")), *_DELAY_ITEM),
         aliases=("DELAY",),
     ),
     ActionSpec(

@@ -160,7 +160,7 @@ def check_step(bound: BoundAction, step: Step, model: FlightModel,
                                location))
     # A ground vehicle is not airborne, ever: its first move arms it.
     if not before.flying and profile.kind is not Kind.GROUND and \
-            (step.legs or step.loiter or step.duration > 0):
+            (step.legs or step.loiter or (step.duration > 0 and not step.grounded)):
         fail(_C.AIRBORNE, "the vehicle is on the ground; take off first",
              before.position[2], ">", 0.0, "m")
     if step.unknown_label:

@@ -237,3 +237,62 @@ def test_the_actions_fly_as_mission_items_in_auto(tmp_path: Path) -> None:
     # The NAV_DELAY, its time of day written 0 and its frame 0, holds for its 3 s.
     assert _paused(_between(records, "Mission: 5 Delay", "Mission: 6 RTL")) >= 3
 
+
+
+# --- a NAV_LAND as ArduPilot writes it back: param4 1, altitude 0 -----------------------------
+
+def test_a_landing_as_ardupilot_writes_it_is_a_landing_point(tmp_path: Path) -> None:
+    # ardupilot_copter_auto_land_to_brake.txt: NAV_LANDs at a position at 0 m above home with
+    # param4 1; one after a turn to 1 degree is that yaw, one at 20 m keeps no altitude.
+    text = WPL + ("1\t0\t3\t22\t0\t0\t0\t0\t0\t0\t20\t1\n"
+                  "2\t0\t3\t21\t0\t0\t0\t1\t-35.3630\t149.1652\t0\t1\n"
+                  "3\t0\t3\t22\t0\t0\t0\t0\t0\t0\t20\t1\n"
+                  "4\t0\t3\t21\t0\t0\t0\t-1\t-35.3630\t149.1652\t20\t1\n"
+                  "5\t0\t3\t22\t0\t0\t0\t0\t0\t0\t20\t1\n"
+                  "6\t0\t2\t115\t1\t0\t0\t0\t0\t0\t0\t1\n"
+                  "7\t0\t6\t21\t0\t0\t0\t1\t-35.3630\t149.1652\t20\t1\n")
+    actions = _actions_and_back(read_wpl(text), tmp_path)
+    assert [a.get("name") for a in actions] == [
+        "TAKE_OFF", "LANDING_POINT", "TAKE_OFF", "LANDING_POINT", "TAKE_OFF", "LANDING_POINT"]
+    first, second, third = (_arguments(actions[n]) for n in (1, 3, 5))
+    assert (first["loiter_direction"], first["keep_altitude"], first["altitude"]) == (
+        "clockwise", "yes", "0")
+    assert second["loiter_direction"] == "counter-clockwise" and "keep_altitude" not in second
+    assert third["yaw"] == "1" and "loiter_direction" not in third
+
+
+LANDING = (-35.3630, 149.1652)
+LANDING_MISSION = f"""<?xml version="1.0" encoding="UTF-8"?>
+<mission name="landing as written">
+  <task name="Fly" dispatch="{{dispatch}}">
+    <task name="Up"><action name="TAKE_OFF"><argument name="altitude" value="10"/></action>
+    </task>
+    <task name="Down"><action name="LANDING_POINT">
+      <argument name="latitude" value="{LANDING[0]}"/>
+      <argument name="longitude" value="{LANDING[1]}"/>
+      <argument name="altitude" value="0"/><argument name="keep_altitude" value="yes"/>
+      <argument name="loiter_direction" value="clockwise"/></action></task>
+  </task>
+</mission>
+"""
+
+
+@pytest.mark.parametrize("dispatch", ["command", "mission"])
+def test_the_landing_point_flies_over_at_its_altitude_and_lands_there(
+        tmp_path: Path, dispatch: str) -> None:
+    mission, log = tmp_path / "landing.xml", tmp_path / "landing.jsonl"
+    mission.write_text(LANDING_MISSION.format(dispatch=dispatch))
+    assert main(["run", str(mission), "--sim", "--log", str(log), *FAST]) == 0
+    records = [json.loads(line) for line in log.read_text().splitlines()]
+
+    def off(r: dict[str, Any]) -> float:  # metres from the landing point, horizontally
+        lat, lon, _ = r["global"]
+        return math.hypot((lat - LANDING[0]) * 111_320.0,
+                          (lon - LANDING[1]) * 111_320.0 * math.cos(math.radians(lat)))
+
+    seen = [r for r in records if r["kind"] == "telemetry"]
+    up = next(n for n, r in enumerate(seen) if r["position"][2] >= 9.5)
+    # The altitude 0 the item carries is not flown to: over the point at 10 m, then down.
+    on_the_way = [r for r in seen[up:] if off(r) > 3.0 and r["armed"]]
+    assert on_the_way and all(r["position"][2] >= 9.0 for r in on_the_way)
+    assert not seen[-1]["armed"] and off(seen[-1]) <= 2.0 and seen[-1]["position"][2] < 0.5

@@ -176,11 +176,16 @@ def land_at(b: Builder, action: BoundAction, point: Point, reference: str,
     # ArduCopter flies to a NAV_LAND's position at its present altitude and ignores the
     # item's altitude: the approach altitude is given, so that a simulator or autopilot
     # that does fly to it does not descend on the way.
+    kept = action.takes("keep_altitude") and bool(action.values.get("keep_altitude"))
     point = (point[0], point[1], b.cursor.position[2]) if reference == "relative" else point
-    if exact is not None and reference == "relative":
+    if exact is not None and reference == "relative" and not kept:
         exact = (exact[0], exact[1], point[2])
+    param4 = 0.0 if yaw is None else yaw
+    direction = action.values.get("loiter_direction")
+    if direction is not None:  # as ArduPilot writes a NAV_LAND back: the sign only
+        param4 = -1.0 if direction == "counter-clockwise" else 1.0
     b.add(mav.NAV_LAND, point=point, reference=reference,
-          params=(0.0, float(precision), 0.0, 0.0 if yaw is None else yaw), raw=exact)
+          params=(0.0, float(precision), 0.0, param4), raw=exact)
     b.cursor.position = (point[0], point[1], 0.0)
 
 

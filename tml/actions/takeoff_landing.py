@@ -300,24 +300,36 @@ def land_read(item: reading.ItemFields) -> reading.Arguments | None:
 
 
 def landing_point_read(item: reading.ItemFields) -> reading.Arguments | None:
-    """NAV_LAND at a position, with its precision landing mode and heading."""
+    """NAV_LAND at a position, with its precision landing mode and heading (1 or -1: the
+    direction ArduPilot writes back, unless a turn to it comes before: see the join), and
+    the altitude it carries when 0 in a frame above home."""
     if not reading.placed(item):
         return None
     arguments = reading.position({}, item)
     precision = {number: name for name, number in items.PRECISION_MODES.items()}
     if int(item.param2) in precision:
         arguments["precision_mode"] = precision[int(item.param2)]
-    if item.param4:
+    if item.param4 in (1, -1):
+        arguments["loiter_direction"] = "clockwise" if item.param4 > 0 else "counter-clockwise"
+    elif item.param4:
         arguments["yaw"] = reading.value(item.param4)
+    if item.z == 0 and item.frame in (mav.FRAME_GLOBAL_RELATIVE_ALT,
+                                      mav.FRAME_GLOBAL_RELATIVE_ALT_INT):
+        arguments["keep_altitude"] = "yes"
     return arguments
 
 
 def landing_point_join(before: str, before_arguments: Mapping[str, str],
                        arguments: Mapping[str, str]) -> reading.Arguments | None:
-    """The CONDITION_YAW to the heading it lands with, then its NAV_LAND: one action."""
-    if before == "ROTATE_YAW" and "yaw" in arguments \
-            and before_arguments.get("orientation_angle") == arguments["yaw"]:
-        return dict(arguments)
+    """The CONDITION_YAW to the heading it lands with, then its NAV_LAND: one action (a
+    heading of 1 or -1 read as a direction is the yaw again)."""
+    joined = dict(arguments)
+    direction = joined.pop("loiter_direction", None)
+    if direction is not None:
+        joined["yaw"] = "1" if direction == "clockwise" else "-1"
+    if before == "ROTATE_YAW" and "yaw" in joined and before_arguments.get(
+            "orientation_angle") == reading.value(float(joined["yaw"]) % 360.0):
+        return joined
     return None
 
 

@@ -199,6 +199,18 @@ _DELAY_ITEM = (
                  minimum=-1.0, maximum=0.0, quantity=Quantity.ITEM_PARAM),
     _ITEM_FRAME,
 )
+# --- a NAV_LAND item as ArduPilot writes it back (LANDING_POINT)
+_LAND_ITEM = (
+    ArgumentSpec("loiter_direction", ArgType.CHOICE,
+                 "the direction its NAV_LAND item carries as param4 with no turn before it: "
+                 "clockwise 1, counter-clockwise -1 (ArduPilot keeps a NAV_LAND's param4 as "
+                 "this sign and writes it back so; ArduCopter lands with the heading it has)",
+                 choices=("clockwise", "counter-clockwise")),
+    ArgumentSpec("keep_altitude", ArgType.BOOLEAN,
+                 "its NAV_LAND item carries the altitude given (ArduCopter ignores it and flies "
+                 "over the point at the altitude it has, as this action does); absent: no, the "
+                 "item carries the altitude the vehicle arrives at", default=False),
+)
 # --- the position a NAV_TAKEOFF item carries (TAKE_OFF), as planners write it
 _TAKE_OFF_POSITION = tuple(
     replace(s, description=f"{s.description} its mission item carries (ground stations write "
@@ -409,9 +421,10 @@ CATALOGUE: tuple[ActionSpec, ...] = (
         (
             _point("coordinates", "landing point as a local point", aliases=("point",),
                    label=LabelUse.READ),
-            *_GLOBAL, _YAW, _PRECISION,
+            *_GLOBAL, _YAW, _PRECISION, *_LAND_ITEM,
         ),
         exactly_one_of=(("coordinates", "latitude"),),
+        at_most_one_of=(("yaw", "loiter_direction"),),
         together=_LOITER_TOGETHER,
         aliases=("LAND_AT",),
     ),

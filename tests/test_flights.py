@@ -50,6 +50,7 @@ EXPECTED: dict[str, tuple[int, str, list[str]]] = {
     "paper_example2": (0, "all tasks done", []),
     "plane_patrol": (0, "all tasks done", ["--sim-frame", "plane", "--profile", "fixed-wing"]),
     "raw_items": (0, "all tasks done", []),
+    "survey_photos": (0, "all tasks done", []),
     "rover_delivery": (0, "all tasks done", ["--sim-frame", "rover", "--profile", "rover"]),
     "terrain_hill": (0, "all tasks done", []),
     "verify_obstacles": (0, "all tasks done", []),

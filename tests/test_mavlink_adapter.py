@@ -287,6 +287,20 @@ def test_camera_requests_reach_the_camera(rig: Rig) -> None:
     assert model.images_captured == 4
 
 
+def test_a_trigger_distance_takes_a_photo_at_once_and_one_each_distance_flown(rig: Rig) -> None:
+    rig.fly(5.0)
+    model = rig.sim.vehicle(1)
+    assert rig.do(Camera(1, "distance", distance=4.0)).ok  # DO_SET_CAM_TRIGG_DIST
+    assert rig.do(GoTo(1, (10.0, 0.0, 5.0))).ok
+    rig.until(lambda s: s.position is not None and s.position[0] > 9.5, "10 m north")
+    assert rig.do(Camera(1, "distance", distance=0.0)).ok
+    taken = model.images_captured
+    assert taken == 3  # at 0, 4 and 8 m
+    assert rig.do(GoTo(1, (10.0, 10.0, 5.0))).ok
+    rig.until(lambda s: s.position is not None and s.position[1] > 9.5, "10 m east")
+    assert model.images_captured == taken  # the distance 0 stopped it
+
+
 def test_skills_switch_companion_parameters_and_feed_detections(rig: Rig) -> None:
     rig.fly(6.0)
     assert rig.do(SetSkill(1, "RECOGNIZE_ITEMS", True)).ok

@@ -385,11 +385,14 @@ class SetSpeed(Request):
 
 @dataclass(frozen=True)
 class Camera(Request):
-    """``photo`` (``count`` photos, ``interval`` s apart), ``start`` (until stopped), ``stop``."""
+    """``photo`` (``count`` photos, ``interval`` s apart), ``start`` (until stopped), ``stop``,
+    or ``distance``: a photo each time the vehicle has flown ``distance`` metres, the first
+    at once (0: no more)."""
 
     operation: str
     count: int = 1
     interval: float = 0.0
+    distance: float = 0.0
 
 
 @dataclass(frozen=True)

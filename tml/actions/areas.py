@@ -19,15 +19,21 @@ def survey_area(ctx: Context, bound: BoundAction) -> Script:
     """Lawnmower passes over the area, each along its length, ``spacing`` apart, the last
     on the far edge (:func:`tml.patterns.survey`)."""
     here = guided.require_flying(ctx, "SURVEY_AREA")
-    base = guided.point_argument(ctx, bound, "coordinates")
-    if base is None and "latitude" in bound.values:
-        base = guided.local(ctx, bound)
-    base = base or here
+    base = guided_base(ctx, bound, here)
     altitude = bound.number("altitude", here[2])
     for point in survey((base[0], base[1], altitude), bound.number("length"),
                         bound.number("width"), bound.number("spacing"),
                         bound.choice("direction")):
         yield from fly_to(ctx, point, "SURVEY_AREA")
+
+
+def guided_base(ctx: Context, bound: BoundAction, here: Point) -> Point:
+    """Where a survey's rectangle starts (SURVEY_AREA, SURVEY_PHOTOS): its ``coordinates``,
+    ``latitude`` and ``longitude``, or ``here``."""
+    base = guided.point_argument(ctx, bound, "coordinates")
+    if base is None and "latitude" in bound.values:
+        base = guided.local(ctx, bound)
+    return base or here
 
 
 def explore_space(ctx: Context, bound: BoundAction) -> Script:
@@ -40,11 +46,15 @@ def explore_space(ctx: Context, bound: BoundAction) -> Script:
 
 # --- mission items (dispatch="mission") ----------------------------------------
 
-def survey_area_items(b: items.Builder, action: BoundAction) -> None:
+def items_base(b: items.Builder, action: BoundAction) -> Point:
+    """Where a survey's rectangle starts, as its mission items place it."""
     if "latitude" in action.values:
-        base, _ = items.global_point(b, action)
-    else:
-        base = action.point("coordinates", b.cursor.position)
+        return items.global_point(b, action)[0]
+    return action.point("coordinates", b.cursor.position)
+
+
+def survey_area_items(b: items.Builder, action: BoundAction) -> None:
+    base = items_base(b, action)
     altitude = action.number("altitude", b.cursor.position[2])
     for point in survey((base[0], base[1], altitude), action.number("length"),
                         action.number("width"), action.number("spacing"),
@@ -60,15 +70,22 @@ def explore_space_items(b: items.Builder, action: BoundAction) -> None:
 
 # --- motion models (tml verify) -------------------------------------------------------------
 
-def survey_area_motion(model: Motion, bound: BoundAction, state: PredictedState,
-                       labels: Labels) -> Step:
+def motion_base(model: Motion, bound: BoundAction, state: PredictedState,
+                labels: Labels) -> tuple[Point, str]:
+    """Where a survey's rectangle starts, as ``tml verify`` predicts it, and the label read
+    that holds no point ("" when none)."""
     base, unknown = model.point_of(bound, labels)
-    if unknown:
-        return model.unknown(state, labels, unknown)
     if base is None and "latitude" in bound.values:
         base = model.local(bound.number("latitude"), bound.number("longitude"), 0.0,
                            "relative")
-    base = base or state.position
+    return base or state.position, unknown
+
+
+def survey_area_motion(model: Motion, bound: BoundAction, state: PredictedState,
+                       labels: Labels) -> Step:
+    base, unknown = motion_base(model, bound, state, labels)
+    if unknown:
+        return model.unknown(state, labels, unknown)
     altitude = bound.number("altitude", None) or state.position[2]
     targets = survey((base[0], base[1], altitude), bound.number("length"),
                      bound.number("width"), bound.number("spacing"),
@@ -88,8 +105,14 @@ def explore_space_motion(model: Motion, bound: BoundAction, state: PredictedStat
 def survey_area_time(limits: Limits, vehicle_type: str, here: Point,
                      bound: BoundAction) -> float:
     """The lawnmower flown (:func:`tml.patterns.survey`), from its base."""
+    return lawnmower_time(limits, vehicle_type, here, bound, bound.number("spacing"))
+
+
+def lawnmower_time(limits: Limits, vehicle_type: str, here: Point, bound: BoundAction,
+                   spacing: float) -> float:
+    """To the base of a survey's rectangle, then its passes ``spacing`` apart."""
     passes = survey((0.0, 0.0, 0.0), bound.number("length"), bound.number("width"),
-                    bound.number("spacing"), bound.choice("direction"))
+                    spacing, bound.choice("direction"))
     return timing.nominal(limits, vehicle_type, here, bound) + sum(
         limits.leg_seconds(vehicle_type, math.dist(a, b)) for a, b in pairwise(passes))
 

@@ -98,6 +98,7 @@ class Step:
     unknown_label: str = ""  # a label read that holds no point at this point
     grounded: bool = False  # time spent on the ground by design (a WAIT there), no flight
     notes: tuple[str, ...] = ()
+    photos: tuple[Point3, ...] = ()  # where the camera is predicted to take photos
 
     @property
     def distance(self) -> float:

@@ -24,6 +24,7 @@ from tml.actions import (
     payload,
     raw,
     settings,
+    survey_photos,
     takeoff_landing,
 )
 from tml.actions.definition import STAGES, ActionDef, NotApplicable
@@ -31,7 +32,7 @@ from tml.actions.reading import Reading
 from tml.language.actions import CATALOGUE, ActionSpec, BoundAction
 
 MODULES = (takeoff_landing, moves, circles, areas, hover, payload, camera, settings, raw,
-           orbit)
+           orbit, survey_photos)
 """The action modules, each with its ``DEFINITIONS``: a new action is a new module here
 (or a new definition in the module of its family)."""
 

@@ -243,6 +243,20 @@ _LOITER_POSITION = (
 _LOITER_GROUPS = (("coordinates", "relative_coordinates", "from_home", "latitude"),)
 _LOITER_TOGETHER = (("latitude", "longitude", "altitude"),)
 
+_AREA = (
+    _number("length", "extent along the first axis of direction (north/south)", "m",
+            Quantity.DISTANCE, required=True, positive=True),
+    _number("width", "extent along the second axis (east/west)", "m",
+            Quantity.DISTANCE, required=True, positive=True),
+    ArgumentSpec("direction", ArgType.CHOICE, "quadrant the area extends into",
+                 default="NORTH_WEST",
+                 choices=("NORTH_WEST", "NORTH_EAST", "SOUTH_WEST", "SOUTH_EAST")),
+    _point("coordinates", "base point as a local point", aliases=("point",),
+           label=LabelUse.READ),
+    _LATITUDE, _LONGITUDE,
+)
+"""The rectangle of SURVEY_AREA and SURVEY_PHOTOS."""
+
 
 RAW_PARAMS = ("param1", "param2", "param3", "param4", "param5", "param6", "param7")
 """The seven params of a raw mission item, in order."""
@@ -468,23 +482,47 @@ CATALOGUE: tuple[ActionSpec, ...] = (
         "the base point (default: where the vehicle is) and extends towards direction "
         "(Dolphin surveyArea).",
         (
-            _number("length", "extent along the first axis of direction (north/south)", "m",
-                    Quantity.DISTANCE, required=True, positive=True),
-            _number("width", "extent along the second axis (east/west)", "m",
-                    Quantity.DISTANCE, required=True, positive=True),
+            *_AREA[:2],
             _number("spacing", "distance between passes", "m", Quantity.SPACING, default=50.0,
                     aliases=("direction_change",)),
-            ArgumentSpec("direction", ArgType.CHOICE, "quadrant the area extends into",
-                         default="NORTH_WEST",
-                         choices=("NORTH_WEST", "NORTH_EAST", "SOUTH_WEST", "SOUTH_EAST")),
-            _point("coordinates", "base point as a local point", aliases=("point",),
-                   label=LabelUse.READ),
-            _LATITUDE, _LONGITUDE,
+            *_AREA[2:],
             _number("altitude", "survey altitude above home; absent: the current altitude",
                     "m", Quantity.ALTITUDE, positive=True),
         ),
         at_most_one_of=(("coordinates", "latitude"),),
         together=(("latitude", "longitude"),),
+    ),
+    ActionSpec(
+        "SURVEY_PHOTOS", Category.TRANSLATION,
+        "Photograph a rectangle as SURVEY_AREA flies it, the passes and the photos spaced for "
+        "a camera looking straight down: from its sensor, focal length and the overlaps "
+        "wanted, the passes lie a photo's ground width less the side overlap apart, and the "
+        "autopilot takes a photo each time the vehicle has flown a photo's ground length "
+        "less the front overlap (DO_SET_CAM_TRIGG_DIST, as a command or a mission item).",
+        (
+            *_AREA,
+            _number("altitude", "survey altitude above home; absent: the one giving "
+                    "ground_resolution, else the current altitude", "m", Quantity.ALTITUDE,
+                    positive=True),
+            _number("sensor_width", "width of the camera's sensor (across the passes)", "mm",
+                    Quantity.OPTICS, required=True, positive=True),
+            _number("sensor_height", "height of the camera's sensor (along the passes)", "mm",
+                    Quantity.OPTICS, required=True, positive=True),
+            _number("focal_length", "focal length of the lens", "mm", Quantity.OPTICS,
+                    required=True, positive=True),
+            _integer("image_width", "width of a photo in pixels (with ground_resolution)",
+                     Quantity.COUNT),
+            _number("ground_resolution", "ground resolution wanted, which sets the altitude: "
+                    "altitude = ground_resolution / 100 x focal_length x image_width / "
+                    "sensor_width", "cm/px", Quantity.GROUND_RESOLUTION, positive=True,
+                    aliases=("gsd",)),
+            _number("front_overlap", "overlap of a photo with the next along a pass", "%",
+                    Quantity.PERCENTAGE, default=70.0, maximum=95.0),
+            _number("side_overlap", "overlap of a pass's photos with the next pass's", "%",
+                    Quantity.PERCENTAGE, default=60.0, maximum=95.0),
+        ),
+        at_most_one_of=(("coordinates", "latitude"), ("altitude", "ground_resolution")),
+        together=(("latitude", "longitude"), ("ground_resolution", "image_width")),
     ),
     ActionSpec("CAPTURE_PHOTO", Category.CAMERA, "Take one photo (Dolphin capturePhoto)."),
     ActionSpec(

@@ -36,6 +36,8 @@ class Quantity(StrEnum):
     COUNT = "count"
     REPEAT = "repeat"
     PERCENTAGE = "percentage"
+    OPTICS = "optics"
+    GROUND_RESOLUTION = "ground resolution"
     FIX_TYPE = "fix type"
     ITEM_PARAM = "mission item param"
 
@@ -74,11 +76,15 @@ RANGES: dict[Quantity, Range] = {
                              "elapsed times"),
     Quantity.ANGLE: Range(-360.0, 360.0, "deg", "turns, headings and pitches"),
     Quantity.TURNS: Range(1.0, 1_000.0, "", "loiter turns"),
-    Quantity.COUNT: Range(1.0, 10_000.0, "", "photo counts, vehicles of a role"),
+    Quantity.COUNT: Range(1.0, 10_000.0, "",
+                          "photo counts, image widths in pixels, vehicles of a role"),
     Quantity.REPEAT: Range(1.0, 1_000.0, "",
                            "repeat times of one task; nested repeats multiply to at most "
                            "MAX_ROUNDS rounds"),
-    Quantity.PERCENTAGE: Range(0.0, 100.0, "%", "battery charge"),
+    Quantity.PERCENTAGE: Range(0.0, 100.0, "%", "battery charge, photo overlaps"),
+    Quantity.OPTICS: Range(0.0, 1_000.0, "mm", "camera sensor sizes and focal lengths"),
+    Quantity.GROUND_RESOLUTION: Range(0.0, 1_000.0, "cm/px",
+                                      "ground resolution of a photo (ground sample distance)"),
     Quantity.FIX_TYPE: Range(0.0, 8.0, "", "GPS fix type (MAVLink GPS_FIX_TYPE)"),
     # What a 32-bit float carries: a raw item's params are the autopilot's to judge.
     Quantity.ITEM_PARAM: Range(-3.4028234663852886e38, 3.4028234663852886e38, "",

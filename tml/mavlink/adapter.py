@@ -1042,6 +1042,11 @@ class MavlinkVehicle:
     def _camera(self, request: Camera) -> Steps[None]:
         if request.operation == "stop":
             yield from self.mav.commanding(CommandLong(mavlink.MAV_CMD_IMAGE_STOP_CAPTURE))
+        elif request.operation == "distance":
+            # param3 = 1 takes the first photo at once (ArduPilot's "trigger once").
+            yield from self.mav.commanding(CommandLong(
+                mavlink.MAV_CMD_DO_SET_CAM_TRIGG_DIST, request.distance, 0,
+                1 if request.distance > 0 else 0))
         elif request.operation == "photo" and request.count <= 1:
             yield from self.mav.commanding(PHOTO)
         else:

@@ -84,6 +84,7 @@ class Row:
     # does not cover the path, None where nothing is judged: an action that does not move,
     # a landing from where it is)
     terrain_clearance: float | None = None
+    photos: tuple[Point3, ...] = ()  # where the camera is predicted to take photos
 
     def to_dict(self) -> dict[str, object]:
         """A JSON-ready dictionary (``role`` and ``vehicles`` only when there are roles)."""
@@ -94,6 +95,8 @@ class Row:
             "battery": round(max(self.battery, 0.0), 3),  # 0: empty, never negative
             "clearance": None if math.isinf(self.clearance) else round(self.clearance, 3),
             "path": [[round(v, 2) for v in point] for point in self.path]}
+        if self.photos:
+            found["photos"] = [[round(v, 2) for v in point] for point in self.photos]
         if self.role:
             found |= {"role": self.role, "vehicles": list(self.vehicles)}
         return found
@@ -314,7 +317,7 @@ class _Walker:
         self.rows.append(Row(task, bound.name, bound.action.location.line, worst.distance,
                              worst.duration, worst.after.time, worst.after.battery,
                              clearance, event, self.role_name, self.vehicles(pick),
-                             (*points, worst.after.position), terrain))
+                             (*points, worst.after.position), terrain, worst.photos))
 
     def merge(self, alternatives: list[_Alternative]) -> list[_Alternative]:
         grouped: dict[tuple[object, ...], _Alternative] = {}

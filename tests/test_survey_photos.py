@@ -15,6 +15,8 @@ from tml.actions import areas, survey_photos
 from tml.actions.guided import Limits
 from tml.actions.motion import PredictedState
 from tml.engine import Status
+from tml.language.kinds import Kind, refusal
+from tml.mavlink.compile import CompileError
 from tml.verify.constraints import assess_action
 from tml.verify.profile import load_profile
 
@@ -136,3 +138,33 @@ def test_verify_predicts_the_photos_along_the_passes_and_says_how_many() -> None
     assert step.photos[0] == (10.0, 0.0, 20.0)
     assert any(note.startswith(f"{len(expected)} photos predicted, one every "
                                f"{plan.trigger_distance:.1f} m") for note in step.notes)
+
+
+# --- what cannot be photographed ------------------------------------------------------------
+
+def test_a_ground_vehicle_cannot_photograph_an_area() -> None:
+    bound = _survey(length="40", width="20")
+    reason = refusal(bound, Kind.GROUND, "rover")
+    assert reason is not None and reason.startswith("a rover has no altitude")
+    assert refusal(bound, Kind.MULTICOPTER) is None
+
+
+def test_below_a_metre_it_is_refused_with_why_not_a_traceback() -> None:
+    bound = _survey(length="40", width="20")  # no altitude: where the vehicle is
+    with pytest.raises(CompileError, match=r"SURVEY_PHOTOS would photograph from 0\.0 m"):
+        compiled(bound, start=(0.0, 0.0, 0.0))
+    step = assess_action(bound, PredictedState(position=(0.0, 0.0, 0.5), flying=True),
+                         load_profile("quadcopter")).step
+    assert step.photos == ()
+    assert any("below 1 m" in note and note.endswith("not predicted") for note in step.notes)
+    flight = Flight('<task name="Up"><action name="TAKE_OFF"><argument name="altitude" '
+                    'value="0.6"/></action></task><task name="Photos"><action '
+                    'name="SURVEY_PHOTOS">'
+                    + "".join(f'<argument name="{k}" value="{v}"/>' for k, v in CAMERA.items())
+                    + '<argument name="length" value="30"/><argument name="width" value="20"/>'
+                    '</action></task>').run(120)
+    assert flight.interp.status is Status.ABORTED
+    failed = [r.data for r in flight.records if r.kind == "action" and "reason" in r.data]
+    assert [(f["action"], f["reason"]) for f in failed] == [("SURVEY_PHOTOS", "infeasible")]
+    assert failed[0]["detail"].startswith("SURVEY_PHOTOS would photograph from 0.")
+    assert not [r for r in flight.requests if type(r).__name__ == "Camera"]

@@ -36,12 +36,16 @@ from itertools import pairwise
 from tml.actions import guided, items, mav
 from tml.actions.areas import guided_base, items_base, lawnmower_time, motion_base
 from tml.actions.definition import ActionDef, NotApplicable, spec
-from tml.actions.guided import Context, Limits, Script, Send, fly_to
+from tml.actions.guided import ActionFailed, Context, Limits, Script, Send, fly_to
 from tml.actions.motion import Labels, Motion, PredictedState, Step
 from tml.geo import Point
 from tml.language.actions import BoundAction
 from tml.patterns import survey
 from tml.vehicle import Camera
+
+MIN_ALTITUDE = 1.0
+"""m above home a survey is photographed from, at the lowest: below it the footprint, the
+passes and the trigger distance shrink toward nothing."""
 
 
 @dataclass(frozen=True)
@@ -56,7 +60,8 @@ class PhotoPlan:
 
 def photo_plan(bound: BoundAction, current_altitude: float) -> PhotoPlan:
     """The plan of a SURVEY_PHOTOS flown from ``current_altitude`` (used when neither
-    ``altitude`` nor ``ground_resolution`` is given)."""
+    ``altitude`` nor ``ground_resolution`` is given); ValueError, saying why, when the
+    altitude is below :data:`MIN_ALTITUDE`."""
     focal = bound.number("focal_length")
     sensor_width, sensor_height = bound.number("sensor_width"), bound.number("sensor_height")
     altitude = bound.number("altitude", None)
@@ -65,6 +70,10 @@ def photo_plan(bound: BoundAction, current_altitude: float) -> PhotoPlan:
             * bound.integer("image_width") / sensor_width
     if altitude is None:
         altitude = current_altitude
+    if altitude < MIN_ALTITUDE:
+        raise ValueError(f"SURVEY_PHOTOS would photograph from {altitude:.1f} m, below "
+                         f"{MIN_ALTITUDE:g} m: give its altitude or ground_resolution, or "
+                         f"fly it once in the air")
     across = altitude * sensor_width / focal
     along = altitude * sensor_height / focal
     return PhotoPlan(altitude, (across, along),
@@ -123,7 +132,10 @@ def _reach(centre: Point, a: Point, b: Point, distance: float, start: float) -> 
 def survey_photos(ctx: Context, bound: BoundAction) -> Script:
     """To the base point, the trigger distance on, the passes, the trigger off."""
     here = guided.require_flying(ctx, "SURVEY_PHOTOS")
-    plan = photo_plan(bound, here[2])
+    try:
+        plan = photo_plan(bound, here[2])
+    except ValueError as error:
+        raise ActionFailed("infeasible", str(error)) from None
     first, *rest = passes(guided_base(ctx, bound, here), bound, plan)
     yield from fly_to(ctx, first, "SURVEY_PHOTOS")
     yield Send(Camera(ctx.vehicle_id, "distance", distance=plan.trigger_distance))
@@ -160,7 +172,10 @@ def survey_photos_motion(model: Motion, bound: BoundAction, state: PredictedStat
     base, unknown = motion_base(model, bound, state, labels)
     if unknown:
         return model.unknown(state, labels, unknown)
-    plan = photo_plan(bound, state.position[2])
+    try:
+        plan = photo_plan(bound, state.position[2])
+    except ValueError as error:
+        return Step(state, state, labels=labels, notes=(f"{error}; not predicted",))
     targets = passes(base, bound, plan)
     photos = photo_points(targets, plan.trigger_distance)
     step = model.go(bound, state, labels, targets)

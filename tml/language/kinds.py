@@ -148,6 +148,8 @@ _CANNOT: dict[Kind, dict[str, str]] = {
         "PICK_UP_ITEM": "cannot descend on an item to pick it up",
         "ORBIT": "cannot face a point while it circles it (ArduPilot Rover heads along "
                  "its circle, and an ROI only aims a camera mount)",
+        "SURVEY_PHOTOS": "has no altitude to photograph an area from (the passes and "
+                         "the trigger distance come from the camera's footprint there)",
     },
 }
 

@@ -105,7 +105,10 @@ def compile_mission(actions: tuple[BoundAction, ...] | list[BoundAction], home: 
             raise CompileError(f"{action.name} cannot be flown as a mission item: "
                                f"{compiler.reason}")
         first = len(builder.items)
-        compiler(builder, action)
+        try:
+            compiler(builder, action)
+        except ValueError as error:  # arguments that give no items (SURVEY_PHOTOS too low)
+            raise CompileError(str(error)) from None
         if action.values.get("frame_encoding") == "float":
             builder.items[first:] = [replace(item, frame=FLOAT_FRAMES.get(item.frame, item.frame))
                                      for item in builder.items[first:]]

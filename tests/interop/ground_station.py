@@ -283,3 +283,32 @@ def on_both(ardupilot: Callable[..., Any], fly: Callable[[str], Any],
         simulator = fly(address)
     print("ArduCopter", arducopter, "simulator", simulator)
     return arducopter, simulator
+
+
+def watch_run(address: str, run: subprocess.Popen[bytes], types: list[str]
+              ) -> Iterator[tuple[int, Any]]:
+    """Every message of ``types`` the vehicle at ``address`` sends until ``run`` (a ``tml
+    run`` flying it from another port) ends, with the custom mode of the vehicle's latest
+    HEARTBEAT (-1 before the first). GLOBAL_POSITION_INT is asked for at 10 Hz; asking
+    also makes ArduPilot count the link as active, and send it what goes to every link
+    (CAMERA_FEEDBACK)."""
+    conn: Any = mavutil.mavlink_connection(address, source_system=246, source_component=190)
+    try:
+        beat = conn.wait_heartbeat(timeout=60)
+        assert beat is not None, f"no HEARTBEAT from {address}"
+        system_id = beat.get_srcSystem()
+        conn.mav.command_long_send(system_id, 1, M.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                                   M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 1e5, 0, 0, 0, 0, 0)
+        mode = -1
+        end = time.monotonic() + 800
+        while run.poll() is None:
+            assert time.monotonic() < end, "the run hung"
+            msg = conn.recv_match(type=["HEARTBEAT", *types], blocking=True, timeout=1)
+            if msg is None or msg.get_srcSystem() != system_id:
+                continue
+            if msg.get_type() == "HEARTBEAT" and msg.get_srcComponent() == 1:
+                mode = msg.custom_mode
+            if msg.get_type() in types:
+                yield mode, msg
+    finally:
+        conn.close()

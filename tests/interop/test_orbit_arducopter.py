@@ -15,12 +15,12 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
-import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import pytest
+from ground_station import watch_run
 from pymavlink import mavutil
 
 from tml.geo import to_local
@@ -46,32 +46,14 @@ class Sample:
 def _observe(address: str, run: subprocess.Popen[bytes]) -> tuple[list[Sample], Any]:
     """Every position the vehicle reports on SERIAL1 until the run ends, with the mode of
     the latest HEARTBEAT; and the vehicle's home (its first position, on the ground)."""
-    conn: Any = mavutil.mavlink_connection(address, source_system=246, source_component=190)
-    try:
-        beat = conn.wait_heartbeat(timeout=60)
-        assert beat is not None, f"no HEARTBEAT from {address}"
-        system_id = beat.get_srcSystem()
-        conn.mav.command_long_send(system_id, 1, M.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
-                                   M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 1e5, 0, 0, 0, 0, 0)
-        mode, home, samples = -1, None, []
-        end = time.monotonic() + 800
-        while run.poll() is None:
-            assert time.monotonic() < end, "the run hung"
-            msg = conn.recv_match(type=["HEARTBEAT", "GLOBAL_POSITION_INT"], blocking=True,
-                                  timeout=1)
-            if msg is None or msg.get_srcSystem() != system_id:
-                continue
-            if msg.get_type() == "HEARTBEAT" and msg.get_srcComponent() == 1:
-                mode = msg.custom_mode
-            elif msg.get_type() == "GLOBAL_POSITION_INT" and msg.lat != 0:
-                if home is None:
-                    home = (msg.lat / 1e7, msg.lon / 1e7, msg.alt / 1000)
-                north, east, _ = to_local(msg.lat / 1e7, msg.lon / 1e7, home[2], *home)
-                samples.append(Sample(mode, north, east, msg.relative_alt / 1000,
-                                      msg.hdg / 100))
-        return samples, home
-    finally:
-        conn.close()
+    home, samples = None, []
+    for mode, msg in watch_run(address, run, ["GLOBAL_POSITION_INT"]):
+        if msg.lat != 0:
+            if home is None:
+                home = (msg.lat / 1e7, msg.lon / 1e7, msg.alt / 1000)
+            north, east, _ = to_local(msg.lat / 1e7, msg.lon / 1e7, home[2], *home)
+            samples.append(Sample(mode, north, east, msg.relative_alt / 1000, msg.hdg / 100))
+    return samples, home
 
 
 def _judge(samples: list[Sample], mode: int, point: tuple[float, float], radius: float,

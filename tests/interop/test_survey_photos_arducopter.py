@@ -17,16 +17,12 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-import time
 from pathlib import Path
-from typing import Any
 
 import pytest
-from pymavlink import mavutil
+from ground_station import AUTO, GUIDED, watch_run
 
-M = mavutil.mavlink
 MISSION = Path(__file__).resolve().parents[2] / "missions" / "survey_photos.xml"
-GUIDED, AUTO = 4, 3
 
 
 def _predicted() -> list[int]:
@@ -40,29 +36,10 @@ def _predicted() -> list[int]:
 def _photos_by_mode(address: str, run: subprocess.Popen[bytes]) -> dict[int, int]:
     """CAMERA_FEEDBACK messages the vehicle sends on SERIAL1 until the run ends, counted
     by the mode of the latest HEARTBEAT."""
-    conn: Any = mavutil.mavlink_connection(address, source_system=246, source_component=190)
-    try:
-        beat = conn.wait_heartbeat(timeout=60)
-        assert beat is not None, f"no HEARTBEAT from {address}"
-        system_id = beat.get_srcSystem()
-        # Anything sent makes the channel active: ArduPilot sends CAMERA_FEEDBACK to all.
-        conn.mav.command_long_send(system_id, 1, M.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
-                                   M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 1e6, 0, 0, 0, 0, 0)
-        mode, photos = -1, dict[int, int]()
-        end = time.monotonic() + 800
-        while run.poll() is None:
-            assert time.monotonic() < end, "the run hung"
-            msg = conn.recv_match(type=["HEARTBEAT", "CAMERA_FEEDBACK"], blocking=True,
-                                  timeout=1)
-            if msg is None or msg.get_srcSystem() != system_id:
-                continue
-            if msg.get_type() == "HEARTBEAT" and msg.get_srcComponent() == 1:
-                mode = msg.custom_mode
-            elif msg.get_type() == "CAMERA_FEEDBACK":
-                photos[mode] = photos.get(mode, 0) + 1
-        return photos
-    finally:
-        conn.close()
+    photos: dict[int, int] = {}
+    for mode, _ in watch_run(address, run, ["CAMERA_FEEDBACK"]):
+        photos[mode] = photos.get(mode, 0) + 1
+    return photos
 
 
 @pytest.mark.timeout(900)

@@ -105,3 +105,14 @@ def test_a_missing_postgresql_extra_is_said_with_the_distribution_name(
     with pytest.raises(StorageError) as raised:
         Storage("postgresql+psycopg://user@127.0.0.1:1/tml")
     assert f"pip install '{NAME}[postgresql]'" in str(raised.value)
+
+
+def test_every_package_of_the_source_tree_is_in_the_distribution() -> None:
+    """A package left out of pyproject.toml's list works in an editable install (the
+    source tree is on the path) and is missing from every wheel: ``pip install .`` then
+    fails at its first import."""
+    listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text("utf-8"))
+                 ["tool"]["setuptools"]["packages"])
+    found = {".".join(init.parent.relative_to(ROOT).parts)
+             for top in ("tml", "sitl") for init in (ROOT / top).rglob("__init__.py")}
+    assert found - listed == set(), "packages not in pyproject.toml's list"

@@ -5,6 +5,7 @@ and the motion model of ``tml verify``."""
 from __future__ import annotations
 
 import math
+import re
 
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as M
@@ -38,6 +39,20 @@ def test_the_passes_and_the_trigger_distance_come_from_the_footprint_and_the_ove
     assert plan.footprint == pytest.approx((across, along))
     assert plan.spacing == pytest.approx(across * 0.5)
     assert plan.trigger_distance == pytest.approx(along * 0.25)
+
+
+@pytest.mark.parametrize(("values", "apart"), [
+    ({"sensor_width": "0.0001"}, "passes 0.000178 m apart"),  # a cloud of passes
+    ({"sensor_height": "0.0001"}, "photos 0.000133 m apart"),  # ... and of photos
+    ({"altitude": "1000", "focal_length": "0.001"}, "passes 2.47e+06 m apart"),
+])
+def test_passes_or_photos_closer_or_farther_than_a_surveys_passes_may_be_are_refused(
+        values: dict[str, str], apart: str) -> None:
+    bound = act("SURVEY_PHOTOS", **{**CAMERA, "length": "40", "width": "20",
+                                    "altitude": "20", **values})
+    with pytest.raises(ValueError, match=re.escape(f"would take its {apart}, outside 0.5 to "
+                                                   "10000 m")):
+        survey_photos.photo_plan(bound, 20.0)
 
 
 def test_a_ground_resolution_sets_the_altitude_and_none_keeps_the_current_one() -> None:

@@ -40,6 +40,7 @@ from tml.actions.guided import ActionFailed, Context, Limits, Script, Send, fly_
 from tml.actions.motion import Labels, Motion, PredictedState, Step
 from tml.geo import Point
 from tml.language.actions import BoundAction
+from tml.language.quantities import RANGES, Quantity
 from tml.patterns import survey
 from tml.vehicle import Camera
 
@@ -76,9 +77,18 @@ def photo_plan(bound: BoundAction, current_altitude: float) -> PhotoPlan:
                          f"fly it once in the air")
     across = altitude * sensor_width / focal
     along = altitude * sensor_height / focal
-    return PhotoPlan(altitude, (across, along),
+    plan = PhotoPlan(altitude, (across, along),
                      across * (1 - bound.number("side_overlap") / 100),
                      along * (1 - bound.number("front_overlap") / 100))
+    # The passes and the photos are as far apart as SURVEY_AREA's passes may be: closer,
+    # a survey is a cloud of points and photos (a sensor of 1e-320 mm, an overlap of 100 %).
+    limits = RANGES[Quantity.SPACING]
+    for name, value in (("passes", plan.spacing), ("photos", plan.trigger_distance)):
+        if not limits.low <= value <= limits.high:
+            raise ValueError(f"SURVEY_PHOTOS would take its {name} {value:.3g} m apart, "
+                             f"outside {limits.low:g} to {limits.high:g} m: check the "
+                             "camera's sensor, focal length, overlaps and the altitude")
+    return plan
 
 
 def passes(base: Point, bound: BoundAction, plan: PhotoPlan) -> list[Point]:

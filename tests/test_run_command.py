@@ -575,14 +575,19 @@ def test_ctrl_c_while_tml_waits_for_its_vehicle_ends_it_in_one_line(tmp_path: Pa
     assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
 
 
+INTERPRETER_START = ("Fatal Python error: init_import_site",  # importing site
+                     "Could not import runpy module")  # python -m, before the module runs
+"""What CPython says when a SIGINT stops its own start-up, before any of tml has run."""
+
+
 @pytest.mark.parametrize("delay", [0.05, 0.2, 0.4, 0.8])
 def test_ctrl_c_while_tml_starts_ends_it_without_a_traceback(tmp_path: Path,
                                                              delay: float) -> None:
     """SIGINT at any moment of the start-up (loading modules, reading the mission, before
     `tml run` takes the stop signals over) ends it with exit 3 and no traceback -- or, when
     it comes before Python has run any of tml (a busy machine may still be starting the
-    interpreter after 0.8 s), as Python itself ends then: by the signal, or with its own
-    "Fatal Python error: init_import_site" and exit 1."""
+    interpreter after 0.8 s), as Python itself ends then: by the signal, or with one of its
+    own start-up errors (:data:`INTERPRETER_START`) and exit 1."""
     with socket.create_server(("127.0.0.1", 0)) as silent:
         process = _start_against_a_silent_vehicle(tmp_path, silent)
         try:
@@ -591,7 +596,7 @@ def test_ctrl_c_while_tml_starts_ends_it_without_a_traceback(tmp_path: Path,
             out, err = _ended(process)
         finally:
             process.kill()
-    if process.returncode == 1 and err.startswith("Fatal Python error: init_import_site"):
+    if process.returncode == 1 and err.startswith(INTERPRETER_START):
         return  # the interpreter's start-up, before tml's own code (see the docstring)
     assert process.returncode in (ExitCode.ABORTED, -signal.SIGINT), (out, err)
     assert "Traceback" not in err and "KeyboardInterrupt" not in err, err

@@ -20,6 +20,7 @@ from shared_flights import FAST
 
 from tml.commands.cli import main
 from tml.language.kinds import Kind
+from tml.language.model import Mission
 from tml.language.validation import validate_file
 from tml.plans.imported import import_plan, same_item
 from tml.plans.planned import plan_mission
@@ -53,9 +54,9 @@ def _plain_plan() -> str:
                     "plannedHomePosition": HOME, "vehicleType": 2, "version": 2}})
 
 
-def _actions_and_back(plan: PlanFile, tmp_path: Path) -> list[etree._Element]:
-    """The actions ``plan`` imports as, after checking that they compile back to its very
-    items."""
+def imported_and_back(plan: PlanFile, tmp_path: Path) -> tuple[str, Mission]:
+    """The mission ``plan`` imports as (its text, and the mission validated from it), after
+    checking that it loses nothing and compiles back to the plan's very items."""
     imported = import_plan(plan, "imported")
     assert imported.losses == ()
     path = tmp_path / "imported.xml"
@@ -67,7 +68,14 @@ def _actions_and_back(plan: PlanFile, tmp_path: Path) -> list[etree._Element]:
     assert len(back.items) == len(plan.items)
     for a, b in zip(plan.items, back.items, strict=True):
         assert same_item(a, b), (a, b)
-    return etree.fromstring(imported.text.encode()).findall(".//action")
+    return imported.text, result.mission
+
+
+def _actions_and_back(plan: PlanFile, tmp_path: Path) -> list[etree._Element]:
+    """The actions ``plan`` imports as, after checking that they compile back to its very
+    items."""
+    text, _ = imported_and_back(plan, tmp_path)
+    return etree.fromstring(text.encode()).findall(".//action")
 
 
 def _arguments(action: etree._Element) -> dict[str, str]:

@@ -10,6 +10,7 @@ import pytest
 from fake_vehicle import FakeVehicle
 from pymavlink.dialects.v20 import ardupilotmega as M
 from test_engine_interpreter import Flight
+from test_imported_actions import imported_and_back
 from test_mavlink_compile import act, compiled, fly, local
 
 from tml.actions import orbit
@@ -19,7 +20,7 @@ from tml.engine import Status
 from tml.language.kinds import Kind, refusal
 from tml.language.validation import validate_file
 from tml.mavlink.mission import MissionItem
-from tml.plans.imported import import_plan, same_item
+from tml.plans.imported import import_plan
 from tml.plans.planned import plan_mission
 from tml.plans.qgc import read_plan, write_plan
 from tml.plans.wpl import read_wpl
@@ -164,18 +165,11 @@ def _wpl(*rows: str) -> str:
 
 
 def _imported_actions(text: str, tmp_path: Path) -> tuple[list[str], list[MissionItem]]:
+    """The actions the waypoint file ``text`` imports as (checked to compile back to its
+    very items: tests/test_imported_actions.py), and its items."""
     plan = read_wpl(text)
-    imported = import_plan(plan, "orbit")
-    assert imported.losses == ()
-    path = tmp_path / "imported.xml"
-    path.write_text(imported.text)
-    result = validate_file(path)
-    assert not result.errors, [str(d) for d in result.errors]
-    assert result.mission is not None
-    names = [action.name for _, action in result.mission.actions()]
-    back = plan_mission(result.mission, kind=Kind.MULTICOPTER)
-    assert all(same_item(a, b) for a, b in zip(plan.items, back.items, strict=True))
-    return names, list(back.items)
+    _, mission = imported_and_back(plan, tmp_path)
+    return [action.name for _, action in mission.actions()], list(plan.items)
 
 
 def _row(item: MissionItem) -> str:
